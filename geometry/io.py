@@ -1,0 +1,118 @@
+"""Pickle-free save/load of splines (NumPy ``.npz``), exact round trip.
+
+Format (version 1).  One ``.npz`` archive holding ``count`` splines; for the
+``i``-th spline, keys prefixed ``s{i}_``:
+
+    s{i}_degrees        int64 (d,)
+    s{i}_knots{k}       float64 (n_k + p_k + 1,), k = 0..d-1
+    s{i}_control_points float64 (n_1, ..., n_d, 3 + c)
+    s{i}_weights        float64 (n_1, ..., n_d)   only for NURBS
+    s{i}_channels       unicode (c,)
+
+plus ``format`` = "iga-toolkit-splines" and ``version`` = 1.  Values are stored
+as binary float64, so a round trip is bit-exact.  Loading uses
+``allow_pickle=False``; writing goes to a temporary file renamed into place, so
+an interrupted save never leaves a half-written file.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+from .bspline import BSpline
+from .errors import SplineError
+
+FORMAT = "iga-toolkit-splines"
+VERSION = 1
+
+__all__ = ["save", "load", "save_all", "load_all", "atomic_write"]
+
+
+def atomic_write(path, write_fn, suffix: str = "") -> Path:
+    """Call ``write_fn(tmp_path)`` then rename the temporary file onto ``path``.
+
+    Raises :class:`SplineError` if the directory is missing or not writable.
+    """
+    path = Path(path)
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        raise SplineError(f"cannot write {path}: folder {folder} does not exist; create it first")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix, dir=folder)
+    except OSError as exc:
+        raise SplineError(f"cannot write {path}: {exc.strerror}; choose a writable folder") from None
+    os.close(fd)
+    try:
+        write_fn(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return path
+
+
+def save_all(path, splines) -> Path:
+    """Save a list of :class:`BSpline` to ``path`` (``.npz``)."""
+    splines = list(splines)
+    arrays = {"format": np.array(FORMAT), "version": np.array(VERSION), "count": np.array(len(splines))}
+    for i, s in enumerate(splines):
+        if not isinstance(s, BSpline):
+            raise SplineError(f"item {i} is a {type(s).__name__}, not a BSpline")
+        arrays[f"s{i}_degrees"] = np.array(s.degrees, dtype=np.int64)
+        for k, U in enumerate(s.knots):
+            arrays[f"s{i}_knots{k}"] = np.asarray(U, float)
+        arrays[f"s{i}_control_points"] = np.asarray(s.control_points, float)
+        if s.is_rational:
+            arrays[f"s{i}_weights"] = np.asarray(s.weights, float)
+        arrays[f"s{i}_channels"] = np.array(s.channels, dtype=str).reshape(len(s.channels))
+
+    def write(tmp):
+        with open(tmp, "wb") as fh:
+            np.savez(fh, **arrays)
+
+    return atomic_write(path, write, suffix=".npz")
+
+
+def save(path, spline: BSpline) -> Path:
+    """Save one :class:`BSpline` to ``path`` (``.npz``)."""
+    return save_all(path, [spline])
+
+
+def load_all(path) -> list[BSpline]:
+    """Load every spline of a file written by :func:`save_all`."""
+    path = Path(path)
+    if not path.is_file():
+        raise SplineError(f"spline file {path} does not exist")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            if "format" not in data or str(data["format"]) != FORMAT:
+                raise SplineError(f"{path} is not an iga-toolkit spline file (missing 'format' = {FORMAT!r})")
+            if int(data["version"]) != VERSION:
+                raise SplineError(f"{path} has format version {int(data['version'])}; this build reads {VERSION}")
+            out = []
+            for i in range(int(data["count"])):
+                deg = tuple(int(p) for p in data[f"s{i}_degrees"])
+                knots = [data[f"s{i}_knots{k}"] for k in range(len(deg))]
+                w = data[f"s{i}_weights"] if f"s{i}_weights" in data else None
+                out.append(
+                    BSpline(deg, knots, data[f"s{i}_control_points"], w, tuple(str(c) for c in data[f"s{i}_channels"]))
+                )
+            return out
+    except (zipfile.BadZipFile, OSError, KeyError, ValueError) as exc:
+        if isinstance(exc, SplineError):
+            raise
+        raise SplineError(f"cannot read spline file {path}: {exc}") from None
+
+
+def load(path) -> BSpline:
+    """Load the single spline of a file written by :func:`save`."""
+    items = load_all(path)
+    if len(items) != 1:
+        raise SplineError(f"{path} holds {len(items)} splines; use load_all()")
+    return items[0]

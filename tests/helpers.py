@@ -1,0 +1,35 @@
+"""Random spline factories shared by the tests."""
+
+import numpy as np
+
+from geometry import BSpline, SplineFunction
+
+
+def random_knots(rng, p, n_inner_max=3, lo=0.0, hi=1.0, max_mult=None):
+    """Open knot vector with random interior knots (multiplicity 1..max_mult)."""
+    max_mult = p if max_mult is None else max_mult
+    k = int(rng.integers(0, n_inner_max + 1))
+    vals = np.sort(rng.uniform(lo, hi, k))
+    vals = vals[np.diff(np.r_[lo, vals]) > 0.05 * (hi - lo)]
+    vals = vals[(hi - vals) > 0.05 * (hi - lo)]
+    mults = rng.integers(1, max_mult + 1, len(vals))
+    return np.concatenate([np.full(p + 1, lo), np.repeat(vals, mults), np.full(p + 1, hi)])
+
+
+def random_spline(rng, dim, degrees=None, rational=False, channels=(), n_inner_max=3, max_p=5, domain=None):
+    degrees = tuple(int(rng.integers(1, max_p + 1)) for _ in range(dim)) if degrees is None else tuple(degrees)
+    domain = [(0.0, 1.0)] * dim if domain is None else domain
+    knots = [random_knots(rng, p, n_inner_max, *domain[k]) for k, p in enumerate(degrees)]
+    shape = tuple(len(U) - p - 1 for U, p in zip(knots, degrees))
+    cp = rng.uniform(-1, 1, shape + (3 + len(channels),))
+    w = rng.uniform(0.5, 2.0, shape) if rational else None
+    return BSpline(degrees, knots, cp, w, channels)
+
+
+def random_points(rng, spline, n=1000):
+    dom = spline.domain
+    return dom[:, 0] + rng.random((n, spline.dim)) * (dom[:, 1] - dom[:, 0])
+
+
+def rel_err(a, b):
+    return np.abs(a - b).max() / max(1.0, np.abs(b).max())
