@@ -16,3 +16,9 @@ from .products import multiply
 from .io import save, load, save_all, load_all
 
 __all__ += ["primitives", "multiply", "save", "load", "save_all", "load_all"]
+from .compose import compose, compose_many, map_points, result_degrees
+
+__all__ += ["compose", "compose_many", "map_points", "result_degrees"]
+from .regularity import check_regular, RegularityResult
+
+__all__ += ["check_regular", "RegularityResult"]

@@ -52,23 +52,84 @@ def multiply(a: np.ndarray, b: np.ndarray, ndim: int) -> np.ndarray:
 
     ``a``: (..., p_1+1, ..., p_d+1), ``b``: (..., q_1+1, ..., q_d+1) ->
     (..., p_1+q_1+1, ..., p_d+q_d+1).
+
+    The convolution of binomially scaled coefficients is computed as one
+    batched matrix product with a banded Toeplitz matrix of the smaller factor
+    along the last axis (BLAS), then block shift-adds over the other axes.
+    Batch axes along which only the larger factor varies (e.g. coordinate
+    components multiplied by one scalar factor) become matrix rows, so the
+    scalar factor is never copied per component.
     """
-    pa = a.shape[a.ndim - ndim :]
-    pb = b.shape[b.ndim - ndim :]
-    if int(np.prod(pa)) > int(np.prod(pb)):  # loop over the smaller factor
+    pa = tuple(a.shape[a.ndim - ndim :])
+    pb = tuple(b.shape[b.ndim - ndim :])
+    if int(np.prod(pa)) > int(np.prod(pb)):  # the smaller factor becomes the Toeplitz kernel
         a, b, pa, pb = b, a, pb, pa
-    batch = np.broadcast_shapes(a.shape[: a.ndim - ndim], b.shape[: b.ndim - ndim])
-    sa = _scale(a, ndim)
-    sb = np.broadcast_to(_scale(b, ndim), batch + tuple(pb))
-    out = np.zeros(batch + tuple(x + y - 1 for x, y in zip(pa, pb)))
-    lead = (slice(None),) * len(batch)
-    for idx in iproduct(*(range(n) for n in pa)):
-        coef = sa[(Ellipsis,) + idx]
-        if np.ndim(coef):
-            coef = coef.reshape(coef.shape + (1,) * ndim)
-        sl = lead + tuple(slice(i, i + n) for i, n in zip(idx, pb))
-        out[sl] += coef * sb
+    ba, bb = a.shape[: a.ndim - ndim], b.shape[: b.ndim - ndim]
+    batch = np.broadcast_shapes(ba, bb)
+    ba = (1,) * (len(batch) - len(ba)) + tuple(ba)
+    # split batch axes into a "shared" prefix and a suffix where the kernel is constant
+    n_shared = len(batch)
+    while n_shared > 0 and ba[n_shared - 1] == 1:
+        n_shared -= 1
+    shared, rows = batch[:n_shared], batch[n_shared:]
+    B = int(np.prod(shared, dtype=int))
+    C = int(np.prod(rows, dtype=int))
+    sa = np.broadcast_to(_scale(a, ndim).reshape(ba + pa), shared + (1,) * len(rows) + pa).reshape((B, 1) + pa)
+    sb = np.broadcast_to(_scale(b, ndim), batch + pb).reshape((B, C) + pb)
+    out = _convolve(sa, sb)
+    out = out.reshape(batch + tuple(x + y - 1 for x, y in zip(pa, pb)))
     return _scale(out, ndim, inverse=True)
+
+
+def _convolve(a: np.ndarray, b: np.ndarray, max_bytes: int = 64 << 20) -> np.ndarray:
+    """Batched full convolution: a (B, Ca, pa...), b (B, Cb, pb...) -> (B, Ca * Cb, pa+pb-1...).
+
+    The factor with the longer last axis is written as a banded Toeplitz matrix
+    along that axis (it costs ``r_L / p_L`` times the direct flop count, so the
+    longer factor is the cheaper choice); the other factor multiplies it in one
+    batched ``matmul``; the remaining axes are handled by block shift-adds over
+    the smaller set of leading indices.
+    """
+    swap = a.shape[-1] < b.shape[-1]
+    t, o = (b, a) if swap else (a, b)  # t: Toeplitz factor, o: row factor
+    B = a.shape[0]
+    Ct, pt = t.shape[1], t.shape[2:]
+    Co, po = o.shape[1], o.shape[2:]
+    r = tuple(x + y - 1 for x, y in zip(pt, po))
+    pL, qL, rL = pt[-1], po[-1], r[-1]
+    It = Ct * int(np.prod(pt[:-1], dtype=int))
+    Jo = Co * int(np.prod(po[:-1], dtype=int))
+    nd = len(r) - 1
+    out = np.zeros((B, Ct, Co) + r)
+    step = max(1, int(max_bytes // max(1, 8 * It * Jo * rL)))
+    jj = np.arange(qL)
+    loop_t = int(np.prod(pt[:-1], dtype=int)) <= int(np.prod(po[:-1], dtype=int))
+    for s0 in range(0, B, step):
+        s1 = min(B, s0 + step)
+        n = s1 - s0
+        tI = t[s0:s1].reshape(n, It, pL)
+        # banded Toeplitz laid out (n, qL, It, rL): T[:, j, :, j + i] = t[..., i]
+        T = np.zeros((n, qL, It, rL))
+        for i in range(pL):
+            T[:, jj, :, jj + i] = tI[:, :, i]
+        # one wide GEMM per batch entry: (Jo, qL) @ (qL, It * rL)
+        Y = np.matmul(o[s0:s1].reshape(n, Jo, qL), T.reshape(n, qL, It * rL))
+        Y = Y.reshape((n, Co) + tuple(po[:-1]) + (Ct,) + tuple(pt[:-1]) + (rL,))
+        blk = out[s0:s1]
+        if loop_t:  # shift-add over the Toeplitz factor's leading indices
+            for idx in iproduct(*(range(m) for m in pt[:-1])):
+                src = Y[(slice(None),) * (2 + nd + 1) + idx]  # (n, Co, po_head..., Ct, rL)
+                src = np.moveaxis(src, 2 + nd, 1)  # (n, Ct, Co, po_head..., rL)
+                sl = (slice(None),) * 3 + tuple(slice(i, i + m) for i, m in zip(idx, po[:-1])) + (slice(None),)
+                blk[sl] += src
+        else:  # ... or over the row factor's leading indices
+            for idx in iproduct(*(range(m) for m in po[:-1])):
+                src = Y[(slice(None), slice(None)) + idx]  # (n, Co, Ct, pt_head..., rL)
+                src = np.swapaxes(src, 1, 2)
+                sl = (slice(None),) * 3 + tuple(slice(i, i + m) for i, m in zip(idx, pt[:-1])) + (slice(None),)
+                blk[sl] += src
+    out = out.reshape((B, Ct * Co) + r) if not swap else np.swapaxes(out, 1, 2).reshape((B, Ct * Co) + r)
+    return out
 
 
 def power(a: np.ndarray, k: int, ndim: int, cache: dict | None = None) -> np.ndarray:

@@ -1,0 +1,44 @@
+"""Small helpers shared by the benchmark scripts (tables, output folder, plots)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+OUT = Path(__file__).parent / "out"
+
+
+def out_dir() -> Path:
+    OUT.mkdir(exist_ok=True)
+    return OUT
+
+
+def print_table(rows: list[dict], columns: list[tuple[str, str]]) -> None:
+    """Print ``rows`` with ``columns`` = [(key, format spec)], header from the keys."""
+    widths = [max(len(k), 12) for k, _ in columns]
+    print("  ".join(k.rjust(w) for (k, _), w in zip(columns, widths)))
+    for row in rows:
+        cells = []
+        for (k, fmt), w in zip(columns, widths):
+            v = row.get(k, "")
+            cells.append((format(v, fmt) if v != "" and v is not None else "-").rjust(w))
+        print("  ".join(cells))
+
+
+def save_json(name: str, data) -> Path:
+    path = out_dir() / name
+    path.write_text(json.dumps(data, indent=2))
+    return path
+
+
+def pyplot():
+    """matplotlib.pyplot with a non-interactive backend, or None if matplotlib is missing."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:  # the 'bench' extra is not installed
+        print("(matplotlib not installed: pip install -e '.[bench]' for plots)")
+        return None
+    return plt

@@ -1,0 +1,259 @@
+"""Exact composition (003 Section 2) and the regularity check."""
+
+from fractions import Fraction
+from math import comb
+
+import numpy as np
+import pytest
+
+import geometry
+from geometry import BSpline, SplineError, check_regular, compose, compose_many, map_points, primitives as pr
+from geometry import knots as kn
+from helpers import random_knots, rel_err
+
+
+def random_outer(rng, degrees, rational, spans=1, channels=("k",)):
+    """A regular map: identity on [0,1]^3 (random knots) with a small control-point perturbation."""
+    knots = [random_knots(rng, p, spans - 1, max_mult=1) if spans > 1 else kn.uniform_knots(p, 1) for p in degrees]
+    g = [kn.greville(U, p) for U, p in zip(knots, degrees)]
+    pts = np.stack(np.meshgrid(*g, indexing="ij"), -1)
+    pts = pts + 0.03 * rng.uniform(-1, 1, pts.shape)
+    cp = np.concatenate([pts, rng.uniform(1, 2, pts.shape[:-1] + (len(channels),))], -1)
+    w = rng.uniform(0.7, 1.5, pts.shape[:-1]) if rational else None
+    return BSpline(degrees, knots, cp, w, channels)
+
+
+def random_inner(rng, dim, degrees, rational, box, channels=("rho",), n_inner=0):
+    """An inner spline whose control points lie inside ``box`` (3, 2) of the outer domain."""
+    knots = [random_knots(rng, p, n_inner) for p in degrees]
+    shape = tuple(len(U) - p - 1 for U, p in zip(knots, degrees))
+    pts = box[:, 0] + rng.random(shape + (3,)) * (box[:, 1] - box[:, 0])
+    cp = np.concatenate([pts, rng.uniform(0, 1, shape + (len(channels),))], -1)
+    w = rng.uniform(0.6, 1.6, shape) if rational else None
+    return BSpline(degrees, knots, cp, w, channels)
+
+
+CASES = [(i, 1 + i % 3) for i in range(50)]  # (seed, inner dimension)
+
+
+@pytest.mark.parametrize("seed, dim", CASES)
+def test_compose_equals_outer_of_inner(seed, dim):
+    rng = np.random.default_rng(seed)
+    outer_deg = tuple(int(p) for p in rng.integers(1, 4, 3))
+    inner_deg = tuple(int(p) for p in rng.integers(1, 4 if dim < 3 else 3, dim))
+    spans = 1 if seed % 2 == 0 else 3  # Bezier and multi-span B-spline outer maps
+    outer = random_outer(rng, outer_deg, rational=seed % 3 == 0, spans=spans)
+    # put the inner spline inside one knot span of the outer map
+    box = np.empty((3, 2))
+    for k in range(3):
+        bp = outer.breakpoints(k)
+        e = rng.integers(0, len(bp) - 1)
+        box[k] = [bp[e], bp[e + 1]]
+    inner = random_inner(rng, dim, inner_deg, rational=seed % 5 == 0, box=box, n_inner=seed % 2)
+    c = compose(outer, inner)
+    n = sum(outer_deg)
+    extra = 1 if (outer.is_rational and inner.channels) else 0  # see geometry.compose docs
+    assert c.degrees == tuple((n + extra) * m for m in inner_deg)
+    assert c.channels == ("k", "rho")
+    x = rng.random((1000, dim))
+    v = inner(x)
+    ref = np.column_stack([outer(v[:, :3]), v[:, 3:]])
+    tol = 1e-10 if max(c.degrees) > 30 else 1e-12
+    assert rel_err(c(x), ref) < tol
+    # channels: the outer channel is composed, the inner one carried along unaltered
+    assert rel_err(c(x)[:, 3], outer(v[:, :3])[:, 3]) < tol
+    assert rel_err(c(x)[:, 4], v[:, 3]) < tol
+
+
+def test_result_degrees_follow_eq_7():
+    # 003: outer (1, 1, 3) with a (3, 2) surface gives (15, 10); a trivariate (3, 3, 2) gives (15, 15, 10)
+    rng = np.random.default_rng(0)
+    outer = random_outer(rng, (1, 1, 3), rational=False, channels=())
+    box = np.array([[0.1, 0.9]] * 3)
+    assert compose(outer, random_inner(rng, 2, (3, 2), False, box, ())).degrees == (15, 10)
+    assert compose(outer, random_inner(rng, 3, (3, 3, 2), False, box, ())).degrees == (15, 15, 10)
+    assert compose(outer, random_inner(rng, 1, (3,), False, box, ())).degrees == (15,)
+    assert geometry.result_degrees((1, 1, 3), (3, 2)) == (15, 10)
+    # rational in, rational out, same degrees
+    assert compose(random_outer(rng, (1, 1, 3), True, channels=()), random_inner(rng, 2, (3, 2), True, box, ())).degrees == (15, 10)
+
+
+# ------------------------------------------------------------ exact arithmetic
+def _frac(a):
+    return np.vectorize(Fraction, otypes=[object])(a)
+
+
+def _frac_multiply(a, b):
+    """Bernstein product in exact arithmetic (object arrays of Fractions), direct formula."""
+    pa = [s - 1 for s in a.shape]
+    pb = [s - 1 for s in b.shape]
+    out = np.empty(tuple(x + y + 1 for x, y in zip(pa, pb)), dtype=object)
+    out[...] = Fraction(0)
+    for i in np.ndindex(a.shape):
+        for j in np.ndindex(b.shape):
+            k = tuple(x + y for x, y in zip(i, j))
+            w = Fraction(1)
+            for ii, jj, p, q in zip(i, j, pa, pb):
+                w *= Fraction(comb(p, ii) * comb(q, jj), comb(p + q, ii + jj))
+            out[k] += w * a[i] * b[j]
+    return out
+
+
+def _frac_power(a, k):
+    out = np.empty((1,) * a.ndim, dtype=object)
+    out[...] = Fraction(1)
+    for _ in range(k):
+        out = _frac_multiply(out, a)
+    return out
+
+
+def _frac_compose(Q, X, W):
+    """sum_I Q_I prod_k C(n_k, i_k) X_k^i (W - X_k)^(n_k - i) in exact arithmetic, per component."""
+    n = [s - 1 for s in Q.shape[:-1]]
+    terms = None
+    for I in np.ndindex(Q.shape[:-1]):
+        f = None
+        for k, i in enumerate(I):
+            g = _frac_multiply(_frac_power(X[k], i), _frac_power(W - X[k], n[k] - i)) * comb(n[k], i)
+            f = g if f is None else _frac_multiply(f, g)
+        contrib = [f * Q[I + (c,)] for c in range(Q.shape[-1])]
+        terms = contrib if terms is None else [t + c for t, c in zip(terms, contrib)]
+    return terms
+
+
+@pytest.mark.parametrize(
+    "outer_deg, inner_deg, rational",
+    [((1, 1, 2), (2, 1), False), ((1, 1, 1), (1, 1, 1), False), ((2, 2, 2), (2,), False), ((1, 1, 2), (2, 1), True)],
+)
+def test_control_points_equal_exact_rational_arithmetic(outer_deg, inner_deg, rational):
+    rng = np.random.default_rng(sum(outer_deg) + len(inner_deg))
+    outer = random_outer(rng, outer_deg, rational=False, channels=())
+    inner = random_inner(rng, len(inner_deg), inner_deg, rational, np.array([[0.0, 1.0]] * 3), ())
+    c = compose(outer, inner)
+    assert sum(c.degrees) <= 12
+    Q = _frac(outer.control_points)
+    Xh = _frac(inner.homogeneous)
+    W = Xh[..., -1] if rational else np.full(inner.shape, Fraction(1), dtype=object)
+    X = [Xh[..., k] for k in range(3)]
+    num = _frac_compose(Q, X, W)
+    if rational:
+        den = _frac_power(W, sum(outer_deg))
+        exact = np.stack([np.vectorize(float)(nk / den) for nk in num], -1)
+        exact_w = np.vectorize(float)(den)
+        assert rel_err(c.weights, exact_w) < 1e-14
+    else:
+        exact = np.stack([np.vectorize(float)(nk) for nk in num], -1)
+    assert rel_err(c.control_points, exact) < 1e-14
+
+
+# ---------------------------------------------------------- B-spline outer maps
+def test_curve_crossing_knot_lines_is_split_and_merged():
+    rng = np.random.default_rng(3)
+    outer = pr.annulus(0.5, 1.0, 2.0, angle=np.pi, elements=(3, 2, 2), channels={"k": 3.0})
+    t = np.linspace(0, 1, 12)
+    cp = np.column_stack([0.5 + 0.45 * np.cos(6 * t), 0.5 + 0.45 * np.sin(6 * t), t, t])
+    helix = BSpline((3,), [kn.uniform_knots(3, 9)], cp, channels=("q",))
+    c = compose(outer, helix)
+    assert c.dim == 1 and c.channels == ("k", "q")
+    x = rng.random((1000, 1))
+    v = helix(x)
+    assert rel_err(c(x), np.column_stack([outer(v[:, :3]), v[:, 3:]])) < 1e-12
+    # it is one B-spline on the helix's own parameter domain
+    assert np.allclose(c.domain, helix.domain)
+
+
+def test_surface_crossing_a_knot_line_raises():
+    outer = pr.box(elements=(2, 1, 1))
+    surf = pr.box((0.6, 0.5, 1e-9), (0.2, 0.2, 0.5)).boundary("wmin")
+    with pytest.raises(SplineError, match="crosses the outer map's knot line u = 0.5"):
+        compose(outer, surf)
+
+
+def test_compose_many_matches_compose_and_batches_pieces():
+    rng = np.random.default_rng(4)
+    outer = random_outer(rng, (2, 2, 3), rational=True, spans=3)
+    tile = random_inner(rng, 3, (2, 1, 2), False, np.array([[0.0, 1.0]] * 3))
+    P = []
+    for k in range(3):  # placements scattered over the knot spans of the outer map
+        e = [int(rng.integers(0, len(outer.breakpoints(j)) - 1)) for j in range(3)]
+        lo = np.array([outer.breakpoints(j)[e[j]] for j in range(3)])
+        hi = np.array([outer.breakpoints(j)[e[j] + 1] for j in range(3)])
+        M = np.zeros((3, 4))
+        M[:, :3] = np.diag(hi - lo) * 0.5
+        M[:, 3] = lo + 0.25 * (hi - lo)
+        P.append(M)
+    res = compose_many(outer, tile, np.array(P))
+    x = rng.random((500, 3))
+    for r, M in zip(res, P):
+        placed = tile.affine(M[:, :3], M[:, 3])
+        assert rel_err(r(x), compose(outer, placed)(x)) < 1e-12
+        v = placed(x)
+        assert rel_err(r(x)[:, :3], outer(v[:, :3])[:, :3]) < 1e-12
+
+
+def test_surface_into_surface():
+    rng = np.random.default_rng(5)
+    sheet = pr.annulus(0.5, 1.0, 1.0, elements=(2, 1, 1)).boundary("wmin")  # a planar ring sector
+    strip = BSpline((2, 1), [kn.uniform_knots(2, 1), kn.uniform_knots(1, 1)],
+                    np.array([[[0.1, 0.1, 0], [0.1, 0.4, 0]], [[0.3, 0.2, 0], [0.3, 0.3, 0]], [[0.45, 0.1, 0], [0.45, 0.4, 0]]]))
+    c = compose(sheet, strip)
+    x = rng.random((500, 2))
+    assert c.degrees == (2 * 3, 1 * 3)
+    assert rel_err(c(x), sheet(strip(x)[:, :2])) < 1e-12
+
+
+def test_compose_input_errors():
+    outer = pr.box(channels={"k": 1.0})
+    tile = pr.box((0.5, 0.5, 0.5), channels={"k": 2.0})
+    with pytest.raises(SplineError, match="both define channel"):
+        compose(outer, tile)
+    with pytest.raises(SplineError, match="shape \\(P, 3, 4\\)"):
+        compose_many(outer, tile.without_channels(), np.zeros((2, 3, 3)))
+    P = np.zeros((1, 3, 4)); P[0, :, :3] = np.eye(3); P[0, :, 3] = 0.8
+    with pytest.raises(SplineError, match="placement 0 reaches parameters .* outside the outer domain"):
+        compose_many(outer, tile.without_channels(), P)
+    with pytest.raises(SplineError, match="surface or a trivariate"):
+        compose(tile.boundary("umin").boundary("umin"), tile)
+
+
+def test_map_points_is_the_approximate_vertex_mode():
+    rng = np.random.default_rng(6)
+    outer = pr.annulus(elements=(2, 1, 1))
+    verts = rng.random((50, 3))
+    assert np.array_equal(map_points(outer, verts), outer(verts))
+    # the mapped straight edge is not the image of the edge (that is why compose() exists)
+    a, b = verts[0], verts[1]
+    mid_true = outer(((a + b) / 2)[None])[0, :3]
+    mid_poly = (map_points(outer, a[None])[0, :3] + map_points(outer, b[None])[0, :3]) / 2
+    assert np.linalg.norm(mid_true - mid_poly) > 1e-6
+
+
+# ------------------------------------------------------------------ regularity
+def test_identity_box_and_annulus_are_regular():
+    r = check_regular(pr.box())
+    assert r.regular and r.status == "regular" and r.orientation == 1 and bool(r)
+    a = check_regular(pr.annulus(elements=(3, 2, 2)))  # exact NURBS, left-handed (angle, radius, z)
+    assert a.regular and a.orientation == -1
+    assert check_regular(pr.annulus(exact=False)).orientation == -1
+
+
+def test_folded_control_net_is_singular_with_a_box_around_the_fold():
+    bx = pr.box(degrees=(2, 1, 1))
+    cp = bx.control_points.copy()
+    cp[1, :, :, 0] = 1.6  # x(u) = 3.2 u - 2.2 u^2 folds back at u = 3.2 / 4.4
+    r = check_regular(BSpline(bx.degrees, bx.knots, cp))
+    assert r.status == "singular" and not r
+    fold = 3.2 / 4.4
+    assert np.any((r.boxes[:, 0, 0] <= fold) & (r.boxes[:, 0, 1] >= fold))
+    assert np.all(r.boxes[:, 0, 1] > 0.6)  # nothing reported far from the fold on the regular side
+
+
+def test_composed_tile_regularity_and_collapsed_map():
+    outer = pr.annulus(elements=(2, 1, 1))
+    tile = pr.box((0.4, 0.8, 0.8), (0.05, 0.1, 0.1), degrees=(2, 1, 1))
+    assert check_regular(compose(outer, tile)).regular
+    cp = pr.box().control_points.copy()
+    cp[0] = cp[0, 0, 0]  # the umin face collapses to a point
+    assert check_regular(BSpline((1, 1, 1), pr.box().knots, cp)).status == "singular"
+    with pytest.raises(SplineError, match="planar surface or a trivariate"):
+        check_regular(pr.box().boundary("umin").boundary("umin"))
