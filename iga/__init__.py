@@ -1,7 +1,7 @@
 """Isogeometric analysis on micro-structures: spaces, assembly, heat problem, VTU export.
 
-The heat problem lands with the heat-transfer issue; the command line
-(``iga --help``) is available now.
+Public names: :class:`HeatProblem`, :class:`Solution`, :func:`write_vtu`,
+:class:`ProblemError`.  Command line: ``iga --help``.
 """
 
 from geometry.errors import ToolkitError
@@ -11,4 +11,8 @@ class ProblemError(ToolkitError):
     """Invalid analysis set-up: unknown tag, bad material data, bad output path..."""
 
 
-__all__ = ["ProblemError"]
+from .problem import HeatProblem, SingularProblemError  # noqa: E402
+from .solution import Solution  # noqa: E402
+from .vtu import write_vtu  # noqa: E402
+
+__all__ = ["ProblemError", "SingularProblemError", "HeatProblem", "Solution", "write_vtu"]

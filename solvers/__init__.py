@@ -1,12 +1,200 @@
 """Linear solvers behind one backend-neutral interface (sparse matrices only).
 
-This package knows nothing about splines; the backends land with the heat
-transfer issue.
+This package knows nothing about splines: a symmetric positive (semi-)definite
+sparse matrix, a right-hand side and options go in; a solution vector and a
+:class:`SolveInfo` come out.  Backends are registered by name, so a
+distributed backend (PETSc) can be added without touching the callers:
+
+    >>> from solvers import solve
+    >>> x, info = solve(A, b, method="auto", tol=1e-10)
+
+Built-in backends
+-----------------
+``direct``   SciPy SuperLU (CHOLMOD via scikit-sparse when installed).
+``amg-cg``   conjugate gradients preconditioned by smoothed-aggregation AMG (pyamg).
+``cg``       conjugate gradients with a Jacobi preconditioner (for comparison).
+``auto``     ``direct`` up to :data:`AUTO_DIRECT_LIMIT` unknowns, ``amg-cg`` above.
 """
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+__all__ = ["SolverError", "SolveInfo", "solve", "register", "backends", "AUTO_DIRECT_LIMIT"]
+
+#: Above this many unknowns ``auto`` uses AMG-CG: SuperLU fills in badly on 3-D IGA matrices
+#: (measured: 5.8k DOFs at p = 2 take 1.1 s direct vs 0.08 s AMG-CG; 8k at p = 4, 6.1 s vs 2.2 s).
+AUTO_DIRECT_LIMIT = 2_000
 
 
 class SolverError(ValueError):
     """A linear system that cannot be solved: singular, diverging or non-finite."""
 
 
-__all__ = ["SolverError"]
+@dataclass
+class SolveInfo:
+    """Diagnostics of one solve.
+
+    method : backend name actually used
+    iterations : Krylov iterations (0 for direct)
+    residual : final relative residual ||b - A x|| / ||b||
+    setup_s, solve_s : seconds spent in factorisation/hierarchy set-up and in the solve
+    extra : backend-specific details (e.g. AMG levels and operator complexity)
+    """
+
+    method: str
+    iterations: int
+    residual: float
+    setup_s: float
+    solve_s: float
+    extra: dict = field(default_factory=dict)
+
+    def as_dict(self) -> dict:
+        return {"method": self.method, "iterations": self.iterations, "residual": self.residual,
+                "setup_s": self.setup_s, "solve_s": self.solve_s, **self.extra}
+
+
+_BACKENDS: dict[str, Callable] = {}
+
+
+def register(name: str, fn: Callable | None = None):
+    """Register ``fn(A, b, tol, maxiter, **options) -> (x, SolveInfo)`` under ``name`` (decorator or call)."""
+
+    def deco(f):
+        _BACKENDS[name] = f
+        return f
+
+    return deco(fn) if fn is not None else deco
+
+
+def backends() -> list[str]:
+    """Names of the registered backends."""
+    return sorted(_BACKENDS) + ["auto"]
+
+
+def _residual(A, x, b) -> float:
+    nb = np.linalg.norm(b)
+    return float(np.linalg.norm(b - A @ x) / (nb if nb > 0 else 1.0))
+
+
+@register("direct")
+def _direct(A, b, tol, maxiter, **options):
+    t0 = time.perf_counter()
+    try:
+        from sksparse.cholmod import cholesky  # optional, much faster for SPD systems
+
+        try:
+            factor = cholesky(sp.csc_matrix(A))
+            t1 = time.perf_counter()
+            x = factor(b)
+            name = "direct (CHOLMOD)"
+        except Exception as exc:  # CholmodNotPositiveDefiniteError and friends
+            raise SolverError(f"CHOLMOD factorisation failed ({exc}); the matrix is singular or indefinite") from None
+    except ImportError:
+        try:
+            lu = spla.splu(sp.csc_matrix(A))
+        except RuntimeError as exc:  # "Factor is exactly singular"
+            raise SolverError(
+                f"the system matrix is singular ({exc}); a steady heat problem needs a Dirichlet or "
+                "Robin condition somewhere"
+            ) from None
+        t1 = time.perf_counter()
+        x = lu.solve(b)
+        name = "direct (SuperLU)"
+    t2 = time.perf_counter()
+    res = _residual(A, x, b)
+    if not np.all(np.isfinite(x)) or res > max(1e-6, 1e3 * tol):
+        raise SolverError(f"direct solve is inaccurate: relative residual {res:.2e} (matrix nearly singular)")
+    return x, SolveInfo(name, 0, res, t1 - t0, t2 - t1)
+
+
+def _krylov(A, b, M, tol, maxiter, name, t_setup, extra):
+    it = [0]
+
+    def count(_):
+        it[0] += 1
+
+    t1 = time.perf_counter()
+    with np.errstate(all="ignore"):  # a singular system shows up as non-finite values, reported below
+        x, flag = spla.cg(A, b, rtol=tol, atol=0.0, maxiter=maxiter, M=M, callback=count)
+    t2 = time.perf_counter()
+    res = _residual(A, x, b)
+    if not np.all(np.isfinite(x)):
+        raise SolverError(
+            f"{name} broke down with non-finite values after {it[0]} iterations (residual undefined): "
+            "the matrix is singular or indefinite; a steady heat problem needs a Dirichlet or Robin condition"
+        )
+    if flag != 0 or res > 10 * tol:
+        raise SolverError(
+            f"{name} did not converge: relative residual {res:.2e} after {it[0]} iterations "
+            f"(tolerance {tol:.0e}); the system may be singular (no Dirichlet or Robin condition?) "
+            "or need more iterations (maxiter)"
+        )
+    return x, SolveInfo(name, it[0], res, t_setup, t2 - t1, extra)
+
+
+@register("amg-cg")
+def _amg_cg(A, b, tol, maxiter, **options):
+    try:
+        import pyamg
+    except ImportError:
+        raise SolverError("the 'amg-cg' solver needs pyamg: pip install pyamg") from None
+    t0 = time.perf_counter()
+    ml = pyamg.smoothed_aggregation_solver(sp.csr_matrix(A), symmetry="symmetric", max_coarse=500)
+    M = ml.aspreconditioner(cycle="V")
+    setup = time.perf_counter() - t0
+    extra = {"amg_levels": len(ml.levels), "operator_complexity": float(ml.operator_complexity())}
+    return _krylov(A, b, M, tol, maxiter, "amg-cg", setup, extra)
+
+
+@register("cg")
+def _jacobi_cg(A, b, tol, maxiter, **options):
+    t0 = time.perf_counter()
+    d = A.diagonal()
+    if np.any(d <= 0):
+        raise SolverError("Jacobi-CG needs a positive diagonal; the matrix is not positive definite")
+    M = sp.diags(1.0 / d)
+    return _krylov(A, b, M, tol, maxiter, "cg", time.perf_counter() - t0, {})
+
+
+def solve(A, b, method: str = "auto", tol: float = 1e-10, maxiter: int | None = None, **options):
+    """Solve ``A x = b`` for a sparse symmetric positive definite ``A``.
+
+    Parameters
+    ----------
+    A : scipy sparse matrix (n, n)
+    b : array (n,)
+    method : a name from :func:`backends`
+    tol : relative residual tolerance for iterative methods
+    maxiter : iteration limit (default: 1000 for AMG-CG, 20 n for CG)
+
+    Returns ``(x, SolveInfo)``.  Raises :class:`SolverError` for non-finite
+    input, a singular matrix, or an iteration that does not converge (the
+    message carries the residual and the iteration count).
+    """
+    if not sp.issparse(A):
+        raise SolverError(f"A must be a scipy sparse matrix, got {type(A).__name__}")
+    n = A.shape[0]
+    b = np.asarray(b, float)
+    if A.shape != (n, n) or b.shape != (n,):
+        raise SolverError(f"shapes do not match: A {A.shape}, b {b.shape}")
+    if n == 0:
+        return np.zeros(0), SolveInfo("empty", 0, 0.0, 0.0, 0.0)
+    data = A.data if hasattr(A, "data") else sp.csr_matrix(A).data
+    if not np.all(np.isfinite(data)) or not np.all(np.isfinite(b)):
+        raise SolverError("the system contains non-finite values (NaN or inf); check the material data and loads")
+    if method == "auto":
+        method = "direct" if n <= AUTO_DIRECT_LIMIT else "amg-cg"
+    if method not in _BACKENDS:
+        raise SolverError(f"unknown solver {method!r}; choose one of {backends()}")
+    if maxiter is None:
+        maxiter = 1000 if method == "amg-cg" else 20 * n
+    if not np.any(b):
+        return np.zeros(n), SolveInfo(method, 0, 0.0, 0.0, 0.0)
+    return _BACKENDS[method](A, b, tol, maxiter, **options)

@@ -1,0 +1,344 @@
+"""Steady heat conduction: -div(k grad T) = f with Dirichlet, Neumann and Robin faces.
+
+Units are the user's, consistently: with lengths in m, conductivity in
+W/(m K), sources in W/m^3, fluxes in W/m^2 and film coefficients in
+W/(m^2 K), temperatures are in K (or degrees C) and heat flows in W.
+
+Weak form (000 Eq. 9): find T = T_D on Dirichlet faces with
+
+    int k grad T . grad v  +  int_Robin h T v  =  int f v  +  int_Neumann q v  +  int_Robin h T_inf v
+
+for all v vanishing on Dirichlet faces.  Each patch uses its own B-spline
+basis (000 Remark 2), optionally elevated and refined; Dirichlet data are L2
+projected onto the Dirichlet trace space and eliminated through
+``u = P u_free + g``.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from numbers import Real
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+import solvers
+
+from . import ProblemError
+from .assembly import banded_form, banded_to_csr_data, block_diagonal_csr, load_form, pattern
+from .geometry_eval import checked_det, patch_geometry_grid
+from .model import as_model
+from .space import FACE_AXES, make_space
+
+
+class SingularProblemError(ProblemError, solvers.SolverError):
+    """The heat problem has no Dirichlet or Robin condition: its temperature is not unique."""
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, Real) and not isinstance(v, bool)
+
+
+@dataclass
+class FaceData:
+    """Quadrature data of one patch face (physical geometry at the face's Gauss points)."""
+
+    patch: int
+    face: str
+    space: object  # face TensorSpace
+    dofs: np.ndarray  # global DOF numbers of the face space, C order
+    x: np.ndarray  # (N, 3)
+    chans: dict
+    dAw: np.ndarray  # (N,) area element times quadrature weight
+    normal: np.ndarray  # (N, 3) outward unit normal
+
+    def basis_tables(self):
+        return [d.B[0][:, :-1] for d in self.space.dirs]
+
+    def trace(self, u: np.ndarray) -> np.ndarray:
+        """Values at the face Gauss points of the global coefficient vector ``u``."""
+        Bs, Bt = self.basis_tables()
+        U = u[self.dofs].reshape(self.space.shape)
+        return np.einsum("ab,aq,br->qr", U, Bs, Bt).ravel()
+
+
+@dataclass
+class _Condition:
+    kind: str
+    tag: str
+    value: object = 0.0
+    h: object = None
+
+
+class HeatProblem:
+    """Steady heat transfer on a trivariate patch, a list of patches or a micro-structure.
+
+    Parameters
+    ----------
+    model : BSpline, list of BSpline, or tiling.Microstructure
+    conductivity : number, channel name, or callable ``k(x) -> (N,)`` (W/(m K)); must be > 0
+    source : number, channel name, or callable ``f(x) -> (N,)`` (W/m^3)
+    degree_elevation, refine : applied to every patch's solution space
+        (degree + ``degree_elevation``, an int or one per direction, then
+        ``refine`` rounds of knot-span bisection)
+    degree : optional solution degrees (int or three) replacing patch degree +
+        elevation; continuity at each knot is kept, capped at C^(p-1)
+    quadrature_extra : Gauss points per element and direction beyond ``p + 1``
+
+    Boundary conditions refer to the model's tags (``umin`` .. ``wmax``,
+    ``boundary``, and for micro-structures ``branch-in``, ``internal`` and user
+    tags); faces with no condition are insulated.
+    """
+
+    def __init__(self, model, conductivity=1.0, source=0.0, degree_elevation=0, refine: int = 0,
+                 quadrature_extra: int = 0, degree=None):
+        self.model = as_model(model)
+        for name, v in (("refine", refine), ("quadrature_extra", quadrature_extra)):
+            if not isinstance(v, (int, np.integer)) or v < 0:
+                raise ProblemError(f"{name} must be a non-negative integer, got {v!r}")
+        for name, v in (("degree_elevation", degree_elevation), ("degree", 1 if degree is None else degree)):
+            vals = [v] if np.isscalar(v) else list(v)
+            if len(vals) not in (1, 3) or any(not isinstance(x, (int, np.integer)) or x < (0 if name[0] == "d" and name != "degree" else 1) for x in vals):
+                raise ProblemError(f"{name} must be a non-negative integer or three of them (degree: >= 1), got {v!r}")
+        if degree is not None and np.isscalar(degree):
+            degree = (int(degree),) * 3
+        self.conductivity = self._check_field(conductivity, "conductivity", positive=True)
+        self.source = self._check_field(source, "source", positive=False)
+        t0 = time.perf_counter()
+        self.spaces = [make_space(p.spline.knots, p.spline.degrees, quadrature_extra, degree_elevation, refine, degree)
+                       for p in self.model.patches]
+        self.offsets = np.concatenate([[0], np.cumsum([s.ndof for s in self.spaces])]).astype(np.int64)
+        self.ndof = int(self.offsets[-1])
+        self.conditions: list[_Condition] = []
+        self.timings = {"spaces": time.perf_counter() - t0}
+
+    # ----------------------------------------------------------------- inputs
+    def _check_field(self, spec, what, positive):
+        if _is_number(spec):
+            if not np.isfinite(spec) or (positive and spec <= 0):
+                raise ProblemError(f"{what} must be a finite{' positive' if positive else ''} number, got {spec!r}")
+            return float(spec)
+        if isinstance(spec, str):
+            for i, p in enumerate(self.model.patches):
+                if spec not in p.channels:
+                    raise ProblemError(
+                        f"{what} refers to channel {spec!r}, but patch {i} only has channels {list(p.channels)}; "
+                        "add the channel to the tile or the deformation map"
+                    )
+            return spec
+        if callable(spec):
+            return spec
+        raise ProblemError(f"{what} must be a number, a channel name or a callable of x (N, 3), got {type(spec).__name__}")
+
+    def _values(self, spec, x, chans, what, where, positive=False):
+        """Evaluate a number / channel / callable at points ``x`` (N, 3) -> (N,)."""
+        n = len(x)
+        if _is_number(spec):
+            v = np.full(n, float(spec))
+        elif isinstance(spec, str):
+            v = np.asarray(chans[spec], float)
+        else:
+            try:
+                v = np.asarray(spec(x), float)
+            except Exception as exc:  # a user callable failed: say which input
+                raise ProblemError(f"{what} callable failed on {where}: {exc}") from exc
+            if v.shape == ():
+                v = np.full(n, float(v))
+            if v.shape != (n,):
+                raise ProblemError(f"{what} callable must return shape ({n},) for x of shape ({n}, 3), got {v.shape}")
+        if not np.all(np.isfinite(v)):
+            raise ProblemError(f"{what} is not finite at some points of {where}")
+        if positive and np.any(v <= 0):
+            i = int(np.argmin(v))
+            raise ProblemError(f"{what} must be positive, but is {v[i]:g} at x = {np.round(x[i], 6).tolist()} on {where}")
+        return v
+
+    def _condition_spec(self, value, what):
+        if _is_number(value):
+            if not np.isfinite(value):
+                raise ProblemError(f"{what} must be finite, got {value!r}")
+            return float(value)
+        if callable(value):
+            return value
+        raise ProblemError(f"{what} must be a number or a callable of x (N, 3), got {type(value).__name__}")
+
+    def dirichlet(self, tag: str, value=0.0) -> "HeatProblem":
+        """Prescribed temperature on the faces tagged ``tag`` (number or callable of x)."""
+        self.model.faces(tag)
+        self.conditions.append(_Condition("dirichlet", tag, self._condition_spec(value, f"Dirichlet value on {tag!r}")))
+        return self
+
+    def neumann(self, tag: str, flux) -> "HeatProblem":
+        """Inward heat flux q (W/m^2; q > 0 heats the body) on the faces tagged ``tag``."""
+        self.model.faces(tag)
+        self.conditions.append(_Condition("neumann", tag, self._condition_spec(flux, f"Neumann flux on {tag!r}")))
+        return self
+
+    def robin(self, tag: str, h, ambient) -> "HeatProblem":
+        """Convection -k dT/dn = h (T - ambient) on ``tag``; h in W/(m^2 K), must be > 0."""
+        self.model.faces(tag)
+        hh = self._condition_spec(h, f"film coefficient h on {tag!r}")
+        if _is_number(hh) and hh <= 0:
+            raise ProblemError(f"film coefficient h on {tag!r} must be positive, got {h!r}")
+        self.conditions.append(_Condition("robin", tag, self._condition_spec(ambient, f"ambient temperature on {tag!r}"), hh))
+        return self
+
+    # --------------------------------------------------------------- assembly
+    def face_data(self, pi: int, face: str) -> FaceData:
+        """Geometry and DOFs of one patch face at its Gauss points."""
+        if not hasattr(self, "_face_cache"):
+            self._face_cache = {}
+        key = (pi, face)
+        if key in self._face_cache:
+            return self._face_cache[key]
+        patch, space = self.model.patches[pi], self.spaces[pi]
+        k, side = FACE_AXES[face]
+        U = patch.spline.knots[k]
+        axes = [d.qpts for d in space.dirs]
+        axes[k] = np.array([U[-1] if side else U[0]])
+        x, J, chans = patch_geometry_grid(patch, axes)
+        a, b = [i for i in range(3) if i != k]
+        cr = np.cross(J[:, :, a], J[:, :, b])
+        dA = np.linalg.norm(cr, axis=1)
+        if np.any(dA <= 0):
+            raise ProblemError(f"patch {pi} face {face} is degenerate (zero area at some Gauss points)")
+        inward = np.einsum("ni,ni->n", cr, J[:, :, k])
+        sign = np.where(inward > 0, 1.0, -1.0) * (1.0 if side else -1.0)
+        fs = space.face_space(face)
+        w = np.multiply.outer(fs.dirs[0].qw, fs.dirs[1].qw).ravel()
+        fd = FaceData(pi, face, fs, space.face_dofs(face) + self.offsets[pi], x, chans, dA * w,
+                      cr / dA[:, None] * sign[:, None])
+        self._face_cache[key] = fd
+        return fd
+
+    def _face_matrix(self, fd: FaceData, F: np.ndarray) -> sp.coo_matrix:
+        band = banded_form(fd.space, [(F.reshape((1,) + fd.space.qshape), ((0, 0), (0, 0)))])
+        pat = pattern(fd.space)
+        data = banded_to_csr_data(fd.space, band)[0]
+        rows = np.repeat(np.arange(pat.n), np.diff(pat.indptr))
+        return sp.coo_matrix((data, (fd.dofs[rows], fd.dofs[pat.indices])), shape=(self.ndof, self.ndof))
+
+    def _face_load(self, fd: FaceData, F: np.ndarray) -> np.ndarray:
+        return load_form(fd.space, F.reshape((1,) + fd.space.qshape))[0].ravel()
+
+    def _volume(self):
+        """Stiffness (CSR) and source load over all patches, batched per space."""
+        blocks, f = [], np.zeros(self.ndof)
+        groups: dict = {}
+        for i, s in enumerate(self.spaces):
+            groups.setdefault(s.key(), []).append(i)
+        source_total = 0.0
+        for members in groups.values():
+            space = self.spaces[members[0]]
+            Fs, Ls = [], []
+            for i in members:  # per patch: geometry at the Gauss grid (vectorised inside)
+                x, J, chans = patch_geometry_grid(self.model.patches[i], space.qaxes)
+                det = checked_det(J, f"patch {i}")
+                w = np.einsum("i,j,k->ijk", *[d.qw for d in space.dirs]).ravel()
+                kval = self._values(self.conductivity, x, chans, "conductivity", f"patch {i}", positive=True)
+                Jinv = np.linalg.inv(J)
+                G = np.einsum("nri,nsi->nrs", Jinv, Jinv)  # J^-1 J^-T
+                Fs.append((kval * np.abs(det) * w)[:, None, None] * G)
+                fval = self._values(self.source, x, chans, "source", f"patch {i}")
+                Ls.append(fval * np.abs(det) * w)
+                source_total += float(np.sum(Ls[-1]))
+            C = np.stack(Fs).reshape((len(members),) + space.qshape + (3, 3))
+            terms = []
+            for r in range(3):
+                for s_ in range(3):
+                    variants = tuple((int(k == r), int(k == s_)) for k in range(3))
+                    terms.append((np.ascontiguousarray(C[..., r, s_]), variants))
+            data = banded_to_csr_data(space, banded_form(space, terms))
+            pat = pattern(space)
+            for j, i in enumerate(members):
+                blocks.append((int(self.offsets[i]), pat, data[j]))
+            if any(np.any(L) for L in Ls):
+                loads = load_form(space, np.stack(Ls).reshape((len(members),) + space.qshape))
+                for j, i in enumerate(members):
+                    f[self.offsets[i] : self.offsets[i + 1]] += loads[j].ravel()
+        return block_diagonal_csr(blocks, self.ndof), f, source_total
+
+    def _faces_of(self, cond):
+        return self.model.faces(cond.tag)
+
+    def assemble(self):
+        """Assemble the unconstrained system. Returns (K, f, bookkeeping dict)."""
+        t0 = time.perf_counter()
+        K, f, source_total = self._volume()
+        t1 = time.perf_counter()
+        extra = []
+        neumann_faces, robin_faces, dirichlet_faces = {}, {}, {}
+        for c in self.conditions:
+            for pi, face in self._faces_of(c):
+                key = (pi, face)
+                fd = self.face_data(pi, face)
+                where = f"patch {pi} face {face} (tag {c.tag!r})"
+                if c.kind == "dirichlet":
+                    dirichlet_faces.setdefault(key, []).append(c)
+                elif c.kind == "neumann":
+                    q = self._values(c.value, fd.x, fd.chans, "Neumann flux", where)
+                    f[fd.dofs] += self._face_load(fd, q * fd.dAw)
+                    neumann_faces.setdefault(key, []).append(q)
+                else:
+                    h = self._values(c.h, fd.x, fd.chans, "film coefficient h", where, positive=True)
+                    Tinf = self._values(c.value, fd.x, fd.chans, "ambient temperature", where)
+                    extra.append(self._face_matrix(fd, h * fd.dAw))
+                    f[fd.dofs] += self._face_load(fd, h * Tinf * fd.dAw)
+                    robin_faces.setdefault(key, []).append((h, Tinf))
+        clash = set(dirichlet_faces) & (set(neumann_faces) | set(robin_faces))
+        if clash:
+            pi, face = sorted(clash)[0]
+            raise ProblemError(
+                f"patch {pi} face {face} has a Dirichlet condition and a Neumann/Robin condition; give each face one kind"
+            )
+        if extra:
+            K = (K + sum(extra)).tocsr()
+        self.timings["assembly_volume"] = t1 - t0
+        self.timings["assembly_faces"] = time.perf_counter() - t1
+        return K, f, {"neumann": neumann_faces, "robin": robin_faces, "dirichlet": dirichlet_faces,
+                      "source": source_total}
+
+    def _dirichlet_values(self, dirichlet_faces):
+        """L2 projection of the Dirichlet data onto the trace space of all Dirichlet faces."""
+        if not dirichlet_faces:
+            return np.zeros(0, np.int64), np.zeros(0), {}
+        mats, rhs = [], np.zeros(self.ndof)
+        integrals = {}
+        for (pi, face), conds in dirichlet_faces.items():
+            fd = self.face_data(pi, face)
+            g = self._values(conds[-1].value, fd.x, fd.chans, "Dirichlet value", f"patch {pi} face {face}")
+            mats.append(self._face_matrix(fd, fd.dAw))
+            rhs[fd.dofs] += self._face_load(fd, g * fd.dAw)
+            integrals[(pi, face)] = self._face_load(fd, fd.dAw)
+        M = sum(mats).tocsr()
+        dofs = np.unique(np.concatenate([self.face_data(*k).dofs for k in dirichlet_faces]))
+        Mdd = M[dofs][:, dofs].tocsc()
+        vals = spla.spsolve(Mdd, rhs[dofs]) if len(dofs) > 1 else rhs[dofs] / Mdd.toarray().ravel()
+        return dofs, np.atleast_1d(vals), integrals
+
+    # ------------------------------------------------------------------ solve
+    def solve(self, solver: str = "auto", tol: float = 1e-10, maxiter: int | None = None):
+        """Assemble, apply the conditions, solve; returns a :class:`iga.Solution`."""
+        from .solution import Solution
+
+        kinds = {c.kind for c in self.conditions}
+        if not ({"dirichlet", "robin"} & kinds):
+            raise SingularProblemError(
+                "the heat problem has no Dirichlet or Robin condition, so its temperature is only defined up to a "
+                "constant (the system is singular); add problem.dirichlet(tag, T) or problem.robin(tag, h, T_inf)"
+            )
+        K, f, book = self.assemble()
+        t0 = time.perf_counter()
+        dofs, g, integrals = self._dirichlet_values(book["dirichlet"])
+        free = np.setdiff1d(np.arange(self.ndof), dofs)
+        u = np.zeros(self.ndof)
+        u[dofs] = g
+        A = K[free][:, free].tocsr()
+        rhs = f[free] - K[free][:, dofs] @ g if len(dofs) else f[free]
+        self.timings["constraints"] = time.perf_counter() - t0
+        x, info = solvers.solve(A, rhs, method=solver, tol=tol, maxiter=maxiter)
+        u[free] = x
+        self.timings["solve"] = info.setup_s + info.solve_s
+        return Solution(self, u, K, f, book, dofs, integrals, info)

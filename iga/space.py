@@ -1,0 +1,162 @@
+"""Discrete spaces: tensor products of 1-D B-spline spaces with quadrature data.
+
+A :class:`Space1D` holds everything the sum-factorised assembly needs in one
+direction: the basis values and derivatives at the Gauss points, arranged in
+*windows*.  Basis function ``i`` is supported on at most ``p + 1`` elements
+starting at element ``start[i]``; its window is the ``L = (p + 1) g``
+quadrature points of those elements (padded with a zero column past the end).
+For a pair ``(i, j = i + d - p)``, ``W[(a, b)][i, d, l]`` is the product of the
+``a``-th derivative of ``N_i`` and the ``b``-th derivative of ``N_j`` at window
+point ``l``: contracting a quadrature field against ``W`` along one direction
+yields the banded (``2p + 1`` wide) 1-D operator without forming element
+matrices.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+from geometry import knots as kn
+
+from .quadrature import element_rule
+
+FACE_AXES = {"umin": (0, 0), "umax": (0, 1), "vmin": (1, 0), "vmax": (1, 1), "wmin": (2, 0), "wmax": (2, 1)}
+
+
+@dataclass(eq=False)
+class Space1D:
+    """1-D spline space with Gauss quadrature (``g`` points per element)."""
+
+    knots: np.ndarray
+    degree: int
+    g: int
+
+    def __post_init__(self):
+        U, p = self.knots, self.degree
+        self.n = len(U) - p - 1
+        self.breaks = np.unique(U)
+        self.E = len(self.breaks) - 1
+        self.qpts, self.qw = element_rule(self.breaks, self.g)
+        self.nq = len(self.qpts)
+        spans, ders = kn.basis_functions(U, p, self.qpts, 1)
+        first = spans - p
+        # dense (n, nq + 1) value / derivative tables; the last column is the zero pad
+        self.B = np.zeros((2, self.n, self.nq + 1))
+        cols = np.arange(self.nq)
+        for a in range(p + 1):
+            self.B[0, first + a, cols] = ders[:, 0, a]
+            self.B[1, first + a, cols] = ders[:, 1, a]
+        # window of basis i: p+1 elements from the element where its support starts
+        elem_lo = np.searchsorted(self.breaks, U[:-p - 1], side="right") - 1
+        self.start = np.clip(elem_lo, 0, self.E - 1)
+        L = (p + 1) * self.g
+        idx = self.start[:, None] * self.g + np.arange(L)[None, :]
+        self.qidx = np.where(idx < self.nq, idx, self.nq)  # (n, L) -> pad column past the end
+        self.L = L
+
+    @cached_property
+    def pair_index(self) -> np.ndarray:
+        """``j = i + d - p`` for every (i, d), clipped, with validity mask (n, 2p+1)."""
+        p = self.degree
+        j = np.arange(self.n)[:, None] + np.arange(2 * p + 1)[None, :] - p
+        return j
+
+    def W(self, a: int, b: int) -> np.ndarray:
+        """(n, 2p+1, L): d^a N_i * d^b N_j at the window points of i (zero where j is out of range)."""
+        key = (a, b)
+        if key not in self._W:
+            j = self.pair_index
+            valid = (j >= 0) & (j < self.n)
+            jj = np.clip(j, 0, self.n - 1)
+            Bi = self.B[a][np.arange(self.n)[:, None], self.qidx]  # (n, L)
+            Bj = self.B[b][jj[:, :, None], self.qidx[:, None, :]]  # (n, 2p+1, L)
+            self._W[key] = Bi[:, None, :] * Bj * valid[:, :, None]
+        return self._W[key]
+
+    def window_values(self, a: int = 0) -> np.ndarray:
+        """(n, L): d^a N_i at its window points (for load vectors)."""
+        return self.B[a][np.arange(self.n)[:, None], self.qidx]
+
+    _W: dict = field(default_factory=dict, init=False, repr=False)
+
+
+def space_knots(knots: np.ndarray, degree: int, elevate: int = 0, refine: int = 0,
+                target: int | None = None) -> tuple[np.ndarray, int]:
+    """Knot vector and degree of the analysis space of one direction.
+
+    The degree becomes ``target`` (default ``degree + elevate``); every
+    breakpoint keeps the continuity it has in ``knots``, capped at
+    ``C^{p-1}`` (so raising the degree keeps continuity, like degree
+    elevation, and lowering it is allowed for analysis on high-degree
+    geometry).  Then every span is bisected ``refine`` times.
+    """
+    U, p = np.asarray(knots, float), int(degree)
+    q = p + elevate if target is None else int(target)
+    vals, mults = kn.breakpoints(U)
+    cont = np.minimum(p - mults, q - 1)  # C^cont at each breakpoint (-1: discontinuous)
+    new = q - cont
+    new[0] = new[-1] = q + 1
+    U = np.repeat(vals, new)
+    for _ in range(refine):
+        b = np.unique(U)
+        U = np.sort(np.concatenate([U, 0.5 * (b[:-1] + b[1:])]))
+    return U, q
+
+
+@dataclass(eq=False)
+class TensorSpace:
+    """Tensor-product space of 2 or 3 :class:`Space1D` (C-order numbering of the DOFs)."""
+
+    dirs: list
+
+    @property
+    def dim(self) -> int:
+        return len(self.dirs)
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return tuple(s.n for s in self.dirs)
+
+    @property
+    def ndof(self) -> int:
+        return int(np.prod(self.shape))
+
+    @property
+    def qshape(self) -> tuple[int, ...]:
+        return tuple(s.nq for s in self.dirs)
+
+    @property
+    def qaxes(self) -> list[np.ndarray]:
+        return [s.qpts for s in self.dirs]
+
+    def key(self) -> tuple:
+        """Hashable identity: spaces with equal keys share all quadrature data (batching)."""
+        return tuple((s.degree, s.g, s.knots.tobytes()) for s in self.dirs)
+
+    def face_dofs(self, face: str) -> np.ndarray:
+        """Indices (C-order) of the DOFs on a boundary face, ordered as the face space numbers them."""
+        k, side = FACE_AXES[face]
+        idx = np.arange(self.ndof).reshape(self.shape)
+        return np.take(idx, -1 if side else 0, axis=k).ravel()
+
+    def face_space(self, face: str) -> "TensorSpace":
+        k, _ = FACE_AXES[face]
+        return TensorSpace([s for i, s in enumerate(self.dirs) if i != k])
+
+
+def make_space(knots, degrees, g_extra: int = 0, elevate=0, refine: int = 0, target=None) -> TensorSpace:
+    """Analysis space from a patch's knot vectors and degrees (Remark 2: the tile's own basis).
+
+    ``elevate``: int or one int per direction; ``target``: optional degrees per direction.
+    """
+    d = len(degrees)
+    elevate = [elevate] * d if np.isscalar(elevate) else list(elevate)
+    target = [None] * d if target is None else list(target)
+    dirs = []
+    for U, p, e, t in zip(knots, degrees, elevate, target):
+        U2, p2 = space_knots(U, p, e, refine, t)
+        dirs.append(Space1D(U2, p2, p2 + 1 + g_extra))
+    return TensorSpace(dirs)

@@ -1,0 +1,188 @@
+"""Single-patch steady heat transfer: exactness, convergence, balance, output, errors."""
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+import solvers
+from geometry import primitives as pr
+from iga import HeatProblem, ProblemError, SingularProblemError, write_vtu
+from iga.assembly import banded_form, banded_to_csr_data, block_diagonal_csr, pattern
+from iga.space import make_space
+
+
+def test_sum_factorised_stiffness_equals_brute_force():
+    rng = np.random.default_rng(0)
+    U = [np.r_[0, 0, 0, 0.4, 1, 1, 1], np.r_[0, 0, 0.5, 0.5, 1, 1], np.r_[0, 0, 0, 0, 1, 1, 1, 1]]
+    S = make_space(U, (2, 1, 3))
+    F = rng.random((1,) + S.qshape)
+    variants = ((1, 1), (0, 0), (0, 1))
+    K = block_diagonal_csr([(0, pattern(S), banded_to_csr_data(S, banded_form(S, [(F, variants)]))[0])], S.ndof)
+    B = [d.B[:, :, :-1] for d in S.dirs]
+    ref = np.einsum("abc,ia,jb,kc,la,mb,nc->ijklmn", F[0], B[0][1], B[1][0], B[2][0], B[0][1], B[1][0], B[2][1])
+    assert np.abs(K.toarray() - ref.reshape(S.ndof, S.ndof)).max() < 1e-12 * np.abs(ref).max()
+
+
+def _quadratic_problem(k):
+    b = pr.box((1, 2, 1.5))
+    T = lambda x: x[:, 0] ** 2 + x[:, 1] * x[:, 2]
+    if callable(k):  # k = 1 + x: f = -(dk/dx dT/dx + k lap T) = -(2x + 2 (1 + x))
+        f = lambda x: -(2 * x[:, 0] + 2 * (1 + x[:, 0]))
+    else:
+        f = -2.0 * k
+    return b, T, f
+
+
+@pytest.mark.parametrize("k", [1.0, lambda x: 1 + x[:, 0]])
+@pytest.mark.parametrize("p", [2, 3])
+def test_polynomial_solution_is_reproduced(k, p):
+    b, T, f = _quadratic_problem(k)
+    s = HeatProblem(b, conductivity=k, source=f, degree=p, refine=1).dirichlet("boundary", T).solve()
+    assert s.l2_error(T) < 1e-12
+    x = b.evaluate(np.random.default_rng(1).random((20, 3)))[:, :3]
+    assert np.abs(s.probe(x) - T(x)).max() < 1e-11
+
+
+# --------------------------------------------------------- manufactured solution
+ANNULUS = pr.annulus(1.0, 2.0, 1.0)  # exact NURBS quarter shell
+
+
+def k_var(x):
+    return 1 + 0.5 * (x[:, 0] ** 2 + x[:, 1] ** 2)
+
+
+def T_exact(x):
+    return np.exp(0.5 * x[:, 0]) * np.sin(0.7 * x[:, 1] + 0.3 * x[:, 2])
+
+
+def grad_exact(x):
+    e = np.exp(0.5 * x[:, 0])
+    s, c = np.sin(0.7 * x[:, 1] + 0.3 * x[:, 2]), np.cos(0.7 * x[:, 1] + 0.3 * x[:, 2])
+    return np.stack([0.5 * e * s, 0.7 * e * c, 0.3 * e * c], 1)
+
+
+def f_exact(x):  # -div(k grad T) with grad k = (x, y, 0) and lap T = -0.33 T
+    g = grad_exact(x)
+    return -(x[:, 0] * g[:, 0] + x[:, 1] * g[:, 1]) + 0.33 * k_var(x) * T_exact(x)
+
+
+def convergence(p, levels):
+    errs = []
+    for r in levels:
+        s = HeatProblem(ANNULUS, conductivity=k_var, source=f_exact, degree=p, refine=r).dirichlet("boundary", T_exact).solve()
+        errs.append((s.l2_error(T_exact), s.h1_error(grad_exact)))
+    e = np.array(errs)
+    return np.log2(e[:-1] / e[1:])  # rates per refinement, columns L2, H1
+
+
+@pytest.mark.parametrize("p, levels", [(1, (3, 4, 5)), (2, (2, 3, 4)), (3, (3, 4, 5))])
+def test_optimal_convergence_rates_on_curved_patch(p, levels):
+    rates = convergence(p, levels)
+    assert abs(rates[-1, 0] - (p + 1)) < 0.2, rates
+    assert abs(rates[-1, 1] - p) < 0.2, rates
+
+
+# --------------------------------------------------------------- energy balance
+def test_energy_balance_neumann_in_robin_out():
+    a = pr.annulus(0.5, 1.0, 1.0, elements=(2, 2, 2), channels={"k": 205.0})
+    s = HeatProblem(a, conductivity="k", refine=1).neumann("vmin", 1515.8).robin("vmax", 5.0, 30.0).solve()
+    b = s.info["balance"]
+    assert b["relative_error"] < 1e-8
+    area = np.pi / 2 * 0.5 * 1.0
+    # Gauss quadrature of the rational (NURBS) area element is accurate, not exact
+    assert s.flux("vmin") == pytest.approx(-1515.8 * area, rel=1e-7)
+    assert s.flux("vmax") == pytest.approx(-s.flux("vmin"), rel=1e-8)
+    T = s.probe(a.evaluate(np.random.default_rng(2).random((50, 3)))[:, :3])
+    assert np.all(T > 30.0)
+
+
+def test_energy_balance_dirichlet_in_robin_out_with_source():
+    a = pr.annulus(0.5, 1.0, 1.0, elements=(2, 2, 2))
+    s = (HeatProblem(a, conductivity=lambda x: 1 + x[:, 2], source=3.0, refine=1)
+         .dirichlet("vmin", lambda x: 100 + x[:, 2]).robin("vmax", 5.0, 30.0).robin("wmax", 2.0, 20.0).solve())
+    b = s.info["balance"]
+    assert b["relative_error"] < 1e-8
+    assert b["source_W"] == pytest.approx(3.0 * np.pi / 4 * (1 - 0.25), rel=1e-7)  # quadrature of NURBS volume
+    total = s.flux("vmin") + s.flux("vmax") + s.flux("wmax") + s.flux("umin") + s.flux("umax") + s.flux("wmin")
+    assert total == pytest.approx(b["source_W"], rel=1e-8)
+    assert s.flux("boundary") == pytest.approx(total, rel=1e-12)
+    assert s.flux("vmin") < 0 < s.flux("vmax")
+
+
+def test_solver_backends_agree():
+    a = pr.annulus(0.5, 1.0, 1.0, elements=(2, 2, 2))
+    sols = [HeatProblem(a, refine=1).dirichlet("vmin", 1.0).robin("vmax", 2.0, 0.0).solve(solver=m) for m in ("direct", "amg-cg", "cg")]
+    for s in sols[1:]:
+        assert np.abs(s.u - sols[0].u).max() < 1e-8
+    assert sols[1].info["solver"]["iterations"] > 0 and "residual" in sols[1].info["solver"]
+
+
+# ------------------------------------------------------------------- output
+def test_write_vtu_arrays(tmp_path):
+    import pyvista as pv
+
+    a = pr.annulus(0.5, 1.0, 1.0, elements=(2, 1, 1), channels={"k": 200.0})
+    s = HeatProblem(a, conductivity="k").dirichlet("vmin", 50.0).robin("vmax", 5.0, 30.0).solve()
+    path = write_vtu(tmp_path / "out.vtu", s)
+    m = pv.read(path)
+    for name in ("temperature", "heat_flux", "conductivity", "k"):
+        assert name in m.point_data
+    for name in ("patch", "tile", "level"):
+        assert name in m.cell_data
+    assert m.point_data["heat_flux"].shape[1] == 3
+    assert np.all(m.compute_cell_sizes()["Volume"] > 0)
+    assert np.allclose(m.point_data["conductivity"], 200.0)
+    T = m.point_data["temperature"]
+    assert 30.0 < T.min() and T.max() <= 50.0 + 1e-9
+    assert not list(tmp_path.glob(".out.vtu*"))
+    write_vtu(tmp_path / "model.vtu", a)  # geometry only
+    assert "k" in pv.read(tmp_path / "model.vtu").point_data
+
+
+# --------------------------------------------------------------- bad input
+def test_bad_input_raises_project_errors(tmp_path):
+    a = pr.annulus(0.5, 1.0, 1.0)
+    with pytest.raises(ProblemError, match="unknown boundary tag 'top'"):
+        HeatProblem(a).dirichlet("top", 1.0)
+    with pytest.raises(ProblemError, match="finite positive number"):
+        HeatProblem(a, conductivity=-1.0)
+    with pytest.raises(ProblemError, match="finite positive number"):
+        HeatProblem(a, conductivity=float("nan"))
+    with pytest.raises(ProblemError, match="channel 'k'"):
+        HeatProblem(a, conductivity="k")
+    with pytest.raises(ProblemError, match="conductivity must be positive"):
+        HeatProblem(a, conductivity=lambda x: x[:, 2] - 0.5).dirichlet("vmin", 1.0).solve()
+    with pytest.raises(SingularProblemError, match="no Dirichlet or Robin"):
+        HeatProblem(a).neumann("vmin", 1.0).solve()
+    assert issubclass(SingularProblemError, solvers.SolverError) and issubclass(SingularProblemError, ProblemError)
+    s = HeatProblem(a).dirichlet("vmin", 1.0).solve()
+    with pytest.raises(ProblemError, match="outside the model"):
+        s.probe([[5.0, 5.0, 5.0]])
+    with pytest.raises(ProblemError, match="does not exist"):
+        write_vtu(tmp_path / "no" / "x.vtu", s)
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o500)
+    import os
+
+    if os.geteuid() != 0:  # root ignores permission bits
+        with pytest.raises(ProblemError, match="not writable"):
+            write_vtu(ro / "x.vtu", s)
+    with pytest.raises(ProblemError, match="Dirichlet condition and a Neumann"):
+        HeatProblem(a).dirichlet("vmin", 1.0).neumann("vmin", 2.0).solve()
+    with pytest.raises(ProblemError, match="film coefficient"):
+        HeatProblem(a).robin("vmin", -5.0, 1.0)
+
+
+def test_solver_errors():
+    A = sp.csr_matrix(np.array([[1.0, -1.0], [-1.0, 1.0]]))
+    with pytest.raises(solvers.SolverError, match="singular"):
+        solvers.solve(A, np.array([1.0, 0.0]), method="direct")
+    with pytest.raises(solvers.SolverError, match="non-finite"):
+        solvers.solve(sp.csr_matrix(np.array([[np.nan]])), np.array([1.0]))
+    with pytest.raises(solvers.SolverError, match="unknown solver"):
+        solvers.solve(sp.identity(3, format="csr"), np.ones(3), method="magic")
+    n = 200
+    L = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(n, n), format="csr")
+    with pytest.raises(solvers.SolverError, match="did not converge: relative residual .* after 3 iterations"):
+        solvers.solve(L, np.ones(n), method="cg", maxiter=3)
