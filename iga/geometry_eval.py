@@ -8,7 +8,6 @@ from ``T``, deformation-map channels from ``D`` at the mapped point.
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
 
 from geometry import knots as kn
 from geometry.spline import _apply_along
@@ -17,79 +16,96 @@ from . import ProblemError
 from .model import Patch
 
 
-def _grid_hom(spline, axes, orders):
-    out = spline.homogeneous
+def grid_values_derivs(spline, axes):
+    """Values (N, m) and first derivatives [(N, m)] * d on a tensor grid (C order; rational handled).
+
+    Sum factorisation with shared partial contractions: the contraction of the
+    last directions is reused by the value and every derivative.
+    """
+    d = spline.dim
+    B = []
     for k, ax in enumerate(axes):
         U, p = spline.knots[k], spline.degrees[k]
         ax = np.clip(ax, U[0], U[-1])
-        out = _apply_along(out, k, kn.basis_matrix(U, p, ax, orders[k]))
-    return out
+        B.append((kn.basis_matrix(U, p, ax, 0), kn.basis_matrix(U, p, ax, 1)))
+
+    def contract(arr, orders, dirs):
+        for k in dirs:
+            arr = _apply_along(arr, k, B[k][orders[k]])
+        return arr
+
+    hom = spline.homogeneous
+    m = hom.shape[-1]
+    zero = (0,) * d
+    # value and d/dxi_0 share the contraction of directions 1..d-1
+    tail = contract(hom, zero, range(1, d))
+    H = contract(tail, zero, [0]).reshape(-1, m)
+    dH = [contract(tail, (1,) + zero[1:], [0]).reshape(-1, m)]
+    for k in range(1, d):
+        orders = tuple(int(i == k) for i in range(d))
+        dH.append(contract(hom, orders, [j for j in range(d) if j != 0] + [0]).reshape(-1, m))
+    if not spline.is_rational:
+        return H, dH
+    w = H[:, -1:]
+    x = H[:, :-1] / w
+    return x, [(dh[:, :-1] - x * dh[:, -1:]) / w for dh in dH]
 
 
 def grid_values_jacobian(spline, axes):
-    """Values (n_1, ..., n_d, m) and Jacobian (..., m, d) on a tensor grid (rational handled)."""
-    d = spline.dim
-    H = _grid_hom(spline, axes, (0,) * d)
-    dH = [_grid_hom(spline, axes, tuple(int(i == k) for i in range(d))) for k in range(d)]
-    if spline.is_rational:
-        w = H[..., -1:]
-        x = H[..., :-1] / w
-        J = np.stack([(dh[..., :-1] - x * dh[..., -1:]) / w for dh in dH], axis=-1)
-    else:
-        x = H
-        J = np.stack(dH, axis=-1)
-    return x, J
+    """Values (n_1, ..., n_d, m) and Jacobian (..., m, d) on a tensor grid."""
+    x, D = grid_values_derivs(spline, axes)
+    shape = tuple(len(a) for a in axes)
+    return x.reshape(shape + (x.shape[-1],)), np.stack(D, axis=-1).reshape(shape + (x.shape[-1], len(D)))
 
 
-def _outer_map(patch: Patch, xT, JT):
-    """Apply the placement and the deformation map to tile values/Jacobians (flat arrays)."""
+def _outer_map(patch: Patch, xT, DT):
+    """Placement and deformation map applied to tile values (N, m) and derivatives [(N, m)] * 3.
+
+    Returns x (N, 3), the physical derivatives [(N, 3)] * 3 (chain rule) and the map's channels.
+    """
     A = patch.placement[:, :3] if patch.placement is not None else np.eye(3)
     b = patch.placement[:, 3] if patch.placement is not None else np.zeros(3)
     y = xT[:, :3] @ A.T + b
-    JT3 = np.einsum("ij,njk->nik", A, JT[:, :3, :])
+    Dy = [dk[:, :3] @ A.T for dk in DT]
     D = patch.outer
     if D is None:
-        return y, JT3, {}
+        return y, Dy, {}
     dom = D.domain
     y = np.clip(y, dom[:, 0], dom[:, 1])
     vals = D.evaluate(y)
-    JD = D.jacobian(y)
-    x = vals[:, :3]
-    J = np.einsum("nij,njk->nik", JD[:, :3, :], JT3)
+    JD = D.jacobian(y)[:, :3, :]
     chans = {c: vals[:, 3 + i] for i, c in enumerate(D.channels)}
-    return x, J, chans
+    return vals[:, :3], [np.einsum("nij,nj->ni", JD, dk) for dk in Dy], chans
+
+
+def patch_geometry_derivs(patch: Patch, axes):
+    """Geometry on a tensor grid of patch parameters: x (N, 3), [dx/dxi_k (N, 3)] * 3, channels."""
+    xT, DT = grid_values_derivs(patch.spline, axes)
+    chans = {c: xT[:, 3 + i] for i, c in enumerate(patch.spline.channels)}
+    x, Dx, outer_chans = _outer_map(patch, xT, DT)
+    chans.update(outer_chans)
+    return x, Dx, chans
 
 
 def patch_geometry_grid(patch: Patch, axes):
-    """Geometry on a tensor grid of patch parameters.
-
-    Returns ``(x, J, channels)``: x (N, 3), J (N, 3, 3), channels {name: (N,)}
-    with N = prod(len(axes[k])) in C order.
-    """
-    xT, JT = grid_values_jacobian(patch.spline, axes)
-    m = xT.shape[-1]
-    xT = xT.reshape(-1, m)
-    JT = JT.reshape(-1, m, 3)
-    chans = {c: xT[:, 3 + i] for i, c in enumerate(patch.spline.channels)}
-    x, J, outer_chans = _outer_map(patch, xT, JT)
-    chans.update(outer_chans)
-    return x, J, chans
+    """Geometry on a tensor grid: x (N, 3), J (N, 3, 3), channels {name: (N,)}; N in C order."""
+    x, Dx, chans = patch_geometry_derivs(patch, axes)
+    return x, np.stack(Dx, axis=-1), chans
 
 
 def patch_geometry_points(patch: Patch, params):
-    """Geometry at scattered parameter points (N, 3): (x, J, channels)."""
+    """Geometry at scattered parameter points (N, 3): (x, J (N, 3, 3), channels)."""
     params = np.asarray(params, float)
     vals = patch.spline.evaluate(params)
     JT = patch.spline.jacobian(params)
     chans = {c: vals[:, 3 + i] for i, c in enumerate(patch.spline.channels)}
-    x, J, outer_chans = _outer_map(patch, vals, JT)
+    x, Dx, outer_chans = _outer_map(patch, vals, [JT[:, :, k] for k in range(3)])
     chans.update(outer_chans)
-    return x, J, chans
+    return x, np.stack(Dx, axis=-1), chans
 
 
-def checked_det(J, what: str) -> np.ndarray:
-    """Jacobian determinants; a sign change or a zero means a singular patch (ProblemError)."""
-    det = np.linalg.det(J)
+def checked_det(det, what: str) -> np.ndarray:
+    """Check Jacobian determinants; a sign change or a zero means a singular patch (ProblemError)."""
     if not np.all(np.isfinite(det)):
         raise ProblemError(f"{what}: the geometry Jacobian is not finite at some quadrature points")
     if det.size and (det.min() <= 0 < det.max() or np.any(det == 0)):

@@ -27,8 +27,8 @@ import scipy.sparse.linalg as spla
 import solvers
 
 from . import ProblemError
-from .assembly import banded_form, banded_to_csr_data, block_diagonal_csr, load_form, pattern
-from .geometry_eval import checked_det, patch_geometry_grid
+from .assembly import banded_form, banded_to_csr_data, block_diagonal_csr, load_form, pattern, stiffness_data
+from .geometry_eval import checked_det, patch_geometry_derivs, patch_geometry_grid
 from .model import as_model
 from .space import FACE_AXES, make_space
 
@@ -223,6 +223,28 @@ class HeatProblem:
     def _face_load(self, fd: FaceData, F: np.ndarray) -> np.ndarray:
         return load_form(fd.space, F.reshape((1,) + fd.space.qshape))[0].ravel()
 
+    def _stiffness_fields(self, i, space):
+        """k |J| w J^-1 J^-T at the Gauss grid of patch i (6 symmetric components) and the source load field.
+
+        With c_1 = x_v x x_w, c_2 = x_w x x_u, c_3 = x_u x x_v (the rows of
+        det J * J^-1), k |J| J^-1 J^-T = k (c_r . c_s) / |det J|.
+        """
+        x, D, chans = patch_geometry_derivs(self.model.patches[i], space.qaxes)
+        D = [np.ascontiguousarray(dk.T) for dk in D]  # component-major (3, N): contiguous arithmetic
+
+        def cross(a, b):
+            return np.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+        c = [cross(D[1], D[2]), cross(D[2], D[0]), cross(D[0], D[1])]
+        det = checked_det(D[0][0] * c[0][0] + D[0][1] * c[0][1] + D[0][2] * c[0][2], f"patch {i}")
+        w = np.multiply.outer(np.multiply.outer(*[d.qw for d in space.dirs[:2]]), space.dirs[2].qw).ravel()
+        kval = self._values(self.conductivity, x, chans, "conductivity", f"patch {i}", positive=True)
+        fac = kval * w / np.abs(det)
+        C = {(r, s): fac * (c[r][0] * c[s][0] + c[r][1] * c[s][1] + c[r][2] * c[s][2])
+             for r in range(3) for s in range(r, 3)}
+        fval = self._values(self.source, x, chans, "source", f"patch {i}")
+        return C, fval * np.abs(det) * w
+
     def _volume(self):
         """Stiffness (CSR) and source load over all patches, batched per space."""
         blocks, f = [], np.zeros(self.ndof)
@@ -232,30 +254,18 @@ class HeatProblem:
         source_total = 0.0
         for members in groups.values():
             space = self.spaces[members[0]]
-            Fs, Ls = [], []
-            for i in members:  # per patch: geometry at the Gauss grid (vectorised inside)
-                x, J, chans = patch_geometry_grid(self.model.patches[i], space.qaxes)
-                det = checked_det(J, f"patch {i}")
-                w = np.einsum("i,j,k->ijk", *[d.qw for d in space.dirs]).ravel()
-                kval = self._values(self.conductivity, x, chans, "conductivity", f"patch {i}", positive=True)
-                Jinv = np.linalg.inv(J)
-                G = np.einsum("nri,nsi->nrs", Jinv, Jinv)  # J^-1 J^-T
-                Fs.append((kval * np.abs(det) * w)[:, None, None] * G)
-                fval = self._values(self.source, x, chans, "source", f"patch {i}")
-                Ls.append(fval * np.abs(det) * w)
-                source_total += float(np.sum(Ls[-1]))
-            C = np.stack(Fs).reshape((len(members),) + space.qshape + (3, 3))
-            terms = []
-            for r in range(3):
-                for s_ in range(3):
-                    variants = tuple((int(k == r), int(k == s_)) for k in range(3))
-                    terms.append((np.ascontiguousarray(C[..., r, s_]), variants))
-            data = banded_to_csr_data(space, banded_form(space, terms))
+            fields = [self._stiffness_fields(i, space) for i in members]  # geometry per patch, vectorised inside
+            shape = (len(members),) + space.qshape
+            C = {rs: (fields[0][0][rs] if len(members) == 1 else np.stack([fl[0][rs] for fl in fields])).reshape(shape)
+                 for rs in fields[0][0]}
+            data = stiffness_data(space, C)
             pat = pattern(space)
             for j, i in enumerate(members):
                 blocks.append((int(self.offsets[i]), pat, data[j]))
-            if any(np.any(L) for L in Ls):
-                loads = load_form(space, np.stack(Ls).reshape((len(members),) + space.qshape))
+            L = np.stack([fl[1] for fl in fields]).reshape(shape)
+            source_total += float(L.sum())
+            if np.any(L):
+                loads = load_form(space, L)
                 for j, i in enumerate(members):
                     f[self.offsets[i] : self.offsets[i + 1]] += loads[j].ravel()
         return block_diagonal_csr(blocks, self.ndof), f, source_total

@@ -7,7 +7,7 @@ import scipy.sparse as sp
 import solvers
 from geometry import primitives as pr
 from iga import HeatProblem, ProblemError, SingularProblemError, write_vtu
-from iga.assembly import banded_form, banded_to_csr_data, block_diagonal_csr, pattern
+from iga.assembly import banded_form, banded_to_csr_data, block_diagonal_csr, pattern, stiffness_data
 from iga.space import make_space
 
 
@@ -18,6 +18,11 @@ def test_sum_factorised_stiffness_equals_brute_force():
     F = rng.random((1,) + S.qshape)
     variants = ((1, 1), (0, 0), (0, 1))
     K = block_diagonal_csr([(0, pattern(S), banded_to_csr_data(S, banded_form(S, [(F, variants)]))[0])], S.ndof)
+    assert (K.T - K).nnz > 0  # the (1,0) x (0,1) term is not symmetric: the transpose map matters below
+    sym = stiffness_data(S, {(0, 2): F})[0]  # S + S^T for the pair (r, s) = (0, 2) and (2, 0)
+    S02 = banded_to_csr_data(S, banded_form(S, [(F, ((1, 0), (0, 0), (0, 1)))]))[0]
+    Ks = block_diagonal_csr([(0, pattern(S), S02)], S.ndof)
+    assert np.abs(block_diagonal_csr([(0, pattern(S), sym)], S.ndof).toarray() - (Ks + Ks.T).toarray()).max() < 1e-12
     B = [d.B[:, :, :-1] for d in S.dirs]
     ref = np.einsum("abc,ia,jb,kc,la,mb,nc->ijklmn", F[0], B[0][1], B[1][0], B[2][0], B[0][1], B[1][0], B[2][1])
     assert np.abs(K.toarray() - ref.reshape(S.ndof, S.ndof)).max() < 1e-12 * np.abs(ref).max()

@@ -1,0 +1,158 @@
+"""Tiles, regular and hierarchical paving, the Microstructure model."""
+
+import numpy as np
+import pytest
+
+import geometry
+from geometry import BSpline, SplineError, primitives as pr
+import tiling
+from tiling import BranchFace, Tile, TilingError, library as L
+from tiling.microstructure import FACE_AXIS
+from helpers import rel_err
+
+
+def curved_map():
+    """A regular, curved, multi-span deformation map (polynomial annulus shell, cubic arcs)."""
+    return pr.annulus(1.0, 2.0, 1.0, exact=False, elements=(2, 1, 1)).elevate(1, 1)
+
+
+def face_eval(P, face, st):
+    """Points of a placed patch face in D's parameter domain at face parameters st (N, 2) in [0, 1]^2."""
+    k, side = FACE_AXIS[face]
+    dom = P.spline.domain
+    rest = [d for d in range(3) if d != k]
+    x = np.empty((len(st), 3))
+    x[:, k] = dom[k, side]
+    for j, d in enumerate(rest):
+        x[:, d] = dom[d, 0] + st[:, j] * (dom[d, 1] - dom[d, 0])
+    return P.spline.evaluate(x)[:, :3] @ P.placement[:, :3].T + P.placement[:, 3]
+
+
+@pytest.mark.parametrize("make", [L.heat_sink_t1, L.heat_sink_t2, L.skinned_branching, L.fractal, L.hollow_box, L.cross, L.helix])
+def test_library_tiles_are_valid(make):
+    t = make()
+    assert isinstance(t, Tile) and t.patches
+    for p in t.patches:
+        assert p.points.min() >= -1e-12 and p.points.max() <= 1 + 1e-12
+        if p.dim == 3:
+            assert geometry.check_regular(p).regular
+
+
+def test_discontinuity_tiles_have_n_plus_1_times_m_plus_1_branches():
+    assert len(L.heat_sink_t1().branch_outs) == 2
+    assert len(L.heat_sink_t2().branch_outs) == 4
+    assert len(L.skinned_branching().branch_outs) == 6  # (2 + 1) (1 + 1)
+
+
+@pytest.mark.parametrize("make, counts, levels, per_level", [
+    (L.heat_sink_t2, (2, 1), 3, [2, 8, 32]),
+    (L.heat_sink_t1, (4, 1), 3, [4, 8, 16]),
+    (L.skinned_branching, (1, 1), 3, [1, 6, 36]),
+    (L.fractal, (1, 1), 7, [1, 2, 4, 8, 16, 32, 64]),
+])
+def test_hierarchical_counts(make, counts, levels, per_level):
+    ms = tiling.hierarchical(pr.box(degrees=(2, 2, 2)), make(), counts, levels)
+    assert ms.tiles_per_level() == per_level
+    assert sum(i.kind == "branch" for i in ms.interfaces) == sum(per_level) - per_level[0]
+    assert len(ms.tags["branch-in"]) == per_level[0]
+
+
+def test_composed_patches_equal_D_of_placement():
+    rng = np.random.default_rng(0)
+    D = curved_map()
+    for ms in (tiling.hierarchical(D, L.heat_sink_t1(), (2, 1), 2), tiling.regular(D, L.cross(), (1, 1, 1))):
+        composed = ms.compose_all()
+        for P, C in zip(ms.patches, composed):
+            x = rng.random((200, P.spline.dim))
+            y = P.spline.evaluate(x)[:, :3] @ P.placement[:, :3].T + P.placement[:, 3]
+            assert rel_err(C(x), D(y)) < 1e-12
+        assert ms.patches[0].composed is composed[0]  # cached
+
+
+def test_interfaces_coincide_and_branch_matrices_reproduce_parent_faces():
+    rng = np.random.default_rng(1)
+    D = curved_map()
+    ms = tiling.hierarchical(D, L.heat_sink_t2(), (2, 1), 3)
+    st = rng.random((100, 2))
+    for itf in ms.interfaces:
+        Pa, Pb = ms.patches[itf.a[0]], ms.patches[itf.b[0]]
+        assert itf.kind == "branch"
+        # the child's face at (s, t) is the parent's face at box-mapped (s, t), in physical space
+        box = np.array(itf.box)
+        pa_dom = Pa.spline.boundary(itf.a[1]).domain
+        st_parent = (box[:, 0] + st * (box[:, 1] - box[:, 0]) - pa_dom[:, 0]) / (pa_dom[:, 1] - pa_dom[:, 0])
+        xa, xb = D(face_eval(Pa, itf.a[1], st_parent))[:, :3], D(face_eval(Pb, itf.b[1], st))[:, :3]
+        assert np.abs(xa - xb).max() < 1e-10
+        # R maps the parent's face coefficients onto the child's face space, reproducing the parent face
+        fa, fb = Pa.spline.boundary(itf.a[1]), Pb.spline.boundary(itf.b[1])
+        cp_child = (itf.R @ fa.points.reshape(-1, 3)).reshape(fb.shape + (3,))
+        sub = BSpline(fb.degrees, fb.knots, cp_child)
+        child_params = fb.domain[:, 0] + st * (fb.domain[:, 1] - fb.domain[:, 0])
+        parent_params = pa_dom[:, 0] + st_parent * (pa_dom[:, 1] - pa_dom[:, 0])
+        assert rel_err(sub(child_params), fa(parent_params)) < 1e-12
+
+
+def test_regular_cross_paving_interfaces_and_free_faces():
+    rng = np.random.default_rng(2)
+    D = curved_map()
+    ms = tiling.regular(D, L.cross(), (3, 3, 1))  # two u spans x 3, one v span x 3, one w span x 1
+    n = (6, 3, 1)
+    tiles = np.prod(n)
+    inner = 6 * tiles  # centre-arm per tile
+    between = (n[0] - 1) * n[1] * n[2] + n[0] * (n[1] - 1) * n[2] + n[0] * n[1] * (n[2] - 1)
+    assert len(ms.interfaces) == inner + between
+    assert all(i.kind == "identity" for i in ms.interfaces)
+    # no free face inside: every free face is an arm side (internal) or lies on D's boundary
+    assert len(ms.tags["internal"]) == tiles * 6 * 4
+    for name, cnt in zip(("umin", "umax", "vmin", "vmax", "wmin", "wmax"), (3, 3, 6, 6, 18, 18)):
+        assert len(ms.tags[name]) == cnt, name
+    st = rng.random((50, 2))
+    for itf in ms.interfaces[::7]:
+        Pa, Pb = ms.patches[itf.a[0]], ms.patches[itf.b[0]]
+        s2 = st[:, ::-1] if itf.swap else st.copy()
+        s2 = np.column_stack([1 - s2[:, 0] if itf.flip[0] else s2[:, 0], 1 - s2[:, 1] if itf.flip[1] else s2[:, 1]])
+        assert np.abs(D(face_eval(Pa, itf.a[1], st))[:, :3] - D(face_eval(Pb, itf.b[1], s2))[:, :3]).max() < 1e-10
+
+
+def test_regular_paving_boundary_variants():
+    D = pr.box()
+    sealed = L.hollow_box()
+    ms = tiling.regular(D, L.cross(), (3, 1, 1), variants={(-1, 0, 0): sealed, (1, 0, 0): sealed})
+    names = [ms.tiles[p.tile].name for p in ms.patches]
+    assert names.count("hollow_box") == 12 and names.count("cross") == 7
+
+
+def test_recursive_composition():
+    D = curved_map()
+    ms = tiling.regular(D, L.cross(), (1, 1, 1))
+    inner_map = ms.patches[0].composed  # a composed trivariate is itself a deformation map
+    ms2 = tiling.regular(inner_map, L.cross(), (1, 1, 1))
+    x = np.random.default_rng(3).random((50, 3))
+    P = ms2.patches[1]
+    y = P.spline.evaluate(x)[:, :3] @ P.placement[:, :3].T + P.placement[:, 3]
+    assert rel_err(P.composed(x)[:, :3], inner_map(y)[:, :3]) < 1e-11
+
+
+def test_bad_tiles_and_maps_raise():
+    cube = pr.box()
+    with pytest.raises(TilingError, match="leaves the unit cube"):
+        Tile([cube.translate([0.5, 0, 0])])
+    with pytest.raises(TilingError, match="planar and axis-aligned"):
+        Tile([pr.annulus(0.2, 0.4, 1.0).translate([0.5, 0.5, 0])], (0, "umax"), [(0, "vmax")])
+    with pytest.raises(TilingError, match="branch-out faces but no branch-in"):
+        Tile([cube], None, [(0, "wmax")])
+    with pytest.raises(TilingError, match="does not take the branch-in face onto this face"):
+        Tile([cube], (0, "wmin"), [BranchFace(0, "wmax", map=np.column_stack([np.eye(3), [0, 0, 0.5]]))])
+    bx = pr.box(degrees=(2, 1, 1))
+    cp = bx.control_points.copy()
+    cp[1, :, :, 0] = 1.6  # folded
+    with pytest.raises(TilingError, match="deformation map is singular"):
+        tiling.regular(BSpline(bx.degrees, bx.knots, cp), L.cross(), (1, 1, 1))
+    with pytest.raises(TilingError, match="counts must be 3 positive integers"):
+        tiling.regular(cube, L.cross(), (1, 0, 1))
+    with pytest.raises(TilingError, match="branch-in face and branch-out faces"):
+        tiling.hierarchical(cube, L.cross(), (1, 1), 2)
+    with pytest.raises(TilingError, match="crosses the deformation map's knot line w"):
+        tiling.hierarchical(pr.box(elements=(1, 1, 2)), L.heat_sink_t1(), (1, 1), 2)
+    with pytest.raises(SplineError):
+        BSpline((1,), [[0, 0, 1]], np.zeros((2, 3)))

@@ -1,0 +1,156 @@
+"""Built-in tiles (public API names).
+
+==================== =====================================================
+``heat_sink_t1()``   one trivariate, one discontinuity along u: a solid base
+                     that splits into 2 fins (000 Fig. 11, T1)
+``heat_sink_t2()``   one trivariate, discontinuities along u and v: a base
+                     splitting into 2 x 2 pins (000 Fig. 11, T2)
+``skinned_branching()`` (2, 1)-discontinuity tile skinned from four surfaces,
+                     six branch-out faces (000 Fig. 2)
+``fractal()``        three trivariates: a trunk (branch-in S0) and two bent
+                     wings whose tops are branch-out S1, S2 (000 Fig. 3)
+``hollow_box()``     six bilinear surfaces, the walls of the cell (003 Fig. 2)
+``cross()``          seven trivariates: a centre block and six arms reaching
+                     every face of the cell; opposite faces match (periodic)
+``helix()``          a cubic curve winding around the cell's axis (003 Fig. 10)
+==================== =====================================================
+
+Discontinuity tiles use a C0 knot at w = 0.4 below which both sides of every
+discontinuity coincide, so the base is solid material (000 Section 3.1:
+"partial" discontinuities); their branch-out faces are derived from the knot
+structure (:func:`tiling.discontinuity_branches`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from geometry import BSpline, knots as kn, primitives as pr
+
+from .tile import BranchFace, Tile, discontinuity_branches
+
+_W_KNOTS = np.array([0, 0, 0, 0.4, 0.4, 1, 1, 1.0])  # quadratic, C0 at 0.4: solid base below
+_Z_LAYERS = np.array([0.0, 0.2, 0.4, 0.7, 1.0])  # Greville abscissae of _W_KNOTS: z linear in w
+_SPLIT = np.array([0.0, 0.0, 0.0, 0.03, 0.05])  # half-gap opened at each layer
+
+
+def _split_coordinate(layer_gap: float) -> np.ndarray:
+    """Coordinates of the 6 control points across one discontinuity at 0.5 (two quadratic pieces)."""
+    g = layer_gap
+    return np.array([g, 0.25, 0.5 - g, 0.5 + g, 0.75, 1.0 - g])
+
+
+def _disc_knots():
+    return np.array([0, 0, 0, 0.5, 0.5, 0.5, 1, 1, 1.0])
+
+
+def heat_sink_t1(scale: float = 0.5) -> Tile:
+    """T1: degrees (2, 1, 2); one discontinuity along u; 2 fins (branch-out faces) on top."""
+    cp = np.zeros((6, 2, 5, 3))
+    for k, (z, g) in enumerate(zip(_Z_LAYERS, _SPLIT)):
+        cp[:, :, k, 0] = _split_coordinate(g)[:, None]
+        cp[:, :, k, 1] = np.array([0.0, 1.0])[None, :]
+        cp[:, :, k, 2] = z
+    T = BSpline((2, 1, 2), [_disc_knots(), kn.uniform_knots(1, 1), _W_KNOTS], cp)
+    return Tile([T], (0, "wmin"), discontinuity_branches(T), scale=scale, name="heat_sink_t1")
+
+
+def heat_sink_t2(scale: float = 0.5) -> Tile:
+    """T2: degrees (2, 2, 2); discontinuities along u and v; 4 pins (branch-out faces) on top."""
+    cp = np.zeros((6, 6, 5, 3))
+    for k, (z, g) in enumerate(zip(_Z_LAYERS, _SPLIT)):
+        c = _split_coordinate(g)
+        cp[:, :, k, 0] = c[:, None]
+        cp[:, :, k, 1] = c[None, :]
+        cp[:, :, k, 2] = z
+    T = BSpline((2, 2, 2), [_disc_knots(), _disc_knots(), _W_KNOTS], cp)
+    return Tile([T], (0, "wmin"), discontinuity_branches(T), scale=scale, name="heat_sink_t2")
+
+
+def skinned_branching(scale: float = 0.5) -> Tile:
+    """Fig. 2 of 000: four (2, 2) surfaces skinned (control meshes stacked) into a (2, 2, 3) tile.
+
+    S0 and S1 are continuous, S2 and S3 split at two u and one v
+    discontinuities: (2 + 1)(1 + 1) = 6 branch-out faces.
+    """
+    Ku = np.array([0, 0, 0, 1 / 3, 1 / 3, 1 / 3, 2 / 3, 2 / 3, 2 / 3, 1, 1, 1.0])
+    Kv = _disc_knots()
+
+    def coords(n_pieces, gap):
+        out = []
+        for i in range(n_pieces):
+            a, b = i / n_pieces + gap, (i + 1) / n_pieces - gap
+            out += [a, 0.5 * (a + b), b]
+        return np.array(out)
+
+    surfaces = []
+    for z, gap in zip([0.0, 1 / 3, 2 / 3, 1.0], [0.0, 0.0, 0.03, 0.05]):
+        cp = np.zeros((9, 6, 3))
+        cp[..., 0] = coords(3, gap)[:, None]
+        cp[..., 1] = coords(2, gap)[None, :]
+        cp[..., 2] = z
+        surfaces.append(BSpline((2, 2), [Ku, Kv], cp))
+    T = pr.skin(surfaces, degree=3)
+    return Tile([T], (0, "wmin"), discontinuity_branches(T), scale=scale, name="skinned_branching")
+
+
+def _hexa(corners: dict) -> BSpline:
+    """Trilinear trivariate from its 8 corners {(i, j, k): xyz}."""
+    cp = np.zeros((2, 2, 2, 3))
+    for (i, j, k), x in corners.items():
+        cp[i, j, k] = x
+    U = kn.uniform_knots(1, 1)
+    return BSpline((1, 1, 1), [U, U, U], cp)
+
+
+def fractal(scale: float = 2 / 3) -> Tile:
+    """Fig. 3 of 000: a trunk and two bent wings, all trilinear; S0 = trunk bottom, S1/S2 = wing tops.
+
+    The wings are glued to the trunk's side faces (whole faces, so the tile is
+    conforming); their tops (width 0.2) are 2/3 of the trunk's base (0.3).
+    """
+    trunk = pr.box((0.3, 1.0, 0.5), (0.35, 0.0, 0.0))
+
+    def wing(attach_x, lower_top_x, upper_top_x):
+        # u = 0: the attachment's lower edge -> the outer end of the top; u = 1: upper edge -> inner end
+        c = {}
+        for j, y in ((0, 0.0), (1, 1.0)):
+            c[(0, j, 0)] = (attach_x, y, 0.0)
+            c[(1, j, 0)] = (attach_x, y, 0.5)
+            c[(0, j, 1)] = (lower_top_x, y, 1.0)
+            c[(1, j, 1)] = (upper_top_x, y, 1.0)
+        return _hexa(c)
+
+    left = wing(0.35, 0.05, 0.25)
+    right = wing(0.65, 0.95, 0.75).reverse(0)  # mirrored so its top face runs along +x
+    return Tile([trunk, left, right], (0, "wmin"), [BranchFace(1, "wmax"), BranchFace(2, "wmax")],
+                scale=scale, name="fractal")
+
+
+def hollow_box() -> Tile:
+    """Six bilinear surfaces: the walls of the unit cell (003 Fig. 2)."""
+    cube = pr.box()
+    return Tile([cube.boundary(f) for f in ("umin", "umax", "vmin", "vmax", "wmin", "wmax")], name="hollow_box")
+
+
+def cross(arm: float = 0.3) -> Tile:
+    """Seven trilinear blocks: centre [a, b]^3 (b - a = ``arm``) and six arms to the cell faces."""
+    if not 0 < arm < 1:
+        raise ValueError("arm width must be in (0, 1)")
+    a, b = 0.5 - arm / 2, 0.5 + arm / 2
+    blocks = [pr.box((arm,) * 3, (a,) * 3)]
+    for k in range(3):
+        for lo, hi in ((0.0, a), (b, 1.0)):
+            size = np.full(3, arm)
+            org = np.full(3, a)
+            size[k], org[k] = hi - lo, lo
+            blocks.append(pr.box(tuple(size), tuple(org)))
+    return Tile(blocks, name="cross")
+
+
+def helix(turns: float = 2.0, radius: float = 0.3, n: int = 16) -> Tile:
+    """A cubic curve winding ``turns`` times around the cell's vertical axis (003 Fig. 10)."""
+    t = np.linspace(0.0, 1.0, n)
+    ang = 2 * np.pi * turns * t
+    cp = np.column_stack([0.5 + radius * np.cos(ang), 0.5 + radius * np.sin(ang), t])
+    return Tile([BSpline((3,), [kn.uniform_knots(3, n - 3)], cp)], name="helix")

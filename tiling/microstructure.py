@@ -1,0 +1,300 @@
+"""The Microstructure: placed tile patches, the interfaces that glue them, boundary tags.
+
+Every placed patch keeps its tile patch (analysed in its own parameter space,
+000 Remark 2), its placement ``[A | b]`` into the deformation map's domain, its
+level and tile index, and its composed image ``D(A T + b)`` (exact, computed
+lazily and cached; :meth:`Microstructure.compose_all` batches it per tile
+patch with :func:`geometry.compose_many`).
+
+Interfaces
+----------
+``identity``: two trivariate faces that coincide in D's parameter domain,
+with the parameter map between them (``swap``, ``flip``: face B's parameters
+(s', t') are face A's (s, t) swapped and/or reversed).
+``branch``: a child's branch-in face on a sub-rectangle ``box`` of its
+parent's branch-out face, with ``R`` (sparse) such that
+child face coefficients = R @ parent face coefficients (000 Eqs. 11-12).
+
+Tags: every free face (no interface) of every trivariate is tagged with the
+boundary of D's domain it lies on (``umin`` .. ``wmax``) or ``internal``;
+``boundary`` holds every free face; ``branch-in`` the root faces of a
+hierarchy.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+import scipy.sparse as sp
+
+from geometry import BSpline, compose, compose_many
+from geometry import knots as kn
+from geometry.spline import FACE_NAMES
+
+from . import TilingError
+from .tile import FACE_AXIS
+
+TOL = 1e-9
+
+
+@dataclass(eq=False)
+class PlacedPatch:
+    """One tile patch placed into the deformation map's domain."""
+
+    spline: BSpline
+    placement: np.ndarray  # (3, 4)
+    outer: BSpline
+    tile: int
+    level: int = 0
+    patch_in_tile: int = 0
+    _composed: BSpline | None = field(default=None, repr=False)
+
+    @property
+    def composed(self) -> BSpline:
+        """D(A T + b), exact (computed on first access, then cached)."""
+        if self._composed is None:
+            self._composed = compose(self.outer, self.spline.affine(self.placement[:, :3], self.placement[:, 3]))
+        return self._composed
+
+
+@dataclass(eq=False)
+class Interface:
+    """Two glued faces: ``a`` = (patch, face), ``b`` = (patch, face)."""
+
+    kind: str  # "identity" or "branch"
+    a: tuple
+    b: tuple
+    swap: bool = False
+    flip: tuple = (False, False)
+    box: tuple | None = None  # branch: sub-rectangle of a's face (the parent's)
+    R: sp.csr_matrix | None = None  # branch: child (b) face coefficients = R @ parent (a) face coefficients
+
+
+def _face_corners(P: PlacedPatch, face: str) -> np.ndarray:
+    """Corners (4, 3) of a patch face in D's parameter domain, in face-parameter order (00, 10, 01, 11)."""
+    k, side = FACE_AXIS[face]
+    dom = P.spline.domain
+    corners = []
+    for t in (0, 1):
+        for s in (0, 1):
+            x = dom[:, 0].copy()
+            rest = [d for d in range(3) if d != k]
+            x[rest[0]] = dom[rest[0], s]
+            x[rest[1]] = dom[rest[1], t]
+            x[k] = dom[k, side]
+            corners.append(x)
+    pts = P.spline.evaluate(np.array(corners))[:, :3]
+    return pts @ P.placement[:, :3].T + P.placement[:, 3]
+
+
+class Microstructure:
+    """Result of a paving: patches, interfaces, tags (see module docs)."""
+
+    def __init__(self, outer: BSpline, patches: list, interfaces: list, tags: dict, tiles: list, name: str = ""):
+        self.outer = outer
+        self.patches = patches
+        self.interfaces = interfaces
+        self.tags = tags
+        self.tiles = tiles
+        self.name = name
+
+    def __repr__(self):
+        return (f"Microstructure({self.name!r}: {len(self.patches)} patches, {self.n_tiles} tiles, "
+                f"{len(self.interfaces)} interfaces, levels {self.levels})")
+
+    @property
+    def n_tiles(self) -> int:
+        return len({p.tile for p in self.patches})
+
+    @property
+    def levels(self) -> int:
+        return 1 + max((p.level for p in self.patches), default=0)
+
+    def tiles_per_level(self) -> list[int]:
+        out = [0] * self.levels
+        seen = set()
+        for p in self.patches:
+            if p.tile not in seen:
+                seen.add(p.tile)
+                out[p.level] += 1
+        return out
+
+    def compose_all(self) -> list[BSpline]:
+        """Compose every patch into D, batched per tile patch (cached on the patches)."""
+        groups: dict = {}
+        for i, p in enumerate(self.patches):
+            if p._composed is None:
+                groups.setdefault(id(p.spline), []).append(i)
+        for members in groups.values():
+            spline = self.patches[members[0]].spline
+            res = compose_many(self.outer, spline, np.stack([self.patches[i].placement for i in members]))
+            for i, r in zip(members, res):
+                self.patches[i]._composed = r
+        return [p.composed for p in self.patches]
+
+    # ------------------------------------------------------------- assembly
+    @classmethod
+    def build(cls, outer, placed: list, tiles: list, branch_links: list, name: str = "", root_faces=(), leaf_faces=()):
+        """Find identity interfaces, add branch interfaces, tag free faces."""
+        linked = {frozenset([(p, pf), (c, cf)]) for p, pf, _, c, cf in branch_links}
+        # a branch-out face that coincides with the child's branch-in face is glued by the branch constraint
+        interfaces = [itf for itf in _identity_interfaces(placed) if frozenset([itf.a, itf.b]) not in linked]
+        for parent, pface, pbox, child, cface in branch_links:
+            interfaces.append(_branch_interface(placed, parent, pface, pbox, child, cface))
+        tags = _tags(outer, placed, interfaces, root_faces, leaf_faces)
+        return cls(outer, placed, interfaces, tags, tiles, name)
+
+
+def _identity_interfaces(placed: list) -> list:
+    """Faces of trivariates that coincide in D's domain (hash of rounded face centres, vectorised)."""
+    recs = []
+    for i, P in enumerate(placed):
+        if P.spline.dim != 3:
+            continue
+        for f in FACE_NAMES:
+            c = _face_corners(P, f)
+            recs.append((i, f, c))
+    if not recs:
+        return []
+    corners = np.stack([r[2] for r in recs])  # (F, 4, 3)
+    scale = max(1.0, float(np.abs(corners).max()))
+    key = np.round(corners.mean(axis=1) / (1e-7 * scale)).astype(np.int64)
+    order = np.lexsort(key.T[::-1])
+    ks = key[order]
+    same = np.all(ks[1:] == ks[:-1], axis=1)
+    out = []
+    for j in np.nonzero(same)[0]:
+        ia, ib = order[j], order[j + 1]
+        if j + 1 < len(same) and same[j + 1]:
+            a = recs[ia]
+            raise TilingError(f"more than two patch faces meet at the face of patch {a[0]} ({a[1]}); "
+                              "overlapping tiles or patches")
+        (pa, fa, ca), (pb, fb, cb) = recs[ia], recs[ib]
+        if pa == pb:
+            continue
+        m = _corner_map(ca, cb, TOL * scale)
+        if m is None:
+            continue  # same centre but different faces (e.g. a smaller face inside a larger one)
+        swap, flip = m
+        _check_face_spaces(placed, (pa, fa), (pb, fb), swap, flip)
+        out.append(Interface("identity", (pa, fa), (pb, fb), swap, flip))
+    return out
+
+
+def _corner_map(ca, cb, tol):
+    """Orientation (swap, (flip_s, flip_t)) with B(s', t') = A(s, t), or None if the faces differ."""
+    for swap in (False, True):
+        for fs in (False, True):
+            for ft in (False, True):
+                idx = []
+                for t in (0, 1):
+                    for s in (0, 1):
+                        s2, t2 = (t, s) if swap else (s, t)
+                        s2, t2 = (1 - s2 if fs else s2), (1 - t2 if ft else t2)
+                        idx.append(t2 * 2 + s2)
+                if np.abs(cb[idx] - ca).max() <= tol:
+                    return swap, (fs, ft)
+    return None
+
+
+def face_knots(P: PlacedPatch, face: str):
+    k, _ = FACE_AXIS[face]
+    return [(P.spline.knots[d], P.spline.degrees[d]) for d in range(3) if d != k]
+
+
+def _normalised(U):
+    U = np.asarray(U, float)
+    return (U - U[0]) / (U[-1] - U[0])
+
+
+def _check_face_spaces(placed, a, b, swap, flip):
+    ka, kb = face_knots(placed[a[0]], a[1]), face_knots(placed[b[0]], b[1])
+    if swap:
+        kb = kb[::-1]
+        flip = flip[::-1]
+    for d in range(2):
+        Ua, pa = ka[d]
+        Ub, pb = kb[d]
+        Ua = _normalised(Ua)
+        Ub = _normalised(Ub)
+        if flip[d]:
+            Ub = 1 - Ub[::-1]
+        if pa != pb or len(Ua) != len(Ub) or np.abs(Ua - Ub).max() > 1e-12:
+            raise TilingError(
+                f"faces patch {a[0]} {a[1]} and patch {b[0]} {b[1]} coincide but their spline spaces differ "
+                f"(degrees {pa} vs {pb}, knots {np.round(Ua, 6).tolist()} vs {np.round(Ub, 6).tolist()}); "
+                "use tiles whose opposite faces have matching knot vectors"
+            )
+
+
+def branch_refinement(parent_knots, box, child_knots) -> sp.csr_matrix:
+    """R with child face coefficients = R @ parent face coefficients (per-direction Kronecker product).
+
+    ``parent_knots``, ``child_knots``: [(U, p)] * 2 of the two faces; ``box``:
+    sub-rectangle of the parent face carrying the child's face.  Raises
+    :class:`TilingError` unless the child's face space contains the parent's.
+    """
+    Rs = []
+    for d in range(2):
+        (Up, pp), (Uc, pc) = parent_knots[d], child_knots[d]
+        a, b = box[d]
+        if pc != pp:
+            raise TilingError(f"branch faces need equal degrees; parent {pp}, child {pc} (direction {d})")
+        sub, S = kn.restriction(np.asarray(Up, float), pp, a, b)
+        mapped = a + _normalised(Uc) * (b - a)
+        vals_s, m_s = kn.breakpoints(sub)
+        vals_c, m_c = kn.breakpoints(mapped)
+        need = []
+        for v, m in zip(vals_c, m_c):
+            have = m_s[np.abs(vals_s - v) < 1e-12]
+            have = int(have[0]) if len(have) else 0
+            need += [v] * max(0, m - have)
+        for v, m in zip(vals_s, m_s):
+            if not np.any((np.abs(vals_c - v) < 1e-12) & (m_c >= m)):
+                raise TilingError(
+                    f"the child's branch-in face space does not contain the parent's branch-out face space: "
+                    f"parent knot {v:g} (multiplicity {m}) is missing on the child (direction {d}); not nested"
+                )
+        inner = [v for v in need if a < v < b]
+        _, Rins = kn.insertion_matrix(sub, pp, inner)
+        Rs.append(sp.csr_matrix(Rins @ S))
+    return sp.csr_matrix(sp.kron(Rs[0], Rs[1]))
+
+
+def _branch_interface(placed, parent, pface, pbox, child, cface) -> Interface:
+    P, C = placed[parent], placed[child]
+    pk = face_knots(P, pface)
+    if pbox is None:
+        pbox = tuple((float(U[0]), float(U[-1])) for U, _ in pk)
+    R = branch_refinement(pk, pbox, face_knots(C, cface))
+    return Interface("branch", (parent, pface), (child, cface), box=tuple(map(tuple, pbox)), R=R)
+
+
+def _tags(outer, placed, interfaces, root_faces, leaf_faces=()) -> dict:
+    glued = set()
+    for itf in interfaces:  # a parent's branch-out face is covered by its children's faces
+        glued.add(itf.a)
+        glued.add(itf.b)
+    tags = {f: [] for f in FACE_NAMES}
+    tags.update({"internal": [], "boundary": [], "branch-in": [], "branch-out": []})
+    dom = outer.domain
+    scale = float(np.abs(dom).max()) + 1.0
+    for i, P in enumerate(placed):
+        if P.spline.dim != 3:
+            continue
+        for f in FACE_NAMES:
+            if (i, f) in glued:
+                continue
+            c = _face_corners(P, f)
+            where = "internal"
+            for k in range(3):
+                for side, name in ((0, FACE_NAMES[2 * k]), (1, FACE_NAMES[2 * k + 1])):
+                    if np.all(np.abs(c[:, k] - dom[k, side]) < TOL * scale):
+                        where = name
+            tags[where].append((i, f))
+            tags["boundary"].append((i, f))
+    tags["branch-in"] = list(root_faces)
+    tags["branch-out"] = list(leaf_faces)  # free branch-out faces of the last level (fin tips)
+    return tags

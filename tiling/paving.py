@@ -1,0 +1,169 @@
+"""Paving schemes: regular (003 Sections 2-3) and hierarchical (000 Section 3).
+
+Placements are affine maps ``[A | b]`` of tile coordinates into the
+deformation map's parameter domain.  Tiles are placed per knot span of ``D``
+so that no placed patch crosses a knot line (exact composition works per
+Bezier piece of ``D``).  A singular ``D`` is refused up front with the
+parameter box where its Jacobian vanishes (:func:`geometry.check_regular`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from geometry import BSpline, check_regular
+
+from . import TilingError
+from .microstructure import Microstructure, PlacedPatch
+from .tile import Tile
+
+
+def _check_map(D) -> None:
+    if not isinstance(D, BSpline) or D.dim != 3:
+        raise TilingError(f"the deformation map must be a trivariate geometry.BSpline, got {D!r}")
+    r = check_regular(D, max_depth=6)
+    if r.status == "singular":
+        raise TilingError(f"the deformation map is singular: {r.message}; fix its control net before paving")
+
+
+def _check_counts(counts, n, what):
+    try:
+        c = tuple(int(v) for v in counts)
+    except (TypeError, ValueError):
+        raise TilingError(f"{what} must be {n} positive integers, got {counts!r}") from None
+    if len(c) != n or any(v < 1 for v in c) or any(v != float(x) for v, x in zip(c, counts)):
+        raise TilingError(f"{what} must be {n} positive integers, got {counts!r}")
+    return c
+
+
+def _cells(D: BSpline, k: int, count: int) -> np.ndarray:
+    """(N, 2) parameter intervals: ``count`` equal cells per knot span of D along direction k."""
+    b = D.breakpoints(k)
+    t = np.linspace(0.0, 1.0, count + 1)
+    lo = (b[:-1, None] + np.diff(b)[:, None] * t[None, :-1]).ravel()
+    hi = (b[:-1, None] + np.diff(b)[:, None] * t[None, 1:]).ravel()
+    return np.stack([lo, hi], axis=1)
+
+
+def _affine(M: np.ndarray) -> np.ndarray:
+    out = np.eye(4)
+    out[:3] = M
+    return out
+
+
+def _check_spans(D: BSpline, placed: list) -> None:
+    """Every placed patch must lie inside one knot span of D (exact composition per Bezier piece)."""
+    for i, P in enumerate(placed):
+        pts = P.spline.points.reshape(-1, 3) @ P.placement[:, :3].T + P.placement[:, 3]
+        lo, hi = pts.min(0), pts.max(0)
+        dom = D.domain
+        tol = 1e-9 * (dom[:, 1] - dom[:, 0])
+        if np.any(lo < dom[:, 0] - tol) or np.any(hi > dom[:, 1] + tol):
+            raise TilingError(f"placed patch {i} (tile {P.tile}) leaves the deformation map's domain")
+        for k in range(3):
+            inner = D.breakpoints(k)[1:-1]
+            cross = inner[(inner > lo[k] + tol[k]) & (inner < hi[k] - tol[k])]
+            if len(cross):
+                raise TilingError(
+                    f"placed patch {i} (tile {P.tile}, level {P.level}) crosses the deformation map's knot line "
+                    f"{'uvw'[k]} = {cross[0]:g}; use a map with one knot span along {'uvw'[k]} for this paving "
+                    "or counts that align tiles with its knot spans"
+                )
+
+
+def regular(D: BSpline, tile: Tile, counts, variants: dict | None = None, name: str = "regular") -> Microstructure:
+    """Regular paving: ``counts`` = (cx, cy, cz) copies of ``tile`` per knot span of D.
+
+    ``variants`` optionally maps a position key ``(ku, kv, kw)`` with entries
+    -1 (at the min boundary of D's domain), 0 (interior), +1 (at the max
+    boundary) to a sealed boundary tile (003 Sections 2-3); tiles whose key is
+    missing use ``tile``.
+    """
+    _check_map(D)
+    if not isinstance(tile, Tile):
+        raise TilingError(f"tile must be a tiling.Tile, got {type(tile).__name__}")
+    counts = _check_counts(counts, 3, "counts")
+    variants = dict(variants or {})
+    for key, t in variants.items():
+        if not isinstance(t, Tile) or len(key) != 3 or any(v not in (-1, 0, 1) for v in key):
+            raise TilingError(f"variants keys must be (ku, kv, kw) with entries -1/0/1 and values Tiles; got {key!r}")
+    cells = [_cells(D, k, counts[k]) for k in range(3)]
+    N = [len(c) for c in cells]
+    placed, tiles = [], []
+    for i in range(N[0]):
+        for j in range(N[1]):
+            for k in range(N[2]):
+                key = tuple(0 if N[d] == 1 else (-1 if n == 0 else (1 if n == N[d] - 1 else 0))
+                            for d, n in enumerate((i, j, k)))
+                t = variants.get(key, tile)
+                lo = np.array([cells[0][i, 0], cells[1][j, 0], cells[2][k, 0]])
+                hi = np.array([cells[0][i, 1], cells[1][j, 1], cells[2][k, 1]])
+                M = np.column_stack([np.diag(hi - lo), lo])
+                tid = len(tiles)
+                tiles.append(t)
+                for pi, patch in enumerate(t.patches):
+                    placed.append(PlacedPatch(patch, M, D, tid, 0, pi))
+    _check_spans(D, placed)
+    return Microstructure.build(D, placed, tiles, [], name=name)
+
+
+def hierarchical(D: BSpline, tile: Tile, counts, levels: int, scale: float | None = None,
+                 name: str = "hierarchical") -> Microstructure:
+    """Hierarchical paving (000 Section 3): base copies, then a child on every branch-out face, recursively.
+
+    ``counts`` = (cx, cy) base copies per knot span of D along u, v; ``levels``
+    counts the base level; ``scale`` (default: the tile's) is the height of a
+    child relative to its parent along the growth direction.  The whole
+    hierarchy is scaled (axis-aligned) into each base cell of D's domain.
+    """
+    _check_map(D)
+    if not isinstance(tile, Tile) or not tile.hierarchical:
+        raise TilingError("hierarchical paving needs a Tile with a branch-in face and branch-out faces")
+    cx, cy = _check_counts(counts, 2, "counts")
+    if not isinstance(levels, (int, np.integer)) or levels < 1:
+        raise TilingError(f"levels must be a positive integer, got {levels!r}")
+    if scale is not None and scale != tile.scale:
+        tile = Tile(tile.patches, tile.branch_in, [(b.patch, b.face, b.box) for b in tile.branch_outs],
+                    scale=scale, name=tile.name)
+    # the hierarchy in tile coordinates: (placement 4x4, level, parent tile, branch-out index)
+    nodes = [(np.eye(4), 0, -1, -1)]
+    frontier = [0]
+    for lev in range(1, int(levels)):
+        nxt = []
+        for n in frontier:
+            M = nodes[n][0]
+            for j, bf in enumerate(tile.branch_outs):
+                nodes.append((M @ _affine(bf.map), lev, n, j))
+                nxt.append(len(nodes) - 1)
+        frontier = nxt
+    pts = np.concatenate([np.concatenate([p.points.reshape(-1, 3) for p in tile.patches]) @ M[:3, :3].T + M[:3, 3]
+                          for M, *_ in nodes])
+    lo, hi = pts.min(0), pts.max(0)
+    Nrm = _affine(np.column_stack([np.diag(1.0 / (hi - lo)), -lo / (hi - lo)]))  # hierarchy -> unit cube
+    cu, cv = _cells(D, 0, cx), _cells(D, 1, cy)
+    dw = D.domain[2]
+    placed, tiles, links, roots, leaves = [], [], [], [], []
+    npt = len(tile.patches)
+    for i in range(len(cu)):
+        for j in range(len(cv)):
+            lo_c = np.array([cu[i, 0], cv[j, 0], dw[0]])
+            hi_c = np.array([cu[i, 1], cv[j, 1], dw[1]])
+            cell = _affine(np.column_stack([np.diag(hi_c - lo_c), lo_c]))
+            base = len(tiles)
+            for n, (M, lev, parent, bj) in enumerate(nodes):
+                tid = len(tiles)
+                tiles.append(tile)
+                G = (cell @ Nrm @ M)[:3]
+                first = len(placed)
+                for pi, patch in enumerate(tile.patches):
+                    placed.append(PlacedPatch(patch, G, D, tid, lev, pi))
+                if parent >= 0:
+                    bf = tile.branch_outs[bj]
+                    pfirst = (base + parent) * npt
+                    links.append((pfirst + bf.patch, bf.face, bf.box, first + tile.branch_in.patch, tile.branch_in.face))
+                else:
+                    roots.append((first + tile.branch_in.patch, tile.branch_in.face))
+                if lev == levels - 1:
+                    leaves += [(first + bf.patch, bf.face) for bf in tile.branch_outs]
+    _check_spans(D, placed)
+    return Microstructure.build(D, placed, tiles, links, name=name, root_faces=roots, leaf_faces=sorted(set(leaves)))
