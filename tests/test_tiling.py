@@ -156,3 +156,50 @@ def test_bad_tiles_and_maps_raise():
         tiling.hierarchical(pr.box(elements=(1, 1, 2)), L.heat_sink_t1(), (1, 1), 2)
     with pytest.raises(SplineError):
         BSpline((1,), [[0, 0, 1]], np.zeros((2, 3)))
+
+
+def test_graded_conductivity_is_exact_in_parameter_mode_and_usable_by_analysis():
+    from tiling.materials import graded_channel, interpolate_channel
+
+    rng = np.random.default_rng(4)
+    shell = pr.annulus(0.5, 1.0, 1.0, elements=(2, 2, 1))  # NURBS
+    g = graded_channel(shell, "k", 205.0, 54.0, face="vmin")
+    x = rng.random((500, 3))
+    assert np.abs(g(x)[:, 3] - (205 * (1 - x[:, 1]) + 54 * x[:, 1])).max() < 1e-10
+    # a field outside the spline space is quasi-interpolated: close, not exact
+    q = interpolate_channel(pr.box(degrees=(2, 2, 2), elements=(4, 4, 4)), "q", lambda p: np.sin(3 * p[:, 0]), on="points")
+    err = np.abs(q(x)[:, 3] - np.sin(3 * x[:, 0])).max()
+    assert 1e-6 < err < 1e-2
+    with pytest.raises(TilingError, match="mode='distance' needs a planar face"):
+        graded_channel(shell, "k", face="vmin", mode="distance")
+    # channel on the tile is carried into composition; channel on D is composed
+    D = graded_channel(pr.box(degrees=(1, 1, 2)), "k", 205.0, 54.0, face="wmin")
+    ms = tiling.hierarchical(D, L.heat_sink_t1(), (1, 1), 2)
+    C = ms.patches[1].composed
+    assert C.channels == ("k",)
+    y = rng.random((100, 3))
+    P = ms.patches[1]
+    w = (P.spline.evaluate(y)[:, :3] @ P.placement[:, :3].T + P.placement[:, 3])[:, 2]
+    assert np.abs(C(y)[:, 3] - (205 * (1 - w) + 54 * w)).max() < 1e-9
+
+
+def test_surface_export_and_watertightness(tmp_path):
+    from tiling.export import watertightness, write_surfaces
+
+    D = pr.annulus(1.0, 2.0, 1.0, exact=False, elements=(2, 1, 1))
+    closed = tiling.regular(D, L.cross(), (2, 2, 2))
+    assert watertightness(closed)["closed"]
+    assert watertightness(tiling.hierarchical(D, L.heat_sink_t2(), (2, 1), 2))["closed"]
+    # remove one patch of the cross paving: its neighbours' faces become open
+    ms = tiling.regular(D, L.cross(), (1, 1, 1))
+    broken = tiling.Microstructure(ms.outer, ms.patches[:-1], [i for i in ms.interfaces if 6 not in (i.a[0], i.b[0])],
+                                   ms.tags, ms.tiles)
+    assert not watertightness(broken)["closed"]
+    for suffix in (".vtu", ".obj", ".stl"):
+        path = write_surfaces(tmp_path / f"s{suffix}", closed)
+        assert path.stat().st_size > 1000
+    import pyvista as pv
+
+    assert pv.read(tmp_path / "s.stl").n_cells > 100
+    with pytest.raises(TilingError, match="use a .vtu, .obj or .stl"):
+        write_surfaces(tmp_path / "s.ply", closed)

@@ -72,21 +72,21 @@ class Interface:
     R: sp.csr_matrix | None = None  # branch: child (b) face coefficients = R @ parent (a) face coefficients
 
 
-def _face_corners(P: PlacedPatch, face: str) -> np.ndarray:
+def _corner_points(P: PlacedPatch) -> np.ndarray:
+    """The 8 corners (2, 2, 2, 3) of a placed trivariate in D's parameter domain.
+
+    Open knot vectors interpolate the corner control points, so no evaluation is needed.
+    """
+    c = P.spline.points[np.ix_([0, -1], [0, -1], [0, -1])]
+    return c @ P.placement[:, :3].T + P.placement[:, 3]
+
+
+def _face_corners(P: PlacedPatch, face: str, corners: np.ndarray | None = None) -> np.ndarray:
     """Corners (4, 3) of a patch face in D's parameter domain, in face-parameter order (00, 10, 01, 11)."""
+    c = _corner_points(P) if corners is None else corners
     k, side = FACE_AXIS[face]
-    dom = P.spline.domain
-    corners = []
-    for t in (0, 1):
-        for s in (0, 1):
-            x = dom[:, 0].copy()
-            rest = [d for d in range(3) if d != k]
-            x[rest[0]] = dom[rest[0], s]
-            x[rest[1]] = dom[rest[1], t]
-            x[k] = dom[k, side]
-            corners.append(x)
-    pts = P.spline.evaluate(np.array(corners))[:, :3]
-    return pts @ P.placement[:, :3].T + P.placement[:, 3]
+    f = np.take(c, side, axis=k)  # (2, 2, 3) over the two remaining directions
+    return np.stack([f[0, 0], f[1, 0], f[0, 1], f[1, 1]])
 
 
 class Microstructure:
@@ -153,9 +153,9 @@ def _identity_interfaces(placed: list) -> list:
     for i, P in enumerate(placed):
         if P.spline.dim != 3:
             continue
+        corners = _corner_points(P)
         for f in FACE_NAMES:
-            c = _face_corners(P, f)
-            recs.append((i, f, c))
+            recs.append((i, f, _face_corners(P, f, corners)))
     if not recs:
         return []
     corners = np.stack([r[2] for r in recs])  # (F, 4, 3)
@@ -284,10 +284,11 @@ def _tags(outer, placed, interfaces, root_faces, leaf_faces=()) -> dict:
     for i, P in enumerate(placed):
         if P.spline.dim != 3:
             continue
+        corners = _corner_points(P)
         for f in FACE_NAMES:
             if (i, f) in glued:
                 continue
-            c = _face_corners(P, f)
+            c = _face_corners(P, f, corners)
             where = "internal"
             for k in range(3):
                 for side, name in ((0, FACE_NAMES[2 * k]), (1, FACE_NAMES[2 * k + 1])):

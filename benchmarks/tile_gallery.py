@@ -1,0 +1,35 @@
+"""Pictures of the built-in tiles for the docs: docs/tiles/<name>.png.
+
+    python benchmarks/tile_gallery.py
+
+Each tile is shown in its unit cell (identity map), coloured by patch.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).parent))
+import _common  # noqa: E402,F401  (imports the tiling package before benchmarks/tiling.py can shadow it)
+
+from geometry import primitives as pr  # noqa: E402
+import tiling  # noqa: E402
+from tiling import library as L  # noqa: E402
+from tiling.export import render_png  # noqa: E402
+
+OUT = Path(__file__).resolve().parents[1] / "docs" / "tiles"
+
+
+def main():
+    OUT.mkdir(parents=True, exist_ok=True)
+    cell = pr.box()
+    for make in (L.heat_sink_t1, L.heat_sink_t2, L.skinned_branching, L.fractal, L.hollow_box, L.cross, L.helix):
+        tile = make()
+        ms = tiling.regular(cell, tile, (1, 1, 1))
+        path = render_png(ms, OUT / f"{tile.name}.png", samples=8, color_by="patch", window=(520, 440))
+        print(path)
+
+
+if __name__ == "__main__":
+    main()
