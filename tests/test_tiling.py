@@ -28,6 +28,14 @@ def face_eval(P, face, st):
     return P.spline.evaluate(x)[:, :3] @ P.placement[:, :3].T + P.placement[:, 3]
 
 
+def assert_identity_coincides(D, ms, itf, st):
+    """Face a at (s, t) and face b at the interface's mapped parameters are one physical point."""
+    Pa, Pb = ms.patches[itf.a[0]], ms.patches[itf.b[0]]
+    s2 = st[:, ::-1] if itf.swap else st.copy()
+    s2 = np.column_stack([1 - s2[:, 0] if itf.flip[0] else s2[:, 0], 1 - s2[:, 1] if itf.flip[1] else s2[:, 1]])
+    assert np.abs(D(face_eval(Pa, itf.a[1], st))[:, :3] - D(face_eval(Pb, itf.b[1], s2))[:, :3]).max() < 1e-10
+
+
 @pytest.mark.parametrize("make", [L.heat_sink_t1, L.heat_sink_t2, L.skinned_branching, L.fractal, L.hollow_box, L.cross, L.helix])
 def test_library_tiles_are_valid(make):
     t = make()
@@ -74,9 +82,13 @@ def test_interfaces_coincide_and_branch_matrices_reproduce_parent_faces():
     D = curved_map()
     ms = tiling.hierarchical(D, L.heat_sink_t2(), (2, 1), 3)
     st = rng.random((100, 2))
+    kinds = {i.kind for i in ms.interfaces}
+    assert kinds == {"branch", "identity"}  # neighbouring tiles share their outer walls
     for itf in ms.interfaces:
         Pa, Pb = ms.patches[itf.a[0]], ms.patches[itf.b[0]]
-        assert itf.kind == "branch"
+        if itf.kind == "identity":
+            assert_identity_coincides(D, ms, itf, st)
+            continue
         # the child's face at (s, t) is the parent's face at box-mapped (s, t), in physical space
         box = np.array(itf.box)
         pa_dom = Pa.spline.boundary(itf.a[1]).domain
@@ -108,10 +120,7 @@ def test_regular_cross_paving_interfaces_and_free_faces():
         assert len(ms.tags[name]) == cnt, name
     st = rng.random((50, 2))
     for itf in ms.interfaces[::7]:
-        Pa, Pb = ms.patches[itf.a[0]], ms.patches[itf.b[0]]
-        s2 = st[:, ::-1] if itf.swap else st.copy()
-        s2 = np.column_stack([1 - s2[:, 0] if itf.flip[0] else s2[:, 0], 1 - s2[:, 1] if itf.flip[1] else s2[:, 1]])
-        assert np.abs(D(face_eval(Pa, itf.a[1], st))[:, :3] - D(face_eval(Pb, itf.b[1], s2))[:, :3]).max() < 1e-10
+        assert_identity_coincides(D, ms, itf, st)
 
 
 def test_regular_paving_boundary_variants():

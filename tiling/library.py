@@ -17,8 +17,10 @@
 
 Discontinuity tiles use a C0 knot at w = 0.4 below which both sides of every
 discontinuity coincide, so the base is solid material (000 Section 3.1:
-"partial" discontinuities); their branch-out faces are derived from the knot
-structure (:func:`tiling.discontinuity_branches`).
+"partial" discontinuities); above it each discontinuity opens a slot.  Their
+outer sides stay on the cell walls, so neighbouring tiles share whole faces
+(conforming identity interfaces, a solid base plate or ring).  Branch-out
+faces are derived from the knot structure (:func:`tiling.discontinuity_branches`).
 """
 
 from __future__ import annotations
@@ -35,9 +37,13 @@ _SPLIT = np.array([0.0, 0.0, 0.0, 0.03, 0.05])  # half-gap opened at each layer
 
 
 def _split_coordinate(layer_gap: float) -> np.ndarray:
-    """Coordinates of the 6 control points across one discontinuity at 0.5 (two quadratic pieces)."""
+    """Coordinates of the 6 control points across one discontinuity at 0.5 (two quadratic pieces).
+
+    The outer sides stay on the cell walls (0 and 1), so neighbouring tiles share whole faces and
+    the base is one solid; the discontinuity opens a slot of width 2 g in the middle.
+    """
     g = layer_gap
-    return np.array([g, 0.25, 0.5 - g, 0.5 + g, 0.75, 1.0 - g])
+    return np.array([0.0, (0.5 - g) / 2, 0.5 - g, 0.5 + g, (1.5 + g) / 2, 1.0])
 
 
 def _disc_knots():
@@ -78,8 +84,9 @@ def skinned_branching(scale: float = 0.5) -> Tile:
 
     def coords(n_pieces, gap):
         out = []
-        for i in range(n_pieces):
-            a, b = i / n_pieces + gap, (i + 1) / n_pieces - gap
+        for i in range(n_pieces):  # slots between pieces; the outer sides stay on the cell walls
+            a = i / n_pieces + (gap if i > 0 else 0.0)
+            b = (i + 1) / n_pieces - (gap if i < n_pieces - 1 else 0.0)
             out += [a, 0.5 * (a + b), b]
         return np.array(out)
 

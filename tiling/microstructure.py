@@ -8,8 +8,8 @@ patch with :func:`geometry.compose_many`).
 
 Interfaces
 ----------
-``identity``: two trivariate faces that coincide in D's parameter domain,
-with the parameter map between them (``swap``, ``flip``: face B's parameters
+``identity``: two trivariate faces that coincide in space (through D, so
+periodic maps glue across their seam), with the parameter map between them (``swap``, ``flip``: face B's parameters
 (s', t') are face A's (s, t) swapped and/or reversed).
 ``branch``: a child's branch-in face on a sub-rectangle ``box`` of its
 parent's branch-out face, with ``R`` (sparse) such that
@@ -148,7 +148,11 @@ class Microstructure:
 
 
 def _identity_interfaces(placed: list) -> list:
-    """Faces of trivariates that coincide in D's domain (hash of rounded face centres, vectorised)."""
+    """Faces of trivariates that coincide in space (hash of rounded face centres, vectorised).
+
+    Faces are compared through the deformation map (their corners mapped by
+    D in one evaluation), so periodic maps (a full ring) glue across their seam.
+    """
     recs = []
     for i, P in enumerate(placed):
         if P.spline.dim != 3:
@@ -158,7 +162,10 @@ def _identity_interfaces(placed: list) -> list:
             recs.append((i, f, _face_corners(P, f, corners)))
     if not recs:
         return []
-    corners = np.stack([r[2] for r in recs])  # (F, 4, 3)
+    D = placed[recs[0][0]].outer
+    params = np.stack([r[2] for r in recs]).reshape(-1, 3)
+    params = np.clip(params, D.domain[:, 0], D.domain[:, 1])
+    corners = D.evaluate(params)[:, :3].reshape(len(recs), 4, 3)
     scale = max(1.0, float(np.abs(corners).max()))
     key = np.round(corners.mean(axis=1) / (1e-7 * scale)).astype(np.int64)
     order = np.lexsort(key.T[::-1])
@@ -171,10 +178,10 @@ def _identity_interfaces(placed: list) -> list:
             a = recs[ia]
             raise TilingError(f"more than two patch faces meet at the face of patch {a[0]} ({a[1]}); "
                               "overlapping tiles or patches")
-        (pa, fa, ca), (pb, fb, cb) = recs[ia], recs[ib]
+        (pa, fa, _), (pb, fb, _) = recs[ia], recs[ib]
         if pa == pb:
             continue
-        m = _corner_map(ca, cb, TOL * scale)
+        m = _corner_map(corners[ia], corners[ib], TOL * scale)
         if m is None:
             continue  # same centre but different faces (e.g. a smaller face inside a larger one)
         swap, flip = m
