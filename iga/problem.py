@@ -310,8 +310,12 @@ class HeatProblem:
         return K, f, {"neumann": neumann_faces, "robin": robin_faces, "dirichlet": dirichlet_faces,
                       "source": source_total}
 
-    def _dirichlet_values(self, dirichlet_faces):
-        """L2 projection of the Dirichlet data onto the trace space of all Dirichlet faces."""
+    def _dirichlet_values(self, dirichlet_faces, P=None):
+        """L2 projection of the Dirichlet data onto the trace of the (reduced) space on all Dirichlet faces.
+
+        Returns (prescribed unknowns, their values, {face: int_face N_i (reduced)}).  With ``P``
+        (constraints) the unknowns are reduced ones: those whose functions touch a Dirichlet face.
+        """
         if not dirichlet_faces:
             return np.zeros(0, np.int64), np.zeros(0), {}
         mats, rhs = [], np.zeros(self.ndof)
@@ -321,12 +325,34 @@ class HeatProblem:
             g = self._values(conds[-1].value, fd.x, fd.chans, "Dirichlet value", f"patch {pi} face {face}")
             mats.append(self._face_matrix(fd, fd.dAw))
             rhs[fd.dofs] += self._face_load(fd, g * fd.dAw)
-            integrals[(pi, face)] = self._face_load(fd, fd.dAw)
+            vec = np.zeros(self.ndof)
+            vec[fd.dofs] = self._face_load(fd, fd.dAw)
+            integrals[(pi, face)] = vec if P is None else P.T @ vec
         M = sum(mats).tocsr()
-        dofs = np.unique(np.concatenate([self.face_data(*k).dofs for k in dirichlet_faces]))
-        Mdd = M[dofs][:, dofs].tocsc()
-        vals = spla.spsolve(Mdd, rhs[dofs]) if len(dofs) > 1 else rhs[dofs] / Mdd.toarray().ravel()
+        if P is None:
+            dofs = np.unique(np.concatenate([self.face_data(*k).dofs for k in dirichlet_faces]))
+            Mdd = M[dofs][:, dofs].tocsc()
+            b = rhs[dofs]
+        else:
+            MP = (M @ P).tocsc()
+            dofs = np.nonzero(np.diff(MP.indptr) > 0)[0]
+            Pd = P[:, dofs]
+            Mdd = (Pd.T @ M @ Pd).tocsc()
+            b = Pd.T @ rhs
+        vals = spla.spsolve(Mdd, b) if len(dofs) > 1 else b / Mdd.toarray().ravel()
+        integrals = {k: v[dofs] for k, v in integrals.items()}
         return dofs, np.atleast_1d(vals), integrals
+
+    def _needs_constraints(self) -> bool:
+        """Interfaces, or patches with full-multiplicity (discontinuity) knots, need a prolongation."""
+        if self.model.interfaces:
+            return True
+        for s in self.spaces:
+            for d in s.dirs:
+                _, m = np.unique(d.knots, return_counts=True)
+                if np.any(m[1:-1] >= d.degree + 1):
+                    return True
+        return False
 
     # ------------------------------------------------------------------ solve
     def solve(self, solver: str = "auto", tol: float = 1e-10, maxiter: int | None = None):
@@ -341,14 +367,28 @@ class HeatProblem:
             )
         K, f, book = self.assemble()
         t0 = time.perf_counter()
-        dofs, g, integrals = self._dirichlet_values(book["dirichlet"])
-        free = np.setdiff1d(np.arange(self.ndof), dofs)
-        u = np.zeros(self.ndof)
-        u[dofs] = g
-        A = K[free][:, free].tocsr()
-        rhs = f[free] - K[free][:, dofs] @ g if len(dofs) else f[free]
+        P = None
+        self.constraint_stats = {}
+        if self._needs_constraints():
+            from .constraints import prolongation
+
+            P, self.constraint_stats = prolongation(self)
+        nred = self.ndof if P is None else P.shape[1]
+        dofs, g, integrals = self._dirichlet_values(book["dirichlet"], P)
+        free = np.setdiff1d(np.arange(nred), dofs)
+        if P is None:  # one unconstrained patch: eliminate by column selection
+            A = K[free][:, free].tocsr()
+            rhs = f[free] - K[free][:, dofs] @ g if len(dofs) else f[free]
+        else:
+            Pf, Pd = P[:, free].tocsc(), P[:, dofs].tocsc()
+            A = (Pf.T @ K @ Pf).tocsr()
+            rhs = Pf.T @ (f - K @ (Pd @ g)) if len(dofs) else Pf.T @ f
         self.timings["constraints"] = time.perf_counter() - t0
         x, info = solvers.solve(A, rhs, method=solver, tol=tol, maxiter=maxiter)
-        u[free] = x
+        ured = np.zeros(nred)
+        ured[dofs] = g
+        ured[free] = x
+        u = ured if P is None else P @ ured
         self.timings["solve"] = info.setup_s + info.solve_s
-        return Solution(self, u, K, f, book, dofs, integrals, info)
+        self.reduced_dofs = int(len(free))
+        return Solution(self, u, K, f, book, dofs, integrals, info, P)

@@ -21,11 +21,13 @@ class Solution:
         residual), timings (s) and the energy balance
     """
 
-    def __init__(self, problem, u, K, f, book, dirichlet_dofs, dirichlet_integrals, solver_info):
+    def __init__(self, problem, u, K, f, book, dirichlet_dofs, dirichlet_integrals, solver_info, P=None):
         self.problem = problem
         self.u = u
         self._book = book
-        self._reaction = K @ u - f  # consistent nodal boundary fluxes on Dirichlet DOFs
+        # consistent boundary fluxes: the residual on the prescribed (reduced) unknowns
+        r = K @ u - f
+        self._reaction = (r if P is None else P.T @ r)[dirichlet_dofs]
         self._dirichlet_dofs = dirichlet_dofs
         self._dirichlet_integrals = dirichlet_integrals
         self._splines = {}
@@ -33,7 +35,8 @@ class Solution:
         self.face_flows = self._face_flows()
         self.info = {
             "dofs": problem.ndof,
-            "free_dofs": int(problem.ndof - len(dirichlet_dofs)),
+            "free_dofs": int(problem.reduced_dofs),
+            "constraints": dict(getattr(problem, "constraint_stats", {})),
             "patches": len(problem.model.patches),
             "solver": solver_info.as_dict(),
             "timings": dict(problem.timings),
@@ -137,13 +140,11 @@ class Solution:
             T = fd.trace(self.u)
             flows[key] = flows.get(key, 0.0) + float(sum(np.sum(h * (T - Tinf) * fd.dAw) for h, Tinf in items))
         if self._dirichlet_integrals:
-            # split each Dirichlet DOF's reaction among the faces by their share of int N_i dA
-            total = np.zeros(prob.ndof)
+            # split each prescribed unknown's reaction among the faces by their share of int N_i dA
+            total = sum(self._dirichlet_integrals.values())
+            safe = np.where(total != 0, total, 1.0)
             for key, integ in self._dirichlet_integrals.items():
-                total[prob.face_data(*key).dofs] += integ
-            for key, integ in self._dirichlet_integrals.items():
-                dofs = prob.face_data(*key).dofs
-                flows[key] = flows.get(key, 0.0) - float(np.sum(self._reaction[dofs] * integ / total[dofs]))
+                flows[key] = flows.get(key, 0.0) - float(np.sum(self._reaction * integ / safe))
         return flows
 
     def flux(self, tag: str) -> float:

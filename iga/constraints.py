@@ -1,0 +1,216 @@
+"""Linear constraints between patch spaces, resolved into one sparse prolongation.
+
+Every trivariate patch keeps its own space (000 Remark 2).  The temperature
+of the whole micro-structure is ``u = P u_red`` where ``P`` (ndof x nred)
+encodes
+
+* identity constraints across faces shared by neighbouring patches (with the
+  interface's orientation): the two face coefficients are equal;
+* C0 coupling inside a tile with partial discontinuities: on a
+  full-multiplicity knot plane, the coefficients on both sides are equal
+  wherever the two sides coincide as material (000 Section 3.1);
+* branch constraints (000 Eqs. 11-12): child branch-in face coefficients =
+  R @ parent branch-out face coefficients, R the knot-insertion
+  (refinement) matrix between the two analysis face spaces.
+
+Equalities are merged with a union-find (chains, shared edges and corners
+collapse to one unknown); branch rows make a class a *slave* expressed
+through other classes, and slaves of slaves are substituted until only
+master classes remain.  Number of free unknowns: the number of equivalence
+classes of DOFs under the equalities, minus the classes on child branch-in
+faces (slaves).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from geometry import knots as kn
+
+from . import ProblemError
+from .space import FACE_AXES
+
+
+class _UnionFind:
+    def __init__(self, n):
+        self.parent = np.arange(n)
+
+    def find(self, a):
+        root = a
+        while self.parent[root] != root:
+            root = self.parent[root]
+        while self.parent[a] != root:  # path compression
+            self.parent[a], a = root, self.parent[a]
+        return root
+
+    def union(self, a, b):
+        ra, rb = self.find(a), self.find(b)
+        if ra != rb:
+            self.parent[max(ra, rb)] = min(ra, rb)
+
+
+def _face_grid(problem, pi, face):
+    """Global DOFs of a patch face as an (n_s, n_t) grid in face-parameter order."""
+    space = problem.spaces[pi]
+    fs = space.face_space(face)
+    return (space.face_dofs(face) + problem.offsets[pi]).reshape(fs.shape)
+
+
+def _oriented(grid, swap, flip):
+    """Face-b DOF grid re-indexed so that entry [s, t] sits where face a has its [s, t].
+
+    The interface says B(s', t') = A(s, t) with (s', t') = (s, t) swapped if
+    ``swap``, then reversed per ``flip``; the flips refer to B's own axes, so
+    they are applied before the transpose.
+    """
+    g = grid
+    if flip[0]:
+        g = g[::-1, :]
+    if flip[1]:
+        g = g[:, ::-1]
+    return g.T if swap else g
+
+
+def _face_space_knots(problem, pi, face):
+    k, _ = FACE_AXES[face]
+    return [(d.knots, d.degree) for i, d in enumerate(problem.spaces[pi].dirs) if i != k]
+
+
+def _branch_R(problem, itf) -> sp.csr_matrix:
+    from tiling.microstructure import branch_refinement
+    from tiling import TilingError
+
+    (pa, fa), (pb, fb) = itf.a, itf.b
+    try:
+        return branch_refinement(_face_space_knots(problem, pa, fa), itf.box, _face_space_knots(problem, pb, fb))
+    except TilingError as exc:
+        raise ProblemError(
+            f"branch faces patch {pa} {fa} -> patch {pb} {fb}: {exc}; use the same refine/degree_elevation "
+            "for all patches of a hierarchy"
+        ) from None
+
+
+def _discontinuity_pairs(problem, pi):
+    """DOF pairs to equate across full-multiplicity knot planes of patch ``pi`` where both sides coincide."""
+    patch, space = problem.model.patches[pi], problem.spaces[pi]
+    s = patch.spline
+    pairs = []
+    for d in range(3):
+        sd = space.dirs[d]
+        vals, mults = np.unique(sd.knots, return_counts=True)
+        for v in vals[1:-1][mults[1:-1] >= sd.degree + 1]:
+            # with v repeated p + 1 times from index s, N_{s-1} is the last function ending at v
+            # and N_s the first starting at v: the two DOF layers on either side of the plane
+            left = int(np.searchsorted(sd.knots, v, side="left")) - 1
+            right = left + 1
+            rest = [k for k in range(3) if k != d]
+            # geometry on both sides, sampled at the analysis element pieces of the plane
+            lo, hi = s.domain[d]
+            eps = 1e-9 * (hi - lo)
+            b1, b2 = np.unique(space.dirs[rest[0]].knots), np.unique(space.dirs[rest[1]].knots)
+            m1, m2 = 0.5 * (b1[:-1] + b1[1:]), 0.5 * (b2[:-1] + b2[1:])
+            pts = []
+            for side in (-1, 1):
+                x = np.empty((len(m1), len(m2), 3))
+                x[..., d] = v + side * eps
+                x[..., rest[0]] = m1[:, None]
+                x[..., rest[1]] = m2[None, :]
+                pts.append(s.evaluate(x.reshape(-1, 3))[:, :3].reshape(len(m1), len(m2), 3))
+            size = float(np.ptp(s.points.reshape(-1, 3), axis=0).max())
+            coincide = np.linalg.norm(pts[0] - pts[1], axis=-1) < 1e-6 * size  # per element piece
+            if not coincide.any():
+                continue
+            # couple the functions whose support meets a coinciding piece
+            idx = np.arange(space.ndof).reshape(space.shape) + problem.offsets[pi]
+            L = np.take(idx, left, axis=d)
+            R = np.take(idx, right, axis=d)
+            for j in range(L.shape[0]):
+                e1 = _support(space.dirs[rest[0]], j, b1)
+                for k in range(L.shape[1]):
+                    e2 = _support(space.dirs[rest[1]], k, b2)
+                    if coincide[np.ix_(e1, e2)].any():
+                        pairs.append((int(L[j, k]), int(R[j, k])))
+    return pairs
+
+
+def _support(sp1, i, breaks):
+    """Element indices in the support of basis function i of a 1-D space."""
+    U = sp1.knots
+    a, b = U[i], U[i + sp1.degree + 1]
+    return np.nonzero((breaks[:-1] >= a) & (breaks[1:] <= b) & (breaks[1:] > breaks[:-1]))[0]
+
+
+def prolongation(problem) -> tuple[sp.csr_matrix, dict]:
+    """The sparse prolongation P (ndof x nred) of all interface constraints, and statistics."""
+    n = problem.ndof
+    uf = _UnionFind(n)
+    stats = {"identity_pairs": 0, "c0_pairs": 0, "branch_rows": 0}
+    branch_rows = []  # (child dof, parent dofs, coefficients)
+    for itf in problem.model.interfaces:
+        (pa, fa), (pb, fb) = itf.a, itf.b
+        ga, gb = _face_grid(problem, pa, fa), _face_grid(problem, pb, fb)
+        if itf.kind == "identity":
+            gb = _oriented(gb, itf.swap, itf.flip)
+            if ga.shape != gb.shape:
+                raise ProblemError(f"identity interface patch {pa} {fa} / patch {pb} {fb}: face spaces differ "
+                                   f"({ga.shape} vs {gb.shape} coefficients); refine all patches alike")
+            for x, y in zip(ga.ravel(), gb.ravel()):
+                uf.union(int(x), int(y))
+            stats["identity_pairs"] += ga.size
+        else:
+            R = _branch_R(problem, itf).tocsr()
+            parent, child = ga.ravel(), gb.ravel()
+            for r in range(R.shape[0]):
+                cols = R.indices[R.indptr[r] : R.indptr[r + 1]]
+                branch_rows.append((int(child[r]), parent[cols], R.data[R.indptr[r] : R.indptr[r + 1]]))
+            stats["branch_rows"] += R.shape[0]
+    for pi in range(len(problem.model.patches)):
+        for a, b in _discontinuity_pairs(problem, pi):
+            uf.union(a, b)
+            stats["c0_pairs"] += 1
+    roots = np.array([uf.find(i) for i in range(n)])
+    classes, cls = np.unique(roots, return_inverse=True)
+    ncls = len(classes)
+    # class-level slave expressions (branch rows), checked for consistency
+    expr: dict = {}
+    for child, parents, coef in branch_rows:
+        c = int(cls[child])
+        row = {}
+        for p, w in zip(cls[parents], coef):
+            row[int(p)] = row.get(int(p), 0.0) + float(w)
+        row = {k: w for k, w in row.items() if abs(w) > 1e-14}
+        if c in expr:
+            old = expr[c]
+            keys = set(old) | set(row)
+            if max(abs(old.get(k, 0.0) - row.get(k, 0.0)) for k in keys) > 1e-10:
+                raise ProblemError(f"inconsistent branch constraints: DOF {child} (a branch-in face) receives two "
+                                   "different expressions from its parents; check the branch faces and refinement")
+        else:
+            expr[c] = row
+    slaves = np.array(sorted(expr), dtype=np.int64)
+    is_slave = np.zeros(ncls, bool)
+    is_slave[slaves] = True
+    rows, cols, vals = [], [], []
+    for c in range(ncls):
+        if is_slave[c]:
+            for k, w in expr[c].items():
+                rows.append(c); cols.append(k); vals.append(w)
+        else:
+            rows.append(c); cols.append(c); vals.append(1.0)
+    C = sp.csr_matrix((vals, (rows, cols)), shape=(ncls, ncls))
+    Q = C
+    for _ in range(200):  # substitute slaves of slaves (one round per hierarchy level)
+        if not len(slaves) or Q[:, slaves].nnz == 0:
+            break
+        Q = (C @ Q).tocsr()
+        Q.data[np.abs(Q.data) < 1e-15] = 0.0
+        Q.eliminate_zeros()
+    else:
+        raise ProblemError("branch constraints form a cycle (a face is its own ancestor); check the interfaces")
+    masters = np.nonzero(~is_slave)[0]
+    Qm = Q[:, masters]
+    E = sp.csr_matrix((np.ones(n), (np.arange(n), cls)), shape=(n, ncls))
+    P = (E @ Qm).tocsr()
+    stats.update({"classes": int(ncls), "slave_classes": int(len(slaves)), "reduced": int(len(masters))})
+    return P, stats

@@ -1,0 +1,62 @@
+"""Heat transfer across micro-structures: identity and branch constraints (partial: see issue notes)."""
+
+import numpy as np
+import pytest
+
+from geometry import primitives as pr
+import tiling
+from tiling import library as L
+from iga import HeatProblem, ProblemError
+
+AFFINE = pr.box((2.0, 1.0, 1.5), degrees=(1, 1, 1))
+
+
+def linear(x):
+    return 1 + 2 * x[:, 0] - x[:, 1] + 0.5 * x[:, 2]
+
+
+@pytest.mark.parametrize("refine, elevate", [(0, 0), (1, 1)])
+def test_patch_test_across_branch_and_identity_constraints(refine, elevate):
+    # fractal hierarchy: wings glued to the trunk with swapped face parameters (identity),
+    # children glued to the wing tops (branch, refinement matrices on the analysis spaces)
+    ms = tiling.hierarchical(AFFINE, L.fractal(), (2, 1), 3)
+    s = HeatProblem(ms, refine=refine, degree_elevation=elevate).dirichlet("boundary", linear).solve()
+    assert s.l2_error(linear) < 1e-9
+    pts = np.concatenate([P.composed(np.random.default_rng(i).random((3, 3)))[:, :3] for i, P in enumerate(ms.patches[::5])])
+    assert np.abs(s.probe(pts) - linear(pts)).max() < 1e-9
+    c = s.info["constraints"]
+    assert c["branch_rows"] > 0 and c["identity_pairs"] > 0
+    # free unknowns = equivalence classes - slave classes - prescribed (Dirichlet) unknowns
+    assert c["reduced"] == c["classes"] - c["slave_classes"]
+    assert s.info["free_dofs"] < c["reduced"]
+
+
+def test_regular_cross_patch_test_and_energy_balance():
+    ms = tiling.regular(AFFINE, L.cross(), (3, 3, 3))
+    s = HeatProblem(ms, degree_elevation=1).dirichlet("boundary", linear).solve()
+    assert s.l2_error(linear) < 1e-9
+    ms.tags["cooling"] = [f for f in ms.tags["boundary"] if f not in set(ms.tags["umin"])]
+    s = HeatProblem(ms, conductivity=50.0).neumann("umin", 1000.0).robin("cooling", 5.0, 30.0).solve()
+    b = s.info["balance"]
+    assert b["relative_error"] < 1e-8
+    assert s.flux("umin") < 0 < s.flux("cooling")
+
+
+def test_hierarchical_energy_balance_neumann_root_robin_elsewhere():
+    ms = tiling.hierarchical(AFFINE, L.fractal(), (2, 1), 4)
+    ms.tags["cooling"] = [f for f in ms.tags["boundary"] if f not in set(ms.tags["branch-in"])]
+    s = (HeatProblem(ms, conductivity=205.0, refine=1).neumann("branch-in", 1515.8)
+         .robin("cooling", 5.0, 30.0).solve())
+    assert s.info["balance"]["relative_error"] < 1e-8
+    T = s.probe(np.array([P.composed(np.array([[0.5, 0.5, 0.5]]))[0, :3] for P in ms.patches[::9]]))
+    assert np.all(T > 30.0)
+
+
+def test_mismatched_refinement_is_refused():
+    ms = tiling.hierarchical(AFFINE, L.fractal(), (1, 1), 2)
+    prob = HeatProblem(ms, refine=1)
+    prob.spaces[3] = HeatProblem(ms.patches[3].spline).spaces[0]  # a child space coarser than its parent
+    prob.offsets = np.concatenate([[0], np.cumsum([sp.ndof for sp in prob.spaces])])
+    prob.ndof = int(prob.offsets[-1])
+    with pytest.raises(ProblemError, match="not nested|face spaces differ"):
+        prob.dirichlet("boundary", 0.0).solve()
