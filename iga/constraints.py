@@ -212,5 +212,8 @@ def prolongation(problem) -> tuple[sp.csr_matrix, dict]:
     Qm = Q[:, masters]
     E = sp.csr_matrix((np.ones(n), (np.arange(n), cls)), shape=(n, ncls))
     P = (E @ Qm).tocsr()
+    column = np.full(ncls, -1)
+    column[masters] = np.arange(len(masters))
     stats.update({"classes": int(ncls), "slave_classes": int(len(slaves)), "reduced": int(len(masters))})
+    P.dof_master = column[cls]  # reduced unknown owning each DOF (-1 for DOFs of slave classes)
     return P, stats

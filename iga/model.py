@@ -47,8 +47,9 @@ class Patch:
 @dataclass(eq=False)
 class Model:
     patches: list
-    tags: dict  # tag -> list of (patch index, face name)
+    tags: dict  # tag -> list of (patch index, face name or slot face id such as "u=0.5-")
     interfaces: list = field(default_factory=list)
+    face_regions: dict = field(default_factory=dict)  # (patch, slot face id) -> free rectangles
 
     def faces(self, tag: str) -> list[tuple[int, str]]:
         if tag not in self.tags:
@@ -85,7 +86,7 @@ def as_model(obj) -> Model:
             patches.append(Patch(spline, getattr(p, "placement", None), getattr(p, "outer", None),
                                  getattr(p, "tile", 0), getattr(p, "level", 0)))
         tags = {t: list(v) for t, v in obj.tags.items()}
-        return Model(patches, tags, list(getattr(obj, "interfaces", [])))
+        return Model(patches, tags, list(getattr(obj, "interfaces", [])), dict(getattr(obj, "face_regions", {})))
     raise ProblemError(
         f"cannot analyse a {type(obj).__name__}; pass a trivariate BSpline, a list of them or a Microstructure"
     )

@@ -29,7 +29,7 @@ import solvers
 from . import ProblemError
 from .assembly import banded_form, banded_to_csr_data, block_diagonal_csr, load_form, pattern, stiffness_data
 from .geometry_eval import checked_det, patch_geometry_derivs, patch_geometry_grid
-from .model import as_model
+from .model import Patch, as_model
 from .space import FACE_AXES, make_space
 
 
@@ -187,18 +187,49 @@ class HeatProblem:
 
     # --------------------------------------------------------------- assembly
     def face_data(self, pi: int, face: str) -> FaceData:
-        """Geometry and DOFs of one patch face at its Gauss points."""
+        """Geometry and DOFs of one patch face at its Gauss points.
+
+        ``face`` is one of the six patch faces or a slot face id (``u=0.5-``:
+        the discontinuity plane u = 0.5 seen from u < 0.5), integrated on the
+        one-sided sub-patch and restricted to the model's free region of it.
+        """
         if not hasattr(self, "_face_cache"):
             self._face_cache = {}
         key = (pi, face)
         if key in self._face_cache:
             return self._face_cache[key]
+        from tiling.microstructure import parse_slot_face
+
         patch, space = self.model.patches[pi], self.spaces[pi]
-        k, side = FACE_AXES[face]
-        U = patch.spline.knots[k]
+        slot = parse_slot_face(face)
+        mask = None
+        if slot is None:
+            k, side = FACE_AXES[face]
+            geo = patch
+            U = patch.spline.knots[k]
+            at = U[-1] if side else U[0]
+            dofs = space.face_dofs(face)
+        else:
+            k, at, sgn = slot
+            side = 1 if sgn < 0 else 0  # u=v- is the max face of the sub-patch below the plane
+            box = patch.spline.domain.copy()
+            box[k] = [box[k, 0], at] if sgn < 0 else [at, box[k, 1]]
+            geo = Patch(patch.spline.extract(box), patch.placement, patch.outer, patch.tile, patch.level)
+            first = int(np.searchsorted(space.dirs[k].knots, at, side="left"))
+            layer = first - 1 if sgn < 0 else first
+            dofs = np.take(np.arange(space.ndof).reshape(space.shape), layer, axis=k).ravel()
+            rects = self.model.face_regions.get(key)
+            if rects is None:
+                raise ProblemError(f"patch {pi} has no free region recorded for slot face {face!r}")
+            rest = [i for i in range(3) if i != k]
+            q1, q2 = np.meshgrid(space.dirs[rest[0]].qpts, space.dirs[rest[1]].qpts, indexing="ij")
+            mask = np.zeros(q1.shape, bool)
+            for (a1, b1), (a2, b2) in rects:
+                mask |= (q1 > a1) & (q1 < b1) & (q2 > a2) & (q2 < b2)
+            mask = mask.ravel()
         axes = [d.qpts for d in space.dirs]
-        axes[k] = np.array([U[-1] if side else U[0]])
-        x, J, chans = patch_geometry_grid(patch, axes)
+        axes[k] = np.array([at])
+        x, J, chans = patch_geometry_grid(geo, axes)
         a, b = [i for i in range(3) if i != k]
         cr = np.cross(J[:, :, a], J[:, :, b])
         dA = np.linalg.norm(cr, axis=1)
@@ -206,10 +237,10 @@ class HeatProblem:
             raise ProblemError(f"patch {pi} face {face} is degenerate (zero area at some Gauss points)")
         inward = np.einsum("ni,ni->n", cr, J[:, :, k])
         sign = np.where(inward > 0, 1.0, -1.0) * (1.0 if side else -1.0)
-        fs = space.face_space(face)
+        fs = space.face_space("umin" if k == 0 else "vmin" if k == 1 else "wmin")
         w = np.multiply.outer(fs.dirs[0].qw, fs.dirs[1].qw).ravel()
-        fd = FaceData(pi, face, fs, space.face_dofs(face) + self.offsets[pi], x, chans, dA * w,
-                      cr / dA[:, None] * sign[:, None])
+        dAw = dA * w if mask is None else dA * w * mask
+        fd = FaceData(pi, face, fs, dofs + self.offsets[pi], x, chans, dAw, cr / dA[:, None] * sign[:, None])
         self._face_cache[key] = fd
         return fd
 
@@ -311,10 +342,10 @@ class HeatProblem:
                       "source": source_total}
 
     def _dirichlet_values(self, dirichlet_faces, P=None):
-        """L2 projection of the Dirichlet data onto the trace of the (reduced) space on all Dirichlet faces.
+        """Prescribed unknowns from the Dirichlet data (L2 projection onto the Dirichlet trace space).
 
-        Returns (prescribed unknowns, their values, {face: int_face N_i (reduced)}).  With ``P``
-        (constraints) the unknowns are reduced ones: those whose functions touch a Dirichlet face.
+        Returns (prescribed unknowns, their values, {face: int_face N_i}).  With ``P``
+        (constraints) the unknowns are reduced ones: the masters owning a Dirichlet DOF.
         """
         if not dirichlet_faces:
             return np.zeros(0, np.int64), np.zeros(0), {}
@@ -329,19 +360,23 @@ class HeatProblem:
             vec[fd.dofs] = self._face_load(fd, fd.dAw)
             integrals[(pi, face)] = vec if P is None else P.T @ vec
         M = sum(mats).tocsr()
-        if P is None:
-            dofs = np.unique(np.concatenate([self.face_data(*k).dofs for k in dirichlet_faces]))
-            Mdd = M[dofs][:, dofs].tocsc()
-            b = rhs[dofs]
-        else:
-            MP = (M @ P).tocsc()
-            dofs = np.nonzero(np.diff(MP.indptr) > 0)[0]
-            Pd = P[:, dofs]
-            Mdd = (Pd.T @ M @ Pd).tocsc()
-            b = Pd.T @ rhs
-        vals = spla.spsolve(Mdd, b) if len(dofs) > 1 else b / Mdd.toarray().ravel()
+        # L2 projection in the unconstrained space over all Dirichlet faces; DOFs whose
+        # functions have no trace there (e.g. masked parts of slot faces) are not prescribed
+        cand = np.unique(np.concatenate([self.face_data(*k).dofs for k in dirichlet_faces]))
+        diag = M.diagonal()[cand]
+        dofs = cand[diag > 1e-14 * max(diag.max(), 1e-300)]
+        Mdd = M[dofs][:, dofs].tocsc()
+        vals = np.atleast_1d(spla.spsolve(Mdd, rhs[dofs]) if len(dofs) > 1 else rhs[dofs] / Mdd.toarray().ravel())
+        if P is not None:
+            # prescribe the reduced unknowns owning a Dirichlet DOF (mean of their members' values);
+            # slave DOFs on Dirichlet faces follow their constraints
+            owners = P.dof_master[dofs]
+            keep = owners >= 0
+            red, inv = np.unique(owners[keep], return_inverse=True)
+            vals = np.bincount(inv, weights=vals[keep]) / np.bincount(inv)
+            dofs = red
         integrals = {k: v[dofs] for k, v in integrals.items()}
-        return dofs, np.atleast_1d(vals), integrals
+        return dofs, vals, integrals
 
     def _needs_constraints(self) -> bool:
         """Interfaces, or patches with full-multiplicity (discontinuity) knots, need a prolongation."""

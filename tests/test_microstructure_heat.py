@@ -1,4 +1,4 @@
-"""Heat transfer across micro-structures: identity and branch constraints (partial: see issue notes)."""
+"""Heat transfer across micro-structures: identity, branch and C0 constraints, slot faces."""
 
 import numpy as np
 import pytest
@@ -60,3 +60,23 @@ def test_mismatched_refinement_is_refused():
     prob.ndof = int(prob.offsets[-1])
     with pytest.raises(ProblemError, match="not nested|face spaces differ"):
         prob.dirichlet("boundary", 0.0).solve()
+
+
+@pytest.mark.parametrize("make, levels", [(L.heat_sink_t1, 3), (L.heat_sink_t2, 3)])
+def test_patch_test_on_discontinuity_hierarchies(make, levels):
+    # C0 coupling where both sides of a discontinuity coincide, slot faces tagged and prescribed,
+    # branch constraints between levels, identity constraints between neighbouring tiles
+    ms = tiling.hierarchical(AFFINE, make(), (2, 1), levels)
+    assert any(isinstance(f, str) and "=" in f for _, f in ms.tags["internal"])  # slot faces are tagged
+    s = HeatProblem(ms, refine=1).dirichlet("boundary", linear).solve(tol=1e-12)
+    assert s.l2_error(linear) < 1e-9
+    assert s.info["constraints"]["c0_pairs"] > 0
+
+
+def test_optimal_l2_rate_across_a_hierarchy():
+    ms = tiling.hierarchical(AFFINE, L.heat_sink_t2(), (1, 1), 2)
+    T = lambda x: np.sin(x[:, 0]) * np.cos(0.8 * x[:, 1]) * np.exp(0.3 * x[:, 2])  # noqa: E731
+    f = lambda x: (1 + 0.64 - 0.09) * T(x)  # noqa: E731
+    errs = [HeatProblem(ms, source=f, refine=r).dirichlet("boundary", T).solve(tol=1e-12).l2_error(T) for r in (0, 1, 2)]
+    rate = np.log2(errs[-2] / errs[-1])
+    assert abs(rate - 3) < 0.2, errs  # tile degree 2: L2 rate p + 1

@@ -92,13 +92,16 @@ def _face_corners(P: PlacedPatch, face: str, corners: np.ndarray | None = None) 
 class Microstructure:
     """Result of a paving: patches, interfaces, tags (see module docs)."""
 
-    def __init__(self, outer: BSpline, patches: list, interfaces: list, tags: dict, tiles: list, name: str = ""):
+    def __init__(self, outer: BSpline, patches: list, interfaces: list, tags: dict, tiles: list, name: str = "",
+                 face_regions: dict | None = None):
         self.outer = outer
         self.patches = patches
         self.interfaces = interfaces
         self.tags = tags
         self.tiles = tiles
         self.name = name
+        #: {(patch, slot face id): [((a1, b1), (a2, b2)), ...]} free parts of discontinuity planes
+        self.face_regions = face_regions or {}
 
     def __repr__(self):
         return (f"Microstructure({self.name!r}: {len(self.patches)} patches, {self.n_tiles} tiles, "
@@ -144,7 +147,11 @@ class Microstructure:
         for parent, pface, pbox, child, cface in branch_links:
             interfaces.append(_branch_interface(placed, parent, pface, pbox, child, cface))
         tags = _tags(outer, placed, interfaces, root_faces, leaf_faces)
-        return cls(outer, placed, interfaces, tags, tiles, name)
+        regions = _slot_faces(placed)
+        for key in regions:
+            tags["internal"].append(key)
+            tags["boundary"].append(key)
+        return cls(outer, placed, interfaces, tags, tiles, name, regions)
 
 
 def _identity_interfaces(placed: list) -> list:
@@ -306,3 +313,62 @@ def _tags(outer, placed, interfaces, root_faces, leaf_faces=()) -> dict:
     tags["branch-in"] = list(root_faces)
     tags["branch-out"] = list(leaf_faces)  # free branch-out faces of the last level (fin tips)
     return tags
+
+
+def slot_face_id(direction: int, value: float, side: int) -> str:
+    """Name of one side of a discontinuity plane, e.g. ``u=0.5-`` (seen from u < 0.5)."""
+    return f"{'uvw'[direction]}={value:.17g}{'-' if side < 0 else '+'}"
+
+
+def parse_slot_face(face: str):
+    """(direction, value, side) of a slot face id, or None for the six patch faces."""
+    if face in FACE_NAMES or len(face) < 4 or face[1] != "=" or face[-1] not in "+-":
+        return None
+    return "uvw".index(face[0]), float(face[2:-1]), (-1 if face[-1] == "-" else 1)
+
+
+def discontinuity_slots(spline: BSpline) -> dict:
+    """Free parts of the discontinuity planes of a trivariate: {face id: [rectangles]}.
+
+    Each full-multiplicity interior knot plane is compared side by side on the
+    element pieces of the other two directions; pieces where the two sides do
+    not coincide are free surface (a slot), on both sides.
+    """
+    out = {}
+    size = float(np.ptp(spline.points.reshape(-1, 3), axis=0).max())
+    for d in range(3):
+        vals, mults = np.unique(spline.knots[d], return_counts=True)
+        for v in vals[1:-1][mults[1:-1] >= spline.degrees[d] + 1]:
+            rest = [k for k in range(3) if k != d]
+            b1, b2 = spline.breakpoints(rest[0]), spline.breakpoints(rest[1])
+            t = np.array([0.1, 0.5, 0.9])
+            sides = []
+            for side in (-1, 1):
+                box = spline.domain.copy()
+                box[d] = [box[d, 0], v] if side < 0 else [v, box[d, 1]]
+                sub = spline.extract(box)  # one side of the plane: exact one-sided evaluation
+                x = np.empty((len(b1) - 1, len(b2) - 1, 3, 3, 3))
+                x[..., d] = v
+                x[..., rest[0]] = (b1[:-1, None] + np.diff(b1)[:, None] * t)[:, None, :, None]
+                x[..., rest[1]] = (b2[:-1, None] + np.diff(b2)[:, None] * t)[None, :, None, :]
+                sides.append(sub.evaluate(x.reshape(-1, 3))[:, :3].reshape(x.shape[:4] + (3,)))
+            free = np.linalg.norm(sides[0] - sides[1], axis=-1).max(axis=(2, 3)) > 1e-9 * size
+            if free.any():
+                rects = [((float(b1[i]), float(b1[i + 1])), (float(b2[j]), float(b2[j + 1])))
+                         for i, j in zip(*np.nonzero(free))]
+                for side in (-1, 1):
+                    out[slot_face_id(d, v, side)] = rects
+    return out
+
+
+def _slot_faces(placed) -> dict:
+    cache, out = {}, {}
+    for i, P in enumerate(placed):
+        if P.spline.dim != 3:
+            continue
+        key = id(P.spline)
+        if key not in cache:
+            cache[key] = discontinuity_slots(P.spline)
+        for fid, rects in cache[key].items():
+            out[(i, fid)] = rects
+    return out
