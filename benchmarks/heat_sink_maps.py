@@ -13,15 +13,15 @@ from math import pi
 import numpy as np
 
 from geometry import BSpline, primitives as pr
+from iga.pipeline import circular_heat_sink_map, vertical_heat_sink_map
 
 
-def circular_map(r_in=0.02, r_out=0.06, height=0.03, twist=pi / 8) -> BSpline:
-    shell = pr.annulus(r_in, r_out, height, angle=2 * pi, exact=True)  # (angle, radius, z)
-    return pr.twisted(shell, twist).permute([0, 2, 1])  # (angle, z, radius): right-handed
+def circular_map() -> BSpline:
+    return circular_heat_sink_map()
 
 
-def vertical_map(width=0.06, depth=0.06, height=0.03) -> BSpline:
-    return pr.box((width, depth, height), degrees=(2, 2, 2))
+def vertical_map() -> BSpline:
+    return vertical_heat_sink_map()
 
 
 def bent_map() -> BSpline:

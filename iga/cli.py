@@ -14,17 +14,39 @@ import sys
 
 from geometry.errors import ToolkitError
 
-NOT_YET = "not yet available: {what} lands with the {issue} issue of the project plan."
-
-
 def _cmd_demo(args) -> int:
-    print(NOT_YET.format(what=f"the {args.name} demo", issue="heat-sink (end-to-end)"))
+    from .pipeline import heat_sink_config, run_pipeline
+
+    cfg = heat_sink_config(args.variant, args.levels, args.refine, args.out)
+    s = run_pipeline(cfg, progress=None)
+    print(f"{args.variant} heat sink: {s['tiles']} tiles on {s['levels']} levels, {s['dofs']} DOFs "
+          f"({s['unknowns']} unknowns)")
+    t = s["temperature_C"]
+    print(f"temperature {t['min']:.2f} .. {t['max']:.2f} C (mean {t['mean']:.2f}); inflow {s['inflow_W']:.4g} W, "
+          f"outflow {s['outflow_W']:.4g} W, balance error {s['energy_balance_error']:.1e}")
+    print(f"wrote {', '.join(s['files'].values())} and {args.out}/summary.json")
     return 0
 
 
 def _cmd_run(args) -> int:
-    print(NOT_YET.format(what="running TOML pipelines", issue="heat-sink (end-to-end)"), file=sys.stderr)
-    return 2
+    import tomllib
+    from pathlib import Path
+
+    from . import ProblemError
+    from .pipeline import run_pipeline
+
+    path = Path(args.config)
+    if not path.is_file():
+        raise ProblemError(f"config file {path} does not exist")
+    try:
+        cfg = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise ProblemError(f"{path} is not valid TOML: {exc}") from None
+    s = run_pipeline(cfg, base_dir=path.parent, progress=None)
+    print(f"{s['tiles']} tiles, {s['dofs']} DOFs; temperature {s['temperature_C']['min']:.3f} .. "
+          f"{s['temperature_C']['max']:.3f}; balance error {s['energy_balance_error']:.1e}; "
+          f"summary in {Path(s['files'].get('vtu', path)).parent / 'summary.json'}")
+    return 0
 
 
 def _cmd_info(args) -> int:

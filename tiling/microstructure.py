@@ -18,7 +18,7 @@ child face coefficients = R @ parent face coefficients (000 Eqs. 11-12).
 Tags: every free face (no interface) of every trivariate is tagged with the
 boundary of D's domain it lies on (``umin`` .. ``wmax``) or ``internal``;
 ``boundary`` holds every free face; ``branch-in`` the root faces of a
-hierarchy.
+hierarchy; ``exterior`` every free face except the ``branch-in`` ones.
 """
 
 from __future__ import annotations
@@ -151,6 +151,8 @@ class Microstructure:
         for key in regions:
             tags["internal"].append(key)
             tags["boundary"].append(key)
+        roots = set(tags["branch-in"])
+        tags["exterior"] = [f for f in tags["boundary"] if f not in roots]  # e.g. convection everywhere but the heated base
         return cls(outer, placed, interfaces, tags, tiles, name, regions)
 
 
