@@ -33,22 +33,30 @@ VERSION = 1
 __all__ = ["save", "load", "save_all", "load_all", "atomic_write"]
 
 
-def atomic_write(path, write_fn, suffix: str = "") -> Path:
+def atomic_write(path, write_fn, suffix: str = "", error=SplineError) -> Path:
     """Call ``write_fn(tmp_path)`` then rename the temporary file onto ``path``.
 
-    Raises :class:`SplineError` if the directory is missing or not writable.
+    The file gets the usual permissions (0666 masked by the umask; ``mkstemp``
+    alone would leave 0600).  A missing or unwritable folder raises ``error``
+    (the calling package's own exception type); on any failure the temporary
+    file is removed, so nothing half-written is left behind.
     """
     path = Path(path)
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
-        raise SplineError(f"cannot write {path}: folder {folder} does not exist; create it first")
+        raise error(f"cannot write {path}: folder {folder} does not exist; create it first")
+    if not os.access(folder, os.W_OK):
+        raise error(f"cannot write {path}: folder {folder} is not writable; choose another output folder")
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix, dir=folder)
     except OSError as exc:
-        raise SplineError(f"cannot write {path}: {exc.strerror}; choose a writable folder") from None
+        raise error(f"cannot write {path}: {exc.strerror}; choose a writable folder") from None
     os.close(fd)
     try:
         write_fn(tmp)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):

@@ -173,7 +173,6 @@ def twisted(spline: BSpline, angle: float, axis_point=(0.0, 0.0)) -> BSpline:
 
 def _scale_along(spline: BSpline, direction: int, factor: SplineFunction, components) -> BSpline:
     """Multiply the given components by a univariate factor of parameter ``direction`` (exact)."""
-    d = spline.dim
     hom = np.moveaxis(spline.homogeneous, direction, 0)
     rest = hom.shape[1:]
     U = spline.knots[direction]

@@ -26,8 +26,6 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from geometry import knots as kn
-
 from . import ProblemError
 from .space import FACE_AXES
 

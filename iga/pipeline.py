@@ -23,7 +23,6 @@ import json
 import os
 import resource
 import sys
-import tempfile
 import time
 from math import pi
 from pathlib import Path
@@ -31,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from geometry import BSpline, load, primitives as pr
+from geometry.io import atomic_write
 
 from . import ProblemError
 
@@ -142,10 +142,7 @@ def _build_map(cfg, base: Path) -> BSpline:
 
 
 def _atomic_json(path: Path, data):
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    with os.fdopen(fd, "w") as fh:
-        json.dump(data, fh, indent=2)
-    os.replace(tmp, path)
+    atomic_write(path, lambda tmp: Path(tmp).write_text(json.dumps(data, indent=2)), ".json", ProblemError)
 
 
 def render_temperature(vtu_path: Path, png_path: Path, title: str = "temperature (C)"):
@@ -162,11 +159,10 @@ def render_temperature(vtu_path: Path, png_path: Path, title: str = "temperature
                 scalar_bar_args={"title": title, "vertical": True, "fmt": "%.2f"})
     pl.camera_position = "iso"
     pl.set_background("white")
-    fd, tmp = tempfile.mkstemp(prefix=f".{png_path.name}.", suffix=".png", dir=png_path.parent)
-    os.close(fd)
-    pl.screenshot(tmp)
-    pl.close()
-    os.replace(tmp, png_path)
+    try:
+        atomic_write(png_path, lambda tmp: pl.screenshot(tmp), ".png", ProblemError)
+    finally:
+        pl.close()
 
 
 def run_pipeline(config: dict, base_dir: str | Path = ".", progress: bool | None = None) -> dict:

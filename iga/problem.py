@@ -17,7 +17,7 @@ projected onto the Dirichlet trace space and eliminated through
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from numbers import Real
 
 import numpy as np

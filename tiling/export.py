@@ -10,14 +10,13 @@ exported as they are (curves as polylines, VTU only).
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import meshio
 import numpy as np
 from itertools import product
 
+from geometry.io import atomic_write
 from geometry.spline import FACE_NAMES
 
 from . import TilingError
@@ -123,9 +122,6 @@ def write_surfaces(path, ms: Microstructure, samples: int = 6) -> Path:
     fmt = {".vtu": "vtu", ".obj": "obj", ".stl": "stl"}.get(path.suffix.lower())
     if fmt is None:
         raise TilingError(f"cannot export {path.name}: use a .vtu, .obj or .stl file name")
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir() or not os.access(folder, os.W_OK):
-        raise TilingError(f"cannot write {path}: folder {folder} does not exist or is not writable")
     P, T, pid, lines = boundary_mesh(ms, samples)
     cells = [("triangle", T)] if len(T) else []
     cell_data = {}
@@ -142,16 +138,7 @@ def write_surfaces(path, ms: Microstructure, samples: int = 6) -> Path:
     if not cells:
         raise TilingError(f"nothing to export to {path.name}: the model has no surfaces" + (" (curves need .vtu)" if lines else ""))
     mesh = meshio.Mesh(P, cells, cell_data=cell_data)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=folder)
-    os.close(fd)
-    try:
-        meshio.write(tmp, mesh, file_format=fmt)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return path
+    return atomic_write(path, lambda tmp: meshio.write(tmp, mesh, file_format=fmt), path.suffix, TilingError)
 
 
 def watertightness(ms: Microstructure, samples: int = 6, tol: float = 1e-8) -> dict:
@@ -229,7 +216,7 @@ def render_png(ms: Microstructure, path, samples: int = 6, color_by: str = "leve
         pl.add_mesh(pv.lines_from_points(ln).tube(radius=0.01 * float(np.ptp(ln, axis=0).max())), color="darkred")
     pl.camera_position = camera
     pl.set_background("white")
-    path = Path(path)
-    pl.screenshot(str(path))
-    pl.close()
-    return path
+    try:
+        return atomic_write(Path(path), lambda tmp: pl.screenshot(tmp), ".png", TilingError)
+    finally:
+        pl.close()

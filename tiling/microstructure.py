@@ -24,7 +24,6 @@ hierarchy; ``exterior`` every free face except the ``branch-in`` ones.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sp
