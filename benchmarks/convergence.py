@@ -23,29 +23,11 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).parent))
 from _common import out_dir, print_table, pyplot, save_json  # noqa: E402
 
-from geometry import primitives as pr  # noqa: E402
 from iga import HeatProblem  # noqa: E402
+from iga.manufactured import quarter_annulus  # noqa: E402
 
-ANNULUS = pr.annulus(1.0, 2.0, 1.0)
-
-
-def k_var(x):
-    return 1 + 0.5 * (x[:, 0] ** 2 + x[:, 1] ** 2)
-
-
-def T_exact(x):
-    return np.exp(0.5 * x[:, 0]) * np.sin(0.7 * x[:, 1] + 0.3 * x[:, 2])
-
-
-def grad_exact(x):
-    e = np.exp(0.5 * x[:, 0])
-    s, c = np.sin(0.7 * x[:, 1] + 0.3 * x[:, 2]), np.cos(0.7 * x[:, 1] + 0.3 * x[:, 2])
-    return np.stack([0.5 * e * s, 0.7 * e * c, 0.3 * e * c], 1)
-
-
-def f_exact(x):
-    g = grad_exact(x)
-    return -(x[:, 0] * g[:, 0] + x[:, 1] * g[:, 1]) + 0.33 * k_var(x) * T_exact(x)
+MS = quarter_annulus()
+ANNULUS, k_var, T_exact, grad_exact, f_exact = MS.geometry, MS.conductivity, MS.temperature, MS.gradient, MS.source
 
 
 def study(p: int, levels) -> list[dict]:

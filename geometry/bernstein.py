@@ -200,8 +200,3 @@ def evaluate(a: np.ndarray, x: np.ndarray, ndim: int) -> np.ndarray:
         else:
             out = np.einsum("nj,nj...->n...", B, out)
     return out
-
-
-def combos(shape) -> list[tuple[int, ...]]:
-    """All multi-indices of an array shape (small helper for the compose loops)."""
-    return list(iproduct(*(range(n) for n in shape)))

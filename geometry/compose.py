@@ -296,7 +296,8 @@ def compose_many(outer: BSpline, inner: BSpline, placements, name: str = "inner"
     return results
 
 
-def _affine_identity(Do):
+def _affine_identity():
+    """The identity placement (1, 3, 4): inner coordinates are the outer parameters."""
     M = np.zeros((1, 3, 4))
     M[0, :3, :3] = np.eye(3)
     return M
@@ -314,7 +315,7 @@ def compose(outer: BSpline, inner: BSpline) -> BSpline:
     """
     _check_pair(outer, inner)
     try:
-        return compose_many(outer, inner, _affine_identity(outer.dim))[0]
+        return compose_many(outer, inner, _affine_identity())[0]
     except SplineError as exc:
         if inner.dim != 1 or "crosses the outer map's knot line" not in str(exc):
             raise
@@ -355,7 +356,7 @@ def _compose_curve_split(outer: BSpline, curve: BSpline) -> BSpline:
     composed = []
     for i, piece in enumerate(pieces):
         try:
-            composed.append(compose_many(outer, piece, _affine_identity(outer.dim), name=f"curve piece {i}")[0])
+            composed.append(compose_many(outer, piece, _affine_identity(), name=f"curve piece {i}")[0])
         except SplineError as exc:
             raise SplineError(f"curve piece {i} on [{edges[i]:g}, {edges[i + 1]:g}] still crosses a knot line: {exc}") from None
     P = max(c.degrees[0] for c in composed)

@@ -51,13 +51,6 @@ def grid_values_derivs(spline, axes):
     return x, [(dh[:, :-1] - x * dh[:, -1:]) / w for dh in dH]
 
 
-def grid_values_jacobian(spline, axes):
-    """Values (n_1, ..., n_d, m) and Jacobian (..., m, d) on a tensor grid."""
-    x, D = grid_values_derivs(spline, axes)
-    shape = tuple(len(a) for a in axes)
-    return x.reshape(shape + (x.shape[-1],)), np.stack(D, axis=-1).reshape(shape + (x.shape[-1], len(D)))
-
-
 def _outer_map(patch: Patch, xT, DT):
     """Placement and deformation map applied to tile values (N, m) and derivatives [(N, m)] * 3.
 

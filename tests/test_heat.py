@@ -7,6 +7,7 @@ import scipy.sparse as sp
 import solvers
 from geometry import primitives as pr
 from iga import HeatProblem, ProblemError, SingularProblemError, write_vtu
+from iga.manufactured import quarter_annulus
 from iga.assembly import banded_form, banded_to_csr_data, block_diagonal_csr, pattern, stiffness_data
 from iga.space import make_space
 
@@ -49,26 +50,8 @@ def test_polynomial_solution_is_reproduced(k, p):
 
 
 # --------------------------------------------------------- manufactured solution
-ANNULUS = pr.annulus(1.0, 2.0, 1.0)  # exact NURBS quarter shell
-
-
-def k_var(x):
-    return 1 + 0.5 * (x[:, 0] ** 2 + x[:, 1] ** 2)
-
-
-def T_exact(x):
-    return np.exp(0.5 * x[:, 0]) * np.sin(0.7 * x[:, 1] + 0.3 * x[:, 2])
-
-
-def grad_exact(x):
-    e = np.exp(0.5 * x[:, 0])
-    s, c = np.sin(0.7 * x[:, 1] + 0.3 * x[:, 2]), np.cos(0.7 * x[:, 1] + 0.3 * x[:, 2])
-    return np.stack([0.5 * e * s, 0.7 * e * c, 0.3 * e * c], 1)
-
-
-def f_exact(x):  # -div(k grad T) with grad k = (x, y, 0) and lap T = -0.33 T
-    g = grad_exact(x)
-    return -(x[:, 0] * g[:, 0] + x[:, 1] * g[:, 1]) + 0.33 * k_var(x) * T_exact(x)
+MS = quarter_annulus()  # exact NURBS quarter shell, variable k, closed-form T and f
+ANNULUS, k_var, T_exact, grad_exact, f_exact = MS.geometry, MS.conductivity, MS.temperature, MS.gradient, MS.source
 
 
 def convergence(p, levels):
