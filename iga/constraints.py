@@ -161,7 +161,7 @@ def prolongation(problem) -> tuple[sp.csr_matrix, dict]:
             parent, child = ga.ravel(), gb.ravel()
             for r in range(R.shape[0]):
                 cols = R.indices[R.indptr[r] : R.indptr[r + 1]]
-                branch_rows.append((int(child[r]), parent[cols], R.data[R.indptr[r] : R.indptr[r + 1]]))
+                branch_rows.append((int(child[r]), parent[cols], R.data[R.indptr[r] : R.indptr[r + 1]], itf))
             stats["branch_rows"] += R.shape[0]
     for pi in range(len(problem.model.patches)):
         for a, b in _discontinuity_pairs(problem, pi):
@@ -172,7 +172,8 @@ def prolongation(problem) -> tuple[sp.csr_matrix, dict]:
     ncls = len(classes)
     # class-level slave expressions (branch rows), checked for consistency
     expr: dict = {}
-    for child, parents, coef in branch_rows:
+    source: dict = {}
+    for child, parents, coef, itf in branch_rows:
         c = int(cls[child])
         row = {}
         for p, w in zip(cls[parents], coef):
@@ -182,10 +183,15 @@ def prolongation(problem) -> tuple[sp.csr_matrix, dict]:
             old = expr[c]
             keys = set(old) | set(row)
             if max(abs(old.get(k, 0.0) - row.get(k, 0.0)) for k in keys) > 1e-10:
-                raise ProblemError(f"inconsistent branch constraints: DOF {child} (a branch-in face) receives two "
-                                   "different expressions from its parents; check the branch faces and refinement")
+                first = source[c]
+                raise ProblemError(
+                    f"inconsistent constraints: DOF {child} is constrained by branch faces patch {first.a[0]} "
+                    f"{first.a[1]} -> patch {first.b[0]} {first.b[1]} and patch {itf.a[0]} {itf.a[1]} -> patch "
+                    f"{itf.b[0]} {itf.b[1]} with different values; check these faces and their refinement"
+                )
         else:
             expr[c] = row
+            source[c] = itf
     slaves = np.array(sorted(expr), dtype=np.int64)
     is_slave = np.zeros(ncls, bool)
     is_slave[slaves] = True
