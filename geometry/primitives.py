@@ -219,6 +219,30 @@ def extrude(surface: BSpline, vector) -> BSpline:
     return ruled(surface, top)
 
 
+def _unify(items):
+    """Common degree and knot vector for (spline, direction) pairs (exact).
+
+    Every spline is elevated to the largest degree along its direction, then
+    every knot vector gets the union of the breakpoints with their largest
+    multiplicity.  The directions' domains must already agree.  Returns the
+    splines in the same order.
+    """
+    p = max(s.degrees[k] for s, k in items)
+    items = [(s.elevate(k, p - s.degrees[k]), k) for s, k in items]
+    target = {}
+    for s, k in items:
+        vals, mults = kn.breakpoints(s.knots[k])
+        for v, m in zip(vals, mults):
+            target[v] = max(target.get(v, 0), m)
+    out = []
+    for s, k in items:
+        vals, mults = kn.breakpoints(s.knots[k])
+        have = dict(zip(vals, mults))
+        ins = [v for v, m in target.items() for _ in range(m - have.get(v, 0))]
+        out.append(s.insert_knots(k, ins)[0] if ins else s)
+    return out
+
+
 def make_compatible(splines, directions=None):
     """Bring splines of equal parametric dimension to common degrees and knot vectors.
 
@@ -238,23 +262,7 @@ def make_compatible(splines, directions=None):
             box[k] = dom[k]
         out.append(s.reparametrize(box))
     for k in directions:
-        p = max(s.degrees[k] for s in out)
-        out = [s.elevate(k, p - s.degrees[k]) for s in out]
-        # union of knots with maximal multiplicities
-        target = {}
-        for s in out:
-            vals, mults = kn.breakpoints(s.knots[k])
-            for v, m in zip(vals, mults):
-                target[v] = max(target.get(v, 0), m)
-        merged = []
-        for s in out:
-            vals, mults = kn.breakpoints(s.knots[k])
-            have = dict(zip(vals, mults))
-            ins = [v for v, m in target.items() for _ in range(m - have.get(v, 0))]
-            if ins:
-                s, _ = s.insert_knots(k, ins)
-            merged.append(s)
-        out = merged
+        out = _unify([(s, k) for s in out])
     return out
 
 
@@ -360,21 +368,9 @@ def coons_volume(faces: dict, tol: float = 1e-9) -> BSpline:
     deg, kv = [], []
     for k in range(3):
         users = [(n, dirs[n].index(k)) for n in names if k in dirs[n]]
-        p = max(F[n].degrees[j] for n, j in users)
-        for n, j in users:
-            F[n] = F[n].elevate(j, p - F[n].degrees[j])
-        target = {}
-        for n, j in users:
-            vals, mults = kn.breakpoints(F[n].knots[j])
-            for v, m in zip(vals, mults):
-                target[v] = max(target.get(v, 0), m)
-        for n, j in users:
-            vals, mults = kn.breakpoints(F[n].knots[j])
-            have = dict(zip(vals, mults))
-            ins = [v for v, m in target.items() for _ in range(m - have.get(v, 0))]
-            if ins:
-                F[n], _ = F[n].insert_knots(j, ins)
-        deg.append(p)
+        for (n, _), s in zip(users, _unify([(F[n], j) for n, j in users])):
+            F[n] = s
+        deg.append(F[users[0][0]].degrees[users[0][1]])
         kv.append(F[users[0][0]].knots[users[0][1]])
     channels = F["umin"].channels
     if any(s.channels != channels for s in F.values()):
