@@ -30,7 +30,18 @@ from .errors import SplineError
 FORMAT = "iga-toolkit-splines"
 VERSION = 1
 
-__all__ = ["save", "load", "save_all", "load_all", "atomic_write"]
+__all__ = ["save", "load", "save_all", "load_all", "atomic_write", "check_folder"]
+
+
+def check_folder(path, error=SplineError) -> Path:
+    """The folder of ``path``; raises ``error`` if it is missing or not writable (call before long work)."""
+    path = Path(path)
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        raise error(f"cannot write {path}: folder {folder} does not exist; create it first")
+    if not os.access(folder, os.W_OK):
+        raise error(f"cannot write {path}: folder {folder} is not writable; choose another output folder")
+    return folder
 
 
 def atomic_write(path, write_fn, suffix: str = "", error=SplineError) -> Path:
@@ -42,11 +53,7 @@ def atomic_write(path, write_fn, suffix: str = "", error=SplineError) -> Path:
     file is removed, so nothing half-written is left behind.
     """
     path = Path(path)
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir():
-        raise error(f"cannot write {path}: folder {folder} does not exist; create it first")
-    if not os.access(folder, os.W_OK):
-        raise error(f"cannot write {path}: folder {folder} is not writable; choose another output folder")
+    folder = check_folder(path, error)
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix, dir=folder)
     except OSError as exc:

@@ -17,7 +17,7 @@ from pathlib import Path
 import meshio
 import numpy as np
 
-from geometry.io import atomic_write
+from geometry.io import atomic_write, check_folder
 
 from . import ProblemError
 from .geometry_eval import patch_geometry_grid
@@ -59,7 +59,7 @@ def write_vtu(path, solution_or_model, samples: int = 3) -> Path:
     if not isinstance(samples, (int, np.integer)) or samples < 1:
         raise ProblemError(f"samples must be a positive integer, got {samples!r}")
     path = Path(path)
-    check_writable(path)
+    check_folder(path, ProblemError)  # before sampling: fail fast on a bad output path
     sol = solution_or_model if isinstance(solution_or_model, Solution) else None
     model = sol.problem.model if sol is not None else as_model(solution_or_model)
     points, cells, pdata, cdata = [], [], {}, {"patch": [], "tile": [], "level": []}
@@ -104,13 +104,3 @@ def write_vtu(path, solution_or_model, samples: int = 3) -> Path:
     )
     return atomic_write(path, lambda tmp: meshio.write(tmp, mesh, file_format="vtu"), ".vtu", ProblemError)
 
-
-def check_writable(path: Path) -> None:
-    """Fail early (before any work) when the output folder is missing or read-only."""
-    import os
-
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir():
-        raise ProblemError(f"cannot write {path}: folder {folder} does not exist; create it first")
-    if not os.access(folder, os.W_OK):
-        raise ProblemError(f"cannot write {path}: folder {folder} is not writable; choose another output folder")
