@@ -89,10 +89,16 @@ def _branch_R(problem, itf) -> sp.csr_matrix:
         ) from None
 
 
-def _discontinuity_pairs(problem, pi):
-    """DOF pairs to equate across full-multiplicity knot planes of patch ``pi`` where both sides coincide."""
-    patch, space = problem.model.patches[pi], problem.spaces[pi]
-    s = patch.spline
+def _discontinuity_pairs(problem, pi, slots):
+    """DOF pairs to equate across full-multiplicity knot planes of patch ``pi`` where both sides coincide.
+
+    ``slots``: :func:`tiling.microstructure.discontinuity_slots` of the patch's
+    tile spline, the free (non-coinciding) rectangles of each plane; the rest
+    of the plane is one material.
+    """
+    from tiling.microstructure import slot_face_id
+
+    space = problem.spaces[pi]
     pairs = []
     for d in range(3):
         sd = space.dirs[d]
@@ -103,20 +109,12 @@ def _discontinuity_pairs(problem, pi):
             left = int(np.searchsorted(sd.knots, v, side="left")) - 1
             right = left + 1
             rest = [k for k in range(3) if k != d]
-            # geometry on both sides, sampled at the analysis element pieces of the plane
-            lo, hi = s.domain[d]
-            eps = 1e-9 * (hi - lo)
+            # analysis element pieces of the plane that are not in a free slot rectangle coincide
             b1, b2 = np.unique(space.dirs[rest[0]].knots), np.unique(space.dirs[rest[1]].knots)
-            m1, m2 = 0.5 * (b1[:-1] + b1[1:]), 0.5 * (b2[:-1] + b2[1:])
-            pts = []
-            for side in (-1, 1):
-                x = np.empty((len(m1), len(m2), 3))
-                x[..., d] = v + side * eps
-                x[..., rest[0]] = m1[:, None]
-                x[..., rest[1]] = m2[None, :]
-                pts.append(s.evaluate(x.reshape(-1, 3))[:, :3].reshape(len(m1), len(m2), 3))
-            size = float(np.ptp(s.points.reshape(-1, 3), axis=0).max())
-            coincide = np.linalg.norm(pts[0] - pts[1], axis=-1) < 1e-6 * size  # per element piece
+            m1, m2 = np.meshgrid(0.5 * (b1[:-1] + b1[1:]), 0.5 * (b2[:-1] + b2[1:]), indexing="ij")
+            coincide = np.ones(m1.shape, bool)
+            for (a1, c1), (a2, c2) in slots.get(slot_face_id(d, v, -1), []):
+                coincide &= ~((m1 > a1) & (m1 < c1) & (m2 > a2) & (m2 < c2))
             if not coincide.any():
                 continue
             # couple the functions whose support meets a coinciding piece
@@ -163,8 +161,14 @@ def prolongation(problem) -> tuple[sp.csr_matrix, dict]:
                 cols = R.indices[R.indptr[r] : R.indptr[r + 1]]
                 branch_rows.append((int(child[r]), parent[cols], R.data[R.indptr[r] : R.indptr[r + 1]], itf))
             stats["branch_rows"] += R.shape[0]
-    for pi in range(len(problem.model.patches)):
-        for a, b in _discontinuity_pairs(problem, pi):
+    from tiling.microstructure import discontinuity_slots
+
+    slots_of: dict = {}  # tiles share their spline: compare each plane once per tile patch
+    for pi, patch in enumerate(problem.model.patches):
+        key = id(patch.spline)
+        if key not in slots_of:
+            slots_of[key] = discontinuity_slots(patch.spline)
+        for a, b in _discontinuity_pairs(problem, pi, slots_of[key]):
             uf.union(a, b)
             stats["c0_pairs"] += 1
     roots = np.array([uf.find(i) for i in range(n)])
