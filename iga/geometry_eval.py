@@ -51,33 +51,60 @@ def grid_values_derivs(spline, axes):
     return x, [(dh[:, :-1] - x * dh[:, -1:]) / w for dh in dH]
 
 
-def _outer_map(patch: Patch, xT, DT):
-    """Placement and deformation map applied to tile values (N, m) and derivatives [(N, m)] * 3.
+def _outer_map(patches, xT, DT):
+    """Placements and deformation map applied to shared tile values (N, m) and derivatives [(N, m)] * 3.
 
-    Returns x (N, 3), the physical derivatives [(N, 3)] * 3 (chain rule) and the map's channels.
+    ``patches`` share the tile spline that produced ``xT``.  Returns x (P, N, 3),
+    the physical derivatives [(P, N, 3)] * 3 (chain rule) and the map's channels
+    {name: (P, N)}; one evaluation of each deformation map serves all its patches.
     """
-    A = patch.placement[:, :3] if patch.placement is not None else np.eye(3)
-    b = patch.placement[:, 3] if patch.placement is not None else np.zeros(3)
-    y = xT[:, :3] @ A.T + b
-    Dy = [dk[:, :3] @ A.T for dk in DT]
-    D = patch.outer
-    if D is None:
+    P, N = len(patches), len(xT)
+    A = np.stack([p.placement[:, :3] if p.placement is not None else np.eye(3) for p in patches])
+    b = np.stack([p.placement[:, 3] if p.placement is not None else np.zeros(3) for p in patches])
+    y = np.einsum("nj,pij->pni", xT[:, :3], A) + b[:, None, :]
+    Dy = [np.einsum("nj,pij->pni", dk[:, :3], A) for dk in DT]
+    groups: dict = {}
+    for i, p in enumerate(patches):
+        groups.setdefault(id(p.outer), []).append(i)
+    if len(groups) == 1 and patches[0].outer is None:
         return y, Dy, {}
-    dom = D.domain
-    y = np.clip(y, dom[:, 0], dom[:, 1])
-    vals = D.evaluate(y)
-    JD = D.jacobian(y)[:, :3, :]
-    chans = {c: vals[:, 3 + i] for i, c in enumerate(D.channels)}
-    return vals[:, :3], [np.einsum("nij,nj->ni", JD, dk) for dk in Dy], chans
+    x = np.empty_like(y)
+    Dx = [np.empty_like(d) for d in Dy]
+    chans: dict = {}
+    for members in groups.values():
+        D = patches[members[0]].outer
+        if D is None:
+            raise ProblemError("patches that share a tile must all have a deformation map or none")
+        dom = D.domain
+        yy = np.clip(y[members].reshape(-1, 3), dom[:, 0], dom[:, 1])
+        vals = D.evaluate(yy)
+        JD = D.jacobian(yy)[:, :3, :]
+        x[members] = vals[:, :3].reshape(len(members), N, 3)
+        for k in range(len(Dy)):
+            Dx[k][members] = np.einsum("nij,nj->ni", JD, Dy[k][members].reshape(-1, 3)).reshape(len(members), N, 3)
+        for i, c in enumerate(D.channels):
+            chans.setdefault(c, np.empty((P, N)))[members] = vals[:, 3 + i].reshape(len(members), N)
+    return x, Dx, chans
+
+
+def patches_geometry_derivs(patches, axes):
+    """Geometry of patches sharing one tile spline on one parameter grid.
+
+    Returns x (P, N, 3), [dx/dxi_k (P, N, 3)] * 3 and channels {name: (P, N)}
+    (tile channels broadcast, map channels per patch); the tile is evaluated once.
+    """
+    xT, DT = grid_values_derivs(patches[0].spline, axes)
+    P = len(patches)
+    chans = {c: np.broadcast_to(xT[:, 3 + i], (P, len(xT))) for i, c in enumerate(patches[0].spline.channels)}
+    x, Dx, outer_chans = _outer_map(patches, xT, DT)
+    chans.update(outer_chans)
+    return x, Dx, chans
 
 
 def patch_geometry_derivs(patch: Patch, axes):
     """Geometry on a tensor grid of patch parameters: x (N, 3), [dx/dxi_k (N, 3)] * 3, channels."""
-    xT, DT = grid_values_derivs(patch.spline, axes)
-    chans = {c: xT[:, 3 + i] for i, c in enumerate(patch.spline.channels)}
-    x, Dx, outer_chans = _outer_map(patch, xT, DT)
-    chans.update(outer_chans)
-    return x, Dx, chans
+    x, Dx, chans = patches_geometry_derivs([patch], axes)
+    return x[0], [d[0] for d in Dx], {c: v[0] for c, v in chans.items()}
 
 
 def patch_geometry_grid(patch: Patch, axes):
@@ -92,9 +119,9 @@ def patch_geometry_points(patch: Patch, params):
     vals = patch.spline.evaluate(params)
     JT = patch.spline.jacobian(params)
     chans = {c: vals[:, 3 + i] for i, c in enumerate(patch.spline.channels)}
-    x, Dx, outer_chans = _outer_map(patch, vals, [JT[:, :, k] for k in range(3)])
-    chans.update(outer_chans)
-    return x, np.stack(Dx, axis=-1), chans
+    x, Dx, outer_chans = _outer_map([patch], vals, [JT[:, :, k] for k in range(3)])
+    chans.update({c: v[0] for c, v in outer_chans.items()})
+    return x[0], np.stack([d[0] for d in Dx], axis=-1), chans
 
 
 def checked_det(det, what: str) -> np.ndarray:

@@ -238,6 +238,8 @@ def run_pipeline(config: dict, base_dir: str | Path = ".", progress: bool | None
             raise ProblemError(f"config key bc[{i}].kind must be dirichlet, neumann or robin, got {kind!r}")
     sol = prob.solve(solver=scfg.get("method", "auto"), tol=scfg.get("tol", 1e-10))
     prog.done(f"({prob.ndof} DOFs, {sol.info['free_dofs']} unknowns)")
+    # high-water mark of the analysis alone (map, tiling, assembly, solve), before VTK is loaded for output
+    analysis_peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
     files = {}
     prog.start("VTU output")
@@ -265,6 +267,7 @@ def run_pipeline(config: dict, base_dir: str | Path = ".", progress: bool | None
         "inflow_W": bal["inflow_W"], "outflow_W": bal["outflow_W"], "energy_balance_error": bal["relative_error"],
         "flux_W": {bc["tag"]: sol.flux(bc["tag"]) for bc in bcs},
         "solver": sol.info["solver"], "timings_s": {**prog.timings, **{f"iga.{k}": v for k, v in prob.timings.items()}},
+        "analysis_peak_memory_MiB": analysis_peak,
         "peak_memory_MiB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
         "probes": {"points": probes, "temperature_C": sol.probe(np.asarray(probes, float)).tolist() if probes else []},
         "files": files,

@@ -28,9 +28,33 @@ import solvers
 
 from . import ProblemError
 from .assembly import banded_form, banded_to_csr_data, block_diagonal_csr, load_form, pattern, stiffness_data
-from .geometry_eval import checked_det, patch_geometry_derivs, patch_geometry_grid
+from .geometry_eval import checked_det, patches_geometry_derivs
 from .model import Patch, as_model
 from .space import FACE_AXES, make_space
+
+
+_CHUNK_POINTS = 1 << 18  # Gauss points evaluated together: bounds the batch's memory
+
+
+def _chunks(members, points_each):
+    """Split ``members`` into batches of at most about ``_CHUNK_POINTS`` Gauss points."""
+    size = max(1, _CHUNK_POINTS // max(int(points_each), 1))
+    return [members[i : i + size] for i in range(0, len(members), size)]
+
+
+def _by_space(fds) -> dict:
+    """Indices of face data grouped by face space."""
+    out: dict = {}
+    for i, fd in enumerate(fds):
+        out.setdefault(fd.space.key(), []).append(i)
+    return out
+
+
+def _cross(a, b, axis=-1):
+    """Cross product along ``axis`` written out (np.cross is slow for many small vectors)."""
+    a, b = np.moveaxis(a, axis, 0), np.moveaxis(b, axis, 0)
+    c = np.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+    return np.moveaxis(c, 0, axis)
 
 
 class SingularProblemError(ProblemError, solvers.SolverError):
@@ -187,118 +211,186 @@ class HeatProblem:
 
     # --------------------------------------------------------------- assembly
     def face_data(self, pi: int, face: str) -> FaceData:
-        """Geometry and DOFs of one patch face at its Gauss points.
+        """Geometry and DOFs of one patch face at its Gauss points (see :meth:`faces_data`)."""
+        return self.faces_data([(pi, face)])[0]
+
+    def faces_data(self, keys) -> list[FaceData]:
+        """Geometry and DOFs of patch faces ``[(patch, face), ...]`` at their Gauss points.
 
         ``face`` is one of the six patch faces or a slot face id (``u=0.5-``:
         the discontinuity plane u = 0.5 seen from u < 0.5), integrated on the
         one-sided sub-patch and restricted to the model's free region of it.
+        Faces of patches that share a tile spline are evaluated together (one
+        tile evaluation, one deformation-map evaluation); results are cached.
         """
-        if not hasattr(self, "_face_cache"):
-            self._face_cache = {}
-        key = (pi, face)
-        if key in self._face_cache:
-            return self._face_cache[key]
         from tiling.microstructure import parse_slot_face
 
-        patch, space = self.model.patches[pi], self.spaces[pi]
+        cache = self.__dict__.setdefault("_face_cache", {})
+        groups: dict = {}
+        for pi, face in keys:
+            if (pi, face) in cache:
+                continue
+            if not (0 <= pi < len(self.model.patches)):
+                raise ProblemError(f"patch index {pi} out of range (the model has {len(self.model.patches)} patches)")
+            if face not in FACE_AXES and parse_slot_face(face) is None:
+                raise ProblemError(f"unknown face {face!r}; use umin .. wmax or a slot face id such as 'u=0.5-'")
+            gk = (id(self.model.patches[pi].spline), self.spaces[pi].key(), face)
+            groups.setdefault(gk, []).append(pi)
+        for (_, _, face), members in groups.items():
+            for chunk in _chunks(members, self.spaces[members[0]].nq_total // min(self.spaces[members[0]].qshape)):
+                self._face_group(chunk, face)
+        return [cache[(pi, face)] for pi, face in keys]
+
+    def _face_group(self, members, face):
+        """Fill the face cache for ``face`` of patches ``members`` (same tile spline and space)."""
+        from tiling.microstructure import parse_slot_face
+
+        cache = self._face_cache
+        patch0, space = self.model.patches[members[0]], self.spaces[members[0]]
         slot = parse_slot_face(face)
-        mask = None
         if slot is None:
             k, side = FACE_AXES[face]
-            geo = patch
-            U = patch.spline.knots[k]
+            U = patch0.spline.knots[k]
             at = U[-1] if side else U[0]
+            geos = [self.model.patches[pi] for pi in members]
             dofs = space.face_dofs(face)
         else:
             k, at, sgn = slot
             side = 1 if sgn < 0 else 0  # u=v- is the max face of the sub-patch below the plane
-            box = patch.spline.domain.copy()
+            box = patch0.spline.domain.copy()
             box[k] = [box[k, 0], at] if sgn < 0 else [at, box[k, 1]]
-            geo = Patch(patch.spline.extract(box), patch.placement, patch.outer, patch.tile, patch.level)
+            sub = patch0.spline.extract(box)
+            geos = [Patch(sub, p.placement, p.outer, p.tile, p.level) for p in (self.model.patches[pi] for pi in members)]
             first = int(np.searchsorted(space.dirs[k].knots, at, side="left"))
             layer = first - 1 if sgn < 0 else first
             dofs = np.take(np.arange(space.ndof).reshape(space.shape), layer, axis=k).ravel()
-            rects = self.model.face_regions.get(key)
-            if rects is None:
-                raise ProblemError(f"patch {pi} has no free region recorded for slot face {face!r}")
-            rest = [i for i in range(3) if i != k]
-            q1, q2 = np.meshgrid(space.dirs[rest[0]].qpts, space.dirs[rest[1]].qpts, indexing="ij")
-            mask = np.zeros(q1.shape, bool)
-            for (a1, b1), (a2, b2) in rects:
-                mask |= (q1 > a1) & (q1 < b1) & (q2 > a2) & (q2 < b2)
-            mask = mask.ravel()
         axes = [d.qpts for d in space.dirs]
         axes[k] = np.array([at])
-        x, J, chans = patch_geometry_grid(geo, axes)
+        x, Dx, chans = patches_geometry_derivs(geos, axes)
         a, b = [i for i in range(3) if i != k]
-        cr = np.cross(J[:, :, a], J[:, :, b])
-        dA = np.linalg.norm(cr, axis=1)
+        cr = _cross(Dx[a], Dx[b])
+        dA = np.linalg.norm(cr, axis=-1)
         if np.any(dA <= 0):
-            raise ProblemError(f"patch {pi} face {face} is degenerate (zero area at some Gauss points)")
-        inward = np.einsum("ni,ni->n", cr, J[:, :, k])
+            bad = members[int(np.argmax(np.any(dA <= 0, axis=1)))]
+            raise ProblemError(f"patch {bad} face {face} is degenerate (zero area at some Gauss points)")
+        inward = np.einsum("pni,pni->pn", cr, Dx[k])
         sign = np.where(inward > 0, 1.0, -1.0) * (1.0 if side else -1.0)
+        normal = cr / dA[..., None] * sign[..., None]
         fs = space.face_space("umin" if k == 0 else "vmin" if k == 1 else "wmin")
         w = np.multiply.outer(fs.dirs[0].qw, fs.dirs[1].qw).ravel()
-        dAw = dA * w if mask is None else dA * w * mask
-        fd = FaceData(pi, face, fs, dofs + self.offsets[pi], x, chans, dAw, cr / dA[:, None] * sign[:, None])
-        self._face_cache[key] = fd
-        return fd
+        dAw = dA * w
+        if slot is not None:
+            rest = [i for i in range(3) if i != k]
+            q1, q2 = np.meshgrid(space.dirs[rest[0]].qpts, space.dirs[rest[1]].qpts, indexing="ij")
+            for j, pi in enumerate(members):
+                rects = self.model.face_regions.get((pi, face))
+                if rects is None:
+                    raise ProblemError(f"patch {pi} has no free region recorded for slot face {face!r}")
+                mask = np.zeros(q1.shape, bool)
+                for (a1, b1), (a2, b2) in rects:
+                    mask |= (q1 > a1) & (q1 < b1) & (q2 > a2) & (q2 < b2)
+                dAw[j] *= mask.ravel()
+        for j, pi in enumerate(members):
+            cache[(pi, face)] = FaceData(pi, face, fs, dofs + self.offsets[pi], x[j], {c: v[j] for c, v in chans.items()},
+                                         dAw[j], normal[j])
 
-    def _face_matrix(self, fd: FaceData, F: np.ndarray) -> sp.coo_matrix:
-        band = banded_form(fd.space, [(F.reshape((1,) + fd.space.qshape), ((0, 0), (0, 0)))])
-        pat = pattern(fd.space)
-        data = banded_to_csr_data(fd.space, band)[0]
-        rows = np.repeat(np.arange(pat.n), np.diff(pat.indptr))
-        return sp.coo_matrix((data, (fd.dofs[rows], fd.dofs[pat.indices])), shape=(self.ndof, self.ndof))
+    def _face_field(self, spec, fds, what, tag, positive=False) -> list[np.ndarray]:
+        """A number / channel / callable evaluated on several faces at once -> one (N_f,) array per face."""
+        if not fds:
+            return []
+        x = np.concatenate([fd.x for fd in fds])
+        common = [c for c in fds[0].chans if all(c in fd.chans for fd in fds)]
+        chans = {c: np.concatenate([fd.chans[c] for fd in fds]) for c in common}
+        first = fds[0]
+        where = f"the faces tagged {tag!r} (e.g. patch {first.patch} face {first.face})"
+        v = self._values(spec, x, chans, what, where, positive)
+        return np.split(v, np.cumsum([len(fd.x) for fd in fds])[:-1])
 
-    def _face_load(self, fd: FaceData, F: np.ndarray) -> np.ndarray:
-        return load_form(fd.space, F.reshape((1,) + fd.space.qshape))[0].ravel()
+    def _face_loads(self, fds, Fs, n=None) -> np.ndarray:
+        """Global vector sum over faces of int F N_i (F per face at its Gauss points)."""
+        n = self.ndof if n is None else n
+        out = np.zeros(n)
+        for fs, idx in _by_space(fds).items():
+            space = fds[idx[0]].space
+            L = load_form(space, np.stack([Fs[i] for i in idx]).reshape((len(idx),) + space.qshape))
+            dofs = np.stack([fds[i].dofs for i in idx])
+            out += np.bincount(dofs.ravel(), weights=L.reshape(len(idx), -1).ravel(), minlength=n)
+        return out
 
-    def _stiffness_fields(self, i, space):
-        """k |J| w J^-1 J^-T at the Gauss grid of patch i (6 symmetric components) and the source load field.
+    def _face_loads_matrix(self, fds, Fs) -> sp.csc_matrix:
+        """Sparse (ndof, n_faces): column f holds int F_f N_i over face f."""
+        rows, cols, vals = [], [], []
+        for fs, idx in _by_space(fds).items():
+            space = fds[idx[0]].space
+            L = load_form(space, np.stack([Fs[i] for i in idx]).reshape((len(idx),) + space.qshape))
+            rows.append(np.stack([fds[i].dofs for i in idx]).ravel())
+            cols.append(np.repeat(idx, space.ndof))
+            vals.append(L.reshape(-1))
+        return sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                             shape=(self.ndof, len(fds)))
 
+    def _face_matrix(self, fds, Fs) -> sp.csr_matrix:
+        """Global sparse sum over faces of int F N_i N_j (F per face at its Gauss points)."""
+        rows, cols, vals = [], [], []
+        for fs, idx in _by_space(fds).items():
+            space = fds[idx[0]].space
+            F = np.stack([Fs[i] for i in idx]).reshape((len(idx),) + space.qshape)
+            data = banded_to_csr_data(space, banded_form(space, [(F, ((0, 0), (0, 0)))]))
+            pat = pattern(space)
+            dofs = np.stack([fds[i].dofs for i in idx])
+            local_rows = np.repeat(np.arange(pat.n), np.diff(pat.indptr))
+            rows.append(dofs[:, local_rows].ravel())
+            cols.append(dofs[:, pat.indices].ravel())
+            vals.append(data.ravel())
+        if not rows:
+            return sp.csr_matrix((self.ndof, self.ndof))
+        return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                             shape=(self.ndof, self.ndof))
+
+    def _stiffness_fields(self, members, space):
+        """k |J| w J^-1 J^-T on the Gauss grid of patches ``members`` (same tile spline and space).
+
+        Returns the 6 symmetric components {(r, s): (P, N)} and the source load field (P, N).
         With c_1 = x_v x x_w, c_2 = x_w x x_u, c_3 = x_u x x_v (the rows of
         det J * J^-1), k |J| J^-1 J^-T = k (c_r . c_s) / |det J|.
         """
-        x, D, chans = patch_geometry_derivs(self.model.patches[i], space.qaxes)
-        D = [np.ascontiguousarray(dk.T) for dk in D]  # component-major (3, N): contiguous arithmetic
-
-        def cross(a, b):
-            return np.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
-
-        c = [cross(D[1], D[2]), cross(D[2], D[0]), cross(D[0], D[1])]
-        det = checked_det(D[0][0] * c[0][0] + D[0][1] * c[0][1] + D[0][2] * c[0][2], f"patch {i}")
+        patches = [self.model.patches[i] for i in members]
+        x, D, chans = patches_geometry_derivs(patches, space.qaxes)
+        P, N = x.shape[:2]
+        D = [np.ascontiguousarray(np.moveaxis(dk, -1, 0)) for dk in D]  # component-major (3, P, N)
+        c = [_cross(D[1], D[2], 0), _cross(D[2], D[0], 0), _cross(D[0], D[1], 0)]
+        where = f"patch {members[0]}" if P == 1 else f"patches {members[0]}..{members[-1]}"
+        det = checked_det(D[0][0] * c[0][0] + D[0][1] * c[0][1] + D[0][2] * c[0][2], where)
         w = np.multiply.outer(np.multiply.outer(*[d.qw for d in space.dirs[:2]]), space.dirs[2].qw).ravel()
-        kval = self._values(self.conductivity, x, chans, "conductivity", f"patch {i}", positive=True)
-        fac = kval * w / np.abs(det)
+        flat = {ch: np.reshape(v, -1) for ch, v in chans.items()}
+        kval = self._values(self.conductivity, x.reshape(-1, 3), flat, "conductivity", where, positive=True)
+        fac = kval.reshape(P, N) * w / np.abs(det)
         C = {(r, s): fac * (c[r][0] * c[s][0] + c[r][1] * c[s][1] + c[r][2] * c[s][2])
              for r in range(3) for s in range(r, 3)}
-        fval = self._values(self.source, x, chans, "source", f"patch {i}")
+        fval = self._values(self.source, x.reshape(-1, 3), flat, "source", where).reshape(P, N)
         return C, fval * np.abs(det) * w
 
     def _volume(self):
-        """Stiffness (CSR) and source load over all patches, batched per space."""
+        """Stiffness (CSR) and source load over all patches, batched over patches sharing a tile and space."""
         blocks, f = [], np.zeros(self.ndof)
         groups: dict = {}
         for i, s in enumerate(self.spaces):
-            groups.setdefault(s.key(), []).append(i)
+            groups.setdefault((s.key(), id(self.model.patches[i].spline)), []).append(i)
         source_total = 0.0
-        for members in groups.values():
-            space = self.spaces[members[0]]
-            fields = [self._stiffness_fields(i, space) for i in members]  # geometry per patch, vectorised inside
-            shape = (len(members),) + space.qshape
-            C = {rs: (fields[0][0][rs] if len(members) == 1 else np.stack([fl[0][rs] for fl in fields])).reshape(shape)
-                 for rs in fields[0][0]}
-            data = stiffness_data(space, C)
+        for group in groups.values():
+            space = self.spaces[group[0]]
             pat = pattern(space)
-            for j, i in enumerate(members):
-                blocks.append((int(self.offsets[i]), pat, data[j]))
-            L = np.stack([fl[1] for fl in fields]).reshape(shape)
-            source_total += float(L.sum())
-            if np.any(L):
-                loads = load_form(space, L)
+            for members in _chunks(group, space.nq_total):
+                C, L = self._stiffness_fields(members, space)
+                shape = (len(members),) + space.qshape
+                data = stiffness_data(space, {rs: v.reshape(shape) for rs, v in C.items()})
                 for j, i in enumerate(members):
-                    f[self.offsets[i] : self.offsets[i + 1]] += loads[j].ravel()
+                    blocks.append((int(self.offsets[i]), pat, data[j]))
+                source_total += float(L.sum())
+                if np.any(L):
+                    loads = load_form(space, L.reshape(shape))
+                    for j, i in enumerate(members):
+                        f[self.offsets[i] : self.offsets[i + 1]] += loads[j].ravel()
         return block_diagonal_csr(blocks, self.ndof), f, source_total
 
     def _faces_of(self, cond):
@@ -309,33 +401,36 @@ class HeatProblem:
         t0 = time.perf_counter()
         K, f, source_total = self._volume()
         t1 = time.perf_counter()
-        extra = []
         neumann_faces, robin_faces, dirichlet_faces = {}, {}, {}
+        self.faces_data([key for c in self.conditions for key in self._faces_of(c)])
+        robin_fds, robin_F = [], []
         for c in self.conditions:
-            for pi, face in self._faces_of(c):
-                key = (pi, face)
-                fd = self.face_data(pi, face)
-                where = f"patch {pi} face {face} (tag {c.tag!r})"
-                if c.kind == "dirichlet":
+            keys = self._faces_of(c)
+            fds = self.faces_data(keys)
+            if c.kind == "dirichlet":
+                for key in keys:
                     dirichlet_faces.setdefault(key, []).append(c)
-                elif c.kind == "neumann":
-                    q = self._values(c.value, fd.x, fd.chans, "Neumann flux", where)
-                    f[fd.dofs] += self._face_load(fd, q * fd.dAw)
+            elif c.kind == "neumann":
+                qs = self._face_field(c.value, fds, "Neumann flux", c.tag)
+                f += self._face_loads(fds, [q * fd.dAw for q, fd in zip(qs, fds)])
+                for key, q in zip(keys, qs):
                     neumann_faces.setdefault(key, []).append(q)
-                else:
-                    h = self._values(c.h, fd.x, fd.chans, "film coefficient h", where, positive=True)
-                    Tinf = self._values(c.value, fd.x, fd.chans, "ambient temperature", where)
-                    extra.append(self._face_matrix(fd, h * fd.dAw))
-                    f[fd.dofs] += self._face_load(fd, h * Tinf * fd.dAw)
-                    robin_faces.setdefault(key, []).append((h, Tinf))
+            else:
+                hs = self._face_field(c.h, fds, "film coefficient h", c.tag, positive=True)
+                Ts = self._face_field(c.value, fds, "ambient temperature", c.tag)
+                robin_fds += fds
+                robin_F += [h * fd.dAw for h, fd in zip(hs, fds)]
+                f += self._face_loads(fds, [h * T * fd.dAw for h, T, fd in zip(hs, Ts, fds)])
+                for key, h, T in zip(keys, hs, Ts):
+                    robin_faces.setdefault(key, []).append((h, T))
         clash = set(dirichlet_faces) & (set(neumann_faces) | set(robin_faces))
         if clash:
             pi, face = sorted(clash)[0]
             raise ProblemError(
                 f"patch {pi} face {face} has a Dirichlet condition and a Neumann/Robin condition; give each face one kind"
             )
-        if extra:
-            K = (K + sum(extra)).tocsr()
+        if robin_fds:
+            K = (K + self._face_matrix(robin_fds, robin_F)).tocsr()
         self.timings["assembly_volume"] = t1 - t0
         self.timings["assembly_faces"] = time.perf_counter() - t1
         return K, f, {"neumann": neumann_faces, "robin": robin_faces, "dirichlet": dirichlet_faces,
@@ -349,20 +444,25 @@ class HeatProblem:
         """
         if not dirichlet_faces:
             return np.zeros(0, np.int64), np.zeros(0), {}
-        mats, rhs = [], np.zeros(self.ndof)
-        integrals = {}
-        for (pi, face), conds in dirichlet_faces.items():
-            fd = self.face_data(pi, face)
-            g = self._values(conds[-1].value, fd.x, fd.chans, "Dirichlet value", f"patch {pi} face {face}")
-            mats.append(self._face_matrix(fd, fd.dAw))
-            rhs[fd.dofs] += self._face_load(fd, g * fd.dAw)
-            vec = np.zeros(self.ndof)
-            vec[fd.dofs] = self._face_load(fd, fd.dAw)
-            integrals[(pi, face)] = vec if P is None else P.T @ vec
-        M = sum(mats).tocsr()
+        keys = list(dirichlet_faces)
+        fds = self.faces_data(keys)
+        gs = []
+        by_cond: dict = {}
+        for j, key in enumerate(keys):
+            by_cond.setdefault(id(dirichlet_faces[key][-1]), []).append(j)
+        gs = [None] * len(keys)
+        for idx in by_cond.values():
+            cond = dirichlet_faces[keys[idx[0]]][-1]
+            for j, g in zip(idx, self._face_field(cond.value, [fds[j] for j in idx], "Dirichlet value", cond.tag)):
+                gs[j] = g
+        M = self._face_matrix(fds, [fd.dAw for fd in fds])
+        rhs = self._face_loads(fds, [g * fd.dAw for g, fd in zip(gs, fds)])
+        G = self._face_loads_matrix(fds, [fd.dAw for fd in fds])  # column per face: int N_i dA
+        if P is not None:
+            G = (P.T @ G).tocsc()
         # L2 projection in the unconstrained space over all Dirichlet faces; DOFs whose
         # functions have no trace there (e.g. masked parts of slot faces) are not prescribed
-        cand = np.unique(np.concatenate([self.face_data(*k).dofs for k in dirichlet_faces]))
+        cand = np.unique(np.concatenate([fd.dofs for fd in fds]))
         diag = M.diagonal()[cand]
         dofs = cand[diag > 1e-14 * max(diag.max(), 1e-300)]
         Mdd = M[dofs][:, dofs].tocsc()
@@ -375,7 +475,8 @@ class HeatProblem:
             red, inv = np.unique(owners[keep], return_inverse=True)
             vals = np.bincount(inv, weights=vals[keep]) / np.bincount(inv)
             dofs = red
-        integrals = {k: v[dofs] for k, v in integrals.items()}
+        Gd = G[dofs].toarray()
+        integrals = {key: Gd[:, j] for j, key in enumerate(keys)}
         return dofs, vals, integrals
 
     def _needs_constraints(self) -> bool:

@@ -129,6 +129,11 @@ class TensorSpace:
         return tuple(s.nq for s in self.dirs)
 
     @property
+    def nq_total(self) -> int:
+        """Number of Gauss points of the whole tensor grid."""
+        return int(np.prod(self.qshape))
+
+    @property
     def qaxes(self) -> list[np.ndarray]:
         return [s.qpts for s in self.dirs]
 

@@ -60,8 +60,9 @@ def test_iga_run_reduced_heat_sink(tmp_path):
     assert out.returncode == 0, out.stderr
     s = json.loads((tmp_path / "out" / "summary.json").read_text())
     for key in ("dofs", "tiles", "levels", "temperature_C", "inflow_W", "outflow_W", "energy_balance_error",
-                "timings_s", "peak_memory_MiB", "solver"):
+                "timings_s", "peak_memory_MiB", "analysis_peak_memory_MiB", "solver"):
         assert key in s
+    assert 0 < s["analysis_peak_memory_MiB"] <= s["peak_memory_MiB"]
     assert s["tiles"] == 4 + 8 and s["levels"] == 2
     assert s["energy_balance_error"] < 1e-8
     area = 2 * np.pi * 0.02 * 0.02  # inner ring: an exact cylinder without twist
