@@ -49,14 +49,18 @@ def study(p: int, levels) -> list[dict]:
     return rows
 
 
-def hierarchy_study(levels_of_refinement=(0, 1, 2, 3)) -> list[dict]:
-    """Smooth manufactured solution across a 3-level T2 hierarchy (identity, branch and C0 constraints)."""
+def hierarchy_study(tile="heat_sink_t2", counts=(2, 1), levels_of_refinement=(0, 1, 2, 3),
+                    quadrature_extra=0) -> list[dict]:
+    """Smooth manufactured solution across a 3-level hierarchy (identity, branch and C0 constraints).
+
+    Row ``refine = -1`` is the patch test: a linear temperature, whose error should be round-off.
+    """
     import tiling
     from geometry import primitives as pr
     from tiling import library as L
 
     D = pr.box((2.0, 1.0, 1.5), degrees=(1, 1, 1))
-    ms = tiling.hierarchical(D, L.heat_sink_t2(), (2, 1), 3)
+    ms = tiling.hierarchical(D, getattr(L, tile)(), counts, 3)
 
     def T(x):
         return np.sin(x[:, 0]) * np.cos(0.8 * x[:, 1]) * np.exp(0.3 * x[:, 2])
@@ -64,15 +68,22 @@ def hierarchy_study(levels_of_refinement=(0, 1, 2, 3)) -> list[dict]:
     def f(x):  # -lap T with k = 1
         return (1 + 0.64 - 0.09) * T(x)
 
-    rows = []
+    def linear(x):
+        return 1 + 2 * x[:, 0] - x[:, 1] + 0.5 * x[:, 2]
+
+    patch = HeatProblem(ms, quadrature_extra=quadrature_extra).dirichlet("boundary", linear).solve(tol=1e-12)
+    rows = [{"tile": tile, "refine": -1, "dofs": patch.problem.ndof, "L2 error": patch.l2_error(linear),
+             "patches": len(ms.patches)}]
     for r in levels_of_refinement:
         t = time.perf_counter()
-        prob = HeatProblem(ms, source=f, refine=r)
+        prob = HeatProblem(ms, source=f, refine=r, quadrature_extra=quadrature_extra)
         s = prob.dirichlet("boundary", T).solve(tol=1e-12)
-        row = {"p": 2, "refine": r, "dofs": prob.ndof, "L2 error": s.l2_error(T), "seconds": time.perf_counter() - t}
-        if rows:
+        row = {"tile": tile, "p": 2, "refine": r, "dofs": prob.ndof, "patches": len(ms.patches),
+               "L2 error": s.l2_error(T), "seconds": time.perf_counter() - t}
+        if len(rows) > 1:
             row["L2 rate"] = float(np.log2(rows[-1]["L2 error"] / row["L2 error"]))
         rows.append(row)
+        print(f"{tile} r={r} dofs={prob.ndof} L2={row['L2 error']:.3e}", flush=True)
     return rows
 
 
@@ -94,10 +105,17 @@ def main(argv=None):
         ok &= good
         print(f"p={p}: last rates L2 {last['L2 rate']:.2f} (expect {p + 1}), H1 {last['H1 rate']:.2f} (expect {p})"
               f" -> {'optimal' if good else 'NOT within 0.2'}")
-    hier = hierarchy_study()
-    print("\nSmooth solution across a 3-level T2 hierarchy (42 tiles, tile degree 2): L2 rate should be 3")
-    print_table(hier, [("refine", "d"), ("dofs", "d"), ("L2 error", ".3e"), ("L2 rate", ".2f"), ("seconds", ".1f")])
-    ok &= abs(hier[-1]["L2 rate"] - 3) < 0.2
+    hier = []
+    for tile, counts, refs, qe in (("heat_sink_t2", (2, 1), (0, 1, 2, 3), 0),
+                                   ("skinned_branching", (1, 1), (0, 1, 2), 1)):
+        rows_t = hierarchy_study(tile, counts, refs, qe)
+        patch, conv = rows_t[0], rows_t[1:]
+        print(f"\nSmooth solution across a 3-level {tile} hierarchy ({patch['patches']} tiles, lowest tile degree 2, "
+              f"quadrature_extra={qe}): L2 rate should be 3; patch test (linear T) error {patch['L2 error']:.1e}")
+        print_table(conv, [("refine", "d"), ("dofs", "d"), ("L2 error", ".3e"), ("L2 rate", ".2f"),
+                           ("seconds", ".1f")])
+        ok &= abs(conv[-1]["L2 rate"] - 3) < 0.2 and patch["L2 error"] < 1e-9
+        hier += rows_t
     save_json("convergence.json", {"annulus": rows, "hierarchy": hier})
     plt = pyplot()
     if plt is not None:

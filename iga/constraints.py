@@ -16,9 +16,19 @@ encodes
 Equalities are merged with a union-find (chains, shared edges and corners
 collapse to one unknown); branch rows make a class a *slave* expressed
 through other classes, and slaves of slaves are substituted until only
-master classes remain.  Number of free unknowns: the number of equivalence
-classes of DOFs under the equalities, minus the classes on child branch-in
-faces (slaves).
+master classes remain.
+
+Number of free unknowns (``Solution.info["free_dofs"]``)::
+
+    classes - slave classes - prescribed unknowns - induced rank
+
+*classes*: equivalence classes of DOFs under the identity and C0 equalities;
+*slave classes*: classes on child branch-in faces; *prescribed unknowns*:
+master classes owning a Dirichlet DOF; *induced rank*: the rank of the
+conditions that Dirichlet DOFs of slave classes put on their masters (a slot
+of a child tile that reaches its base meets the parent's branch-out face
+inside an element, so its Dirichlet data fix combinations of the parent's
+face coefficients; :func:`induced_elimination`).
 """
 
 from __future__ import annotations
@@ -225,3 +235,66 @@ def prolongation(problem) -> tuple[sp.csr_matrix, dict]:
     stats.update({"classes": int(ncls), "slave_classes": int(len(slaves)), "reduced": int(len(masters))})
     P.dof_master = column[cls]  # reduced unknown owning each DOF (-1 for DOFs of slave classes)
     return P, stats
+
+
+def induced_elimination(C: sp.spmatrix, rhs: np.ndarray, tol: float = 1e-10):
+    """Solve the linear constraints ``C x = rhs`` on free unknowns by elimination.
+
+    Dirichlet DOFs that are *slaves* (child branch-in DOFs on a Dirichlet face,
+    e.g. the bottom edge of a slot inside a parent's branch-out face) fix a
+    combination of their masters, not one master: ``P[row] u = g``.  These rows
+    are split into independent blocks (connected components of the columns they
+    share, SciPy's csgraph); per block a column-pivoted QR finds the rank ``r``
+    and expresses ``r`` pivot columns through the others.
+
+    Returns ``(T, x0, touched)``: every ``x`` with ``C x = rhs`` (in the least-squares
+    sense when the rows conflict) is ``x = T z + x0``; ``T`` is sparse (n x nz)
+    with unit columns for the untouched unknowns; ``touched`` are the columns C involves.
+    """
+    from scipy.linalg import qr, solve_triangular
+    from scipy.sparse.csgraph import connected_components
+
+    C = sp.csr_matrix(C)
+    n = C.shape[1]
+    C.data[np.abs(C.data) < 1e-14] = 0.0
+    C.eliminate_zeros()
+    rows = np.nonzero(np.diff(C.indptr))[0]
+    touched = np.unique(C.indices)
+    x0 = np.zeros(n)
+    if not len(touched):
+        return sp.identity(n, format="csc"), x0, touched
+    Ct = C[rows][:, touched].tocsc()
+    # columns linked through a shared row belong to one block
+    link = (abs(Ct.T) @ abs(Ct)).tocsr()
+    nb, label = connected_components(link, directed=False)
+    keep = np.ones(n, bool)  # columns that stay unknowns
+    t_rows, t_cols, t_vals = [], [], []  # entries of T for eliminated columns: x_piv = sum_j t x_j
+    for b in range(nb):
+        cols_b = np.nonzero(label == b)[0]
+        sub = Ct[:, cols_b]
+        rows_b = np.unique(sub.indices)
+        A = sub[rows_b].toarray()
+        y = rhs[rows[rows_b]]
+        Q, R, perm = qr(A, mode="economic", pivoting=True)
+        d = np.abs(np.diag(R))
+        r = int(np.sum(d > tol * max(d[0], 1e-300))) if len(d) else 0
+        if r == 0:
+            continue
+        piv, rest = perm[:r], perm[r:]
+        # A[:, piv] x_piv + A[:, rest] x_rest = y  ->  x_piv = R11^-1 (Q1^T y - R12 x_rest)
+        R11, R12 = R[:r, :r], R[:r, r:]
+        base = solve_triangular(R11, Q[:, :r].T @ y)
+        coup = -solve_triangular(R11, R12) if len(rest) else np.zeros((r, 0))
+        gp, gr = touched[cols_b[piv]], touched[cols_b[rest]]
+        x0[gp] = base
+        keep[gp] = False
+        ii, jj = np.nonzero(np.abs(coup) > 1e-15)
+        t_rows.append(gp[ii]); t_cols.append(gr[jj]); t_vals.append(coup[ii, jj])
+    col_of = np.full(n, -1)
+    col_of[keep] = np.arange(int(keep.sum()))
+    kept = np.nonzero(keep)[0]
+    r_all = np.concatenate([kept] + t_rows)
+    c_all = np.concatenate([col_of[kept]] + [col_of[c] for c in t_cols])
+    v_all = np.concatenate([np.ones(len(kept))] + t_vals)
+    T = sp.csc_matrix((v_all, (r_all, c_all)), shape=(n, int(keep.sum())))
+    return T, x0, touched

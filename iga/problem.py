@@ -27,6 +27,7 @@ import scipy.sparse.linalg as spla
 import solvers
 
 from . import ProblemError
+from .constraints import induced_elimination
 from .assembly import banded_form, banded_to_csr_data, block_diagonal_csr, load_form, pattern, stiffness_data
 from .geometry_eval import checked_det, patches_geometry_derivs
 from .model import Patch, as_model
@@ -439,14 +440,18 @@ class HeatProblem:
     def _dirichlet_values(self, dirichlet_faces, P=None):
         """Prescribed unknowns from the Dirichlet data (L2 projection onto the Dirichlet trace space).
 
-        Returns (prescribed unknowns, their values, {face: int_face N_i}).  With ``P``
-        (constraints) the unknowns are reduced ones: the masters owning a Dirichlet DOF.
+        Returns a dict: ``dofs`` (prescribed unknowns) and ``values``; ``G``, a
+        sparse (unknowns x faces) matrix whose column f holds int_f N_i dA, with
+        ``keys`` its faces; and ``slave_rows`` / ``slave_values``: Dirichlet DOFs
+        that are constrained by others (with ``P``), which fix a combination of
+        unknowns rather than one (see :func:`iga.constraints.induced_elimination`).
         """
+        empty = np.zeros(0, np.int64)
         if not dirichlet_faces:
-            return np.zeros(0, np.int64), np.zeros(0), {}
+            return {"dofs": empty, "values": np.zeros(0), "G": None, "keys": [], "slave_rows": empty,
+                    "slave_values": np.zeros(0)}
         keys = list(dirichlet_faces)
         fds = self.faces_data(keys)
-        gs = []
         by_cond: dict = {}
         for j, key in enumerate(keys):
             by_cond.setdefault(id(dirichlet_faces[key][-1]), []).append(j)
@@ -458,8 +463,6 @@ class HeatProblem:
         M = self._face_matrix(fds, [fd.dAw for fd in fds])
         rhs = self._face_loads(fds, [g * fd.dAw for g, fd in zip(gs, fds)])
         G = self._face_loads_matrix(fds, [fd.dAw for fd in fds])  # column per face: int N_i dA
-        if P is not None:
-            G = (P.T @ G).tocsc()
         # L2 projection in the unconstrained space over all Dirichlet faces; DOFs whose
         # functions have no trace there (e.g. masked parts of slot faces) are not prescribed
         cand = np.unique(np.concatenate([fd.dofs for fd in fds]))
@@ -467,17 +470,19 @@ class HeatProblem:
         dofs = cand[diag > 1e-14 * max(diag.max(), 1e-300)]
         Mdd = M[dofs][:, dofs].tocsc()
         vals = np.atleast_1d(spla.spsolve(Mdd, rhs[dofs]) if len(dofs) > 1 else rhs[dofs] / Mdd.toarray().ravel())
+        slave_rows, slave_vals = empty, np.zeros(0)
         if P is not None:
             # prescribe the reduced unknowns owning a Dirichlet DOF (mean of their members' values);
-            # slave DOFs on Dirichlet faces follow their constraints
+            # Dirichlet DOFs of slave classes constrain combinations of unknowns (handled in solve)
             owners = P.dof_master[dofs]
             keep = owners >= 0
+            slave_rows, slave_vals = dofs[~keep], vals[~keep]
             red, inv = np.unique(owners[keep], return_inverse=True)
             vals = np.bincount(inv, weights=vals[keep]) / np.bincount(inv)
             dofs = red
-        Gd = G[dofs].toarray()
-        integrals = {key: Gd[:, j] for j, key in enumerate(keys)}
-        return dofs, vals, integrals
+            G = (P.T @ G).tocsc()
+        return {"dofs": dofs, "values": vals, "G": G.tocsr(), "keys": keys, "slave_rows": slave_rows,
+                "slave_values": slave_vals}
 
     def _needs_constraints(self) -> bool:
         """Interfaces, or patches with full-multiplicity (discontinuity) knots, need a prolongation."""
@@ -510,21 +515,37 @@ class HeatProblem:
 
             P, self.constraint_stats = prolongation(self)
         nred = self.ndof if P is None else P.shape[1]
-        dofs, g, integrals = self._dirichlet_values(book["dirichlet"], P)
+        dd = self._dirichlet_values(book["dirichlet"], P)
+        dofs, g = dd["dofs"], dd["values"]
         free = np.setdiff1d(np.arange(nred), dofs)
+        reaction_dofs = dofs
+        self.constraint_stats.update({"prescribed": int(len(dofs)), "induced_rank": 0})
         if P is None:  # one unconstrained patch: eliminate by column selection
             A = K[free][:, free].tocsr()
             rhs = f[free] - K[free][:, dofs] @ g if len(dofs) else f[free]
         else:
             Pf, Pd = P[:, free].tocsc(), P[:, dofs].tocsc()
+            offset = Pd @ g
+            if len(dd["slave_rows"]):
+                # slave DOFs on Dirichlet faces fix combinations of free unknowns: eliminate them
+                Ps = P[dd["slave_rows"]]
+                T, x0, touched = induced_elimination(Ps[:, free], dd["slave_values"] - Ps[:, dofs] @ g)
+                offset = offset + Pf @ x0
+                Pf = (Pf @ T).tocsc()
+                reaction_dofs = np.concatenate([dofs, free[touched]])
+                self.constraint_stats["induced_rank"] = int(len(free) - T.shape[1])
             A = (Pf.T @ K @ Pf).tocsr()
-            rhs = Pf.T @ (f - K @ (Pd @ g)) if len(dofs) else Pf.T @ f
+            rhs = Pf.T @ (f - K @ offset)
         self.timings["constraints"] = time.perf_counter() - t0
         x, info = solvers.solve(A, rhs, method=solver, tol=tol, maxiter=maxiter)
-        ured = np.zeros(nred)
-        ured[dofs] = g
-        ured[free] = x
-        u = ured if P is None else P @ ured
+        if P is None:
+            u = np.zeros(nred)
+            u[dofs] = g
+            u[free] = x
+        else:
+            u = Pf @ x + offset
         self.timings["solve"] = info.setup_s + info.solve_s
-        self.reduced_dofs = int(len(free))
-        return Solution(self, u, K, f, book, dofs, integrals, info, P)
+        self.reduced_dofs = int(A.shape[0])
+        Gd = dd["G"][reaction_dofs].toarray() if dd["G"] is not None else np.zeros((len(reaction_dofs), 0))
+        integrals = {key: Gd[:, j] for j, key in enumerate(dd["keys"])}
+        return Solution(self, u, K, f, book, reaction_dofs, integrals, info, P)

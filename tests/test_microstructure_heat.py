@@ -26,9 +26,10 @@ def test_patch_test_across_branch_and_identity_constraints(refine, elevate):
     assert np.abs(s.probe(pts) - linear(pts)).max() < 1e-9
     c = s.info["constraints"]
     assert c["branch_rows"] > 0 and c["identity_pairs"] > 0
-    # free unknowns = equivalence classes - slave classes - prescribed (Dirichlet) unknowns
+    # free unknowns = equivalence classes - slave classes - prescribed (Dirichlet) unknowns - induced rank
     assert c["reduced"] == c["classes"] - c["slave_classes"]
-    assert s.info["free_dofs"] < c["reduced"]
+    assert 0 < c["prescribed"] <= c["reduced"]
+    assert s.info["free_dofs"] == c["reduced"] - c["prescribed"] - c["induced_rank"]
 
 
 def test_regular_cross_patch_test_and_energy_balance():
@@ -71,6 +72,31 @@ def test_patch_test_on_discontinuity_hierarchies(make, levels):
     s = HeatProblem(ms, refine=1).dirichlet("boundary", linear).solve(tol=1e-12)
     assert s.l2_error(linear) < 1e-9
     assert s.info["constraints"]["c0_pairs"] > 0
+
+
+@pytest.mark.parametrize("refine", [0, 1])
+def test_patch_test_on_the_skinned_fig2_hierarchy(refine):
+    # the Fig. 2 tile's slots reach its base: a child's slot faces (Dirichlet) meet the parent's
+    # branch-out face inside an element, so their data fix combinations of the parent's coefficients
+    ms = tiling.hierarchical(AFFINE, L.skinned_branching(), (1, 1), 3)
+    assert len(ms.patches) == 1 + 6 + 36
+    # geometry degree (2, 2, 3): the cofactor integrand needs one Gauss point more than p + 1
+    s = HeatProblem(ms, refine=refine, quadrature_extra=1).dirichlet("boundary", linear).solve(tol=1e-12)
+    assert s.l2_error(linear) < 1e-9
+    c = s.info["constraints"]
+    assert c["induced_rank"] > 0 and c["branch_rows"] > 0
+    assert s.info["free_dofs"] == c["reduced"] - c["prescribed"] - c["induced_rank"]
+
+
+def test_energy_balance_with_dirichlet_on_slave_dofs():
+    ms = tiling.hierarchical(AFFINE, L.skinned_branching(), (1, 1), 2)
+    ms.tags["rest"] = [f for f in ms.tags["boundary"] if f not in set(ms.tags["branch-in"])]
+    s = HeatProblem(ms, conductivity=3.0, source=2.0).dirichlet("branch-in", 10.0).dirichlet("rest", 0.0).solve()
+    assert s.info["constraints"]["induced_rank"] > 0
+    assert s.info["balance"]["relative_error"] < 1e-8
+    # heat enters at the hot base, leaves through the cold faces; together they carry the source
+    assert s.flux("branch-in") < 0 < s.flux("rest")
+    assert s.flux("branch-in") + s.flux("rest") == pytest.approx(s.info["balance"]["source_W"], rel=1e-8)
 
 
 def test_optimal_l2_rate_across_a_hierarchy():
