@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from geometry import BSpline, SplineFunction
+from geometry import BSpline
 
 
 def random_knots(rng, p, n_inner_max=3, lo=0.0, hi=1.0, max_mult=None):

@@ -29,7 +29,7 @@ def test_basis_functions_match_scipy_single_basis():
 
     rng = np.random.default_rng(0)
     for p in range(1, 6):
-        U = random_knots_fixed = np.r_[np.zeros(p + 1), [0.2, 0.5, 0.5, 0.7], np.ones(p + 1)]
+        U = np.r_[np.zeros(p + 1), [0.2, 0.5, 0.5, 0.7], np.ones(p + 1)]
         n = len(U) - p - 1
         x = rng.random(300)
         B = kn.basis_matrix(U, p, x).toarray()
