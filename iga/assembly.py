@@ -244,19 +244,16 @@ def block_diagonal_csr(blocks, n_total: int) -> sp.csr_matrix:
 def stiffness_data(space: TensorSpace, C: dict) -> np.ndarray:
     """CSR data (P, nnz) of sum_rs int C_rs d_r N_i d_s N_j for a symmetric C.
 
-    ``C[(r, s)]`` for r <= s, each (P,) + qshape.  The six distinct terms are
-    assembled; the off-diagonal part S enters as S + S^T.
+    ``C[(r, s)]`` for r <= s, each (P,) + qshape.  With D the diagonal terms
+    and S the off-diagonal ones (r < s), K = D + S + S^T = H + H^T for
+    H = D / 2 + S: all six terms go through one banded form, and the transpose
+    is a gather of the CSR data.
     """
     d = space.dim
-    diag, off = [], []
+    terms = []
     for (r, s), F in C.items():
         variants = tuple((int(k == r), int(k == s)) for k in range(d))
-        (diag if r == s else off).append((F, variants))
-    pat = pattern(space)
-    P = next(iter(C.values())).shape[0]
-    data = banded_to_csr_data(space, banded_form(space, diag)) if diag else np.zeros((P, len(pat.take)))
-    if off:
-        S = banded_to_csr_data(space, banded_form(space, off))
-        data += S
-        data += S[:, pat.transpose]
-    return data
+        terms.append((0.5 * F if r == s else F, variants))
+    H = banded_to_csr_data(space, banded_form(space, terms))
+    H += H[:, pattern(space).transpose]
+    return H

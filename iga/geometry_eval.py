@@ -19,8 +19,9 @@ from .model import Patch
 def grid_values_derivs(spline, axes):
     """Values (N, m) and first derivatives [(N, m)] * d on a tensor grid (C order; rational handled).
 
-    Sum factorisation with shared partial contractions: the contraction of the
-    last directions is reused by the value and every derivative.
+    Sum factorisation with shared partial contractions: directions are
+    contracted in order of growth (a face's single-point direction first), and
+    the value and every derivative share their common prefixes.
     """
     d = spline.dim
     B = []
@@ -28,22 +29,20 @@ def grid_values_derivs(spline, axes):
         U, p = spline.knots[k], spline.degrees[k]
         ax = np.clip(ax, U[0], U[-1])
         B.append((kn.basis_matrix(U, p, ax, 0), kn.basis_matrix(U, p, ax, 1)))
-
-    def contract(arr, orders, dirs):
-        for k in dirs:
-            arr = _apply_along(arr, k, B[k][orders[k]])
-        return arr
-
     hom = spline.homogeneous
     m = hom.shape[-1]
-    zero = (0,) * d
-    # value and d/dxi_0 share the contraction of directions 1..d-1
-    tail = contract(hom, zero, range(1, d))
-    H = contract(tail, zero, [0]).reshape(-1, m)
-    dH = [contract(tail, (1,) + zero[1:], [0]).reshape(-1, m)]
-    for k in range(1, d):
-        orders = tuple(int(i == k) for i in range(d))
-        dH.append(contract(hom, orders, [j for j in range(d) if j != 0] + [0]).reshape(-1, m))
+    # ties: last direction first, so that direction 0 comes last and the result is C-contiguous
+    order = sorted(range(d), key=lambda k: (len(axes[k]) / hom.shape[k], -k))
+    partial = {(): hom}
+
+    def contracted(orders):  # orders of the directions order[:len(orders)]
+        if orders not in partial:
+            k = order[len(orders) - 1]
+            partial[orders] = _apply_along(contracted(orders[:-1]), k, B[k][orders[-1]])
+        return partial[orders]
+
+    outputs = [tuple(0 for _ in range(d))] + [tuple(int(i == k) for i in range(d)) for k in range(d)]
+    H, *dH = [contracted(tuple(o[k] for k in order)).reshape(-1, m) for o in outputs]
     if not spline.is_rational:
         return H, dH
     w = H[:, -1:]
@@ -59,10 +58,15 @@ def _outer_map(patches, xT, DT):
     {name: (P, N)}; one evaluation of each deformation map serves all its patches.
     """
     P, N = len(patches), len(xT)
-    A = np.stack([p.placement[:, :3] if p.placement is not None else np.eye(3) for p in patches])
-    b = np.stack([p.placement[:, 3] if p.placement is not None else np.zeros(3) for p in patches])
-    y = np.einsum("nj,pij->pni", xT[:, :3], A) + b[:, None, :]
-    Dy = [np.einsum("nj,pij->pni", dk[:, :3], A) for dk in DT]
+    if all(p.placement is None for p in patches):
+        y = np.broadcast_to(xT[:, :3], (P, N, 3))
+        Dy = [np.broadcast_to(dk[:, :3], (P, N, 3)) for dk in DT]
+    else:
+        A = np.stack([p.placement[:, :3] if p.placement is not None else np.eye(3) for p in patches])
+        b = np.stack([p.placement[:, 3] if p.placement is not None else np.zeros(3) for p in patches])
+        AT = np.ascontiguousarray(np.transpose(A, (0, 2, 1)))
+        y = np.matmul(xT[:, :3], AT) + b[:, None, :]  # (P, N, 3): BLAS, not einsum
+        Dy = [np.matmul(dk[:, :3], AT) for dk in DT]
     groups: dict = {}
     for i, p in enumerate(patches):
         groups.setdefault(id(p.outer), []).append(i)
@@ -81,7 +85,7 @@ def _outer_map(patches, xT, DT):
         JD = D.jacobian(yy)[:, :3, :]
         x[members] = vals[:, :3].reshape(len(members), N, 3)
         for k in range(len(Dy)):
-            Dx[k][members] = np.einsum("nij,nj->ni", JD, Dy[k][members].reshape(-1, 3)).reshape(len(members), N, 3)
+            Dx[k][members] = np.matmul(JD, Dy[k][members].reshape(-1, 3, 1)).reshape(len(members), N, 3)
         for i, c in enumerate(D.channels):
             chans.setdefault(c, np.empty((P, N)))[members] = vals[:, 3 + i].reshape(len(members), N)
     return x, Dx, chans

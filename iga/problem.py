@@ -37,6 +37,9 @@ from .space import FACE_AXES, make_space
 _CHUNK_POINTS = 1 << 18  # Gauss points evaluated together: bounds the batch's memory
 
 
+_PAIRS = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))  # symmetric stiffness components
+
+
 def _chunks(members, points_each):
     """Split ``members`` into batches of at most about ``_CHUNK_POINTS`` Gauss points."""
     size = max(1, _CHUNK_POINTS // max(int(points_each), 1))
@@ -351,25 +354,44 @@ class HeatProblem:
     def _stiffness_fields(self, members, space):
         """k |J| w J^-1 J^-T on the Gauss grid of patches ``members`` (same tile spline and space).
 
-        Returns the 6 symmetric components {(r, s): (P, N)} and the source load field (P, N).
+        Returns the 6 symmetric components as one array (6, P, N) in the order
+        (0,0), (1,1), (2,2), (0,1), (0,2), (1,2), and the source load field (P, N).
         With c_1 = x_v x x_w, c_2 = x_w x x_u, c_3 = x_u x x_v (the rows of
-        det J * J^-1), k |J| J^-1 J^-T = k (c_r . c_s) / |det J|.
+        det J * J^-1), k |J| J^-1 J^-T = k (c_r . c_s) / |det J|.  The pointwise
+        arithmetic runs in cache-sized chunks (about 40 passes over the points).
         """
         patches = [self.model.patches[i] for i in members]
         x, D, chans = patches_geometry_derivs(patches, space.qaxes)
         P, N = x.shape[:2]
-        D = [np.ascontiguousarray(np.moveaxis(dk, -1, 0)) for dk in D]  # component-major (3, P, N)
-        c = [_cross(D[1], D[2], 0), _cross(D[2], D[0], 0), _cross(D[0], D[1], 0)]
         where = f"patch {members[0]}" if P == 1 else f"patches {members[0]}..{members[-1]}"
-        det = checked_det(D[0][0] * c[0][0] + D[0][1] * c[0][1] + D[0][2] * c[0][2], where)
-        w = np.multiply.outer(np.multiply.outer(*[d.qw for d in space.dirs[:2]]), space.dirs[2].qw).ravel()
         flat = {ch: np.reshape(v, -1) for ch, v in chans.items()}
         kval = self._values(self.conductivity, x.reshape(-1, 3), flat, "conductivity", where, positive=True)
-        fac = kval.reshape(P, N) * w / np.abs(det)
-        C = {(r, s): fac * (c[r][0] * c[s][0] + c[r][1] * c[s][1] + c[r][2] * c[s][2])
-             for r in range(3) for s in range(r, 3)}
-        fval = self._values(self.source, x.reshape(-1, 3), flat, "source", where).reshape(P, N)
-        return C, fval * np.abs(det) * w
+        fval = self._values(self.source, x.reshape(-1, 3), flat, "source", where)
+        w = np.broadcast_to(np.multiply.outer(np.multiply.outer(*[d.qw for d in space.dirs[:2]]),
+                                              space.dirs[2].qw).ravel(), (P, N)).reshape(-1)
+        D = [d.reshape(-1, 3) for d in D]
+        M = P * N
+        C = np.empty((6, M))
+        L = np.empty(M)
+        det = np.empty(M)
+        step = 1 << 14
+        for a in range(0, M, step):
+            sl = slice(a, min(a + step, M))
+            Du, Dv, Dw = (d[sl].T for d in D)  # (3, m) component-major views
+            c = (_cross(Dv, Dw, 0), _cross(Dw, Du, 0), _cross(Du, Dv, 0))
+            dt = Du[0] * c[0][0] + Du[1] * c[0][1] + Du[2] * c[0][2]
+            det[sl] = dt
+            adet = np.abs(dt)
+            L[sl] = fval[sl] * adet * w[sl]
+            fac = kval[sl] * w[sl] / adet
+            for j, (r, t) in enumerate(_PAIRS):
+                out = C[j, sl]
+                np.multiply(c[r][0], c[t][0], out=out)
+                out += c[r][1] * c[t][1]
+                out += c[r][2] * c[t][2]
+                out *= fac
+        checked_det(det, where)
+        return C.reshape(6, P, N), L.reshape(P, N)
 
     def _volume(self):
         """Stiffness (CSR) and source load over all patches, batched over patches sharing a tile and space."""
@@ -384,7 +406,7 @@ class HeatProblem:
             for members in _chunks(group, space.nq_total):
                 C, L = self._stiffness_fields(members, space)
                 shape = (len(members),) + space.qshape
-                data = stiffness_data(space, {rs: v.reshape(shape) for rs, v in C.items()})
+                data = stiffness_data(space, {rs: C[j].reshape(shape) for j, rs in enumerate(_PAIRS)})
                 for j, i in enumerate(members):
                     blocks.append((int(self.offsets[i]), pat, data[j]))
                 source_total += float(L.sum())
