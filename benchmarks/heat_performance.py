@@ -1,12 +1,17 @@
 """Assembly and solve performance: unit-cube Poisson, p = 2 and 3.
 
     python benchmarks/heat_performance.py [--sizes 30k,110k,475k] [--degrees 2,3] [--million]
+                                          [--malloc retain|default|both] [--repeat 3]
 
 Each case runs in a fresh subprocess (so peak memory is per case): the unit
 cube as one trivariate patch with N^3 elements of degree p (DOFs (N+p)^3),
 -lap T = 1, T = 0 on the boundary, assembled twice (cold: first call in the
 process, including one-time tables; warm: a second problem of the same
-size) and solved with AMG-CG to 1e-8.  The "CSR floor" is the time SciPy
+size, ``--repeat`` times, median reported) and solved with AMG-CG to 1e-8.
+"total s" is the cold assembly plus the solve: what one run of a script pays.
+``--malloc retain`` (default) applies :func:`iga.memory.retain_freed_memory`
+in the case's process, as the ``iga`` CLI does; ``default`` keeps glibc's
+behaviour; ``both`` runs every case both ways.  The "CSR floor" is the time SciPy
 needs to build a CSR matrix with the same nnz from COO triplets, the floor
 for any assembly that produces such a matrix.  ``--million`` adds the
 1M-unknown p = 2 case.  Writes benchmarks/out/heat_performance.{json,png}.
@@ -30,7 +35,11 @@ from _common import out_dir, print_table, pyplot, save_json  # noqa: E402
 SIZES = {"30k": 31, "110k": 48, "475k": 78, "1M": 100}  # (N + p) per direction, p = 2; p = 3 uses one less element
 
 
-def run_case(p: int, n_per_dir: int, tol: float) -> dict:
+def run_case(p: int, n_per_dir: int, tol: float, malloc: str = "retain", repeat: int = 3) -> dict:
+    if malloc == "retain":
+        from iga.memory import retain_freed_memory
+
+        retain_freed_memory()
     import scipy.sparse as sp
 
     from geometry import primitives as pr
@@ -42,10 +51,13 @@ def run_case(p: int, n_per_dir: int, tol: float) -> dict:
     prob = HeatProblem(cube, source=1.0).dirichlet("boundary", 0.0)
     K, f, _ = prob.assemble()
     cold = time.perf_counter() - t
-    t = time.perf_counter()
-    prob = HeatProblem(cube, source=1.0).dirichlet("boundary", 0.0)
-    K, f, _ = prob.assemble()
-    warm = time.perf_counter() - t
+    times = []
+    for _ in range(repeat):
+        t = time.perf_counter()
+        prob = HeatProblem(cube, source=1.0).dirichlet("boundary", 0.0)
+        K, f, _ = prob.assemble()
+        times.append(time.perf_counter() - t)
+    warm = float(np.median(times))
     nnz = K.nnz
     rows = np.repeat(np.arange(K.shape[0], dtype=np.int32), np.diff(K.indptr))
     t = time.perf_counter()
@@ -55,10 +67,10 @@ def run_case(p: int, n_per_dir: int, tol: float) -> dict:
     sol = prob.solve(solver="amg-cg", tol=tol)
     info = sol.info["solver"]
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024**2  # GiB (Linux reports KiB)
-    return {"p": p, "dofs": prob.ndof, "nnz": int(nnz), "assembly cold s": cold, "assembly warm s": warm,
+    return {"p": p, "malloc": malloc, "dofs": prob.ndof, "nnz": int(nnz), "assembly cold s": cold, "assembly warm s": warm,
             "CSR floor s": floor, "warm/floor": warm / floor, "solve s": info["setup_s"] + info["solve_s"],
             "iterations": info["iterations"], "residual": info["residual"], "peak GiB": peak,
-            "total s": warm + info["setup_s"] + info["solve_s"]}
+            "total s": cold + info["setup_s"] + info["solve_s"]}
 
 
 def main(argv=None):
@@ -67,35 +79,40 @@ def main(argv=None):
     ap.add_argument("--degrees", default="2,3")
     ap.add_argument("--million", action="store_true", help="add 1M unknowns at p = 2")
     ap.add_argument("--tol", type=float, default=1e-8)
+    ap.add_argument("--malloc", choices=("retain", "default", "both"), default="retain",
+                    help="allocator setting per case (see iga.memory)")
+    ap.add_argument("--repeat", type=int, default=3, help="warm assemblies per case (median reported)")
     ap.add_argument("--case", help=argparse.SUPPRESS)  # internal: "p,n" run in this process
     args = ap.parse_args(argv)
     if args.case:
         p, n = (int(v) for v in args.case.split(","))
-        print(json.dumps(run_case(p, n, args.tol)))
+        print(json.dumps(run_case(p, n, args.tol, args.malloc, args.repeat)))
         return
     cases = [(p, SIZES[s] - (p - 2)) for p in (int(v) for v in args.degrees.split(",")) for s in args.sizes.split(",")]
     if args.million:
         cases.append((2, SIZES["1M"]))
+    mallocs = ("retain", "default") if args.malloc == "both" else (args.malloc,)
     rows = []
-    for p, n in cases:
-        out = subprocess.run([sys.executable, __file__, "--case", f"{p},{n}", "--tol", str(args.tol)],
-                             capture_output=True, text=True)
+    for (p, n), malloc in ((c, m) for c in cases for m in mallocs):
+        out = subprocess.run([sys.executable, __file__, "--case", f"{p},{n}", "--tol", str(args.tol),
+                              "--malloc", malloc, "--repeat", str(args.repeat)], capture_output=True, text=True)
         if out.returncode != 0:
             print(f"case p={p} n={n} failed:\n{out.stderr[-2000:]}")
             continue
         rows.append(json.loads(out.stdout.strip().splitlines()[-1]))
         r = rows[-1]
-        print(f"p={p} dofs={r['dofs']}: assembly {r['assembly warm s']:.2f} s, solve {r['solve s']:.2f} s", flush=True)
+        print(f"p={p} dofs={r['dofs']} malloc={malloc}: assembly {r['assembly warm s']:.2f} s, "
+              f"solve {r['solve s']:.2f} s", flush=True)
     print("\nUnit-cube Poisson, one patch, AMG-CG (pyamg smoothed aggregation) to", args.tol)
-    print_table(rows, [("p", "d"), ("dofs", "d"), ("nnz", "d"), ("assembly cold s", ".2f"), ("assembly warm s", ".2f"),
+    print_table(rows, [("p", "d"), ("malloc", "s"), ("dofs", "d"), ("nnz", "d"), ("assembly cold s", ".2f"), ("assembly warm s", ".2f"),
                        ("CSR floor s", ".2f"), ("warm/floor", ".1f"), ("solve s", ".2f"), ("iterations", "d"),
-                       ("peak GiB", ".2f")])
+                       ("total s", ".1f"), ("peak GiB", ".2f")])
     save_json("heat_performance.json", rows)
     plt = pyplot()
     if plt is not None and rows:
         fig, ax = plt.subplots(figsize=(6, 4))
         for p in sorted({r["p"] for r in rows}):
-            rr = [r for r in rows if r["p"] == p]
+            rr = [r for r in rows if r["p"] == p and r["malloc"] == mallocs[0]]
             ax.loglog([r["dofs"] for r in rr], [r["assembly warm s"] for r in rr], "o-", label=f"assembly p={p}")
             ax.loglog([r["dofs"] for r in rr], [r["solve s"] for r in rr], "s--", label=f"AMG-CG solve p={p}")
         ax.set_xlabel("unknowns")

@@ -156,52 +156,97 @@ class CSRPattern:
     n: int
 
 
+def _band_limits(n: int, p: int):
+    """Valid band offsets [lo, hi] per row of a 1-D band (column j = i + d - p inside [0, n))."""
+    i = np.arange(n)
+    return np.maximum(0, p - i), np.minimum(2 * p, n - 1 - i + p)
+
+
+def _pattern_1d(n: int, p: int, itype) -> CSRPattern:
+    lo, hi = _band_limits(n, p)
+    counts = hi - lo + 1
+    indptr = np.zeros(n + 1, np.int64)
+    np.cumsum(counts, out=indptr[1:])
+    row = np.repeat(np.arange(n), counts)
+    d = np.arange(indptr[-1]) - indptr[row] + lo[row]  # band offset of each entry
+    j = row + d - p
+    take = (row * (2 * p + 1) + d).astype(itype)
+    transpose = (indptr[j] + (2 * p - d) - lo[j]).astype(itype)
+    return CSRPattern(indptr, j.astype(np.int32), take, transpose, n)
+
+
+def _pattern_combine(n0: int, p0: int, B: CSRPattern, banded_B: int, itype) -> CSRPattern:
+    """Pattern of (1-D band in the leading direction) x (pattern B of the remaining directions).
+
+    Rows (i0, rB) in C order; each row's entries run over the valid offsets
+    d0 and, within each, over row rB of B, so columns stay sorted.  Built
+    per class of leading rows with equal valid offsets (boundary rows, then
+    all interior rows at once): nothing of the size of the full band is formed.
+    """
+    D0 = 2 * p0 + 1
+    nB, nnzB = B.n, len(B.indices)
+    lo, hi = _band_limits(n0, p0)
+    c0 = hi - lo + 1
+    cB = np.diff(B.indptr)
+    rowB = np.repeat(np.arange(nB), cB)
+    start = np.zeros(n0 + 1, np.int64)
+    np.cumsum(c0 * nnzB, out=start[1:])
+    indptr = (start[:-1, None] + c0[:, None] * B.indptr[None, :-1]).ravel()
+    indptr = np.concatenate([indptr, [start[-1]]])
+    total = int(start[-1])
+    indices = np.empty(total, np.int32 if n0 * nB < 2**31 else np.int64)
+    take = np.empty(total, itype)
+    transpose = np.empty(total, itype)
+    within = (B.transpose - B.indptr[B.indices]).astype(itype)  # mirror's position inside its B row
+    cases: dict = {}
+    for i0 in range(n0):
+        cases.setdefault((int(lo[i0]), int(hi[i0])), []).append(i0)
+    colB = B.indices.astype(itype)
+    ptr_col = B.indptr[B.indices].astype(itype)[None, None, :]
+    cnt_col = cB[B.indices].astype(itype)[None, None, :]
+    takeB = B.take[None, None, :]
+    withinB = within[None, None, :]
+    for (l0, h0), rows in cases.items():
+        m0 = h0 - l0 + 1
+        # natural order (i0, k0, eB) -> CSR order (i0; rB, k0, eB within row rB) by one scatter per array
+        k0 = np.arange(m0)[:, None]
+        pos = (m0 * B.indptr[rowB][None, :] + k0 * cB[rowB][None, :] + (np.arange(nnzB) - B.indptr[rowB])[None, :])
+        pos = pos.ravel()
+        I = np.array(rows, itype)[:, None]
+        d0 = (l0 + np.arange(m0, dtype=itype))[None, :]
+        j0 = I + d0 - p0  # (R, m0)
+        contiguous = rows == list(range(rows[0], rows[0] + len(rows)))
+        values = (  # computed one at a time: one natural-order temporary alive
+            (indices, lambda: (j0 * nB)[:, :, None] + colB[None, None, :]),
+            (take, lambda: ((I * D0 + d0) * banded_B)[:, :, None] + takeB),
+            (transpose, lambda: (start[j0].astype(itype)[:, :, None] + c0[j0].astype(itype)[:, :, None] * ptr_col
+                                 + ((2 * p0 - d0) - lo[j0]).astype(itype)[:, :, None] * cnt_col + withinB)),
+        )
+        for out, make in values:
+            val = make().reshape(len(rows), -1)
+            if contiguous:  # the usual case: the rows' entries form one slice
+                a = int(start[rows[0]])
+                out[a : a + val.size].reshape(len(rows), -1)[:, pos] = val
+            else:
+                for r, i0 in enumerate(rows):
+                    out[int(start[i0]) : int(start[i0]) + m0 * nnzB][pos] = val[r]
+            del val
+    return CSRPattern(indptr, indices, take, transpose, n0 * nB)
+
+
 @lru_cache(maxsize=16)
 def _pattern(shape: tuple, degrees: tuple) -> CSRPattern:
-    d = len(shape)
+    """CSR pattern of a banded tensor-product operator, built direction by direction (last first)."""
     Ds = [2 * p + 1 for p in degrees]
-    itype = np.int64 if int(np.prod(shape)) * int(np.prod(Ds)) >= 2**31 else np.int32
-
-    def bcast(arr_k, k):
-        # (n_k, D_k) -> broadcastable to (n_1, .., n_d, D_1, .., D_d) (CSR order: rows, then band)
-        sh = [1] * (2 * d)
-        sh[k], sh[d + k] = arr_k.shape
-        return arr_k.reshape(sh)
-
-    valid = None
-    col = None
-    banded = None
-    mirror = None
-    for k in range(d):
-        n, D, p = shape[k], Ds[k], degrees[k]
-        i = np.arange(n)[:, None]
-        dd = np.arange(D)[None, :]
-        j = i + dd - p
-        ok = (j >= 0) & (j < n)
-        jc = np.clip(j, 0, n - 1)
-        v = bcast(ok, k)
-        valid = v if valid is None else valid & v
-        c = bcast(jc.astype(itype), k)
-        col = c if col is None else col * n + c
-        # flat index in the banded layout (n_1, D_1, n_2, D_2, ...)
-        bi = bcast((i * D + dd).astype(itype), k)
-        banded = bi if banded is None else banded * (n * D) + bi
-        mi = bcast((jc * D + (2 * p - dd)).astype(itype), k)  # entry (j, 2p - d): the mirror
-        mirror = mi if mirror is None else mirror * (n * D) + mi
-    n_rows = int(np.prod(shape))
-    full = tuple(shape) + tuple(Ds)
-    valid = np.broadcast_to(valid, full).reshape(n_rows, -1)
-    counts = valid.sum(axis=1)
-    indptr = np.zeros(n_rows + 1, np.int64)
-    np.cumsum(counts, out=indptr[1:])
-    sel = np.flatnonzero(valid.ravel())
-    indices = np.broadcast_to(col, full).reshape(-1)[sel].astype(np.int32 if n_rows < 2**31 else np.int64)
-    take = np.broadcast_to(banded, full).reshape(-1)[sel]
-    # CSR position of each banded index, then of each mirror
-    pos = np.full(int(np.prod([n * D for n, D in zip(shape, Ds)])), -1, dtype=itype)
-    pos[take] = np.arange(len(take), dtype=itype)
-    transpose = pos[np.broadcast_to(mirror, full).reshape(-1)[sel]]
-    return CSRPattern(indptr, indices, take, transpose, n_rows)
+    banded = int(np.prod([n * D for n, D in zip(shape, Ds)]))
+    nnz_max = int(np.prod(shape)) * int(np.prod(Ds))
+    itype = np.int64 if max(banded, nnz_max) >= 2**31 else np.int32
+    pat = _pattern_1d(shape[-1], degrees[-1], itype)
+    size = shape[-1] * Ds[-1]
+    for n, p in zip(reversed(shape[:-1]), reversed(degrees[:-1])):
+        pat = _pattern_combine(n, p, pat, size, itype)
+        size *= n * (2 * p + 1)
+    return pat
 
 
 def pattern(space: TensorSpace) -> CSRPattern:

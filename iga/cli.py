@@ -99,6 +99,9 @@ def main(argv=None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 0
+    from .memory import retain_freed_memory
+
+    retain_freed_memory()  # a whole-process choice, so the application (not the library) makes it
     try:
         return int(args.func(args))
     except ToolkitError as exc:

@@ -29,6 +29,36 @@ def test_sum_factorised_stiffness_equals_brute_force():
     assert np.abs(K.toarray() - ref.reshape(S.ndof, S.ndof)).max() < 1e-12 * np.abs(ref).max()
 
 
+@pytest.mark.parametrize("shape, degrees", [((7, 5, 6), (2, 2, 2)), ((2, 5, 3), (3, 1, 2)), ((9, 4), (3, 1)), ((6,), (2,))])
+def test_csr_pattern_matches_the_band_definition(shape, degrees):
+    from iga.assembly import _pattern
+
+    pat = _pattern(shape, degrees)
+    # sparsity: the Kronecker product of the 1-D bands
+    bands = [sp.csr_matrix(np.abs(np.subtract.outer(np.arange(n), np.arange(n))) <= p) for n, p in zip(shape, degrees)]
+    ref = bands[0]
+    for b in bands[1:]:
+        ref = sp.kron(ref, b, format="csr")
+    ref.sort_indices()
+    assert np.array_equal(pat.indptr, ref.indptr) and np.array_equal(pat.indices, ref.indices)
+    # take: entry (i, j) reads banded[i_1, j_1 - i_1 + p_1, ..., i_d, j_d - i_d + p_d]
+    rng = np.random.default_rng(1)
+    band = rng.random(tuple(x for n, p in zip(shape, degrees) for x in (n, 2 * p + 1)))
+    K = sp.csr_matrix((band.reshape(-1)[pat.take], pat.indices, pat.indptr), shape=(pat.n, pat.n)).toarray()
+    idx = np.indices(shape).reshape(len(shape), -1)
+    dense = np.zeros((pat.n, pat.n))
+    for a in range(pat.n):
+        for b in range(pat.n):
+            off = idx[:, b] - idx[:, a] + np.array(degrees)
+            if np.all(np.abs(idx[:, b] - idx[:, a]) <= np.array(degrees)):
+                dense[a, b] = band[tuple(x for k in range(len(shape)) for x in (idx[k, a], off[k]))]
+    assert np.array_equal(K, dense)
+    # transpose: data[transpose] is the data of K^T in the same pattern
+    data = band.reshape(-1)[pat.take]
+    KT = sp.csr_matrix((data[pat.transpose], pat.indices, pat.indptr), shape=(pat.n, pat.n)).toarray()
+    assert np.array_equal(KT, K.T)
+
+
 def _quadratic_problem(k):
     b = pr.box((1, 2, 1.5))
     T = lambda x: x[:, 0] ** 2 + x[:, 1] * x[:, 2]
