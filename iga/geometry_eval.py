@@ -16,6 +16,46 @@ from . import ProblemError
 from .model import Patch
 
 
+def _dehomogenise(spline, H, dH):
+    if not spline.is_rational:
+        return H, dH
+    w = H[:, -1:]
+    x = H[:, :-1] / w
+    return x, [(dh[:, :-1] - x * dh[:, -1:]) / w for dh in dH]
+
+
+def _prepare(spline, axes, order):
+    """Basis matrices per direction and the contraction prefixes shared by value and derivatives."""
+    d = spline.dim
+    B = []
+    for k, ax in enumerate(axes):
+        U, p = spline.knots[k], spline.degrees[k]
+        ax = np.clip(ax, U[0], U[-1])
+        B.append((kn.basis_matrix(U, p, ax, 0), kn.basis_matrix(U, p, ax, 1)))
+    outputs = [tuple(0 for _ in range(d))] + [tuple(int(i == k) for i in range(d)) for k in range(d)]
+    keys = [tuple(o[k] for k in order) for o in outputs]
+    return B, keys
+
+
+def _contract_prefixes(hom, B, order, keys, depth):
+    """Partial contractions of ``hom`` along order[:depth] for every prefix in ``keys``.
+
+    A prefix is freed as soon as its last extension is computed, so at most
+    one level and the next are alive.
+    """
+    level = {(): hom}
+    for j in range(depth):
+        k = order[j]
+        need = sorted({key[: j + 1] for key in keys})
+        nxt = {}
+        for pre in need:
+            nxt[pre] = _apply_along(level[pre[:-1]], k, B[k][pre[-1]])
+            if not any(q[:-1] == pre[:-1] for q in need if q > pre):
+                del level[pre[:-1]]
+        level = nxt
+    return level
+
+
 def grid_values_derivs(spline, axes):
     """Values (N, m) and first derivatives [(N, m)] * d on a tensor grid (C order; rational handled).
 
@@ -24,30 +64,36 @@ def grid_values_derivs(spline, axes):
     the value and every derivative share their common prefixes.
     """
     d = spline.dim
-    B = []
-    for k, ax in enumerate(axes):
-        U, p = spline.knots[k], spline.degrees[k]
-        ax = np.clip(ax, U[0], U[-1])
-        B.append((kn.basis_matrix(U, p, ax, 0), kn.basis_matrix(U, p, ax, 1)))
     hom = spline.homogeneous
     m = hom.shape[-1]
     # ties: last direction first, so that direction 0 comes last and the result is C-contiguous
     order = sorted(range(d), key=lambda k: (len(axes[k]) / hom.shape[k], -k))
-    partial = {(): hom}
+    B, keys = _prepare(spline, axes, order)
+    done = _contract_prefixes(hom, B, order, keys, d)
+    H, *dH = [done[key].reshape(-1, m) for key in keys]
+    return _dehomogenise(spline, H, dH)
 
-    def contracted(orders):  # orders of the directions order[:len(orders)]
-        if orders not in partial:
-            k = order[len(orders) - 1]
-            partial[orders] = _apply_along(contracted(orders[:-1]), k, B[k][orders[-1]])
-        return partial[orders]
 
-    outputs = [tuple(0 for _ in range(d))] + [tuple(int(i == k) for i in range(d)) for k in range(d)]
-    H, *dH = [contracted(tuple(o[k] for k in order)).reshape(-1, m) for o in outputs]
-    if not spline.is_rational:
-        return H, dH
-    w = H[:, -1:]
-    x = H[:, :-1] / w
-    return x, [(dh[:, :-1] - x * dh[:, -1:]) / w for dh in dH]
+def grid_values_derivs_slabs(spline, axes, points_per_slab: int = 1 << 15):
+    """:func:`grid_values_derivs` in slabs of the first axis: yields (rows slice of axis 0, x, [dx]).
+
+    Directions 1..d-1 are contracted once; the last contraction (direction 0)
+    runs per slab, so the full-grid values and derivatives never exist at once.
+    """
+    d = spline.dim
+    hom = spline.homogeneous
+    m = hom.shape[-1]
+    order = list(range(d - 1, -1, -1))  # direction 0 last: slabs of it are contiguous in C order
+    B, keys = _prepare(spline, axes, order)
+    level = _contract_prefixes(hom, B, order, keys, d - 1)
+    level = {k: np.ascontiguousarray(v) for k, v in level.items()}  # each slab reads them as (n_0, rest)
+    rest = int(np.prod([len(a) for a in axes[1:]]))
+    rows = max(1, points_per_slab // max(rest, 1))
+    n0 = len(axes[0])
+    for a in range(0, n0, rows):
+        sl = slice(a, min(a + rows, n0))
+        out = [_apply_along(level[key[:-1]], 0, B[0][key[-1]][sl]).reshape(-1, m) for key in keys]
+        yield (sl, *_dehomogenise(spline, out[0], out[1:]))
 
 
 def _outer_map(patches, xT, DT):
@@ -103,6 +149,20 @@ def patches_geometry_derivs(patches, axes):
     x, Dx, outer_chans = _outer_map(patches, xT, DT)
     chans.update(outer_chans)
     return x, Dx, chans
+
+
+def patches_geometry_derivs_slabs(patches, axes, points_per_slab: int = 1 << 15):
+    """:func:`patches_geometry_derivs` in slabs of the first parameter axis.
+
+    Yields (slice of flat grid points, x (P, n, 3), [dx/dxi_k (P, n, 3)] * 3, channels {name: (P, n)}).
+    """
+    rest = int(np.prod([len(a) for a in axes[1:]]))
+    P = len(patches)
+    for sl, xT, DT in grid_values_derivs_slabs(patches[0].spline, axes, max(1, points_per_slab // P)):
+        chans = {c: np.broadcast_to(xT[:, 3 + i], (P, len(xT))) for i, c in enumerate(patches[0].spline.channels)}
+        x, Dx, outer_chans = _outer_map(patches, xT, DT)
+        chans.update(outer_chans)
+        yield slice(sl.start * rest, sl.stop * rest), x, Dx, chans
 
 
 def patch_geometry_derivs(patch: Patch, axes):

@@ -29,7 +29,7 @@ import solvers
 from . import ProblemError
 from .constraints import induced_elimination
 from .assembly import banded_form, banded_to_csr_data, block_diagonal_csr, load_form, pattern, stiffness_data
-from .geometry_eval import checked_det, patches_geometry_derivs
+from .geometry_eval import checked_det, patches_geometry_derivs, patches_geometry_derivs_slabs
 from .model import Patch, as_model
 from .space import FACE_AXES, make_space
 
@@ -396,41 +396,40 @@ class HeatProblem:
         Returns the 6 symmetric components as one array (6, P, N) in the order
         (0,0), (1,1), (2,2), (0,1), (0,2), (1,2), and the source load field (P, N).
         With c_1 = x_v x x_w, c_2 = x_w x x_u, c_3 = x_u x x_v (the rows of
-        det J * J^-1), k |J| J^-1 J^-T = k (c_r . c_s) / |det J|.  The pointwise
-        arithmetic runs in cache-sized chunks (about 40 passes over the points).
+        det J * J^-1), k |J| J^-1 J^-T = k (c_r . c_s) / |det J|.  Geometry and
+        arithmetic run in slabs of the first quadrature axis (cache-sized).
         """
         patches = [self.model.patches[i] for i in members]
-        x, D, chans = patches_geometry_derivs(patches, space.qaxes)
-        P, N = x.shape[:2]
+        P, N = len(members), space.nq_total
         where = f"patch {members[0]}" if P == 1 else f"patches {members[0]}..{members[-1]}"
-        flat = {ch: np.reshape(v, -1) for ch, v in chans.items()}
-        kval = self._values(self.conductivity, x.reshape(-1, 3), flat, "conductivity", where, positive=True)
-        fval = self._values(self.source, x.reshape(-1, 3), flat, "source", where)
-        w = np.broadcast_to(np.multiply.outer(np.multiply.outer(*[d.qw for d in space.dirs[:2]]),
-                                              space.dirs[2].qw).ravel(), (P, N)).reshape(-1)
-        D = [d.reshape(-1, 3) for d in D]
-        M = P * N
-        C = np.empty((6, M))
-        L = np.empty(M)
-        det = np.empty(M)
-        step = 1 << 14
-        for a in range(0, M, step):
-            sl = slice(a, min(a + step, M))
-            Du, Dv, Dw = (d[sl].T for d in D)  # (3, m) component-major views
+        w_all = np.multiply.outer(np.multiply.outer(*[d.qw for d in space.dirs[:2]]), space.dirs[2].qw).ravel()
+        C = np.empty((6, P, N))
+        L = np.empty((P, N))
+        det = np.empty((P, N))
+        # geometry and fields slab by slab (about 16k points): the full-grid derivatives never exist
+        slabs = patches_geometry_derivs_slabs(patches, space.qaxes, 1 << 14)
+        for sl, x, D, chans in slabs:
+            n = x.shape[1]
+            flat = {ch: np.reshape(v, -1) for ch, v in chans.items()}
+            kval = self._values(self.conductivity, x.reshape(-1, 3), flat, "conductivity", where, positive=True)
+            fval = self._values(self.source, x.reshape(-1, 3), flat, "source", where)
+            Du, Dv, Dw = (np.moveaxis(d.reshape(-1, 3), 1, 0) for d in D)  # (3, P n) component-major views
             c = (_cross(Dv, Dw, 0), _cross(Dw, Du, 0), _cross(Du, Dv, 0))
             dt = Du[0] * c[0][0] + Du[1] * c[0][1] + Du[2] * c[0][2]
-            det[sl] = dt
+            det[:, sl] = dt.reshape(P, n)
+            wv = np.broadcast_to(w_all[sl], (P, n)).reshape(-1)
             adet = np.abs(dt)
-            L[sl] = fval[sl] * adet * w[sl]
-            fac = kval[sl] * w[sl] / adet
+            L[:, sl] = (fval * adet * wv).reshape(P, n)
+            with np.errstate(divide="ignore", invalid="ignore"):  # zero det: reported by checked_det below
+                fac = kval * wv / adet
             for j, (r, t) in enumerate(_PAIRS):
-                out = C[j, sl]
-                np.multiply(c[r][0], c[t][0], out=out)
+                out = c[r][0] * c[t][0]
                 out += c[r][1] * c[t][1]
                 out += c[r][2] * c[t][2]
                 out *= fac
+                C[j, :, sl] = out.reshape(P, n)
         checked_det(det, where)
-        return C.reshape(6, P, N), L.reshape(P, N)
+        return C, L
 
     def _volume(self):
         """Stiffness (CSR) and source load over all patches, batched over patches sharing a tile and space."""
