@@ -188,6 +188,29 @@ def split_matrices(p: int, t: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
     return left, right
 
 
+def subinterval_matrices(p: int, t0, t1) -> np.ndarray:
+    """Bernstein coefficients of a degree-``p`` polynomial restricted to [t0, t1] (batched).
+
+    Returns M (B, p + 1, p + 1) with ``new = M @ old`` for each pair
+    (t0[b], t1[b]); t0 > t1 reverses the direction.  Entry (i, r) is the
+    coefficient of the blossom b(t0^(p-i), t1^i) on control point r:
+    sum_j B^i_j(t1) B^(p-i)_(r-j)(t0).
+    """
+    t0 = np.atleast_1d(np.asarray(t0, float))
+    t1 = np.atleast_1d(np.asarray(t1, float))
+
+    def bern(m, t):  # (B, m + 1): B^m_j(t)
+        j = np.arange(m + 1)
+        return binomials(m)[None, :] * t[:, None] ** j * (1 - t[:, None]) ** (m - j)
+
+    M = np.zeros((len(t0), p + 1, p + 1))
+    for i in range(p + 1):
+        b1, b0 = bern(i, t1), bern(p - i, t0)
+        for j in range(i + 1):
+            M[:, i, j : j + p - i + 1] += b1[:, j : j + 1] * b0
+    return M
+
+
 def evaluate(a: np.ndarray, x: np.ndarray, ndim: int) -> np.ndarray:
     """Evaluate an un-batched Bernstein array (p_1+1, ..., p_d+1, C) at points ``x`` (N, d) in [0,1]^d."""
     out = a

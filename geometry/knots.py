@@ -48,13 +48,22 @@ def uniform_knots(degree: int, n_elements: int, lo: float = 0.0, hi: float = 1.0
     return np.concatenate([np.full(degree, lo), inner, np.full(degree, hi)])
 
 
+_VALID: dict = {}  # validated knot vectors (read-only arrays), keyed by bytes, degree and count
+
+
 def validate_knots(knots, degree: int, n: int, direction: int = 0) -> np.ndarray:
     """Check that ``knots`` is a valid open knot vector for ``n`` coefficients.
 
-    Returns the knot vector as a float array.  Raises :class:`SplineError`
-    naming ``direction`` and the offending value otherwise.
+    Returns the knot vector as a read-only float array (shared between splines
+    with equal knot vectors).  Raises :class:`SplineError` naming
+    ``direction`` and the offending value otherwise.
     """
     where = f"direction {direction}"
+    if isinstance(knots, np.ndarray) and knots.dtype == float and knots.ndim == 1 and isinstance(degree, (int, np.integer)):
+        key = (knots.tobytes(), int(degree), int(n))
+        hit = _VALID.get(key)
+        if hit is not None:  # the same knot vector was validated before (e.g. thousands of composed tiles)
+            return hit
     if not isinstance(degree, (int, np.integer)) or degree < 1:
         raise SplineError(f"{where}: degree must be an integer >= 1, got {degree!r}")
     try:
@@ -94,7 +103,12 @@ def validate_knots(knots, degree: int, n: int, direction: int = 0) -> np.ndarray
         )
     if mults[0] > p + 1 or mults[-1] > p + 1:
         raise SplineError(f"{where}: end knots may repeat at most degree + 1 = {p + 1} times")
-    return U
+    if len(_VALID) >= 1024:
+        _VALID.clear()
+    out = U.copy()
+    out.setflags(write=False)
+    _VALID[(out.tobytes(), p, int(n))] = out
+    return out
 
 
 def breakpoints(knots) -> tuple[np.ndarray, np.ndarray]:

@@ -115,6 +115,33 @@ class SplineFunction:
         out._hom.setflags(write=False)
         return out
 
+    @classmethod
+    def _trusted(cls, degrees, knots, hom, rational, **extra):
+        """Build from homogeneous coefficients computed by this package (internal; no validation).
+
+        For results of exact operations on validated splines (e.g. thousands of
+        composed tiles): the knot vectors must already be valid, read-only
+        float arrays and ``hom`` finite with positive weights.
+        """
+        obj = cls.__new__(cls)
+        for key, value in extra.items():
+            setattr(obj, key, tuple(value) if key == "channels" else value)
+        obj.degrees = tuple(int(p) for p in degrees)
+        obj.knots = tuple(knots)
+        hom = np.array(hom, dtype=float)  # own copy
+        hom.setflags(write=False)
+        obj._hom = hom
+        if rational:
+            w = hom[..., -1]
+            obj.weights = w
+            obj._coefs = hom[..., :-1] / w[..., None]
+            obj._coefs.setflags(write=False)
+        else:
+            obj.weights = None
+            obj._coefs = hom
+        obj._evaluator = None
+        return obj
+
     def _extra(self) -> dict:
         """Constructor keywords a derived copy must keep (overridden by BSpline)."""
         return {}

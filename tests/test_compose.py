@@ -257,3 +257,36 @@ def test_composed_tile_regularity_and_collapsed_map():
     assert check_regular(BSpline((1, 1, 1), pr.box().knots, cp)).status == "singular"
     with pytest.raises(SplineError, match="planar surface or a trivariate"):
         check_regular(pr.box().boundary("umin").boundary("umin"))
+
+
+@pytest.mark.parametrize("rational", [False, True])
+def test_axis_aligned_boxes_compose_to_the_restricted_map(rational):
+    # a box placed by a scaled permutation (with reflections) is the outer map restricted to a
+    # sub-box: exact at the outer degrees, permuted to the inner parameter order
+    rng = np.random.default_rng(7)
+    outer = random_outer(rng, (3, 2, 4), rational, spans=2)
+    box = pr.box((0.2, 0.1, 0.15), degrees=(1, 2, 1), elements=(2, 1, 3))
+    perms = [np.eye(3), np.eye(3)[[2, 0, 1]], np.diag([-1.0, 0.5, 1.0])[[1, 2, 0]]]
+    P = np.zeros((3, 3, 4))
+    for i, A in enumerate(perms):
+        P[i, :, :3] = A
+        lo = (A @ np.stack(np.meshgrid(*[[0, s] for s in (0.2, 0.1, 0.15)], indexing="ij"), -1).reshape(-1, 3).T).min(1)
+        P[i, :, 3] = 0.05 - lo  # inside the first knot span in every direction
+    res = compose_many(outer, box, P)
+    for i, r in enumerate(res):
+        xi = rng.random((300, 3)) * (box.domain[:, 1] - box.domain[:, 0]) + box.domain[:, 0]
+        ref = outer.evaluate(box.evaluate(xi)[:, :3] @ P[i, :, :3].T + P[i, :, 3])
+        assert rel_err(r.evaluate(xi), ref) < 1e-12
+        assert r.channels == outer.channels
+        assert sorted(r.degrees) == sorted(outer.degrees)  # the outer degrees, not Eq. (7)'s
+    assert res[1].degrees == (outer.degrees[1], outer.degrees[2], outer.degrees[0])
+    # a rotated box is not axis-aligned: the general product path, Eq. (7) degrees, still exact
+    c, s = np.cos(0.3), np.sin(0.3)
+    R = np.zeros((1, 3, 4))
+    R[0, :, :3] = [[c, -s, 0], [s, c, 0], [0, 0, 1]]
+    R[0, :, 3] = [0.1, 0.05, 0.05]
+    rot = compose_many(outer, box, R)[0]
+    assert rot.degrees == geometry.result_degrees(outer.degrees, box.degrees)
+    xi = rng.random((300, 3)) * (box.domain[:, 1] - box.domain[:, 0]) + box.domain[:, 0]
+    ref = outer.evaluate(box.evaluate(xi)[:, :3] @ R[0, :, :3].T + R[0, :, 3])
+    assert rel_err(rot.evaluate(xi), ref) < 1e-12

@@ -71,21 +71,43 @@ class Interface:
     R: sp.csr_matrix | None = None  # branch: child (b) face coefficients = R @ parent (a) face coefficients
 
 
-def _corner_points(P: PlacedPatch) -> np.ndarray:
-    """The 8 corners (2, 2, 2, 3) of a placed trivariate in D's parameter domain.
+# corner index (i, j, k) of the 4 corners of each face, in face-parameter order (00, 10, 01, 11)
+def _face_corner_index() -> np.ndarray:
+    out = np.zeros((6, 4), np.int64)
+    for fi, f in enumerate(FACE_NAMES):
+        k, side = FACE_AXIS[f]
+        rest = [d for d in range(3) if d != k]
+        for c, (s_, t_) in enumerate(((0, 0), (1, 0), (0, 1), (1, 1))):
+            ijk = [0, 0, 0]
+            ijk[k], ijk[rest[0]], ijk[rest[1]] = side, s_, t_
+            out[fi, c] = ijk[0] * 4 + ijk[1] * 2 + ijk[2]
+    return out
 
-    Open knot vectors interpolate the corner control points, so no evaluation is needed.
+
+_FACE_CORNERS = _face_corner_index()
+
+
+def _all_face_corners(placed: list):
+    """Trivariate patch indices (T,) and their face corners (T, 6, 4, 3) in D's parameter domain.
+
+    One array operation per tile patch (patches sharing a spline share its corners).
     """
-    c = P.spline.points[np.ix_([0, -1], [0, -1], [0, -1])]
-    return c @ P.placement[:, :3].T + P.placement[:, 3]
-
-
-def _face_corners(P: PlacedPatch, face: str, corners: np.ndarray | None = None) -> np.ndarray:
-    """Corners (4, 3) of a patch face in D's parameter domain, in face-parameter order (00, 10, 01, 11)."""
-    c = _corner_points(P) if corners is None else corners
-    k, side = FACE_AXIS[face]
-    f = np.take(c, side, axis=k)  # (2, 2, 3) over the two remaining directions
-    return np.stack([f[0, 0], f[1, 0], f[0, 1], f[1, 1]])
+    groups: dict = {}
+    for i, P in enumerate(placed):
+        if P.spline.dim == 3:
+            groups.setdefault(id(P.spline), []).append(i)
+    if not groups:
+        return np.zeros(0, np.int64), np.zeros((0, 6, 4, 3))
+    idx, out = [], []
+    for members in groups.values():
+        c = placed[members[0]].spline.points[np.ix_([0, -1], [0, -1], [0, -1])].reshape(8, 3)
+        M = np.stack([placed[i].placement for i in members])  # (P, 3, 4)
+        pts = np.einsum("pij,cj->pci", M[:, :, :3], c) + M[:, None, :, 3]  # (P, 8, 3)
+        out.append(pts[:, _FACE_CORNERS])  # (P, 6, 4, 3)
+        idx += members
+    idx = np.asarray(idx)
+    order = np.argsort(idx, kind="stable")
+    return idx[order], np.concatenate(out)[order]
 
 
 class Microstructure:
@@ -161,45 +183,49 @@ def _identity_interfaces(placed: list) -> list:
     Faces are compared through the deformation map (their corners mapped by
     D in one evaluation), so periodic maps (a full ring) glue across their seam.
     """
-    recs = []
-    for i, P in enumerate(placed):
-        if P.spline.dim != 3:
-            continue
-        corners = _corner_points(P)
-        for f in FACE_NAMES:
-            recs.append((i, f, _face_corners(P, f, corners)))
-    if not recs:
+    pidx, fc = _all_face_corners(placed)
+    if not len(pidx):
         return []
-    D = placed[recs[0][0]].outer
-    params = np.stack([r[2] for r in recs]).reshape(-1, 3)
-    params = np.clip(params, D.domain[:, 0], D.domain[:, 1])
-    corners = D.evaluate(params)[:, :3].reshape(len(recs), 4, 3)
+    D = placed[int(pidx[0])].outer
+    params = np.clip(fc.reshape(-1, 3), D.domain[:, 0], D.domain[:, 1])
+    corners = D.evaluate(params)[:, :3].reshape(len(pidx) * 6, 4, 3)
+    rec_patch = np.repeat(pidx, 6)
+    rec_face = np.tile(np.arange(6), len(pidx))
     scale = max(1.0, float(np.abs(corners).max()))
     key = np.round(corners.mean(axis=1) / (1e-7 * scale)).astype(np.int64)
     order = np.lexsort(key.T[::-1])
     ks = key[order]
     same = np.all(ks[1:] == ks[:-1], axis=1)
+    triple = same[1:] & same[:-1]
+    if triple.any():
+        j = int(np.argmax(triple))
+        a = order[j]
+        raise TilingError(f"more than two patch faces meet at the face of patch {rec_patch[a]} "
+                          f"({FACE_NAMES[rec_face[a]]}); overlapping tiles or patches")
+    j = np.nonzero(same)[0]
+    ia, ib = order[j], order[j + 1]
+    keep = rec_patch[ia] != rec_patch[ib]
+    ia, ib = ia[keep], ib[keep]
+    orient = _corner_maps(corners[ia], corners[ib], TOL * scale)  # (M,) index into _ORIENTATIONS, -1: none
     out = []
-    for j in np.nonzero(same)[0]:
-        ia, ib = order[j], order[j + 1]
-        if j + 1 < len(same) and same[j + 1]:
-            a = recs[ia]
-            raise TilingError(f"more than two patch faces meet at the face of patch {a[0]} ({a[1]}); "
-                              "overlapping tiles or patches")
-        (pa, fa, _), (pb, fb, _) = recs[ia], recs[ib]
-        if pa == pb:
-            continue
-        m = _corner_map(corners[ia], corners[ib], TOL * scale)
-        if m is None:
+    checked = set()
+    for a, b, o in zip(ia, ib, orient):
+        if o < 0:
             continue  # same centre but different faces (e.g. a smaller face inside a larger one)
-        swap, flip = m
-        _check_face_spaces(placed, (pa, fa), (pb, fb), swap, flip)
+        pa, fa = int(rec_patch[a]), FACE_NAMES[rec_face[a]]
+        pb, fb = int(rec_patch[b]), FACE_NAMES[rec_face[b]]
+        swap, flip = _ORIENTATIONS[o]
+        sig = (id(placed[pa].spline), fa, id(placed[pb].spline), fb, o)
+        if sig not in checked:  # face spaces depend on the tile patches only
+            _check_face_spaces(placed, (pa, fa), (pb, fb), swap, flip)
+            checked.add(sig)
         out.append(Interface("identity", (pa, fa), (pb, fb), swap, flip))
     return out
 
 
-def _corner_map(ca, cb, tol):
-    """Orientation (swap, (flip_s, flip_t)) with B(s', t') = A(s, t), or None if the faces differ."""
+def _orientations():
+    """The 8 face orientations (swap, (flip_s, flip_t)) and, for each, the corner permutation of face b."""
+    out, perms = [], []
     for swap in (False, True):
         for fs in (False, True):
             for ft in (False, True):
@@ -209,9 +235,21 @@ def _corner_map(ca, cb, tol):
                         s2, t2 = (t, s) if swap else (s, t)
                         s2, t2 = (1 - s2 if fs else s2), (1 - t2 if ft else t2)
                         idx.append(t2 * 2 + s2)
-                if np.abs(cb[idx] - ca).max() <= tol:
-                    return swap, (fs, ft)
-    return None
+                out.append((swap, (fs, ft)))
+                perms.append(idx)
+    return out, np.array(perms)
+
+
+_ORIENTATIONS, _ORIENTATION_PERMS = _orientations()
+
+
+def _corner_maps(ca: np.ndarray, cb: np.ndarray, tol: float) -> np.ndarray:
+    """First orientation index with B(s', t') = A(s, t) for face pairs (M, 4, 3), or -1 if none."""
+    if not len(ca):
+        return np.zeros(0, np.int64)
+    err = np.abs(cb[:, _ORIENTATION_PERMS] - ca[:, None]).max(axis=(2, 3))  # (M, 8)
+    ok = err <= tol
+    return np.where(ok.any(axis=1), np.argmax(ok, axis=1), -1)
 
 
 def face_knots(P: PlacedPatch, face: str):
@@ -296,20 +334,20 @@ def _tags(outer, placed, interfaces, root_faces, leaf_faces=()) -> dict:
     tags.update({"internal": [], "boundary": [], "branch-in": [], "branch-out": []})
     dom = outer.domain
     scale = float(np.abs(dom).max()) + 1.0
-    for i, P in enumerate(placed):
-        if P.spline.dim != 3:
-            continue
-        corners = _corner_points(P)
-        for f in FACE_NAMES:
+    pidx, fc = _all_face_corners(placed)
+    # where[t, f]: index of the domain face all 4 corners lie on (the last match wins), 6 = internal
+    where = np.full(fc.shape[:2], 6)
+    for k in range(3):
+        for side in (0, 1):
+            on = np.all(np.abs(fc[..., k] - dom[k, side]) < TOL * scale, axis=-1)
+            where[on] = 2 * k + side
+    names = FACE_NAMES + ("internal",)
+    for t, i in enumerate(pidx):
+        i = int(i)
+        for fi, f in enumerate(FACE_NAMES):
             if (i, f) in glued:
                 continue
-            c = _face_corners(P, f, corners)
-            where = "internal"
-            for k in range(3):
-                for side, name in ((0, FACE_NAMES[2 * k]), (1, FACE_NAMES[2 * k + 1])):
-                    if np.all(np.abs(c[:, k] - dom[k, side]) < TOL * scale):
-                        where = name
-            tags[where].append((i, f))
+            tags[names[where[t, fi]]].append((i, f))
             tags["boundary"].append((i, f))
     tags["branch-in"] = list(root_faces)
     tags["branch-out"] = list(leaf_faces)  # free branch-out faces of the last level (fin tips)

@@ -53,20 +53,33 @@ def _affine(M: np.ndarray) -> np.ndarray:
 
 def _check_spans(D: BSpline, placed: list) -> None:
     """Every placed patch must lie inside one knot span of D (exact composition per Bezier piece)."""
+    groups: dict = {}
     for i, P in enumerate(placed):
-        pts = P.spline.points.reshape(-1, 3) @ P.placement[:, :3].T + P.placement[:, 3]
-        lo, hi = pts.min(0), pts.max(0)
-        dom = D.domain
-        tol = 1e-9 * (dom[:, 1] - dom[:, 0])
-        if np.any(lo < dom[:, 0] - tol) or np.any(hi > dom[:, 1] + tol):
-            raise TilingError(f"placed patch {i} (tile {P.tile}) leaves the deformation map's domain")
+        groups.setdefault(id(P.spline), []).append(i)
+    dom = D.domain
+    tol = 1e-9 * (dom[:, 1] - dom[:, 0])
+    inner = [D.breakpoints(k)[1:-1] for k in range(3)]
+    for members in groups.values():
+        pts0 = placed[members[0]].spline.points.reshape(-1, 3)
+        M = np.stack([placed[i].placement for i in members])
+        pts = np.einsum("pij,nj->pni", M[:, :, :3], pts0) + M[:, None, :, 3]
+        lo, hi = pts.min(axis=1), pts.max(axis=1)  # (P, 3)
+        out = np.any((lo < dom[:, 0] - tol) | (hi > dom[:, 1] + tol), axis=1)
+        if out.any():
+            P = placed[members[int(np.argmax(out))]]
+            raise TilingError(f"placed patch {members[int(np.argmax(out))]} (tile {P.tile}) leaves the deformation "
+                              "map's domain")
         for k in range(3):
-            inner = D.breakpoints(k)[1:-1]
-            cross = inner[(inner > lo[k] + tol[k]) & (inner < hi[k] - tol[k])]
-            if len(cross):
+            if not len(inner[k]):
+                continue
+            cross = (inner[k][None, :] > lo[:, k : k + 1] + tol[k]) & (inner[k][None, :] < hi[:, k : k + 1] - tol[k])
+            if cross.any():
+                r, c = np.argwhere(cross)[0]
+                i = members[int(r)]
+                P = placed[i]
                 raise TilingError(
                     f"placed patch {i} (tile {P.tile}, level {P.level}) crosses the deformation map's knot line "
-                    f"{'uvw'[k]} = {cross[0]:g}; use a map with one knot span along {'uvw'[k]} for this paving "
+                    f"{'uvw'[k]} = {inner[k][c]:g}; use a map with one knot span along {'uvw'[k]} for this paving "
                     "or counts that align tiles with its knot spans"
                 )
 
