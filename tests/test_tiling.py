@@ -165,6 +165,8 @@ def test_bad_tiles_and_maps_raise():
         tiling.hierarchical(pr.box(elements=(1, 1, 2)), L.heat_sink_t1(), (1, 1), 2)
     with pytest.raises(SplineError):
         BSpline((1,), [[0, 0, 1]], np.zeros((2, 3)))
+    with pytest.raises(TilingError, match="arm width must be in"):
+        L.cross(1.5)
 
 
 def test_graded_conductivity_is_exact_in_parameter_mode_and_usable_by_analysis():

@@ -29,6 +29,7 @@ import numpy as np
 
 from geometry import BSpline, knots as kn, primitives as pr
 
+from . import TilingError
 from .tile import BranchFace, Tile, discontinuity_branches
 
 _W_KNOTS = np.array([0, 0, 0, 0.4, 0.4, 1, 1, 1.0])  # quadratic, C0 at 0.4: solid base below
@@ -143,7 +144,7 @@ def hollow_box() -> Tile:
 def cross(arm: float = 0.3) -> Tile:
     """Seven trilinear blocks: centre [a, b]^3 (b - a = ``arm``) and six arms to the cell faces."""
     if not 0 < arm < 1:
-        raise ValueError("arm width must be in (0, 1)")
+        raise TilingError(f"cross: arm width must be in (0, 1), got {arm!r}")
     a, b = 0.5 - arm / 2, 0.5 + arm / 2
     blocks = [pr.box((arm,) * 3, (a,) * 3)]
     for k in range(3):
