@@ -19,6 +19,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.interpolate import NdBSpline
 
+from . import _fast
 from . import knots as kn
 from .errors import SplineError
 
@@ -203,9 +204,13 @@ class SplineFunction:
             x = x[None, :]
         if x.ndim != 2 or x.shape[1] != self.dim:
             raise SplineError(f"parameters must have shape (N, {self.dim}), got {np.shape(params)}")
+        dom = self.domain
+        if len(x):
+            lo, hi = x.min(axis=0), x.max(axis=0)  # two passes decide the common case (NaN propagates)
+            if np.all(np.isfinite(lo) & np.isfinite(hi)) and np.all(lo >= dom[:, 0]) and np.all(hi <= dom[:, 1]):
+                return x
         if not np.all(np.isfinite(x)):
             raise SplineError("parameters contain non-finite values")
-        dom = self.domain
         tol = 1e-12 * (dom[:, 1] - dom[:, 0]) + 1e-14
         out = np.any((x < dom[:, 0] - tol) | (x > dom[:, 1] + tol), axis=1)
         if out.any():
@@ -231,7 +236,9 @@ class SplineFunction:
     def evaluate(self, params) -> np.ndarray:
         """Values at parameter points ``params`` (N, d) -> (N, m)."""
         x = self._check_params(params)
-        h = self._hom_eval(x, (0,) * self.dim)
+        h = _fast.evaluate(self.knots, self.degrees, self._hom, x)  # compiled kernel for many points, if present
+        if h is None:
+            h = self._hom_eval(x, (0,) * self.dim)
         if self.is_rational:
             return h[:, :-1] / h[:, -1:]
         return h

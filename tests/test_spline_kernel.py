@@ -236,3 +236,24 @@ def test_invalid_operations_raise_spline_error():
         s.boundary("umin")
     with pytest.raises(SplineError, match="channel names must be unique"):
         BSpline((2,), [U2], np.zeros((3, 5)), channels=("k", "k"))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_compiled_scattered_evaluation_matches_scipy(seed):
+    from geometry import _fast
+
+    assert _fast.AVAILABLE  # the test extra installs numba
+    rng = np.random.default_rng(seed)
+    s = random_spline(rng, 3, rational=seed % 2 == 1, channels=("k",) * (seed % 2), max_p=4)
+    n = _fast.MIN_POINTS + 7
+    x = rng.random((n, 3))
+    x[:8] = [[0, 0, 0], [1, 1, 1], [1, 0, 1], [0, 1, 0]] + [list(rng.random(3)) for _ in range(4)]
+    # knots themselves (span boundaries, multiple knots included)
+    for k in range(3):
+        inner = np.unique(s.knots[k])
+        x[8 : 8 + len(inner), k] = inner
+    fast = _fast.evaluate(s.knots, s.degrees, s.homogeneous, x)
+    ref = s._hom_eval(s._check_params(x), (0, 0, 0))  # SciPy's NdBSpline
+    assert fast is not None and fast.shape == ref.shape
+    assert np.abs(fast - ref).max() <= 1e-13 * max(1.0, np.abs(ref).max())
+    assert _fast.evaluate(s.knots, s.degrees, s.homogeneous, x[:100]) is None  # small sets stay with SciPy
