@@ -179,9 +179,10 @@ def _pattern_combine(n0: int, p0: int, B: CSRPattern, banded_B: int, itype) -> C
     """Pattern of (1-D band in the leading direction) x (pattern B of the remaining directions).
 
     Rows (i0, rB) in C order; each row's entries run over the valid offsets
-    d0 and, within each, over row rB of B, so columns stay sorted.  Built
-    per class of leading rows with equal valid offsets (boundary rows, then
-    all interior rows at once): nothing of the size of the full band is formed.
+    d0 and, within each, over row rB of B, so columns stay sorted.  The
+    entries of one leading row i0 follow a template of B's arrays; for rows
+    whose band and whose neighbours' bands are full (all but about 4 p0 rows)
+    every array is ``i0 * stride + template``, written in one pass.
     """
     D0 = 2 * p0 + 1
     nB, nnzB = B.n, len(B.indices)
@@ -191,46 +192,54 @@ def _pattern_combine(n0: int, p0: int, B: CSRPattern, banded_B: int, itype) -> C
     rowB = np.repeat(np.arange(nB), cB)
     start = np.zeros(n0 + 1, np.int64)
     np.cumsum(c0 * nnzB, out=start[1:])
-    indptr = (start[:-1, None] + c0[:, None] * B.indptr[None, :-1]).ravel()
-    indptr = np.concatenate([indptr, [start[-1]]])
+    indptr = np.concatenate([(start[:-1, None] + c0[:, None] * B.indptr[None, :-1]).ravel(), [start[-1]]])
     total = int(start[-1])
     indices = np.empty(total, np.int32 if n0 * nB < 2**31 else np.int64)
     take = np.empty(total, itype)
     transpose = np.empty(total, itype)
-    within = (B.transpose - B.indptr[B.indices]).astype(itype)  # mirror's position inside its B row
-    cases: dict = {}
+    within = B.transpose.astype(np.int64) - B.indptr[B.indices]  # mirror's position inside its B row
+    colB = B.indices.astype(np.int64)
+    templates: dict = {}
+
+    def template(l0, m0):
+        # CSR order of one leading row: (rB, k0, eB within row rB) -> entry eB of B and offset index k0
+        if (l0, m0) not in templates:
+            k0 = np.arange(m0)[:, None]
+            pos = (m0 * B.indptr[rowB][None, :] + k0 * cB[rowB][None, :]
+                   + (np.arange(nnzB) - B.indptr[rowB])[None, :]).ravel()
+            E = np.empty(m0 * nnzB, np.int64)
+            K = np.empty(m0 * nnzB, np.int64)
+            E[pos] = np.broadcast_to(np.arange(nnzB), (m0, nnzB)).ravel()
+            K[pos] = np.broadcast_to(k0, (m0, nnzB)).ravel()
+            templates[(l0, m0)] = (E, l0 + K)
+        return templates[(l0, m0)]
+
+    def row_arrays(i0):  # general formulas for one leading row
+        E, d0 = template(int(lo[i0]), int(c0[i0]))
+        j0 = i0 + d0 - p0
+        cb = colB[E]
+        ind = j0 * nB + cb
+        tk = (i0 * D0 + d0) * banded_B + B.take[E]
+        tr = start[j0] + c0[j0] * B.indptr[cb] + (2 * p0 - d0 - lo[j0]) * cB[cb] + within[E]
+        return ind, tk, tr
+
+    deep = np.arange(n0)
+    deep = deep[(deep >= 2 * p0) & (deep <= n0 - 1 - 2 * p0)]
     for i0 in range(n0):
-        cases.setdefault((int(lo[i0]), int(hi[i0])), []).append(i0)
-    colB = B.indices.astype(itype)
-    ptr_col = B.indptr[B.indices].astype(itype)[None, None, :]
-    cnt_col = cB[B.indices].astype(itype)[None, None, :]
-    takeB = B.take[None, None, :]
-    withinB = within[None, None, :]
-    for (l0, h0), rows in cases.items():
-        m0 = h0 - l0 + 1
-        # natural order (i0, k0, eB) -> CSR order (i0; rB, k0, eB within row rB) by one scatter per array
-        k0 = np.arange(m0)[:, None]
-        pos = (m0 * B.indptr[rowB][None, :] + k0 * cB[rowB][None, :] + (np.arange(nnzB) - B.indptr[rowB])[None, :])
-        pos = pos.ravel()
-        I = np.array(rows, itype)[:, None]
-        d0 = (l0 + np.arange(m0, dtype=itype))[None, :]
-        j0 = I + d0 - p0  # (R, m0)
-        contiguous = rows == list(range(rows[0], rows[0] + len(rows)))
-        values = (  # computed one at a time: one natural-order temporary alive
-            (indices, lambda: (j0 * nB)[:, :, None] + colB[None, None, :]),
-            (take, lambda: ((I * D0 + d0) * banded_B)[:, :, None] + takeB),
-            (transpose, lambda: (start[j0].astype(itype)[:, :, None] + c0[j0].astype(itype)[:, :, None] * ptr_col
-                                 + ((2 * p0 - d0) - lo[j0]).astype(itype)[:, :, None] * cnt_col + withinB)),
-        )
-        for out, make in values:
-            val = make().reshape(len(rows), -1)
-            if contiguous:  # the usual case: the rows' entries form one slice
-                a = int(start[rows[0]])
-                out[a : a + val.size].reshape(len(rows), -1)[:, pos] = val
-            else:
-                for r, i0 in enumerate(rows):
-                    out[int(start[i0]) : int(start[i0]) + m0 * nnzB][pos] = val[r]
-            del val
+        if len(deep) and deep[0] <= i0 <= deep[-1]:
+            continue
+        a, b = int(start[i0]), int(start[i0 + 1])
+        for out, val in zip((indices, take, transpose), row_arrays(i0)):
+            out[a:b] = val
+    if len(deep):
+        r0, r1 = int(deep[0]), int(deep[-1])
+        a, b = int(start[r0]), int(start[r1 + 1])
+        R = r1 - r0 + 1
+        ind, tk, tr = row_arrays(r0)  # row r0; row i0 adds (i0 - r0) * stride
+        strides = (nB, D0 * banded_B, D0 * nnzB)
+        steps = np.arange(R, dtype=np.int64)[:, None]
+        for out, val, stride in zip((indices, take, transpose), (ind, tk, tr), strides):
+            np.add((steps * stride).astype(out.dtype), val.astype(out.dtype)[None, :], out=out[a:b].reshape(R, -1))
     return CSRPattern(indptr, indices, take, transpose, n0 * nB)
 
 
