@@ -349,11 +349,11 @@ class HeatProblem:
         v = self._values(spec, x, chans, what, where, positive)
         return np.split(v, np.cumsum([len(fd.x) for fd in fds])[:-1])
 
-    def _face_loads(self, fds, Fs, n=None) -> np.ndarray:
+    def _face_loads(self, fds, Fs) -> np.ndarray:
         """Global vector sum over faces of int F N_i (F per face at its Gauss points)."""
-        n = self.ndof if n is None else n
+        n = self.ndof
         out = np.zeros(n)
-        for fs, idx in _by_space(fds).items():
+        for idx in _by_space(fds).values():
             space = fds[idx[0]].space
             L = load_form(space, np.stack([Fs[i] for i in idx]).reshape((len(idx),) + space.qshape))
             dofs = np.stack([fds[i].dofs for i in idx])
@@ -363,7 +363,7 @@ class HeatProblem:
     def _face_loads_matrix(self, fds, Fs) -> sp.csc_matrix:
         """Sparse (ndof, n_faces): column f holds int F_f N_i over face f."""
         rows, cols, vals = [], [], []
-        for fs, idx in _by_space(fds).items():
+        for idx in _by_space(fds).values():
             space = fds[idx[0]].space
             L = load_form(space, np.stack([Fs[i] for i in idx]).reshape((len(idx),) + space.qshape))
             rows.append(np.stack([fds[i].dofs for i in idx]).ravel())
@@ -375,7 +375,7 @@ class HeatProblem:
     def _face_matrix(self, fds, Fs) -> sp.csr_matrix:
         """Global sparse sum over faces of int F N_i N_j (F per face at its Gauss points)."""
         rows, cols, vals = [], [], []
-        for fs, idx in _by_space(fds).items():
+        for idx in _by_space(fds).values():
             space = fds[idx[0]].space
             F = np.stack([Fs[i] for i in idx]).reshape((len(idx),) + space.qshape)
             data = banded_to_csr_data(space, banded_form(space, [(F, ((0, 0), (0, 0)))]))
