@@ -11,102 +11,50 @@ trigger it: see :data:`MIN_POINTS`.
 
 from __future__ import annotations
 
-import numpy as np
+import importlib.util
 
-try:  # optional dependency
-    import numba
-    from numba import njit, prange
-except ImportError:  # pragma: no cover - exercised where numba is absent
-    numba = None
+import numpy as np
 
 #: below this many points the SciPy path is used (no compile, no thread start-up)
 MIN_POINTS = 20_000
 
-AVAILABLE = numba is not None
+# numba is imported on first use only: importing it costs about 60 MiB and 0.4 s,
+# which small analyses (the heat-sink demo) should not pay
+AVAILABLE = importlib.util.find_spec("numba") is not None
 
-if AVAILABLE:
+_KERNEL = None
+_CHUNKS = 64  # work items of the kernel's parallel loop (must match _fast_kernels)
 
-    @njit(cache=True, inline="always", error_model="numpy")
-    def _span(U, p, n, t):
-        """Knot span index i with U[i] <= t < U[i + 1] (t = U[-1] -> last span); A2.1 of The NURBS Book."""
-        if t >= U[n]:
-            return n - 1
-        if t <= U[p]:
-            return p
-        lo, hi = p, n
-        mid = (lo + hi) // 2
-        while t < U[mid] or t >= U[mid + 1]:
-            if t < U[mid]:
-                hi = mid
-            else:
-                lo = mid
-            mid = (lo + hi) // 2
-        return mid
 
-    @njit(cache=True, inline="always", error_model="numpy")
-    def _basis(U, p, i, t, N, left, right):
-        """Non-zero basis values N[0..p] at t in span i (A2.2)."""
-        N[0] = 1.0
-        for j in range(1, p + 1):
-            left[j] = t - U[i + 1 - j]
-            right[j] = U[i + j] - t
-            saved = 0.0
-            for r in range(j):
-                tmp = N[r] / (right[r + 1] + left[j - r])
-                N[r] = saved + right[r + 1] * tmp
-                saved = left[j - r] * tmp
-            N[j] = saved
+def _kernel():
+    """The compiled 3-D kernel (numba imported and the kernel loaded on first call)."""
+    global _KERNEL
+    if _KERNEL is None:
+        from ._fast_kernels import _eval3
 
-    @njit(cache=True, parallel=True, error_model="numpy")
-    def _eval3(x, U0, p0, U1, p1, U2, p2, C, out):
-        npts = x.shape[0]
-        m = C.shape[3]
-        n0, n1, n2 = C.shape[0], C.shape[1], C.shape[2]
-        pm = max(p0, max(p1, p2)) + 1
-        chunks = 64
-        for ch in prange(chunks):
-            a0 = ch * npts // chunks
-            a1 = (ch + 1) * npts // chunks
-            B0 = np.empty(pm)
-            B1 = np.empty(pm)
-            B2 = np.empty(pm)
-            L = np.empty(pm)
-            R = np.empty(pm)
-            acc = np.empty(m)
-            for k in range(a0, a1):
-                i0 = _span(U0, p0, n0, x[k, 0])
-                i1 = _span(U1, p1, n1, x[k, 1])
-                i2 = _span(U2, p2, n2, x[k, 2])
-                _basis(U0, p0, i0, x[k, 0], B0, L, R)
-                _basis(U1, p1, i1, x[k, 1], B1, L, R)
-                _basis(U2, p2, i2, x[k, 2], B2, L, R)
-                for c in range(m):
-                    acc[c] = 0.0
-                for a in range(p0 + 1):
-                    ia = i0 - p0 + a
-                    for b in range(p1 + 1):
-                        wab = B0[a] * B1[b]
-                        ib = i1 - p1 + b
-                        for e in range(p2 + 1):
-                            w = wab * B2[e]
-                            ie = i2 - p2 + e
-                            for c in range(m):
-                                acc[c] += w * C[ia, ib, ie, c]
-                for c in range(m):
-                    out[k, c] = acc[c]
+        _KERNEL = _eval3
+    return _KERNEL
+
+
+def applies(dim: int, n_points: int) -> bool:
+    """Whether :func:`evaluate` would run the compiled kernel for this many points."""
+    return AVAILABLE and dim == 3 and n_points >= MIN_POINTS
 
 
 def evaluate(knots, degrees, coefficients: np.ndarray, x: np.ndarray) -> np.ndarray | None:
-    """Values (N, m) of the spline with ``coefficients`` (n_1, ..., n_d, m) at ``x`` (N, d) in its domain.
+    """Values (N, m) of the spline with ``coefficients`` (n_1, ..., n_d, m) at ``x`` (N, d).
 
     Returns None when the kernel does not apply (numba missing, d != 3, or
-    fewer than :data:`MIN_POINTS` points): the caller then uses SciPy.
+    fewer than :data:`MIN_POINTS` points) or when some point lies outside the
+    domain or is not finite: the caller then checks the points (and raises,
+    naming them) and uses SciPy.
     """
-    if not AVAILABLE or len(degrees) != 3 or len(x) < MIN_POINTS:
+    if not applies(len(degrees), len(x)) or np.ndim(x) != 2 or np.shape(x)[1] != 3:
         return None
     C = np.ascontiguousarray(coefficients, dtype=float)
     X = np.ascontiguousarray(x, dtype=float)
     out = np.empty((len(X), C.shape[-1]))
+    bad = np.zeros(_CHUNKS, np.int64)
     U = [np.ascontiguousarray(u, dtype=float) for u in knots]
-    _eval3(X, U[0], int(degrees[0]), U[1], int(degrees[1]), U[2], int(degrees[2]), C, out)
-    return out
+    _kernel()(X, U[0], int(degrees[0]), U[1], int(degrees[1]), U[2], int(degrees[2]), C, out, bad)
+    return None if bad.any() else out

@@ -235,10 +235,15 @@ class SplineFunction:
 
     def evaluate(self, params) -> np.ndarray:
         """Values at parameter points ``params`` (N, d) -> (N, m)."""
-        x = self._check_params(params)
-        h = _fast.evaluate(self.knots, self.degrees, self._hom, x)  # compiled kernel for many points, if present
+        h = None
+        # compiled kernel for many points; it checks the domain itself and declines on any bad point
+        if _fast.applies(self.dim, np.shape(params)[0] if np.ndim(params) else 0):
+            h = _fast.evaluate(self.knots, self.degrees, self._hom, np.asarray(params, dtype=float))
         if h is None:
-            h = self._hom_eval(x, (0,) * self.dim)
+            x = self._check_params(params)
+            h = _fast.evaluate(self.knots, self.degrees, self._hom, x)
+            if h is None:
+                h = self._hom_eval(x, (0,) * self.dim)
         if self.is_rational:
             return h[:, :-1] / h[:, -1:]
         return h

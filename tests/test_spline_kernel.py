@@ -257,3 +257,9 @@ def test_compiled_scattered_evaluation_matches_scipy(seed):
     assert fast is not None and fast.shape == ref.shape
     assert np.abs(fast - ref).max() <= 1e-13 * max(1.0, np.abs(ref).max())
     assert _fast.evaluate(s.knots, s.degrees, s.homogeneous, x[:100]) is None  # small sets stay with SciPy
+    # bad points in a large set: the kernel declines and the usual checks name them
+    for bad, msg in ((np.nan, "non-finite"), (1.5, "outside the domain")):
+        y = x.copy()
+        y[11, seed % 3] = bad
+        with pytest.raises(SplineError, match=msg):
+            s.evaluate(y)

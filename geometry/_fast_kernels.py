@@ -1,0 +1,81 @@
+"""Compiled kernels of :mod:`geometry._fast` (imported only when numba is installed and first needed)."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _span(U, p, n, t):
+    """Knot span index i with U[i] <= t < U[i + 1] (t = U[-1] -> last span); A2.1 of The NURBS Book."""
+    if t >= U[n]:
+        return n - 1
+    if t <= U[p]:
+        return p
+    lo, hi = p, n
+    mid = (lo + hi) // 2
+    while t < U[mid] or t >= U[mid + 1]:
+        if t < U[mid]:
+            hi = mid
+        else:
+            lo = mid
+        mid = (lo + hi) // 2
+    return mid
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _basis(U, p, i, t, N, left, right):
+    """Non-zero basis values N[0..p] at t in span i (A2.2)."""
+    N[0] = 1.0
+    for j in range(1, p + 1):
+        left[j] = t - U[i + 1 - j]
+        right[j] = U[i + j] - t
+        saved = 0.0
+        for r in range(j):
+            tmp = N[r] / (right[r + 1] + left[j - r])
+            N[r] = saved + right[r + 1] * tmp
+            saved = left[j - r] * tmp
+        N[j] = saved
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def _eval3(x, U0, p0, U1, p1, U2, p2, C, out, bad):
+    npts = x.shape[0]
+    m = C.shape[3]
+    n0, n1, n2 = C.shape[0], C.shape[1], C.shape[2]
+    pm = max(p0, max(p1, p2)) + 1
+    chunks = bad.shape[0]
+    for ch in prange(chunks):
+        a0 = ch * npts // chunks
+        a1 = (ch + 1) * npts // chunks
+        B0 = np.empty(pm)
+        B1 = np.empty(pm)
+        B2 = np.empty(pm)
+        L = np.empty(pm)
+        R = np.empty(pm)
+        acc = np.empty(m)
+        for k in range(a0, a1):
+            t0, t1, t2 = x[k, 0], x[k, 1], x[k, 2]
+            # outside the domain or NaN (comparisons with NaN are false): flag, the caller re-checks
+            if not (U0[0] <= t0 <= U0[-1] and U1[0] <= t1 <= U1[-1] and U2[0] <= t2 <= U2[-1]):
+                bad[ch] += 1
+                continue
+            i0 = _span(U0, p0, n0, x[k, 0])
+            i1 = _span(U1, p1, n1, x[k, 1])
+            i2 = _span(U2, p2, n2, x[k, 2])
+            _basis(U0, p0, i0, x[k, 0], B0, L, R)
+            _basis(U1, p1, i1, x[k, 1], B1, L, R)
+            _basis(U2, p2, i2, x[k, 2], B2, L, R)
+            for c in range(m):
+                acc[c] = 0.0
+            for a in range(p0 + 1):
+                ia = i0 - p0 + a
+                for b in range(p1 + 1):
+                    wab = B0[a] * B1[b]
+                    ib = i1 - p1 + b
+                    for e in range(p2 + 1):
+                        w = wab * B2[e]
+                        ie = i2 - p2 + e
+                        for c in range(m):
+                            acc[c] += w * C[ia, ib, ie, c]
+            for c in range(m):
+                out[k, c] = acc[c]
