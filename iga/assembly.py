@@ -120,14 +120,26 @@ def banded_form(space: TensorSpace, terms) -> np.ndarray:
     """
     groups: dict = {}
     for F, variants in terms:
-        X = _run(space, F, variants, 1) if space.dim > 1 else np.ascontiguousarray(np.moveaxis(F, 0, -1))
-        key = tuple(variants[0])
-        groups[key] = X if key not in groups else groups[key] + X
+        groups.setdefault(tuple(variants[0]), []).append((F, variants))
     out = None
     sp0 = space.dirs[0]
-    for (a, b), X in groups.items():
+    # one group at a time (its partial sum, then its last contraction): bounded memory
+    for (a, b), members in groups.items():
+        X = None
+        for F, variants in members:
+            Y = _run(space, F, variants, 1) if space.dim > 1 else np.array(np.moveaxis(F, 0, -1))  # own copy: X += Y
+            if X is None:
+                X = Y
+            else:
+                X += Y
+            del Y
         R = _contract_first(_to_front(X, 0), sp0, a, b)
-        out = R if out is None else out + R
+        del X
+        if out is None:
+            out = R
+        else:
+            out += R
+        del R
     return out
 
 
@@ -258,14 +270,22 @@ def _pattern(shape: tuple, degrees: tuple) -> CSRPattern:
     return pat
 
 
+_CACHE_NNZ = 1 << 24  # larger patterns are rebuilt (0.1-0.3 s) rather than kept (about 8 bytes per entry)
+
+
 def pattern(space: TensorSpace) -> CSRPattern:
-    return _pattern(space.shape, tuple(s.degree for s in space.dirs))
+    """CSR pattern of ``space``'s banded operators (cached for the many small spaces of micro-structures)."""
+    degrees = tuple(s.degree for s in space.dirs)
+    nnz_max = space.ndof * int(np.prod([2 * p + 1 for p in degrees]))
+    if nnz_max > _CACHE_NNZ:
+        return _pattern.__wrapped__(space.shape, degrees)
+    return _pattern(space.shape, degrees)
 
 
-def banded_to_csr_data(space: TensorSpace, banded: np.ndarray) -> np.ndarray:
+def banded_to_csr_data(space: TensorSpace, banded: np.ndarray, pat: CSRPattern | None = None) -> np.ndarray:
     """(n_1, D_1, ..., n_d, D_d, P) banded array -> (P, nnz) CSR data in :func:`pattern` order."""
     P = banded.shape[-1]
-    return banded.reshape(-1, P)[pattern(space).take].T
+    return banded.reshape(-1, P)[(pat or pattern(space)).take].T
 
 
 def block_diagonal_csr(blocks, n_total: int) -> sp.csr_matrix:
@@ -295,7 +315,7 @@ def block_diagonal_csr(blocks, n_total: int) -> sp.csr_matrix:
     )
 
 
-def stiffness_data(space: TensorSpace, C: dict) -> np.ndarray:
+def stiffness_data(space: TensorSpace, C: dict, pat: CSRPattern | None = None) -> np.ndarray:
     """CSR data (P, nnz) of sum_rs int C_rs d_r N_i d_s N_j for a symmetric C.
 
     ``C[(r, s)]`` for r <= s, each (P,) + qshape.  With D the diagonal terms
@@ -308,6 +328,7 @@ def stiffness_data(space: TensorSpace, C: dict) -> np.ndarray:
     for (r, s), F in C.items():
         variants = tuple((int(k == r), int(k == s)) for k in range(d))
         terms.append((0.5 * F if r == s else F, variants))
-    H = banded_to_csr_data(space, banded_form(space, terms))
-    H += H[:, pattern(space).transpose]
+    pat = pat or pattern(space)
+    H = banded_to_csr_data(space, banded_form(space, terms), pat)
+    H += H[:, pat.transpose]
     return H

@@ -444,7 +444,7 @@ class HeatProblem:
             for members in _chunks(group, space.nq_total):
                 C, L = self._stiffness_fields(members, space)
                 shape = (len(members),) + space.qshape
-                data = stiffness_data(space, {rs: C[j].reshape(shape) for j, rs in enumerate(_PAIRS)})
+                data = stiffness_data(space, {rs: C[j].reshape(shape) for j, rs in enumerate(_PAIRS)}, pat)
                 for j, i in enumerate(members):
                     blocks.append((int(self.offsets[i]), pat, data[j]))
                 source_total += float(L.sum())
