@@ -42,7 +42,7 @@ SCHEMA = {
     "material": {"conductivity", "source"},
     "bc": {"kind", "tag", "value", "h", "ambient"},
     "solver": {"method", "tol", "refine", "degree_elevation"},
-    "output": {"dir", "name", "vtu", "png", "samples", "probes"},
+    "output": {"dir", "name", "vtu", "bezier", "png", "samples", "probes"},
 }
 REQUIRED = {"map": set(), "tile": {"library"}, "paving": {"scheme", "counts"}, "bc": {"kind", "tag"}}
 
@@ -247,6 +247,10 @@ def run_pipeline(config: dict, base_dir: str | Path = ".", progress: bool | None
     if out_cfg.get("vtu", True):
         write_vtu(vtu, sol, samples=out_cfg.get("samples", 3))
         files["vtu"] = str(vtu)
+    if out_cfg.get("bezier", False):  # exact Bezier hexahedra (VTK 79) beside the sampled file
+        exact = out / f"{name}_bezier.vtu"
+        write_vtu(exact, sol, cells="bezier")
+        files["bezier_vtu"] = str(exact)
     prog.done()
     prog.start("render")
     if out_cfg.get("png", True) and "vtu" in files:

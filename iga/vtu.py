@@ -45,23 +45,32 @@ def _hexes(shape, flip: bool) -> np.ndarray:
     return np.stack([c.ravel() for c in idx], axis=1)
 
 
-def write_vtu(path, solution_or_model, samples: int = 3) -> Path:
+def write_vtu(path, solution_or_model, samples: int = 3, cells: str = "linear") -> Path:
     """Write one ``.vtu`` file with every patch of a model or solution.
 
     Parameters
     ----------
     path : output file (``.vtu``); its folder must exist and be writable
     solution_or_model : :class:`iga.Solution`, or anything :func:`iga.model.as_model` accepts
-    samples : subdivisions of every Bezier element per direction (>= 1)
+    samples : subdivisions of every Bezier element per direction (>= 1), for ``cells="linear"``
+    cells : ``"linear"`` (sampled linear hexahedra, with heat flux) or ``"bezier"``: one exact
+        rational Bezier hexahedron (VTK type 79) per element, geometry and temperature exact
+        (:mod:`iga.vtu_bezier`; composes every patch, so heavier for large models)
     """
     from .solution import Solution
 
     if not isinstance(samples, (int, np.integer)) or samples < 1:
         raise ProblemError(f"samples must be a positive integer, got {samples!r}")
+    if cells not in ("linear", "bezier"):
+        raise ProblemError(f"cells must be 'linear' or 'bezier', got {cells!r}")
     path = Path(path)
     check_folder(path, ProblemError)  # before sampling: fail fast on a bad output path
     sol = solution_or_model if isinstance(solution_or_model, Solution) else None
     model = sol.problem.model if sol is not None else as_model(solution_or_model)
+    if cells == "bezier":
+        from .vtu_bezier import write_bezier_vtu
+
+        return atomic_write(path, lambda tmp: write_bezier_vtu(tmp, sol, model), ".vtu", ProblemError)
     points, cells, pdata, cdata = [], [], {}, {"patch": [], "tile": [], "level": []}
     offset = 0
     names = sorted({c for p in model.patches for c in p.channels})

@@ -204,3 +204,49 @@ def test_solver_errors():
     L = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(n, n), format="csr")
     with pytest.raises(solvers.SolverError, match="did not converge: relative residual .* after 3 iterations"):
         solvers.solve(L, np.ones(n), method="cg", maxiter=3)
+
+
+def _vtk_cell_values(grid, rng, n_cells=4, n_points=4):
+    """Locations and point-data temperatures that VTK itself evaluates inside random cells."""
+    import vtk
+
+    xs, ts = [], []
+    for ci in rng.choice(grid.n_cells, min(n_cells, grid.n_cells), replace=False):
+        cell = grid.GetCell(int(ci))
+        ids = [cell.GetPointId(i) for i in range(cell.GetNumberOfPoints())]
+        for _ in range(n_points):
+            x, w = [0.0, 0.0, 0.0], np.zeros(len(ids))
+            cell.EvaluateLocation(vtk.reference(0), list(rng.random(3)), x, w)
+            xs.append(x)
+            ts.append(float(w @ grid.point_data["temperature"][ids]))
+    return np.array(xs), np.array(ts)
+
+
+@pytest.mark.parametrize("case", ["rational annulus", "polynomial box", "composed micro-structure"])
+def test_bezier_vtu_is_exact(tmp_path, case):
+    # VTK evaluates each Bezier hexahedron (type 79) at random local coordinates: the point it
+    # finds lies on the exact geometry and the temperature there equals the solution's probe
+    import pyvista as pv
+
+    import tiling
+    from tiling import library as L
+
+    T = lambda x: 1 + x[:, 0] ** 2 - x[:, 1] * x[:, 2]  # noqa: E731
+    if case == "rational annulus":
+        model = pr.annulus(0.5, 1.0, 1.0, angle=np.pi / 2)
+    elif case == "polynomial box":
+        model = pr.box((1.0, 2.0, 0.5), degrees=(2, 1, 3), elements=(2, 1, 2))
+    else:
+        model = tiling.hierarchical(ANNULUS, L.heat_sink_t1(), (2, 1), 2)  # tiles composed into a NURBS map
+    s = HeatProblem(model, refine=1).dirichlet("boundary", T).solve()
+    out = write_vtu(tmp_path / "exact.vtu", s, cells="bezier")
+    g = pv.read(out)
+    assert set(g.celltypes) == {79} and g.cell_data["HigherOrderDegrees"].shape == (g.n_cells, 3)
+    assert ("RationalWeights" in g.point_data) == (case != "polynomial box")
+    for name in ("patch", "tile", "level"):
+        assert name in g.cell_data
+    x, t = _vtk_cell_values(g, np.random.default_rng(3))
+    assert np.abs(t - s.probe(x)).max() < 1e-10
+    assert [p.name for p in tmp_path.iterdir()] == ["exact.vtu"]  # nothing temporary left behind
+    with pytest.raises(ProblemError, match="cells must be"):
+        write_vtu(tmp_path / "x.vtu", s, cells="quadratic")

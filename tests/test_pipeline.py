@@ -47,6 +47,7 @@ tol = 1e-11
 dir = "out"
 name = "sink"
 png = false
+bezier = true
 probes = [[0.0, 0.0205, 0.01]]
 """
 
@@ -67,6 +68,9 @@ def test_iga_run_reduced_heat_sink(tmp_path):
     assert s["energy_balance_error"] < 1e-8
     area = 2 * np.pi * 0.02 * 0.02  # inner ring: an exact cylinder without twist
     assert s["inflow_W"] == pytest.approx(1515.8 * area, rel=1e-5)  # Gauss quadrature of a rational area element
+    exact = pv.read(s["files"]["bezier_vtu"])  # exact Bezier hexahedra beside the sampled file
+    assert set(exact.celltypes) == {79} and "temperature" in exact.point_data and "k" in exact.point_data
+    assert exact.point_data["temperature"].min() > 30.0
     m = pv.read(tmp_path / "out" / "sink.vtu")
     for name in ("temperature", "heat_flux", "conductivity", "k"):
         assert name in m.point_data

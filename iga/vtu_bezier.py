@@ -1,0 +1,146 @@
+"""Exact VTU export: one rational Bezier hexahedron (VTK cell type 79) per element.
+
+The geometry of every patch is its exact image ``D(A T + b)`` (the composed
+spline, :func:`geometry.compose`), cut into Bezier elements on the union of
+its breakpoints and those of the temperature space; the temperature is
+expressed in the same basis so ParaView interpolates it exactly:
+
+* polynomial geometry: both are elevated to the larger degree per direction;
+* rational geometry (weights w, denominator W): VTK interpolates point data
+  with the rational basis w_i B_i / W, so the temperature's control values are
+  ``(T W)_i / w_i`` at degree p_T + p_geo (exact Bernstein product).
+
+Point data: ``temperature`` (with a solution) and every channel of the tile
+and the deformation map (exact, as composed); cell data: ``patch``, ``tile``,
+``level`` and ``HigherOrderDegrees``; ``RationalWeights`` for NURBS geometry.
+Points are not shared between cells.  The point order inside a cell is
+VTK's own (``vtkBezierHexahedron.PointIndexFromIJK``).  Heat flux is not
+written here (it is not polynomial); the linear-hexahedron export has it.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from geometry import bernstein as bz, compose
+
+from . import ProblemError
+
+
+def _exact_geometry(patch):
+    """The patch's exact geometry as one BSpline (composed with its placement and map)."""
+    s = patch.spline
+    if patch.placement is not None:
+        s = s.affine(patch.placement[:, :3], patch.placement[:, 3])
+    return s if patch.outer is None else compose(patch.outer, s)
+
+
+def _aligned(spline, breaks):
+    """``spline`` with every breakpoint of ``breaks`` inserted: the same element partition."""
+    for k in range(3):
+        new = np.setdiff1d(breaks[k], spline.breakpoints(k))
+        if len(new):
+            spline, _ = spline.insert_knots(k, new)
+    return spline
+
+
+def _vtk_order(degrees) -> np.ndarray:
+    """Permutation: VTK point index -> flat (C-order) index of the (p1+1, p2+1, p3+1) control net."""
+    import vtk
+
+    p = [int(v) for v in degrees]
+    n = [v + 1 for v in p]
+    order = np.empty(n[0] * n[1] * n[2], np.int64)
+    for i in range(n[0]):
+        for j in range(n[1]):
+            for k in range(n[2]):
+                order[vtk.vtkBezierHexahedron.PointIndexFromIJK(i, j, k, p)] = (i * n[1] + j) * n[2] + k
+    return order
+
+
+def bezier_cells(solution, model):
+    """Per-patch Bezier cells: list of dicts with points, weights, degrees, point fields and ids."""
+    out = []
+    for pi, patch in enumerate(model.patches):
+        G = _exact_geometry(patch)
+        T = solution.temperature_spline(pi) if solution is not None else None
+        breaks = [np.union1d(G.breakpoints(k), T.breakpoints(k) if T is not None else []) for k in range(3)]
+        G = _aligned(G, breaks)
+        gh, _ = G.bezier_patches(homogeneous=True)  # (e1, e2, e3, q1+1, q2+1, q3+1, m+1)
+        ne = gh.shape[:3]
+        gh = gh.reshape((-1,) + gh.shape[3:])
+        pg = np.array(gh.shape[1:4]) - 1
+        fields = {}
+        if T is not None:
+            th, _ = _aligned(T, breaks).bezier_patches()  # polynomial, one component
+            th = th.reshape((-1,) + th.shape[3:])
+            pt = np.array(th.shape[1:4]) - 1
+            if G.is_rational:
+                W = gh[..., -1:]
+                tw = bz.multiply(np.moveaxis(th[..., :1], -1, 1), np.moveaxis(W, -1, 1), 3)  # (E, 1, ...) degree pt + pg
+                target = pt + pg
+                gh = np.moveaxis(bz.elevate(np.moveaxis(gh, -1, 1), list(target - pg), 3), 1, -1)
+                tvals = np.moveaxis(tw, 1, -1)[..., 0] / gh[..., -1]
+            else:
+                target = np.maximum(pg, pt)
+                gh = np.moveaxis(bz.elevate(np.moveaxis(gh, -1, 1), list(target - pg), 3), 1, -1)
+                tvals = np.moveaxis(bz.elevate(np.moveaxis(th[..., :1], -1, 1), list(target - pt), 3), 1, -1)[..., 0]
+            fields["temperature"] = tvals
+        if G.is_rational:
+            w = gh[..., -1]
+            cart = gh[..., :-1] / w[..., None]
+        else:
+            w, cart = None, gh
+        for i, c in enumerate(G.channels):
+            fields[c] = cart[..., 3 + i]
+        out.append({"patch": pi, "tile": patch.tile, "level": patch.level, "points": cart[..., :3],
+                    "weights": w, "fields": fields, "n_elements": int(np.prod(ne))})
+    return out
+
+
+def write_bezier_vtu(path: Path, solution, model) -> None:
+    """Write the exact Bezier-hexahedron .vtu (see module docs) to ``path`` (a temporary name)."""
+    import pyvista as pv
+
+    cells = bezier_cells(solution, model)
+    pts, conn, types, degs, wts, ids = [], [], [], [], [], {"patch": [], "tile": [], "level": []}
+    fields: dict = {}
+    names = sorted({k for c in cells for k in c["fields"]})
+    rational = any(c["weights"] is not None for c in cells)
+    offset = 0
+    for c in cells:
+        P = c["points"]  # (E, q1+1, q2+1, q3+1, 3)
+        E = P.shape[0]
+        q = np.array(P.shape[1:4]) - 1
+        order = _vtk_order(q)
+        npc = len(order)
+        flat = P.reshape(E, npc, 3)[:, order]
+        pts.append(flat.reshape(-1, 3))
+        idx = offset + np.arange(E * npc).reshape(E, npc)
+        conn.append(np.hstack([np.full((E, 1), npc), idx]).ravel())
+        types.append(np.full(E, 79, np.uint8))  # VTK_BEZIER_HEXAHEDRON
+        degs.append(np.tile(q, (E, 1)))
+        w = c["weights"] if c["weights"] is not None else np.ones(P.shape[:4])
+        wts.append(w.reshape(E, npc)[:, order].ravel())
+        for name in names:
+            v = c["fields"].get(name)
+            v = np.full(P.shape[:4], np.nan) if v is None else v
+            fields.setdefault(name, []).append(v.reshape(E, npc)[:, order].ravel())
+        for key in ids:
+            ids[key].append(np.full(E, c[key], np.int32))
+        offset += E * npc
+    grid = pv.UnstructuredGrid(np.concatenate(conn), np.concatenate(types), np.concatenate(pts))
+    for name, v in fields.items():
+        grid.point_data[name] = np.concatenate(v)
+    for key, v in ids.items():
+        grid.cell_data[key] = np.concatenate(v)
+    grid.cell_data["HigherOrderDegrees"] = np.concatenate(degs).astype(np.float64)
+    grid.GetCellData().SetHigherOrderDegrees(grid.GetCellData().GetArray("HigherOrderDegrees"))
+    if rational:
+        grid.point_data["RationalWeights"] = np.concatenate(wts)
+        grid.GetPointData().SetRationalWeights(grid.GetPointData().GetArray("RationalWeights"))
+    if not grid.n_cells:
+        raise ProblemError("the model has no trivariate patches to write")
+    grid.save(str(path), binary=True)
