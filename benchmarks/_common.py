@@ -40,6 +40,15 @@ def save_json(name: str, data) -> Path:
     return path
 
 
+def save_plot(fig, name: str) -> Path:
+    """Lay out ``fig``, write it to benchmarks/out/``name`` (PNG, 120 dpi) and say where."""
+    path = out_dir() / name
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    print(f"plot: {path}")
+    return path
+
+
 def pyplot():
     """matplotlib.pyplot with a non-interactive backend, or None if matplotlib is missing."""
     try:

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-from _common import out_dir, print_table, pyplot, save_json  # noqa: E402
+from _common import print_table, pyplot, save_json, save_plot  # noqa: E402
 
 from geometry import BSpline, compose_many, knots as kn  # noqa: E402
 
@@ -120,9 +120,7 @@ def main(argv=None):
         ax.set_yscale("log")
         ax.set_ylabel("ms per composition")
         ax.legend()
-        fig.tight_layout()
-        fig.savefig(out_dir() / "composition.png", dpi=120)
-        print(f"plot: {out_dir() / 'composition.png'}")
+        save_plot(fig, "composition.png")
 
 
 if __name__ == "__main__":

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-from _common import out_dir, print_table, pyplot, save_json  # noqa: E402
+from _common import print_table, pyplot, save_json, save_plot  # noqa: E402
 
 from geometry import BSpline, compose, knots as kn, primitives as pr  # noqa: E402
 
@@ -76,9 +76,7 @@ def main(argv=None):
         ax2.plot(ds, [int(r["T(S) degrees"].strip("()").split(",")[0]) + 1 for r in rows], "s--", color="tab:blue")
         ax2.set_ylabel("order of T(S)", color="tab:blue")
         ax1.set_title("003 Fig. 13: exact composition stays circular")
-        fig.tight_layout()
-        fig.savefig(out_dir() / "composition_stability.png", dpi=120)
-        print(f"plot: {out_dir() / 'composition_stability.png'}")
+        save_plot(fig, "composition_stability.png")
 
 
 if __name__ == "__main__":

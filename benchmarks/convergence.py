@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-from _common import out_dir, print_table, pyplot, save_json  # noqa: E402
+from _common import print_table, pyplot, save_json, save_plot  # noqa: E402
 
 from iga import HeatProblem  # noqa: E402
 from iga.manufactured import quarter_annulus  # noqa: E402
@@ -130,9 +130,7 @@ def main(argv=None):
             ax.set_title(t)
             ax.invert_xaxis()
             ax.legend()
-        fig.tight_layout()
-        fig.savefig(out_dir() / "convergence.png", dpi=120)
-        print(f"plot: {out_dir() / 'convergence.png'}")
+        save_plot(fig, "convergence.png")
     return 0 if ok else 1
 
 

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-from _common import out_dir, print_table, pyplot, save_json  # noqa: E402
+from _common import print_table, pyplot, save_json, save_plot  # noqa: E402
 
 SIZES = {"30k": 31, "110k": 48, "475k": 78, "1M": 100}  # (N + p) per direction, p = 2; p = 3 uses one less element
 
@@ -118,9 +118,7 @@ def main(argv=None):
         ax.set_xlabel("unknowns")
         ax.set_ylabel("seconds")
         ax.legend()
-        fig.tight_layout()
-        fig.savefig(out_dir() / "heat_performance.png", dpi=120)
-        print(f"plot: {out_dir() / 'heat_performance.png'}")
+        save_plot(fig, "heat_performance.png")
 
 
 if __name__ == "__main__":
