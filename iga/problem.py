@@ -351,18 +351,11 @@ class HeatProblem:
 
     def _face_loads(self, fds, Fs) -> np.ndarray:
         """Global vector sum over faces of int F N_i (F per face at its Gauss points)."""
-        n = self.ndof
-        out = np.zeros(n)
-        for idx in _by_space(fds).values():
-            space = fds[idx[0]].space
-            L = load_form(space, np.stack([Fs[i] for i in idx]).reshape((len(idx),) + space.qshape))
-            dofs = np.stack([fds[i].dofs for i in idx])
-            out += np.bincount(dofs.ravel(), weights=L.reshape(len(idx), -1).ravel(), minlength=n)
-        return out
+        return np.asarray(self._face_loads_matrix(fds, Fs).sum(axis=1)).ravel()
 
     def _face_loads_matrix(self, fds, Fs) -> sp.csc_matrix:
-        """Sparse (ndof, n_faces): column f holds int F_f N_i over face f."""
-        rows, cols, vals = [], [], []
+        """Sparse (ndof, n_faces): column f holds int F_f N_i over face f (one load_form per face space)."""
+        rows, cols, vals = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)], [np.zeros(0)]
         for idx in _by_space(fds).values():
             space = fds[idx[0]].space
             L = load_form(space, np.stack([Fs[i] for i in idx]).reshape((len(idx),) + space.qshape))
