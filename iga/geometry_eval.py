@@ -100,10 +100,12 @@ def _outer_map(patches, xT, DT):
     """Placements and deformation map applied to shared tile values (N, m) and derivatives [(N, m)] * 3.
 
     ``patches`` share the tile spline that produced ``xT``.  Returns x (P, N, 3),
-    the physical derivatives [(P, N, 3)] * 3 (chain rule) and the map's channels
-    {name: (P, N)}; one evaluation of each deformation map serves all its patches.
+    the physical derivatives [(P, N, 3)] * 3 (chain rule) and all channels
+    {name: (P, N)}: the tile's (broadcast) and the map's; one evaluation of each
+    deformation map serves all its patches.
     """
     P, N = len(patches), len(xT)
+    chans = {c: np.broadcast_to(xT[:, 3 + i], (P, N)) for i, c in enumerate(patches[0].spline.channels)}
     if all(p.placement is None for p in patches):
         y = np.broadcast_to(xT[:, :3], (P, N, 3))
         Dy = [np.broadcast_to(dk[:, :3], (P, N, 3)) for dk in DT]
@@ -117,10 +119,10 @@ def _outer_map(patches, xT, DT):
     for i, p in enumerate(patches):
         groups.setdefault(id(p.outer), []).append(i)
     if len(groups) == 1 and patches[0].outer is None:
-        return y, Dy, {}
+        return y, Dy, chans
     x = np.empty_like(y)
     Dx = [np.empty_like(d) for d in Dy]
-    chans: dict = {}
+    mapped: dict = {}  # the map's channels (they take precedence over equally named tile channels)
     for members in groups.values():
         D = patches[members[0]].outer
         if D is None:
@@ -133,7 +135,8 @@ def _outer_map(patches, xT, DT):
         for k in range(len(Dy)):
             Dx[k][members] = np.matmul(JD, Dy[k][members].reshape(-1, 3, 1)).reshape(len(members), N, 3)
         for i, c in enumerate(D.channels):
-            chans.setdefault(c, np.empty((P, N)))[members] = vals[:, 3 + i].reshape(len(members), N)
+            mapped.setdefault(c, np.empty((P, N)))[members] = vals[:, 3 + i].reshape(len(members), N)
+    chans.update(mapped)
     return x, Dx, chans
 
 
@@ -143,12 +146,7 @@ def patches_geometry_derivs(patches, axes):
     Returns x (P, N, 3), [dx/dxi_k (P, N, 3)] * 3 and channels {name: (P, N)}
     (tile channels broadcast, map channels per patch); the tile is evaluated once.
     """
-    xT, DT = grid_values_derivs(patches[0].spline, axes)
-    P = len(patches)
-    chans = {c: np.broadcast_to(xT[:, 3 + i], (P, len(xT))) for i, c in enumerate(patches[0].spline.channels)}
-    x, Dx, outer_chans = _outer_map(patches, xT, DT)
-    chans.update(outer_chans)
-    return x, Dx, chans
+    return _outer_map(patches, *grid_values_derivs(patches[0].spline, axes))
 
 
 def patches_geometry_derivs_slabs(patches, axes, points_per_slab: int = 1 << 15):
@@ -157,12 +155,8 @@ def patches_geometry_derivs_slabs(patches, axes, points_per_slab: int = 1 << 15)
     Yields (slice of flat grid points, x (P, n, 3), [dx/dxi_k (P, n, 3)] * 3, channels {name: (P, n)}).
     """
     rest = int(np.prod([len(a) for a in axes[1:]]))
-    P = len(patches)
-    for sl, xT, DT in grid_values_derivs_slabs(patches[0].spline, axes, max(1, points_per_slab // P)):
-        chans = {c: np.broadcast_to(xT[:, 3 + i], (P, len(xT))) for i, c in enumerate(patches[0].spline.channels)}
-        x, Dx, outer_chans = _outer_map(patches, xT, DT)
-        chans.update(outer_chans)
-        yield slice(sl.start * rest, sl.stop * rest), x, Dx, chans
+    for sl, xT, DT in grid_values_derivs_slabs(patches[0].spline, axes, max(1, points_per_slab // len(patches))):
+        yield (slice(sl.start * rest, sl.stop * rest), *_outer_map(patches, xT, DT))
 
 
 def patch_geometry_derivs(patch: Patch, axes):
@@ -182,10 +176,8 @@ def patch_geometry_points(patch: Patch, params):
     params = np.asarray(params, float)
     vals = patch.spline.evaluate(params)
     JT = patch.spline.jacobian(params)
-    chans = {c: vals[:, 3 + i] for i, c in enumerate(patch.spline.channels)}
-    x, Dx, outer_chans = _outer_map([patch], vals, [JT[:, :, k] for k in range(3)])
-    chans.update({c: v[0] for c, v in outer_chans.items()})
-    return x[0], np.stack([d[0] for d in Dx], axis=-1), chans
+    x, Dx, chans = _outer_map([patch], vals, [JT[:, :, k] for k in range(3)])
+    return x[0], np.stack([d[0] for d in Dx], axis=-1), {c: v[0] for c, v in chans.items()}
 
 
 def checked_det(det, what: str) -> np.ndarray:
