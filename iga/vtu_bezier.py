@@ -1,7 +1,7 @@
 """Exact VTU export: one rational Bezier hexahedron (VTK cell type 79) per element.
 
 The geometry of every patch is its exact image ``D(A T + b)`` (the composed
-spline, :func:`geometry.compose`), cut into Bezier elements on the union of
+spline, :func:`geometry.compose_many`), cut into Bezier elements on the union of
 its breakpoints and those of the temperature space; the temperature is
 expressed in the same basis so ParaView interpolates it exactly:
 
@@ -24,17 +24,28 @@ from pathlib import Path
 
 import numpy as np
 
-from geometry import bernstein as bz, compose
+from geometry import bernstein as bz, compose_many
 
 from . import ProblemError
 
 
-def _exact_geometry(patch):
-    """The patch's exact geometry as one BSpline (composed with its placement and map)."""
-    s = patch.spline
-    if patch.placement is not None:
-        s = s.affine(patch.placement[:, :3], patch.placement[:, 3])
-    return s if patch.outer is None else compose(patch.outer, s)
+def _exact_geometries(model) -> list:
+    """Every patch's exact geometry as one BSpline: ``D(A T + b)``, composed in batches per tile patch."""
+    out = [None] * len(model.patches)
+    groups: dict = {}
+    for i, patch in enumerate(model.patches):
+        if patch.outer is None:
+            s = patch.spline
+            out[i] = s if patch.placement is None else s.affine(patch.placement[:, :3], patch.placement[:, 3])
+        else:
+            groups.setdefault((id(patch.spline), id(patch.outer)), []).append(i)
+    for members in groups.values():
+        first = model.patches[members[0]]
+        placements = np.stack([model.patches[i].placement if model.patches[i].placement is not None
+                               else np.hstack([np.eye(3), np.zeros((3, 1))]) for i in members])
+        for i, g in zip(members, compose_many(first.outer, first.spline, placements)):
+            out[i] = g
+    return out
 
 
 def _aligned(spline, breaks):
@@ -63,8 +74,7 @@ def _vtk_order(degrees) -> np.ndarray:
 def bezier_cells(solution, model):
     """Per-patch Bezier cells: list of dicts with points, weights, degrees, point fields and ids."""
     out = []
-    for pi, patch in enumerate(model.patches):
-        G = _exact_geometry(patch)
+    for pi, (patch, G) in enumerate(zip(model.patches, _exact_geometries(model))):
         T = solution.temperature_spline(pi) if solution is not None else None
         breaks = [np.union1d(G.breakpoints(k), T.breakpoints(k) if T is not None else []) for k in range(3)]
         G = _aligned(G, breaks)
