@@ -279,7 +279,10 @@ def pattern(space: TensorSpace) -> CSRPattern:
     nnz_max = space.ndof * int(np.prod([2 * p + 1 for p in degrees]))
     if nnz_max > _CACHE_NNZ:
         return _pattern.__wrapped__(space.shape, degrees)
-    return _pattern(space.shape, degrees)
+    pat = _pattern(space.shape, degrees)
+    for a in (pat.indptr, pat.indices):  # shared by every matrix built on it: nobody may write
+        a.setflags(write=False)
+    return pat
 
 
 def banded_to_csr_data(space: TensorSpace, banded: np.ndarray, pat: CSRPattern | None = None) -> np.ndarray:

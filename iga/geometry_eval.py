@@ -74,22 +74,37 @@ def grid_values_derivs(spline, axes):
     return _dehomogenise(spline, H, dH)
 
 
-def grid_values_derivs_slabs(spline, axes, points_per_slab: int = 1 << 15):
+def grid_values_derivs_slabs(spline, axes, points_per_slab: int = 1 << 15, rows_multiple: int = 1,
+                             compiled: bool = False):
     """:func:`grid_values_derivs` in slabs of the first axis: yields (rows slice of axis 0, x, [dx]).
 
     Directions 1..d-1 are contracted once; the last contraction (direction 0)
     runs per slab, so the full-grid values and derivatives never exist at once.
+    A slab has about ``points_per_slab`` points and a multiple of
+    ``rows_multiple`` rows (the Gauss points of whole elements).
+    ``compiled`` (3-D only, numba): each slab is evaluated from the
+    coefficients by the kernel of :mod:`iga.fast_assembly` instead, with no
+    full-grid partial contractions at all.
     """
     d = spline.dim
     hom = spline.homogeneous
     m = hom.shape[-1]
+    rest = int(np.prod([len(a) for a in axes[1:]]))
+    rows = rows_multiple * max(1, points_per_slab // max(rest * rows_multiple, 1))
+    n0 = len(axes[0])
+    if compiled and d == 3:
+        from . import fast_assembly
+
+        tables = fast_assembly.grid_tables(spline, axes)
+        for a in range(0, n0, rows):
+            sl = slice(a, min(a + rows, n0))
+            out = fast_assembly.grid_derivs(hom, sl, tables)
+            yield (sl, *_dehomogenise(spline, out[0], list(out[1:])))
+        return
     order = list(range(d - 1, -1, -1))  # direction 0 last: slabs of it are contiguous in C order
     B, keys = _prepare(spline, axes, order)
     level = _contract_prefixes(hom, B, order, keys, d - 1)
     level = {k: np.ascontiguousarray(v) for k, v in level.items()}  # each slab reads them as (n_0, rest)
-    rest = int(np.prod([len(a) for a in axes[1:]]))
-    rows = max(1, points_per_slab // max(rest, 1))
-    n0 = len(axes[0])
     for a in range(0, n0, rows):
         sl = slice(a, min(a + rows, n0))
         out = [_apply_along(level[key[:-1]], 0, B[0][key[-1]][sl]).reshape(-1, m) for key in keys]
@@ -149,14 +164,18 @@ def patches_geometry_derivs(patches, axes):
     return _outer_map(patches, *grid_values_derivs(patches[0].spline, axes))
 
 
-def patches_geometry_derivs_slabs(patches, axes, points_per_slab: int = 1 << 15):
+def patches_geometry_derivs_slabs(patches, axes, points_per_slab: int = 1 << 15, rows_multiple: int = 1,
+                                  compiled: bool = False):
     """:func:`patches_geometry_derivs` in slabs of the first parameter axis.
 
-    Yields (slice of flat grid points, x (P, n, 3), [dx/dxi_k (P, n, 3)] * 3, channels {name: (P, n)}).
+    Yields (rows: slice of axis 0, x (P, n, 3), [dx/dxi_k (P, n, 3)] * 3,
+    channels {name: (P, n)}); the slab's points are the flat grid points
+    ``rows.start * rest : rows.stop * rest`` (rest = points per row).
+    ``rows_multiple``, ``compiled``: see :func:`grid_values_derivs_slabs`.
     """
-    rest = int(np.prod([len(a) for a in axes[1:]]))
-    for sl, xT, DT in grid_values_derivs_slabs(patches[0].spline, axes, max(1, points_per_slab // len(patches))):
-        yield (slice(sl.start * rest, sl.stop * rest), *_outer_map(patches, xT, DT))
+    per_patch = max(1, points_per_slab // len(patches))
+    for rows, xT, DT in grid_values_derivs_slabs(patches[0].spline, axes, per_patch, rows_multiple, compiled):
+        yield (rows, *_outer_map(patches, xT, DT))
 
 
 def patch_geometry_derivs(patch: Patch, axes):

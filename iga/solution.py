@@ -21,13 +21,12 @@ class Solution:
         residual), timings (s) and the energy balance
     """
 
-    def __init__(self, problem, u, K, f, book, dirichlet_dofs, dirichlet_integrals, solver_info, P=None):
+    def __init__(self, problem, u, book, dirichlet_dofs, reaction, dirichlet_integrals, solver_info):
         self.problem = problem
         self.u = u
         self._book = book
-        # consistent boundary fluxes: the residual on the prescribed (reduced) unknowns
-        r = K @ u - f
-        self._reaction = (r if P is None else P.T @ r)[dirichlet_dofs]
+        # consistent boundary fluxes: the residual K u - f on the prescribed (reduced) unknowns
+        self._reaction = np.asarray(reaction, float)
         self._dirichlet_dofs = dirichlet_dofs
         self._dirichlet_integrals = dirichlet_integrals
         self._splines = {}

@@ -1,0 +1,306 @@
+"""Compiled kernels of :mod:`iga.fast_assembly` (imported only when numba is installed and first needed).
+
+Notation (3-D, one patch): ``C[c, q1, q2, q3]`` are the six symmetric
+coefficient fields (weights, |J| and conductivity included) in the pair order
+(0,0), (1,1), (2,2), (0,1), (0,2), (1,2).  Direction k has ``n_k`` basis
+functions of degree ``p_k``, band width ``D_k = 2 p_k + 1`` and the window
+tables of :class:`iga.space.Space1D`: ``W[v, i, d, l]`` for the derivative
+variants v = (0,0), (0,1), (1,0), (1,1) (v = 2 a + b), the window start
+``s[i]`` (first quadrature index of i's window) and the non-zero range
+``r[i, d] = [lo, hi)`` of the window points.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+
+@njit(cache=True, parallel=True)
+def csr_structure3(lo1, c1, lo2, c2, lo3, c3, p1, p2, p3, indptr, indices):
+    """Row pointers and column indices of the banded 3-D pattern (rows C order; columns sorted).
+
+    Row (i1, i2, i3) holds the valid offsets d_k in [lo_k[i_k], lo_k[i_k] + c_k[i_k]),
+    in the order d1, then d2, then d3; column j_k = i_k + d_k - p_k.
+    """
+    n1, n2, n3 = lo1.shape[0], lo2.shape[0], lo3.shape[0]
+    indptr[0] = 0
+    for i1 in range(n1):  # row counts, then a running sum (cheap next to the fill)
+        for i2 in range(n2):
+            for i3 in range(n3):
+                row = (i1 * n2 + i2) * n3 + i3
+                indptr[row + 1] = c1[i1] * c2[i2] * c3[i3]
+    for row in range(n1 * n2 * n3):
+        indptr[row + 1] += indptr[row]
+    for i1 in prange(n1):
+        for i2 in range(n2):
+            for i3 in range(n3):
+                pos = indptr[(i1 * n2 + i2) * n3 + i3]
+                for d1 in range(lo1[i1], lo1[i1] + c1[i1]):
+                    j1 = i1 + d1 - p1
+                    for d2 in range(lo2[i2], lo2[i2] + c2[i2]):
+                        j12 = (j1 * n2 + i2 + d2 - p2) * n3
+                        for d3 in range(lo3[i3], lo3[i3] + c3[i3]):
+                            indices[pos] = j12 + i3 + d3 - p3
+                            pos += 1
+
+
+@njit(cache=True, parallel=True, fastmath=True)
+def stiffness3(C, e0, b1, first1, W2, r2, s2, W3, r3, s3, indptr, lo1, c1, lo2, c2, lo3, c3, data):
+    """Add sum_rs int C_rs d_r N_i d_s N_j over a slab of direction-1 elements to CSR data (P, nnz).
+
+    C (6, P, m g1, nq2, nq3): the Gauss planes of the m elements e0 .. e0 + m - 1
+    of direction 1, for P patches sharing one space; b1 (2, E1, p1 + 1, g1)
+    local values and derivatives of direction 1 per element, ``first1[e]``
+    the index of the first basis function on element e.
+
+    Sum factorisation by slabs of direction-1 elements: for the g1 Gauss
+    planes of element e1, contract direction 3 (Z, seven coefficient/variant
+    combinations), then direction 2 (Y, four groups by the direction-1
+    variant), then direction 1 into the CSR rows of the p1 + 1 basis
+    functions of e1.  Slabs run in order (rows of neighbouring slabs overlap);
+    inside a slab the work is split over planes and rows.
+    """
+    P = C.shape[1]
+    nq2 = C.shape[3]
+    g1 = b1.shape[3]
+    m = C.shape[2] // g1
+    p1 = b1.shape[2] - 1
+    n2, D2, L2 = W2.shape[1], W2.shape[2], W2.shape[3]
+    n3, D3, L3 = W3.shape[1], W3.shape[2], W3.shape[3]
+    p2, p3 = (D2 - 1) // 2, (D3 - 1) // 2
+    Z = np.empty((g1, 7, nq2, n3, D3))
+    Y = np.empty((g1, 4, n2, D2, n3, D3))
+    for pi in range(P):
+        for e1 in range(e0, e0 + m):
+            # stage 3: Z[t, m, q2, i3, d3] = sum_q3 W3[v_m](i3, d3, q3) C[f_m](q1, q2, q3)
+            for item in prange(g1 * nq2):
+                t = item // nq2
+                q2 = item - t * nq2
+                q1 = (e1 - e0) * g1 + t
+                for i3 in range(n3):
+                    base = s3[i3]
+                    for d3 in range(D3):
+                        z0 = z1 = z2 = z3 = z4 = z5 = z6 = 0.0
+                        for l in range(r3[i3, d3, 0], r3[i3, d3, 1]):
+                            q3 = base + l
+                            w00 = W3[0, i3, d3, l]
+                            w01 = W3[1, i3, d3, l]
+                            w10 = W3[2, i3, d3, l]
+                            c12 = C[5, pi, q1, q2, q3]
+                            z0 += w00 * C[0, pi, q1, q2, q3]  # C00 (0,0)
+                            z1 += w00 * C[3, pi, q1, q2, q3]  # C01 (0,0)
+                            z2 += w01 * C[4, pi, q1, q2, q3]  # C02 (0,1)
+                            z3 += w00 * C[1, pi, q1, q2, q3]  # C11 (0,0)
+                            z4 += W3[3, i3, d3, l] * C[2, pi, q1, q2, q3]  # C22 (1,1)
+                            z5 += w01 * c12  # C12 (0,1)
+                            z6 += w10 * c12  # C12 (1,0)
+                        Z[t, 0, q2, i3, d3] = z0
+                        Z[t, 1, q2, i3, d3] = z1
+                        Z[t, 2, q2, i3, d3] = z2
+                        Z[t, 3, q2, i3, d3] = z3
+                        Z[t, 4, q2, i3, d3] = z4
+                        Z[t, 5, q2, i3, d3] = z5
+                        Z[t, 6, q2, i3, d3] = z6
+            # stage 2: groups by the direction-1 variant (a1, b1):
+            # Y0 (1,1) = C00; Y1 (1,0) = C01 d_v N_j + C02 d_w N_j; Y3 (0,0) = the four C_rs, r, s in {1, 2}
+            for item in prange(g1 * n2):
+                t = item // n2
+                i2 = item - t * n2
+                for d2 in range(D2):
+                    for i3 in range(n3):
+                        for d3 in range(D3):
+                            Y[t, 0, i2, d2, i3, d3] = 0.0
+                            Y[t, 1, i2, d2, i3, d3] = 0.0
+                            Y[t, 3, i2, d2, i3, d3] = 0.0
+                    for l in range(r2[i2, d2, 0], r2[i2, d2, 1]):
+                        q2 = s2[i2] + l
+                        w00 = W2[0, i2, d2, l]
+                        w01 = W2[1, i2, d2, l]
+                        w10 = W2[2, i2, d2, l]
+                        w11 = W2[3, i2, d2, l]
+                        for i3 in range(n3):
+                            for d3 in range(D3):
+                                Y[t, 0, i2, d2, i3, d3] += w00 * Z[t, 0, q2, i3, d3]
+                                Y[t, 1, i2, d2, i3, d3] += w01 * Z[t, 1, q2, i3, d3] + w00 * Z[t, 2, q2, i3, d3]
+                                Y[t, 3, i2, d2, i3, d3] += (w11 * Z[t, 3, q2, i3, d3] + w00 * Z[t, 4, q2, i3, d3]
+                                                            + w10 * Z[t, 5, q2, i3, d3] + w01 * Z[t, 6, q2, i3, d3])
+            # group (0,1) is the mirror of (1,0): entry (i, j) of one is entry (j, i) of the other
+            for item in prange(g1 * n2):
+                t = item // n2
+                i2 = item - t * n2
+                for d2 in range(D2):
+                    j2 = i2 + d2 - p2
+                    for i3 in range(n3):
+                        for d3 in range(D3):
+                            j3 = i3 + d3 - p3
+                            if 0 <= j2 < n2 and 0 <= j3 < n3:
+                                Y[t, 2, i2, d2, i3, d3] = Y[t, 1, j2, 2 * p2 - d2, j3, 2 * p3 - d3]
+                            else:
+                                Y[t, 2, i2, d2, i3, d3] = 0.0
+            # stage 1: rows i1 = first1[e1] + l1, columns j1 = first1[e1] + m1
+            f0 = first1[e1]
+            K2 = D2 * n3 * D3
+            for i2 in prange(n2):
+                s = np.empty((4, g1))
+                V = np.empty(K2)
+                for l1 in range(p1 + 1):
+                    i1 = f0 + l1
+                    for m1 in range(p1 + 1):
+                        d1 = m1 - l1 + p1
+                        for t in range(g1):
+                            s[0, t] = b1[1, e1, l1, t] * b1[1, e1, m1, t]
+                            s[1, t] = b1[1, e1, l1, t] * b1[0, e1, m1, t]
+                            s[2, t] = b1[0, e1, l1, t] * b1[1, e1, m1, t]
+                            s[3, t] = b1[0, e1, l1, t] * b1[0, e1, m1, t]
+                        # the whole (d2, i3, d3) block of row group (i1, i2) in one vectorisable sweep
+                        for k in range(K2):
+                            V[k] = 0.0
+                        for t in range(g1):
+                            for G in range(4):
+                                c = s[G, t]
+                                Yv = Y[t, G, i2].ravel()
+                                for k in range(K2):
+                                    V[k] += c * Yv[k]
+                        for d2 in range(lo2[i2], lo2[i2] + c2[i2]):
+                            for i3 in range(n3):
+                                row = (i1 * n2 + i2) * n3 + i3
+                                base = (indptr[row] + ((d1 - lo1[i1]) * c2[i2] + d2 - lo2[i2]) * c3[i3]
+                                        - lo3[i3])
+                                vb = (d2 * n3 + i3) * D3
+                                for d3 in range(lo3[i3], lo3[i3] + c3[i3]):
+                                    data[pi, base + d3] += V[vb + d3]
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def metric_fields(Du, Dv, Dw, kval, fval, w, C, L, det):
+    """Stiffness coefficients, source load and det J at M points.
+
+    Du, Dv, Dw (M, 3): dx/du, dx/dv, dx/dw; kval, fval, w (M,): conductivity,
+    source and quadrature weight.  With c_1 = x_v x x_w, c_2 = x_w x x_u,
+    c_3 = x_u x x_v (the rows of det J * J^-1): C (6, M) gets
+    k w (c_r . c_s) / |det J| in the pair order (0,0), (1,1), (2,2), (0,1),
+    (0,2), (1,2); L (M,) gets f |det J| w and det (M,) gets det J (a zero
+    determinant gives non-finite C, which the caller reports via ``det``).
+    """
+    for k in prange(Du.shape[0]):
+        u0, u1, u2 = Du[k, 0], Du[k, 1], Du[k, 2]
+        v0, v1, v2 = Dv[k, 0], Dv[k, 1], Dv[k, 2]
+        w0, w1, w2 = Dw[k, 0], Dw[k, 1], Dw[k, 2]
+        a0, a1, a2 = v1 * w2 - v2 * w1, v2 * w0 - v0 * w2, v0 * w1 - v1 * w0
+        b0, b1, b2 = w1 * u2 - w2 * u1, w2 * u0 - w0 * u2, w0 * u1 - w1 * u0
+        e0, e1, e2 = u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0
+        dt = u0 * a0 + u1 * a1 + u2 * a2
+        det[k] = dt
+        adet = abs(dt)
+        L[k] = fval[k] * adet * w[k]
+        fac = kval[k] * w[k] / adet
+        C[0, k] = fac * (a0 * a0 + a1 * a1 + a2 * a2)
+        C[1, k] = fac * (b0 * b0 + b1 * b1 + b2 * b2)
+        C[2, k] = fac * (e0 * e0 + e1 * e1 + e2 * e2)
+        C[3, k] = fac * (a0 * b0 + a1 * b1 + a2 * b2)
+        C[4, k] = fac * (a0 * e0 + a1 * e1 + a2 * e2)
+        C[5, k] = fac * (b0 * e0 + b1 * e1 + b2 * e2)
+
+
+@njit(cache=True)
+def compact_rows_cols(indptr, indices, data, new_index):
+    """Keep the rows and columns i with ``new_index[i] >= 0`` of a CSR matrix, in place.
+
+    Columns are renumbered to ``new_index`` (increasing on the kept ones, so
+    sorted rows stay sorted).  Kept entries only move towards the front, so
+    one forward pass overwrites ``indptr``, ``indices`` and ``data``; returns
+    (rows, nnz) of the result, which occupies their leading parts.
+    """
+    n = indptr.shape[0] - 1
+    pos = 0
+    r = 0
+    start = indptr[0]
+    for row in range(n):
+        end = indptr[row + 1]  # read before row r <= row is written
+        if new_index[row] >= 0:
+            indptr[r] = pos
+            for k in range(start, end):
+                c = new_index[indices[k]]
+                if c >= 0:
+                    indices[pos] = c
+                    data[pos] = data[k]
+                    pos += 1
+            r += 1
+        start = end
+    indptr[r] = pos
+    return r, pos
+
+
+@njit(cache=True, parallel=True)
+def grid_derivs3(hom, a, b, f0, B0, f1, B1, f2, B2, out):
+    """Values and first derivatives of a 3-D tensor spline on the rows a..b-1 of a grid.
+
+    hom (n0, n1, n2, m): coefficients (homogeneous for NURBS); per direction k,
+    ``f_k[q]`` the first non-zero basis function at grid coordinate q and
+    ``B_k[v, q, l]`` its ``l``-th non-zero function (v = 0) or derivative
+    (v = 1).  out (4, b - a, nq1, nq2, m) receives the value and the
+    derivatives along directions 0, 1 and 2.  Sum factorisation: direction 2,
+    then 1 (on the coefficient rows the slab touches), then 0.
+    """
+    m = hom.shape[3]
+    n1 = hom.shape[1]
+    p0, p1, p2 = B0.shape[2] - 1, B1.shape[2] - 1, B2.shape[2] - 1
+    nq1, nq2 = B1.shape[1], B2.shape[1]
+    lo = f0[a]
+    hi = f0[b - 1] + p0 + 1
+    R = hi - lo
+    T = np.empty((2, R, n1, nq2, m))  # direction 2 contracted (value, derivative)
+    for item in prange(R * n1):
+        r = item // n1
+        i1 = item - r * n1
+        for q2 in range(nq2):
+            s = f2[q2]
+            for c in range(m):
+                t0 = 0.0
+                t1 = 0.0
+                for l in range(p2 + 1):
+                    h = hom[lo + r, i1, s + l, c]
+                    t0 += B2[0, q2, l] * h
+                    t1 += B2[1, q2, l] * h
+                T[0, r, i1, q2, c] = t0
+                T[1, r, i1, q2, c] = t1
+    U = np.empty((3, R, nq1, nq2, m))  # then direction 1: (value, value), (derivative, value), (value, derivative)
+    for item in prange(R * nq1):
+        r = item // nq1
+        q1 = item - r * nq1
+        s = f1[q1]
+        for q2 in range(nq2):
+            for c in range(m):
+                u0 = 0.0
+                u1 = 0.0
+                u2 = 0.0
+                for l in range(p1 + 1):
+                    v = B1[0, q1, l]
+                    u0 += v * T[0, r, s + l, q2, c]
+                    u1 += B1[1, q1, l] * T[0, r, s + l, q2, c]
+                    u2 += v * T[1, r, s + l, q2, c]
+                U[0, r, q1, q2, c] = u0
+                U[1, r, q1, q2, c] = u1
+                U[2, r, q1, q2, c] = u2
+    for item in prange((b - a) * nq1):
+        j = item // nq1
+        q1 = item - j * nq1
+        q0 = a + j
+        s = f0[q0] - lo
+        for q2 in range(nq2):
+            for c in range(m):
+                x = 0.0
+                d0 = 0.0
+                d1 = 0.0
+                d2 = 0.0
+                for l in range(p0 + 1):
+                    v = B0[0, q0, l]
+                    x += v * U[0, s + l, q1, q2, c]
+                    d0 += B0[1, q0, l] * U[0, s + l, q1, q2, c]
+                    d1 += v * U[1, s + l, q1, q2, c]
+                    d2 += v * U[2, s + l, q1, q2, c]
+                out[0, j, q1, q2, c] = x
+                out[1, j, q1, q2, c] = d0
+                out[2, j, q1, q2, c] = d1
+                out[3, j, q1, q2, c] = d2

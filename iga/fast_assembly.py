@@ -1,0 +1,200 @@
+"""Optional compiled stiffness assembly for 3-D patches (numba, the ``fast`` extra).
+
+The NumPy/SciPy path of :mod:`iga.assembly` contracts one quadrature axis
+at a time over whole arrays: every stage writes and re-reads arrays of
+hundreds of MB, then the banded result is gathered into CSR order and added
+to its transpose.  This kernel does the same sum factorisation slab by slab
+(the Gauss planes of one element in the first direction), keeps the partial
+contractions in a few MB of scratch, and adds each slab straight into the
+CSR data: no banded array, no gather index, no transpose pass, and about a
+third of the memory.  It computes the same sums in a different order, so
+results agree with the NumPy path to rounding (tested).
+
+It is used for 3-D spaces when numba imports and a group of patches has at
+least :data:`MIN_POINTS` quadrature points (below that, the import and
+thread start-up are not worth it, and small analyses such as the heat-sink
+demo never load numba).  Without numba, nothing changes.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+from functools import lru_cache
+
+import numpy as np
+
+from .assembly import _CACHE_NNZ, CSRPattern, _band_limits
+from .space import Space1D, TensorSpace
+
+#: quadrature points (over all patches of a group) from which the compiled kernel is used
+MIN_POINTS = 200_000
+
+# imported on first use, as geometry._fast: numba costs about 60 MiB and 0.4 s to import
+AVAILABLE = importlib.util.find_spec("numba") is not None
+
+_VARIANTS = ((0, 0), (0, 1), (1, 0), (1, 1))
+
+
+def applies(space: TensorSpace, n_patches: int) -> bool:
+    """Whether :func:`stiffness_csr` runs for ``n_patches`` patches on ``space``."""
+    return AVAILABLE and space.dim == 3 and n_patches * space.nq_total >= MIN_POINTS
+
+
+def _kernels():
+    from . import _assembly_kernels
+
+    return _assembly_kernels
+
+
+def _tables(sp1: Space1D) -> dict:
+    """Band and element tables of one direction in the kernel's layout (cached on the space)."""
+    cache = sp1.__dict__.get("_fast_tables")
+    if cache is None:
+        p, g, n = sp1.degree, sp1.g, sp1.n
+        W = np.ascontiguousarray(np.stack([sp1.W(a, b) for a, b in _VARIANTS]))  # (4, n, D, L)
+        nz = (W != 0).any(axis=0)  # (n, D, L): window points where some variant is non-zero
+        has = nz.any(axis=-1)
+        lo = np.where(has, nz.argmax(axis=-1), 0)
+        hi = np.where(has, sp1.L - nz[..., ::-1].argmax(axis=-1), 0)
+        blo, bhi = _band_limits(n, p)
+        # first basis function on each element: knot span of the element's left end, minus p
+        first = np.searchsorted(sp1.knots, sp1.breaks[:-1], side="right") - 1 - p
+        loc = first[:, None] + np.arange(p + 1)[None, :]  # (E, p+1)
+        cols = np.arange(sp1.E)[:, None] * g + np.arange(g)[None, :]  # (E, g)
+        b = sp1.B[:, loc[:, :, None], cols[:, None, :]]  # (2, E, p+1, g)
+        cache = {
+            "W": W, "r": np.ascontiguousarray(np.stack([lo, hi], axis=-1).astype(np.int64)),
+            "s": (sp1.start * g).astype(np.int64), "lo": blo.astype(np.int64),
+            "c": (bhi - blo + 1).astype(np.int64), "b": np.ascontiguousarray(b), "first": first.astype(np.int64),
+        }
+        sp1.__dict__["_fast_tables"] = cache
+    return cache
+
+
+def _structure(shape: tuple, degrees: tuple) -> CSRPattern:
+    n = int(np.prod(shape))
+    lims = [_band_limits(m, p) for m, p in zip(shape, degrees)]
+    los = [lo.astype(np.int64) for lo, _ in lims]
+    cs = [(hi - lo + 1).astype(np.int64) for lo, hi in lims]
+    counts = np.multiply.outer(np.multiply.outer(cs[0], cs[1]), cs[2])
+    nnz = int(counts.sum())
+    indptr = np.empty(n + 1, np.int64)
+    indices = np.empty(nnz, np.int32 if n < 2**31 else np.int64)
+    _kernels().csr_structure3(los[0], cs[0], los[1], cs[1], los[2], cs[2], *degrees, indptr, indices)
+    return CSRPattern(indptr, indices, None, None, n)
+
+
+_cached_structure = lru_cache(maxsize=8)(_structure)
+
+
+def structure(space: TensorSpace) -> CSRPattern:
+    """CSR row pointers and columns of ``space``'s banded operators (same order as :func:`iga.assembly.pattern`).
+
+    Only ``indptr``, ``indices`` and ``n`` are set: the kernel needs no gather
+    or transpose index.  Small structures are cached and read-only; large ones
+    (more than :data:`iga.assembly._CACHE_NNZ` entries) are built per call and
+    belong to the caller (a matrix built on them may be modified in place).
+    """
+    key = (space.shape, tuple(s.degree for s in space.dirs))
+    if space.ndof * int(np.prod([2 * p + 1 for p in key[1]])) > _CACHE_NNZ:
+        return _structure(*key)
+    pat = _cached_structure(*key)
+    for a in (pat.indptr, pat.indices):
+        a.setflags(write=False)
+    return pat
+
+
+def compact_rows_cols(K, keep: np.ndarray):
+    """``K[keep][:, keep]`` for a CSR matrix that owns writeable arrays, computed in K's own memory.
+
+    Returns the reduced CSR matrix, whose arrays are leading views of K's;
+    K is destroyed.  ``keep``: sorted indices of the rows/columns to keep.
+    Returns None when K's arrays are read-only or shared (use a copying
+    method then).
+    """
+    if not all(a.flags.writeable and a.flags.c_contiguous for a in (K.indptr, K.indices, K.data)):
+        return None
+    n = K.shape[0]
+    new = np.full(n, -1, K.indices.dtype)
+    new[keep] = np.arange(len(keep), dtype=K.indices.dtype)
+    rows, nnz = _kernels().compact_rows_cols(K.indptr, K.indices, K.data, new)
+    import scipy.sparse as sp
+
+    return sp.csr_matrix((K.data[:nnz], K.indices[:nnz], K.indptr[: rows + 1]), shape=(rows, rows))
+
+
+class StiffnessAccumulator:
+    """CSR stiffness of P patches sharing ``space``, added slab by slab of direction-1 elements.
+
+    ``add(planes, C)`` takes the coefficient fields (6, P, n) on the Gauss
+    planes ``planes`` (a slice of whole elements along the first quadrature
+    axis, as :meth:`iga.HeatProblem._stiffness_slabs` yields them); after all
+    slabs, ``pattern`` and ``data`` (P, nnz) hold the matrix.
+    """
+
+    def __init__(self, space: TensorSpace, n_patches: int):
+        self.space = space
+        self.tables = [_tables(s) for s in space.dirs]
+        self.pattern = structure(space)
+        self.data = np.zeros((n_patches, len(self.pattern.indices)))
+
+    def add(self, planes: slice, C: np.ndarray) -> None:
+        g = self.space.dirs[0].g
+        if planes.start % g or (planes.stop - planes.start) % g:
+            raise ValueError(f"slab {planes} does not cover whole elements ({g} Gauss planes each)")
+        t1, t2, t3 = self.tables
+        shape = (6, self.data.shape[0], planes.stop - planes.start) + self.space.qshape[1:]
+        C = np.ascontiguousarray(C, dtype=float).reshape(shape)
+        _kernels().stiffness3(C, planes.start // g, t1["b"], t1["first"], t2["W"], t2["r"], t2["s"],
+                              t3["W"], t3["r"], t3["s"], self.pattern.indptr, t1["lo"], t1["c"],
+                              t2["lo"], t2["c"], t3["lo"], t3["c"], self.data)
+
+
+def stiffness_csr(space: TensorSpace, C: np.ndarray) -> tuple[CSRPattern, np.ndarray]:
+    """CSR pattern and data (P, nnz) of sum_rs int C_rs d_r N_i d_s N_j (one call, whole grid).
+
+    ``C`` (6, P) + qshape: the symmetric coefficient fields in the pair order
+    (0,0), (1,1), (2,2), (0,1), (0,2), (1,2), quadrature weights and |J|
+    included (as built by :class:`iga.HeatProblem`).
+    """
+    acc = StiffnessAccumulator(space, C.shape[1])
+    acc.add(slice(0, space.dirs[0].nq), C)
+    return acc.pattern, acc.data
+
+
+def metric_fields(D, kval, fval, w):
+    """Compiled stiffness coefficients C (6, M), source load L (M,) and det J (M,).
+
+    D: [dx/du, dx/dv, dx/dw], each (P, n, 3) with M = P n; kval, fval, w (M,)
+    conductivity, source and quadrature weights.  Formulas in
+    :func:`iga._assembly_kernels.metric_fields`.
+    """
+    Du, Dv, Dw = (np.reshape(d, (-1, 3)) for d in D)
+    M = len(Du)
+    C, L, det = np.empty((6, M)), np.empty(M), np.empty(M)
+    _kernels().metric_fields(Du, Dv, Dw, np.broadcast_to(np.asarray(kval, float), (M,)),
+                             np.broadcast_to(np.asarray(fval, float), (M,)), np.asarray(w, float), C, L, det)
+    return C, L, det
+
+
+def grid_tables(spline, axes) -> list:
+    """Per direction: first non-zero basis index (nq,) and values/derivatives (2, nq, p + 1) at ``axes``."""
+    from geometry import knots as kn
+
+    out = []
+    for U, p, ax in zip(spline.knots, spline.degrees, axes):
+        spans, ders = kn.basis_functions(U, p, np.clip(ax, U[0], U[-1]), 1)
+        out.append(((spans - p).astype(np.int64), np.ascontiguousarray(np.moveaxis(ders, 1, 0))))
+    return out
+
+
+def grid_derivs(hom: np.ndarray, rows: slice, tables) -> np.ndarray:
+    """Value and derivatives (4, n, m) of a 3-D spline with coefficients ``hom`` on grid rows ``rows``.
+
+    ``tables`` from :func:`grid_tables`; n = rows x nq1 x nq2 points in C order.
+    """
+    (f0, B0), (f1, B1), (f2, B2) = tables
+    m = hom.shape[-1]
+    out = np.empty((4, rows.stop - rows.start, len(f1), len(f2), m))
+    _kernels().grid_derivs3(np.ascontiguousarray(hom, dtype=float), rows.start, rows.stop, f0, B0, f1, B1, f2, B2, out)
+    return out.reshape(4, -1, m)
