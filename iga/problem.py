@@ -630,7 +630,7 @@ class HeatProblem:
             A = (Pf.T @ K @ Pf).tocsr()
             rhs = Pf.T @ (f - K @ offset)
         self.timings["constraints"] = time.perf_counter() - t0
-        x, info = solvers.solve(A, rhs, method=solver, tol=tol, maxiter=maxiter)
+        x, info = solvers.solve(A, rhs, method=solver, tol=tol, maxiter=maxiter, overwrite_a=True)  # A is ours
         if P is None:
             u = np.zeros(nred)
             u[dofs] = g
