@@ -1,0 +1,175 @@
+"""The compiled (numba) assembly and elimination agree with the NumPy path; the AMG preconditioner is robust."""
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+import solvers
+from geometry import primitives as pr
+from iga import HeatProblem, ProblemError, fast_assembly
+from iga import problem as problem_module
+from iga.assembly import pattern, stiffness_data
+from iga.geometry_eval import grid_values_derivs_slabs
+from iga.manufactured import quarter_annulus
+from iga.problem import _PAIRS, _eliminate
+from iga.space import make_space
+from solvers.amg import AMGPreconditioner, spectral_radius
+
+from helpers import random_knots, random_spline
+
+pytestmark = pytest.mark.skipif(not fast_assembly.AVAILABLE, reason="the compiled paths need numba (test extra)")
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_compiled_stiffness_equals_numpy_path(seed):
+    rng = np.random.default_rng(seed)
+    degrees = tuple(int(v) for v in rng.integers(1, 4, 3))
+    # random interior knots, some repeated up to C^0
+    knots = [random_knots(rng, p, 4, max_mult=p) for p in degrees]
+    space = make_space(knots, degrees)
+    P = 2
+    C = rng.standard_normal((6, P) + space.qshape)
+    ref_pat = pattern(space)
+    ref = stiffness_data(space, {rs: C[j] for j, rs in enumerate(_PAIRS)}, ref_pat)
+    pat, data = fast_assembly.stiffness_csr(space, C)
+    assert np.array_equal(pat.indptr, ref_pat.indptr) and np.array_equal(pat.indices, ref_pat.indices)
+    assert np.abs(data - ref).max() <= 1e-12 * np.abs(ref).max()
+    # slab by slab (whole elements of direction 1) gives the same matrix
+    acc = fast_assembly.StiffnessAccumulator(space, P)
+    g, planes = space.dirs[0].g, space.dirs[0].nq
+    cuts = sorted({0, planes, *(g * rng.integers(0, planes // g + 1, 2))})
+    Cg = C.reshape(6, P, planes, -1)
+    for a, b in zip(cuts[:-1], cuts[1:]):
+        acc.add(slice(a, b), Cg[:, :, a:b])
+    assert np.abs(acc.data - data).max() <= 1e-12 * np.abs(ref).max()
+    with pytest.raises(ValueError, match="whole elements"):
+        acc.add(slice(1, 1 + g), Cg[:, :, 1 : 1 + g])
+
+
+def test_compiled_grid_geometry_equals_direct_evaluation():
+    rng = np.random.default_rng(3)
+    S = random_spline(rng, 3, degrees=(2, 3, 1), rational=True, channels=("k",))
+    axes = [np.sort(rng.uniform(0, 1, n)) for n in (12, 7, 9)]
+    G = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
+    rest = 7 * 9
+    for compiled in (False, True):
+        for rows, x, dx in grid_values_derivs_slabs(S, axes, 2 * rest, 2, compiled=compiled):
+            assert (rows.stop - rows.start) % 2 == 0 or rows.stop == 12
+            pts = G[rows.start * rest : rows.stop * rest]
+            assert np.abs(x - S.evaluate(pts)).max() < 1e-12
+            assert np.abs(np.stack(dx, -1) - S.jacobian(pts)).max() < 1e-10
+
+
+def _assembled(prob_factory, monkeypatch, compiled):
+    if compiled:
+        monkeypatch.setattr(fast_assembly, "MIN_POINTS", 0)
+    else:
+        monkeypatch.setattr(fast_assembly, "AVAILABLE", False)
+    K, f, _ = prob_factory().assemble()
+    monkeypatch.undo()
+    return K, f
+
+
+@pytest.mark.parametrize("case", ["annulus", "hierarchy"])
+def test_compiled_heat_assembly_equals_numpy_assembly(case, monkeypatch):
+    if case == "annulus":  # exact NURBS, variable conductivity and source
+        def factory():
+            m = quarter_annulus()
+            return (HeatProblem(m.geometry, conductivity=m.conductivity, source=m.source,
+                                refine=1).dirichlet("umin", 0.0))
+    else:  # micro-structure: placements and a rational deformation map, several patches per tile spline
+        import tiling
+        from geometry import BSpline
+        from tiling import library
+
+        box = pr.box(degrees=(2, 2, 2), elements=(2, 1, 1), size=(2, 1, 1))
+        w = np.random.default_rng(1).uniform(0.8, 1.25, box.coefficients.shape[:-1])
+        D = BSpline(box.degrees, box.knots, box.coefficients, w)
+        model = tiling.regular(D, library.cross(0.3), (2, 2, 1))
+
+        def factory():
+            return HeatProblem(model, conductivity=2.0, source=1.0).dirichlet("umin", 0.0)
+    K0, f0 = _assembled(factory, monkeypatch, compiled=False)
+    K1, f1 = _assembled(factory, monkeypatch, compiled=True)
+    assert abs(K1 - K0).max() <= 1e-12 * abs(K0).max()
+    assert np.abs(f1 - f0).max() <= 1e-12 * np.abs(f0).max()
+
+
+def test_fold_between_slabs_is_reported(monkeypatch):
+    # x(u) = 2u(1 - u): dx/du changes sign at u = 1/2, which is an element boundary, so every
+    # slab alone has one sign; the fold must be caught across slabs
+    cube = pr.box(degrees=(2, 1, 1), elements=(1, 1, 1))
+    cp = cube.coefficients.copy()
+    cp[1, :, :, 0] = 1.0
+    cp[2, :, :, 0] = 0.0
+    from geometry import BSpline
+
+    folded = BSpline(cube.degrees, cube.knots, cp)
+    for compiled in (False, True):
+        if compiled:
+            monkeypatch.setattr(fast_assembly, "MIN_POINTS", 0)
+        with pytest.raises(ProblemError, match="changes sign"):
+            HeatProblem(folded, refine=5).dirichlet("vmin", 0.0).assemble()
+        monkeypatch.undo()
+
+
+def test_in_place_elimination_equals_copying(monkeypatch):
+    prob = HeatProblem(pr.box(degrees=(2, 2, 2), elements=(5, 4, 3)), source=1.0).dirichlet("umin", 1.0)
+    K, f, _ = prob.assemble()
+    n = K.shape[0]
+    dofs = np.flatnonzero(np.arange(n) % 7 == 0)
+    free = np.setdiff1d(np.arange(n), dofs)
+    g = np.linspace(0, 1, len(dofs))
+    A0, r0 = _eliminate(K.copy(), f, free, dofs, g)
+    monkeypatch.setattr(problem_module, "_IN_PLACE_NNZ", 0)
+    Kw = sp.csr_matrix((K.data.copy(), K.indices.copy(), K.indptr.copy()), shape=K.shape)
+    A1, r1 = _eliminate(Kw, f, free, dofs, g, in_place=True)
+    assert np.shares_memory(A1.data, Kw.data)  # computed in K's own memory
+    assert np.array_equal(A1.indptr, A0.indptr) and np.array_equal(A1.indices, A0.indices)
+    assert np.array_equal(A1.data, A0.data) and np.array_equal(r1, r0)
+    # a matrix on a shared, read-only pattern is never modified: the copying method is used
+    pat = pattern(prob.spaces[0])
+    Kr = sp.csr_matrix((K.data.copy(), pat.indices, pat.indptr), shape=K.shape)
+    before = pat.indices.copy()
+    A2, _ = _eliminate(Kr, f, free, dofs, g, in_place=True)
+    assert np.array_equal(pat.indices, before) and abs(A2 - A0).max() == 0
+
+
+def test_spectral_radius_is_a_close_lower_bound():
+    A = HeatProblem(pr.box(degrees=(2, 2, 2), elements=(6, 6, 6))).dirichlet("boundary", 0.0).assemble()[0]
+    exact = spla.eigsh(A, k=1, which="LA", return_eigenvectors=False)[0]
+    est = spectral_radius(A)
+    assert exact * 0.97 <= est <= exact * (1 + 1e-10)
+
+
+def test_amg_cg_is_robust_to_conductivity_jumps():
+    # conductivity jumping by 1000 in a checkerboard-like pattern: the Jacobi-scaled hierarchy keeps
+    # the iteration count low (unscaled Chebyshev smoothing needed hundreds)
+    def k(x):
+        return 1.0 + 999.0 * (np.sin(7 * x[:, 0]) * np.sin(5 * x[:, 1]) > 0.3)
+
+    prob = HeatProblem(pr.box(degrees=(2, 2, 2), elements=(14, 14, 14)), conductivity=k, source=1.0)
+    prob.dirichlet("boundary", 0.0)
+    amg = prob.solve(solver="amg-cg", tol=1e-10)
+    direct = HeatProblem(prob.model, conductivity=k, source=1.0).dirichlet("boundary", 0.0).solve(solver="direct")
+    assert amg.info["solver"]["iterations"] <= 25
+    assert np.abs(amg.u - direct.u).max() <= 1e-7 * np.abs(direct.u).max()
+
+
+def test_amg_does_not_modify_the_matrix_unless_allowed():
+    A = HeatProblem(pr.box(degrees=(2, 2, 2), elements=(8, 8, 8))).dirichlet("boundary", 0.0).assemble()[0]
+    A = A[:-1][:, :-1].tocsr() + sp.eye(A.shape[0] - 1)
+    b = np.ones(A.shape[0])
+    keep = A.data.copy()
+    x, info = solvers.solve(A, b, method="amg-cg", tol=1e-10)
+    assert np.array_equal(A.data, keep) and info.residual < 1e-9
+    x2, _ = solvers.solve(A, b, method="amg-cg", tol=1e-10, overwrite_a=True)
+    assert not np.array_equal(A.data, keep)  # scaled in place, as allowed
+    assert np.abs(x2 - x).max() < 1e-8 * np.abs(x).max()
+
+
+def test_amg_rejects_a_non_positive_diagonal():
+    A = sp.diags([1.0, -2.0, 3.0]).tocsr()
+    with pytest.raises(solvers.SolverError, match="diagonal entry 1"):
+        AMGPreconditioner(A)
