@@ -153,7 +153,7 @@ def test_amg_cg_is_robust_to_conductivity_jumps():
     prob.dirichlet("boundary", 0.0)
     amg = prob.solve(solver="amg-cg", tol=1e-10)
     direct = HeatProblem(prob.model, conductivity=k, source=1.0).dirichlet("boundary", 0.0).solve(solver="direct")
-    assert amg.info["solver"]["iterations"] <= 25
+    assert amg.info["solver"]["iterations"] <= 30  # measured 22 (2 levels at this size)
     assert np.abs(amg.u - direct.u).max() <= 1e-7 * np.abs(direct.u).max()
 
 
