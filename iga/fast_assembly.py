@@ -105,22 +105,22 @@ def structure(space: TensorSpace) -> CSRPattern:
 
 
 def compact_rows_cols(K, keep: np.ndarray):
-    """``K[keep][:, keep]`` for a CSR matrix that owns writeable arrays, computed in K's own memory.
+    """``K[keep][:, keep]`` for a CSR matrix, computed in K's own memory; K is destroyed.
 
-    Returns the reduced CSR matrix, whose arrays are leading views of K's;
-    K is destroyed.  ``keep``: sorted indices of the rows/columns to keep.
-    Returns None when K's arrays are read-only or shared (use a copying
-    method then).
+    ``keep``: sorted indices of the rows/columns to keep.  Returns the
+    reduced CSR matrix, whose arrays are leading views of K's.  Arrays K
+    shares read-only (a cached pattern's ``indptr`` and ``indices``) are
+    copied first, never written.
     """
-    if not all(a.flags.writeable and a.flags.c_contiguous for a in (K.indptr, K.indices, K.data)):
-        return None
-    n = K.shape[0]
-    new = np.full(n, -1, K.indices.dtype)
-    new[keep] = np.arange(len(keep), dtype=K.indices.dtype)
-    rows, nnz = _kernels().compact_rows_cols(K.indptr, K.indices, K.data, new)
     import scipy.sparse as sp
 
-    return sp.csr_matrix((K.data[:nnz], K.indices[:nnz], K.indptr[: rows + 1]), shape=(rows, rows))
+    indptr, indices, data = (a if a.flags.writeable and a.flags.c_contiguous else np.array(a)
+                             for a in (K.indptr, K.indices, K.data))
+    n = K.shape[0]
+    new = np.full(n, -1, indices.dtype)
+    new[keep] = np.arange(len(keep), dtype=indices.dtype)
+    rows, nnz = _kernels().compact_rows_cols(indptr, indices, data, new)
+    return sp.csr_matrix((data[:nnz], indices[:nnz], indptr[: rows + 1]), shape=(rows, rows))
 
 
 class StiffnessAccumulator:

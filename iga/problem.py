@@ -63,9 +63,7 @@ def _eliminate(K: sp.csr_matrix, f: np.ndarray, free: np.ndarray, dofs: np.ndarr
     ug[dofs] = g
     rhs = f[free] - (K @ ug)[free] if len(dofs) else f[free].copy()
     if in_place and fast_assembly.AVAILABLE and K.nnz >= _IN_PLACE_NNZ:
-        A = fast_assembly.compact_rows_cols(K, free)
-        if A is not None:
-            return A, rhs
+        return fast_assembly.compact_rows_cols(K, free), rhs
     Kr = K[free]  # row selection (fast in SciPy)
     col = np.full(n, -1, np.int64)
     col[free] = np.arange(len(free))

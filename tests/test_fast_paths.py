@@ -128,12 +128,13 @@ def test_in_place_elimination_equals_copying(monkeypatch):
     assert np.shares_memory(A1.data, Kw.data)  # computed in K's own memory
     assert np.array_equal(A1.indptr, A0.indptr) and np.array_equal(A1.indices, A0.indices)
     assert np.array_equal(A1.data, A0.data) and np.array_equal(r1, r0)
-    # a matrix on a shared, read-only pattern is never modified: the copying method is used
+    # a matrix on a shared, read-only pattern never writes into it: those arrays are copied first
     pat = pattern(prob.spaces[0])
     Kr = sp.csr_matrix((K.data.copy(), pat.indices, pat.indptr), shape=K.shape)
     before = pat.indices.copy()
     A2, _ = _eliminate(Kr, f, free, dofs, g, in_place=True)
     assert np.array_equal(pat.indices, before) and abs(A2 - A0).max() == 0
+    assert np.shares_memory(A2.data, Kr.data) and not np.shares_memory(A2.indices, pat.indices)
 
 
 def test_spectral_radius_is_a_close_lower_bound():
