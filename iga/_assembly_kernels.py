@@ -66,8 +66,8 @@ def stiffness3(C, e0, b1, first1, W2, r2, s2, W3, r3, s3, indptr, lo1, c1, lo2, 
     g1 = b1.shape[3]
     m = C.shape[2] // g1
     p1 = b1.shape[2] - 1
-    n2, D2, L2 = W2.shape[1], W2.shape[2], W2.shape[3]
-    n3, D3, L3 = W3.shape[1], W3.shape[2], W3.shape[3]
+    n2, D2 = W2.shape[1], W2.shape[2]
+    n3, D3 = W3.shape[1], W3.shape[2]
     p2, p3 = (D2 - 1) // 2, (D3 - 1) // 2
     Z = np.empty((g1, 7, nq2, n3, D3))
     Y = np.empty((g1, 4, n2, D2, n3, D3))

@@ -19,6 +19,7 @@ Built-in backends
 
 from __future__ import annotations
 
+import importlib.util
 import time
 from dataclasses import dataclass, field
 from typing import Callable
@@ -143,10 +144,8 @@ def _krylov(A, b, M, tol, maxiter, name, t_setup, extra):
 
 @register("amg-cg")
 def _amg_cg(A, b, tol, maxiter, **options):
-    try:
-        import pyamg  # noqa: F401
-    except ImportError:
-        raise SolverError("the 'amg-cg' solver needs pyamg: pip install pyamg") from None
+    if importlib.util.find_spec("pyamg") is None:
+        raise SolverError("the 'amg-cg' solver needs pyamg: pip install pyamg")
     from .amg import AMGPreconditioner
 
     t0 = time.perf_counter()
