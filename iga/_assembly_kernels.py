@@ -46,13 +46,14 @@ def csr_structure3(lo1, c1, lo2, c2, lo3, c3, p1, p2, p3, indptr, indices):
 
 
 @njit(cache=True, parallel=True, fastmath=True)
-def stiffness3(C, e0, b1, first1, W2, r2, s2, W3, r3, s3, indptr, lo1, c1, lo2, c2, lo3, c3, data):
+def stiffness3(C, e0, b1, first1, W2, r2, s2, b3, first3, indptr, lo1, c1, lo2, c2, lo3, c3, ring, data):
     """Add sum_rs int C_rs d_r N_i d_s N_j over a slab of direction-1 elements to CSR data (P, nnz).
 
     C (6, P, m g1, nq2, nq3): the Gauss planes of the m elements e0 .. e0 + m - 1
     of direction 1, for P patches sharing one space; b1 (2, E1, p1 + 1, g1)
     local values and derivatives of direction 1 per element, ``first1[e]``
-    the index of the first basis function on element e.
+    the index of the first basis function on element e (b3, first3 the same
+    for direction 3); W2, r2, s2 the band tables of direction 2 (module notes).
 
     Sum factorisation by slabs of direction-1 elements: for the g1 Gauss
     planes of element e1, contract direction 3 (Z, seven coefficient/variant
@@ -67,65 +68,93 @@ def stiffness3(C, e0, b1, first1, W2, r2, s2, W3, r3, s3, indptr, lo1, c1, lo2, 
     m = C.shape[2] // g1
     p1 = b1.shape[2] - 1
     n2, D2 = W2.shape[1], W2.shape[2]
-    n3, D3 = W3.shape[1], W3.shape[2]
-    p2, p3 = (D2 - 1) // 2, (D3 - 1) // 2
+    E3, g3 = b3.shape[1], b3.shape[3]
+    p2, p3 = (D2 - 1) // 2, b3.shape[2] - 1
+    n3, D3 = lo3.shape[0], 2 * p3 + 1
+    E1, n1 = b1.shape[1], lo1.shape[0]
+    R1, D1 = p1 + 1, 2 * p1 + 1
+    K2 = D2 * n3 * D3
     Z = np.empty((g1, 7, nq2, n3, D3))
     Y = np.empty((g1, 4, n2, D2, n3, D3))
     for pi in range(P):
         for e1 in range(e0, e0 + m):
-            # stage 3: Z[t, m, q2, i3, d3] = sum_q3 W3[v_m](i3, d3, q3) C[f_m](q1, q2, q3)
+            # stage 3: Z[t, m, q2, i3, d3] = sum_q3 W3[v_m](i3, d3, q3) C[f_m](q1, q2, q3), element by
+            # element of direction 3: the element's 6 g3 coefficients are read once and every local pair
+            # (l3, m3) takes its products of basis values (fixed trip counts; 30% faster than summing
+            # each band entry over its support at p = 3)
             for item in prange(g1 * nq2):
                 t = item // nq2
                 q2 = item - t * nq2
                 q1 = (e1 - e0) * g1 + t
-                for i3 in range(n3):
-                    base = s3[i3]
-                    for d3 in range(D3):
-                        z0 = z1 = z2 = z3 = z4 = z5 = z6 = 0.0
-                        for l in range(r3[i3, d3, 0], r3[i3, d3, 1]):
-                            q3 = base + l
-                            w00 = W3[0, i3, d3, l]
-                            w01 = W3[1, i3, d3, l]
-                            w10 = W3[2, i3, d3, l]
-                            c12 = C[5, pi, q1, q2, q3]
-                            z0 += w00 * C[0, pi, q1, q2, q3]  # C00 (0,0)
-                            z1 += w00 * C[3, pi, q1, q2, q3]  # C01 (0,0)
-                            z2 += w01 * C[4, pi, q1, q2, q3]  # C02 (0,1)
-                            z3 += w00 * C[1, pi, q1, q2, q3]  # C11 (0,0)
-                            z4 += W3[3, i3, d3, l] * C[2, pi, q1, q2, q3]  # C22 (1,1)
-                            z5 += w01 * c12  # C12 (0,1)
-                            z6 += w10 * c12  # C12 (1,0)
-                        Z[t, 0, q2, i3, d3] = z0
-                        Z[t, 1, q2, i3, d3] = z1
-                        Z[t, 2, q2, i3, d3] = z2
-                        Z[t, 3, q2, i3, d3] = z3
-                        Z[t, 4, q2, i3, d3] = z4
-                        Z[t, 5, q2, i3, d3] = z5
-                        Z[t, 6, q2, i3, d3] = z6
+                cl = np.empty((6, g3))
+                for m in range(7):
+                    for i3 in range(n3):
+                        for d3 in range(D3):
+                            Z[t, m, q2, i3, d3] = 0.0
+                for e3 in range(E3):
+                    f = first3[e3]
+                    for t3 in range(g3):
+                        for c in range(6):
+                            cl[c, t3] = C[c, pi, q1, q2, e3 * g3 + t3]
+                    for l3 in range(p3 + 1):
+                        i3 = f + l3
+                        for m3 in range(p3 + 1):
+                            d3 = m3 - l3 + p3
+                            z0 = z1 = z2 = z3 = z4 = z5 = z6 = 0.0
+                            for t3 in range(g3):
+                                u0 = b3[0, e3, l3, t3]
+                                u1 = b3[1, e3, l3, t3]
+                                v0 = b3[0, e3, m3, t3]
+                                v1 = b3[1, e3, m3, t3]
+                                w00 = u0 * v0
+                                w01 = u0 * v1
+                                z0 += w00 * cl[0, t3]  # C00 (0,0)
+                                z1 += w00 * cl[3, t3]  # C01 (0,0)
+                                z2 += w01 * cl[4, t3]  # C02 (0,1)
+                                z3 += w00 * cl[1, t3]  # C11 (0,0)
+                                z4 += u1 * v1 * cl[2, t3]  # C22 (1,1)
+                                z5 += w01 * cl[5, t3]  # C12 (0,1)
+                                z6 += u1 * v0 * cl[5, t3]  # C12 (1,0)
+                            Z[t, 0, q2, i3, d3] += z0
+                            Z[t, 1, q2, i3, d3] += z1
+                            Z[t, 2, q2, i3, d3] += z2
+                            Z[t, 3, q2, i3, d3] += z3
+                            Z[t, 4, q2, i3, d3] += z4
+                            Z[t, 5, q2, i3, d3] += z5
+                            Z[t, 6, q2, i3, d3] += z6
             # stage 2: groups by the direction-1 variant (a1, b1):
-            # Y0 (1,1) = C00; Y1 (1,0) = C01 d_v N_j + C02 d_w N_j; Y3 (0,0) = the four C_rs, r, s in {1, 2}
+            # Y0 (1,1) = C00; Y1 (1,0) = C01 d_v N_j + C02 d_w N_j; Y3 (0,0) = the four C_rs, r, s in {1, 2}.
+            # Y0 and Y3 are symmetric under (i2, d2, i3, d3) -> (j2, 2 p2 - d2, j3, 2 p3 - d3): summed for
+            # d2 >= p2 only and mirrored with Y2 below
             for item in prange(g1 * n2):
                 t = item // n2
                 i2 = item - t * n2
                 for d2 in range(D2):
+                    upper = d2 >= p2
                     for i3 in range(n3):
                         for d3 in range(D3):
-                            Y[t, 0, i2, d2, i3, d3] = 0.0
                             Y[t, 1, i2, d2, i3, d3] = 0.0
-                            Y[t, 3, i2, d2, i3, d3] = 0.0
+                            if upper:
+                                Y[t, 0, i2, d2, i3, d3] = 0.0
+                                Y[t, 3, i2, d2, i3, d3] = 0.0
                     for l in range(r2[i2, d2, 0], r2[i2, d2, 1]):
                         q2 = s2[i2] + l
                         w00 = W2[0, i2, d2, l]
                         w01 = W2[1, i2, d2, l]
                         w10 = W2[2, i2, d2, l]
                         w11 = W2[3, i2, d2, l]
-                        for i3 in range(n3):
-                            for d3 in range(D3):
-                                Y[t, 0, i2, d2, i3, d3] += w00 * Z[t, 0, q2, i3, d3]
-                                Y[t, 1, i2, d2, i3, d3] += w01 * Z[t, 1, q2, i3, d3] + w00 * Z[t, 2, q2, i3, d3]
-                                Y[t, 3, i2, d2, i3, d3] += (w11 * Z[t, 3, q2, i3, d3] + w00 * Z[t, 4, q2, i3, d3]
-                                                            + w10 * Z[t, 5, q2, i3, d3] + w01 * Z[t, 6, q2, i3, d3])
-            # group (0,1) is the mirror of (1,0): entry (i, j) of one is entry (j, i) of the other
+                        if upper:
+                            for i3 in range(n3):
+                                for d3 in range(D3):
+                                    Y[t, 0, i2, d2, i3, d3] += w00 * Z[t, 0, q2, i3, d3]
+                                    Y[t, 1, i2, d2, i3, d3] += w01 * Z[t, 1, q2, i3, d3] + w00 * Z[t, 2, q2, i3, d3]
+                                    Y[t, 3, i2, d2, i3, d3] += (w11 * Z[t, 3, q2, i3, d3] + w00 * Z[t, 4, q2, i3, d3]
+                                                                + w10 * Z[t, 5, q2, i3, d3] + w01 * Z[t, 6, q2, i3, d3])
+                        else:
+                            for i3 in range(n3):
+                                for d3 in range(D3):
+                                    Y[t, 1, i2, d2, i3, d3] += w01 * Z[t, 1, q2, i3, d3] + w00 * Z[t, 2, q2, i3, d3]
+            # mirrors: group (0,1) is group (1,0) transposed; Y0 and Y3 below the diagonal band
             for item in prange(g1 * n2):
                 t = item // n2
                 i2 = item - t * n2
@@ -136,40 +165,51 @@ def stiffness3(C, e0, b1, first1, W2, r2, s2, W3, r3, s3, indptr, lo1, c1, lo2, 
                             j3 = i3 + d3 - p3
                             if 0 <= j2 < n2 and 0 <= j3 < n3:
                                 Y[t, 2, i2, d2, i3, d3] = Y[t, 1, j2, 2 * p2 - d2, j3, 2 * p3 - d3]
+                                if d2 < p2:
+                                    Y[t, 0, i2, d2, i3, d3] = Y[t, 0, j2, 2 * p2 - d2, j3, 2 * p3 - d3]
+                                    Y[t, 3, i2, d2, i3, d3] = Y[t, 3, j2, 2 * p2 - d2, j3, 2 * p3 - d3]
                             else:
                                 Y[t, 2, i2, d2, i3, d3] = 0.0
-            # stage 1: rows i1 = first1[e1] + l1, columns j1 = first1[e1] + m1
+                                if d2 < p2:
+                                    Y[t, 0, i2, d2, i3, d3] = 0.0
+                                    Y[t, 3, i2, d2, i3, d3] = 0.0
+            # stage 1: rows i1 = first1[e1] + l1, columns j1 = first1[e1] + m1, accumulated in the
+            # banded ring buffer (row i1 in slot i1 % (p1 + 1)): contiguous, vectorisable sweeps
             f0 = first1[e1]
-            K2 = D2 * n3 * D3
             for i2 in prange(n2):
-                s = np.empty((4, g1))
-                V = np.empty(K2)
                 for l1 in range(p1 + 1):
-                    i1 = f0 + l1
+                    slot = (f0 + l1) % R1
                     for m1 in range(p1 + 1):
                         d1 = m1 - l1 + p1
+                        dst = ring[pi, slot, d1, i2]
                         for t in range(g1):
-                            s[0, t] = b1[1, e1, l1, t] * b1[1, e1, m1, t]
-                            s[1, t] = b1[1, e1, l1, t] * b1[0, e1, m1, t]
-                            s[2, t] = b1[0, e1, l1, t] * b1[1, e1, m1, t]
-                            s[3, t] = b1[0, e1, l1, t] * b1[0, e1, m1, t]
-                        # the whole (d2, i3, d3) block of row group (i1, i2) in one vectorisable sweep
-                        for k in range(K2):
-                            V[k] = 0.0
-                        for t in range(g1):
-                            for G in range(4):
-                                c = s[G, t]
-                                Yv = Y[t, G, i2].ravel()
-                                for k in range(K2):
-                                    V[k] += c * Yv[k]
-                        for d2 in range(lo2[i2], lo2[i2] + c2[i2]):
-                            for i3 in range(n3):
-                                row = (i1 * n2 + i2) * n3 + i3
-                                base = (indptr[row] + ((d1 - lo1[i1]) * c2[i2] + d2 - lo2[i2]) * c3[i3]
-                                        - lo3[i3])
-                                vb = (d2 * n3 + i3) * D3
+                            h11 = b1[1, e1, l1, t] * b1[1, e1, m1, t]
+                            h10 = b1[1, e1, l1, t] * b1[0, e1, m1, t]
+                            h01 = b1[0, e1, l1, t] * b1[1, e1, m1, t]
+                            h00 = b1[0, e1, l1, t] * b1[0, e1, m1, t]
+                            Y0 = Y[t, 0, i2].reshape(K2)
+                            Y1 = Y[t, 1, i2].reshape(K2)
+                            Y2 = Y[t, 2, i2].reshape(K2)
+                            Y3 = Y[t, 3, i2].reshape(K2)
+                            for k in range(K2):
+                                dst[k] += h11 * Y0[k] + h10 * Y1[k] + h01 * Y2[k] + h00 * Y3[k]
+            # rows that no later element touches are complete: copy them into CSR order (one
+            # sequential write per entry) and clear their slots
+            stop = first1[e1 + 1] if e1 + 1 < E1 else n1
+            for i1 in range(f0, stop):
+                slot = i1 % R1
+                for i2 in prange(n2):
+                    for i3 in range(n3):
+                        pos = indptr[(i1 * n2 + i2) * n3 + i3]
+                        for d1 in range(lo1[i1], lo1[i1] + c1[i1]):
+                            for d2 in range(lo2[i2], lo2[i2] + c2[i2]):
+                                k0 = (d2 * n3 + i3) * D3
                                 for d3 in range(lo3[i3], lo3[i3] + c3[i3]):
-                                    data[pi, base + d3] += V[vb + d3]
+                                    data[pi, pos] = ring[pi, slot, d1, i2, k0 + d3]
+                                    pos += 1
+                    for d1 in range(D1):
+                        for k in range(K2):
+                            ring[pi, slot, d1, i2, k] = 0.0
 
 
 @njit(cache=True, parallel=True, error_model="numpy")

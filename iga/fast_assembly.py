@@ -23,6 +23,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from . import ProblemError
 from .assembly import _CACHE_NNZ, CSRPattern, _band_limits
 from .space import Space1D, TensorSpace
 
@@ -128,8 +129,10 @@ class StiffnessAccumulator:
 
     ``add(planes, C)`` takes the coefficient fields (6, P, n) on the Gauss
     planes ``planes`` (a slice of whole elements along the first quadrature
-    axis, as :meth:`iga.HeatProblem._stiffness_slabs` yields them); after all
-    slabs, ``pattern`` and ``data`` (P, nnz) hold the matrix.
+    axis, as :meth:`iga.HeatProblem._stiffness_slabs` yields them), in order;
+    after the last element, ``pattern`` and ``data`` (P, nnz) hold the matrix.
+    Rows are finished in a banded ring buffer of the p1 + 1 direction-1
+    indices a slab touches and written to ``data`` once, when complete.
     """
 
     def __init__(self, space: TensorSpace, n_patches: int):
@@ -137,17 +140,25 @@ class StiffnessAccumulator:
         self.tables = [_tables(s) for s in space.dirs]
         self.pattern = structure(space)
         self.data = np.zeros((n_patches, len(self.pattern.indices)))
+        # banded rows of the p1 + 1 direction-1 indices a slab touches (see the kernel)
+        (n1, n2, n3), (p1, p2, p3) = space.shape, [d.degree for d in space.dirs]
+        self.ring = np.zeros((n_patches, p1 + 1, 2 * p1 + 1, n2, (2 * p2 + 1) * n3 * (2 * p3 + 1)))
+        self.next_element = 0
 
     def add(self, planes: slice, C: np.ndarray) -> None:
         g = self.space.dirs[0].g
         if planes.start % g or (planes.stop - planes.start) % g:
-            raise ValueError(f"slab {planes} does not cover whole elements ({g} Gauss planes each)")
+            raise ProblemError(f"slab {planes} does not cover whole elements ({g} Gauss planes each)")
+        if planes.start != self.next_element * g:
+            raise ProblemError(f"slabs must come in order: expected Gauss plane {self.next_element * g}, "
+                             f"got {planes.start}")
+        self.next_element = planes.stop // g
         t1, t2, t3 = self.tables
         shape = (6, self.data.shape[0], planes.stop - planes.start) + self.space.qshape[1:]
         C = np.ascontiguousarray(C, dtype=float).reshape(shape)
         _kernels().stiffness3(C, planes.start // g, t1["b"], t1["first"], t2["W"], t2["r"], t2["s"],
-                              t3["W"], t3["r"], t3["s"], self.pattern.indptr, t1["lo"], t1["c"],
-                              t2["lo"], t2["c"], t3["lo"], t3["c"], self.data)
+                              t3["b"], t3["first"], self.pattern.indptr, t1["lo"], t1["c"],
+                              t2["lo"], t2["c"], t3["lo"], t3["c"], self.ring, self.data)
 
 
 def stiffness_csr(space: TensorSpace, C: np.ndarray) -> tuple[CSRPattern, np.ndarray]:

@@ -43,8 +43,10 @@ def test_compiled_stiffness_equals_numpy_path(seed):
     for a, b in zip(cuts[:-1], cuts[1:]):
         acc.add(slice(a, b), Cg[:, :, a:b])
     assert np.abs(acc.data - data).max() <= 1e-12 * np.abs(ref).max()
-    with pytest.raises(ValueError, match="whole elements"):
+    with pytest.raises(ProblemError, match="whole elements"):
         acc.add(slice(1, 1 + g), Cg[:, :, 1 : 1 + g])
+    with pytest.raises(ProblemError, match="in order"):
+        acc.add(slice(0, g), Cg[:, :, 0:g])
 
 
 def test_compiled_grid_geometry_equals_direct_evaluation():
