@@ -46,7 +46,7 @@ def csr_structure3(lo1, c1, lo2, c2, lo3, c3, p1, p2, p3, indptr, indices):
 
 
 @njit(cache=True, parallel=True, fastmath=True)
-def stiffness3(C, e0, b1, first1, W2, r2, s2, b3, first3, indptr, lo1, c1, lo2, c2, lo3, c3, ring, data):
+def stiffness3(C, e0, b1, first1, W2, r2, s2, b3, first3, indptr, lo1, c1, lo2, c2, lo3, c3, ring, Z, Y, data):
     """Add sum_rs int C_rs d_r N_i d_s N_j over a slab of direction-1 elements to CSR data (P, nnz).
 
     C (6, P, m g1, nq2, nq3): the Gauss planes of the m elements e0 .. e0 + m - 1
@@ -54,6 +54,9 @@ def stiffness3(C, e0, b1, first1, W2, r2, s2, b3, first3, indptr, lo1, c1, lo2, 
     local values and derivatives of direction 1 per element, ``first1[e]``
     the index of the first basis function on element e (b3, first3 the same
     for direction 3); W2, r2, s2 the band tables of direction 2 (module notes).
+    Scratch, kept by the caller across slabs: ``ring`` (P, p1 + 1, 2 p1 + 1,
+    n2, D2 n3 D3), zero on the first call; Z (g1, 7, nq2, n3, D3) and
+    Y (g1, 4, n2, D2, n3, D3).
 
     Sum factorisation by slabs of direction-1 elements: for the g1 Gauss
     planes of element e1, contract direction 3 (Z, seven coefficient/variant
@@ -74,8 +77,6 @@ def stiffness3(C, e0, b1, first1, W2, r2, s2, b3, first3, indptr, lo1, c1, lo2, 
     E1, n1 = b1.shape[1], lo1.shape[0]
     R1, D1 = p1 + 1, 2 * p1 + 1
     K2 = D2 * n3 * D3
-    Z = np.empty((g1, 7, nq2, n3, D3))
-    Y = np.empty((g1, 4, n2, D2, n3, D3))
     for pi in range(P):
         for e1 in range(e0, e0 + m):
             # stage 3: Z[t, m, q2, i3, d3] = sum_q3 W3[v_m](i3, d3, q3) C[f_m](q1, q2, q3), element by
