@@ -419,7 +419,7 @@ class HeatProblem:
         source load field on those planes (n points per patch, C order).
         With c_1 = x_v x x_w, c_2 = x_w x x_u, c_3 = x_u x x_v (the rows of
         det J * J^-1), k |J| J^-1 J^-T = k (c_r . c_s) / |det J|.  Slabs hold
-        about 16k points (at least one element): the full-grid geometry never
+        about 16k points (2^18 when compiled; at least one element): the full-grid geometry never
         exists.  ``compiled``: the arithmetic runs in the numba kernel of
         :mod:`iga.fast_assembly` (same formulas).
         """
@@ -429,8 +429,10 @@ class HeatProblem:
         w_all = np.multiply.outer(np.multiply.outer(*[d.qw for d in space.dirs[:2]]), space.dirs[2].qw).ravel()
         rest = space.nq_total // space.dirs[0].nq
         lo, hi = np.inf, -np.inf  # det range over all slabs: a sign change between slabs is a fold too
-        slabs = patches_geometry_derivs_slabs(patches, space.qaxes, 1 << 14, rows_multiple=space.dirs[0].g,
-                                              compiled=compiled)
+        # compiled: larger slabs, since the kernels re-contract the p + 1 coefficient rows a slab
+        # touches (a 2^18-point slab holds about 40 MB of fields); NumPy: cache-sized temporaries
+        slabs = patches_geometry_derivs_slabs(patches, space.qaxes, 1 << (18 if compiled else 14),
+                                              rows_multiple=space.dirs[0].g, compiled=compiled)
         for planes, x, D, chans in slabs:
             n = x.shape[1]
             sl = slice(planes.start * rest, planes.stop * rest)
