@@ -17,6 +17,8 @@ into the CSR data of a fixed pattern.  Terms that share the first direction's
 derivative orders are summed before the last (most expensive) contraction.
 
 Everything is batched over patches that share a space (trailing axis P).
+This is the NumPy/SciPy path; :mod:`iga.fast_assembly` computes the same
+stiffness with compiled kernels (numba) for large 3-D patches.
 """
 
 from __future__ import annotations
