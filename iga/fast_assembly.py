@@ -130,7 +130,7 @@ class StiffnessAccumulator:
     ``add(planes, C)`` takes the coefficient fields (6, P, n) on the Gauss
     planes ``planes`` (a slice of whole elements along the first quadrature
     axis, as :meth:`iga.HeatProblem._stiffness_slabs` yields them), in order;
-    after the last element, ``pattern`` and ``data`` (P, nnz) hold the matrix.
+    after the last element, :meth:`result` returns the pattern and the data (P, nnz).
     Rows are finished in a banded ring buffer of the p1 + 1 direction-1
     indices a slab touches and written to ``data`` once, when complete.
     """
@@ -139,7 +139,8 @@ class StiffnessAccumulator:
         self.space = space
         self.tables = [_tables(s) for s in space.dirs]
         self.pattern = structure(space)
-        self.data = np.zeros((n_patches, len(self.pattern.indices)))
+        # every entry is written exactly once, when its row is complete: no zero-filling needed
+        self.data = np.empty((n_patches, len(self.pattern.indices)))
         # banded rows of the p1 + 1 direction-1 indices a slab touches (see the kernel)
         (n1, n2, n3), (p1, p2, p3) = space.shape, [d.degree for d in space.dirs]
         self.ring = np.zeros((n_patches, p1 + 1, 2 * p1 + 1, n2, (2 * p2 + 1) * n3 * (2 * p3 + 1)))
@@ -165,6 +166,15 @@ class StiffnessAccumulator:
                               t2["lo"], t2["c"], t3["lo"], t3["c"], self.ring, self.Z, self.Y, self.data)
 
 
+    def result(self) -> tuple[CSRPattern, np.ndarray]:
+        """``(pattern, data (P, nnz))`` once every element has been added."""
+        E1 = self.space.dirs[0].E
+        if self.next_element != E1:
+            raise ProblemError(f"stiffness incomplete: elements {self.next_element}..{E1 - 1} of direction 1 "
+                               "were not added")
+        return self.pattern, self.data
+
+
 def stiffness_csr(space: TensorSpace, C: np.ndarray) -> tuple[CSRPattern, np.ndarray]:
     """CSR pattern and data (P, nnz) of sum_rs int C_rs d_r N_i d_s N_j (one call, whole grid).
 
@@ -174,7 +184,7 @@ def stiffness_csr(space: TensorSpace, C: np.ndarray) -> tuple[CSRPattern, np.nda
     """
     acc = StiffnessAccumulator(space, C.shape[1])
     acc.add(slice(0, space.dirs[0].nq), C)
-    return acc.pattern, acc.data
+    return acc.result()
 
 
 def metric_fields(D, kval, fval, w):

@@ -468,7 +468,7 @@ class HeatProblem:
                     for planes, Cs, Ls in self._stiffness_slabs(members, space, compiled=True):
                         acc.add(planes, Cs)
                         L[:, planes.start * rest : planes.stop * rest] = Ls
-                    pat, data = acc.pattern, acc.data
+                    pat, data = acc.result()
                 else:
                     C = np.empty((6, P, N))
                     for planes, Cs, Ls in self._stiffness_slabs(members, space):
