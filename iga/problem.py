@@ -426,8 +426,7 @@ class HeatProblem:
         patches = [self.model.patches[i] for i in members]
         P = len(members)
         where = f"patch {members[0]}" if P == 1 else f"patches {members[0]}..{members[-1]}"
-        w_all = np.multiply.outer(np.multiply.outer(*[d.qw for d in space.dirs[:2]]), space.dirs[2].qw).ravel()
-        rest = space.nq_total // space.dirs[0].nq
+        w_rest = np.multiply.outer(space.dirs[1].qw, space.dirs[2].qw).ravel()  # weights of one plane
         lo, hi = np.inf, -np.inf  # det range over all slabs: a sign change between slabs is a fold too
         # compiled: larger slabs, since the kernels re-contract the p + 1 coefficient rows a slab
         # touches (a 2^18-point slab holds about 40 MB of fields); NumPy: cache-sized temporaries
@@ -435,11 +434,11 @@ class HeatProblem:
                                               rows_multiple=space.dirs[0].g, compiled=compiled)
         for planes, x, D, chans in slabs:
             n = x.shape[1]
-            sl = slice(planes.start * rest, planes.stop * rest)
             flat = {ch: np.reshape(v, -1) for ch, v in chans.items()}
             kval = self._values(self.conductivity, x.reshape(-1, 3), flat, "conductivity", where, positive=True)
             fval = self._values(self.source, x.reshape(-1, 3), flat, "source", where)
-            wv = np.broadcast_to(w_all[sl], (P, n)).reshape(-1)
+            w = np.multiply.outer(space.dirs[0].qw[planes], w_rest).ravel()
+            wv = np.broadcast_to(w, (P, n)).reshape(-1)
             if compiled:
                 C, L, det = fast_assembly.metric_fields(D, kval, fval, wv)
             else:
