@@ -147,7 +147,7 @@ class StiffnessAccumulator:
         # every entry is written exactly once, when its row is complete: no zero-filling needed
         self.data = np.empty((n_patches, len(self.pattern.indices)))
         # banded rows of the p1 + 1 direction-1 indices a slab touches (see the kernel)
-        (n1, n2, n3), (p1, p2, p3) = space.shape, [d.degree for d in space.dirs]
+        (_, n2, n3), (p1, p2, p3) = space.shape, [d.degree for d in space.dirs]
         self.ring = np.zeros((n_patches, p1 + 1, 2 * p1 + 1, n2, (2 * p2 + 1) * n3 * (2 * p3 + 1)))
         # the kernel's partial contractions, allocated once (fresh memory per slab cost 6 ms a call)
         g1, nq2 = space.dirs[0].g, space.dirs[1].nq
