@@ -21,12 +21,15 @@ from helpers import random_knots, random_spline
 pytestmark = pytest.mark.skipif(not fast_assembly.AVAILABLE, reason="the compiled paths need numba (test extra)")
 
 
-@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("seed", range(5))
 def test_compiled_stiffness_equals_numpy_path(seed):
     rng = np.random.default_rng(seed)
     degrees = tuple(int(v) for v in rng.integers(1, 4, 3))
-    # random interior knots, some repeated up to C^0
+    # random interior knots, some repeated up to C^0; the last case also has a discontinuity
+    # (multiplicity p + 1), where the band rows of neighbouring elements do not overlap
     knots = [random_knots(rng, p, 4, max_mult=p) for p in degrees]
+    if seed == 4:
+        knots = [np.r_[[0.0] * (p + 1), [0.3] * (p + 1), [0.6] * p, [1.0] * (p + 1)] for p in degrees]
     space = make_space(knots, degrees)
     P = 2
     C = rng.standard_normal((6, P) + space.qshape)
