@@ -306,42 +306,46 @@ def grid_derivs3(hom, a, b, f0, B0, f1, B1, f2, B2, out):
                     t1 += B2[1, q2, l] * h
                 T[0, r, i1, q2, c] = t0
                 T[1, r, i1, q2, c] = t1
-    U = np.empty((3, R, nq1, nq2, m))  # then direction 1: (value, value), (derivative, value), (value, derivative)
+    # then direction 1, (value, value), (derivative, value), (value, derivative), and direction 0:
+    # the innermost loops run over the contiguous (q2, component) rows, so they vectorise
+    K = nq2 * m
+    U = np.empty((3, R, nq1, K))
+    Tf = T.reshape(2, R, n1, K)
     for item in prange(R * nq1):
         r = item // nq1
         q1 = item - r * nq1
         s = f1[q1]
-        for q2 in range(nq2):
-            for c in range(m):
-                u0 = 0.0
-                u1 = 0.0
-                u2 = 0.0
-                for l in range(p1 + 1):
-                    v = B1[0, q1, l]
-                    u0 += v * T[0, r, s + l, q2, c]
-                    u1 += B1[1, q1, l] * T[0, r, s + l, q2, c]
-                    u2 += v * T[1, r, s + l, q2, c]
-                U[0, r, q1, q2, c] = u0
-                U[1, r, q1, q2, c] = u1
-                U[2, r, q1, q2, c] = u2
+        U0, U1, U2 = U[0, r, q1], U[1, r, q1], U[2, r, q1]
+        for k in range(K):
+            U0[k] = 0.0
+            U1[k] = 0.0
+            U2[k] = 0.0
+        for l in range(p1 + 1):
+            v = B1[0, q1, l]
+            dv = B1[1, q1, l]
+            T0, T1 = Tf[0, r, s + l], Tf[1, r, s + l]
+            for k in range(K):
+                U0[k] += v * T0[k]
+                U1[k] += dv * T0[k]
+                U2[k] += v * T1[k]
+    outf = out.reshape(4, b - a, nq1, K)
     for item in prange((b - a) * nq1):
         j = item // nq1
         q1 = item - j * nq1
         q0 = a + j
         s = f0[q0] - lo
-        for q2 in range(nq2):
-            for c in range(m):
-                x = 0.0
-                d0 = 0.0
-                d1 = 0.0
-                d2 = 0.0
-                for l in range(p0 + 1):
-                    v = B0[0, q0, l]
-                    x += v * U[0, s + l, q1, q2, c]
-                    d0 += B0[1, q0, l] * U[0, s + l, q1, q2, c]
-                    d1 += v * U[1, s + l, q1, q2, c]
-                    d2 += v * U[2, s + l, q1, q2, c]
-                out[0, j, q1, q2, c] = x
-                out[1, j, q1, q2, c] = d0
-                out[2, j, q1, q2, c] = d1
-                out[3, j, q1, q2, c] = d2
+        X, D0, D1, D2 = outf[0, j, q1], outf[1, j, q1], outf[2, j, q1], outf[3, j, q1]
+        for k in range(K):
+            X[k] = 0.0
+            D0[k] = 0.0
+            D1[k] = 0.0
+            D2[k] = 0.0
+        for l in range(p0 + 1):
+            v = B0[0, q0, l]
+            dv = B0[1, q0, l]
+            V0, V1, V2 = U[0, s + l, q1], U[1, s + l, q1], U[2, s + l, q1]
+            for k in range(K):
+                X[k] += v * V0[k]
+                D0[k] += dv * V0[k]
+                D1[k] += v * V1[k]
+                D2[k] += v * V2[k]
