@@ -77,6 +77,9 @@ def stiffness3(C, e0, b1, first1, W2, r2, s2, b3, first3, indptr, lo1, c1, lo2, 
     E1, n1 = b1.shape[1], lo1.shape[0]
     R1, D1 = p1 + 1, 2 * p1 + 1
     K2 = D2 * n3 * D3
+    K3 = n3 * D3
+    Zf = Z.reshape(g1, 7, nq2, K3)
+    Yf = Y.reshape(g1, 4, n2, D2, K3)
     for pi in range(P):
         for e1 in range(e0, e0 + m):
             # stage 3: Z[t, m, q2, i3, d3] = sum_q3 W3[v_m](i3, d3, q3) C[f_m](q1, q2, q3), element by
@@ -132,29 +135,29 @@ def stiffness3(C, e0, b1, first1, W2, r2, s2, b3, first3, indptr, lo1, c1, lo2, 
                 i2 = item - t * n2
                 for d2 in range(D2):
                     upper = d2 >= p2
-                    for i3 in range(n3):
-                        for d3 in range(D3):
-                            Y[t, 1, i2, d2, i3, d3] = 0.0
-                            if upper:
-                                Y[t, 0, i2, d2, i3, d3] = 0.0
-                                Y[t, 3, i2, d2, i3, d3] = 0.0
+                    y0, y1, y3 = Yf[t, 0, i2, d2], Yf[t, 1, i2, d2], Yf[t, 3, i2, d2]
+                    for k in range(K3):
+                        y1[k] = 0.0
+                    if upper:
+                        for k in range(K3):
+                            y0[k] = 0.0
+                            y3[k] = 0.0
                     for l in range(r2[i2, d2, 0], r2[i2, d2, 1]):
                         q2 = s2[i2] + l
                         w00 = W2[0, i2, d2, l]
                         w01 = W2[1, i2, d2, l]
                         w10 = W2[2, i2, d2, l]
                         w11 = W2[3, i2, d2, l]
+                        z0, z1, z2, z3 = Zf[t, 0, q2], Zf[t, 1, q2], Zf[t, 2, q2], Zf[t, 3, q2]
+                        z4, z5, z6 = Zf[t, 4, q2], Zf[t, 5, q2], Zf[t, 6, q2]
                         if upper:
-                            for i3 in range(n3):
-                                for d3 in range(D3):
-                                    Y[t, 0, i2, d2, i3, d3] += w00 * Z[t, 0, q2, i3, d3]
-                                    Y[t, 1, i2, d2, i3, d3] += w01 * Z[t, 1, q2, i3, d3] + w00 * Z[t, 2, q2, i3, d3]
-                                    Y[t, 3, i2, d2, i3, d3] += (w11 * Z[t, 3, q2, i3, d3] + w00 * Z[t, 4, q2, i3, d3]
-                                                                + w10 * Z[t, 5, q2, i3, d3] + w01 * Z[t, 6, q2, i3, d3])
+                            for k in range(K3):
+                                y0[k] += w00 * z0[k]
+                                y1[k] += w01 * z1[k] + w00 * z2[k]
+                                y3[k] += w11 * z3[k] + w00 * z4[k] + w10 * z5[k] + w01 * z6[k]
                         else:
-                            for i3 in range(n3):
-                                for d3 in range(D3):
-                                    Y[t, 1, i2, d2, i3, d3] += w01 * Z[t, 1, q2, i3, d3] + w00 * Z[t, 2, q2, i3, d3]
+                            for k in range(K3):
+                                y1[k] += w01 * z1[k] + w00 * z2[k]
             # mirrors: group (0,1) is group (1,0) transposed; Y0 and Y3 below the diagonal band
             for item in prange(g1 * n2):
                 t = item // n2
@@ -349,3 +352,55 @@ def grid_derivs3(hom, a, b, f0, B0, f1, B1, f2, B2, out):
                 D0[k] += dv * V0[k]
                 D1[k] += v * V1[k]
                 D2[k] += v * V2[k]
+
+
+@njit(cache=True, parallel=True, fastmath=True)
+def load3(L, e0, b1, first1, b2, e2lo, e2hi, first2, b3, first3, out):
+    """Add sum_q N_i(q) L(q) over a slab of direction-1 elements to the load vectors ``out`` (P, n1, n2, n3).
+
+    L (P, m g1, nq2, nq3): the source field (weights and |J| included) on the
+    Gauss planes of elements e0 .. e0 + m - 1; b_k, first_k as in
+    :func:`stiffness3` (direction 2 too); ``e2lo[i2] .. e2hi[i2] - 1`` the
+    direction-2 elements in the support of function i2.  Sum factorisation:
+    direction 3 row by row, then direction 2 and 1 by rows i2 (one thread
+    per row, so the accumulation into ``out`` needs no lock).
+    """
+    P, Q1, nq2 = L.shape[0], L.shape[1], L.shape[2]
+    g1, p1 = b1.shape[3], b1.shape[2] - 1
+    g2 = b2.shape[3]
+    E3, g3, p3 = b3.shape[1], b3.shape[3], b3.shape[2] - 1
+    n2, n3 = out.shape[2], out.shape[3]
+    A = np.empty((Q1, nq2, n3))
+    for pi in range(P):
+        for row in prange(Q1 * nq2):
+            q1 = row // nq2
+            q2 = row - q1 * nq2
+            a = A[q1, q2]
+            for i3 in range(n3):
+                a[i3] = 0.0
+            for e3 in range(E3):
+                f = first3[e3]
+                for l3 in range(p3 + 1):
+                    s = 0.0
+                    for t3 in range(g3):
+                        s += b3[0, e3, l3, t3] * L[pi, q1, q2, e3 * g3 + t3]
+                    a[f + l3] += s
+        for i2 in prange(n2):
+            r = np.empty(n3)
+            for q1 in range(Q1):
+                e1 = e0 + q1 // g1
+                t = q1 - (q1 // g1) * g1
+                for i3 in range(n3):
+                    r[i3] = 0.0
+                for e2 in range(e2lo[i2], e2hi[i2]):
+                    l2 = i2 - first2[e2]
+                    for t2 in range(g2):
+                        w = b2[0, e2, l2, t2]
+                        a = A[q1, e2 * g2 + t2]
+                        for i3 in range(n3):
+                            r[i3] += w * a[i3]
+                for l1 in range(p1 + 1):
+                    w = b1[0, e1, l1, t]
+                    o = out[pi, first1[e1] + l1, i2]
+                    for i3 in range(n3):
+                        o[i3] += w * r[i3]

@@ -154,8 +154,11 @@ class StiffnessAccumulator:
         self.Z = np.empty((g1, 7, nq2, n3, 2 * p3 + 1))
         self.Y = np.empty((g1, 4, n2, 2 * p2 + 1, n3, 2 * p3 + 1))
         self.next_element = 0
+        #: load vectors (P,) + space.shape, once a slab with a source field was added (else None)
+        self.load = None
 
-    def add(self, planes: slice, C: np.ndarray) -> None:
+    def add(self, planes: slice, C: np.ndarray, L: np.ndarray | None = None) -> None:
+        """Add the slab ``planes`` with coefficient fields C (6, P, n) and optionally a source field L (P, n)."""
         g = self.space.dirs[0].g
         if planes.start % g or (planes.stop - planes.start) % g:
             raise ProblemError(f"slab {planes} does not cover whole elements ({g} Gauss planes each)")
@@ -169,6 +172,16 @@ class StiffnessAccumulator:
         _kernels().stiffness3(C, planes.start // g, t1["b"], t1["first"], t2["W"], t2["r"], t2["s"],
                               t3["b"], t3["first"], self.pattern.indptr, t1["lo"], t1["c"],
                               t2["lo"], t2["c"], t3["lo"], t3["c"], self.ring, self.Z, self.Y, self.data)
+        if L is not None:
+            if self.load is None:
+                self.load = np.zeros((self.data.shape[0],) + self.space.shape)
+            L = np.ascontiguousarray(L, dtype=float).reshape(shape[1:])
+            p2 = self.space.dirs[1].degree
+            i2 = np.arange(self.space.shape[1])
+            e2lo = np.searchsorted(t2["first"], i2 - p2, side="left")
+            e2hi = np.searchsorted(t2["first"], i2, side="right")
+            _kernels().load3(L, planes.start // g, t1["b"], t1["first"], t2["b"], e2lo, e2hi, t2["first"],
+                             t3["b"], t3["first"], self.load)
 
     def result(self) -> tuple[CSRPattern, np.ndarray]:
         """``(pattern, data (P, nnz))`` once every element has been added."""

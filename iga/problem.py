@@ -461,26 +461,26 @@ class HeatProblem:
                 P, N = len(members), space.nq_total
                 shape = (P,) + space.qshape
                 rest = N // space.dirs[0].nq
-                L = np.empty((P, N))
-                if fast_assembly.applies(space, P):  # compiled: each slab goes straight into the CSR data
+                if fast_assembly.applies(space, P):  # compiled: each slab goes straight into the CSR data and loads
                     acc = fast_assembly.StiffnessAccumulator(space, P)
                     for planes, Cs, Ls in self._stiffness_slabs(members, space, compiled=True):
-                        acc.add(planes, Cs)
-                        L[:, planes.start * rest : planes.stop * rest] = Ls
+                        source_total += float(Ls.sum())
+                        acc.add(planes, Cs, Ls if np.any(Ls) else None)
                     pat, data = acc.result()
+                    loads = acc.load
                 else:
-                    C = np.empty((6, P, N))
+                    C, L = np.empty((6, P, N)), np.empty((P, N))
                     for planes, Cs, Ls in self._stiffness_slabs(members, space):
                         C[:, :, planes.start * rest : planes.stop * rest] = Cs
                         L[:, planes.start * rest : planes.stop * rest] = Ls
                     pat = pattern(space)
                     data = stiffness_data(space, {rs: C[j].reshape(shape) for j, rs in enumerate(_PAIRS)}, pat)
                     del C
+                    source_total += float(L.sum())
+                    loads = load_form(space, L.reshape(shape)) if np.any(L) else None
                 for j, i in enumerate(members):
                     blocks.append((int(self.offsets[i]), pat, data[j]))
-                source_total += float(L.sum())
-                if np.any(L):
-                    loads = load_form(space, L.reshape(shape))
+                if loads is not None:
                     for j, i in enumerate(members):
                         f[self.offsets[i] : self.offsets[i + 1]] += loads[j].ravel()
         return block_diagonal_csr(blocks, self.ndof), f, source_total
