@@ -8,7 +8,8 @@ direction-1 elements (:class:`StiffnessAccumulator`): per slab the geometry
 is evaluated from the spline coefficients (:func:`grid_derivs`), the metric
 coefficients computed (:func:`metric_fields`), and the stiffness contracted
 in a few MB of scratch; rows are completed in a small banded ring buffer and
-written into the CSR data once.  No full-grid field, banded array, gather
+written into the CSR data once.  The source load is contracted slab by slab
+too (``load3``).  No full-grid field, banded array, gather
 index or transpose pass exists: a third to half of the NumPy path's peak
 memory and 2-4x its speed (``benchmarks/heat_performance.py --numpy``).
 :func:`compact_rows_cols` eliminates Dirichlet unknowns inside the matrix's
@@ -136,6 +137,8 @@ class StiffnessAccumulator:
     planes ``planes`` (a slice of whole elements along the first quadrature
     axis, as :meth:`iga.HeatProblem._stiffness_slabs` yields them), in order;
     after the last element, :meth:`result` returns the pattern and the data (P, nnz).
+    ``add(planes, C, L)`` also contracts a source field L (P, n) into
+    :attr:`load` (P,) + space.shape.
     Rows are finished in a banded ring buffer of the p1 + 1 direction-1
     indices a slab touches and written to ``data`` once, when complete.
     """

@@ -9,7 +9,7 @@ import solvers
 from geometry import primitives as pr
 from iga import HeatProblem, ProblemError, fast_assembly
 from iga import problem as problem_module
-from iga.assembly import pattern, stiffness_data
+from iga.assembly import load_form, pattern, stiffness_data
 from iga.geometry_eval import grid_values_derivs_slabs
 from iga.manufactured import quarter_annulus
 from iga.problem import _PAIRS, _eliminate
@@ -38,17 +38,22 @@ def test_compiled_stiffness_equals_numpy_path(seed):
     pat, data = fast_assembly.stiffness_csr(space, C)
     assert np.array_equal(pat.indptr, ref_pat.indptr) and np.array_equal(pat.indices, ref_pat.indices)
     assert np.abs(data - ref).max() <= 1e-12 * np.abs(ref).max()
-    # slab by slab (whole elements of direction 1) gives the same matrix
+    # slab by slab (whole elements of direction 1) gives the same matrix, and the same load vectors
     acc = fast_assembly.StiffnessAccumulator(space, P)
     g, planes = space.dirs[0].g, space.dirs[0].nq
     cuts = sorted({0, planes, *(g * rng.integers(0, planes // g + 1, 2))})
     Cg = C.reshape(6, P, planes, -1)
+    L = rng.standard_normal((P,) + space.qshape)
+    Lg = L.reshape(P, planes, -1)
     for a, b in zip(cuts[:-1], cuts[1:]):
         if b == planes:
             with pytest.raises(ProblemError, match="incomplete"):
                 acc.result()
-        acc.add(slice(a, b), Cg[:, :, a:b])
+        acc.add(slice(a, b), Cg[:, :, a:b], Lg[:, a:b])
     assert np.abs(acc.result()[1] - data).max() <= 1e-12 * np.abs(ref).max()
+    ref_load = load_form(space, L)
+    assert acc.load.shape == ref_load.shape
+    assert np.abs(acc.load - ref_load).max() <= 1e-12 * np.abs(ref_load).max()
     with pytest.raises(ProblemError, match="whole elements"):
         acc.add(slice(1, 1 + g), Cg[:, :, 1 : 1 + g])
     with pytest.raises(ProblemError, match="in order"):
