@@ -168,17 +168,18 @@ class StiffnessAccumulator:
         if planes.start != self.next_element * g:
             raise ProblemError(f"slabs must come in order: expected Gauss plane {self.next_element * g}, "
                                f"got {planes.start}")
-        self.next_element = planes.stop // g
         t1, t2, t3 = self.tables
         shape = (6, self.data.shape[0], planes.stop - planes.start) + self.space.qshape[1:]
         C = np.ascontiguousarray(C, dtype=float).reshape(shape)
+        if L is not None:  # shaped before anything is added, so that a bad slab changes nothing
+            L = np.ascontiguousarray(L, dtype=float).reshape(shape[1:])
+        self.next_element = planes.stop // g
         _kernels().stiffness3(C, planes.start // g, t1["b"], t1["first"], t2["W"], t2["r"], t2["s"],
                               t3["b"], t3["first"], self.pattern.indptr, t1["lo"], t1["c"],
                               t2["lo"], t2["c"], t3["lo"], t3["c"], self.ring, self.Z, self.Y, self.data)
         if L is not None:
             if self.load is None:
                 self.load = np.zeros((self.data.shape[0],) + self.space.shape)
-            L = np.ascontiguousarray(L, dtype=float).reshape(shape[1:])
             p2 = self.space.dirs[1].degree
             i2 = np.arange(self.space.shape[1])
             e2lo = np.searchsorted(t2["first"], i2 - p2, side="left")
