@@ -69,10 +69,14 @@ def _tables(sp1: Space1D) -> dict:
         loc = first[:, None] + np.arange(p + 1)[None, :]  # (E, p+1)
         cols = np.arange(sp1.E)[:, None] * g + np.arange(g)[None, :]  # (E, g)
         b = sp1.B[:, loc[:, :, None], cols[:, None, :]]  # (2, E, p+1, g)
+        # elements in the support of each function: first[e] in [i - p, i] (first is non-decreasing)
+        i = np.arange(n)
         cache = {
             "W": W, "r": np.ascontiguousarray(np.stack([lo, hi], axis=-1).astype(np.int64)),
             "s": (sp1.start * g).astype(np.int64), "lo": blo.astype(np.int64),
             "c": (bhi - blo + 1).astype(np.int64), "b": np.ascontiguousarray(b), "first": first.astype(np.int64),
+            "elo": np.searchsorted(first, i - p, side="left").astype(np.int64),
+            "ehi": np.searchsorted(first, i, side="right").astype(np.int64),
         }
         sp1.__dict__["_fast_tables"] = cache
     return cache
@@ -180,11 +184,7 @@ class StiffnessAccumulator:
         if L is not None:
             if self.load is None:
                 self.load = np.zeros((self.data.shape[0],) + self.space.shape)
-            p2 = self.space.dirs[1].degree
-            i2 = np.arange(self.space.shape[1])
-            e2lo = np.searchsorted(t2["first"], i2 - p2, side="left")
-            e2hi = np.searchsorted(t2["first"], i2, side="right")
-            _kernels().load3(L, planes.start // g, t1["b"], t1["first"], t2["b"], e2lo, e2hi, t2["first"],
+            _kernels().load3(L, planes.start // g, t1["b"], t1["first"], t2["b"], t2["elo"], t2["ehi"], t2["first"],
                              t3["b"], t3["first"], self.load)
 
     def result(self) -> tuple[CSRPattern, np.ndarray]:

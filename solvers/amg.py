@@ -82,7 +82,11 @@ class AMGPreconditioner:
         from . import SolverError
 
         A = sp.csr_matrix(A)
-        A.sort_indices()
+        if not A.has_sorted_indices:
+            if overwrite:
+                A.sort_indices()
+            else:  # sorting in place would reorder the caller's arrays
+                A = A.sorted_indices()
         d = A.diagonal()
         if not np.all(d > 0):
             i = int(np.argmin(d))
