@@ -178,7 +178,8 @@ class StiffnessAccumulator:
         if L is not None:  # shaped before anything is added, so that a bad slab changes nothing
             L = np.ascontiguousarray(L, dtype=float).reshape(shape[1:])
         self.next_element = planes.stop // g
-        _kernels().stiffness3(C, planes.start // g, t1["b"], t1["first"], t2["W"], t2["r"], t2["s"],
+        p3, g3 = t3["b"].shape[2] - 1, t3["b"].shape[3]
+        _kernels().stiffness3_for(p3, g3)(C, planes.start // g, t1["b"], t1["first"], t2["W"], t2["r"], t2["s"],
                               t3["b"], t3["first"], self.pattern.indptr, t1["lo"], t1["c"],
                               t2["lo"], t2["c"], t3["lo"], t3["c"], self.ring, self.Z, self.Y, self.data)
         if L is not None:
