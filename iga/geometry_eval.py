@@ -56,16 +56,29 @@ def _contract_prefixes(hom, B, order, keys, depth):
     return level
 
 
+#: grid points from which :func:`grid_values_derivs` uses the compiled kernel (when numba is installed)
+COMPILED_GRID_POINTS = 25_000
+
+
 def grid_values_derivs(spline, axes):
     """Values (N, m) and first derivatives [(N, m)] * d on a tensor grid (C order; rational handled).
 
     Sum factorisation with shared partial contractions: directions are
     contracted in order of growth (a face's single-point direction first), and
-    the value and every derivative share their common prefixes.
+    the value and every derivative share their common prefixes.  3-D grids of
+    at least :data:`COMPILED_GRID_POINTS` points (large faces) run in the
+    compiled kernel of :mod:`iga.fast_assembly` when numba is installed
+    (3-5x faster: NumPy's contractions copy every partial result).
     """
     d = spline.dim
     hom = spline.homogeneous
     m = hom.shape[-1]
+    if d == 3 and int(np.prod([len(a) for a in axes])) >= COMPILED_GRID_POINTS:
+        from . import fast_assembly
+
+        if fast_assembly.AVAILABLE:
+            out = fast_assembly.grid_derivs(hom, slice(0, len(axes[0])), fast_assembly.grid_tables(spline, axes))
+            return _dehomogenise(spline, out[0], list(out[1:]))
     # ties: last direction first, so that direction 0 comes last and the result is C-contiguous
     order = sorted(range(d), key=lambda k: (len(axes[k]) / hom.shape[k], -k))
     B, keys = _prepare(spline, axes, order)

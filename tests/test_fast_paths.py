@@ -77,6 +77,25 @@ def test_compiled_grid_geometry_equals_direct_evaluation():
             assert np.abs(np.stack(dx, -1) - S.jacobian(pts)).max() < 1e-10
 
 
+@pytest.mark.parametrize("axis", range(3))
+def test_compiled_face_grid_equals_direct_evaluation(axis, monkeypatch):
+    # large face grids (one point in one direction) are evaluated by the compiled kernel too
+    from iga import geometry_eval
+
+    rng = np.random.default_rng(axis)
+    S = random_spline(rng, 3, degrees=(3, 1, 2), rational=True, channels=("k",))
+    axes = [np.sort(rng.uniform(0, 1, n)) for n in (11, 6, 8)]
+    axes[axis] = np.array([float(S.knots[axis][-1])])  # the max face
+    G = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
+    monkeypatch.setattr(geometry_eval, "COMPILED_GRID_POINTS", 1)
+    x, dx = geometry_eval.grid_values_derivs(S, axes)
+    assert np.abs(x - S.evaluate(G)).max() < 1e-12
+    assert np.abs(np.stack(dx, -1) - S.jacobian(G)).max() < 1e-10
+    monkeypatch.setattr(geometry_eval, "COMPILED_GRID_POINTS", 10**9)  # the NumPy path gives the same
+    x2, dx2 = geometry_eval.grid_values_derivs(S, axes)
+    assert np.abs(x2 - x).max() < 1e-12 and np.abs(np.stack(dx2, -1) - np.stack(dx, -1)).max() < 1e-10
+
+
 def _assembled(prob_factory, monkeypatch, compiled):
     if compiled:
         monkeypatch.setattr(fast_assembly, "MIN_POINTS", 0)
