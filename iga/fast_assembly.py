@@ -6,8 +6,9 @@ hundreds of MB, then the banded result is gathered into CSR order and added
 to its transpose.  Here the same sum factorisation runs slab by slab of
 direction-1 elements (:class:`StiffnessAccumulator`): per slab the geometry
 is evaluated from the spline coefficients (:func:`grid_derivs`), the metric
-coefficients computed (:func:`metric_fields`), and the stiffness contracted
-in a few MB of scratch; rows are completed in a small banded ring buffer and
+coefficients computed (:func:`metric_fields`; both in one pass by
+:func:`metric_slabs` for patches without placement or map and with constant
+conductivity and source), and the stiffness contracted in a few MB of scratch; rows are completed in a small banded ring buffer and
 written into the CSR data once.  The source load is contracted slab by slab
 too (``load3``).  No full-grid field, banded array, gather
 index or transpose pass exists: a third to half of the NumPy path's peak
@@ -245,3 +246,32 @@ def grid_derivs(hom: np.ndarray, rows: slice, tables) -> np.ndarray:
     out = np.empty((4, rows.stop - rows.start, len(f1), len(f2), m))
     _kernels().grid_derivs3(np.ascontiguousarray(hom, dtype=float), rows.start, rows.stop, f0, B0, f1, B1, f2, B2, out)
     return out.reshape(4, -1, m)
+
+
+def metric_slabs(spline, space: TensorSpace, points_per_slab: int, kval: float, fval: float):
+    """:func:`grid_derivs` and :func:`metric_fields` fused, for x = spline(xi) with constant k and f.
+
+    Yields ``(planes, C (6, n), L (n,), det (n,))`` per slab of whole
+    direction-0 elements (about ``points_per_slab`` points; at least one
+    element) of ``space``'s Gauss grid, as the two-pass route would.  For
+    patches without placement or deformation map and with numbers for
+    conductivity and source (:meth:`iga.HeatProblem._stiffness_slabs`).
+    """
+    axes = space.qaxes
+    tables = grid_tables(spline, axes)
+    hom = spline.homogeneous
+    if hom.shape[-1] != (4 if spline.is_rational else 3):  # channels are not needed: coordinates (and weight)
+        hom = hom[..., [0, 1, 2, -1] if spline.is_rational else [0, 1, 2]]
+    hom = np.ascontiguousarray(hom, dtype=float)
+    qw = [np.ascontiguousarray(d.qw, dtype=float) for d in space.dirs]
+    g, nq0 = space.dirs[0].g, space.dirs[0].nq
+    rest = space.dirs[1].nq * space.dirs[2].nq
+    rows = g * max(1, points_per_slab // (rest * g))
+    (f0, B0), (f1, B1), (f2, B2) = tables
+    for a in range(0, nq0, rows):
+        b = min(a + rows, nq0)
+        n = (b - a) * rest
+        C, L, det = np.empty((6, n)), np.empty(n), np.empty(n)
+        _kernels().geometry_metric3(hom, spline.is_rational, a, b, f0, B0, f1, B1, f2, B2, float(kval), float(fval),
+                                    *qw, C, L, det)
+        yield slice(a, b), C, L, det

@@ -428,6 +428,18 @@ class HeatProblem:
         where = f"patch {members[0]}" if P == 1 else f"patches {members[0]}..{members[-1]}"
         w_rest = np.multiply.outer(space.dirs[1].qw, space.dirs[2].qw).ravel()  # weights of one plane
         lo, hi = np.inf, -np.inf  # det range over all slabs: a sign change between slabs is a fold too
+        if (compiled and _is_number(self.conductivity) and _is_number(self.source)
+                and all(p.placement is None and p.outer is None for p in patches)):
+            # x = spline(xi), k and f constant: geometry and metric in one compiled pass (the patches of
+            # the group are the same spline, so one evaluation serves them all)
+            for planes, C, L, det in fast_assembly.metric_slabs(patches[0].spline, space, 1 << 18,
+                                                                self.conductivity, self.source):
+                checked_det(det, where)
+                lo, hi = min(lo, det.min()), max(hi, det.max())
+                n = len(L)
+                yield planes, np.broadcast_to(C[:, None], (6, P, n)), np.broadcast_to(L, (P, n))
+            checked_det(np.array([lo, hi]), where)
+            return
         # compiled: larger slabs, since the kernels re-contract the p + 1 coefficient rows a slab
         # touches (a 2^18-point slab holds about 40 MB of fields); NumPy: cache-sized temporaries
         slabs = patches_geometry_derivs_slabs(patches, space.qaxes, 1 << (18 if compiled else 14),

@@ -106,13 +106,30 @@ def _assembled(prob_factory, monkeypatch, compiled):
     return K, f
 
 
-@pytest.mark.parametrize("case", ["annulus", "hierarchy"])
+@pytest.mark.parametrize("case", ["annulus", "plain", "hierarchy"])
 def test_compiled_heat_assembly_equals_numpy_assembly(case, monkeypatch):
     if case == "annulus":  # exact NURBS, variable conductivity and source
         def factory():
             m = quarter_annulus()
             return (HeatProblem(m.geometry, conductivity=m.conductivity, source=m.source,
                                 refine=1).dirichlet("umin", 0.0))
+    elif case == "plain":
+        # constant k and f on patches without placement or map: the fused geometry-metric kernel; a NURBS
+        # patch with a channel (not needed, dropped from the coefficients) twice (two patches, one spline)
+        # and a B-spline patch with curved, non-uniform geometry
+        from geometry import BSpline
+
+        rng = np.random.default_rng(7)
+        box = pr.box(degrees=(2, 3, 2), elements=(3, 2, 4))
+        nurbs = BSpline(box.degrees, box.knots, np.concatenate(
+            [box.coefficients + 0.03 * rng.standard_normal(box.coefficients.shape),
+             rng.uniform(1, 2, box.coefficients.shape[:-1] + (1,))], axis=-1),
+            rng.uniform(0.7, 1.4, box.coefficients.shape[:-1]), channels=("k",))
+        cube = pr.box(degrees=(3, 2, 2), elements=(4, 3, 5))
+        bent = BSpline(cube.degrees, cube.knots, cube.coefficients + 0.02 * rng.standard_normal(cube.coefficients.shape))
+
+        def factory():
+            return HeatProblem([nurbs, nurbs, bent], conductivity=2.5, source=-1.5).dirichlet("umin", 0.0)
     else:  # micro-structure: placements and a rational deformation map, several patches per tile spline
         import tiling
         from geometry import BSpline
@@ -125,8 +142,12 @@ def test_compiled_heat_assembly_equals_numpy_assembly(case, monkeypatch):
 
         def factory():
             return HeatProblem(model, conductivity=2.0, source=1.0).dirichlet("umin", 0.0)
+    fused = []  # which groups the fused geometry-metric kernel assembled
+    metric_slabs = fast_assembly.metric_slabs
     K0, f0 = _assembled(factory, monkeypatch, compiled=False)
+    monkeypatch.setattr(fast_assembly, "metric_slabs", lambda spline, *a: fused.append(spline) or metric_slabs(spline, *a))
     K1, f1 = _assembled(factory, monkeypatch, compiled=True)
+    assert len(fused) == (2 if case == "plain" else 0)
     assert abs(K1 - K0).max() <= 1e-12 * abs(K0).max()
     assert np.abs(f1 - f0).max() <= 1e-12 * np.abs(f0).max()
 
