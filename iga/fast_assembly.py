@@ -8,9 +8,10 @@ direction-1 elements (:class:`StiffnessAccumulator`): per slab the geometry
 is evaluated from the spline coefficients (:func:`grid_derivs`), the metric
 coefficients computed (:func:`metric_fields`; both in one pass by
 :func:`metric_slabs` for patches without placement or map and with constant
-conductivity and source), and the stiffness contracted in a few MB of scratch; rows are completed in a small banded ring buffer and
-written into the CSR data once.  The source load is contracted slab by slab
-too (``load3``).  No full-grid field, banded array, gather
+conductivity and source), and the stiffness contracted in a few MB of
+scratch; rows are completed in a small banded ring buffer and written into
+the CSR data once.  The source load is contracted slab by slab too
+(``load3``).  No full-grid field, banded array, gather
 index or transpose pass exists: a third to half of the NumPy path's peak
 memory and 2-4x its speed (``benchmarks/heat_performance.py --numpy``).
 :func:`compact_rows_cols` eliminates Dirichlet unknowns inside the matrix's
