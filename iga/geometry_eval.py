@@ -212,13 +212,21 @@ def patch_geometry_points(patch: Patch, params):
     return x[0], np.stack([d[0] for d in Dx], axis=-1), {c: v[0] for c, v in chans.items()}
 
 
-def checked_det(det, what: str) -> np.ndarray:
-    """Check Jacobian determinants; a sign change or a zero means a singular patch (ProblemError)."""
-    if not np.all(np.isfinite(det)):
+def checked_det(det, what: str) -> tuple[float, float]:
+    """Check Jacobian determinants; a sign change or a zero means a singular patch (ProblemError).
+
+    Returns ``(min, max)`` of ``det`` (``(inf, -inf)`` when empty), from the
+    two passes the check needs: min and max propagate NaN, and a zero or a
+    sign change lies in [min, max].
+    """
+    if det.size == 0:
+        return np.inf, -np.inf
+    lo, hi = float(det.min()), float(det.max())
+    if not (np.isfinite(lo) and np.isfinite(hi)):
         raise ProblemError(f"{what}: the geometry Jacobian is not finite at some quadrature points")
-    if det.size and (det.min() <= 0 < det.max() or np.any(det == 0)):
+    if lo <= 0 <= hi:
         raise ProblemError(
             f"{what}: the geometry Jacobian vanishes or changes sign inside the patch (folded or degenerate "
             "geometry); check it with geometry.check_regular"
         )
-    return det
+    return lo, hi

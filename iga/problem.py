@@ -440,8 +440,8 @@ class HeatProblem:
             # the group are the same spline, so one evaluation serves them all)
             for planes, C, L, det in fast_assembly.metric_slabs(patches[0].spline, space, _FUSED_SLAB_POINTS,
                                                                 self.conductivity, self.source):
-                checked_det(det, where)
-                lo, hi = min(lo, det.min()), max(hi, det.max())
+                a, b = checked_det(det, where)
+                lo, hi = min(lo, a), max(hi, b)
                 n = len(L)
                 yield planes, np.broadcast_to(C[:, None], (6, P, n)), np.broadcast_to(L, (P, n))
             checked_det(np.array([lo, hi]), where)
@@ -462,8 +462,8 @@ class HeatProblem:
                 C, L, det = fast_assembly.metric_fields(D, kval, fval, wv)
             else:
                 C, L, det = _metric_fields(D, kval, fval, wv)
-            checked_det(det, where)
-            lo, hi = min(lo, det.min()), max(hi, det.max())
+            a, b = checked_det(det, where)
+            lo, hi = min(lo, a), max(hi, b)
             yield planes, C.reshape(6, P, n), L.reshape(P, n)
         checked_det(np.array([lo, hi]), where)
 

@@ -152,6 +152,21 @@ def test_compiled_heat_assembly_equals_numpy_assembly(case, monkeypatch):
     assert np.abs(f1 - f0).max() <= 1e-12 * np.abs(f0).max()
 
 
+@pytest.mark.parametrize("compiled", [False, True])
+def test_mirrored_patch_has_the_same_stiffness(compiled, monkeypatch):
+    # x -> -x makes det J < 0 everywhere (a left-handed patch): valid, and the Laplacian is unchanged
+    from geometry import BSpline
+
+    cube = pr.box(degrees=(2, 3, 2), elements=(3, 2, 3))
+    cp = cube.coefficients.copy()
+    cp[..., 0] *= -1
+    mirrored = BSpline(cube.degrees, cube.knots, cp)
+    K0, f0 = _assembled(lambda: HeatProblem(cube, source=2.0), monkeypatch, compiled)
+    K1, f1 = _assembled(lambda: HeatProblem(mirrored, source=2.0), monkeypatch, compiled)
+    assert abs(K1 - K0).max() <= 1e-12 * abs(K0).max()
+    assert np.abs(f1 - f0).max() <= 1e-12 * np.abs(f0).max() and f0.sum() == pytest.approx(2.0)
+
+
 def test_fold_between_slabs_is_reported(monkeypatch):
     # x(u) = 2u(1 - u): dx/du changes sign at u = 1/2, which is an element boundary, so every
     # slab alone has one sign; the fold must be caught across slabs

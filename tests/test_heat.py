@@ -192,6 +192,17 @@ def test_bad_input_raises_project_errors(tmp_path):
         HeatProblem(a).robin("vmin", -5.0, 1.0)
 
 
+def test_jacobian_check_accepts_left_handed_patches_and_rejects_zeros_folds_and_nan():
+    from iga.geometry_eval import checked_det
+
+    assert checked_det(np.array([-2.0, -0.5, -1.0]), "patch 0") == (-2.0, -0.5)
+    assert checked_det(np.array([3.0, 1.0]), "patch 0") == (1.0, 3.0)
+    for det, msg in (([1.0, 0.0, 2.0], "vanishes"), ([-1.0, 0.5], "changes sign"), ([1.0, np.nan], "not finite"),
+                     ([np.inf, 1.0], "not finite"), ([-np.inf, -1.0], "not finite")):
+        with pytest.raises(ProblemError, match=msg):
+            checked_det(np.array(det), "patch 0")
+
+
 def test_solver_errors():
     A = sp.csr_matrix(np.array([[1.0, -1.0], [-1.0, 1.0]]))
     with pytest.raises(solvers.SolverError, match="singular"):
