@@ -1,7 +1,7 @@
 """Assembly and solve performance: unit-cube Poisson, p = 2 and 3.
 
     python benchmarks/heat_performance.py [--sizes 30k,110k,475k] [--degrees 2,3] [--million]
-                                          [--malloc retain|default|both] [--repeat 3] [--numpy]
+                                          [--malloc retain|default|both] [--repeat 5] [--numpy]
 
 Each case runs in a fresh subprocess (so timings and peak memory are per
 case): the unit cube as one trivariate patch with N^3 elements of degree p
@@ -14,6 +14,10 @@ one-time tables exist and freed memory is reused.  The "CSR floor" is the
 time SciPy needs to build a CSR matrix with the same nnz from COO triplets,
 the floor for any assembly that produces such a matrix (fastest of
 ``--repeat`` runs, so that it is compared warm with the warm assembly).
+The floor runs come after the warm assemblies rather than between them:
+interleaved, each allocation of one disturbs the other's reuse of freed
+memory (at 1M unknowns both became 30% slower and the first floor paid
+for fresh pages).  The JSON keeps every run.
 
 ``--malloc retain`` (default) applies :func:`iga.memory.retain_freed_memory`
 in the case's process, as the ``iga`` CLI does; ``default`` keeps glibc's
@@ -41,7 +45,7 @@ from _common import print_table, pyplot, save_json, save_plot  # noqa: E402
 SIZES = {"30k": 31, "110k": 48, "475k": 78, "1M": 100}  # (N + p) per direction, p = 2; p = 3 uses one less element
 
 
-def run_case(p: int, n_per_dir: int, tol: float, malloc: str = "retain", repeat: int = 3,
+def run_case(p: int, n_per_dir: int, tol: float, malloc: str = "retain", repeat: int = 5,
              numpy_only: bool = False) -> dict:
     if malloc == "retain":
         from iga.memory import retain_freed_memory
@@ -82,7 +86,8 @@ def run_case(p: int, n_per_dir: int, tol: float, malloc: str = "retain", repeat:
     floor = min(floors)
     return {"p": p, "malloc": malloc, "compiled": "yes" if (not numpy_only and fast_assembly.AVAILABLE) else "no", "dofs": prob.ndof,
             "nnz": int(nnz), "assembly cold s": cold, "assembly warm s": warm, "CSR floor s": floor,
-            "warm/floor": warm / floor, "elimination s": tm["constraints"], "AMG setup s": info["setup_s"],
+            "warm/floor": warm / floor, "warm runs s": times, "floor runs s": floors,
+            "elimination s": tm["constraints"], "AMG setup s": info["setup_s"],
             "CG s": info["solve_s"], "iterations": info["iterations"], "residual": info["residual"],
             "total s": total, "peak GiB": peak}
 
@@ -95,7 +100,7 @@ def main(argv=None):
     ap.add_argument("--tol", type=float, default=1e-8)
     ap.add_argument("--malloc", choices=("retain", "default", "both"), default="retain",
                     help="allocator setting per case (see iga.memory)")
-    ap.add_argument("--repeat", type=int, default=3, help="warm assemblies per case (median reported)")
+    ap.add_argument("--repeat", type=int, default=5, help="warm assemblies per case (median reported)")
     ap.add_argument("--numpy", action="store_true", help="disable the compiled (numba) assembly and elimination")
     ap.add_argument("--case", help=argparse.SUPPRESS)  # internal: "p,n" run in this process
     args = ap.parse_args(argv)
