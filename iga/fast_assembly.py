@@ -226,12 +226,17 @@ def metric_fields(D, kval, fval, w):
     return C, L, det
 
 
-def grid_tables(spline, axes) -> list:
-    """Per direction: first non-zero basis index (nq,) and values/derivatives (2, nq, p + 1) at ``axes``."""
+def grid_tables(spline, axes, order=(0, 1, 2)) -> list:
+    """Per direction: first non-zero basis index (nq,) and values/derivatives (2, nq, p + 1) at ``axes``.
+
+    ``order``: the spline's directions in the order the tables are wanted
+    (for coefficients transposed the same way).
+    """
     from geometry import knots as kn
 
     out = []
-    for U, p, ax in zip(spline.knots, spline.degrees, axes):
+    for k in order:
+        U, p, ax = spline.knots[k], spline.degrees[k], axes[k]
         spans, ders = kn.basis_functions(U, p, np.clip(ax, U[0], U[-1]), 1)
         out.append(((spans - p).astype(np.int64), np.ascontiguousarray(np.moveaxis(ders, 1, 0))))
     return out

@@ -77,8 +77,16 @@ def grid_values_derivs(spline, axes):
         from . import fast_assembly
 
         if fast_assembly.AVAILABLE:
-            out = fast_assembly.grid_derivs(hom, slice(0, len(axes[0])), fast_assembly.grid_tables(spline, axes))
-            return _dehomogenise(spline, out[0], list(out[1:]))
+            # the kernel contracts direction 2 first, over every coefficient row: on a face v = const
+            # (one point in direction 1) that would make a full (n0, n1, nq2) partial result, so v and w
+            # swap places; with a single v point the points keep their C order
+            order = (0, 2, 1) if len(axes[1]) == 1 < len(axes[2]) else (0, 1, 2)
+            out = fast_assembly.grid_derivs(hom.transpose(*order, 3), slice(0, len(axes[0])),
+                                            fast_assembly.grid_tables(spline, axes, order))
+            dH = [None] * 3
+            for j, k in enumerate(order):
+                dH[k] = out[1 + j]
+            return _dehomogenise(spline, out[0], dH)
     # ties: last direction first, so that direction 0 comes last and the result is C-contiguous
     order = sorted(range(d), key=lambda k: (len(axes[k]) / hom.shape[k], -k))
     B, keys = _prepare(spline, axes, order)
