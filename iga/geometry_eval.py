@@ -7,6 +7,8 @@ from ``T``, deformation-map channels from ``D`` at the mapped point.
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 
 from geometry import knots as kn
@@ -56,8 +58,10 @@ def _contract_prefixes(hom, B, order, keys, depth):
     return level
 
 
-#: grid points from which :func:`grid_values_derivs` uses the compiled kernel (when numba is installed)
+#: grid points from which :func:`grid_values_derivs` uses the compiled kernel (when numba is installed);
+#: once the compiled kernels are loaded (a large assembly ran), from :data:`LOADED_GRID_POINTS`
 COMPILED_GRID_POINTS = 25_000
+LOADED_GRID_POINTS = 2_000
 
 
 def grid_values_derivs(spline, axes):
@@ -68,12 +72,16 @@ def grid_values_derivs(spline, axes):
     the value and every derivative share their common prefixes.  3-D grids of
     at least :data:`COMPILED_GRID_POINTS` points (large faces) run in the
     compiled kernel of :mod:`iga.fast_assembly` when numba is installed
-    (3-5x faster: NumPy's contractions copy every partial result).
+    (3-5x faster: NumPy's contractions copy every partial result); so do
+    grids of :data:`LOADED_GRID_POINTS` once the kernels are loaded, while
+    small analyses never import numba for their faces.
     """
     d = spline.dim
     hom = spline.homogeneous
     m = hom.shape[-1]
-    if d == 3 and int(np.prod([len(a) for a in axes])) >= COMPILED_GRID_POINTS:
+    n = int(np.prod([len(a) for a in axes]))
+    loaded = "iga._assembly_kernels" in sys.modules
+    if d == 3 and (n >= COMPILED_GRID_POINTS or (loaded and n >= LOADED_GRID_POINTS)):
         from . import fast_assembly
 
         if fast_assembly.AVAILABLE:

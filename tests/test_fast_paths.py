@@ -92,8 +92,17 @@ def test_compiled_face_grid_equals_direct_evaluation(axis, monkeypatch):
     assert np.abs(x - S.evaluate(G)).max() < 1e-12
     assert np.abs(np.stack(dx, -1) - S.jacobian(G)).max() < 1e-10
     monkeypatch.setattr(geometry_eval, "COMPILED_GRID_POINTS", 10**9)  # the NumPy path gives the same
+    monkeypatch.setattr(geometry_eval, "LOADED_GRID_POINTS", 10**9)
     x2, dx2 = geometry_eval.grid_values_derivs(S, axes)
     assert np.abs(x2 - x).max() < 1e-12 and np.abs(np.stack(dx2, -1) - np.stack(dx, -1)).max() < 1e-10
+    # smaller grids take the compiled kernel only once it is loaded (small analyses never import numba)
+    calls = []
+    grid_derivs = fast_assembly.grid_derivs
+    monkeypatch.setattr(fast_assembly, "grid_derivs", lambda *a: calls.append(1) or grid_derivs(*a))
+    monkeypatch.setattr(geometry_eval, "LOADED_GRID_POINTS", len(G))
+    fast_assembly._kernels()
+    x3, _ = geometry_eval.grid_values_derivs(S, axes)
+    assert calls == [1] and np.abs(x3 - x).max() < 1e-12
 
 
 def _assembled(prob_factory, monkeypatch, compiled):
