@@ -3,7 +3,8 @@
 SciPy's ``NdBSpline`` evaluates about 2e6 points/s on one core and holds the
 GIL, so it cannot use a second core.  This kernel (Cox-de Boor basis, then
 the (p + 1)^d tensor contraction per point, points split over threads with
-``prange``) evaluates values only; derivatives stay with SciPy.  It is used
+``prange``) evaluates values, or values and first derivatives (for
+Jacobians); higher derivatives stay with SciPy.  It is used
 for large point sets when numba imports; otherwise nothing changes.  The
 first use compiles it (cached on disk by numba), so small evaluations never
 trigger it: see :data:`MIN_POINTS`.
@@ -41,9 +42,11 @@ def applies(dim: int, n_points: int) -> bool:
     return AVAILABLE and dim == 3 and n_points >= MIN_POINTS
 
 
-def evaluate(knots, degrees, coefficients: np.ndarray, x: np.ndarray) -> np.ndarray | None:
+def evaluate(knots, degrees, coefficients: np.ndarray, x: np.ndarray, derivs: bool = False) -> np.ndarray | None:
     """Values (N, m) of the spline with ``coefficients`` (n_1, ..., n_d, m) at ``x`` (N, d).
 
+    ``derivs``: values and first derivatives instead, (4, N, m) (value,
+    d/dx_0, d/dx_1, d/dx_2; at a knot the right-hand derivative, as SciPy's).
     Returns None when the kernel does not apply (numba missing, d != 3, or
     fewer than :data:`MIN_POINTS` points) or when some point lies outside the
     domain or is not finite: the caller then checks the points (and raises,
@@ -53,8 +56,10 @@ def evaluate(knots, degrees, coefficients: np.ndarray, x: np.ndarray) -> np.ndar
         return None
     C = np.ascontiguousarray(coefficients, dtype=float)
     X = np.ascontiguousarray(x, dtype=float)
-    out = np.empty((len(X), C.shape[-1]))
+    out = np.empty((4 if derivs else 1, len(X), C.shape[-1]))
     bad = np.zeros(_CHUNKS, np.int64)
     U = [np.ascontiguousarray(u, dtype=float) for u in knots]
     _kernel()(X, U[0], int(degrees[0]), U[1], int(degrees[1]), U[2], int(degrees[2]), C, out, bad)
-    return None if bad.any() else out
+    if bad.any():
+        return None
+    return out if derivs else out[0]

@@ -173,8 +173,8 @@ def _outer_map(patches, xT, DT):
             raise ProblemError("patches that share a tile must all have a deformation map or none")
         dom = D.domain
         yy = np.clip(y[members].reshape(-1, 3), dom[:, 0], dom[:, 1])
-        vals = D.evaluate(yy)
-        JD = D.jacobian(yy)[:, :3, :]
+        vals, JD = D.value_and_jacobian(yy)
+        JD = JD[:, :3, :]
         x[members] = vals[:, :3].reshape(len(members), N, 3)
         for k in range(len(Dy)):
             Dx[k][members] = np.matmul(JD, Dy[k][members].reshape(-1, 3, 1)).reshape(len(members), N, 3)

@@ -257,9 +257,23 @@ def test_compiled_scattered_evaluation_matches_scipy(seed):
     assert fast is not None and fast.shape == ref.shape
     assert np.abs(fast - ref).max() <= 1e-13 * max(1.0, np.abs(ref).max())
     assert _fast.evaluate(s.knots, s.degrees, s.homogeneous, x[:100]) is None  # small sets stay with SciPy
+    # values and first derivatives in one pass (right-hand derivatives at knots, as SciPy's)
+    eye = [(1, 0, 0), (0, 1, 0), (0, 0, 1)]
+    D = s._derivs(s._check_params(x), [(0, 0, 0)] + eye)  # SciPy's NdBSpline, quotient rule when rational
+    vals, J = s.value_and_jacobian(x)
+    scale = max(1.0, max(np.abs(D[a]).max() for a in eye))
+    assert np.abs(vals - D[(0, 0, 0)]).max() <= 1e-13 * max(1.0, np.abs(D[(0, 0, 0)]).max())
+    assert np.abs(J - np.stack([D[a] for a in eye], -1)).max() <= 1e-12 * scale
+    assert np.array_equal(s.jacobian(x), J)
+    # small sets stay with SciPy and agree
+    v2, J2 = s.value_and_jacobian(x[:100])
+    assert np.abs(v2 - vals[:100]).max() <= 1e-13 * max(1.0, np.abs(vals).max())
+    assert np.abs(J2 - J[:100]).max() <= 1e-12 * scale
     # bad points in a large set: the kernel declines and the usual checks name them
     for bad, msg in ((np.nan, "non-finite"), (1.5, "outside the domain")):
         y = x.copy()
         y[11, seed % 3] = bad
         with pytest.raises(SplineError, match=msg):
             s.evaluate(y)
+        with pytest.raises(SplineError, match=msg):
+            s.jacobian(y)
