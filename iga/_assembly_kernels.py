@@ -387,6 +387,38 @@ def _contract21(hom, lo, R, B1, f1, B2, f2):
     return U
 
 
+@njit(inline="always")
+def _direction0_row(U, B0, q0, s, q1, X, D0, D1, D2, value):
+    """Direction 0 contracted at grid coordinate q0 for grid row q1: the rows X (if ``value``), D0, D1, D2 (K,).
+
+    U (3, R, nq1, K) from :func:`_contract21`; ``s`` the first coefficient row
+    of q0's basis functions relative to U's first row.
+    """
+    K = D0.shape[0]
+    for k in range(K):
+        D0[k] = 0.0
+        D1[k] = 0.0
+        D2[k] = 0.0
+    if value:
+        for k in range(K):
+            X[k] = 0.0
+    for l in range(B0.shape[2]):
+        v = B0[0, q0, l]
+        dv = B0[1, q0, l]
+        V0, V1, V2 = U[0, s + l, q1], U[1, s + l, q1], U[2, s + l, q1]
+        if value:  # one sweep for all four rows
+            for k in range(K):
+                X[k] += v * V0[k]
+                D0[k] += dv * V0[k]
+                D1[k] += v * V1[k]
+                D2[k] += v * V2[k]
+        else:
+            for k in range(K):
+                D0[k] += dv * V0[k]
+                D1[k] += v * V1[k]
+                D2[k] += v * V2[k]
+
+
 @njit(cache=True, parallel=True)
 def grid_derivs3(hom, a, b, f0, B0, f1, B1, f2, B2, out):
     """Values and first derivatives of a 3-D tensor spline on the rows a..b-1 of a grid.
@@ -411,21 +443,7 @@ def grid_derivs3(hom, a, b, f0, B0, f1, B1, f2, B2, out):
         j = item - q1 * (b - a)
         q0 = a + j
         s = f0[q0] - lo
-        X, D0, D1, D2 = outf[0, j, q1], outf[1, j, q1], outf[2, j, q1], outf[3, j, q1]
-        for k in range(K):
-            X[k] = 0.0
-            D0[k] = 0.0
-            D1[k] = 0.0
-            D2[k] = 0.0
-        for l in range(p0 + 1):
-            v = B0[0, q0, l]
-            dv = B0[1, q0, l]
-            V0, V1, V2 = U[0, s + l, q1], U[1, s + l, q1], U[2, s + l, q1]
-            for k in range(K):
-                X[k] += v * V0[k]
-                D0[k] += dv * V0[k]
-                D1[k] += v * V1[k]
-                D2[k] += v * V2[k]
+        _direction0_row(U, B0, q0, s, q1, outf[0, j, q1], outf[1, j, q1], outf[2, j, q1], outf[3, j, q1], True)
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
@@ -452,19 +470,9 @@ def geometry_metric3(hom, rational, a, b, f0, B0, f1, B1, f2, B2, kval, fval, qw
         j = item - q1 * (b - a)
         q0 = a + j
         s = f0[q0] - lo
-        buf = np.zeros((4, K))
+        buf = np.empty((4, K))
         X, D0, D1, D2 = buf[0], buf[1], buf[2], buf[3]
-        for l in range(p0 + 1):
-            v = B0[0, q0, l]
-            dv = B0[1, q0, l]
-            V0, V1, V2 = U[0, s + l, q1], U[1, s + l, q1], U[2, s + l, q1]
-            for k in range(K):
-                D0[k] += dv * V0[k]
-                D1[k] += v * V1[k]
-                D2[k] += v * V2[k]
-            if rational:
-                for k in range(K):
-                    X[k] += v * V0[k]
+        _direction0_row(U, B0, q0, s, q1, X, D0, D1, D2, rational)  # the value only for the weight
         w01 = qw0[q0] * qw1[q1]
         base = (j * nq1 + q1) * nq2
         for q2 in range(nq2):
