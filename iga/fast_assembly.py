@@ -182,8 +182,8 @@ class StiffnessAccumulator:
         self.next_element = planes.stop // g
         p3, g3 = t3["b"].shape[2] - 1, t3["b"].shape[3]
         _kernels().stiffness3_for(p3, g3)(C, planes.start // g, t1["b"], t1["first"], t2["W"], t2["r"], t2["s"],
-                              t3["b"], t3["first"], self.pattern.indptr, t1["lo"], t1["c"],
-                              t2["lo"], t2["c"], t3["lo"], t3["c"], self.ring, self.Z, self.Y, self.data)
+                                          t3["b"], t3["first"], self.pattern.indptr, t1["lo"], t1["c"],
+                                          t2["lo"], t2["c"], t3["lo"], t3["c"], self.ring, self.Z, self.Y, self.data)
         if L is not None:
             if self.load is None:
                 self.load = np.zeros((self.data.shape[0],) + self.space.shape)
