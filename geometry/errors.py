@@ -1,10 +1,11 @@
 """Exception types of the toolkit.
 
 Every user-facing error of the project derives from :class:`ToolkitError`, so a
-script can catch them all with one ``except`` clause.  Each package adds its own
-subclass (``geometry.SplineError``, ``tiling.TilingError``, ``iga.ProblemError``);
-``solvers.SolverError`` lives in ``solvers`` because that package knows nothing
-about splines, but it derives from :class:`ValueError` like the others.
+script can catch them all with one ``except`` clause.  Each package keeps its
+own subclasses in its ``errors`` module: ``geometry.SplineError`` here,
+``tiling.TilingError``, ``iga.ProblemError`` and ``solvers.SolverError``.
+:class:`ToolkitError` derives from :class:`ValueError`, so code that catches
+ValueError for bad input keeps working.
 """
 
 

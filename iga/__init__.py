@@ -4,15 +4,9 @@ Public names: :class:`HeatProblem`, :class:`Solution`, :func:`write_vtu`,
 :class:`ProblemError`.  Command line: ``iga --help``.
 """
 
-from geometry.errors import ToolkitError
-
-
-class ProblemError(ToolkitError):
-    """Invalid analysis set-up: unknown tag, bad material data, bad output path..."""
-
-
-from .problem import HeatProblem, SingularProblemError  # noqa: E402
-from .solution import Solution  # noqa: E402
-from .vtu import write_vtu  # noqa: E402
+from .errors import ProblemError, SingularProblemError
+from .problem import HeatProblem
+from .solution import Solution
+from .vtu import write_vtu
 
 __all__ = ["ProblemError", "SingularProblemError", "HeatProblem", "Solution", "write_vtu"]

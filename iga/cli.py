@@ -32,7 +32,7 @@ def _cmd_run(args) -> int:
     import tomllib
     from pathlib import Path
 
-    from . import ProblemError
+    from .errors import ProblemError
     from .pipeline import run_pipeline
 
     path = Path(args.config)

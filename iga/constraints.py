@@ -36,7 +36,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from . import ProblemError
+from .errors import ProblemError
 from .space import FACE_AXES
 
 

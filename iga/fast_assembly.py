@@ -31,7 +31,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from . import ProblemError
+from .errors import ProblemError
 from .assembly import _CACHE_NNZ, CSRPattern, _band_limits
 from .space import Space1D, TensorSpace
 

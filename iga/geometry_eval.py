@@ -14,7 +14,7 @@ import numpy as np
 from geometry import knots as kn
 from geometry.spline import _apply_along
 
-from . import ProblemError
+from .errors import ProblemError
 from .model import Patch
 
 

@@ -23,7 +23,7 @@ import numpy as np
 
 from geometry import BSpline
 
-from . import ProblemError
+from .errors import ProblemError
 from .space import FACE_AXES
 
 FACES = tuple(FACE_AXES)

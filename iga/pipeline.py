@@ -32,7 +32,7 @@ import numpy as np
 from geometry import BSpline, load, primitives as pr
 from geometry.io import atomic_write
 
-from . import ProblemError
+from .errors import ProblemError
 
 SCHEMA = {
     "map": {"primitive", "args", "file", "grading"},

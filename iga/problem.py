@@ -26,7 +26,7 @@ import scipy.sparse.linalg as spla
 
 import solvers
 
-from . import ProblemError
+from .errors import ProblemError, SingularProblemError
 from .constraints import induced_elimination
 from . import fast_assembly
 from .assembly import banded_form, banded_to_csr_data, block_diagonal_csr, load_form, pattern, stiffness_data
@@ -111,10 +111,6 @@ def _cross(a, b, axis=-1):
     a, b = np.moveaxis(a, axis, 0), np.moveaxis(b, axis, 0)
     c = np.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
     return np.moveaxis(c, 0, axis)
-
-
-class SingularProblemError(ProblemError, solvers.SolverError):
-    """The heat problem has no Dirichlet or Robin condition: its temperature is not unique."""
 
 
 def _metric_fields(D, kval, fval, w):

@@ -7,7 +7,7 @@ from scipy.spatial import cKDTree
 
 from geometry import SplineFunction
 
-from . import ProblemError
+from .errors import ProblemError
 from .geometry_eval import patch_geometry_grid, patch_geometry_points
 
 

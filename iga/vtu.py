@@ -19,7 +19,7 @@ import numpy as np
 
 from geometry.io import atomic_write, check_folder
 
-from . import ProblemError
+from .errors import ProblemError
 from .geometry_eval import patch_geometry_grid
 from .model import as_model
 

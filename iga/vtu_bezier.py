@@ -26,7 +26,7 @@ import numpy as np
 
 from geometry import bernstein as bz, compose_many
 
-from . import ProblemError
+from .errors import ProblemError
 
 
 def _exact_geometries(model) -> list:

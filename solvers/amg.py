@@ -38,6 +38,8 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from .errors import SolverError
+
 
 def spectral_radius(A, steps: int = 15) -> float:
     """Largest eigenvalue of a symmetric positive semi-definite ``A`` from ``steps`` Lanczos steps.
@@ -79,7 +81,6 @@ class AMGPreconditioner:
         import pyamg
         from pyamg.util.utils import scale_columns, scale_rows
 
-        from . import SolverError
 
         A = sp.csr_matrix(A)
         if not A.has_sorted_indices:

@@ -5,17 +5,11 @@ Public names: :class:`Tile`, :class:`BranchFace`, :func:`regular`,
 ``library`` module of built-in tiles.
 """
 
-from geometry.errors import ToolkitError
-
-
-class TilingError(ToolkitError):
-    """Invalid tile, paving request or micro-structure."""
-
-
-from .tile import BranchFace, Tile, discontinuity_branches  # noqa: E402
-from .microstructure import Interface, Microstructure, PlacedPatch  # noqa: E402
-from .paving import hierarchical, regular  # noqa: E402
-from . import library  # noqa: E402
+from .errors import TilingError
+from .tile import BranchFace, Tile, discontinuity_branches
+from .microstructure import Interface, Microstructure, PlacedPatch
+from .paving import hierarchical, regular
+from . import library
 
 __all__ = ["TilingError", "Tile", "BranchFace", "discontinuity_branches", "Microstructure", "PlacedPatch",
            "Interface", "regular", "hierarchical", "library"]

@@ -19,7 +19,7 @@ from itertools import product
 from geometry.io import atomic_write
 from geometry.spline import FACE_NAMES
 
-from . import TilingError
+from .errors import TilingError
 from .microstructure import Microstructure
 from .tile import FACE_AXIS
 

@@ -29,7 +29,7 @@ import numpy as np
 
 from geometry import BSpline, knots as kn, primitives as pr
 
-from . import TilingError
+from .errors import TilingError
 from .tile import BranchFace, Tile, discontinuity_branches
 
 _W_KNOTS = np.array([0, 0, 0, 0.4, 0.4, 1, 1, 1.0])  # quadratic, C0 at 0.4: solid base below

@@ -15,7 +15,7 @@ import numpy as np
 from geometry import BSpline, knots as kn
 from geometry.spline import FACE_NAMES, _apply_along
 
-from . import TilingError
+from .errors import TilingError
 
 
 def interpolate_channel(spline: BSpline, name: str, fn, on: str = "parameters") -> BSpline:

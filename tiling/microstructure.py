@@ -32,7 +32,7 @@ from geometry import BSpline, compose, compose_many
 from geometry import knots as kn
 from geometry.spline import FACE_NAMES
 
-from . import TilingError
+from .errors import TilingError
 from .tile import FACE_AXIS
 
 TOL = 1e-9

@@ -13,7 +13,7 @@ import numpy as np
 
 from geometry import BSpline, check_regular
 
-from . import TilingError
+from .errors import TilingError
 from .microstructure import Microstructure, PlacedPatch
 from .tile import Tile
 
