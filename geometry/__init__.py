@@ -2,23 +2,25 @@
 
 Public names: :class:`BSpline`, :class:`SplineFunction`, :class:`SplineError`,
 ``compose``, ``compose_many``, ``map_points``, ``check_regular``,
-``multiply``, ``save``, ``load``, and the ``primitives`` module.
+``multiply``, ``save``, ``load``, ``invert``, the multi-patch model
+(:class:`MultiPatch`, :class:`PlacedPatch`, :class:`Interface`) and the
+``primitives`` and ``faces`` modules.
 """
 
 from .errors import SplineError, ToolkitError
-from .spline import SplineFunction, FACE_NAMES
+from .faces import FACE_AXIS, FACE_NAMES
+from .spline import SplineFunction
 from .bspline import BSpline
-from . import knots, bernstein
-
-__all__ = ["BSpline", "SplineFunction", "SplineError", "ToolkitError", "FACE_NAMES", "knots", "bernstein"]
+from . import faces, knots, bernstein
 from . import primitives
 from .products import multiply
 from .io import save, load, save_all, load_all
-
-__all__ += ["primitives", "multiply", "save", "load", "save_all", "load_all"]
 from .compose import compose, compose_many, map_points, result_degrees
-
-__all__ += ["compose", "compose_many", "map_points", "result_degrees"]
 from .regularity import check_regular, RegularityResult
+from .inversion import invert
+from .multipatch import Interface, MultiPatch, PlacedPatch, detect_interfaces
 
-__all__ += ["check_regular", "RegularityResult"]
+__all__ = ["BSpline", "SplineFunction", "SplineError", "ToolkitError", "FACE_NAMES", "FACE_AXIS", "faces", "knots",
+           "bernstein", "primitives", "multiply", "save", "load", "save_all", "load_all", "compose", "compose_many",
+           "map_points", "result_degrees", "check_regular", "RegularityResult", "invert", "Interface", "MultiPatch",
+           "PlacedPatch", "detect_interfaces"]

@@ -18,6 +18,7 @@ import numpy as np
 from . import knots as kn
 from .bspline import BSpline
 from .errors import SplineError
+from .faces import FACE_AXIS, FACE_NAMES
 from .products import multiply
 from .spline import SplineFunction
 
@@ -352,7 +353,7 @@ def coons_volume(faces: dict, tol: float = 1e-9) -> BSpline:
     control nets with Greville abscissae, which is exact because splines
     reproduce linear functions.  Faces must agree on shared edges.
     """
-    names = ("umin", "umax", "vmin", "vmax", "wmin", "wmax")
+    names = FACE_NAMES
     missing = [n for n in names if n not in faces]
     if missing:
         raise SplineError(f"coons_volume needs all six faces; missing {missing}")
@@ -364,7 +365,7 @@ def coons_volume(faces: dict, tol: float = 1e-9) -> BSpline:
             raise SplineError(f"face {n} is rational; coons_volume supports polynomial faces")
     F = {n: s.reparametrize([[0, 1], [0, 1]]) for n, s in F.items()}
     # face parameter directions -> volume directions
-    dirs = {"umin": (1, 2), "umax": (1, 2), "vmin": (0, 2), "vmax": (0, 2), "wmin": (0, 1), "wmax": (0, 1)}
+    dirs = {n: tuple(d for d in range(3) if d != FACE_AXIS[n][0]) for n in names}
     deg, kv = [], []
     for k in range(3):
         users = [(n, dirs[n].index(k)) for n in names if k in dirs[n]]

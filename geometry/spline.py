@@ -22,8 +22,7 @@ from scipy.interpolate import NdBSpline
 from . import _fast
 from . import knots as kn
 from .errors import SplineError
-
-FACE_NAMES = ("umin", "umax", "vmin", "vmax", "wmin", "wmax")
+from .faces import FACE_NAMES
 
 
 def _apply_along(arr: np.ndarray, axis: int, M) -> np.ndarray:

@@ -33,11 +33,31 @@ face coefficients; :func:`induced_elimination`).
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import numpy as np
 import scipy.sparse as sp
+from scipy.linalg import qr, solve_triangular
+from scipy.sparse.csgraph import connected_components
+
+from geometry.errors import SplineError
+from geometry.faces import FACE_AXIS, discontinuity_slots, nested_refinement, slot_face_id
 
 from .errors import ProblemError
-from .space import FACE_AXES
+
+
+@dataclass
+class Constraints:
+    """The prolongation ``u = P u_red`` of all interface constraints.
+
+    ``P`` (ndof x nred, CSR); ``dof_master`` (ndof,) the reduced unknown
+    owning each DOF (-1 for DOFs of slave classes, which are combinations of
+    others); ``stats`` the counts reported in ``Solution.info["constraints"]``.
+    """
+
+    P: sp.csr_matrix
+    dof_master: np.ndarray
+    stats: dict = field(default_factory=dict)
 
 
 class _UnionFind:
@@ -81,18 +101,15 @@ def _oriented(grid, swap, flip):
 
 
 def _face_space_knots(problem, pi, face):
-    k, _ = FACE_AXES[face]
+    k, _ = FACE_AXIS[face]
     return [(d.knots, d.degree) for i, d in enumerate(problem.spaces[pi].dirs) if i != k]
 
 
 def _branch_R(problem, itf) -> sp.csr_matrix:
-    from tiling.microstructure import branch_refinement
-    from tiling import TilingError
-
     (pa, fa), (pb, fb) = itf.a, itf.b
     try:
-        return branch_refinement(_face_space_knots(problem, pa, fa), itf.box, _face_space_knots(problem, pb, fb))
-    except TilingError as exc:
+        return nested_refinement(_face_space_knots(problem, pa, fa), itf.box, _face_space_knots(problem, pb, fb))
+    except SplineError as exc:
         raise ProblemError(
             f"branch faces patch {pa} {fa} -> patch {pb} {fb}: {exc}; use the same refine/degree_elevation "
             "for all patches of a hierarchy"
@@ -106,8 +123,6 @@ def _discontinuity_pairs(problem, pi, slots):
     tile spline, the free (non-coinciding) rectangles of each plane; the rest
     of the plane is one material.
     """
-    from tiling.microstructure import slot_face_id
-
     space = problem.spaces[pi]
     pairs = []
     for d in range(3):
@@ -147,8 +162,8 @@ def _support(sp1, i, breaks):
     return np.nonzero((breaks[:-1] >= a) & (breaks[1:] <= b) & (breaks[1:] > breaks[:-1]))[0]
 
 
-def prolongation(problem) -> tuple[sp.csr_matrix, dict]:
-    """The sparse prolongation P (ndof x nred) of all interface constraints, and statistics."""
+def prolongation(problem) -> Constraints:
+    """The sparse prolongation P (ndof x nred) of all interface constraints, with its statistics."""
     n = problem.ndof
     uf = _UnionFind(n)
     stats = {"identity_pairs": 0, "c0_pairs": 0, "branch_rows": 0}
@@ -171,8 +186,6 @@ def prolongation(problem) -> tuple[sp.csr_matrix, dict]:
                 cols = R.indices[R.indptr[r] : R.indptr[r + 1]]
                 branch_rows.append((int(child[r]), parent[cols], R.data[R.indptr[r] : R.indptr[r + 1]], itf))
             stats["branch_rows"] += R.shape[0]
-    from tiling.microstructure import discontinuity_slots
-
     slots_of: dict = {}  # tiles share their spline: compare each plane once per tile patch
     for pi, patch in enumerate(problem.model.patches):
         key = id(patch.spline)
@@ -233,8 +246,7 @@ def prolongation(problem) -> tuple[sp.csr_matrix, dict]:
     column = np.full(ncls, -1)
     column[masters] = np.arange(len(masters))
     stats.update({"classes": int(ncls), "slave_classes": int(len(slaves)), "reduced": int(len(masters))})
-    P.dof_master = column[cls]  # reduced unknown owning each DOF (-1 for DOFs of slave classes)
-    return P, stats
+    return Constraints(P, column[cls], stats)
 
 
 def induced_elimination(C: sp.spmatrix, rhs: np.ndarray, tol: float = 1e-10):
@@ -251,9 +263,6 @@ def induced_elimination(C: sp.spmatrix, rhs: np.ndarray, tol: float = 1e-10):
     sense when the rows conflict) is ``x = T z + x0``; ``T`` is sparse (n x nz)
     with unit columns for the untouched unknowns; ``touched`` are the columns C involves.
     """
-    from scipy.linalg import qr, solve_triangular
-    from scipy.sparse.csgraph import connected_components
-
     C = sp.csr_matrix(C)
     n = C.shape[1]
     C.data[np.abs(C.data) < 1e-14] = 0.0

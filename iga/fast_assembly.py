@@ -55,6 +55,12 @@ def _kernels():
     return _assembly_kernels
 
 
+def _geometry_kernels():
+    from . import _geometry_kernels
+
+    return _geometry_kernels
+
+
 def _tables(sp1: Space1D) -> dict:
     """Band and element tables of one direction in the kernel's layout (cached on the space)."""
     cache = sp1.__dict__.get("_fast_tables")
@@ -214,16 +220,28 @@ def stiffness_csr(space: TensorSpace, C: np.ndarray) -> tuple[CSRPattern, np.nda
 def metric_fields(D, kval, fval, w):
     """Compiled stiffness coefficients C (6, M), source load L (M,) and det J (M,).
 
-    D: [dx/du, dx/dv, dx/dw], each (P, n, 3) with M = P n; kval, fval, w (M,)
-    conductivity, source and quadrature weights.  Formulas in
-    :func:`iga._assembly_kernels.metric_fields`.
+    D: [dx/du, dx/dv, dx/dw], each (P, n, 3) with M = P n; kval the
+    conductivity, (M,) isotropic or (M, 6) tensor components (xx, yy, zz, xy,
+    xz, yz); fval, w (M,) source and quadrature weights.  Formulas in
+    :func:`iga._geometry_kernels.metric_fields`.
     """
     Du, Dv, Dw = (np.reshape(d, (-1, 3)) for d in D)
     M = len(Du)
     C, L, det = np.empty((6, M)), np.empty(M), np.empty(M)
-    _kernels().metric_fields(Du, Dv, Dw, np.broadcast_to(np.asarray(kval, float), (M,)),
-                             np.broadcast_to(np.asarray(fval, float), (M,)), np.asarray(w, float), C, L, det)
+    kval = np.asarray(kval, float)
+    if kval.ndim == 2:
+        kiso, ktensor = np.zeros(M), _writable(np.broadcast_to(kval, (M, 6)))
+    else:
+        kiso, ktensor = _writable(np.broadcast_to(kval, (M,))), np.zeros((0, 6))
+    fval = _writable(np.broadcast_to(np.asarray(fval, float), (M,)))
+    _geometry_kernels().metric_fields(_writable(Du), _writable(Dv), _writable(Dw), kiso, ktensor, fval,
+                                      _writable(np.broadcast_to(np.asarray(w, float), (M,))), C, L, det)
     return C, L, det
+
+
+def _writable(a: np.ndarray) -> np.ndarray:
+    """A C-contiguous, writable float array (a copy only when needed): one compiled signature per kernel."""
+    return np.require(a, dtype=float, requirements=["C", "W"])
 
 
 def grid_tables(spline, axes, order=(0, 1, 2)) -> list:
@@ -250,18 +268,20 @@ def grid_derivs(hom: np.ndarray, rows: slice, tables) -> np.ndarray:
     (f0, B0), (f1, B1), (f2, B2) = tables
     m = hom.shape[-1]
     out = np.empty((4, rows.stop - rows.start, len(f1), len(f2), m))
-    _kernels().grid_derivs3(np.ascontiguousarray(hom, dtype=float), rows.start, rows.stop, f0, B0, f1, B1, f2, B2, out)
+    _geometry_kernels().grid_derivs3(np.ascontiguousarray(hom, dtype=float), rows.start, rows.stop, f0, B0, f1, B1,
+                                     f2, B2, out)
     return out.reshape(4, -1, m)
 
 
-def metric_slabs(spline, space: TensorSpace, points_per_slab: int, kval: float, fval: float):
+def metric_slabs(spline, space: TensorSpace, points_per_slab: int, kval, fval: float):
     """:func:`grid_derivs` and :func:`metric_fields` fused, for x = spline(xi) with constant k and f.
 
     Yields ``(planes, C (6, n), L (n,), det (n,))`` per slab of whole
     direction-0 elements (about ``points_per_slab`` points; at least one
     element) of ``space``'s Gauss grid, as the two-pass route would.  For
-    patches without placement or deformation map and with numbers for
-    conductivity and source (:meth:`iga.HeatProblem._stiffness_slabs`).
+    patches without placement or deformation map, with a constant
+    conductivity (a number, or six tensor components) and a number for the
+    source (:class:`iga.volume.VolumeAssembler`).
     """
     axes = space.qaxes
     tables = grid_tables(spline, axes)
@@ -269,6 +289,9 @@ def metric_slabs(spline, space: TensorSpace, points_per_slab: int, kval: float, 
     if hom.shape[-1] != (4 if spline.is_rational else 3):  # channels are not needed: coordinates (and weight)
         hom = hom[..., [0, 1, 2, -1] if spline.is_rational else [0, 1, 2]]
     hom = np.ascontiguousarray(hom, dtype=float)
+    kval = np.asarray(kval, float)
+    iso = kval.ndim == 0
+    K = np.array([kval, kval, kval, 0.0, 0.0, 0.0]) if iso else np.ascontiguousarray(kval.reshape(6))
     qw = [np.ascontiguousarray(d.qw, dtype=float) for d in space.dirs]
     g, nq0 = space.dirs[0].g, space.dirs[0].nq
     rest = space.dirs[1].nq * space.dirs[2].nq
@@ -278,6 +301,6 @@ def metric_slabs(spline, space: TensorSpace, points_per_slab: int, kval: float, 
         b = min(a + rows, nq0)
         n = (b - a) * rest
         C, L, det = np.empty((6, n)), np.empty(n), np.empty(n)
-        _kernels().geometry_metric3(hom, spline.is_rational, a, b, f0, B0, f1, B1, f2, B2, float(kval), float(fval),
-                                    *qw, C, L, det)
+        _geometry_kernels().geometry_metric3(hom, spline.is_rational, a, b, f0, B0, f1, B1, f2, B2, iso, K,
+                                             float(fval), *qw, C, L, det)
         yield slice(a, b), C, L, det

@@ -7,15 +7,12 @@ from ``T``, deformation-map channels from ``D`` at the mapped point.
 
 from __future__ import annotations
 
-import sys
-
 import numpy as np
 
 from geometry import knots as kn
 from geometry.spline import _apply_along
 
 from .errors import ProblemError
-from .model import Patch
 
 
 def _dehomogenise(spline, H, dH):
@@ -59,12 +56,12 @@ def _contract_prefixes(hom, B, order, keys, depth):
 
 
 #: grid points from which :func:`grid_values_derivs` uses the compiled kernel (when numba is installed);
-#: once the compiled kernels are loaded (a large assembly ran), from :data:`LOADED_GRID_POINTS`
+#: from :data:`COMPILED_PROBLEM_GRID_POINTS` when the caller's problem uses the compiled assembly anyway
 COMPILED_GRID_POINTS = 25_000
-LOADED_GRID_POINTS = 2_000
+COMPILED_PROBLEM_GRID_POINTS = 2_000
 
 
-def grid_values_derivs(spline, axes):
+def grid_values_derivs(spline, axes, compiled: bool = False):
     """Values (N, m) and first derivatives [(N, m)] * d on a tensor grid (C order; rational handled).
 
     Sum factorisation with shared partial contractions: directions are
@@ -72,16 +69,15 @@ def grid_values_derivs(spline, axes):
     the value and every derivative share their common prefixes.  3-D grids of
     at least :data:`COMPILED_GRID_POINTS` points (large faces) run in the
     compiled kernel of :mod:`iga.fast_assembly` when numba is installed
-    (3-5x faster: NumPy's contractions copy every partial result); so do
-    grids of :data:`LOADED_GRID_POINTS` once the kernels are loaded, while
-    small analyses never import numba for their faces.
+    (NumPy's contractions copy every partial result); with ``compiled`` (the
+    problem assembles with the compiled kernels) from
+    :data:`COMPILED_PROBLEM_GRID_POINTS`.  Small analyses never import numba.
     """
     d = spline.dim
     hom = spline.homogeneous
     m = hom.shape[-1]
     n = int(np.prod([len(a) for a in axes]))
-    loaded = "iga._assembly_kernels" in sys.modules
-    if d == 3 and (n >= COMPILED_GRID_POINTS or (loaded and n >= LOADED_GRID_POINTS)):
+    if d == 3 and n >= (COMPILED_PROBLEM_GRID_POINTS if compiled else COMPILED_GRID_POINTS):
         from . import fast_assembly
 
         if fast_assembly.AVAILABLE:
@@ -185,13 +181,14 @@ def _outer_map(patches, xT, DT):
     return x, Dx, chans
 
 
-def patches_geometry_derivs(patches, axes):
+def patches_geometry_derivs(patches, axes, compiled: bool = False):
     """Geometry of patches sharing one tile spline on one parameter grid.
 
     Returns x (P, N, 3), [dx/dxi_k (P, N, 3)] * 3 and channels {name: (P, N)}
-    (tile channels broadcast, map channels per patch); the tile is evaluated once.
+    (tile channels broadcast, map channels per patch); the tile is evaluated
+    once.  ``compiled``: see :func:`grid_values_derivs`.
     """
-    return _outer_map(patches, *grid_values_derivs(patches[0].spline, axes))
+    return _outer_map(patches, *grid_values_derivs(patches[0].spline, axes, compiled))
 
 
 def patches_geometry_derivs_slabs(patches, axes, points_per_slab: int = 1 << 15, rows_multiple: int = 1,
@@ -208,19 +205,19 @@ def patches_geometry_derivs_slabs(patches, axes, points_per_slab: int = 1 << 15,
         yield (rows, *_outer_map(patches, xT, DT))
 
 
-def patch_geometry_derivs(patch: Patch, axes):
+def patch_geometry_derivs(patch, axes):
     """Geometry on a tensor grid of patch parameters: x (N, 3), [dx/dxi_k (N, 3)] * 3, channels."""
     x, Dx, chans = patches_geometry_derivs([patch], axes)
     return x[0], [d[0] for d in Dx], {c: v[0] for c, v in chans.items()}
 
 
-def patch_geometry_grid(patch: Patch, axes):
+def patch_geometry_grid(patch, axes):
     """Geometry on a tensor grid: x (N, 3), J (N, 3, 3), channels {name: (N,)}; N in C order."""
     x, Dx, chans = patch_geometry_derivs(patch, axes)
     return x, np.stack(Dx, axis=-1), chans
 
 
-def patch_geometry_points(patch: Patch, params):
+def patch_geometry_points(patch, params):
     """Geometry at scattered parameter points (N, 3): (x, J (N, 3, 3), channels)."""
     params = np.asarray(params, float)
     vals = patch.spline.evaluate(params)

@@ -1,92 +1,79 @@
-"""The analysis model: trivariate patches, their geometry maps, tags and interfaces.
+"""The analysis model: anything with ``patches``, ``interfaces`` and ``tags`` (:class:`geometry.MultiPatch`).
 
-``as_model`` accepts what users pass to :class:`iga.HeatProblem`:
+:func:`as_model` accepts what users pass to :class:`iga.HeatProblem` and
+:func:`iga.write_vtu`:
 
 * a single trivariate :class:`geometry.BSpline` -> one patch, tags ``umin`` ..
   ``wmax`` (its faces) and ``boundary`` (all six);
-* a list of trivariate BSplines -> independent patches (no coupling), each
-  face tagged with its face name, plus ``boundary``;
-* a ``tiling.Microstructure`` (anything with ``patches``, ``tags`` and
-  ``interfaces``) -> its patches, tags and interfaces.
+* a list of trivariate BSplines -> a :class:`geometry.MultiPatch` whose
+  conforming shared faces are coupled automatically (identity interfaces,
+  :func:`geometry.detect_interfaces`); tags are the free faces by name, each
+  face of each patch as ``patch{i}.{face}``, and ``boundary``;
+* a ``tiling.Microstructure`` or any object with ``patches`` (each with a
+  trivariate ``spline`` and optional ``placement``, ``outer``, ``tile``,
+  ``level``), ``tags`` and ``interfaces``.
 
-A :class:`Patch` is analysed in the parameter space of its ``spline`` (the
-tile's own patch, whose B-spline basis is the analysis basis, 000 Remark 2);
-its physical geometry is ``outer(A @ spline(xi) + b)`` when an ``outer``
-deformation map is given, else ``spline(xi)``.
+A patch is analysed in the parameter space of its ``spline`` (the tile's own
+patch, whose B-spline basis is the analysis basis; Massarwi et al. 2018,
+Remark 2); its physical geometry is ``outer(A spline(xi) + b)``.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
-import numpy as np
-
-from geometry import BSpline
+from geometry import BSpline, MultiPatch, PlacedPatch
+from geometry.errors import SplineError
+from geometry.faces import is_face
 
 from .errors import ProblemError
-from .space import FACE_AXES
 
-FACES = tuple(FACE_AXES)
-
-
-@dataclass(eq=False)
-class Patch:
-    """One trivariate patch of the analysis model."""
-
-    spline: BSpline
-    placement: np.ndarray | None = None  # (3, 4) [A | b] into the outer map's domain
-    outer: BSpline | None = None
-    tile: int = 0
-    level: int = 0
-
-    @property
-    def channels(self) -> tuple[str, ...]:
-        return tuple(self.spline.channels) + (tuple(self.outer.channels) if self.outer is not None else ())
+__all__ = ["as_model", "tag_faces", "PlacedPatch"]
 
 
-@dataclass(eq=False)
-class Model:
-    patches: list
-    tags: dict  # tag -> list of (patch index, face name or slot face id such as "u=0.5-")
-    interfaces: list = field(default_factory=list)
-    face_regions: dict = field(default_factory=dict)  # (patch, slot face id) -> free rectangles
-
-    def faces(self, tag: str) -> list[tuple[int, str]]:
-        if tag not in self.tags:
-            raise ProblemError(f"unknown boundary tag {tag!r}; this model has tags {sorted(self.tags)}")
-        return self.tags[tag]
-
-
-def _check_trivariate(s, what):
+def _check_spline(s, i):
     if not isinstance(s, BSpline):
-        raise ProblemError(f"{what} is a {type(s).__name__}; heat analysis needs trivariate geometry.BSpline patches")
+        raise ProblemError(f"patch {i} is a {type(s).__name__}; heat analysis needs trivariate geometry.BSpline patches")
     if s.dim != 3:
-        raise ProblemError(f"{what} is a {s.dim}-variate spline; heat analysis needs trivariate patches")
+        raise ProblemError(f"patch {i} is a {s.dim}-variate spline; heat analysis needs trivariate patches")
 
 
-def as_model(obj) -> Model:
-    """Normalise a BSpline, a list of BSplines or a Microstructure into a :class:`Model`."""
-    if isinstance(obj, Model):
-        return obj
+def as_model(obj) -> MultiPatch:
+    """Normalise a BSpline, a list of BSplines or a model object into a :class:`geometry.MultiPatch` (see module)."""
     if isinstance(obj, BSpline):
         obj = [obj]
     if isinstance(obj, (list, tuple)):
-        patches = []
+        if not obj:
+            raise ProblemError("the model has no patches; pass a trivariate BSpline, a list of them or a Microstructure")
         for i, s in enumerate(obj):
-            _check_trivariate(s, f"patch {i}")
-            patches.append(Patch(s, tile=i))
-        tags = {f: [(i, f) for i in range(len(patches))] for f in FACES}
-        tags["boundary"] = [(i, f) for i in range(len(patches)) for f in FACES]
-        return Model(patches, tags)
-    if hasattr(obj, "patches") and hasattr(obj, "tags"):
-        patches = []
-        for i, p in enumerate(obj.patches):
-            spline = getattr(p, "spline", None)
-            _check_trivariate(spline, f"patch {i}")
-            patches.append(Patch(spline, getattr(p, "placement", None), getattr(p, "outer", None),
-                                 getattr(p, "tile", 0), getattr(p, "level", 0)))
-        tags = {t: list(v) for t, v in obj.tags.items()}
-        return Model(patches, tags, list(getattr(obj, "interfaces", [])), dict(getattr(obj, "face_regions", {})))
-    raise ProblemError(
-        f"cannot analyse a {type(obj).__name__}; pass a trivariate BSpline, a list of them or a Microstructure"
-    )
+            _check_spline(s, i)
+        try:
+            return MultiPatch.from_splines(obj)
+        except SplineError as exc:
+            raise ProblemError(str(exc)) from None
+    if not (hasattr(obj, "patches") and hasattr(obj, "tags")):
+        raise ProblemError(
+            f"cannot analyse a {type(obj).__name__}; pass a trivariate BSpline, a list of them or a Microstructure"
+        )
+    if not obj.patches:
+        raise ProblemError("the model has no patches")
+    for i, p in enumerate(obj.patches):
+        _check_spline(getattr(p, "spline", None), i)
+    if isinstance(obj, MultiPatch) and all(isinstance(p, PlacedPatch) for p in obj.patches):
+        return obj
+    patches = [PlacedPatch(p.spline, getattr(p, "placement", None), getattr(p, "outer", None), getattr(p, "tile", i),
+                           getattr(p, "level", 0)) for i, p in enumerate(obj.patches)]
+    return MultiPatch(patches, list(getattr(obj, "interfaces", [])), {t: list(v) for t, v in obj.tags.items()},
+                      dict(getattr(obj, "face_regions", {})))
+
+
+def tag_faces(model, tag: str) -> list:
+    """The (patch, face) pairs of ``tag``; :class:`ProblemError` naming the known tags otherwise."""
+    if not isinstance(tag, str) or tag not in model.tags:
+        known = sorted(model.tags, key=lambda t: (t.startswith("patch"), t))
+        shown = known if len(known) <= 30 else known[:30] + ["..."]
+        raise ProblemError(f"unknown boundary tag {tag!r}; this model has tags {shown}")
+    faces = model.tags[tag]
+    for pi, face in faces:
+        if not (0 <= pi < len(model.patches)) or not is_face(face):
+            raise ProblemError(f"tag {tag!r} holds an invalid face ({pi}, {face!r}); faces are (patch index, "
+                               "face name or slot face id)")
+    return faces

@@ -7,8 +7,10 @@ from scipy.spatial import cKDTree
 
 from geometry import SplineFunction
 
+from .coefficients import tensor_matrix
 from .errors import ProblemError
 from .geometry_eval import patch_geometry_grid, patch_geometry_points
+from .model import tag_faces
 
 
 class Solution:
@@ -63,12 +65,13 @@ class Solution:
         return val, grad, x, chans
 
     def conductivity_at(self, x, chans, pi):
-        return self.problem._values(self.problem.conductivity, x, chans, "conductivity", f"patch {pi}", positive=True)
+        """Conductivity at points x (N, 3) of patch ``pi``: (N,) isotropic or (N, 6) tensor components."""
+        return self.problem.conductivity.values(x, chans, f"patch {pi}")
 
     def heat_flux(self, pi: int, params) -> np.ndarray:
-        """Heat flux vector q = -k grad T (W/m^2) at parameters of patch ``pi``, (N, 3)."""
+        """Heat flux vector q = -K grad T (W/m^2) at parameters of patch ``pi``, (N, 3)."""
         _, grad, x, chans = self.evaluate(pi, params)
-        return -self.conductivity_at(x, chans, pi)[:, None] * grad
+        return flux_vector(self.conductivity_at(x, chans, pi), grad)
 
     # ----------------------------------------------------------------- probes
     def locate(self, points, tol: float = 1e-10):
@@ -131,13 +134,11 @@ class Solution:
         """Outward heat flow (W) through every face that carries a condition."""
         prob, book = self.problem, self._book
         flows = {}
-        for key, qs in book["neumann"].items():
+        for key, q in book["neumann"].items():
+            flows[key] = flows.get(key, 0.0) - float(np.sum(q * prob.face_data(*key).dAw))
+        for key, (h, Tinf) in book["robin"].items():
             fd = prob.face_data(*key)
-            flows[key] = flows.get(key, 0.0) - float(sum(np.sum(q * fd.dAw) for q in qs))
-        for key, items in book["robin"].items():
-            fd = prob.face_data(*key)
-            T = fd.trace(self.u)
-            flows[key] = flows.get(key, 0.0) + float(sum(np.sum(h * (T - Tinf) * fd.dAw) for h, Tinf in items))
+            flows[key] = flows.get(key, 0.0) + float(np.sum(h * (fd.trace(self.u) - Tinf) * fd.dAw))
         if self._dirichlet_integrals:
             # split each prescribed unknown's reaction among the faces by their share of int N_i dA
             total = sum(self._dirichlet_integrals.values())
@@ -153,7 +154,7 @@ class Solution:
         faces the prescribed flux, Robin faces h (T - T_inf); insulated faces
         contribute nothing.
         """
-        faces = set(self.problem.model.faces(tag))
+        faces = set(tag_faces(self.problem.model, tag))
         return float(sum(self.face_flows.get(f, 0.0) for f in faces))
 
     def balance(self) -> dict:
@@ -188,3 +189,10 @@ class Solution:
     def h1_error(self, exact_grad) -> float:
         """| T - exact |_H1 (gradient seminorm); ``exact_grad(x) -> (N, 3)``."""
         return float(np.sqrt(self._quadrature(lambda x, T, g: np.sum((g - exact_grad(x)) ** 2, axis=1))))
+
+
+def flux_vector(K: np.ndarray, grad: np.ndarray) -> np.ndarray:
+    """Heat flux -K grad T (N, 3) for conductivity K (N,) or (N, 6) tensor components and gradients (N, 3)."""
+    if K.ndim == 1:
+        return -K[:, None] * grad
+    return -np.einsum("nij,nj->ni", tensor_matrix(K), grad)

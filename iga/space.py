@@ -20,10 +20,10 @@ from functools import cached_property
 import numpy as np
 
 from geometry import knots as kn
+from geometry.faces import FACE_AXIS
 
 from .quadrature import element_rule
 
-FACE_AXES = {"umin": (0, 0), "umax": (0, 1), "vmin": (1, 0), "vmax": (1, 1), "wmin": (2, 0), "wmax": (2, 1)}
 
 
 @dataclass(eq=False)
@@ -143,12 +143,12 @@ class TensorSpace:
 
     def face_dofs(self, face: str) -> np.ndarray:
         """Indices (C-order) of the DOFs on a boundary face, ordered as the face space numbers them."""
-        k, side = FACE_AXES[face]
+        k, side = FACE_AXIS[face]
         idx = np.arange(self.ndof).reshape(self.shape)
         return np.take(idx, -1 if side else 0, axis=k).ravel()
 
     def face_space(self, face: str) -> "TensorSpace":
-        k, _ = FACE_AXES[face]
+        k, _ = FACE_AXIS[face]
         return TensorSpace([s for i, s in enumerate(self.dirs) if i != k])
 
 

@@ -19,9 +19,11 @@ import numpy as np
 
 from geometry.io import atomic_write, check_folder
 
+from .coefficients import tensor_matrix
 from .errors import ProblemError
 from .geometry_eval import patch_geometry_grid
 from .model import as_model
+from .solution import Solution, flux_vector
 
 # VTK hexahedron corner order as (di, dj, dk) offsets
 _HEX = np.array([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)])
@@ -57,8 +59,6 @@ def write_vtu(path, solution_or_model, samples: int = 3, cells: str = "linear") 
         rational Bezier hexahedron (VTK type 79) per element, geometry and temperature exact
         (:mod:`iga.vtu_bezier`; composes every patch, so heavier for large models)
     """
-    from .solution import Solution
-
     if not isinstance(samples, (int, np.integer)) or samples < 1:
         raise ProblemError(f"samples must be a positive integer, got {samples!r}")
     if cells not in ("linear", "bezier"):
@@ -91,8 +91,8 @@ def write_vtu(path, solution_or_model, samples: int = 3, cells: str = "linear") 
             grad[ok] = np.linalg.solve(np.transpose(J[ok], (0, 2, 1)), dxi[ok][:, :, None])[:, :, 0]
             kval = sol.conductivity_at(x, chans, pi)
             fields["temperature"] = T
-            fields["heat_flux"] = -kval[:, None] * grad
-            fields["conductivity"] = kval
+            fields["heat_flux"] = flux_vector(kval, grad)
+            fields["conductivity"] = kval if kval.ndim == 1 else tensor_matrix(kval).reshape(-1, 9)
         for c in names:
             fields[c] = np.asarray(chans[c], float) if c in chans else np.full(len(x), np.nan)
         for key, v in fields.items():

@@ -6,13 +6,14 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 import solvers
-from geometry import primitives as pr
+from geometry import MultiPatch, primitives as pr
 from iga import HeatProblem, ProblemError, fast_assembly
-from iga import problem as problem_module
+from iga import system as system_module
 from iga.assembly import load_form, pattern, stiffness_data
 from iga.geometry_eval import grid_values_derivs_slabs
 from iga.manufactured import quarter_annulus
-from iga.problem import _PAIRS, _eliminate
+from iga.coefficients import TENSOR_PAIRS as _PAIRS
+from iga.system import eliminate as _eliminate
 from iga.space import make_space
 from solvers.amg import AMGPreconditioner, spectral_radius
 
@@ -92,16 +93,16 @@ def test_compiled_face_grid_equals_direct_evaluation(axis, monkeypatch):
     assert np.abs(x - S.evaluate(G)).max() < 1e-12
     assert np.abs(np.stack(dx, -1) - S.jacobian(G)).max() < 1e-10
     monkeypatch.setattr(geometry_eval, "COMPILED_GRID_POINTS", 10**9)  # the NumPy path gives the same
-    monkeypatch.setattr(geometry_eval, "LOADED_GRID_POINTS", 10**9)
-    x2, dx2 = geometry_eval.grid_values_derivs(S, axes)
-    assert np.abs(x2 - x).max() < 1e-12 and np.abs(np.stack(dx2, -1) - np.stack(dx, -1)).max() < 1e-10
-    # smaller grids take the compiled kernel only once it is loaded (small analyses never import numba)
     calls = []
     grid_derivs = fast_assembly.grid_derivs
     monkeypatch.setattr(fast_assembly, "grid_derivs", lambda *a: calls.append(1) or grid_derivs(*a))
-    monkeypatch.setattr(geometry_eval, "LOADED_GRID_POINTS", len(G))
-    fast_assembly._kernels()
-    x3, _ = geometry_eval.grid_values_derivs(S, axes)
+    x2, dx2 = geometry_eval.grid_values_derivs(S, axes)
+    assert calls == []
+    assert np.abs(x2 - x).max() < 1e-12 and np.abs(np.stack(dx2, -1) - np.stack(dx, -1)).max() < 1e-10
+    # smaller grids take the compiled kernel only when the caller says its problem is compiled anyway: the
+    # choice depends on the input, never on what ran before (small analyses never import numba)
+    monkeypatch.setattr(geometry_eval, "COMPILED_PROBLEM_GRID_POINTS", len(G))
+    x3, _ = geometry_eval.grid_values_derivs(S, axes, compiled=True)
     assert calls == [1] and np.abs(x3 - x).max() < 1e-12
 
 
@@ -138,7 +139,9 @@ def test_compiled_heat_assembly_equals_numpy_assembly(case, monkeypatch):
         bent = BSpline(cube.degrees, cube.knots, cube.coefficients + 0.02 * rng.standard_normal(cube.coefficients.shape))
 
         def factory():
-            return HeatProblem([nurbs, nurbs, bent], conductivity=2.5, source=-1.5).dirichlet("umin", 0.0)
+            # overlapping patches, analysed independently (no automatic coupling)
+            model = MultiPatch.from_splines([nurbs, nurbs, bent], couple=False)
+            return HeatProblem(model, conductivity=2.5, source=-1.5).dirichlet("umin", 0.0)
     else:  # micro-structure: placements and a rational deformation map, several patches per tile spline
         import tiling
         from geometry import BSpline
@@ -202,7 +205,7 @@ def test_in_place_elimination_equals_copying(monkeypatch):
     free = np.setdiff1d(np.arange(n), dofs)
     g = np.linspace(0, 1, len(dofs))
     A0, r0 = _eliminate(K.copy(), f, free, dofs, g)
-    monkeypatch.setattr(problem_module, "_IN_PLACE_NNZ", 0)
+    monkeypatch.setattr(system_module, "_IN_PLACE_NNZ", 0)
     Kw = sp.csr_matrix((K.data.copy(), K.indices.copy(), K.indptr.copy()), shape=K.shape)
     A1, r1 = _eliminate(Kw, f, free, dofs, g, in_place=True)
     assert np.shares_memory(A1.data, Kw.data)  # computed in K's own memory

@@ -7,7 +7,7 @@ import geometry
 from geometry import BSpline, SplineError, primitives as pr
 import tiling
 from tiling import BranchFace, Tile, TilingError, library as L
-from tiling.microstructure import FACE_AXIS
+from geometry.faces import FACE_AXIS
 from helpers import rel_err
 
 

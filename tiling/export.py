@@ -17,11 +17,10 @@ import numpy as np
 from itertools import product
 
 from geometry.io import atomic_write
-from geometry.spline import FACE_NAMES
+from geometry.faces import FACE_AXIS, FACE_NAMES
 
 from .errors import TilingError
 from .microstructure import Microstructure
-from .tile import FACE_AXIS
 
 
 def _map(P, params, spline=None):

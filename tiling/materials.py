@@ -13,7 +13,8 @@ from __future__ import annotations
 import numpy as np
 
 from geometry import BSpline, knots as kn
-from geometry.spline import FACE_NAMES, _apply_along
+from geometry.faces import FACE_NAMES
+from geometry.spline import _apply_along
 
 from .errors import TilingError
 

@@ -17,11 +17,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from geometry import BSpline
-from geometry.spline import FACE_NAMES
+from geometry.faces import FACE_AXIS, FACE_NAMES
 
 from .errors import TilingError
 
-FACE_AXIS = {"umin": (0, 0), "umax": (0, 1), "vmin": (1, 0), "vmax": (1, 1), "wmin": (2, 0), "wmax": (2, 1)}
 TOL = 1e-9
 
 

@@ -1,0 +1,414 @@
+"""Multi-patch models: placed patches, the interfaces that glue their faces, and boundary tags.
+
+This is the model protocol shared by tiling and analysis (like G+Smo's
+``gsMultiPatch`` with its box topology): anything with ``patches`` (each with
+``spline``, ``placement``, ``outer``, ``tile``, ``level``), ``interfaces`` and
+``tags`` is a model.  :class:`MultiPatch` is the plain implementation; a
+``tiling.Microstructure`` is one too.
+
+* :class:`PlacedPatch`: a trivariate (or lower) patch ``spline`` placed by an
+  affine map ``[A | b]`` into the parameter domain of an ``outer`` deformation
+  map; its physical image is ``outer(A spline(xi) + b)`` (or the affine image,
+  or the spline itself).  Analysis uses the patch's own parameters and basis.
+* :class:`Interface`: ``identity`` (two faces that coincide in space, with
+  the parameter map between them: face B's parameters (s', t') are face A's
+  (s, t) swapped if ``swap``, then reversed per ``flip``) or ``branch``
+  (a child face on a sub-rectangle ``box`` of a parent face, child face
+  coefficients = ``R`` @ parent face coefficients).
+* :func:`detect_interfaces` finds conforming shared faces (equal corners, equal
+  face spline spaces, coinciding images at interior sample points), as G+Smo's
+  ``computeTopology`` does; :meth:`MultiPatch.from_splines` couples a list of
+  patches that way and refuses patches that touch without conforming.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+import scipy.sparse as sp
+
+from .bspline import BSpline
+from .compose import compose_many
+from .errors import SplineError
+from .faces import FACE_AXIS, FACE_NAMES, face_knots
+from .inversion import invert
+
+__all__ = ["PlacedPatch", "Interface", "MultiPatch", "detect_interfaces", "free_faces", "ORIENTATIONS"]
+
+TOL = 1e-9  # relative geometric tolerance for coinciding corners and faces
+
+_IDENTITY = np.hstack([np.eye(3), np.zeros((3, 1))])
+
+
+@dataclass(eq=False)
+class PlacedPatch:
+    """One patch of a model: ``spline`` placed by ``placement`` (3, 4) into the domain of ``outer``."""
+
+    spline: BSpline
+    placement: np.ndarray | None = None
+    outer: BSpline | None = None
+    tile: int = 0
+    level: int = 0
+    patch_in_tile: int = 0
+
+    @property
+    def channels(self) -> tuple[str, ...]:
+        """Channel names available on this patch: the spline's, then the outer map's."""
+        return tuple(self.spline.channels) + (tuple(self.outer.channels) if self.outer is not None else ())
+
+    @cached_property
+    def composed(self) -> BSpline:
+        """The exact physical patch ``outer(A spline + b)`` as one spline (computed once)."""
+        A = _IDENTITY if self.placement is None else self.placement
+        if self.outer is None:
+            return self.spline if self.placement is None else self.spline.affine(A[:, :3], A[:, 3])
+        return compose_many(self.outer, self.spline, A[None])[0]
+
+    def image(self, params: np.ndarray) -> np.ndarray:
+        """Physical points (N, 3) at the patch's parameters ``params`` (N, d)."""
+        y = self.spline.evaluate(params)[:, :3]
+        return _finish_image(self, y)
+
+
+def _finish_image(P: PlacedPatch, y: np.ndarray) -> np.ndarray:
+    """Apply placement and outer map to tile-space points y (N, 3)."""
+    if P.placement is not None:
+        y = y @ P.placement[:, :3].T + P.placement[:, 3]
+    if P.outer is not None:
+        dom = P.outer.domain
+        y = P.outer.evaluate(np.clip(y, dom[:, 0], dom[:, 1]))[:, :3]
+    return y
+
+
+@dataclass(eq=False)
+class Interface:
+    """Two glued faces: ``a`` = (patch, face), ``b`` = (patch, face); see the module notes."""
+
+    kind: str  # "identity" or "branch"
+    a: tuple
+    b: tuple
+    swap: bool = False
+    flip: tuple = (False, False)
+    box: tuple | None = None  # branch: sub-rectangle of a's face (the parent's)
+    R: sp.csr_matrix | None = None  # branch: child (b) face coefficients = R @ parent (a) face coefficients
+
+
+def _orientations():
+    """The 8 face orientations (swap, (flip_s, flip_t)) and, for each, the corner permutation of face b."""
+    out, perms = [], []
+    for swap in (False, True):
+        for fs in (False, True):
+            for ft in (False, True):
+                idx = []
+                for t in (0, 1):
+                    for s in (0, 1):
+                        s2, t2 = (t, s) if swap else (s, t)
+                        s2, t2 = (1 - s2 if fs else s2), (1 - t2 if ft else t2)
+                        idx.append(t2 * 2 + s2)
+                out.append((swap, (fs, ft)))
+                perms.append(idx)
+    return out, np.array(perms)
+
+
+ORIENTATIONS, _ORIENTATION_PERMS = _orientations()
+
+
+def _face_corner_index() -> np.ndarray:
+    """Corner index (i, j, k) -> 4 i + 2 j + k of the 4 corners of each face, in face order (00, 10, 01, 11)."""
+    out = np.zeros((6, 4), np.int64)
+    for fi, f in enumerate(FACE_NAMES):
+        k, side = FACE_AXIS[f]
+        rest = [d for d in range(3) if d != k]
+        for c, (s_, t_) in enumerate(((0, 0), (1, 0), (0, 1), (1, 1))):
+            ijk = [0, 0, 0]
+            ijk[k], ijk[rest[0]], ijk[rest[1]] = side, s_, t_
+            out[fi, c] = ijk[0] * 4 + ijk[1] * 2 + ijk[2]
+    return out
+
+
+_FACE_CORNERS = _face_corner_index()
+
+
+def _groups(patches, key):
+    out: dict = {}
+    for i, P in enumerate(patches):
+        if P.spline.dim == 3:
+            out.setdefault(key(P), []).append(i)
+    return out
+
+
+def tile_corners(patches):
+    """Trivariate patch indices (T,) and their face corners (T, 6, 4, 3) in the placed (outer-parameter) space.
+
+    One array operation per tile spline (patches sharing a spline share its
+    corners; the corner control points of a clamped spline are its corners).
+    """
+    groups = _groups(patches, lambda P: id(P.spline))
+    if not groups:
+        return np.zeros(0, np.int64), np.zeros((0, 6, 4, 3))
+    idx, out = [], []
+    for members in groups.values():
+        c = patches[members[0]].spline.points[np.ix_([0, -1], [0, -1], [0, -1])].reshape(8, 3)
+        M = np.stack([_IDENTITY if patches[i].placement is None else patches[i].placement for i in members])
+        pts = np.einsum("pij,cj->pci", M[:, :, :3], c) + M[:, None, :, 3]  # (P, 8, 3)
+        out.append(pts[:, _FACE_CORNERS])
+        idx += members
+    idx = np.asarray(idx)
+    order = np.argsort(idx, kind="stable")
+    return idx[order], np.concatenate(out)[order]
+
+
+def _physical_corners(patches, pidx, fc):
+    """Face corners (T, 6, 4, 3) in physical space: through each patch's outer map (one evaluation per map)."""
+    out = fc.copy()
+    by_outer: dict = {}
+    for t, i in enumerate(pidx):
+        if patches[int(i)].outer is not None:
+            by_outer.setdefault(id(patches[int(i)].outer), []).append(t)
+    for ts in by_outer.values():
+        D = patches[int(pidx[ts[0]])].outer
+        dom = D.domain
+        params = np.clip(fc[ts].reshape(-1, 3), dom[:, 0], dom[:, 1])
+        out[ts] = D.evaluate(params)[:, :3].reshape(len(ts), 6, 4, 3)
+    return out
+
+
+def _normalised(U):
+    U = np.asarray(U, float)
+    return (U - U[0]) / (U[-1] - U[0])
+
+
+def _same_face_space(patches, a, b, swap, flip) -> bool:
+    ka, kb = face_knots(patches[a[0]].spline, a[1]), face_knots(patches[b[0]].spline, b[1])
+    if swap:
+        kb, flip = kb[::-1], flip[::-1]
+    for d in range(2):
+        (Ua, pa), (Ub, pb) = ka[d], kb[d]
+        Ua, Ub = _normalised(Ua), _normalised(Ub)
+        if flip[d]:
+            Ub = 1 - Ub[::-1]
+        if pa != pb or len(Ua) != len(Ub) or np.abs(Ua - Ub).max() > 1e-12:
+            return False
+    return True
+
+
+# interior sample points of a face (normalised face parameters): images must coincide on conforming faces
+_SAMPLES = np.array([[0.5, 0.5], [0.2113, 0.3187], [0.7887, 0.2311], [0.3571, 0.8123], [0.8811, 0.6917]])
+_SAMPLES.setflags(write=False)
+
+
+def face_points(patches, keys, st, through_outer: bool = True) -> np.ndarray:
+    """Points (len(keys), n, 3) of faces ``keys`` [(patch, face)] at normalised face parameters.
+
+    ``st``: one (n, 2) array for every face, or a list of them, one per face.
+    Physical points, or with ``through_outer=False`` the placed points in the
+    outer map's parameter space.  One tile evaluation per (tile spline, face,
+    samples), one evaluation per outer map.
+    """
+    sts = st if isinstance(st, list) else [np.asarray(st, float)] * len(keys)
+    n = len(sts[0]) if sts else 0
+    y = np.empty((len(keys), n, 3))
+    by_sf: dict = {}
+    for j, (pi, f) in enumerate(keys):
+        by_sf.setdefault((id(patches[pi].spline), f, sts[j].tobytes()), []).append(j)
+    for (_, f, _), js in by_sf.items():
+        s = patches[keys[js[0]][0]].spline
+        k, side = FACE_AXIS[f]
+        dom = s.domain
+        prm = np.empty((n, 3))
+        prm[:, k] = dom[k, side]
+        for c, d in enumerate([d for d in range(3) if d != k]):
+            prm[:, d] = dom[d, 0] + sts[js[0]][:, c] * (dom[d, 1] - dom[d, 0])
+        pts = s.evaluate(prm)[:, :3]
+        M = np.stack([_IDENTITY if patches[keys[j][0]].placement is None else patches[keys[j][0]].placement
+                      for j in js])
+        y[js] = np.einsum("pij,nj->pni", M[:, :, :3], pts) + M[:, None, :, 3]
+    if not through_outer:
+        return y
+    by_outer: dict = {}
+    for j, (pi, _) in enumerate(keys):
+        if patches[pi].outer is not None:
+            by_outer.setdefault(id(patches[pi].outer), []).append(j)
+    for js in by_outer.values():
+        D = patches[keys[js[0]][0]].outer
+        dom = D.domain
+        y[js] = D.evaluate(np.clip(y[js].reshape(-1, 3), dom[:, 0], dom[:, 1]))[:, :3].reshape(len(js), n, 3)
+    return y
+
+
+def _oriented_samples(swap, flip):
+    """Face-b parameters of the face-a samples under an orientation."""
+    st = (_SAMPLES[:, ::-1] if swap else _SAMPLES).copy()
+    if flip[0]:
+        st[:, 0] = 1 - st[:, 0]
+    if flip[1]:
+        st[:, 1] = 1 - st[:, 1]
+    return st
+
+
+def detect_interfaces(patches, strict: bool = False):
+    """Identity interfaces between coinciding faces of trivariate patches.
+
+    Faces are matched by their four corners in physical space (a hash of the
+    rounded face centres, then the corner permutation that maps one onto the
+    other), so periodic maps glue across their seam.  A pair is an interface
+    when the two face spline spaces are equal (after the orientation) and the
+    images coincide at interior sample points.  Pairs whose corners coincide but
+    that fail either check are returned in ``mismatched`` (with the reason), or
+    raise :class:`SplineError` when ``strict``.  Returns ``(interfaces, mismatched)``.
+    """
+    pidx, fc = tile_corners(patches)
+    if not len(pidx):
+        return [], []
+    corners = _physical_corners(patches, pidx, fc).reshape(len(pidx) * 6, 4, 3)
+    rec_patch = np.repeat(pidx, 6)
+    rec_face = np.tile(np.arange(6), len(pidx))
+    scale = max(1.0, float(np.abs(corners).max()))
+    key = np.round(corners.mean(axis=1) / (1e-7 * scale)).astype(np.int64)
+    order = np.lexsort(key.T[::-1])
+    ks = key[order]
+    same = np.all(ks[1:] == ks[:-1], axis=1)
+    triple = same[1:] & same[:-1]
+    if triple.any():
+        a = order[int(np.argmax(triple))]
+        raise SplineError(f"more than two patch faces meet at the face {FACE_NAMES[rec_face[a]]} of patch "
+                          f"{rec_patch[a]}; patches overlap")
+    j = np.nonzero(same)[0]
+    ia, ib = order[j], order[j + 1]
+    keep = rec_patch[ia] != rec_patch[ib]
+    ia, ib = ia[keep], ib[keep]
+    err = np.abs(corners[ib][:, _ORIENTATION_PERMS] - corners[ia][:, None]).max(axis=(2, 3)) if len(ia) else None
+    ok = err <= TOL * scale if len(ia) else np.zeros((0, 8), bool)
+    orient = np.where(ok.any(axis=1), np.argmax(ok, axis=1), -1)
+    pairs = [((int(rec_patch[a]), FACE_NAMES[rec_face[a]]), (int(rec_patch[b]), FACE_NAMES[rec_face[b]]), int(o))
+             for a, b, o in zip(ia, ib, orient) if o >= 0]  # same centre, other corners: e.g. a face inside a larger one
+    out, bad = [], []
+    checked: dict = {}
+    todo = []  # pairs whose images must be compared at interior points
+    for a, b, o in pairs:
+        swap, flip = ORIENTATIONS[o]
+        sig = (id(patches[a[0]].spline), a[1], id(patches[b[0]].spline), b[1], o)
+        if sig not in checked:  # face spaces depend on the tile patches only
+            checked[sig] = _same_face_space(patches, a, b, swap, flip)
+        if not checked[sig]:
+            bad.append((a, b, "their spline spaces differ (degrees or knots)"))
+            continue
+        todo.append((a, b, o))
+    coincide = _coincide(patches, todo, scale)
+    for (a, b, o), c in zip(todo, coincide):
+        if c:
+            swap, flip = ORIENTATIONS[o]
+            out.append(Interface("identity", a, b, swap, flip))
+        else:
+            bad.append((a, b, "their corners coincide but their surfaces do not"))
+    if strict and bad:
+        a, b, why = bad[0]
+        raise SplineError(f"face {a[1]} of patch {a[0]} and face {b[1]} of patch {b[0]} touch but do not conform: "
+                          f"{why}; give both patches the same face (control points, degrees and knots)")
+    return out, bad
+
+
+def _coincide(patches, todo, scale) -> np.ndarray:
+    """Whether the images of the face pairs ``todo`` [(a, b, orientation)] coincide at the interior samples.
+
+    Pairs of patches placed in one outer map are compared in its parameter
+    space first (exact and cheap: placed tile coordinates); the rest, and
+    pairs that differ there (a periodic map's seam), through the images.
+    """
+    res = np.zeros(len(todo), bool)
+    if not todo:
+        return res
+    st_b = [_oriented_samples(*ORIENTATIONS[o]) for _, _, o in todo]
+    same = [i for i, (a, b, _) in enumerate(todo) if patches[a[0]].outer is patches[b[0]].outer]
+    if same:
+        pa = face_points(patches, [todo[i][0] for i in same], _SAMPLES, through_outer=False)
+        pb = face_points(patches, [todo[i][1] for i in same], [st_b[i] for i in same], through_outer=False)
+        hit = np.abs(pa - pb).max(axis=(1, 2)) <= TOL * max(1.0, float(np.abs(pa).max()))
+        res[np.asarray(same)[hit]] = True
+    rest = np.nonzero(~res)[0]
+    if len(rest):
+        pa = face_points(patches, [todo[i][0] for i in rest], _SAMPLES)
+        pb = face_points(patches, [todo[i][1] for i in rest], [st_b[i] for i in rest])
+        res[rest] = np.abs(pa - pb).max(axis=(1, 2)) <= TOL * scale
+    return res
+
+
+def free_faces(patches, interfaces) -> list[tuple[int, str]]:
+    """Faces of trivariate patches that no interface glues, in patch then face order."""
+    glued = {itf.a for itf in interfaces} | {itf.b for itf in interfaces}
+    return [(i, f) for i, P in enumerate(patches) if P.spline.dim == 3 for f in FACE_NAMES if (i, f) not in glued]
+
+
+@dataclass(eq=False)
+class MultiPatch:
+    """Patches, interfaces, tags and the free regions of slot faces: the model protocol (module notes).
+
+    ``tags``: tag -> list of (patch index, face name or slot face id);
+    ``face_regions``: (patch, slot face id) -> free rectangles of that slot face.
+    """
+
+    patches: list
+    interfaces: list = field(default_factory=list)
+    tags: dict = field(default_factory=dict)
+    face_regions: dict = field(default_factory=dict)
+
+    @classmethod
+    def from_splines(cls, splines, couple: bool = True) -> "MultiPatch":
+        """A model of independent trivariate patches; with ``couple``, conforming shared faces are glued.
+
+        Tags: each face name (``umin`` .. ``wmax``) holds that face of every
+        patch that is free; ``patch{i}.{face}`` one face of one patch (free or
+        not); ``boundary`` every free face.  Patches that touch without
+        conforming (corners coincide but spaces or surfaces differ, or a face
+        lies on another patch's face without matching it) raise :class:`SplineError`.
+        """
+        patches = []
+        for i, s in enumerate(splines):
+            if not isinstance(s, BSpline) or s.dim != 3:
+                what = type(s).__name__ if not isinstance(s, BSpline) else f"{s.dim}-variate BSpline"
+                raise SplineError(f"patch {i} is a {what}; a multi-patch model needs trivariate geometry.BSpline patches")
+            patches.append(PlacedPatch(s, tile=i))
+        interfaces = []
+        if couple and len(patches) > 1:
+            interfaces, _ = detect_interfaces(patches, strict=True)
+            _refuse_nonconforming_contact(patches, interfaces)
+        free = free_faces(patches, interfaces)
+        tags = {f: [(i, g) for i, g in free if g == f] for f in FACE_NAMES}
+        tags["boundary"] = list(free)
+        for i in range(len(patches)):
+            for f in FACE_NAMES:
+                tags[f"patch{i}.{f}"] = [(i, f)]
+        return cls(patches, interfaces, tags)
+
+
+def _refuse_nonconforming_contact(patches, interfaces) -> None:
+    """Raise when an interior point of a free face lies on another patch (contact without an interface).
+
+    Each free face's interior samples are inverted into every other patch whose
+    bounding box holds them; a sample inside or on another patch means the two
+    touch or overlap without a conforming interface.
+    """
+    free = free_faces(patches, interfaces)
+    if not free:
+        return
+    pts = face_points(patches, free, _SAMPLES)  # (F, n, 3)
+    scale = max(1.0, float(np.abs(pts).max()))
+    tol = 1e-7 * scale
+    boxes = [P.spline.bounding_box() for P in patches]
+    for j, (pi, f) in enumerate(free):
+        for qi, P in enumerate(patches):
+            if qi == pi:
+                continue
+            lo, hi = boxes[qi][:, 0] - tol, boxes[qi][:, 1] + tol
+            cand = pts[j][np.all((pts[j] >= lo) & (pts[j] <= hi), axis=1)]
+            if not len(cand):
+                continue
+            inv = invert(P.spline, cand)
+            if np.any(inv.distance <= tol):
+                raise SplineError(
+                    f"face {f} of patch {pi} touches patch {qi} without a conforming interface (no face of patch "
+                    f"{qi} matches it corner to corner with the same spline space); split or refine the patches so "
+                    "that shared faces are identical, or pass them as separate models"
+                )

@@ -1,0 +1,108 @@
+"""The reduced linear system: constraints and Dirichlet data eliminated, solved, expanded back.
+
+Without interface constraints (one unconstrained patch) the prescribed
+unknowns are removed by row and column selection, in the matrix's own memory
+for large systems.  With constraints ``u = P u_red + g`` the reduced system is
+``P_f^T K P_f x = P_f^T (f - K g)``.  The consistent boundary flux (the
+reaction ``K u - f`` on the prescribed unknowns) is returned for the energy
+balance and ``Solution.flux``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+import solvers
+
+from . import fast_assembly
+from .constraints import induced_elimination
+
+__all__ = ["eliminate", "solve_system", "SystemSolution"]
+
+_IN_PLACE_NNZ = 1 << 22  # in-place Dirichlet elimination (numba) from this many matrix entries
+
+
+def eliminate(K: sp.csr_matrix, f: np.ndarray, free: np.ndarray, dofs: np.ndarray, g: np.ndarray,
+              in_place: bool = False):
+    """``K[free][:, free]`` and ``f[free] - K[free][:, dofs] @ g`` in O(nnz) array operations.
+
+    SciPy's column fancy indexing is several times slower on large matrices;
+    here the kept rows are sliced once and their columns filtered by a map.
+    ``in_place``: K may be destroyed; for large matrices the compiled kernel
+    (numba) then compacts K inside its own arrays, so no second matrix is
+    allocated.
+    """
+    n = K.shape[0]
+    ug = np.zeros(n)
+    ug[dofs] = g
+    rhs = f[free] - (K @ ug)[free] if len(dofs) else f[free].copy()
+    if in_place and fast_assembly.AVAILABLE and K.nnz >= _IN_PLACE_NNZ:
+        return fast_assembly.compact_rows_cols(K, free), rhs
+    Kr = K[free]  # row selection (fast in SciPy)
+    col = np.full(n, -1, np.int64)
+    col[free] = np.arange(len(free))
+    new = col[Kr.indices]
+    keep = new >= 0
+    dropped = np.flatnonzero(~keep)  # few: the Dirichlet columns of the kept rows
+    indptr = Kr.indptr - np.searchsorted(dropped, Kr.indptr)
+    idx = new[keep]
+    A = sp.csr_matrix((Kr.data[keep], idx.astype(np.int32) if len(free) < 2**31 else idx, indptr),
+                      shape=(len(free), len(free)))
+    return A, rhs
+
+
+@dataclass
+class SystemSolution:
+    """Coefficients ``u`` (ndof,), the reaction on ``reaction_dofs``, solver info, reduced size, induced rank."""
+
+    u: np.ndarray
+    reaction_dofs: np.ndarray
+    reaction: np.ndarray
+    info: object
+    reduced: int
+    induced_rank: int
+
+
+def solve_system(K, f, constraints, dirichlet, solver="auto", tol=1e-10, maxiter=None) -> SystemSolution:
+    """Eliminate constraints and Dirichlet data from ``K u = f``, solve, expand.
+
+    ``constraints``: :class:`iga.constraints.Constraints` or None; ``dirichlet``:
+    :class:`iga.dirichlet.DirichletData`.  K is consumed (it may be modified).
+    """
+    nred = K.shape[0] if constraints is None else constraints.P.shape[1]
+    dofs, g = dirichlet.dofs, dirichlet.values
+    free = np.setdiff1d(np.arange(nred), dofs)
+    reaction_dofs = dofs
+    induced = 0
+    if constraints is None:  # one unconstrained patch: eliminate by row and column selection
+        Kd = K[reaction_dofs]  # rows needed for the reaction fluxes; K itself is consumed
+        A, rhs = eliminate(K, f, free, dofs, g, in_place=True)
+        del K
+    else:
+        P = constraints.P
+        Pf, Pd = P[:, free].tocsc(), P[:, dofs].tocsc()
+        offset = Pd @ g
+        if len(dirichlet.slave_rows):
+            # slave DOFs on Dirichlet faces fix combinations of free unknowns: eliminate them
+            Ps = P[dirichlet.slave_rows]
+            T, x0, touched = induced_elimination(Ps[:, free], dirichlet.slave_values - Ps[:, dofs] @ g)
+            offset = offset + Pf @ x0
+            Pf = (Pf @ T).tocsc()
+            reaction_dofs = np.concatenate([dofs, free[touched]])
+            induced = int(len(free) - T.shape[1])
+        A = (Pf.T @ K @ Pf).tocsr()
+        rhs = Pf.T @ (f - K @ offset)
+    x, info = solvers.solve(A, rhs, method=solver, tol=tol, maxiter=maxiter, overwrite_a=True)  # A is ours
+    reduced = int(A.shape[0])
+    if constraints is None:
+        u = np.zeros(nred)
+        u[dofs] = g
+        u[free] = x
+        reaction = Kd @ u - f[reaction_dofs]
+    else:
+        u = Pf @ x + offset
+        reaction = (constraints.P.T @ (K @ u - f))[reaction_dofs]
+    return SystemSolution(u, reaction_dofs, reaction, info, reduced, induced)

@@ -1,0 +1,141 @@
+"""Volume assembly of the diffusion form and the source load: one dispatcher, two paths.
+
+Patches are grouped by (analysis space, tile spline): a group shares every
+quadrature table, and its geometry comes from one tile evaluation (plus one
+deformation-map evaluation per batch).  Each group is assembled
+
+* by the compiled kernels of :mod:`iga.fast_assembly` (numba) when it has at
+  least :data:`iga.fast_assembly.MIN_POINTS` Gauss points: geometry, metric
+  and stiffness slab by slab, straight into the CSR data;
+* otherwise by the NumPy sum factorisation of :mod:`iga.assembly`.
+
+Both evaluate the same coefficient fields (:func:`iga.forms.diffusion` or its
+compiled twin) and agree to rounding.  The Jacobian determinant is checked on
+every slab and across slabs (a sign change anywhere is a fold).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import fast_assembly
+from .assembly import block_diagonal_csr, load_form, pattern, stiffness_data
+from .coefficients import TENSOR_PAIRS
+from .faces import chunks
+from .forms import diffusion
+from .geometry_eval import checked_det, patches_geometry_derivs_slabs
+
+__all__ = ["VolumeAssembler"]
+
+# Gauss points per slab (at least one element): the NumPy path keeps cache-sized temporaries; the compiled
+# kernels re-contract the coefficient rows a slab touches, so they take larger slabs (about 40 MB of
+# fields), and the fused geometry-metric pass larger still, so that its direction-2/1 contractions are
+# shared by more planes (docs/performance.md)
+_NUMPY_SLAB_POINTS = 1 << 14
+_COMPILED_SLAB_POINTS = 1 << 18
+_FUSED_SLAB_POINTS = 1 << 20
+
+
+class VolumeAssembler:
+    """Stiffness (CSR) and source load of all patches of a model on their spaces."""
+
+    def __init__(self, model, spaces, offsets):
+        self.model, self.spaces, self.offsets = model, spaces, offsets
+        self.ndof = int(offsets[-1])
+        self.groups: dict = {}
+        for i, s in enumerate(spaces):
+            self.groups.setdefault((s.key(), id(model.patches[i].spline)), []).append(i)
+
+    @property
+    def compiled(self) -> bool:
+        """Whether some group is large enough for the compiled kernels (then large faces use them too)."""
+        return any(fast_assembly.applies(self.spaces[g[0]], len(g)) for g in self.groups.values())
+
+    def assemble(self, conductivity, source):
+        """(K, f, source_total): the stiffness of ``conductivity`` (a :class:`iga.coefficients.Conductivity`)
+        and the load of ``source`` (a :class:`iga.coefficients.ScalarField`); ``source_total`` is int f dV (W)."""
+        blocks, f = [], np.zeros(self.ndof)
+        source_total = 0.0
+        for group in self.groups.values():
+            space = self.spaces[group[0]]
+            for members in chunks(group, space.nq_total):
+                pat, data, loads, total = self._group(members, space, conductivity, source)
+                source_total += total
+                for j, i in enumerate(members):
+                    blocks.append((int(self.offsets[i]), pat, data[j]))
+                if loads is not None:
+                    for j, i in enumerate(members):
+                        f[self.offsets[i] : self.offsets[i + 1]] += loads[j].ravel()
+        return block_diagonal_csr(blocks, self.ndof), f, source_total
+
+    def _group(self, members, space, conductivity, source):
+        """Pattern, data (P, nnz), loads (P,) + shape or None, and int f dV of patches sharing a space and spline."""
+        P, N = len(members), space.nq_total
+        total = 0.0
+        if fast_assembly.applies(space, P):  # compiled: each slab goes straight into the CSR data and loads
+            acc = fast_assembly.StiffnessAccumulator(space, P)
+            for planes, Cs, Ls in self._slabs(members, space, conductivity, source, compiled=True):
+                total += float(Ls.sum())
+                acc.add(planes, Cs, Ls if np.any(Ls) else None)
+            pat, data = acc.result()
+            return pat, data, acc.load, total
+        shape = (P,) + space.qshape
+        rest = N // space.dirs[0].nq
+        C, L = np.empty((6, P, N)), np.empty((P, N))
+        for planes, Cs, Ls in self._slabs(members, space, conductivity, source, compiled=False):
+            C[:, :, planes.start * rest : planes.stop * rest] = Cs
+            L[:, planes.start * rest : planes.stop * rest] = Ls
+        pat = pattern(space)
+        data = stiffness_data(space, {rs: C[j].reshape(shape) for j, rs in enumerate(TENSOR_PAIRS)}, pat)
+        del C
+        total = float(L.sum())
+        return pat, data, (load_form(space, L.reshape(shape)) if np.any(L) else None), total
+
+    def _slabs(self, members, space, conductivity, source, compiled=False):
+        """Coefficient fields on the Gauss grid of patches ``members`` (same tile spline and space), by slabs.
+
+        Yields ``(planes, C, L)``: ``planes`` a slice of whole elements' Gauss
+        planes along the first axis, C (6, P, n) the stiffness coefficient
+        fields (:func:`iga.forms.diffusion`) and L (P, n) the source density on
+        those planes (n points per patch, C order).  The full-grid geometry
+        never exists.  ``compiled``: the arithmetic runs in the numba kernels,
+        geometry and metric fused for patches without placement or map and with
+        constant conductivity and source (:func:`iga.fast_assembly.metric_slabs`).
+        """
+        patches = [self.model.patches[i] for i in members]
+        P = len(members)
+        where = f"patch {members[0]}" if P == 1 else f"patches {members[0]}..{members[-1]}"
+        lo, hi = np.inf, -np.inf  # det range over all slabs: a sign change between slabs is a fold too
+        kc, fc = conductivity.constant, source.constant
+        if (compiled and kc is not None and fc is not None
+                and all(p.placement is None and p.outer is None for p in patches)):
+            # x = spline(xi), k and f constant: geometry and metric in one compiled pass (the patches of the
+            # group are the same spline, so one evaluation serves them all)
+            for planes, C, L, det in fast_assembly.metric_slabs(patches[0].spline, space, _FUSED_SLAB_POINTS, kc, fc):
+                a, b = checked_det(det, where)
+                lo, hi = min(lo, a), max(hi, b)
+                n = len(L)
+                yield planes, np.broadcast_to(C[:, None], (6, P, n)), np.broadcast_to(L, (P, n))
+            checked_det(np.array([lo, hi]), where)
+            return
+        w_rest = np.multiply.outer(space.dirs[1].qw, space.dirs[2].qw).ravel()  # weights of one plane
+        slabs = patches_geometry_derivs_slabs(patches, space.qaxes,
+                                              _COMPILED_SLAB_POINTS if compiled else _NUMPY_SLAB_POINTS,
+                                              rows_multiple=space.dirs[0].g, compiled=compiled)
+        for planes, x, D, chans in slabs:
+            n = x.shape[1]
+            flat = {ch: np.reshape(v, -1) for ch, v in chans.items()}
+            xs = x.reshape(-1, 3)
+            kval = conductivity.values(xs, flat, where)
+            fval = source.values(xs, flat, where)
+            w = np.multiply.outer(space.dirs[0].qw[planes], w_rest).ravel()
+            wv = np.broadcast_to(w, (P, n)).reshape(-1)
+            if compiled:
+                C, L, det = fast_assembly.metric_fields(D, kval, fval, wv)
+            else:
+                C, L, det = diffusion(D, kval, fval, wv)
+            a, b = checked_det(det, where)
+            lo, hi = min(lo, a), max(hi, b)
+            yield planes, C.reshape(6, P, n), L.reshape(P, n)
+        checked_det(np.array([lo, hi]), where)
+
