@@ -25,6 +25,7 @@ import scipy.sparse as sp
 from .errors import SplineError
 
 __all__ = [
+    "apply_along",
     "validate_knots",
     "breakpoints",
     "find_spans",
@@ -40,6 +41,15 @@ __all__ = [
     "bezier_to_bspline",
     "uniform_knots",
 ]
+
+
+def apply_along(arr: np.ndarray, axis: int, M) -> np.ndarray:
+    """Apply the matrix ``M`` (new, old), dense or sparse, along ``axis`` of the array ``arr``."""
+    moved = np.moveaxis(arr, axis, 0)
+    flat = moved.reshape(moved.shape[0], -1)
+    out = M @ flat
+    out = np.asarray(out).reshape((M.shape[0],) + moved.shape[1:])
+    return np.moveaxis(out, 0, axis)
 
 
 def uniform_knots(degree: int, n_elements: int, lo: float = 0.0, hi: float = 1.0) -> np.ndarray:

@@ -15,7 +15,7 @@ import numpy as np
 from . import bernstein
 from . import knots as kn
 from .errors import SplineError
-from .spline import SplineFunction, _apply_along
+from .spline import SplineFunction
 
 __all__ = ["multiply", "product_knots", "from_bezier_elements", "common_refinement"]
 
@@ -55,7 +55,7 @@ def from_bezier_elements(elements: np.ndarray, knots, degrees) -> np.ndarray:
     arr = np.transpose(elements, perm)
     arr = arr.reshape(tuple(ne[k] * (degrees[k] + 1) for k in range(d)) + (elements.shape[-1],))
     for k in range(d):
-        arr = _apply_along(arr, k, kn.bezier_to_bspline(np.asarray(knots[k]), degrees[k]))
+        arr = kn.apply_along(arr, k, kn.bezier_to_bspline(np.asarray(knots[k]), degrees[k]))
     return arr
 
 

@@ -12,29 +12,17 @@ layout "3 coordinates + named channels".
 
 from __future__ import annotations
 
-from itertools import product as iproduct
-from math import comb
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.interpolate import NdBSpline
 
-from . import _fast
 from . import knots as kn
+from .evaluation import SplineEvaluation
 from .errors import SplineError
 from .faces import FACE_NAMES
 
 
-def _apply_along(arr: np.ndarray, axis: int, M) -> np.ndarray:
-    """Apply the matrix ``M`` (new, old) along ``axis`` of ``arr``."""
-    moved = np.moveaxis(arr, axis, 0)
-    flat = moved.reshape(moved.shape[0], -1)
-    out = M @ flat
-    out = np.asarray(out).reshape((M.shape[0],) + moved.shape[1:])
-    return np.moveaxis(out, 0, axis)
-
-
-class SplineFunction:
+class SplineFunction(SplineEvaluation):
     """A tensor-product B-spline function ``R^d -> R^m`` (d = 1, 2, 3).
 
     Parameters
@@ -194,151 +182,6 @@ class SplineFunction:
             raise SplineError(f"direction must be an integer in 0..{self.dim - 1}, got {direction!r}")
         return int(direction)
 
-    # -------------------------------------------------------------- evaluation
-    def _check_params(self, params) -> np.ndarray:
-        x = np.asarray(params, dtype=float)
-        if x.ndim == 1 and self.dim == 1:
-            x = x[:, None]
-        if x.ndim == 1 and x.shape[0] == self.dim:
-            x = x[None, :]
-        if x.ndim != 2 or x.shape[1] != self.dim:
-            raise SplineError(f"parameters must have shape (N, {self.dim}), got {np.shape(params)}")
-        dom = self.domain
-        if len(x):
-            lo, hi = x.min(axis=0), x.max(axis=0)  # two passes decide the common case (NaN propagates)
-            if np.all(np.isfinite(lo) & np.isfinite(hi)) and np.all(lo >= dom[:, 0]) and np.all(hi <= dom[:, 1]):
-                return x
-        if not np.all(np.isfinite(x)):
-            raise SplineError("parameters contain non-finite values")
-        tol = 1e-12 * (dom[:, 1] - dom[:, 0]) + 1e-14
-        out = np.any((x < dom[:, 0] - tol) | (x > dom[:, 1] + tol), axis=1)
-        if out.any():
-            bad = x[out][:3]
-            raise SplineError(
-                f"{int(out.sum())} parameter point(s) lie outside the domain {dom.tolist()}, e.g. {bad.tolist()}"
-            )
-        return np.clip(x, dom[:, 0], dom[:, 1])
-
-    def _ev(self):
-        if self._evaluator is None:
-            self._evaluator = NdBSpline(self.knots, self._hom, self.degrees, extrapolate=False)
-        return self._evaluator
-
-    def _hom_eval(self, x, orders) -> np.ndarray:
-        orders = tuple(int(o) for o in orders)
-        if any(o > p for o, p in zip(orders, self.degrees)):
-            return np.zeros((len(x), self._hom.shape[-1]))
-        if len(x) == 0:
-            return np.zeros((0, self._hom.shape[-1]))
-        return self._ev()(x, nu=orders)
-
-    def evaluate(self, params) -> np.ndarray:
-        """Values at parameter points ``params`` (N, d) -> (N, m)."""
-        h = None
-        # compiled kernel for many points; it checks the domain itself and declines on any bad point
-        if _fast.applies(self.dim, np.shape(params)[0] if np.ndim(params) else 0):
-            h = _fast.evaluate(self.knots, self.degrees, self._hom, np.asarray(params, dtype=float))
-        if h is None:
-            x = self._check_params(params)
-            h = _fast.evaluate(self.knots, self.degrees, self._hom, x)
-            if h is None:
-                h = self._hom_eval(x, (0,) * self.dim)
-        if self.is_rational:
-            return h[:, :-1] / h[:, -1:]
-        return h
-
-    __call__ = evaluate
-
-    def derivative(self, params, orders) -> np.ndarray:
-        """Partial derivative of the given ``orders`` (one int per direction), (N, m)."""
-        orders = tuple(int(o) for o in np.atleast_1d(orders))
-        if len(orders) != self.dim or min(orders) < 0:
-            raise SplineError(f"orders must be {self.dim} non-negative integers, got {orders}")
-        x = self._check_params(params)
-        return self._derivs(x, [orders])[orders]
-
-    def derivatives(self, params, max_order: int = 1) -> dict:
-        """All partial derivatives of total order <= ``max_order``: {orders: (N, m)}."""
-        x = self._check_params(params)
-        alphas = [a for a in iproduct(range(max_order + 1), repeat=self.dim) if sum(a) <= max_order]
-        return self._derivs(x, alphas)
-
-    def jacobian(self, params) -> np.ndarray:
-        """Matrix of first derivatives, shape (N, m, d)."""
-        return self._value_jacobian(params, values=False)[1]
-
-    def value_and_jacobian(self, params) -> tuple[np.ndarray, np.ndarray]:
-        """Values (N, m) and the matrix of first derivatives (N, m, d) at ``params`` (N, d)."""
-        return self._value_jacobian(params, values=True)
-
-    def _value_jacobian(self, params, values: bool):
-        x = self._check_params(params)
-        # compiled kernel for many points: values and first derivatives in one pass (3x SciPy's four passes)
-        out = _fast.evaluate(self.knots, self.degrees, self._hom, x, derivs=True)
-        if out is not None:
-            H, dH = out[0], out[1:]
-            if not self.is_rational:
-                return H, np.moveaxis(dH, 0, -1)
-            w = H[:, -1:]  # S = A / w: dS = (dA - S dw) / w
-            S = H[:, :-1] / w
-            return S, np.stack([(d[:, :-1] - S * d[:, -1:]) / w for d in dH], axis=-1)
-        zero = (0,) * self.dim
-        eye = [tuple(int(i == k) for i in range(self.dim)) for k in range(self.dim)]
-        D = self._derivs(x, ([zero] if values else []) + eye)
-        return D.get(zero), np.stack([D[a] for a in eye], axis=-1)
-
-    def _derivs(self, x, alphas) -> dict:
-        """Derivatives for the multi-indices ``alphas`` (rational: Leibniz/quotient rule)."""
-        if not self.is_rational:
-            return {a: self._hom_eval(x, a) for a in alphas}
-        hom = {}
-
-        def H(a):
-            if a not in hom:
-                hom[a] = self._hom_eval(x, a)
-            return hom[a]
-
-        S = {}
-
-        def deriv(a):
-            # S^(a) = (A^(a) - sum_{b <= a, b != a} C(a,b) w^(a-b) S^(b)) / w
-            if a in S:
-                return S[a]
-            num = H(a)[:, :-1].copy()
-            for b in iproduct(*(range(ai + 1) for ai in a)):
-                if b == a:
-                    continue
-                c = np.prod([comb(ai, bi) for ai, bi in zip(a, b)])
-                diff = tuple(ai - bi for ai, bi in zip(a, b))
-                num -= c * H(diff)[:, -1:] * deriv(b)
-            S[a] = num / H((0,) * self.dim)[:, -1:]
-            return S[a]
-
-        return {a: deriv(a) for a in alphas}
-
-    def evaluate_grid(self, axes, orders=None) -> np.ndarray:
-        """Values (or a polynomial spline's derivative) on the tensor grid of ``axes``.
-
-        ``axes``: one 1-D array of parameters per direction.  Returns an array
-        of shape (len(axes[0]), ..., len(axes[d-1]), m).  Uses one sparse basis
-        matrix per direction (sum factorisation), far faster than scattered
-        evaluation on large grids.
-        """
-        orders = (0,) * self.dim if orders is None else tuple(orders)
-        if self.is_rational and any(orders):
-            raise SplineError("evaluate_grid returns derivatives of polynomial splines only; use derivatives()")
-        out = self._hom
-        for k, ax in enumerate(axes):
-            ax = np.asarray(ax, float)
-            lo, hi = self.knots[k][0], self.knots[k][-1]
-            if ax.ndim != 1 or np.any(ax < lo - 1e-12 * (hi - lo)) or np.any(ax > hi + 1e-12 * (hi - lo)) or not np.all(np.isfinite(ax)):
-                raise SplineError(f"grid axis {k} must be 1-D values inside [{lo}, {hi}]")
-            B = kn.basis_matrix(self.knots[k], self.degrees[k], np.clip(ax, lo, hi), orders[k])
-            out = _apply_along(out, k, B)
-        if self.is_rational:
-            return out[..., :-1] / out[..., -1:]
-        return out
-
     # ------------------------------------------------------------ refinement
     def insert_knots(self, direction: int, values):
         """Insert knots (repeats allowed) along ``direction``.
@@ -350,7 +193,7 @@ class SplineFunction:
         U, R = kn.insertion_matrix(self.knots[k], self.degrees[k], values)
         knots = list(self.knots)
         knots[k] = U
-        return self._new(self.degrees, knots, _apply_along(self._hom, k, R)), R
+        return self._new(self.degrees, knots, kn.apply_along(self._hom, k, R)), R
 
     def refine(self, times: int = 1, directions=None):
         """Bisect every knot span ``times`` times in the given directions (default all).
@@ -381,7 +224,7 @@ class SplineFunction:
         knots[k] = U
         degrees = list(self.degrees)
         degrees[k] += int(times)
-        return self._new(degrees, knots, _apply_along(self._hom, k, E))
+        return self._new(degrees, knots, kn.apply_along(self._hom, k, E))
 
     def elevate_to(self, degrees):
         """Elevate every direction to the given degrees (each >= current)."""
@@ -457,7 +300,7 @@ class SplineFunction:
             except SplineError as exc:
                 raise SplineError(f"direction {k}: {exc}") from None
             knots[k] = U
-            hom = _apply_along(hom, k, S)
+            hom = kn.apply_along(hom, k, S)
         return self._new(self.degrees, knots, hom)
 
     def reverse(self, direction: int):

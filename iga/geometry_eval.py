@@ -10,7 +10,6 @@ from __future__ import annotations
 import numpy as np
 
 from geometry import knots as kn
-from geometry.spline import _apply_along
 
 from .errors import ProblemError
 
@@ -48,7 +47,7 @@ def _contract_prefixes(hom, B, order, keys, depth):
         need = sorted({key[: j + 1] for key in keys})
         nxt = {}
         for pre in need:
-            nxt[pre] = _apply_along(level[pre[:-1]], k, B[k][pre[-1]])
+            nxt[pre] = kn.apply_along(level[pre[:-1]], k, B[k][pre[-1]])
             if not any(q[:-1] == pre[:-1] for q in need if q > pre):
                 del level[pre[:-1]]
         level = nxt
@@ -132,7 +131,7 @@ def grid_values_derivs_slabs(spline, axes, points_per_slab: int = 1 << 15, rows_
     level = {k: np.ascontiguousarray(v) for k, v in level.items()}  # each slab reads them as (n_0, rest)
     for a in range(0, n0, rows):
         sl = slice(a, min(a + rows, n0))
-        out = [_apply_along(level[key[:-1]], 0, B[0][key[-1]][sl]).reshape(-1, m) for key in keys]
+        out = [kn.apply_along(level[key[:-1]], 0, B[0][key[-1]][sl]).reshape(-1, m) for key in keys]
         yield (sl, *_dehomogenise(spline, out[0], out[1:]))
 
 

@@ -36,7 +36,7 @@ def retain_freed_memory() -> bool:
     try:
         libc = ctypes.CDLL(name)
         mallopt = libc.mallopt
-        libc.gnu_get_libc_version  # glibc only: musl has no mallopt knobs worth setting
+        _ = libc.gnu_get_libc_version  # glibc only: musl has no mallopt knobs worth setting
     except (OSError, AttributeError, TypeError):
         return False
     mallopt.argtypes = [ctypes.c_int, ctypes.c_int]

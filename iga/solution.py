@@ -86,7 +86,7 @@ class Solution:
             raise ProblemError(f"probe points must be a finite array of shape (N, 3), got {np.shape(points)}")
         if self._trees is None:
             self._trees = []
-            for pi, patch in enumerate(self.problem.model.patches):
+            for patch in self.problem.model.patches:
                 axes = [np.linspace(U[0], U[-1], 4 * len(np.unique(U)) + 2) for U in patch.spline.knots]
                 x, _, _ = patch_geometry_grid(patch, axes)
                 grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)

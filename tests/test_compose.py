@@ -174,7 +174,7 @@ def test_compose_many_matches_compose_and_batches_pieces():
     outer = random_outer(rng, (2, 2, 3), rational=True, spans=3)
     tile = random_inner(rng, 3, (2, 1, 2), False, np.array([[0.0, 1.0]] * 3))
     P = []
-    for k in range(3):  # placements scattered over the knot spans of the outer map
+    for _ in range(3):  # placements scattered over the knot spans of the outer map
         e = [int(rng.integers(0, len(outer.breakpoints(j)) - 1)) for j in range(3)]
         lo = np.array([outer.breakpoints(j)[e[j]] for j in range(3)])
         hi = np.array([outer.breakpoints(j)[e[j] + 1] for j in range(3)])

@@ -14,7 +14,6 @@ import numpy as np
 
 from geometry import BSpline, knots as kn
 from geometry.faces import FACE_NAMES
-from geometry.spline import _apply_along
 
 from .errors import TilingError
 
@@ -39,11 +38,11 @@ def interpolate_channel(spline: BSpline, name: str, fn, on: str = "parameters") 
     if spline.is_rational:
         Wvals = spline.weights  # the weight function at the Greville grid
         for k in range(spline.dim):
-            Wvals = _apply_along(Wvals[..., None], k, kn.basis_matrix(spline.knots[k], spline.degrees[k], g[k]))[..., 0]
+            Wvals = kn.apply_along(Wvals[..., None], k, kn.basis_matrix(spline.knots[k], spline.degrees[k], g[k]))[..., 0]
         data = data * Wvals
     for k in range(spline.dim):  # tensor-product collocation solve, one direction at a time
         B = kn.basis_matrix(spline.knots[k], spline.degrees[k], g[k]).toarray()
-        data = _apply_along(data[..., None], k, np.linalg.inv(B))[..., 0]
+        data = kn.apply_along(data[..., None], k, np.linalg.inv(B))[..., 0]
     if spline.is_rational:
         data = data / spline.weights
     return spline.with_channel(name, data)

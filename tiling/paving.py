@@ -163,7 +163,7 @@ def hierarchical(D: BSpline, tile: Tile, counts, levels: int, scale: float | Non
             hi_c = np.array([cu[i, 1], cv[j, 1], dw[1]])
             cell = _affine(np.column_stack([np.diag(hi_c - lo_c), lo_c]))
             base = len(tiles)
-            for n, (M, lev, parent, bj) in enumerate(nodes):
+            for M, lev, parent, bj in nodes:
                 tid = len(tiles)
                 tiles.append(tile)
                 G = (cell @ Nrm @ M)[:3]

@@ -1,0 +1,81 @@
+"""Curves crossing the outer map's knot lines: split at the crossings, compose the pieces, join them.
+
+A curve is split at the parameters where one of its coordinates equals an
+interior breakpoint of the outer map (roots of the coordinate's Bernstein
+polynomial per curve segment).  Each piece's image then lies in one knot span
+of the outer map, which is located from the piece's midpoint: its control
+polygon may still straddle the knot line (the convex hull is not the curve),
+and the composition with the span's polynomial piece is exact regardless.
+The composed pieces are elevated to one degree and joined C0 into one
+B-spline, rational pieces scaled so that each joint has one weight.
+"""
+
+from __future__ import annotations
+
+from math import comb
+
+import numpy as np
+
+from .bspline import BSpline
+
+__all__ = ["crossings", "compose_curve_split"]
+
+
+def crossings(curve: BSpline, k: int, value: float) -> np.ndarray:
+    """Curve parameters where coordinate ``k`` equals ``value`` (roots per Bezier segment)."""
+    patches, boxes = curve.bezier_patches(homogeneous=True)
+    roots = []
+    for e in range(patches.shape[0]):  # per curve segment (few), roots of a small polynomial
+        a, t0, t1 = patches[e], boxes[e, 0, 0], boxes[e, 0, 1]
+        p = a.shape[0] - 1
+        num = a[:, k] - value * (a[:, -1] if curve.is_rational else 1.0)
+        # Bernstein -> power basis in the local variable s
+        pw = np.zeros(p + 1)
+        for i in range(p + 1):
+            for j in range(i, p + 1):
+                pw[j] += num[i] * comb(p, i) * comb(p - i, j - i) * (-1) ** (j - i)
+        r = np.roots(pw[::-1]) if np.any(pw[1:]) else np.array([])
+        r = r[np.abs(r.imag) < 1e-9].real
+        r = r[(r > 1e-12) & (r < 1 - 1e-12)]
+        roots += list(t0 + r * (t1 - t0))
+    return np.array(roots)
+
+
+def compose_curve_split(outer: BSpline, curve: BSpline, compose_piece) -> BSpline:
+    """``outer(curve)`` for a curve crossing knot lines; ``compose_piece(outer, piece)`` composes one piece
+    whose image lies in one knot span (see the module notes)."""
+    breaks = [outer.breakpoints(k) for k in range(outer.dim)]
+    params = []
+    for k in range(outer.dim):
+        for v in breaks[k][1:-1]:
+            params += list(crossings(curve, k, v))
+    lo, hi = curve.domain[0]
+    cuts = np.unique(np.round(np.asarray(params, float), 14))
+    cuts = cuts[(cuts > lo) & (cuts < hi)]
+    edges = np.r_[lo, cuts, hi]
+    pieces = [curve.extract([[a, b]]) for a, b in zip(edges[:-1], edges[1:])]
+    composed = [compose_piece(outer, piece) for piece in pieces]
+    P = max(c.degrees[0] for c in composed)
+    composed = [c.elevate(0, P - c.degrees[0]) for c in composed]
+    rational = any(c.is_rational for c in composed)
+    homs, knots = [], [np.full(P + 1, lo)]
+    for i, c in enumerate(composed):
+        h = c.homogeneous if (c.is_rational or not rational) else np.concatenate([c.homogeneous, np.ones((c.shape[0], 1))], 1)
+        homs.append(h if i == 0 else h[1:])
+        inner_knots = c.knots[0][P + 1 : -P - 1]
+        a, b = edges[i], edges[i + 1]
+        knots.append(a + (inner_knots - c.knots[0][0]) * (b - a) / (c.knots[0][-1] - c.knots[0][0]))
+        knots.append(np.full(P, b) if i < len(composed) - 1 else np.full(P + 1, hi))
+    if rational:
+        # scale each piece's homogeneous coefficients so the shared joint has one weight
+        scaled = [homs[0]]
+        for i in range(1, len(homs)):
+            prev_w = scaled[-1][-1, -1]
+            first = composed[i].homogeneous[0] if composed[i].is_rational else np.r_[composed[i].control_points[0], 1.0]
+            scaled.append(homs[i] * (prev_w / first[-1]))
+        homs = scaled
+    hom = np.concatenate(homs, axis=0)
+    U = np.concatenate(knots)
+    return BSpline._from_hom((P,), [U], hom, rational, channels=composed[0].channels)
+
+
