@@ -24,8 +24,6 @@ This is the model protocol shared by tiling and analysis (like G+Smo's
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import cached_property
-
 import numpy as np
 import scipy.sparse as sp
 
@@ -52,19 +50,33 @@ class PlacedPatch:
     tile: int = 0
     level: int = 0
     patch_in_tile: int = 0
+    #: the composed image, once computed (:attr:`composed`) or set by a batch (:meth:`set_composed`)
+    _composed: BSpline | None = field(default=None, repr=False)
 
     @property
     def channels(self) -> tuple[str, ...]:
         """Channel names available on this patch: the spline's, then the outer map's."""
         return tuple(self.spline.channels) + (tuple(self.outer.channels) if self.outer is not None else ())
 
-    @cached_property
+    @property
     def composed(self) -> BSpline:
-        """The exact physical patch ``outer(A spline + b)`` as one spline (computed once)."""
-        A = _IDENTITY if self.placement is None else self.placement
-        if self.outer is None:
-            return self.spline if self.placement is None else self.spline.affine(A[:, :3], A[:, 3])
-        return compose_many(self.outer, self.spline, A[None])[0]
+        """The exact physical patch ``outer(A spline + b)`` as one spline (computed once, then kept)."""
+        if self._composed is None:
+            A = _IDENTITY if self.placement is None else self.placement
+            if self.outer is None:
+                self._composed = self.spline if self.placement is None else self.spline.affine(A[:, :3], A[:, 3])
+            else:
+                self._composed = compose_many(self.outer, self.spline, A[None])[0]
+        return self._composed
+
+    @property
+    def is_composed(self) -> bool:
+        """Whether :attr:`composed` is already known."""
+        return self._composed is not None
+
+    def set_composed(self, spline: BSpline) -> None:
+        """Store the composed image computed elsewhere (a batch of :func:`geometry.compose_many`)."""
+        self._composed = spline
 
     def image(self, params: np.ndarray) -> np.ndarray:
         """Physical points (N, 3) at the patch's parameters ``params`` (N, d)."""

@@ -41,8 +41,8 @@ def stage_matrix(sp1: Space1D, a: int, b: int | None) -> sp.csr_matrix:
     quadrature points.  Otherwise (n (2p+1), nq): row (i, d) holds
     d^a N_i d^b N_{i+d-p} at the quadrature points.
     """
-    key = (a, b)
-    cache = sp1.__dict__.setdefault("_stage", {})
+    key = ("stage", a, b)
+    cache = sp1.tables
     if key not in cache:
         W = sp1.window_values(a)[:, None, :] if b is None else sp1.W(a, b)  # (n, D, L)
         n, D, L = W.shape

@@ -63,7 +63,7 @@ def _geometry_kernels():
 
 def _tables(sp1: Space1D) -> dict:
     """Band and element tables of one direction in the kernel's layout (cached on the space)."""
-    cache = sp1.__dict__.get("_fast_tables")
+    cache = sp1.tables.get("fast")
     if cache is None:
         p, g, n = sp1.degree, sp1.g, sp1.n
         W = np.ascontiguousarray(np.stack([sp1.W(a, b) for a, b in _VARIANTS]))  # (4, n, D, L)
@@ -86,7 +86,7 @@ def _tables(sp1: Space1D) -> dict:
             "elo": np.searchsorted(first, i - p, side="left").astype(np.int64),
             "ehi": np.searchsorted(first, i, side="right").astype(np.int64),
         }
-        sp1.__dict__["_fast_tables"] = cache
+        sp1.tables["fast"] = cache
     return cache
 
 

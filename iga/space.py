@@ -33,6 +33,9 @@ class Space1D:
     knots: np.ndarray
     degree: int
     g: int
+    #: derived tables, computed once per space and kept: ("W", a, b) by :meth:`W`, ("stage", a, b) by
+    #: :func:`iga.assembly.stage_matrix`, "fast" by :func:`iga.fast_assembly` (the compiled kernels' layout)
+    tables: dict = field(default_factory=dict, init=False, repr=False)
 
     def __post_init__(self):
         U, p = self.knots, self.degree
@@ -66,21 +69,19 @@ class Space1D:
 
     def W(self, a: int, b: int) -> np.ndarray:
         """(n, 2p+1, L): d^a N_i * d^b N_j at the window points of i (zero where j is out of range)."""
-        key = (a, b)
-        if key not in self._W:
+        key = ("W", a, b)
+        if key not in self.tables:
             j = self.pair_index
             valid = (j >= 0) & (j < self.n)
             jj = np.clip(j, 0, self.n - 1)
             Bi = self.B[a][np.arange(self.n)[:, None], self.qidx]  # (n, L)
             Bj = self.B[b][jj[:, :, None], self.qidx[:, None, :]]  # (n, 2p+1, L)
-            self._W[key] = Bi[:, None, :] * Bj * valid[:, :, None]
-        return self._W[key]
+            self.tables[key] = Bi[:, None, :] * Bj * valid[:, :, None]
+        return self.tables[key]
 
     def window_values(self, a: int = 0) -> np.ndarray:
         """(n, L): d^a N_i at its window points (for load vectors)."""
         return self.B[a][np.arange(self.n)[:, None], self.qidx]
-
-    _W: dict = field(default_factory=dict, init=False, repr=False)
 
 
 def space_knots(knots: np.ndarray, degree: int, elevate: int = 0, refine: int = 0,

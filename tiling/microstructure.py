@@ -74,13 +74,13 @@ class Microstructure(MultiPatch):
         """Compose every patch into D, batched per tile patch (cached on the patches)."""
         groups: dict = {}
         for i, p in enumerate(self.patches):
-            if "composed" not in p.__dict__:
+            if not p.is_composed:
                 groups.setdefault(id(p.spline), []).append(i)
         for members in groups.values():
             spline = self.patches[members[0]].spline
             res = compose_many(self.outer, spline, np.stack([self.patches[i].placement for i in members]))
             for i, r in zip(members, res):
-                self.patches[i].__dict__["composed"] = r  # the cached_property's slot
+                self.patches[i].set_composed(r)
         return [p.composed for p in self.patches]
 
     # ------------------------------------------------------------- assembly
