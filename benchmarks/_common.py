@@ -3,16 +3,7 @@
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
-
-# benchmarks/tiling.py is named like the 'tiling' package; import the package once with this folder
-# off the path so that every script (which imports this module first) gets the package from the cache
-_HERE = Path(__file__).resolve().parent
-_saved = list(sys.path)
-sys.path = [p for p in sys.path if Path(p or ".").resolve() != _HERE]
-import tiling  # noqa: E402,F401
-sys.path = _saved
 
 OUT = Path(__file__).parent / "out"
 

@@ -16,16 +16,13 @@ control-point difference.  Writes benchmarks/out/composition.{json,png}.
 from __future__ import annotations
 
 import argparse
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).parent))
-from _common import print_table, pyplot, save_json, save_plot  # noqa: E402
+from _common import print_table, pyplot, save_json, save_plot
 
-from geometry import BSpline, compose_many, knots as kn  # noqa: E402
+from geometry import BSpline, compose_many, knots as kn
 
 
 def bezier(degrees, cp):

@@ -15,16 +15,13 @@ benchmarks/out/composition_stability.{json,png}.
 from __future__ import annotations
 
 import argparse
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).parent))
-from _common import print_table, pyplot, save_json, save_plot  # noqa: E402
+from _common import print_table, pyplot, save_json, save_plot
 
-from geometry import BSpline, compose, knots as kn, primitives as pr  # noqa: E402
+from geometry import BSpline, compose, knots as kn, primitives as pr
 
 
 def cylinder(order: int) -> BSpline:

@@ -19,15 +19,13 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).parent))
-from _common import print_table, pyplot, save_json, save_plot  # noqa: E402
+from _common import print_table, pyplot, save_json, save_plot
 
-from iga import HeatProblem  # noqa: E402
-from iga.manufactured import quarter_annulus  # noqa: E402
+from iga import HeatProblem
+from iga.manufactured import quarter_annulus
 
 MS = quarter_annulus()
 ANNULUS, k_var, T_exact, grad_exact, f_exact = MS.geometry, MS.conductivity, MS.temperature, MS.gradient, MS.source

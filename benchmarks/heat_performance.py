@@ -35,12 +35,10 @@ import resource
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).parent))
-from _common import print_table, pyplot, save_json, save_plot  # noqa: E402
+from _common import print_table, pyplot, save_json, save_plot
 
 SIZES = {"30k": 31, "110k": 48, "475k": 78, "1M": 100}  # (N + p) per direction, p = 2; p = 3 uses one less element
 

@@ -12,17 +12,14 @@ offscreen render coloured by level).
 from __future__ import annotations
 
 import argparse
-import sys
 import time
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).parent))
-from _common import out_dir, print_table, save_json  # noqa: E402
-from heat_sink_maps import bent_map, circular_map, fractal_map, vertical_map  # noqa: E402
+from _common import out_dir, print_table, save_json
+from heat_sink_maps import bent_map, circular_map, fractal_map, vertical_map
 
-import tiling  # noqa: E402
-from tiling import library as L  # noqa: E402
-from tiling.export import render_png, watertightness, write_surfaces  # noqa: E402
+import tiling
+from tiling import library as L
+from tiling.export import render_png, watertightness, write_surfaces
 
 EXAMPLES = [
     ("fig2c_skinned_branching", lambda: tiling.hierarchical(bent_map(), L.skinned_branching(), (1, 1), 3), (1, 1), 6),

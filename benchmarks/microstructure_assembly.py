@@ -15,18 +15,15 @@ benchmarks/out/microstructure_assembly.json.
 from __future__ import annotations
 
 import argparse
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).parent))
-from _common import print_table, save_json  # noqa: E402  (imports the tiling package, not this file)
+from _common import print_table, save_json
 
-import tiling  # noqa: E402
-from geometry import BSpline, primitives as pr  # noqa: E402
-from tiling import library  # noqa: E402
+import tiling
+from geometry import BSpline, primitives as pr
+from tiling import library
 
 
 def model(tiles):

@@ -7,16 +7,13 @@ Each tile is shown in its unit cell (identity map), coloured by patch.
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).parent))
-import _common  # noqa: E402,F401  (imports the tiling package before benchmarks/tiling.py can shadow it)
 
-from geometry import primitives as pr  # noqa: E402
-import tiling  # noqa: E402
-from tiling import library as L  # noqa: E402
-from tiling.export import render_png  # noqa: E402
+from geometry import primitives as pr
+import tiling
+from tiling import library as L
+from tiling.export import render_png
 
 OUT = Path(__file__).resolve().parents[1] / "docs" / "tiles"
 

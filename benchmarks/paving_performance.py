@@ -1,6 +1,6 @@
 """Tiling performance: wall time and peak memory, including exact composition.
 
-    python benchmarks/tiling.py
+    python benchmarks/paving_performance.py
 
 Cases (each in a fresh subprocess, so peak memory is per case):
   * the Fig. 11(b) circular heat sink: tile T1, 16 x 1 copies, 3 levels
@@ -8,7 +8,7 @@ Cases (each in a fresh subprocess, so peak memory is per case):
 Both are paved and every patch is composed exactly into the map
 (``Microstructure.compose_all``, batched per tile patch).  The seed reports
 under 5 s per example (2018 hardware, single thread).  Writes
-benchmarks/out/tiling.json.
+benchmarks/out/paving_performance.json.
 """
 
 from __future__ import annotations
@@ -18,16 +18,14 @@ import resource
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).parent))
-from _common import print_table, save_json  # noqa: E402  (imports the tiling package, not this file)
-from heat_sink_maps import circular_map  # noqa: E402
+from _common import print_table, save_json
+from heat_sink_maps import circular_map
 
-import tiling  # noqa: E402
-from tiling import library as L  # noqa: E402
+import tiling
+from tiling import library as L
 
 
 def tricubic_map():
@@ -69,7 +67,7 @@ def main():
     print_table(rows, [("case", "s"), ("tiles", "d"), ("patches", "d"), ("interfaces", "d"),
                        ("composed control points", "d"), ("degrees", "s"), ("paving s", ".2f"),
                        ("composition s", ".2f"), ("total s", ".2f"), ("peak MiB", ".0f")])
-    save_json("tiling.json", rows)
+    save_json("paving_performance.json", rows)
 
 
 if __name__ == "__main__":
