@@ -1,4 +1,4 @@
-"""Stability of exact composition at high degree: the circularity experiment of 003 Fig. 13.
+"""Stability of exact composition at high degree: the circularity experiment of Elber 2017, Fig. 13.
 
     python benchmarks/composition_stability.py [--max-order 10] [--points 20000]
 
@@ -72,7 +72,7 @@ def main(argv=None):
         ax2 = ax1.twinx()
         ax2.plot(ds, [int(r["T(S) degrees"].strip("()").split(",")[0]) + 1 for r in rows], "s--", color="tab:blue")
         ax2.set_ylabel("order of T(S)", color="tab:blue")
-        ax1.set_title("003 Fig. 13: exact composition stays circular")
+        ax1.set_title("Elber 2017, Fig. 13: exact composition stays circular")
         save_plot(fig, "composition_stability.png")
 
 

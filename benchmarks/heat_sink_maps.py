@@ -1,7 +1,7 @@
-"""Deformation maps of the seed's examples (shared by the example and benchmark scripts).
+"""Deformation maps of the heat-sink examples of Massarwi et al. 2018 (shared by the example and benchmark scripts).
 
 Lengths in metres.  ``circular_map``: a twisted cylindrical shell with u
-around the axis, v along the axis and w radial (000 Fig. 11(a): the fins grow
+around the axis, v along the axis and w radial (Massarwi et al. 2018, Fig. 11(a): the fins grow
 radially outwards from the inner ring).  ``vertical_map``: the box base of
 the vertical heat sink (Fig. 11(c)-(d)), w upwards.
 """

@@ -1,4 +1,4 @@
-"""The seed's hierarchical constructions: 000 Fig. 2(c), Fig. 3(b) and Fig. 11(b)-(d).
+"""The hierarchical constructions of Massarwi et al. 2018: Fig. 2(c), Fig. 3(b) and Fig. 11(b)-(d).
 
     python benchmarks/hierarchical_examples.py [--samples 6]
 

@@ -6,7 +6,7 @@ Cases (each in a fresh subprocess, so peak memory is per case):
   * the Fig. 11(b) circular heat sink: tile T1, 16 x 1 copies, 3 levels
   * a 10 x 10 x 10 regular paving of the cross tile into a tricubic map
 Both are paved and every patch is composed exactly into the map
-(``Microstructure.compose_all``, batched per tile patch).  The seed reports
+(``Microstructure.compose_all``, batched per tile patch).  Massarwi et al. 2018 report
 under 5 s per example (2018 hardware, single thread).  Writes
 benchmarks/out/paving_performance.json.
 """

@@ -19,8 +19,8 @@ import numpy as np
 #: below this many points the SciPy path is used (no compile, no thread start-up)
 MIN_POINTS = 20_000
 
-# numba is imported on first use only: importing it costs about 60 MiB and 0.4 s,
-# which small analyses (the heat-sink demo) should not pay
+# numba is imported on first use only: importing it costs memory and time (docs/performance.md) that
+# small analyses (the heat-sink demo) should not pay
 AVAILABLE = importlib.util.find_spec("numba") is not None
 
 _KERNEL = None

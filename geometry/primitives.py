@@ -306,9 +306,9 @@ def ruled(bottom: BSpline, top: BSpline) -> BSpline:
 
 
 def skin(surfaces, degree: int | None = None) -> BSpline:
-    """Skinning by stacking control meshes (000, Fig. 2): surfaces become the w-layers.
+    """Skinning by stacking control meshes (Massarwi et al. 2018, Fig. 2): surfaces become the w-layers.
 
-    Intermediate surfaces are *not* interpolated (as in the seed).  ``degree``
+    Intermediate surfaces are *not* interpolated (as in Massarwi et al. 2018).  ``degree``
     along w defaults to ``min(len(surfaces) - 1, 3)``; the w knot vector is
     open uniform on [0, 1].
     """

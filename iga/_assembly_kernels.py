@@ -59,10 +59,9 @@ def stiffness3_for(p3: int, g3: int):
     """The stiffness kernel ``stiffness3`` for degree p3 and g3 Gauss points per element in direction 3.
 
     Both are compile-time constants of the kernel, so that LLVM unrolls the
-    Gauss loop of stage 3 and keeps its seven accumulators in registers:
-    the stage runs 1.3-1.5x faster than with run-time counts (measured at
-    p = 2 and 3).  Each (p3, g3) compiles once (a few seconds) and is cached
-    on disk like the other kernels (numba keys closures by their constants).
+    Gauss loop of stage 3 and keeps its seven accumulators in registers
+    (docs/performance.md).  Each (p3, g3) compiles once (a few seconds) and is
+    cached on disk like the other kernels (numba keys closures by their constants).
     """
     P3, G3 = int(p3), int(g3)
 
@@ -106,11 +105,8 @@ def stiffness3_for(p3: int, g3: int):
             for e1 in range(e0, e0 + n_el):
                 # stage 3: Z[t, m, q2, i3, d3] = sum_q3 W3[v_m](i3, d3, q3) C[f_m](q1, q2, q3), element by
                 # element of direction 3: the element's 6 g3 coefficients are read once and every local pair
-                # (l3, m3) takes its products of basis values (fixed trip counts; 30% faster than summing
-                # each band entry over its support at p = 3; P3 and G3 constant: another 1.3-1.5x)
-                # Measured and dropped: accumulating 8 or 32 Gauss rows at once in small local arrays (numba
-                # does not vectorise across them: 1.1-2x slower), product tables, two rows per work item,
-                # vectorising across elements e3 or pairs m3 (local accumulator arrays: 2-3x slower)
+                # (l3, m3) takes its products of basis values with fixed trip counts, which LLVM unrolls
+                # (alternatives measured and dropped: docs/performance.md)
                 for item in prange(g1 * nq2):
                     t = item // nq2
                     q2 = item - t * nq2
@@ -155,8 +151,7 @@ def stiffness3_for(p3: int, g3: int):
                 # Y0 (1,1) = C00; Y1 (1,0) = C01 d_v N_j + C02 d_w N_j; Y3 (0,0) = the four C_rs, r, s in {1, 2}.
                 # Y0 and Y3 are symmetric under (i2, d2, i3, d3) -> (j2, 2 p2 - d2, j3, 2 p3 - d3): summed for
                 # d2 >= p2 only and mirrored with Y2 below
-                # (sweeps run over the flattened (i3, d3) index: contiguous, so they vectorise; 2x faster than
-                # nested i3, d3 loops)
+                # (sweeps run over the flattened (i3, d3) index: contiguous, so they vectorise)
                 for item in prange(g1 * n2):
                     t = item // n2
                     i2 = item - t * n2
@@ -207,8 +202,8 @@ def stiffness3_for(p3: int, g3: int):
                 # stage 1: rows i1 = first1[e1] + l1, columns j1 = first1[e1] + m1, accumulated in the
                 # banded ring buffer (row i1 in slot i1 % (p1 + 1)): contiguous, vectorisable sweeps.  Each
                 # sweep reads the four Y rows of one Gauss plane once and adds them to up to four
-                # destinations (m1 .. m1 + 3): 2x faster than one destination per sweep, whose re-reads of
-                # Y (300 KB per i2 at p = 3) came from L2
+                # destinations (m1 .. m1 + 3): with one destination per sweep, the re-reads of Y (300 KB
+                # per i2 at p = 3) came from L2
                 f0 = first1[e1]
                 for i2 in prange(n2):
                     for l1 in range(R1):

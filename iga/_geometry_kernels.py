@@ -198,11 +198,11 @@ def geometry_metric3(hom, rational, a, b, f0, B0, f1, B1, f2, B2, iso, K, fval, 
     hom (n0, n1, n2, m) holds the coordinates (m = 3) or the homogeneous
     coordinates with the weight last (m = 4, ``rational``); qw_k the Gauss
     weights per direction; K (6,) the constant conductivity tensor (xx, yy,
-    zz, xy, xz, yz), ``iso`` when it is a multiple of the identity; fval a number.  C (6, n), L (n,) and det (n,)
-    receive the fields of :func:`metric_fields` on the n = (b - a) nq1 nq2
-    points of grid rows a .. b - 1 (C order).  The derivatives of a grid row
-    stay in a small buffer instead of a (4, n, m) array written and read back:
-    a third to half of the time of the two passes.
+    zz, xy, xz, yz), ``iso`` when it is a multiple of the identity; fval a
+    number.  C (6, n), L (n,) and det (n,) receive the fields of
+    :func:`metric_fields` on the n = (b - a) nq1 nq2 points of grid rows
+    a .. b - 1 (C order).  The derivatives of a grid row stay in a small buffer
+    instead of a (4, n, m) array written and read back.
     """
     nq1, nq2, m = B1.shape[1], B2.shape[1], hom.shape[3]
     p0 = B0.shape[2] - 1

@@ -58,8 +58,8 @@ def _contract_first(X: np.ndarray, sp1: Space1D, a: int, b: int | None) -> np.nd
     """Contract the first (quadrature) axis of X (nq, ...) -> (n, D, ...), or (n, ...) for a load stage.
 
     One sparse (n D) x nq matrix times X viewed as (nq, rest): SciPy streams
-    contiguous rows of X, and measured faster than batched per-element GEMMs
-    (tiny (2p+1) x g blocks) or window gathers.
+    contiguous rows of X, faster than batched per-element GEMMs on tiny
+    (2p+1) x g blocks or window gathers (docs/performance.md).
     """
     M = stage_matrix(sp1, a, b)
     rest = X.shape[1:]
@@ -73,8 +73,8 @@ _POOL = None
 def _spmm(M: sp.csr_matrix, X: np.ndarray) -> np.ndarray:
     """M @ X for a dense X, with the output rows split over the CPU cores when large.
 
-    SciPy's sparse kernels release the GIL, so threads scale (measured 1.6x on
-    2 cores); splitting rows needs no copy of X.
+    SciPy's sparse kernels release the GIL, so threads scale; splitting rows
+    needs no copy of X.
     """
     global _POOL
     workers = os.cpu_count() or 1
@@ -272,7 +272,7 @@ def _pattern(shape: tuple, degrees: tuple) -> CSRPattern:
     return pat
 
 
-_CACHE_NNZ = 1 << 24  # larger patterns are rebuilt (0.1-0.3 s) rather than kept (about 8 bytes per entry)
+_CACHE_NNZ = 1 << 24  # larger patterns are rebuilt rather than kept (8 bytes per entry each)
 
 
 def pattern(space: TensorSpace) -> CSRPattern:

@@ -2,7 +2,7 @@
 
 Subcommands
 -----------
-``iga demo heat-sink --out DIR``  the seed's heat-sink analysis (VTU, PNG, JSON summary)
+``iga demo heat-sink --out DIR``  the heat-sink analysis of Massarwi et al. 2018 (VTU, PNG, JSON summary)
 ``iga run CONFIG.toml``           a pipeline described in a TOML file
 ``iga info FILE.npz``             describe the splines stored in a file
 """
@@ -69,13 +69,13 @@ def build_parser() -> argparse.ArgumentParser:
     demo = sub.add_parser(
         "demo",
         help="run a built-in demonstration (heat-sink)",
-        description="Run a built-in demonstration: 'heat-sink' builds the seed's hierarchical heat sink, "
+        description="Run a built-in demonstration: 'heat-sink' builds the hierarchical heat sink of Massarwi et al. 2018 (Section 8), "
         "solves steady heat transfer and writes VTU, PNG and a JSON summary into --out.",
     )
     demo.add_argument("name", choices=["heat-sink"], help="which demonstration to run")
     demo.add_argument("--out", default="heat-sink-out", help="output folder (created if missing)")
     demo.add_argument("--variant", choices=["circular", "vertical"], default="circular", help="heat-sink variant")
-    demo.add_argument("--levels", type=int, default=None, help="hierarchy levels (default: the seed's)")
+    demo.add_argument("--levels", type=int, default=None, help="hierarchy levels (default: the paper's, 3 circular, 2 vertical)")
     demo.add_argument("--refine", type=int, default=0, help="uniform h-refinement rounds of every tile space")
     demo.set_defaults(func=_cmd_demo)
     run = sub.add_parser(

@@ -1,6 +1,6 @@
 """Linear constraints between patch spaces, resolved into one sparse prolongation.
 
-Every trivariate patch keeps its own space (000 Remark 2).  The temperature
+Every trivariate patch keeps its own space (Massarwi et al. 2018, Remark 2).  The temperature
 of the whole micro-structure is ``u = P u_red`` where ``P`` (ndof x nred)
 encodes
 
@@ -8,8 +8,8 @@ encodes
   interface's orientation): the two face coefficients are equal;
 * C0 coupling inside a tile with partial discontinuities: on a
   full-multiplicity knot plane, the coefficients on both sides are equal
-  wherever the two sides coincide as material (000 Section 3.1);
-* branch constraints (000 Eqs. 11-12): child branch-in face coefficients =
+  wherever the two sides coincide as material (Massarwi et al. 2018, Section 3.1);
+* branch constraints (Massarwi et al. 2018, Eqs. 11-12): child branch-in face coefficients =
   R @ parent branch-out face coefficients, R the knot-insertion
   (refinement) matrix between the two analysis face spaces.
 

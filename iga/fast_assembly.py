@@ -38,7 +38,7 @@ from .space import Space1D, TensorSpace
 #: quadrature points (over all patches of a group) from which the compiled kernel is used
 MIN_POINTS = 200_000
 
-# imported on first use, as geometry._fast: numba costs about 60 MiB and 0.4 s to import
+# imported on first use, as geometry._fast: importing numba costs memory and time that small analyses should not pay
 AVAILABLE = importlib.util.find_spec("numba") is not None
 
 _VARIANTS = ((0, 0), (0, 1), (1, 0), (1, 1))
@@ -164,7 +164,7 @@ class StiffnessAccumulator:
         # banded rows of the p1 + 1 direction-1 indices a slab touches (see the kernel)
         (_, n2, n3), (p1, p2, p3) = space.shape, [d.degree for d in space.dirs]
         self.ring = np.zeros((n_patches, p1 + 1, 2 * p1 + 1, n2, (2 * p2 + 1) * n3 * (2 * p3 + 1)))
-        # the kernel's partial contractions, allocated once (fresh memory per slab cost 6 ms a call)
+        # the kernel's partial contractions, allocated once: fresh memory per slab is page-faulted in again
         g1, nq2 = space.dirs[0].g, space.dirs[1].nq
         self.Z = np.empty((g1, 7, nq2, n3, 2 * p3 + 1))
         self.Y = np.empty((g1, 4, n2, 2 * p2 + 1, n3, 2 * p3 + 1))

@@ -3,10 +3,8 @@
 Assembly and solve allocate and free arrays of hundreds of MB.  glibc serves
 each one with a fresh ``mmap`` and unmaps it on free, so every large array
 is page-faulted in again.  On virtual machines that hand freed pages back to
-the host (free-page reporting), those faults dominate: on the 2-core
-development VM the p = 2, 110k-unknown assembly takes a median 1.6 s with the
-default and 0.8 s when freed memory is kept for reuse
-(``python benchmarks/heat_performance.py`` reports both settings' figures).
+the host (free-page reporting), those faults dominate the time of a large
+assembly (docs/performance.md has the figures).
 
 :func:`retain_freed_memory` changes allocator behaviour for the whole process,
 so the library never calls it on import; applications opt in (``iga`` does).

@@ -48,13 +48,13 @@ REQUIRED = {"map": set(), "tile": {"library"}, "paving": {"scheme", "counts"}, "
 
 
 def circular_heat_sink_map(r_in=0.02, r_out=0.06, height=0.03, twist=pi / 8) -> BSpline:
-    """Twisted cylindrical shell (m): u around the axis, v along it, w radial (000 Fig. 11(a))."""
+    """Twisted cylindrical shell (m): u around the axis, v along it, w radial (Massarwi et al. 2018, Fig. 11(a))."""
     shell = pr.annulus(r_in, r_out, height, angle=2 * pi, exact=True)  # (angle, radius, z)
     return pr.twisted(shell, twist).permute([0, 2, 1])  # (angle, z, radius): right-handed
 
 
 def vertical_heat_sink_map(width=0.06, depth=0.06, height=0.03) -> BSpline:
-    """Box base of the vertical heat sink (m), w upwards (000 Fig. 11(c)-(d))."""
+    """Box base of the vertical heat sink (m), w upwards (Massarwi et al. 2018, Fig. 11(c)-(d))."""
     return pr.box((width, depth, height), degrees=(2, 2, 2))
 
 
@@ -63,7 +63,7 @@ MAPS = {"circular_heat_sink": circular_heat_sink_map, "vertical_heat_sink": vert
 
 
 def heat_sink_config(variant: str = "circular", levels: int | None = None, refine: int = 0, out: str = "heat-sink-out"):
-    """The seed's heat-sink analysis (000 Section 8, Figs. 11 and 18) as a pipeline configuration.
+    """The heat-sink analysis of Massarwi et al. 2018 (Section 8, Figs. 11 and 18) as a pipeline configuration.
 
     Aluminium (205 W/(m K)) at the heated face graded to stainless steel
     (54 W/(m K)) away from it; inlet flux 1515.8 W/m^2 on the inner ring

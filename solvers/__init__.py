@@ -33,7 +33,7 @@ from .errors import SolverError
 __all__ = ["SolverError", "SolveInfo", "solve", "register", "backends", "AUTO_DIRECT_LIMIT"]
 
 #: Above this many unknowns ``auto`` uses AMG-CG: SuperLU fills in badly on 3-D IGA matrices
-#: (measured: 5.8k DOFs at p = 2 take 1.1 s direct vs 0.08 s AMG-CG; 8k at p = 4, 6.1 s vs 2.2 s).
+#: (docs/performance.md).
 AUTO_DIRECT_LIMIT = 2_000
 
 

@@ -9,27 +9,23 @@ ours because pyamg's ``aspreconditioner`` runs ``solve(maxiter=1)``, which
 computes the residual norm before and after the cycle: two matrix-vector
 products per CG iteration that a preconditioner does not need.
 
-Choices, each measured on the unit cube at p = 2 (2-core VM, cold process;
-``python benchmarks/heat_performance.py`` has the totals):
+Choices (the measurements behind them are in docs/performance.md):
 
 * Chebyshev smoothing of degree 3 instead of symmetric Gauss-Seidel: on
-  these wide stencils (125 entries per row) one Gauss-Seidel sweep costs
-  about three matrix-vector products; 475k unknowns: 10 instead of 9
-  iterations, solve 2.5-2.9 s instead of 5.1 s.
+  these wide stencils (125 entries per row at p = 2) one Gauss-Seidel sweep
+  costs about three matrix-vector products, and the iteration counts barely differ.
 * The scaling makes Chebyshev and prolongation smoothing robust to
-  conductivity jumps: with k jumping by 1000 (97k unknowns) unscaled
-  Chebyshev needed 230+ iterations, the scaled hierarchy 14.
+  conductivity jumps (a jump of 1000 costs a few iterations, not hundreds).
 * With unit diagonal, Richardson prolongation smoothing *is* Jacobi
-  smoothing, and it reads the spectral radius cached on the matrix
-  (:func:`spectral_radius`, 15 Lanczos steps), while pyamg's Jacobi option
-  copies A twice and runs its own 30-step estimate: set-up 5.8 s -> 1.4 s
-  on the 475k cube, same iterations.
+  smoothing, and it reads the spectral radius cached on the matrix as
+  ``A.rho`` (pyamg's own convention; :func:`spectral_radius`, 15 Lanczos
+  steps), while pyamg's Jacobi option copies A twice and runs its own estimate.
 * ``strength=None``: the strength matrix is A itself.  With smoothed
   aggregation's default ``theta = 0`` every coupling is strong anyway, so the
   aggregates are the same, without the copy of A.
 * ``improve_candidates=None``: the near-null space S^-1 1 is exact for the
-  scaled diffusion operator already; the 8 Gauss-Seidel sweeps that would
-  improve it cost 20-30% of the set-up and saved no iteration.
+  scaled diffusion operator already; improving it costs set-up time and saves
+  no iteration.
 """
 
 from __future__ import annotations

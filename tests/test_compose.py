@@ -1,4 +1,4 @@
-"""Exact composition (003 Section 2) and the regularity check."""
+"""Exact composition (Elber 2017, Section 2) and the regularity check."""
 
 from fractions import Fraction
 from math import comb
@@ -66,7 +66,7 @@ def test_compose_equals_outer_of_inner(seed, dim):
 
 
 def test_result_degrees_follow_eq_7():
-    # 003: outer (1, 1, 3) with a (3, 2) surface gives (15, 10); a trivariate (3, 3, 2) gives (15, 15, 10)
+    # Elber 2017, Eq. 7: outer (1, 1, 3) with a (3, 2) surface gives (15, 10); a trivariate (3, 3, 2) gives (15, 15, 10)
     rng = np.random.default_rng(0)
     outer = random_outer(rng, (1, 1, 3), rational=False, channels=())
     box = np.array([[0.1, 0.9]] * 3)

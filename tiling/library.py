@@ -2,21 +2,21 @@
 
 ==================== =====================================================
 ``heat_sink_t1()``   one trivariate, one discontinuity along u: a solid base
-                     that splits into 2 fins (000 Fig. 11, T1)
+                     that splits into 2 fins (Massarwi et al. 2018, Fig. 11, T1)
 ``heat_sink_t2()``   one trivariate, discontinuities along u and v: a base
-                     splitting into 2 x 2 pins (000 Fig. 11, T2)
+                     splitting into 2 x 2 pins (Massarwi et al. 2018, Fig. 11, T2)
 ``skinned_branching()`` (2, 1)-discontinuity tile skinned from four surfaces,
-                     six branch-out faces (000 Fig. 2)
+                     six branch-out faces (Massarwi et al. 2018, Fig. 2)
 ``fractal()``        three trivariates: a trunk (branch-in S0) and two bent
-                     wings whose tops are branch-out S1, S2 (000 Fig. 3)
-``hollow_box()``     six bilinear surfaces, the walls of the cell (003 Fig. 2)
+                     wings whose tops are branch-out S1, S2 (Massarwi et al. 2018, Fig. 3)
+``hollow_box()``     six bilinear surfaces, the walls of the cell (Elber 2017, Fig. 2)
 ``cross()``          seven trivariates: a centre block and six arms reaching
                      every face of the cell; opposite faces match (periodic)
-``helix()``          a cubic curve winding around the cell's axis (003 Fig. 10)
+``helix()``          a cubic curve winding around the cell's axis (Elber 2017, Fig. 10)
 ==================== =====================================================
 
 Discontinuity tiles use a C0 knot at w = 0.4 below which both sides of every
-discontinuity coincide, so the base is solid material (000 Section 3.1:
+discontinuity coincide, so the base is solid material (Massarwi et al. 2018, Section 3.1:
 "partial" discontinuities); above it each discontinuity opens a slot.  Their
 outer sides stay on the cell walls, so neighbouring tiles share whole faces
 (conforming identity interfaces, a solid base plate or ring).  Branch-out
@@ -75,7 +75,7 @@ def heat_sink_t2(scale: float = 0.5) -> Tile:
 
 
 def skinned_branching(scale: float = 0.5) -> Tile:
-    """Fig. 2 of 000: four (2, 2) surfaces skinned (control meshes stacked) into a (2, 2, 3) tile.
+    """Fig. 2 of Massarwi et al. 2018: four (2, 2) surfaces skinned (control meshes stacked) into a (2, 2, 3) tile.
 
     S0 and S1 are continuous, S2 and S3 split at two u and one v
     discontinuities: (2 + 1)(1 + 1) = 6 branch-out faces.
@@ -112,7 +112,7 @@ def _hexa(corners: dict) -> BSpline:
 
 
 def fractal(scale: float = 2 / 3) -> Tile:
-    """Fig. 3 of 000: a trunk and two bent wings, all trilinear; S0 = trunk bottom, S1/S2 = wing tops.
+    """Fig. 3 of Massarwi et al. 2018: a trunk and two bent wings, all trilinear; S0 = trunk bottom, S1/S2 = wing tops.
 
     The wings are glued to the trunk's side faces (whole faces, so the tile is
     conforming); their tops (width 0.2) are 2/3 of the trunk's base (0.3).
@@ -136,7 +136,7 @@ def fractal(scale: float = 2 / 3) -> Tile:
 
 
 def hollow_box() -> Tile:
-    """Six bilinear surfaces: the walls of the unit cell (003 Fig. 2)."""
+    """Six bilinear surfaces: the walls of the unit cell (Elber 2017, Fig. 2)."""
     cube = pr.box()
     return Tile([cube.boundary(f) for f in ("umin", "umax", "vmin", "vmax", "wmin", "wmax")], name="hollow_box")
 
@@ -157,7 +157,7 @@ def cross(arm: float = 0.3) -> Tile:
 
 
 def helix(turns: float = 2.0, radius: float = 0.3, n: int = 16) -> Tile:
-    """A cubic curve winding ``turns`` times around the cell's vertical axis (003 Fig. 10)."""
+    """A cubic curve winding ``turns`` times around the cell's vertical axis (Elber 2017, Fig. 10)."""
     t = np.linspace(0.0, 1.0, n)
     ang = 2 * np.pi * turns * t
     cp = np.column_stack([0.5 + radius * np.cos(ang), 0.5 + radius * np.sin(ang), t])

@@ -1,10 +1,10 @@
-"""Heterogeneous material channels (000 Section 6.1).
+"""Heterogeneous material channels (Massarwi et al. 2018, Section 6.1).
 
 Channels live on the tile, on the deformation map D, or on a composed patch:
 :func:`interpolate_channel` sets one from any function, exactly when the
 function lies in the spline's space (e.g. linear in the parameters) and as a
 spline quasi-interpolant (interpolation at the Greville abscissae) otherwise.
-:func:`graded_channel` is the seed's aluminium-to-steel grading
+:func:`graded_channel` is the aluminium-to-steel grading of Massarwi et al. 2018 (Fig. 18)
 ``k = k0 (1 - s) + k1 s`` with ``s`` the normalised distance from a face.
 """
 
@@ -50,7 +50,7 @@ def interpolate_channel(spline: BSpline, name: str, fn, on: str = "parameters") 
 
 def graded_channel(spline: BSpline, name: str = "k", near: float = 205.0, far: float = 54.0,
                    face: str = "wmin", mode: str = "parameter") -> BSpline:
-    """Grade a channel from ``near`` at ``face`` to ``far`` at the opposite face (000 Fig. 18).
+    """Grade a channel from ``near`` at ``face`` to ``far`` at the opposite face (Massarwi et al. 2018, Fig. 18).
 
     ``mode="parameter"``: s is the normalised parameter distance from the face
     (exact: linear in one parameter).  ``mode="distance"``: s is the physical

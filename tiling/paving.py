@@ -1,4 +1,4 @@
-"""Paving schemes: regular (003 Sections 2-3) and hierarchical (000 Section 3).
+"""Paving schemes: regular (Elber 2017, Sections 2-3) and hierarchical (Massarwi et al. 2018, Section 3).
 
 Placements are affine maps ``[A | b]`` of tile coordinates into the
 deformation map's parameter domain.  Tiles are placed per knot span of ``D``
@@ -89,7 +89,7 @@ def regular(D: BSpline, tile: Tile, counts, variants: dict | None = None, name: 
 
     ``variants`` optionally maps a position key ``(ku, kv, kw)`` with entries
     -1 (at the min boundary of D's domain), 0 (interior), +1 (at the max
-    boundary) to a sealed boundary tile (003 Sections 2-3); tiles whose key is
+    boundary) to a sealed boundary tile (Elber 2017, Sections 2-3); tiles whose key is
     missing use ``tile``.
     """
     _check_map(D)
@@ -122,7 +122,7 @@ def regular(D: BSpline, tile: Tile, counts, variants: dict | None = None, name: 
 
 def hierarchical(D: BSpline, tile: Tile, counts, levels: int, scale: float | None = None,
                  name: str = "hierarchical") -> Microstructure:
-    """Hierarchical paving (000 Section 3): base copies, then a child on every branch-out face, recursively.
+    """Hierarchical paving (Massarwi et al. 2018, Section 3): base copies, then a child on every branch-out face, recursively.
 
     ``counts`` = (cx, cy) base copies per knot span of D along u, v; ``levels``
     counts the base level; ``scale`` (default: the tile's) is the height of a

@@ -1,4 +1,4 @@
-"""Tiles: patches in the unit cube with labelled branch-in / branch-out faces (000 Section 3).
+"""Tiles: patches in the unit cube with labelled branch-in / branch-out faces (Massarwi et al. 2018, Section 3).
 
 A :class:`Tile` holds one or more patches (curves, surfaces, trivariates; any
 may carry channels) whose coordinates lie in ``[0, 1]^3``.  Hierarchical tiles
@@ -7,7 +7,7 @@ branch-out face carries the affine map of the tile's coordinates that puts a
 child tile on it (its branch-in face onto the branch-out face, growing
 outwards).  Branch faces are planar and axis-aligned in tile coordinates; a
 branch face may be a sub-rectangle (in face parameters) of a patch face, as
-produced by partial Euclidean discontinuities (000 Section 3.1).
+produced by partial Euclidean discontinuities (Massarwi et al. 2018, Section 3.1).
 """
 
 from __future__ import annotations
@@ -88,7 +88,7 @@ class Tile:
     branch_in : BranchFace or (patch, face) for hierarchical tiles
     branch_outs : list of BranchFace or (patch, face[, box])
     scale : height factor of a child relative to its parent along the
-        growth direction (000 Section 3.1, Fig. 11: 0.5, 0.8); ``None`` keeps
+        growth direction (Massarwi et al. 2018, Section 3.1, Fig. 11: 0.5, 0.8); ``None`` keeps
         children similar (the in-face scale ratio)
     name : label used in messages and exports
     """
@@ -168,7 +168,7 @@ class Tile:
 
 
 def discontinuity_branches(spline: BSpline, face: str = "wmax") -> list[BranchFace]:
-    """Branch-out faces of a trivariate with partial discontinuities (000 Section 3.1).
+    """Branch-out faces of a trivariate with partial discontinuities (Massarwi et al. 2018, Section 3.1).
 
     Interior knots of full multiplicity (degree + 1) along the two in-face
     directions split ``face`` into (n + 1)(m + 1) sub-rectangles; each is one
