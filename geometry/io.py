@@ -26,6 +26,7 @@ import numpy as np
 
 from .bspline import BSpline
 from .errors import SplineError
+from .resources import check_memory
 
 FORMAT = "iga-toolkit-splines"
 VERSION = 1
@@ -99,19 +100,57 @@ def save(path, spline: BSpline) -> Path:
     return save_all(path, [spline])
 
 
+def _check_archive(path: Path) -> None:
+    """Refuse archives that are not plain-array .npz files, before any array is allocated.
+
+    Every member must be a ``.npy`` array without Python objects whose header
+    claims no more bytes than the member holds (a 300-byte file cannot hold a
+    745 GiB array); the total must fit the memory budget.
+    """
+    try:
+        zf = zipfile.ZipFile(path)
+    except (zipfile.BadZipFile, OSError):
+        raise SplineError(f"{path} is not a spline file: it is not an .npz archive (write one with geometry.save)") from None
+    total = 0
+    with zf:
+        for info in zf.infolist():
+            if not info.filename.endswith(".npy"):
+                raise SplineError(f"{path} holds {info.filename!r}, which is not a NumPy array; not a spline file")
+            try:
+                with zf.open(info) as fh:
+                    version = np.lib.format.read_magic(fh)
+                    read = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+                    shape, _, dtype = read(fh)
+            except (ValueError, OSError, zipfile.BadZipFile, EOFError) as exc:
+                raise SplineError(f"{path}: array {info.filename!r} is damaged ({exc})") from None
+            if dtype.hasobject:
+                raise SplineError(f"{path}: array {info.filename!r} holds Python objects; spline files hold numbers "
+                                  "and text only, and objects are never unpickled")
+            nbytes = int(np.prod(shape, dtype=np.float64)) * dtype.itemsize
+            if nbytes > info.file_size:
+                raise SplineError(f"{path}: array {info.filename!r} claims {nbytes:.4g} bytes but the archive holds "
+                                  f"{info.file_size} for it; the file is damaged or forged")
+            total += nbytes
+    check_memory(total, f"loading {path}")
+
+
 def load_all(path) -> list[BSpline]:
     """Load every spline of a file written by :func:`save_all`."""
     path = Path(path)
+    if path.is_dir():
+        raise SplineError(f"{path} is a folder, not a spline file; give the path of an .npz file")
     if not path.is_file():
         raise SplineError(f"spline file {path} does not exist")
+    _check_archive(path)
     try:
         with np.load(path, allow_pickle=False) as data:
             if "format" not in data or str(data["format"]) != FORMAT:
                 raise SplineError(f"{path} is not an iga-toolkit spline file (missing 'format' = {FORMAT!r})")
             if int(data["version"]) != VERSION:
                 raise SplineError(f"{path} has format version {int(data['version'])}; this build reads {VERSION}")
+            count = int(data["count"])
             out = []
-            for i in range(int(data["count"])):
+            for i in range(count):
                 deg = tuple(int(p) for p in data[f"s{i}_degrees"])
                 knots = [data[f"s{i}_knots{k}"] for k in range(len(deg))]
                 w = data[f"s{i}_weights"] if f"s{i}_weights" in data else None
@@ -119,10 +158,12 @@ def load_all(path) -> list[BSpline]:
                     BSpline(deg, knots, data[f"s{i}_control_points"], w, tuple(str(c) for c in data[f"s{i}_channels"]))
                 )
             return out
-    except (zipfile.BadZipFile, OSError, KeyError, ValueError) as exc:
-        if isinstance(exc, SplineError):
-            raise
-        raise SplineError(f"cannot read spline file {path}: {exc}") from None
+    except SplineError:
+        raise
+    except KeyError as exc:
+        raise SplineError(f"{path} is incomplete: entry {exc} is missing; the file is damaged") from None
+    except (zipfile.BadZipFile, OSError, ValueError, TypeError) as exc:
+        raise SplineError(f"cannot read spline file {path}: {type(exc).__name__}; the file is damaged") from None
 
 
 def load(path) -> BSpline:

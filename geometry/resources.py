@@ -1,0 +1,84 @@
+"""Memory budget: estimates are checked against it before large work starts.
+
+Building a paving of 10^6 tiles, a hierarchy of 40 levels or a space refined
+ten times would exhaust the machine long after the user's mistake; instead,
+every such entry point estimates its memory first and raises the calling
+package's error (naming the estimate and the fix) when it exceeds the budget.
+
+The budget is the memory available on this machine (``MemAvailable`` on
+Linux, the physical memory elsewhere) unless set: ``set_memory_limit(gib)``,
+the environment variable ``IGA_MAX_MEMORY_GIB``, the CLI option
+``--max-memory`` or ``max_memory_gib`` under ``[limits]`` of a pipeline.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+
+from .errors import SplineError
+
+__all__ = ["available_memory", "memory_limit", "set_memory_limit", "check_memory", "peak_memory_mib", "GiB"]
+
+GiB = float(1 << 30)
+_LIMIT: float | None = None  # bytes; None: use the available memory
+
+
+def available_memory() -> float:
+    """Bytes of memory this process may still use (an estimate; Linux ``MemAvailable``)."""
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return float(line.split()[1]) * 1024
+    except OSError:
+        pass
+    try:
+        return float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+    except (ValueError, OSError, AttributeError):  # not a POSIX system
+        return 16 * GiB
+
+
+def set_memory_limit(gib: float | None) -> None:
+    """Set the memory budget in GiB (None: the available memory)."""
+    global _LIMIT
+    if gib is not None and not (isinstance(gib, (int, float)) and gib > 0 and gib < float("inf")):
+        raise SplineError(f"the memory limit must be a positive number of GiB, got {gib!r}")
+    _LIMIT = None if gib is None else float(gib) * GiB
+
+
+def memory_limit() -> float:
+    """The memory budget in bytes (see the module notes)."""
+    if _LIMIT is not None:
+        return _LIMIT
+    env = os.environ.get("IGA_MAX_MEMORY_GIB")
+    if env:
+        try:
+            value = float(env)
+        except ValueError:
+            value = -1.0
+        if not value > 0:
+            raise SplineError(f"IGA_MAX_MEMORY_GIB must be a positive number of GiB, got {env!r}")
+        return value * GiB
+    return available_memory()
+
+
+def check_memory(estimate: float, what: str, error=SplineError, hint: str = "") -> None:
+    """Raise ``error`` when ``estimate`` (bytes) exceeds the budget, naming ``what`` and the estimate."""
+    limit = memory_limit()
+    if estimate > limit:
+        raise error(
+            f"{what} needs about {estimate / GiB:.3g} GiB, more than the {limit / GiB:.3g} GiB this run may use"
+            f"{'; ' + hint if hint else ''}; raise the limit with --max-memory / max_memory_gib / "
+            "IGA_MAX_MEMORY_GIB if the machine has the memory"
+        )
+
+
+def peak_memory_mib() -> float | None:
+    """High-water mark of this process's resident memory in MiB, or None where the platform does not say."""
+    try:
+        import resource
+    except ImportError:  # Windows
+        return None
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return peak / (1024 * 1024) if sys.platform == "darwin" else peak / 1024  # bytes on macOS, KiB on Linux
