@@ -37,6 +37,8 @@ __all__ = ["save", "load", "save_all", "load_all", "atomic_write", "check_folder
 def check_folder(path, error=SplineError) -> Path:
     """The folder of ``path``; raises ``error`` if it is missing or not writable (call before long work)."""
     path = Path(path)
+    if path.is_dir():
+        raise error(f"cannot write {path}: it is a folder; give the name of a file inside it")
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
         raise error(f"cannot write {path}: folder {folder} does not exist; create it first")
@@ -66,11 +68,19 @@ def atomic_write(path, write_fn, suffix: str = "", error=SplineError) -> Path:
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)
         os.replace(tmp, path)
+    except OSError as exc:  # a full disk, a folder where the file should go, a lost permission
+        _remove(tmp)
+        why = "a folder of that name exists" if path.is_dir() else (exc.strerror or type(exc).__name__)
+        raise error(f"cannot write {path}: {why}; nothing was written") from None
     except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+        _remove(tmp)
         raise
     return path
+
+
+def _remove(tmp) -> None:
+    if os.path.exists(tmp):
+        os.unlink(tmp)
 
 
 def save_all(path, splines) -> Path:

@@ -126,14 +126,19 @@ def breakpoints(knots) -> tuple[np.ndarray, np.ndarray]:
     return np.unique(np.asarray(knots, float), return_counts=True)
 
 
-def find_spans(knots: np.ndarray, degree: int, x: np.ndarray) -> np.ndarray:
-    """Index ``i`` with ``U[i] <= x < U[i+1]`` (last non-empty span at the right end)."""
+def find_spans(knots: np.ndarray, degree: int, x: np.ndarray, side: str = "right") -> np.ndarray:
+    """Index ``i`` with ``U[i] <= x < U[i+1]`` (last non-empty span at the right end).
+
+    ``side="left"``: ``U[i] < x <= U[i+1]`` instead, so that a point on an
+    interior knot takes the span that ends there (the left-hand limit, e.g.
+    one side of a discontinuity; first non-empty span at the left end).
+    """
     n = len(knots) - degree - 1
-    spans = np.searchsorted(knots, x, side="right") - 1
+    spans = np.searchsorted(knots, x, side=side) - 1
     return np.clip(spans, degree, n - 1)
 
 
-def basis_functions(knots: np.ndarray, degree: int, x: np.ndarray, nder: int = 0):
+def basis_functions(knots: np.ndarray, degree: int, x: np.ndarray, nder: int = 0, side: str = "right"):
     """Non-zero B-spline basis functions and derivatives at many points.
 
     Vectorised version of Algorithm A2.3 of Piegl & Tiller: loops run over the
@@ -141,12 +146,13 @@ def basis_functions(knots: np.ndarray, degree: int, x: np.ndarray, nder: int = 0
 
     Returns ``(spans, ders)`` with ``ders`` of shape ``(N, nder + 1, p + 1)``:
     ``ders[:, k, r]`` is the ``k``-th derivative of ``N_{span - p + r}``.
+    ``side``: which limit at a knot (:func:`find_spans`).
     """
     U = knots
     p = degree
     x = np.asarray(x, dtype=float)
     N = x.shape[0]
-    spans = find_spans(U, p, x)
+    spans = find_spans(U, p, x, side)
     ndu = np.empty((p + 1, p + 1, N))
     left = np.empty((p + 1, N))
     right = np.empty((p + 1, N))
@@ -191,10 +197,10 @@ def basis_functions(knots: np.ndarray, degree: int, x: np.ndarray, nder: int = 0
     return spans, np.transpose(ders, (2, 0, 1))
 
 
-def basis_matrix(knots: np.ndarray, degree: int, x: np.ndarray, nder: int = 0) -> sp.csr_array:
-    """Sparse matrix ``B[i, j] = d^nder N_j(x_i)`` of shape ``(len(x), n)``."""
+def basis_matrix(knots: np.ndarray, degree: int, x: np.ndarray, nder: int = 0, side: str = "right") -> sp.csr_array:
+    """Sparse matrix ``B[i, j] = d^nder N_j(x_i)`` of shape ``(len(x), n)`` (``side``: :func:`find_spans`)."""
     x = np.asarray(x, float)
-    spans, ders = basis_functions(knots, degree, x, nder)
+    spans, ders = basis_functions(knots, degree, x, nder, side)
     n = len(knots) - degree - 1
     cols = spans[:, None] - degree + np.arange(degree + 1)
     rows = np.repeat(np.arange(len(x)), degree + 1)

@@ -5,47 +5,72 @@ Subcommands
 ``iga demo heat-sink --out DIR``  the heat-sink analysis of Massarwi et al. 2018 (VTU, PNG, JSON summary)
 ``iga run CONFIG.toml``           a pipeline described in a TOML file
 ``iga info FILE.npz``             describe the splines stored in a file
+
+Global options: ``--version``, ``--quiet`` (no progress display),
+``--max-memory GIB`` (the memory budget of the run).  Every error the command
+meets is printed as one line on stderr, with exit status 1.
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
+from geometry import progress, resources
 from geometry.errors import ToolkitError
+
+from .errors import ProblemError
+
+
+def _plural(n: int, word: str) -> str:
+    return f"{n} {word}" + ("" if n == 1 else "s")
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("iga-microstructures")
+    except PackageNotFoundError:  # running from a source tree that was not installed
+        return "unknown (not installed)"
+
 
 def _cmd_demo(args) -> int:
     from .pipeline import heat_sink_config, run_pipeline
 
     cfg = heat_sink_config(args.variant, args.levels, args.refine, args.out)
-    s = run_pipeline(cfg, progress=None)
-    print(f"{args.variant} heat sink: {s['tiles']} tiles on {s['levels']} levels, {s['dofs']} DOFs "
-          f"({s['unknowns']} unknowns)")
+    s = run_pipeline(cfg)
+    print(f"{args.variant} heat sink: {_plural(s['tiles'], 'tile')} on {_plural(s['levels'], 'level')}, "
+          f"{s['dofs']} DOFs ({s['unknowns']} unknowns)")
     t = s["temperature_C"]
-    print(f"temperature {t['min']:.2f} .. {t['max']:.2f} C (mean {t['mean']:.2f}); inflow {s['inflow_W']:.4g} W, "
+    print(f"temperature {t['min']:.2f} .. {t['max']:.2f} C (volume mean {t['mean']:.2f}); inflow {s['inflow_W']:.4g} W, "
           f"outflow {s['outflow_W']:.4g} W, balance error {s['energy_balance_error']:.1e}")
-    print(f"wrote {', '.join(s['files'].values())} and {args.out}/summary.json")
+    print(f"wrote {', '.join(s['files'].values())} and {Path(args.out) / 'summary.json'}")
     return 0
 
 
 def _cmd_run(args) -> int:
     import tomllib
-    from pathlib import Path
 
-    from .errors import ProblemError
     from .pipeline import run_pipeline
 
     path = Path(args.config)
+    if path.is_dir():
+        raise ProblemError(f"config file {path} is a folder; give the path of a .toml file")
     if not path.is_file():
         raise ProblemError(f"config file {path} does not exist")
     try:
         cfg = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as exc:
         raise ProblemError(f"{path} is not valid TOML: {exc}") from None
-    s = run_pipeline(cfg, base_dir=path.parent, progress=None)
-    print(f"{s['tiles']} tiles, {s['dofs']} DOFs; temperature {s['temperature_C']['min']:.3f} .. "
-          f"{s['temperature_C']['max']:.3f}; balance error {s['energy_balance_error']:.1e}; "
-          f"summary in {Path(s['files'].get('vtu', path)).parent / 'summary.json'}")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ProblemError(f"cannot read config file {path}: {exc}") from None
+    s = run_pipeline(cfg, base_dir=path.parent)
+    t = s["temperature_C"]
+    print(f"{_plural(s['tiles'], 'tile')}, {s['dofs']} DOFs; temperature {t['min']:.3f} .. {t['max']:.3f}; "
+          f"balance error {s['energy_balance_error']:.1e}; outputs and summary.json in "
+          f"{Path(next(iter(s['files'].values()), path)).parent}")
     return 0
 
 
@@ -59,30 +84,46 @@ def _cmd_info(args) -> int:
     return 0
 
 
+class _Formatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Shows defaults, except None (those options say in words what they default to)."""
+
+    def _get_help_string(self, action):
+        return action.help if action.default is None else super()._get_help_string(action)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="iga",
         description="Exact B-spline micro-structures and isogeometric heat-transfer analysis.",
         epilog="Run 'iga COMMAND --help' for the options of one command.",
     )
+    parser.add_argument("--version", action="version", version=f"iga {_version()}")
+    parser.add_argument("--quiet", action="store_true", help="no progress display on stderr")
+    parser.add_argument("--max-memory", type=float, metavar="GIB", default=None,
+                        help="memory budget in GiB for the size checks (default: the memory available now)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    demo = sub.add_parser(
-        "demo",
-        help="run a built-in demonstration (heat-sink)",
-        description="Run a built-in demonstration: 'heat-sink' builds the hierarchical heat sink of Massarwi et al. 2018 (Section 8), "
-        "solves steady heat transfer and writes VTU, PNG and a JSON summary into --out.",
-    )
-    demo.add_argument("name", choices=["heat-sink"], help="which demonstration to run")
-    demo.add_argument("--out", default="heat-sink-out", help="output folder (created if missing)")
-    demo.add_argument("--variant", choices=["circular", "vertical"], default="circular", help="heat-sink variant")
-    demo.add_argument("--levels", type=int, default=None, help="hierarchy levels (default: the paper's, 3 circular, 2 vertical)")
-    demo.add_argument("--refine", type=int, default=0, help="uniform h-refinement rounds of every tile space")
-    demo.set_defaults(func=_cmd_demo)
+    demo = sub.add_parser("demo", help="run a built-in demonstration (heat-sink)",
+                          description="Run a built-in demonstration; 'iga demo heat-sink --help' lists its options.")
+    demo.set_defaults(func=lambda _: demo.print_help() or 0)
+    demos = demo.add_subparsers(dest="name", metavar="NAME")
+    hs = demos.add_parser(
+        "heat-sink", help="the hierarchical heat sink of Massarwi et al. 2018 (Section 8)", formatter_class=_Formatter,
+        description="Build the hierarchical heat sink of Massarwi et al. 2018 (Section 8, Figs. 11 and 18), solve "
+        "steady heat transfer (inlet flux 1515.8 W/m^2 on the heated face, convection h = 5 W/(m^2 K) to air "
+        "at 30 C elsewhere, conductivity graded from aluminium to steel) and write heat_sink.vtu, heat_sink.png "
+        "and summary.json into --out.")
+    hs.add_argument("--out", default="heat-sink-out", help="output folder (created if missing)")
+    hs.add_argument("--variant", choices=["circular", "vertical"], default="circular",
+                    help="circular: tile T1 around a twisted ring; vertical: tile T2 on a box")
+    hs.add_argument("--levels", type=int, default=None,
+                    help="hierarchy levels (default: the paper's, 3 circular, 2 vertical)")
+    hs.add_argument("--refine", type=int, default=0, help="uniform h-refinement rounds of every tile space")
+    hs.set_defaults(func=_cmd_demo)
     run = sub.add_parser(
-        "run",
-        help="run a pipeline described in a TOML file",
+        "run", help="run a pipeline described in a TOML file", formatter_class=_Formatter,
         description="Run a pipeline (deformation map, tile, paving, materials, boundary conditions, solver, "
-        "outputs) described in a TOML file; see the README for the schema.",
+        "outputs) described in a TOML file; see the README, section Pipelines, for the schema. Outputs go to "
+        "[output] dir (default 'out', relative to the config file).",
     )
     run.add_argument("config", help="path to the CONFIG.toml file")
     run.set_defaults(func=_cmd_run)
@@ -102,11 +143,25 @@ def main(argv=None) -> int:
     from .memory import retain_freed_memory
 
     retain_freed_memory()  # a whole-process choice, so the application (not the library) makes it
+    progress.enable(False if args.quiet else None)  # bars on a terminal only
     try:
+        resources.set_memory_limit(args.max_memory)
+        if getattr(args, "name", None) == "heat-sink":
+            for name in ("levels", "refine"):
+                v = getattr(args, name)
+                if v is not None and v < (1 if name == "levels" else 0):
+                    raise ProblemError(f"--{name} must be {'>= 1' if name == 'levels' else '>= 0'}, got {v}")
         return int(args.func(args))
     except ToolkitError as exc:
         print(f"iga: error: {exc}", file=sys.stderr)
         return 1
+    except MemoryError:
+        print("iga: error: out of memory; reduce the model (counts, levels, refine) or lower --max-memory so that "
+              "the size checks refuse it early", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("iga: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -243,3 +243,29 @@ def checked_det(det, what: str) -> tuple[float, float]:
             "geometry); check it with geometry.check_regular"
         )
     return lo, hi
+
+
+def gradient_and_det(D, dxi):
+    """Physical gradients and Jacobian determinants from parameter derivatives, without solving.
+
+    D: [dx/du, dx/dv, dx/dw], each (M, 3) (any leading shape, flattened);
+    dxi (M, 3) the derivatives dT/du, dT/dv, dT/dw of a field, or None for
+    the determinants only.  With the rows
+    c_1 = x_v x x_w, c_2 = x_w x x_u, c_3 = x_u x x_v of det J * J^-1,
+    grad T = J^-T dT/dxi = sum_r c_r dT/dxi_r / det J.  Returns (grad (M, 3),
+    det (M,)); where det J = 0 the gradient is not finite (the caller decides).
+    """
+    Du, Dv, Dw = (np.moveaxis(np.reshape(d, (-1, 3)), 1, 0) for d in D)  # (3, M) component-major
+    c1, c2, c3 = _cross0(Dv, Dw), _cross0(Dw, Du), _cross0(Du, Dv)
+    det = Du[0] * c1[0] + Du[1] * c1[1] + Du[2] * c1[2]
+    if dxi is None:
+        return None, det
+    g = np.moveaxis(np.asarray(dxi).reshape(-1, 3), 1, 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        grad = (c1 * g[0] + c2 * g[1] + c3 * g[2]) / det
+    return np.ascontiguousarray(grad.T), det
+
+
+def _cross0(a, b):
+    """Cross product of (3, M) arrays along the first axis, written out (np.cross is slow on many vectors)."""
+    return np.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])

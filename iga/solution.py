@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from geometry import SplineFunction
 
 from .coefficients import tensor_matrix
 from .errors import ProblemError
-from .geometry_eval import patch_geometry_grid, patch_geometry_points
+from .faces import chunks
+from .geometry_eval import gradient_and_det, patch_geometry_points, patches_geometry_derivs
+from .locate import Locator
 from .model import tag_faces
 
 
@@ -32,7 +33,7 @@ class Solution:
         self._dirichlet_dofs = dirichlet_dofs
         self._dirichlet_integrals = dirichlet_integrals
         self._splines = {}
-        self._trees = None
+        self._locator = Locator(problem.model)
         self.face_flows = self._face_flows()
         self.info = {
             "dofs": problem.ndof,
@@ -61,8 +62,7 @@ class Solution:
         val = T.evaluate(params)[:, 0]
         dxi = T.jacobian(params)[:, 0, :]
         x, J, chans = patch_geometry_points(self.problem.model.patches[pi], params)
-        grad = np.linalg.solve(np.transpose(J, (0, 2, 1)), dxi[:, :, None])[:, :, 0]
-        return val, grad, x, chans
+        return val, physical_gradient(J, dxi, f"patch {pi}", params), x, chans
 
     def conductivity_at(self, x, chans, pi):
         """Conductivity at points x (N, 3) of patch ``pi``: (N,) isotropic or (N, 6) tensor components."""
@@ -75,50 +75,8 @@ class Solution:
 
     # ----------------------------------------------------------------- probes
     def locate(self, points, tol: float = 1e-10):
-        """Point inversion: (patch index (N,), parameters (N, 3)) of physical points (N, 3).
-
-        Candidate patches come from bounding boxes; a KD-tree of sampled points
-        gives the start of a vectorised Newton iteration per patch.  Raises
-        :class:`ProblemError` listing the points found in no patch.
-        """
-        pts = np.asarray(points, float)
-        if pts.ndim != 2 or pts.shape[1] != 3 or not np.all(np.isfinite(pts)):
-            raise ProblemError(f"probe points must be a finite array of shape (N, 3), got {np.shape(points)}")
-        if self._trees is None:
-            self._trees = []
-            for patch in self.problem.model.patches:
-                axes = [np.linspace(U[0], U[-1], 4 * len(np.unique(U)) + 2) for U in patch.spline.knots]
-                x, _, _ = patch_geometry_grid(patch, axes)
-                grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
-                pad = 1e-9 * max(1.0, np.abs(x).max())
-                self._trees.append((cKDTree(x), grid, x.min(0) - pad, x.max(0) + pad))
-        where = np.full(len(pts), -1)
-        params = np.zeros((len(pts), 3))
-        scale = max(1.0, np.abs(pts).max()) if len(pts) else 1.0
-        for pi, (tree, grid, lo, hi) in enumerate(self._trees):
-            cand = np.nonzero((where < 0) & np.all((pts >= lo) & (pts <= hi), axis=1))[0]
-            if not len(cand):
-                continue
-            patch = self.problem.model.patches[pi]
-            dom = patch.spline.domain
-            _, nearest = tree.query(pts[cand])
-            xi = grid[nearest].copy()
-            for _ in range(30):
-                x, J, _ = patch_geometry_points(patch, xi)
-                r = x - pts[cand]
-                step = np.linalg.solve(J, r[:, :, None])[:, :, 0]
-                xi = np.clip(xi - step, dom[:, 0], dom[:, 1])
-                if np.max(np.abs(step)) < 1e-14:
-                    break
-            x, _, _ = patch_geometry_points(patch, xi)
-            ok = np.linalg.norm(x - pts[cand], axis=1) <= tol * scale
-            where[cand[ok]] = pi
-            params[cand[ok]] = xi[ok]
-        missing = np.nonzero(where < 0)[0]
-        if len(missing):
-            show = np.round(pts[missing[:5]], 6).tolist()
-            raise ProblemError(f"{len(missing)} probe point(s) lie outside the model, e.g. {show}")
-        return where, params
+        """Point inversion: (patch index (N,), parameters (N, 3)) of physical points (N, 3) (:class:`iga.locate.Locator`)."""
+        return self._locator(points, tol)
 
     def probe(self, points) -> np.ndarray:
         """Temperature at physical points (N, 3) -> (N,)."""
@@ -167,28 +125,90 @@ class Solution:
         return {"inflow_W": inflow, "outflow_W": outflow, "source_W": src,
                 "relative_error": abs(inflow - outflow) / scale}
 
-    # ------------------------------------------------------------------ errors
-    def _quadrature(self, fn):
-        """sum over patches and Gauss points of fn(x, T, gradT) * |J| w."""
+    # ------------------------------------------------------------ integrals
+    def integrate(self, fn) -> float:
+        """Sum over the model of int fn(x, T, grad T) dV, by the problem's Gauss rule.
+
+        ``fn(x (N, 3), T (N,), grad (N, 3)) -> (N,)``; patches sharing a tile
+        spline and a space are evaluated together.
+        """
+        prob = self.problem
+        groups: dict = {}
+        for i, s in enumerate(prob.spaces):
+            groups.setdefault((s.key(), id(prob.model.patches[i].spline)), []).append(i)
         total = 0.0
-        for pi, (patch, space) in enumerate(zip(self.problem.model.patches, self.problem.spaces)):
-            x, J, _ = patch_geometry_grid(patch, space.qaxes)
-            w = np.einsum("i,j,k->ijk", *[d.qw for d in space.dirs]).ravel()
-            T = self.temperature_spline(pi)
-            G = T.evaluate_grid(space.qaxes).reshape(-1)
-            dxi = np.stack([T.evaluate_grid(space.qaxes, tuple(int(i == k) for i in range(3))).reshape(-1)
-                            for k in range(3)], -1)
-            grad = np.linalg.solve(np.transpose(J, (0, 2, 1)), dxi[:, :, None])[:, :, 0]
-            total += float(np.sum(fn(x, G, grad) * np.abs(np.linalg.det(J)) * w))
+        for members in groups.values():
+            space = prob.spaces[members[0]]
+            for chunk in chunks(members, space.nq_total):
+                x, D, _ = patches_geometry_derivs([prob.model.patches[i] for i in chunk], space.qaxes)
+                B = [d.B[:, :, :-1] for d in space.dirs]  # (2, n, nq): values and derivatives
+                U = np.stack([self.u[prob.offsets[i] : prob.offsets[i + 1]].reshape(space.shape) for i in chunk])
+                T = np.einsum("pabc,ai,bj,ck->pijk", U, B[0][0], B[1][0], B[2][0], optimize=True).reshape(-1)
+                dxi = np.stack([np.einsum("pabc,ai,bj,ck->pijk", U, *(B[d][int(d == k)] for d in range(3)),
+                                          optimize=True).reshape(-1) for k in range(3)], -1)
+                grad, det = gradient_and_det(D, dxi)
+                if not np.all(np.isfinite(grad)):
+                    raise ProblemError(f"patches {chunk[0]}..{chunk[-1]}: the geometry Jacobian is singular at a Gauss "
+                                       "point; the model is degenerate there")
+                w = np.einsum("i,j,k->ijk", *[d.qw for d in space.dirs]).ravel()
+                wv = np.broadcast_to(w, (len(chunk), len(w))).reshape(-1)
+                total += float(np.sum(fn(x.reshape(-1, 3), T, grad) * np.abs(det) * wv))
         return total
+
+    def volume(self) -> float:
+        """Volume of the model (m^3), by the problem's Gauss rule."""
+        return self.integrate(lambda x, T, g: np.ones(len(T)))
+
+    def mean_temperature(self) -> float:
+        """Volume average of the temperature: int T dV / int dV."""
+        return self.integrate(lambda x, T, g: T) / self.volume()
+
+    def temperature_range(self, samples: int = 3) -> tuple[float, float]:
+        """Minimum and maximum of the temperature over a sampling of every patch.
+
+        Every Bezier element of each temperature space is sampled at
+        ``samples + 1`` points per direction (its ends included), the grid of
+        :func:`iga.write_vtu`.
+        """
+        lo, hi = np.inf, -np.inf
+        for pi in range(len(self.problem.model.patches)):
+            T = self.temperature_spline(pi)
+            axes = sample_axes(T.knots, samples)
+            v = T.evaluate_grid(axes)
+            lo, hi = min(lo, float(v.min())), max(hi, float(v.max()))
+        return lo, hi
 
     def l2_error(self, exact) -> float:
         """|| T - exact ||_L2 over the model; ``exact(x (N, 3)) -> (N,)``."""
-        return float(np.sqrt(self._quadrature(lambda x, T, g: (T - exact(x)) ** 2)))
+        return float(np.sqrt(self.integrate(lambda x, T, g: (T - exact(x)) ** 2)))
 
     def h1_error(self, exact_grad) -> float:
         """| T - exact |_H1 (gradient seminorm); ``exact_grad(x) -> (N, 3)``."""
-        return float(np.sqrt(self._quadrature(lambda x, T, g: np.sum((g - exact_grad(x)) ** 2, axis=1))))
+        return float(np.sqrt(self.integrate(lambda x, T, g: np.sum((g - exact_grad(x)) ** 2, axis=1))))
+
+
+def sample_axes(knots, samples: int) -> list[np.ndarray]:
+    """Per direction: every knot span subdivided ``samples`` times, span ends included once."""
+    out = []
+    for U in knots:
+        b = np.unique(U)
+        t = np.linspace(0.0, 1.0, samples + 1)[:-1]
+        ax = (b[:-1, None] + np.diff(b)[:, None] * t[None, :]).ravel()
+        out.append(np.append(ax, b[-1]))
+    return out
+
+
+def physical_gradient(J: np.ndarray, dxi: np.ndarray, where: str, params=None) -> np.ndarray:
+    """grad T = J^-T dT/dxi (N, 3); :class:`ProblemError` where the geometry Jacobian J (N, 3, 3) is singular."""
+    det = np.linalg.det(J)
+    scale = np.abs(J).max(axis=(1, 2)) ** 3
+    bad = ~(np.abs(det) > 1e-13 * scale)
+    if bad.any():
+        i = int(np.argmax(bad))
+        at = f" at parameters {np.round(params[i], 6).tolist()}" if params is not None else ""
+        raise ProblemError(f"{where}: the geometry Jacobian is singular{at} (a degenerate point: collapsed edge or "
+                           "fold), so the gradient and the heat flux are undefined there")
+    return np.linalg.solve(np.transpose(J, (0, 2, 1)), dxi[:, :, None])[:, :, 0]
 
 
 def flux_vector(K: np.ndarray, grad: np.ndarray) -> np.ndarray:

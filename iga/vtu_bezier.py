@@ -15,16 +15,18 @@ and the deformation map (exact, as composed); cell data: ``patch``, ``tile``,
 ``level`` and ``HigherOrderDegrees``; ``RationalWeights`` for NURBS geometry.
 Points are not shared between cells.  The point order inside a cell is
 VTK's own (``vtkBezierHexahedron.PointIndexFromIJK``).  Heat flux is not
-written here (it is not polynomial); the linear-hexahedron export has it.
+written here: -K J^-T grad T is a rational function of the geometry's
+derivatives with the Jacobian determinant in its denominator, which no Bezier
+cell's control values represent; the linear-hexahedron export samples it.
 """
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 
 from geometry import bernstein as bz, compose_many
+from geometry.products import common_refinement
 
 from .errors import ProblemError
 
@@ -48,15 +50,6 @@ def _exact_geometries(model) -> list:
     return out
 
 
-def _aligned(spline, breaks):
-    """``spline`` with every breakpoint of ``breaks`` inserted: the same element partition."""
-    for k in range(3):
-        new = np.setdiff1d(breaks[k], spline.breakpoints(k))
-        if len(new):
-            spline, _ = spline.insert_knots(k, new)
-    return spline
-
-
 def _vtk_order(degrees) -> np.ndarray:
     """Permutation: VTK point index -> flat (C-order) index of the (p1+1, p2+1, p3+1) control net."""
     import vtk
@@ -77,14 +70,14 @@ def bezier_cells(solution, model):
     for pi, (patch, G) in enumerate(zip(model.patches, _exact_geometries(model))):
         T = solution.temperature_spline(pi) if solution is not None else None
         breaks = [np.union1d(G.breakpoints(k), T.breakpoints(k) if T is not None else []) for k in range(3)]
-        G = _aligned(G, breaks)
+        G = common_refinement(G, breaks)
         gh, _ = G.bezier_patches(homogeneous=True)  # (e1, e2, e3, q1+1, q2+1, q3+1, m+1)
         ne = gh.shape[:3]
         gh = gh.reshape((-1,) + gh.shape[3:])
         pg = np.array(gh.shape[1:4]) - 1
         fields = {}
         if T is not None:
-            th, _ = _aligned(T, breaks).bezier_patches()  # polynomial, one component
+            th, _ = common_refinement(T, breaks).bezier_patches()  # polynomial, one component
             th = th.reshape((-1,) + th.shape[3:])
             pt = np.array(th.shape[1:4]) - 1
             if G.is_rational:
@@ -110,8 +103,8 @@ def bezier_cells(solution, model):
     return out
 
 
-def write_bezier_vtu(path: Path, solution, model) -> None:
-    """Write the exact Bezier-hexahedron .vtu (see module docs) to ``path`` (a temporary name)."""
+def bezier_grid(solution, model):
+    """The exact Bezier-hexahedron grid (a ``pyvista.UnstructuredGrid``, see the module notes)."""
     import pyvista as pv
 
     cells = bezier_cells(solution, model)
@@ -153,4 +146,4 @@ def write_bezier_vtu(path: Path, solution, model) -> None:
         grid.GetPointData().SetRationalWeights(grid.GetPointData().GetArray("RationalWeights"))
     if not grid.n_cells:
         raise ProblemError("the model has no trivariate patches to write")
-    grid.save(str(path), binary=True)
+    return grid

@@ -162,3 +162,7 @@ def helix(turns: float = 2.0, radius: float = 0.3, n: int = 16) -> Tile:
     ang = 2 * np.pi * turns * t
     cp = np.column_stack([0.5 + radius * np.cos(ang), 0.5 + radius * np.sin(ang), t])
     return Tile([BSpline((3,), [kn.uniform_knots(3, n - 3)], cp)], name="helix")
+
+
+#: the built-in tiles by name (what ``[tile] library = ...`` of a pipeline may name)
+TILES = {f.__name__: f for f in (heat_sink_t1, heat_sink_t2, skinned_branching, fractal, hollow_box, cross, helix)}

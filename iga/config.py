@@ -1,0 +1,259 @@
+"""Pipeline configuration: the schema of ``iga run CONFIG.toml``, checked whole before any work starts.
+
+:func:`validate` takes the configuration table (a TOML file's content) and
+returns a normalised copy with every default filled in, or raises
+:class:`iga.ProblemError` naming the key, the value and the allowed values.
+Types are checked exactly (``"22"`` is not a list of counts, ``"no"`` is not a
+boolean), keyword arguments (``args``) are bound against the signature of the
+primitive or tile they configure, and output names may not leave the output
+folder.  The schema (README, "Pipelines")::
+
+    [map]      primitive = one of MAPS, args = {...}   or   file = "map.npz"
+               grading = {channel, near, far, face, mode}        (optional)
+    [tile]     library = one of tiling.library.TILES, args = {...}
+    [paving]   scheme = "hierarchical" | "regular", counts, levels, scale
+    [material] conductivity = number | channel | 6 channels | 3 x 3 matrix, source = number
+    [[bc]]     kind = "dirichlet" | "neumann" | "robin", tag, value | (h, ambient)
+    [solver]   method, tol, maxiter, refine, degree_elevation
+    [output]   dir, name, vtu, bezier, png, samples, probes
+    [limits]   max_memory_gib
+"""
+
+from __future__ import annotations
+
+import inspect
+from numbers import Real
+from pathlib import Path
+
+from geometry.faces import FACE_NAMES
+
+from .errors import ProblemError
+
+__all__ = ["validate", "SECTIONS", "OUTPUT_DEFAULTS"]
+
+SECTIONS = ("map", "tile", "paving", "material", "bc", "solver", "output", "limits")
+OUTPUT_DEFAULTS = {"dir": "out", "name": "result", "vtu": True, "bezier": False, "png": True, "samples": 3,
+                   "probes": []}
+SOLVER_DEFAULTS = {"method": "auto", "tol": 1e-10, "maxiter": None, "refine": 0, "degree_elevation": 0}
+
+
+def _fail(where: str, message: str):
+    raise ProblemError(f"config key {where}: {message}")
+
+
+def _number(v, where, lo=None, hi=None, open_lo=True) -> float:
+    if not isinstance(v, Real) or isinstance(v, bool) or v != v or v in (float("inf"), float("-inf")):
+        _fail(where, f"must be a finite number, got {v!r}")
+    if lo is not None and (v <= lo if open_lo else v < lo):
+        _fail(where, f"must be {'>' if open_lo else '>='} {lo}, got {v!r}")
+    if hi is not None and v >= hi:
+        _fail(where, f"must be < {hi}, got {v!r}")
+    return float(v)
+
+
+def _int(v, where, lo=0) -> int:
+    if not isinstance(v, int) or isinstance(v, bool):
+        _fail(where, f"must be an integer >= {lo}, got {v!r}")
+    if v < lo:
+        _fail(where, f"must be an integer >= {lo}, got {v!r}")
+    return int(v)
+
+
+def _bool(v, where) -> bool:
+    if not isinstance(v, bool):
+        _fail(where, f"must be true or false, got {v!r}")
+    return v
+
+
+def _str(v, where) -> str:
+    if not isinstance(v, str) or not v:
+        _fail(where, f"must be a non-empty string, got {v!r}")
+    return v
+
+
+def _choice(v, where, choices) -> str:
+    if not isinstance(v, str) or v not in choices:
+        _fail(where, f"must be one of {sorted(choices)}, got {v!r}")
+    return v
+
+
+def _ints(v, where, n, lo=1) -> list[int]:
+    if not isinstance(v, list) or len(v) != n:
+        _fail(where, f"must be a list of {n} integers >= {lo}, got {v!r}")
+    return [_int(x, f"{where}[{i}]", lo) for i, x in enumerate(v)]
+
+
+def _table(v, where, allowed, required=()) -> dict:
+    if not isinstance(v, dict):
+        _fail(where, f"must be a table, got {type(v).__name__} {v!r}")
+    unknown = sorted(set(v) - set(allowed))
+    if unknown:
+        raise ProblemError(f"unknown config key {where}.{unknown[0]!r}; allowed keys: {sorted(allowed)}")
+    missing = [k for k in required if k not in v]
+    if missing:
+        raise ProblemError(f"missing required config key {where}.{missing[0]!r}")
+    return dict(v)
+
+
+def _kwargs(v, where, fn) -> dict:
+    """Keyword arguments for ``fn``, bound against its signature; values typed like the defaults."""
+    if not isinstance(v, dict):
+        _fail(where, f"must be a table of keyword arguments, got {v!r}")
+    params = {n: p for n, p in inspect.signature(fn).parameters.items()
+              if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)}
+    out = {}
+    for key, value in v.items():
+        if key not in params:
+            _fail(f"{where}.{key}", f"is not an argument of {fn.__name__}; allowed: {sorted(params)}")
+        default = params[key].default
+        w = f"{where}.{key}"
+        if isinstance(default, bool):
+            out[key] = _bool(value, w)
+        elif isinstance(default, Real):
+            out[key] = _number(value, w)
+            if isinstance(default, int) and not float(value).is_integer():
+                _fail(w, f"must be an integer, got {value!r}")
+            out[key] = int(value) if isinstance(default, int) else float(value)
+        elif isinstance(default, (tuple, list)):
+            if not isinstance(value, list) or len(value) != len(default):
+                _fail(w, f"must be a list of {len(default)} numbers, got {value!r}")
+            out[key] = tuple(_number(x, f"{w}[{i}]", None) for i, x in enumerate(value))
+            if all(isinstance(d, int) for d in default):
+                if not all(float(x).is_integer() for x in out[key]):
+                    _fail(w, f"must be a list of {len(default)} integers, got {value!r}")
+                out[key] = tuple(int(x) for x in out[key])
+        elif isinstance(default, str):
+            out[key] = _str(value, w)
+        elif default is None and key == "channels":
+            tbl = _table(value, w, set(value)) if isinstance(value, dict) else _fail(w, "must be a table {name = value}")
+            out[key] = {str(n): _number(x, f"{w}.{n}") for n, x in tbl.items()}
+        else:
+            out[key] = value
+    return out
+
+
+def _bc(v, where) -> dict:
+    t = _table(v, where, {"kind", "tag", "value", "h", "ambient"}, ("kind", "tag"))
+    kind = _choice(t["kind"], f"{where}.kind", ("dirichlet", "neumann", "robin"))
+    out = {"kind": kind, "tag": _str(t["tag"], f"{where}.tag")}
+    if kind == "robin":
+        for key in ("h", "ambient"):
+            if key not in t:
+                raise ProblemError(f"config {where} (robin) needs keys 'h' and 'ambient'")
+        if "value" in t:
+            _fail(f"{where}.value", "a robin condition takes 'h' and 'ambient', not 'value'")
+        out["h"] = _number(t["h"], f"{where}.h", lo=0)
+        out["ambient"] = _number(t["ambient"], f"{where}.ambient")
+    else:
+        extra = sorted(set(t) & {"h", "ambient"})
+        if extra:
+            _fail(f"{where}.{extra[0]}", f"a {kind} condition takes 'value', not {extra}")
+        out["value"] = _number(t.get("value", 0.0), f"{where}.value")
+    return out
+
+
+def _conductivity(v, where):
+    if isinstance(v, str):
+        return v
+    if isinstance(v, list) and len(v) == 6 and all(isinstance(c, str) for c in v):
+        return list(v)
+    if isinstance(v, list) and len(v) == 3 and all(isinstance(r, list) and len(r) == 3 for r in v):
+        return [[_number(x, f"{where}[{i}][{j}]") for j, x in enumerate(r)] for i, r in enumerate(v)]
+    return _number(v, where, lo=0)
+
+
+def _output(v, base: Path) -> dict:
+    t = _table(v, "output", set(OUTPUT_DEFAULTS))
+    out = dict(OUTPUT_DEFAULTS)
+    if "dir" in t:
+        out["dir"] = _str(t["dir"], "output.dir")
+    if "name" in t:
+        out["name"] = _str(t["name"], "output.name")
+    name = out["name"]
+    if Path(name).is_absolute() or Path(name).name != name or name in (".", ".."):
+        _fail("output.name", f"must be a plain file name inside output.dir (no folders, no '..'), got {name!r}")
+    for key in ("vtu", "bezier", "png"):
+        if key in t:
+            out[key] = _bool(t[key], f"output.{key}")
+    if "samples" in t:
+        out["samples"] = _int(t["samples"], "output.samples", 1)
+    if "probes" in t:
+        p = t["probes"]
+        if not isinstance(p, list) or not all(isinstance(q, list) and len(q) == 3 for q in p):
+            _fail("output.probes", f"must be a list of [x, y, z] points, got {p!r}")
+        out["probes"] = [[_number(x, f"output.probes[{i}][{j}]") for j, x in enumerate(q)] for i, q in enumerate(p)]
+    d = Path(out["dir"])
+    out["path"] = d if d.is_absolute() else base / d
+    if out["png"] and not out["vtu"]:
+        _fail("output.png", "the picture is rendered from the VTU file; set vtu = true or png = false")
+    return out
+
+
+def validate(config, base_dir=".") -> dict:
+    """The normalised configuration (every default filled in), or :class:`ProblemError` (see module)."""
+    from tiling.library import TILES
+
+    import solvers
+
+    from .pipeline import MAPS
+
+    if not isinstance(config, dict):
+        raise ProblemError("the configuration must be a table of sections")
+    unknown = sorted(set(config) - set(SECTIONS))
+    if unknown:
+        raise ProblemError(f"unknown config section {unknown[0]!r}; sections: {list(SECTIONS)}")
+    for sec in ("map", "tile", "paving", "bc"):
+        if sec not in config:
+            raise ProblemError(f"missing required config section {sec!r}")
+    cfg: dict = {}
+    m = _table(config["map"], "map", {"primitive", "args", "file", "grading"})
+    if ("primitive" in m) == ("file" in m):
+        raise ProblemError("config section map needs exactly one of 'primitive' (a built-in map) or 'file' (a .npz)")
+    if "file" in m:
+        if "args" in m:
+            _fail("map.args", "arguments go with 'primitive', not with 'file'")
+        cfg["map"] = {"file": Path(base_dir) / _str(m["file"], "map.file")}
+    else:
+        name = _choice(m["primitive"], "map.primitive", MAPS)
+        cfg["map"] = {"primitive": name, "args": _kwargs(m.get("args", {}), "map.args", MAPS[name])}
+    if "grading" in m:
+        g = _table(m["grading"], "map.grading", {"channel", "near", "far", "face", "mode"})
+        cfg["map"]["grading"] = {
+            "channel": _str(g.get("channel", "k"), "map.grading.channel"),
+            "near": _number(g.get("near", 205.0), "map.grading.near"),
+            "far": _number(g.get("far", 54.0), "map.grading.far"),
+            "face": _choice(g.get("face", "wmin"), "map.grading.face", FACE_NAMES),
+            "mode": _choice(g.get("mode", "parameter"), "map.grading.mode", ("parameter", "distance"))}
+    t = _table(config["tile"], "tile", {"library", "args"}, ("library",))
+    lib = _choice(t["library"], "tile.library", TILES)
+    cfg["tile"] = {"library": lib, "args": _kwargs(t.get("args", {}), "tile.args", TILES[lib])}
+    p = _table(config["paving"], "paving", {"scheme", "counts", "levels", "scale"}, ("scheme", "counts"))
+    scheme = _choice(p["scheme"], "paving.scheme", ("hierarchical", "regular"))
+    pav = {"scheme": scheme, "counts": _ints(p["counts"], "paving.counts", 2 if scheme == "hierarchical" else 3)}
+    if scheme == "hierarchical":
+        pav["levels"] = _int(p.get("levels", 2), "paving.levels", 1)
+        pav["scale"] = None if "scale" not in p else _number(p["scale"], "paving.scale", lo=0)
+    else:
+        for key in ("levels", "scale"):
+            if key in p:
+                _fail(f"paving.{key}", "applies to the hierarchical scheme only")
+    cfg["paving"] = pav
+    mat = _table(config.get("material", {}), "material", {"conductivity", "source"})
+    cfg["material"] = {"conductivity": _conductivity(mat.get("conductivity", 1.0), "material.conductivity"),
+                       "source": _number(mat.get("source", 0.0), "material.source")}
+    bcs = config["bc"] if isinstance(config["bc"], list) else [config["bc"]]
+    if not bcs:
+        raise ProblemError("config section bc is empty; give at least one [[bc]] table")
+    cfg["bc"] = [_bc(b, f"bc[{i}]") for i, b in enumerate(bcs)]
+    s = _table(config.get("solver", {}), "solver", set(SOLVER_DEFAULTS))
+    cfg["solver"] = {
+        "method": _choice(s.get("method", "auto"), "solver.method", solvers.backends()),
+        "tol": _number(s.get("tol", 1e-10), "solver.tol", lo=0, hi=1),
+        "maxiter": None if s.get("maxiter") is None else _int(s["maxiter"], "solver.maxiter", 1),
+        "refine": _int(s.get("refine", 0), "solver.refine", 0),
+        "degree_elevation": _int(s.get("degree_elevation", 0), "solver.degree_elevation", 0)}
+    cfg["output"] = _output(config.get("output", {}), Path(base_dir))
+    lim = _table(config.get("limits", {}), "limits", {"max_memory_gib"})
+    cfg["limits"] = {"max_memory_gib": None if "max_memory_gib" not in lim
+                     else _number(lim["max_memory_gib"], "limits.max_memory_gib", lo=0)}
+    return cfg
