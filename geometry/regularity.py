@@ -117,12 +117,18 @@ def _corners(J, d):
     return J[np.ix_(np.arange(J.shape[0]), *ends)].reshape(J.shape[0], -1)
 
 
-def check_regular(spline: SplineFunction, max_depth: int = 9) -> RegularityResult:
+def check_regular(spline: SplineFunction, max_depth: int = 9, allow_zeros: bool = False) -> RegularityResult:
     """Decide whether ``spline`` (trivariate, or planar surface) has a non-vanishing Jacobian.
 
     Returns a :class:`RegularityResult`; ``bool(result)`` is True only when
     regularity is proven.  ``max_depth`` bounds the subdivision rounds (each
     round halves the undecided boxes along one direction, cycling u, v, w).
+
+    ``allow_zeros``: prove only that the Jacobian never changes sign (it may
+    vanish on a set of measure zero, e.g. a collapsed edge or the axis of a
+    solid cylinder, where analysis still works); "singular" then means a
+    proven fold (values of both signs) or a box where the Jacobian vanishes
+    identically.
     """
     J, boxes = jacobian_bezier(spline)
     d = spline.dim
@@ -133,11 +139,16 @@ def check_regular(spline: SplineFunction, max_depth: int = 9) -> RegularityResul
     cur, cur_boxes = J, boxes
     while True:
         flat = cur.reshape(cur.shape[0], -1)
-        pos = np.all(flat > 0, axis=1)
-        neg = np.all(flat < 0, axis=1)
         corners = _corners(cur, d)
         mixed = (corners.max(axis=1) > 0) & (corners.min(axis=1) < 0)
-        zero_corner = np.any(corners == 0, axis=1)
+        if allow_zeros:  # one-signed bounds prove no sign change; an identically zero box is degenerate
+            pos = np.all(flat >= 0, axis=1) & np.any(flat > 0, axis=1)
+            neg = np.all(flat <= 0, axis=1) & np.any(flat < 0, axis=1)
+            zero_corner = np.all(flat == 0, axis=1)
+        else:
+            pos = np.all(flat > 0, axis=1)
+            neg = np.all(flat < 0, axis=1)
+            zero_corner = np.any(corners == 0, axis=1)
         pos_boxes.append(cur_boxes[pos])
         neg_boxes.append(cur_boxes[neg])
         crossing = (mixed | zero_corner) & ~pos & ~neg  # a zero is proven inside

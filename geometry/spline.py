@@ -40,10 +40,10 @@ class SplineFunction(SplineEvaluation):
                 f"control points must have shape (n_1, ..., n_d, components), got {coefficients.shape}"
             )
         d = coefficients.ndim - 1
-        try:
-            degrees = tuple(int(p) for p in np.atleast_1d(degrees))
-        except (TypeError, ValueError):
-            raise SplineError(f"degrees must be integers, got {degrees!r}") from None
+        degs = list(degrees) if isinstance(degrees, (list, tuple, np.ndarray)) else [degrees]
+        if not all(isinstance(p, (int, np.integer)) and not isinstance(p, (bool, np.bool_)) for p in degs):
+            raise SplineError(f"degrees must be integers, one per parametric direction, got {degrees!r}")
+        degrees = tuple(int(p) for p in degs)
         if d not in (1, 2, 3):
             raise SplineError(f"parametric dimension must be 1, 2 or 3, got control-point array of shape {coefficients.shape}")
         if len(degrees) != d:
@@ -85,6 +85,8 @@ class SplineFunction(SplineEvaluation):
     # ------------------------------------------------------------------ basics
     @staticmethod
     def _as_array(a, what):
+        if np.iscomplexobj(a):
+            raise SplineError(f"{what} must be real numbers, got complex values")
         try:
             return np.array(a, dtype=float)
         except (TypeError, ValueError) as exc:
@@ -200,7 +202,9 @@ class SplineFunction(SplineEvaluation):
 
         Returns ``(new_spline, [R_0, ..., R_{d-1}])`` (identity where unrefined).
         """
-        directions = range(self.dim) if directions is None else directions
+        if not isinstance(times, (int, np.integer)) or isinstance(times, bool) or times < 0:
+            raise SplineError(f"refinement times must be a non-negative integer, got {times!r}")
+        directions = range(self.dim) if directions is None else [self._check_direction(k) for k in directions]
         out = self
         Rs = [None] * self.dim
 

@@ -166,3 +166,25 @@ def make_space(knots, degrees, g_extra: int = 0, elevate=0, refine: int = 0, tar
         U2, p2 = space_knots(U, p, e, refine, t)
         dirs.append(Space1D(U2, p2, p2 + 1 + g_extra))
     return TensorSpace(dirs)
+
+
+def space_size(knots, degrees, g_extra: int = 0, elevate=0, refine: int = 0, target=None) -> tuple[int, int, int]:
+    """(DOFs, quadrature points, bytes of the 1-D tables) of :func:`make_space`'s result, without building it.
+
+    Knot vectors only (cheap even for many refinements): used to refuse a
+    space that would not fit in memory before its tables are allocated.
+    """
+    d = len(degrees)
+    elevate = [elevate] * d if np.isscalar(elevate) else list(elevate)
+    target = [None] * d if target is None else list(target)
+    ndof, nq, table = 1, 1, 0
+    for U, p, e, t in zip(knots, degrees, elevate, target):
+        U0, q = space_knots(U, p, e, 0, t)  # unrefined: cheap
+        E0 = len(np.unique(U0)) - 1
+        E = E0 * 2 ** refine
+        n = len(U0) - q - 1 + (E - E0)  # each bisection adds one simple knot per span
+        g = q + 1 + g_extra
+        ndof *= n
+        nq *= E * g
+        table += 8 * 2 * n * (E * g + 1) * 2  # value/derivative tables, and the pair tables built from them
+    return int(ndof), int(nq), int(table)

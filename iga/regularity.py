@@ -1,0 +1,84 @@
+"""Exact proof, before assembly, that every patch of a model is a regular (fold-free) map.
+
+A patch's physical map is x = D(A T(t) + b), so its Jacobian determinant is
+
+    det J(t) = det J_D(A T(t) + b) * det A * det J_T(t),
+
+and it keeps one sign when each factor does: ``det A != 0`` per placement, the
+tile patch T proven once per distinct tile spline, and the deformation map D
+proven once over its whole domain (cached per map).  Only where D itself is
+not provably one-signed is it proven again on each placed patch's parameter
+box (the hull of the placed tile's control points, which holds its image).
+The proofs use the Bernstein form of the Jacobian determinant
+(:func:`geometry.check_regular` with ``allow_zeros``: a determinant that
+vanishes on a set of measure zero, such as a collapsed edge, is accepted;
+a sign change is a fold).  A fold raises :class:`iga.ProblemError` naming the
+patch and the parameter box; an undecided proof (a determinant tangent to
+zero) is reported in the statistics and left to the Gauss-point check of the
+assembly.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from geometry import check_regular
+
+from .errors import ProblemError
+
+__all__ = ["prove_regular"]
+
+_DEPTH = 8  # subdivision rounds of each proof
+
+
+def _boxes(result) -> str:
+    b = result.boxes
+    hull = np.stack([b[:, :, 0].min(0), b[:, :, 1].max(0)], axis=1)
+    return " x ".join(f"{'uvw'[k]} in [{hull[k, 0]:.4g}, {hull[k, 1]:.4g}]" for k in range(hull.shape[0]))
+
+
+def prove_regular(model) -> dict:
+    """Prove every trivariate patch of ``model`` fold-free (see the module notes); returns counts."""
+    stats = {"tiles_proven": 0, "maps_proven": 0, "boxes_proven": 0, "undecided": []}
+    tiles: dict = {}
+    maps: dict = {}
+    for pi, patch in enumerate(model.patches):
+        T = patch.spline
+        if id(T) not in tiles:
+            r = check_regular(T, _DEPTH, allow_zeros=True)
+            tiles[id(T)] = r
+            stats["tiles_proven"] += 1
+            if r.status == "singular":
+                raise ProblemError(
+                    f"patch {pi} is folded or degenerate: its Jacobian determinant changes sign or vanishes in "
+                    f"{_boxes(r)} (its own parameters); fix its control net (geometry.check_regular locates it)")
+            if r.status == "undecided":
+                stats["undecided"].append(f"patch {pi}")
+        if patch.placement is not None:
+            A = patch.placement[:, :3]
+            det = float(np.linalg.det(A))
+            if not abs(det) > 1e-12 * float(np.abs(A).max()) ** 3:
+                raise ProblemError(f"patch {pi} has a singular placement (det A = {det:.3g}); it flattens the patch")
+        D = patch.outer
+        if D is None:
+            continue
+        if id(D) not in maps:
+            maps[id(D)] = check_regular(D, _DEPTH, allow_zeros=True)
+            stats["maps_proven"] += 1
+        if maps[id(D)].status == "regular":
+            continue
+        M = np.eye(3, 4) if patch.placement is None else patch.placement
+        pts = T.points.reshape(-1, 3) @ M[:, :3].T + M[:, 3]
+        dom = D.domain
+        box = np.stack([np.clip(pts.min(0), dom[:, 0], dom[:, 1]), np.clip(pts.max(0), dom[:, 0], dom[:, 1])], 1)
+        if np.any(box[:, 1] <= box[:, 0]):
+            continue  # a flat placement: D's one-signed determinant is not needed on a zero-volume box
+        r = check_regular(D.extract(box), _DEPTH, allow_zeros=True)
+        stats["boxes_proven"] += 1
+        if r.status == "singular":
+            raise ProblemError(
+                f"patch {pi} lies where the deformation map folds or degenerates: its Jacobian determinant changes "
+                f"sign or vanishes in {_boxes(r)} (map parameters); fix the map's control net there")
+        if r.status == "undecided":
+            stats["undecided"].append(f"patch {pi} (deformation map)")
+    return stats
