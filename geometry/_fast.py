@@ -16,6 +16,8 @@ import importlib.util
 
 import numpy as np
 
+from . import knots as kn
+
 #: below this many points the SciPy path is used (no compile, no thread start-up)
 MIN_POINTS = 20_000
 
@@ -35,6 +37,12 @@ def _kernel():
 
         _KERNEL = _eval3
     return _KERNEL
+
+
+def _grid_kernel():
+    from ._grid_kernels import grid_derivs3
+
+    return grid_derivs3
 
 
 def applies(dim: int, n_points: int) -> bool:
@@ -63,3 +71,29 @@ def evaluate(knots, degrees, coefficients: np.ndarray, x: np.ndarray, derivs: bo
     if bad.any():
         return None
     return out if derivs else out[0]
+
+
+def grid_tables(spline, axes, order=(0, 1, 2)) -> list:
+    """Per direction: first non-zero basis index (nq,) and values/derivatives (2, nq, p + 1) at ``axes``.
+
+    ``order``: the spline's directions in the order the tables are wanted
+    (for coefficients transposed the same way).
+    """
+    out = []
+    for k in order:
+        U, p, ax = spline.knots[k], spline.degrees[k], axes[k]
+        spans, ders = kn.basis_functions(U, p, np.clip(ax, U[0], U[-1]), 1)
+        out.append(((spans - p).astype(np.int64), np.ascontiguousarray(np.moveaxis(ders, 1, 0))))
+    return out
+
+
+def grid_derivs(hom: np.ndarray, rows: slice, tables) -> np.ndarray:
+    """Value and derivatives (4, n, m) of a 3-D spline with coefficients ``hom`` on grid rows ``rows``.
+
+    ``tables`` from :func:`grid_tables`; n = rows x nq1 x nq2 points in C order.
+    """
+    (f0, B0), (f1, B1), (f2, B2) = tables
+    m = hom.shape[-1]
+    out = np.empty((4, rows.stop - rows.start, len(f1), len(f2), m))
+    _grid_kernel()(np.ascontiguousarray(hom, dtype=float), rows.start, rows.stop, f0, B0, f1, B1, f2, B2, out)
+    return out.reshape(4, -1, m)

@@ -18,7 +18,7 @@ from geometry.faces import FACE_AXIS, face_name, parse_slot_face
 from geometry.multipatch import PlacedPatch
 
 from .errors import ProblemError
-from .geometry_eval import patches_geometry_derivs
+from geometry.chain import patches_geometry_derivs
 
 __all__ = ["FaceData", "FaceQuadrature", "cross"]
 

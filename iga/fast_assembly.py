@@ -32,6 +32,8 @@ from functools import lru_cache
 import numpy as np
 
 from .errors import ProblemError
+from geometry._fast import grid_tables
+
 from .assembly import _CACHE_NNZ, CSRPattern, _band_limits
 from .space import Space1D, TensorSpace
 
@@ -55,10 +57,10 @@ def _kernels():
     return _assembly_kernels
 
 
-def _geometry_kernels():
-    from . import _geometry_kernels
+def _metric_kernels():
+    from . import _metric_kernels
 
-    return _geometry_kernels
+    return _metric_kernels
 
 
 def _tables(sp1: Space1D) -> dict:
@@ -223,7 +225,7 @@ def metric_fields(D, kval, fval, w):
     D: [dx/du, dx/dv, dx/dw], each (P, n, 3) with M = P n; kval the
     conductivity, (M,) isotropic or (M, 6) tensor components (xx, yy, zz, xy,
     xz, yz); fval, w (M,) source and quadrature weights.  Formulas in
-    :func:`iga._geometry_kernels.metric_fields`.
+    :func:`iga._metric_kernels.metric_fields`.
     """
     Du, Dv, Dw = (np.reshape(d, (-1, 3)) for d in D)
     M = len(Du)
@@ -234,7 +236,7 @@ def metric_fields(D, kval, fval, w):
     else:
         kiso, ktensor = _writable(np.broadcast_to(kval, (M,))), np.zeros((0, 6))
     fval = _writable(np.broadcast_to(np.asarray(fval, float), (M,)))
-    _geometry_kernels().metric_fields(_writable(Du), _writable(Dv), _writable(Dw), kiso, ktensor, fval,
+    _metric_kernels().metric_fields(_writable(Du), _writable(Dv), _writable(Dw), kiso, ktensor, fval,
                                       _writable(np.broadcast_to(np.asarray(w, float), (M,))), C, L, det)
     return C, L, det
 
@@ -242,35 +244,6 @@ def metric_fields(D, kval, fval, w):
 def _writable(a: np.ndarray) -> np.ndarray:
     """A C-contiguous, writable float array (a copy only when needed): one compiled signature per kernel."""
     return np.require(a, dtype=float, requirements=["C", "W"])
-
-
-def grid_tables(spline, axes, order=(0, 1, 2)) -> list:
-    """Per direction: first non-zero basis index (nq,) and values/derivatives (2, nq, p + 1) at ``axes``.
-
-    ``order``: the spline's directions in the order the tables are wanted
-    (for coefficients transposed the same way).
-    """
-    from geometry import knots as kn
-
-    out = []
-    for k in order:
-        U, p, ax = spline.knots[k], spline.degrees[k], axes[k]
-        spans, ders = kn.basis_functions(U, p, np.clip(ax, U[0], U[-1]), 1)
-        out.append(((spans - p).astype(np.int64), np.ascontiguousarray(np.moveaxis(ders, 1, 0))))
-    return out
-
-
-def grid_derivs(hom: np.ndarray, rows: slice, tables) -> np.ndarray:
-    """Value and derivatives (4, n, m) of a 3-D spline with coefficients ``hom`` on grid rows ``rows``.
-
-    ``tables`` from :func:`grid_tables`; n = rows x nq1 x nq2 points in C order.
-    """
-    (f0, B0), (f1, B1), (f2, B2) = tables
-    m = hom.shape[-1]
-    out = np.empty((4, rows.stop - rows.start, len(f1), len(f2), m))
-    _geometry_kernels().grid_derivs3(np.ascontiguousarray(hom, dtype=float), rows.start, rows.stop, f0, B0, f1, B1,
-                                     f2, B2, out)
-    return out.reshape(4, -1, m)
 
 
 def metric_slabs(spline, space: TensorSpace, points_per_slab: int, kval, fval: float):
@@ -301,6 +274,6 @@ def metric_slabs(spline, space: TensorSpace, points_per_slab: int, kval, fval: f
         b = min(a + rows, nq0)
         n = (b - a) * rest
         C, L, det = np.empty((6, n)), np.empty(n), np.empty(n)
-        _geometry_kernels().geometry_metric3(hom, spline.is_rational, a, b, f0, B0, f1, B1, f2, B2, iso, K,
+        _metric_kernels().geometry_metric3(hom, spline.is_rational, a, b, f0, B0, f1, B1, f2, B2, iso, K,
                                              float(fval), *qw, C, L, det)
         yield slice(a, b), C, L, det

@@ -15,7 +15,7 @@ from scipy.spatial import cKDTree
 from geometry.inversion import newton_inverse, start_grid
 
 from .errors import ProblemError
-from .geometry_eval import patch_geometry_grid, patch_geometry_points
+from geometry.chain import patch_geometry_grid, patch_geometry_points
 
 __all__ = ["Locator"]
 

@@ -1,206 +1,24 @@
-"""Sampling a model (and its temperature) on conforming grids of linear hexahedra, welded into one mesh.
-
-Each patch is sampled on a tensor grid: every element of its space (the
-analysis space with a solution, else the tile spline's) is subdivided
-``samples`` times per direction.  Grids are made *conforming* across
-interfaces before evaluation: the sample parameters of two glued faces are
-united (through the interface's orientation, and for a branch face through
-the map of the child's face onto its sub-rectangle of the parent's) until no
-interface adds a point, so that neighbouring faces carry the same points and
-no T-junction is left (:func:`conforming_axes`).  A patch is evaluated piece
-by piece between its discontinuity knots, each side of a discontinuity plane
-with its own one-sided limit, so that the open part of a slot is two surfaces.
-Finally coinciding points (shared faces, the closed part of a discontinuity
-plane) are welded into one point (:func:`weld`), their data averaged, so the
-mesh has no internal faces.
-"""
+"""The temperature on the model's sample grids (:mod:`geometry.sampling`): values, heat flux, conductivity."""
 
 from __future__ import annotations
 
-from itertools import product
-
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
-from scipy.spatial import cKDTree
 
-from geometry import knots as kn
-from geometry import progress
-from geometry.faces import FACE_AXIS
-from geometry.multipatch import PlacedPatch
+from geometry.chain import gradient_and_det
+from geometry.sampling import piece_basis
 
 from .coefficients import tensor_matrix
-from .geometry_eval import gradient_and_det, patches_geometry_derivs
 
-__all__ = ["conforming_axes", "sample_model", "weld", "sample_axes", "HEX_CORNERS"]
-
-#: VTK hexahedron corner order as (di, dj, dk) offsets
-HEX_CORNERS = np.array([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)])
-_MAX_AXIS = 20_000  # sample points per direction and patch beyond which conformity is given up
-_SAME = 1e-9  # normalised parameters closer than this are one sample (the weld's tolerance is finer)
+__all__ = ["temperature_fields"]
 
 
-def sample_axes(knots, samples: int) -> list[np.ndarray]:
-    """Per direction: every knot span subdivided ``samples`` times, span ends included once."""
-    out = []
-    for U in knots:
-        b = np.unique(U)
-        t = np.linspace(0.0, 1.0, samples + 1)[:-1]
-        out.append(np.append((b[:-1, None] + np.diff(b)[:, None] * t[None, :]).ravel(), b[-1]))
-    return out
+def temperature_fields(solution):
+    """The ``fields`` hook of :func:`geometry.sampling.sample_model` for a solution: temperature, heat flux
+    (W/m^2) and conductivity at the sample points."""
+    def hook(members, pax, x, D, chans, out):
+        return _temperature_fields(solution, members, pax, x, D, chans, out)
 
-
-def _unite(axis: np.ndarray, new: np.ndarray) -> tuple[np.ndarray, bool]:
-    """Sorted union of normalised parameters; values closer than 1e-9 are one (the first kept)."""
-    merged = np.sort(np.concatenate([axis, new]))
-    keep = np.r_[True, np.diff(merged) > _SAME]
-    merged = merged[keep]
-    return merged, len(merged) != len(axis)
-
-
-def _face_dirs(face):
-    k, _ = FACE_AXIS[face]
-    return [d for d in range(3) if d != k]
-
-
-def conforming_axes(model, knots_of, samples: int) -> list[list[np.ndarray]]:
-    """Sample parameters per patch and direction, united across interfaces (see the module notes).
-
-    ``knots_of(pi)``: the knot vectors whose elements patch ``pi`` samples.
-    Parameters are handled normalised to [0, 1] per direction.
-    """
-    doms = [np.array([[U[0], U[-1]] for U in knots_of(pi)]) for pi in range(len(model.patches))]
-    axes = [[(a - d[0]) / (d[1] - d[0]) for a, d in zip(sample_axes(knots_of(pi), samples), doms[pi])]
-            for pi in range(len(model.patches))]
-    links = []  # (patch a, dir a, patch b, dir b, scale, offset, flip): t_b = flip(t_a * scale + offset) on a's range
-    for itf in model.interfaces:
-        (pa, fa), (pb, fb) = itf.a, itf.b
-        da, db = _face_dirs(fa), _face_dirs(fb)
-        if itf.kind == "identity":
-            order = [1, 0] if itf.swap else [0, 1]
-            for j in range(2):  # face a's direction j <-> face b's direction order[j]
-                links.append((pa, da[j], pb, db[order[j]], None, itf.flip[order[j]]))
-        else:
-            for j in range(2):  # the child's direction j spans the box side j of the parent's face
-                lo, hi = itf.box[j]
-                d0 = doms[pa][da[j]]
-                links.append((pa, da[j], pb, db[j], ((lo - d0[0]) / (d0[1] - d0[0]), (hi - d0[0]) / (d0[1] - d0[0])),
-                              False))
-    for _ in range(64):
-        changed = False
-        for pa, ka, pb, kb, box, flip in links:
-            A, B = axes[pa][ka], axes[pb][kb]
-            if box is None:
-                to_b = 1 - A if flip else A
-                to_a = 1 - B if flip else B
-            else:
-                lo, hi = box
-                inside = A[(A >= lo - 1e-12) & (A <= hi + 1e-12)]
-                to_b = np.clip((inside - lo) / (hi - lo), 0, 1)
-                to_a = lo + B * (hi - lo)
-            axes[pb][kb], cb = _unite(B, to_b)
-            axes[pa][ka], ca = _unite(A, to_a)
-            changed |= ca or cb
-            if max(len(axes[pa][ka]), len(axes[pb][kb])) > _MAX_AXIS:
-                changed = False  # a resolution race between incommensurate maps: stop, the weld does the rest
-                break
-        if not changed:
-            break
-    return [[d[0] + a * (d[1] - d[0]) for a, d in zip(ax, dom)] for ax, dom in zip(axes, doms)]
-
-
-def _pieces(spline):
-    """Parameter boxes between the full-multiplicity (discontinuity) knots of a trivariate."""
-    cuts = []
-    for U, p in zip(spline.knots, spline.degrees):
-        vals, mults = np.unique(U, return_counts=True)
-        c = np.r_[vals[0], vals[1:-1][mults[1:-1] >= p + 1], vals[-1]]
-        cuts.append(np.stack([c[:-1], c[1:]], axis=1))
-    return [np.array(box) for box in product(*cuts)]
-
-
-def _hexes(shape, flip: bool) -> np.ndarray:
-    n1, n2, n3 = shape
-    i, j, k = np.meshgrid(np.arange(n1 - 1), np.arange(n2 - 1), np.arange(n3 - 1), indexing="ij")
-    corners = HEX_CORNERS[[1, 0, 3, 2, 5, 4, 7, 6]] if flip else HEX_CORNERS  # mirrored for left-handed maps
-    idx = [((i + a) * n2 + (j + b)) * n3 + (k + c) for a, b, c in corners]
-    return np.stack([c.ravel() for c in idx], axis=1)
-
-
-def _basis(space1d, ax):
-    """Values and derivatives (2, len(ax), n) of a 1-D space on a piece's axis; the last point as a left limit."""
-    U, q = space1d.knots, space1d.degree
-    out = []
-    for nder in (0, 1):
-        head = kn.basis_matrix(U, q, ax[:-1], nder).toarray() if len(ax) > 1 else np.zeros((0, len(U) - q - 1))
-        tail = kn.basis_matrix(U, q, ax[-1:], nder, side="left").toarray()
-        out.append(np.vstack([head, tail]))
-    return out
-
-
-def sample_model(model, solution=None, samples: int = 3):
-    """Points, hexahedra, point data and cell data of the sampled model (before welding).
-
-    Returns ``(points (N, 3), cells (M, 8), point_data {name: (N,) or (N, c)},
-    cell_data {name: (M,)}, rim (N,))``, ``rim`` marking the points on the
-    boundary of their piece's grid (the only ones that can coincide with others).  Point data: ``temperature``, ``heat_flux``
-    (W/m^2) and ``conductivity`` with a solution, and every channel of the
-    tiles and the deformation map (NaN where a patch lacks it).
-    """
-    prob = solution.problem if solution is not None else None
-
-    def knots_of(pi):
-        return [d.knots for d in prob.spaces[pi].dirs] if prob is not None else model.patches[pi].spline.knots
-
-    axes = conforming_axes(model, knots_of, samples)
-    names = sorted({c for p in model.patches for c in p.channels})
-    groups: dict = {}
-    for pi, patch in enumerate(model.patches):
-        key = (id(patch.spline), prob.spaces[pi].key() if prob is not None else None,
-               tuple(a.tobytes() for a in axes[pi]))
-        groups.setdefault(key, []).append(pi)
-    points, cells, rims, pdata, cdata = [], [], [], {}, {"patch": [], "tile": [], "level": []}
-    offset = 0
-    for members in progress.bar(list(groups.values()), desc="VTU sampling", unit="group"):
-        spline = model.patches[members[0]].spline
-        for box in _pieces(spline):
-            sub = spline.extract(box) if not np.array_equal(box, spline.domain) else spline
-            pax = [a[(a >= lo - 1e-13 * (hi - lo)) & (a <= hi + 1e-13 * (hi - lo))] for a, (lo, hi) in
-                   zip(axes[members[0]], box)]
-            shape = tuple(len(a) for a in pax)
-            geos = [PlacedPatch(sub, p.placement, p.outer, p.tile, p.level) for p in (model.patches[i] for i in members)]
-            x, D, chans = patches_geometry_derivs(geos, pax)
-            P, N = x.shape[:2]
-            fields = {}
-            if solution is not None:
-                det = _temperature_fields(solution, members, pax, x, D, chans, fields).reshape(P, N)
-            else:
-                det = gradient_and_det(D, None)[1].reshape(P, N)
-            for c in names:
-                fields[c] = np.asarray(chans[c], float).reshape(P, N) if c in chans else np.full((P, N), np.nan)
-            rim = _rim(shape)
-            for j, pi in enumerate(members):
-                hexes = _hexes(shape, bool(np.median(det[j]) < 0)) + offset
-                cells.append(hexes)
-                points.append(x[j])
-                rims.append(rim)
-                for key, v in fields.items():
-                    pdata.setdefault(key, []).append(v[j])
-                patch = model.patches[pi]
-                for key, value in (("patch", pi), ("tile", patch.tile), ("level", patch.level)):
-                    cdata[key].append(np.full(len(hexes), value, np.int32))
-                offset += N
-    return (np.concatenate(points), np.concatenate(cells), {k: np.concatenate(v) for k, v in pdata.items()},
-            {k: np.concatenate(v) for k, v in cdata.items()}, np.concatenate(rims))
-
-
-def _rim(shape) -> np.ndarray:
-    """Mask of the points on the boundary of a grid of ``shape`` (C order): only those can be shared."""
-    m = np.zeros(shape, bool)
-    m[[0, -1]] = True
-    m[:, [0, -1]] = True
-    m[:, :, [0, -1]] = True
-    return m.ravel()
+    return hook
 
 
 def _temperature_fields(solution, members, pax, x, D, chans, out: dict) -> np.ndarray:
@@ -210,7 +28,7 @@ def _temperature_fields(solution, members, pax, x, D, chans, out: dict) -> np.nd
     """
     prob = solution.problem
     space = prob.spaces[members[0]]
-    B = [_basis(d, a) for d, a in zip(space.dirs, pax)]  # per direction: (values, derivatives)
+    B = [piece_basis(d, a) for d, a in zip(space.dirs, pax)]  # per direction: (values, derivatives)
     U = np.stack([solution.u[prob.offsets[i] : prob.offsets[i + 1]].reshape(space.shape) for i in members])
     T = np.einsum("pabc,ia,jb,kc->pijk", U, B[0][0], B[1][0], B[2][0], optimize=True).reshape(len(members), -1)
     dxi = np.stack([np.einsum("pabc,ia,jb,kc->pijk", U, *(B[d][int(d == k)] for d in range(3)), optimize=True)
@@ -225,35 +43,3 @@ def _temperature_fields(solution, members, pax, x, D, chans, out: dict) -> np.nd
     out.update({"temperature": T, "heat_flux": flux.reshape(P, N, 3),
                 "conductivity": cond.reshape((P, N) + cond.shape[1:])})
     return det
-
-
-def weld(points, cells, point_data, candidates=None, tol: float = 1e-10):
-    """Merge points closer than ``tol`` times the model size; their data are averaged.
-
-    ``candidates``: mask of the points that may coincide with others (default
-    all).  Returns ``(points, cells, point_data, merged)`` with ``merged`` the
-    number of points removed.  Neighbours are found by a KD-tree and grouped by
-    connected components (no bucket boundaries: points within the tolerance
-    always merge).
-    """
-    n = len(points)
-    idx = np.arange(n) if candidates is None else np.flatnonzero(candidates)
-    scale = max(1.0, float(np.ptp(points, axis=0).max())) if n else 1.0
-    pairs = cKDTree(points[idx]).query_pairs(tol * scale, output_type="ndarray") if len(idx) else np.zeros((0, 2), int)
-    if not len(pairs):
-        return points, cells, point_data, 0
-    pairs = idx[pairs]
-    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
-    m, label = connected_components(graph, directed=False)
-    counts = np.bincount(label, minlength=m).astype(float)
-    first = np.full(m, n)
-    np.minimum.at(first, label, np.arange(n))
-    out_pts = points[first]
-    out_data = {}
-    for key, v in point_data.items():
-        v2 = v.reshape(n, -1)
-        acc = np.zeros((m, v2.shape[1]))
-        for c in range(v2.shape[1]):
-            acc[:, c] = np.bincount(label, weights=v2[:, c], minlength=m)
-        out_data[key] = (acc / counts[:, None]).reshape((m,) + v.shape[1:])
-    return out_pts, label[cells], out_data, n - m

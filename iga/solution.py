@@ -9,7 +9,7 @@ from geometry import SplineFunction
 from .coefficients import tensor_matrix
 from .errors import ProblemError
 from .faces import chunks
-from .geometry_eval import gradient_and_det, patch_geometry_points, patches_geometry_derivs
+from geometry.chain import gradient_and_det, patch_geometry_points, patches_geometry_derivs
 from .locate import Locator
 from .model import tag_faces
 

@@ -23,7 +23,9 @@ from .assembly import block_diagonal_csr, load_form, pattern, stiffness_data
 from .coefficients import TENSOR_PAIRS
 from .faces import chunks
 from .forms import diffusion
-from .geometry_eval import checked_det, patches_geometry_derivs_slabs
+from geometry.chain import patches_geometry_derivs_slabs
+
+from .geometry_eval import checked_det
 
 __all__ = ["VolumeAssembler"]
 

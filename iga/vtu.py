@@ -25,7 +25,9 @@ from geometry.io import atomic_write, check_folder
 
 from .errors import ProblemError
 from .model import as_model
-from .sampling import sample_model, weld
+from geometry.sampling import sampled_mesh
+
+from .sampling import temperature_fields
 from .solution import Solution
 
 __all__ = ["write_vtu", "save_grid"]
@@ -87,13 +89,8 @@ def write_vtu(path, solution_or_model, samples: int = 3, cells: str = "linear") 
 
 def sampled_grid(model, solution=None, samples: int = 3):
     """The welded linear-hexahedron grid (a ``pyvista.UnstructuredGrid``) of a model or solution."""
-    import pyvista as pv
-
-    points, hexes, pdata, cdata, rim = sample_model(model, solution, samples)
-    points, hexes, pdata, _ = weld(points, hexes, pdata, rim)
-    grid = pv.UnstructuredGrid({pv.CellType.HEXAHEDRON: hexes}, points)
-    for key, v in pdata.items():
-        grid.point_data[key] = v
-    for key, v in cdata.items():
-        grid.cell_data[key] = v
-    return grid
+    if solution is None:
+        return sampled_mesh(model, samples)
+    prob = solution.problem
+    return sampled_mesh(model, samples, knots_of=lambda pi: [d.knots for d in prob.spaces[pi].dirs],
+                        spaces_key=lambda pi: prob.spaces[pi].key(), fields=temperature_fields(solution))

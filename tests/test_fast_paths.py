@@ -6,11 +6,11 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 import solvers
-from geometry import MultiPatch, primitives as pr
+from geometry import MultiPatch, _fast, primitives as pr
 from iga import HeatProblem, ProblemError, fast_assembly
 from iga import system as system_module
 from iga.assembly import load_form, pattern, stiffness_data
-from iga.geometry_eval import grid_values_derivs_slabs
+from geometry.chain import grid_values_derivs_slabs
 from iga.manufactured import quarter_annulus
 from iga.coefficients import TENSOR_PAIRS as _PAIRS
 from iga.system import eliminate as _eliminate
@@ -81,7 +81,7 @@ def test_compiled_grid_geometry_equals_direct_evaluation():
 @pytest.mark.parametrize("axis", range(3))
 def test_compiled_face_grid_equals_direct_evaluation(axis, monkeypatch):
     # large face grids (one point in one direction) are evaluated by the compiled kernel too
-    from iga import geometry_eval
+    from geometry import chain as geometry_eval
 
     rng = np.random.default_rng(axis)
     S = random_spline(rng, 3, degrees=(3, 1, 2), rational=True, channels=("k",))
@@ -94,8 +94,8 @@ def test_compiled_face_grid_equals_direct_evaluation(axis, monkeypatch):
     assert np.abs(np.stack(dx, -1) - S.jacobian(G)).max() < 1e-10
     monkeypatch.setattr(geometry_eval, "COMPILED_GRID_POINTS", 10**9)  # the NumPy path gives the same
     calls = []
-    grid_derivs = fast_assembly.grid_derivs
-    monkeypatch.setattr(fast_assembly, "grid_derivs", lambda *a: calls.append(1) or grid_derivs(*a))
+    grid_derivs = _fast.grid_derivs
+    monkeypatch.setattr(_fast, "grid_derivs", lambda *a: calls.append(1) or grid_derivs(*a))
     x2, dx2 = geometry_eval.grid_values_derivs(S, axes)
     assert calls == []
     assert np.abs(x2 - x).max() < 1e-12 and np.abs(np.stack(dx2, -1) - np.stack(dx, -1)).max() < 1e-10
