@@ -195,22 +195,36 @@ def test_graded_conductivity_is_exact_in_parameter_mode_and_usable_by_analysis()
 
 
 def test_surface_export_and_watertightness(tmp_path):
+    from geometry import PlacedPatch
     from tiling.export import watertightness, write_surfaces
 
     D = pr.annulus(1.0, 2.0, 1.0, exact=False, elements=(2, 1, 1))
     closed = tiling.regular(D, L.cross(), (2, 2, 2))
-    assert watertightness(closed)["closed"]
-    assert watertightness(tiling.hierarchical(D, L.heat_sink_t2(), (2, 1), 2))["closed"]
-    # remove one patch of the cross paving: its neighbours' faces become open
+    w = watertightness(closed)
+    # 4 x 2 x 2 cells (2 knot spans along u): a lattice of bars whose genus is the number of independent cycles
+    # of the cell graph, E - V + 1 = (3*2*2 + 4*1*2 + 4*2*1) - 16 + 1 = 13, so chi = 2 - 2 * 13
+    assert w["closed"] and w["manifold"] and w["components"] == 1 and w["euler_characteristic"] == 2 - 2 * 13
+    t2 = watertightness(tiling.hierarchical(D, L.heat_sink_t2(), (2, 1), 2))
+    assert t2["closed"] and t2["components"] == 1
+    # one arm moved off its neighbour: no longer welded, a second component (a gap in the structure)
     ms = tiling.regular(D, L.cross(), (1, 1, 1))
-    broken = tiling.Microstructure(ms.outer, ms.patches[:-1], [i for i in ms.interfaces if 6 not in (i.a[0], i.b[0])],
-                                   ms.tags, ms.tiles)
-    assert not watertightness(broken)["closed"]
-    for suffix in (".vtu", ".obj", ".stl"):
+    arm = ms.patches[-1]
+    M = arm.placement.copy()
+    M[:, 3] += [0.02, 0.0, 0.0]
+    moved = tiling.Microstructure(ms.outer, ms.patches[:-1] + [PlacedPatch(arm.spline, M, arm.outer, arm.tile)],
+                                  ms.interfaces[:0], ms.tags, ms.tiles)
+    assert watertightness(moved)["components"] == 2
+    # surface tiles: the hollow cell is closed; without one wall it has a hole
+    box = tiling.regular(pr.box(), L.hollow_box(), (1, 1, 1))
+    assert watertightness(box)["closed"]
+    holed = tiling.Microstructure(box.outer, box.patches[:-1], [], box.tags, box.tiles)
+    h = watertightness(holed)
+    assert not h["closed"] and h["open_edges"] == 4 * 4  # the missing wall's rim, sampled 4 times per side
+    for suffix in (".vtu", ".obj", ".stl", ".ply"):
         path = write_surfaces(tmp_path / f"s{suffix}", closed)
         assert path.stat().st_size > 1000
     import pyvista as pv
 
     assert pv.read(tmp_path / "s.stl").n_cells > 100
-    with pytest.raises(TilingError, match="use a .vtu, .obj or .stl"):
-        write_surfaces(tmp_path / "s.ply", closed)
+    with pytest.raises(TilingError, match="use a .vtu"):
+        write_surfaces(tmp_path / "s.dxf", closed)
