@@ -6,6 +6,7 @@ import numpy as np
 
 from .errors import SplineError
 from .spline import SplineFunction
+from .errors import show
 
 
 class BSpline(SplineFunction):
@@ -35,7 +36,7 @@ class BSpline(SplineFunction):
         channels = tuple(channels)
         for c in channels:
             if not isinstance(c, str) or not c:
-                raise SplineError(f"channel names must be non-empty strings, got {c!r}")
+                raise SplineError(f"channel names must be non-empty strings, got {show(c)}")
         if len(set(channels)) != len(channels):
             raise SplineError(f"channel names must be unique, got {list(channels)}")
         cp = self._as_array(control_points, "control points")
@@ -62,7 +63,7 @@ class BSpline(SplineFunction):
 
     def channel_index(self, name: str) -> int:
         if name not in self.channels:
-            raise SplineError(f"unknown channel {name!r}; this spline has channels {list(self.channels)}")
+            raise SplineError(f"unknown channel {show(name)}; this spline has channels {list(self.channels)}")
         return 3 + self.channels.index(name)
 
     def channel(self, name: str) -> np.ndarray:
@@ -73,7 +74,7 @@ class BSpline(SplineFunction):
         """Copy with channel ``name`` set (added if new) from control values or a constant."""
         vals = np.broadcast_to(np.asarray(values, float), self.shape)
         if not np.all(np.isfinite(vals)):
-            raise SplineError(f"channel {name!r} values must be finite")
+            raise SplineError(f"channel {show(name)} values must be finite")
         if name in self.channels:
             cp = self.coefficients.copy()
             cp[..., self.channel_index(name)] = vals

@@ -15,3 +15,23 @@ class ToolkitError(ValueError):
 
 class SplineError(ToolkitError):
     """Invalid spline data or an operation a spline cannot perform."""
+
+
+def show(value) -> str:
+    """``repr`` of a value for a message, NumPy scalars and arrays shown as plain numbers and lists.
+
+    ``show(np.float64(0.5))`` is ``0.5``, not ``np.float64(0.5)``; strings keep their quotes.
+    """
+    return repr(_plain(value))
+
+
+def _plain(v):
+    if hasattr(v, "item") and getattr(v, "shape", None) == ():  # NumPy scalar or 0-d array
+        return v.item()
+    if hasattr(v, "tolist") and hasattr(v, "shape"):
+        return v.tolist()
+    if isinstance(v, tuple):
+        return tuple(_plain(x) for x in v)
+    if isinstance(v, list):
+        return [_plain(x) for x in v]
+    return v

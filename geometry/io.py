@@ -27,6 +27,7 @@ import numpy as np
 from .bspline import BSpline
 from .errors import SplineError
 from .resources import check_memory
+from .errors import show
 
 FORMAT = "iga-toolkit-splines"
 VERSION = 1
@@ -125,20 +126,20 @@ def _check_archive(path: Path) -> None:
     with zf:
         for info in zf.infolist():
             if not info.filename.endswith(".npy"):
-                raise SplineError(f"{path} holds {info.filename!r}, which is not a NumPy array; not a spline file")
+                raise SplineError(f"{path} holds {show(info.filename)}, which is not a NumPy array; not a spline file")
             try:
                 with zf.open(info) as fh:
                     version = np.lib.format.read_magic(fh)
                     read = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
                     shape, _, dtype = read(fh)
             except (ValueError, OSError, zipfile.BadZipFile, EOFError) as exc:
-                raise SplineError(f"{path}: array {info.filename!r} is damaged ({exc})") from None
+                raise SplineError(f"{path}: array {show(info.filename)} is damaged ({exc})") from None
             if dtype.hasobject:
-                raise SplineError(f"{path}: array {info.filename!r} holds Python objects; spline files hold numbers "
+                raise SplineError(f"{path}: array {show(info.filename)} holds Python objects; spline files hold numbers "
                                   "and text only, and objects are never unpickled")
             nbytes = int(np.prod(shape, dtype=np.float64)) * dtype.itemsize
             if nbytes > info.file_size:
-                raise SplineError(f"{path}: array {info.filename!r} claims {nbytes:.4g} bytes but the archive holds "
+                raise SplineError(f"{path}: array {show(info.filename)} claims {nbytes:.4g} bytes but the archive holds "
                                   f"{info.file_size} for it; the file is damaged or forged")
             total += nbytes
     check_memory(total, f"loading {path}")
@@ -155,7 +156,7 @@ def load_all(path) -> list[BSpline]:
     try:
         with np.load(path, allow_pickle=False) as data:
             if "format" not in data or str(data["format"]) != FORMAT:
-                raise SplineError(f"{path} is not an iga-toolkit spline file (missing 'format' = {FORMAT!r})")
+                raise SplineError(f"{path} is not an iga-toolkit spline file (missing 'format' = {show(FORMAT)})")
             if int(data["version"]) != VERSION:
                 raise SplineError(f"{path} has format version {int(data['version'])}; this build reads {VERSION}")
             count = int(data["count"])

@@ -23,6 +23,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .errors import SplineError
+from .errors import show
 
 __all__ = [
     "apply_along",
@@ -75,7 +76,7 @@ def validate_knots(knots, degree: int, n: int, direction: int = 0) -> np.ndarray
         if hit is not None:  # the same knot vector was validated before (e.g. thousands of composed tiles)
             return hit
     if not isinstance(degree, (int, np.integer)) or degree < 1:
-        raise SplineError(f"{where}: degree must be an integer >= 1, got {degree!r}")
+        raise SplineError(f"{where}: degree must be an integer >= 1, got {show(degree)}")
     try:
         U = np.asarray(knots, dtype=float)
     except (TypeError, ValueError) as exc:
@@ -92,11 +93,11 @@ def validate_knots(knots, degree: int, n: int, direction: int = 0) -> np.ndarray
         raise SplineError(f"{where}: degree {p} needs at least {p + 1} control points, got {n}")
     bad = ~np.isfinite(U)
     if bad.any():
-        raise SplineError(f"{where}: knot vector has non-finite value {U[bad][0]!r} at index {int(np.argmax(bad))}")
+        raise SplineError(f"{where}: knot vector has non-finite value {show(U[bad][0])} at index {int(np.argmax(bad))}")
     dec = np.nonzero(np.diff(U) < 0)[0]
     if len(dec):
         i = int(dec[0])
-        raise SplineError(f"{where}: knot vector decreases at index {i + 1} ({U[i]!r} -> {U[i + 1]!r}); sort it")
+        raise SplineError(f"{where}: knot vector decreases at index {i + 1} ({show(U[i])} -> {show(U[i + 1])}); sort it")
     if not (np.all(U[: p + 1] == U[0]) and np.all(U[-p - 1 :] == U[-1])):
         raise SplineError(
             f"{where}: knot vector is not open (clamped): the first and last {p + 1} knots must repeat "
@@ -109,7 +110,7 @@ def validate_knots(knots, degree: int, n: int, direction: int = 0) -> np.ndarray
     if np.any(inner > p + 1):
         k = int(np.argmax(inner > p + 1)) + 1
         raise SplineError(
-            f"{where}: interior knot {vals[k]!r} has multiplicity {mults[k]} > degree + 1 = {p + 1}"
+            f"{where}: interior knot {show(vals[k])} has multiplicity {mults[k]} > degree + 1 = {p + 1}"
         )
     if mults[0] > p + 1 or mults[-1] > p + 1:
         raise SplineError(f"{where}: end knots may repeat at most degree + 1 = {p + 1} times")
@@ -253,10 +254,10 @@ def insertion_matrix(knots: np.ndarray, degree: int, values) -> tuple[np.ndarray
     for t in vals:
         if not (U[0] < t < U[-1]):
             raise SplineError(
-                f"cannot insert knot {t!r}: it must lie strictly inside the domain [{U[0]}, {U[-1]}]"
+                f"cannot insert knot {show(t)}: it must lie strictly inside the domain [{U[0]}, {U[-1]}]"
             )
         if np.count_nonzero(U == t) >= p + 1:
-            raise SplineError(f"cannot insert knot {t!r}: it already has multiplicity degree + 1 = {p + 1}")
+            raise SplineError(f"cannot insert knot {show(t)}: it already has multiplicity degree + 1 = {p + 1}")
         U, Ri = _insert_one(U, p, float(t))
         R = Ri @ R
     return U, sp.csr_array(R)

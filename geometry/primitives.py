@@ -21,6 +21,7 @@ from .errors import SplineError
 from .faces import FACE_AXIS, FACE_NAMES
 from .products import multiply
 from .spline import SplineFunction
+from .errors import show
 
 __all__ = [
     "box",
@@ -83,9 +84,9 @@ def arc(radius: float, angle: float, start: float = 0.0, exact: bool = True):
     90-degree segments, smaller for shorter ones).
     """
     if not (np.isfinite(angle) and 0 < angle <= 2 * pi + 1e-12):
-        raise SplineError(f"arc angle must be in (0, 2 pi] radians, got {angle!r}")
+        raise SplineError(f"arc angle must be in (0, 2 pi] radians, got {show(angle)}")
     if not (np.isfinite(radius) and radius > 0):
-        raise SplineError(f"arc radius must be positive, got {radius!r}")
+        raise SplineError(f"arc radius must be positive, got {show(radius)}")
     nseg = max(1, ceil(angle / (pi / 2) - 1e-9))
     theta = angle / nseg
     breaks = np.linspace(0.0, 1.0, nseg + 1)
@@ -134,9 +135,9 @@ def annulus(
     full turn (then the u-ends coincide).
     """
     if not (0 < r_inner < r_outer) or not np.isfinite(r_outer):
-        raise SplineError(f"annulus needs 0 < r_inner < r_outer, got r_inner={r_inner!r}, r_outer={r_outer!r}")
+        raise SplineError(f"annulus needs 0 < r_inner < r_outer, got r_inner={show(r_inner)}, r_outer={show(r_outer)}")
     if not (np.isfinite(height) and height > 0):
-        raise SplineError(f"annulus height must be positive, got {height!r}")
+        raise SplineError(f"annulus height must be positive, got {show(height)}")
     p, U, P, w = arc(1.0, angle, start, exact)
     radii = np.array([r_inner, r_outer])
     z = np.array([0.0, height])
@@ -201,7 +202,7 @@ def tapered(spline: BSpline, top_scale: float, axis_point=(0.0, 0.0), direction:
     ``direction`` parameter, raising that degree by one.
     """
     if not (np.isfinite(top_scale) and top_scale > 0):
-        raise SplineError(f"top_scale must be positive, got {top_scale!r}")
+        raise SplineError(f"top_scale must be positive, got {show(top_scale)}")
     c = np.asarray(axis_point, float)
     moved = spline.translate([-c[0], -c[1], 0.0])
     U = spline.knots[direction]
@@ -215,7 +216,7 @@ def extrude(surface: BSpline, vector) -> BSpline:
         raise SplineError(f"extrude needs a surface, got a {surface.dim}-variate spline")
     v = np.asarray(vector, float)
     if v.shape != (3,) or not np.any(v):
-        raise SplineError(f"extrusion vector must be a non-zero 3-vector, got {vector!r}")
+        raise SplineError(f"extrusion vector must be a non-zero 3-vector, got {show(vector)}")
     top = surface.translate(v)
     return ruled(surface, top)
 

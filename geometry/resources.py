@@ -17,6 +17,7 @@ import os
 import sys
 
 from .errors import SplineError
+from .errors import show
 
 __all__ = ["available_memory", "memory_limit", "set_memory_limit", "check_memory", "peak_memory_mib", "GiB"]
 
@@ -43,7 +44,7 @@ def set_memory_limit(gib: float | None) -> None:
     """Set the memory budget in GiB (None: the available memory)."""
     global _LIMIT
     if gib is not None and not (isinstance(gib, (int, float)) and gib > 0 and gib < float("inf")):
-        raise SplineError(f"the memory limit must be a positive number of GiB, got {gib!r}")
+        raise SplineError(f"the memory limit must be a positive number of GiB, got {show(gib)}")
     _LIMIT = None if gib is None else float(gib) * GiB
 
 
@@ -58,7 +59,7 @@ def memory_limit() -> float:
         except ValueError:
             value = -1.0
         if not value > 0:
-            raise SplineError(f"IGA_MAX_MEMORY_GIB must be a positive number of GiB, got {env!r}")
+            raise SplineError(f"IGA_MAX_MEMORY_GIB must be a positive number of GiB, got {show(env)}")
         return value * GiB
     return available_memory()
 

@@ -20,6 +20,7 @@ from . import knots as kn
 from .evaluation import SplineEvaluation
 from .errors import SplineError
 from .faces import FACE_NAMES
+from .errors import show
 
 
 class SplineFunction(SplineEvaluation):
@@ -42,7 +43,7 @@ class SplineFunction(SplineEvaluation):
         d = coefficients.ndim - 1
         degs = list(degrees) if isinstance(degrees, (list, tuple, np.ndarray)) else [degrees]
         if not all(isinstance(p, (int, np.integer)) and not isinstance(p, (bool, np.bool_)) for p in degs):
-            raise SplineError(f"degrees must be integers, one per parametric direction, got {degrees!r}")
+            raise SplineError(f"degrees must be integers, one per parametric direction, got {show(degrees)}")
         degrees = tuple(int(p) for p in degs)
         if d not in (1, 2, 3):
             raise SplineError(f"parametric dimension must be 1, 2 or 3, got control-point array of shape {coefficients.shape}")
@@ -56,7 +57,7 @@ class SplineFunction(SplineEvaluation):
         bad = ~np.isfinite(coefficients)
         if bad.any():
             idx = tuple(int(i) for i in np.argwhere(bad)[0])
-            raise SplineError(f"control point {idx[:-1]} component {idx[-1]} is not finite ({coefficients[idx]!r})")
+            raise SplineError(f"control point {idx[:-1]} component {idx[-1]} is not finite ({show(coefficients[idx])})")
         self.degrees = degrees
         self.knots = tuple(
             kn.validate_knots(U, p, n, k) for k, (U, p, n) in enumerate(zip(knots, degrees, coefficients.shape[:-1]))
@@ -73,7 +74,7 @@ class SplineFunction(SplineEvaluation):
             badw = ~(np.isfinite(w) & (w > 0))
             if badw.any():
                 idx = tuple(int(i) for i in np.argwhere(badw)[0])
-                raise SplineError(f"weight at {idx} must be finite and positive, got {w[idx]!r}")
+                raise SplineError(f"weight at {idx} must be finite and positive, got {show(w[idx])}")
             self._hom = np.concatenate([coefficients * w[..., None], w[..., None]], axis=-1)
             self.weights = w.copy()
             self.weights.setflags(write=False)
@@ -181,7 +182,7 @@ class SplineFunction(SplineEvaluation):
 
     def _check_direction(self, direction) -> int:
         if not isinstance(direction, (int, np.integer)) or not 0 <= direction < self.dim:
-            raise SplineError(f"direction must be an integer in 0..{self.dim - 1}, got {direction!r}")
+            raise SplineError(f"direction must be an integer in 0..{self.dim - 1}, got {show(direction)}")
         return int(direction)
 
     # ------------------------------------------------------------ refinement
@@ -203,7 +204,7 @@ class SplineFunction(SplineEvaluation):
         Returns ``(new_spline, [R_0, ..., R_{d-1}])`` (identity where unrefined).
         """
         if not isinstance(times, (int, np.integer)) or isinstance(times, bool) or times < 0:
-            raise SplineError(f"refinement times must be a non-negative integer, got {times!r}")
+            raise SplineError(f"refinement times must be a non-negative integer, got {show(times)}")
         directions = range(self.dim) if directions is None else [self._check_direction(k) for k in directions]
         out = self
         Rs = [None] * self.dim
@@ -222,7 +223,7 @@ class SplineFunction(SplineEvaluation):
         """Raise the degree along ``direction`` by ``times`` (continuity kept); exact."""
         k = self._check_direction(direction)
         if not isinstance(times, (int, np.integer)) or times < 0:
-            raise SplineError(f"elevation times must be a non-negative integer, got {times!r}")
+            raise SplineError(f"elevation times must be a non-negative integer, got {show(times)}")
         U, E = kn.elevation_matrix(self.knots[k], self.degrees[k], int(times))
         knots = list(self.knots)
         knots[k] = U
@@ -281,7 +282,7 @@ class SplineFunction(SplineEvaluation):
         k = self._check_direction(direction)
         lo, hi = self.knots[k][0], self.knots[k][-1]
         if not lo < t < hi:
-            raise SplineError(f"split parameter {t!r} must lie strictly inside [{lo}, {hi}] (direction {k})")
+            raise SplineError(f"split parameter {show(t)} must lie strictly inside [{lo}, {hi}] (direction {k})")
         box = self.domain.copy()
         left_box, right_box = box.copy(), box.copy()
         left_box[k, 1] = t
@@ -344,7 +345,7 @@ class SplineFunction(SplineEvaluation):
         names = FACE_NAMES[: 2 * self.dim]
         if name not in names or self.dim == 1:
             raise SplineError(
-                f"unknown boundary {name!r} for a {self.dim}-variate spline; use one of {list(names)}"
+                f"unknown boundary {show(name)} for a {self.dim}-variate spline; use one of {list(names)}"
                 if self.dim > 1
                 else "a curve's boundary is two points; evaluate the curve at its domain ends instead"
             )

@@ -21,6 +21,7 @@ from geometry import progress, resources
 from geometry.errors import ToolkitError
 
 from .errors import ProblemError
+from geometry.errors import show
 
 
 def _plural(n: int, word: str) -> str:
@@ -79,7 +80,7 @@ def _cmd_info(args) -> int:
 
     for i, s in enumerate(load_all(args.file)):
         dom = ", ".join(f"[{a:g}, {b:g}]" for a, b in s.domain)
-        print(f"{i}: {s!r}")
+        print(f"{i}: {show(s)}")
         print(f"   domain {dom}; elements {s.n_elements}; bounding box {s.bounding_box().round(6).tolist()}")
     return 0
 

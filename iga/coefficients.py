@@ -17,6 +17,7 @@ from numbers import Real
 import numpy as np
 
 from .errors import ProblemError
+from geometry.errors import show
 
 __all__ = ["ScalarField", "Conductivity", "is_number", "TENSOR_PAIRS", "tensor_matrix"]
 
@@ -43,7 +44,7 @@ def _check_channels(names, model, what):
         missing = [c for c in names if c not in p.channels]
         if missing:
             raise ProblemError(
-                f"{what} refers to channel {missing[0]!r}, but patch {i} only has channels {list(p.channels)}; "
+                f"{what} refers to channel {show(missing[0])}, but patch {i} only has channels {list(p.channels)}; "
                 "add the channel to the tile or the deformation map"
             )
 
@@ -59,7 +60,7 @@ class ScalarField:
         self.what, self.positive = what, positive
         if is_number(spec):
             if not np.isfinite(spec) or (positive and spec <= 0):
-                raise ProblemError(f"{what} must be a finite{' positive' if positive else ''} number, got {spec!r}")
+                raise ProblemError(f"{what} must be a finite{' positive' if positive else ''} number, got {show(spec)}")
             self.spec, self.kind = float(spec), "number"
         elif isinstance(spec, str) and channels and model is not None:
             _check_channels([spec], model, what)
@@ -69,7 +70,7 @@ class ScalarField:
         else:
             allowed = "a number, a channel name or a callable of x (N, 3)" if channels else \
                 "a number or a callable of x (N, 3)"
-            raise ProblemError(f"{what} must be {allowed}, got {spec!r} ({type(spec).__name__})")
+            raise ProblemError(f"{what} must be {allowed}, got {show(spec)} ({type(spec).__name__})")
 
     @property
     def constant(self) -> float | None:
@@ -144,7 +145,7 @@ class Conductivity:
             if M is None or M.shape != (3, 3):
                 raise ProblemError(
                     "conductivity must be a number, a channel name, a callable of x (N, 3), a constant 3 x 3 "
-                    f"symmetric positive definite matrix or six channel names (xx, yy, zz, xy, xz, yz); got {spec!r}")
+                    f"symmetric positive definite matrix or six channel names (xx, yy, zz, xy, xz, yz); got {show(spec)}")
             if not np.allclose(M, M.T, rtol=1e-12, atol=0):
                 raise ProblemError(f"conductivity matrix must be symmetric, got {M.tolist()}")
             K6 = np.array([M[r, s] for r, s in TENSOR_PAIRS])

@@ -28,6 +28,7 @@ from pathlib import Path
 from geometry.faces import FACE_NAMES
 
 from .errors import ProblemError
+from geometry.errors import show
 
 __all__ = ["validate", "SECTIONS", "OUTPUT_DEFAULTS"]
 
@@ -43,62 +44,62 @@ def _fail(where: str, message: str):
 
 def _number(v, where, lo=None, hi=None, open_lo=True) -> float:
     if not isinstance(v, Real) or isinstance(v, bool) or v != v or v in (float("inf"), float("-inf")):
-        _fail(where, f"must be a finite number, got {v!r}")
+        _fail(where, f"must be a finite number, got {show(v)}")
     if lo is not None and (v <= lo if open_lo else v < lo):
-        _fail(where, f"must be {'>' if open_lo else '>='} {lo}, got {v!r}")
+        _fail(where, f"must be {'>' if open_lo else '>='} {lo}, got {show(v)}")
     if hi is not None and v >= hi:
-        _fail(where, f"must be < {hi}, got {v!r}")
+        _fail(where, f"must be < {hi}, got {show(v)}")
     return float(v)
 
 
 def _int(v, where, lo=0) -> int:
     if not isinstance(v, int) or isinstance(v, bool):
-        _fail(where, f"must be an integer >= {lo}, got {v!r}")
+        _fail(where, f"must be an integer >= {lo}, got {show(v)}")
     if v < lo:
-        _fail(where, f"must be an integer >= {lo}, got {v!r}")
+        _fail(where, f"must be an integer >= {lo}, got {show(v)}")
     return int(v)
 
 
 def _bool(v, where) -> bool:
     if not isinstance(v, bool):
-        _fail(where, f"must be true or false, got {v!r}")
+        _fail(where, f"must be true or false, got {show(v)}")
     return v
 
 
 def _str(v, where) -> str:
     if not isinstance(v, str) or not v:
-        _fail(where, f"must be a non-empty string, got {v!r}")
+        _fail(where, f"must be a non-empty string, got {show(v)}")
     return v
 
 
 def _choice(v, where, choices) -> str:
     if not isinstance(v, str) or v not in choices:
-        _fail(where, f"must be one of {sorted(choices)}, got {v!r}")
+        _fail(where, f"must be one of {sorted(choices)}, got {show(v)}")
     return v
 
 
 def _ints(v, where, n, lo=1) -> list[int]:
     if not isinstance(v, list) or len(v) != n:
-        _fail(where, f"must be a list of {n} integers >= {lo}, got {v!r}")
+        _fail(where, f"must be a list of {n} integers >= {lo}, got {show(v)}")
     return [_int(x, f"{where}[{i}]", lo) for i, x in enumerate(v)]
 
 
 def _table(v, where, allowed, required=()) -> dict:
     if not isinstance(v, dict):
-        _fail(where, f"must be a table, got {type(v).__name__} {v!r}")
+        _fail(where, f"must be a table, got {type(v).__name__} {show(v)}")
     unknown = sorted(set(v) - set(allowed))
     if unknown:
-        raise ProblemError(f"unknown config key {where}.{unknown[0]!r}; allowed keys: {sorted(allowed)}")
+        raise ProblemError(f"unknown config key {where}.{show(unknown[0])}; allowed keys: {sorted(allowed)}")
     missing = [k for k in required if k not in v]
     if missing:
-        raise ProblemError(f"missing required config key {where}.{missing[0]!r}")
+        raise ProblemError(f"missing required config key {where}.{show(missing[0])}")
     return dict(v)
 
 
 def _kwargs(v, where, fn) -> dict:
     """Keyword arguments for ``fn``, bound against its signature; values typed like the defaults."""
     if not isinstance(v, dict):
-        _fail(where, f"must be a table of keyword arguments, got {v!r}")
+        _fail(where, f"must be a table of keyword arguments, got {show(v)}")
     params = {n: p for n, p in inspect.signature(fn).parameters.items()
               if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)}
     out = {}
@@ -112,15 +113,15 @@ def _kwargs(v, where, fn) -> dict:
         elif isinstance(default, Real):
             out[key] = _number(value, w)
             if isinstance(default, int) and not float(value).is_integer():
-                _fail(w, f"must be an integer, got {value!r}")
+                _fail(w, f"must be an integer, got {show(value)}")
             out[key] = int(value) if isinstance(default, int) else float(value)
         elif isinstance(default, (tuple, list)):
             if not isinstance(value, list) or len(value) != len(default):
-                _fail(w, f"must be a list of {len(default)} numbers, got {value!r}")
+                _fail(w, f"must be a list of {len(default)} numbers, got {show(value)}")
             out[key] = tuple(_number(x, f"{w}[{i}]", None) for i, x in enumerate(value))
             if all(isinstance(d, int) for d in default):
                 if not all(float(x).is_integer() for x in out[key]):
-                    _fail(w, f"must be a list of {len(default)} integers, got {value!r}")
+                    _fail(w, f"must be a list of {len(default)} integers, got {show(value)}")
                 out[key] = tuple(int(x) for x in out[key])
         elif isinstance(default, str):
             out[key] = _str(value, w)
@@ -171,7 +172,7 @@ def _output(v, base: Path) -> dict:
         out["name"] = _str(t["name"], "output.name")
     name = out["name"]
     if Path(name).is_absolute() or Path(name).name != name or name in (".", ".."):
-        _fail("output.name", f"must be a plain file name inside output.dir (no folders, no '..'), got {name!r}")
+        _fail("output.name", f"must be a plain file name inside output.dir (no folders, no '..'), got {show(name)}")
     for key in ("vtu", "bezier", "png"):
         if key in t:
             out[key] = _bool(t[key], f"output.{key}")
@@ -180,7 +181,7 @@ def _output(v, base: Path) -> dict:
     if "probes" in t:
         p = t["probes"]
         if not isinstance(p, list) or not all(isinstance(q, list) and len(q) == 3 for q in p):
-            _fail("output.probes", f"must be a list of [x, y, z] points, got {p!r}")
+            _fail("output.probes", f"must be a list of [x, y, z] points, got {show(p)}")
         out["probes"] = [[_number(x, f"output.probes[{i}][{j}]") for j, x in enumerate(q)] for i, q in enumerate(p)]
     d = Path(out["dir"])
     out["path"] = d if d.is_absolute() else base / d
@@ -201,10 +202,10 @@ def validate(config, base_dir=".") -> dict:
         raise ProblemError("the configuration must be a table of sections")
     unknown = sorted(set(config) - set(SECTIONS))
     if unknown:
-        raise ProblemError(f"unknown config section {unknown[0]!r}; sections: {list(SECTIONS)}")
+        raise ProblemError(f"unknown config section {show(unknown[0])}; sections: {list(SECTIONS)}")
     for sec in ("map", "tile", "paving", "bc"):
         if sec not in config:
-            raise ProblemError(f"missing required config section {sec!r}")
+            raise ProblemError(f"missing required config section {show(sec)}")
     cfg: dict = {}
     m = _table(config["map"], "map", {"primitive", "args", "file", "grading"})
     if ("primitive" in m) == ("file" in m):

@@ -19,6 +19,7 @@ from geometry.multipatch import PlacedPatch
 
 from .errors import ProblemError
 from geometry.chain import patches_geometry_derivs
+from geometry.errors import show
 
 __all__ = ["FaceData", "FaceQuadrature", "cross"]
 
@@ -83,7 +84,7 @@ class FaceQuadrature:
             if not (0 <= pi < n):
                 raise ProblemError(f"patch index {pi} out of range (the model has {n} patches)")
             if face not in FACE_AXIS and parse_slot_face(face) is None:
-                raise ProblemError(f"unknown face {face!r}; use umin .. wmax or a slot face id such as 'u=0.5-'")
+                raise ProblemError(f"unknown face {show(face)}; use umin .. wmax or a slot face id such as 'u=0.5-'")
             gk = (id(self.model.patches[pi].spline), self.spaces[pi].key(), face)
             groups.setdefault(gk, []).append(pi)
         for (_, _, face), members in groups.items():
@@ -134,7 +135,7 @@ class FaceQuadrature:
             for j, pi in enumerate(members):
                 rects = self.model.face_regions.get((pi, face))
                 if rects is None:
-                    raise ProblemError(f"patch {pi} has no free region recorded for slot face {face!r}")
+                    raise ProblemError(f"patch {pi} has no free region recorded for slot face {show(face)}")
                 mask = np.zeros(q1.shape, bool)
                 for (a1, b1), (a2, b2) in rects:
                     mask |= (q1 > a1) & (q1 < b1) & (q2 > a2) & (q2 < b2)

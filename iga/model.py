@@ -25,6 +25,7 @@ from geometry.errors import SplineError
 from geometry.faces import is_face
 
 from .errors import ProblemError
+from geometry.errors import show
 
 __all__ = ["as_model", "tag_faces", "PlacedPatch"]
 
@@ -70,10 +71,10 @@ def tag_faces(model, tag: str) -> list:
     if not isinstance(tag, str) or tag not in model.tags:
         known = sorted(model.tags, key=lambda t: (t.startswith("patch"), t))
         shown = known if len(known) <= 30 else known[:30] + ["..."]
-        raise ProblemError(f"unknown boundary tag {tag!r}; this model has tags {shown}")
+        raise ProblemError(f"unknown boundary tag {show(tag)}; this model has tags {shown}")
     faces = model.tags[tag]
     for pi, face in faces:
         if not (0 <= pi < len(model.patches)) or not is_face(face):
-            raise ProblemError(f"tag {tag!r} holds an invalid face ({pi}, {face!r}); faces are (patch index, "
+            raise ProblemError(f"tag {show(tag)} holds an invalid face ({pi}, {show(face)}); faces are (patch index, "
                                "face name or slot face id)")
     return faces

@@ -25,6 +25,7 @@ from geometry.io import atomic_write
 
 from .config import validate
 from .errors import ProblemError
+from geometry.errors import show
 
 __all__ = ["run_pipeline", "heat_sink_config", "circular_heat_sink_map", "vertical_heat_sink_map", "MAPS"]
 
@@ -54,7 +55,7 @@ def heat_sink_config(variant: str = "circular", levels: int | None = None, refin
     air at 30 C on every other external face.
     """
     if variant not in ("circular", "vertical"):
-        raise ProblemError(f"variant must be 'circular' or 'vertical', got {variant!r}")
+        raise ProblemError(f"variant must be 'circular' or 'vertical', got {show(variant)}")
     circ = variant == "circular"
     return {
         "map": {"primitive": "circular_heat_sink" if circ else "vertical_heat_sink",

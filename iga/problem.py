@@ -33,6 +33,7 @@ from .regularity import prove_regular
 from .space import make_space, space_size
 from .system import solve_system
 from .volume import VolumeAssembler
+from geometry.errors import show
 
 __all__ = ["HeatProblem"]
 
@@ -76,7 +77,7 @@ def _count(name: str, v, minimum: int, three: bool = False):
         isinstance(x, (int, np.integer)) and not isinstance(x, (bool, np.bool_)) and x >= minimum for x in vals)
     if not ok:
         what = "an integer" if not three else "an integer or three integers"
-        raise ProblemError(f"{name} must be {what} >= {minimum}, got {v!r}")
+        raise ProblemError(f"{name} must be {what} >= {minimum}, got {show(v)}")
     return tuple(int(x) for x in vals) if three and len(vals) == 3 else int(vals[0])
 
 
@@ -153,10 +154,10 @@ class HeatProblem:
     # ------------------------------------------------------------ conditions
     def _condition(self, kind, tag, value, h=None) -> "HeatProblem":
         if not tag_faces(self.model, tag):
-            raise ProblemError(f"tag {tag!r} has no faces in this model (every face it named is glued to a "
+            raise ProblemError(f"tag {show(tag)} has no faces in this model (every face it named is glued to a "
                                f"neighbour or absent); choose another tag from {sorted(self.model.tags)[:20]}")
         what = {"dirichlet": "Dirichlet value", "neumann": "Neumann flux", "robin": "ambient temperature"}[kind]
-        field = ScalarField(value, f"{what} on {tag!r}", model=self.model, channels=False)
+        field = ScalarField(value, f"{what} on {show(tag)}", model=self.model, channels=False)
         self.conditions.append(_Condition(kind, tag, field, h))
         return self
 
@@ -170,7 +171,7 @@ class HeatProblem:
 
     def robin(self, tag: str, h, ambient) -> "HeatProblem":
         """Convection -k dT/dn = h (T - ambient) on ``tag``; h in W/(m^2 K), must be > 0."""
-        hh = ScalarField(h, f"film coefficient h on {tag!r}", positive=True, model=self.model, channels=False)
+        hh = ScalarField(h, f"film coefficient h on {show(tag)}", positive=True, model=self.model, channels=False)
         return self._condition("robin", tag, ambient, hh)
 
     # --------------------------------------------------------------- assembly
@@ -189,7 +190,7 @@ class HeatProblem:
         x = np.concatenate([fd.x for fd in fds])
         common = [c for c in fds[0].chans if all(c in fd.chans for fd in fds)]
         chans = {c: np.concatenate([fd.chans[c] for fd in fds]) for c in common}
-        where = f"the faces tagged {tag!r} (e.g. patch {fds[0].patch} face {fds[0].face})"
+        where = f"the faces tagged {show(tag)} (e.g. patch {fds[0].patch} face {fds[0].face})"
         v = field.values(x, chans, where)
         return np.split(v, np.cumsum([len(fd.x) for fd in fds])[:-1])
 
@@ -201,8 +202,8 @@ class HeatProblem:
                 other = out[c.kind].get(key)
                 if other is not None:
                     raise ProblemError(
-                        f"patch {key[0]} face {key[1]} has two {c.kind} conditions (tags {other.tag!r} and "
-                        f"{c.tag!r}); give each face one condition of each kind")
+                        f"patch {key[0]} face {key[1]} has two {c.kind} conditions (tags {show(other.tag)} and "
+                        f"{show(c.tag)}); give each face one condition of each kind")
                 out[c.kind][key] = c
         clash = set(out["dirichlet"]) & (set(out["neumann"]) | set(out["robin"]))
         if clash:
@@ -224,7 +225,7 @@ class HeatProblem:
             neumann.setdefault(c.tag, []).append(key)
         for key, c in by_kind["robin"].items():
             robin.setdefault(c.tag, []).append(key)
-        book = {"neumann": {}, "robin": {}, "dirichlet": {k: (c.value, f"the faces tagged {c.tag!r}")
+        book = {"neumann": {}, "robin": {}, "dirichlet": {k: (c.value, f"the faces tagged {show(c.tag)}")
                                                            for k, c in by_kind["dirichlet"].items()},
                 "source": source_total}
         for tag, keys in neumann.items():  # + int_F q v
@@ -267,7 +268,7 @@ class HeatProblem:
         from .solution import Solution
 
         if not (is_number(tol) and 0 < tol < 1):
-            raise ProblemError(f"tol must be a number in (0, 1), got {tol!r}")
+            raise ProblemError(f"tol must be a number in (0, 1), got {show(tol)}")
         if maxiter is not None:
             _count("maxiter", maxiter, 1)
         kinds = {c.kind for c in self.conditions}

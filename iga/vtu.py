@@ -29,6 +29,7 @@ from geometry.sampling import sampled_mesh
 
 from .sampling import temperature_fields
 from .solution import Solution
+from geometry.errors import show
 
 __all__ = ["write_vtu", "save_grid"]
 
@@ -69,9 +70,9 @@ def write_vtu(path, solution_or_model, samples: int = 3, cells: str = "linear") 
     (8, 1.0)
     """
     if not isinstance(samples, (int, np.integer)) or isinstance(samples, bool) or samples < 1:
-        raise ProblemError(f"samples must be a positive integer, got {samples!r}")
+        raise ProblemError(f"samples must be a positive integer, got {show(samples)}")
     if cells not in ("linear", "bezier"):
-        raise ProblemError(f"cells must be 'linear' or 'bezier', got {cells!r}")
+        raise ProblemError(f"cells must be 'linear' or 'bezier', got {show(cells)}")
     path = Path(path)
     if path.suffix.lower() != ".vtu":
         raise ProblemError(f"cannot write {path.name}: VTU files end in .vtu")

@@ -22,6 +22,7 @@ from __future__ import annotations
 import importlib.util
 import time
 from dataclasses import dataclass, field
+from numbers import Real
 from typing import Callable
 
 import numpy as np
@@ -29,6 +30,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from .errors import SolverError
+from geometry.errors import show
 
 __all__ = ["SolverError", "SolveInfo", "solve", "register", "backends", "AUTO_DIRECT_LIMIT"]
 
@@ -61,13 +63,20 @@ class SolveInfo:
 
 
 _BACKENDS: dict[str, Callable] = {}
+_OPTIONS: dict[str, set] = {}
+COMMON_OPTIONS = {"overwrite_a"}
 
 
-def register(name: str, fn: Callable | None = None):
-    """Register ``fn(A, b, tol, maxiter, **options) -> (x, SolveInfo)`` under ``name`` (decorator or call)."""
+def register(name: str, fn: Callable | None = None, options=()):
+    """Register ``fn(A, b, tol, maxiter, **options) -> (x, SolveInfo)`` under ``name`` (decorator or call).
+
+    ``options``: the names of the backend's own options (beyond ``overwrite_a``);
+    :func:`solve` refuses any other.
+    """
 
     def deco(f):
         _BACKENDS[name] = f
+        _OPTIONS[name] = COMMON_OPTIONS | set(options)
         return f
 
     return deco(fn) if fn is not None else deco
@@ -123,7 +132,7 @@ def _krylov(A, b, M, tol, maxiter, name, t_setup, extra):
 
     t1 = time.perf_counter()
     with np.errstate(all="ignore"):  # a singular system shows up as non-finite values, reported below
-        x, flag = spla.cg(A, b, rtol=tol, atol=0.0, maxiter=maxiter, M=M, callback=count)
+        x, _flag = spla.cg(A, b, rtol=tol, atol=0.0, maxiter=maxiter, M=M, callback=count)
     t2 = time.perf_counter()
     res = _residual(A, x, b)
     if not np.all(np.isfinite(x)):
@@ -131,7 +140,7 @@ def _krylov(A, b, M, tol, maxiter, name, t_setup, extra):
             f"{name} broke down with non-finite values after {it[0]} iterations (residual undefined): "
             "the matrix is singular or indefinite; a steady heat problem needs a Dirichlet or Robin condition"
         )
-    if flag != 0 or res > 10 * tol:
+    if res > 10 * tol:  # judged by the true residual: an iteration limit reached after convergence is no failure
         raise SolverError(
             f"{name} did not converge: relative residual {res:.2e} after {it[0]} iterations "
             f"(tolerance {tol:.0e}); the system may be singular (no Dirichlet or Robin condition?) "
@@ -192,10 +201,19 @@ def solve(A, b, method: str = "auto", tol: float = 1e-10, maxiter: int | None = 
     data = A.data if hasattr(A, "data") else sp.csr_matrix(A).data
     if not np.all(np.isfinite(data)) or not np.all(np.isfinite(b)):
         raise SolverError("the system contains non-finite values (NaN or inf); check the material data and loads")
+    if not isinstance(method, str) or (method != "auto" and method not in _BACKENDS):
+        raise SolverError(f"unknown solver {show(method)}; choose one of {backends()}")
+    if not (isinstance(tol, Real) and not isinstance(tol, bool) and 0 < tol < 1):
+        raise SolverError(f"tol must be a number in (0, 1), got {show(tol)}")
+    if maxiter is not None and not (isinstance(maxiter, (int, np.integer)) and not isinstance(maxiter, bool)
+                                    and maxiter >= 1):
+        raise SolverError(f"maxiter must be an integer >= 1, got {show(maxiter)}")
     if method == "auto":
         method = "direct" if n <= AUTO_DIRECT_LIMIT else "amg-cg"
-    if method not in _BACKENDS:
-        raise SolverError(f"unknown solver {method!r}; choose one of {backends()}")
+    unknown = sorted(set(options) - _OPTIONS[method])
+    if unknown:
+        raise SolverError(f"unknown option {show(unknown[0])} for the {method} solver; it takes "
+                          f"{sorted(_OPTIONS[method])}")
     if maxiter is None:
         maxiter = 1000 if method == "amg-cg" else 20 * n
     if not np.any(b):

@@ -26,6 +26,7 @@ from geometry.sampling import sample_axes, sampled_mesh, weld
 
 from .errors import TilingError
 from .microstructure import Microstructure
+from geometry.errors import show
 
 __all__ = ["surface", "watertightness", "write_surfaces", "render_png"]
 
@@ -54,7 +55,7 @@ def surface(ms: Microstructure, samples: int = 4):
     import pyvista as pv
 
     if not isinstance(samples, (int, np.integer)) or isinstance(samples, bool) or samples < 1:
-        raise TilingError(f"samples must be a positive integer, got {samples!r}")
+        raise TilingError(f"samples must be a positive integer, got {show(samples)}")
     tri = [i for i, P in enumerate(ms.patches) if P.spline.dim == 3]
     parts_pts, parts_tri, parts_pid = [], [], []
     if tri:
@@ -160,7 +161,7 @@ def render_png(ms: Microstructure, path, samples: int = 6, color_by: str = "leve
     attr = {"level": [p.level for p in ms.patches], "tile": [p.tile for p in ms.patches],
             "patch": list(range(len(ms.patches)))}
     if color_by not in attr:
-        raise TilingError(f"color_by must be one of {sorted(attr)}, got {color_by!r}")
+        raise TilingError(f"color_by must be one of {sorted(attr)}, got {show(color_by)}")
     mesh = surface(ms, samples)
     pl = pv.Plotter(off_screen=True, window_size=list(window))
     tris = mesh.extract_cells_by_type(5)

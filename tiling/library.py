@@ -31,6 +31,7 @@ from geometry import BSpline, knots as kn, primitives as pr
 
 from .errors import TilingError
 from .tile import BranchFace, Tile, discontinuity_branches
+from geometry.errors import show
 
 _W_KNOTS = np.array([0, 0, 0, 0.4, 0.4, 1, 1, 1.0])  # quadratic, C0 at 0.4: solid base below
 _Z_LAYERS = np.array([0.0, 0.2, 0.4, 0.7, 1.0])  # Greville abscissae of _W_KNOTS: z linear in w
@@ -144,7 +145,7 @@ def hollow_box() -> Tile:
 def cross(arm: float = 0.3) -> Tile:
     """Seven trilinear blocks: centre [a, b]^3 (b - a = ``arm``) and six arms to the cell faces."""
     if not 0 < arm < 1:
-        raise TilingError(f"cross: arm width must be in (0, 1), got {arm!r}")
+        raise TilingError(f"cross: arm width must be in (0, 1), got {show(arm)}")
     a, b = 0.5 - arm / 2, 0.5 + arm / 2
     blocks = [pr.box((arm,) * 3, (a,) * 3)]
     for k in range(3):

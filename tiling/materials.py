@@ -16,6 +16,7 @@ from geometry import BSpline, knots as kn
 from geometry.faces import FACE_NAMES
 
 from .errors import TilingError
+from geometry.errors import show
 
 
 def interpolate_channel(spline: BSpline, name: str, fn, on: str = "parameters") -> BSpline:
@@ -27,13 +28,13 @@ def interpolate_channel(spline: BSpline, name: str, fn, on: str = "parameters") 
     numerator ``fn * W`` with the spline's own weight function ``W``.
     """
     if on not in ("parameters", "points"):
-        raise TilingError(f"on must be 'parameters' or 'points', got {on!r}")
+        raise TilingError(f"on must be 'parameters' or 'points', got {show(on)}")
     g = [kn.greville(U, p) for U, p in zip(spline.knots, spline.degrees)]
     grid = np.stack(np.meshgrid(*g, indexing="ij"), -1).reshape(-1, spline.dim)
     arg = grid if on == "parameters" else spline.evaluate(grid)[:, :3]
     vals = np.asarray(fn(arg), float)
     if vals.shape != (len(grid),) or not np.all(np.isfinite(vals)):
-        raise TilingError(f"channel function for {name!r} must return {len(grid)} finite values, got shape {vals.shape}")
+        raise TilingError(f"channel function for {show(name)} must return {len(grid)} finite values, got shape {vals.shape}")
     data = vals.reshape(spline.shape)
     if spline.is_rational:
         Wvals = spline.weights  # the weight function at the Greville grid
@@ -59,7 +60,7 @@ def graded_channel(spline: BSpline, name: str = "k", near: float = 205.0, far: f
     stainless steel 54 W/(m K).
     """
     if face not in FACE_NAMES[: 2 * spline.dim]:
-        raise TilingError(f"unknown face {face!r}; use one of {list(FACE_NAMES[: 2 * spline.dim])}")
+        raise TilingError(f"unknown face {show(face)}; use one of {list(FACE_NAMES[: 2 * spline.dim])}")
     k, side = divmod(FACE_NAMES.index(face), 2)
     lo, hi = spline.domain[k]
     if mode == "parameter":
@@ -78,4 +79,4 @@ def graded_channel(spline: BSpline, name: str = "k", near: float = 205.0, far: f
         dmax = np.abs((allp - c) @ n).max()
         return interpolate_channel(spline, name, lambda x: near + (far - near) * np.clip(np.abs((x - c) @ n) / dmax, 0, 1),
                                    on="points")
-    raise TilingError(f"mode must be 'parameter' or 'distance', got {mode!r}")
+    raise TilingError(f"mode must be 'parameter' or 'distance', got {show(mode)}")

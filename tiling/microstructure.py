@@ -33,6 +33,7 @@ from geometry.faces import FACE_NAMES, discontinuity_slots, face_knots, nested_r
 from geometry.multipatch import Interface, MultiPatch, PlacedPatch, detect_interfaces, tile_corners
 
 from .errors import TilingError
+from geometry.errors import show
 
 __all__ = ["Microstructure", "PlacedPatch", "Interface", "branch_refinement"]
 
@@ -50,7 +51,7 @@ class Microstructure(MultiPatch):
         self.name = name
 
     def __repr__(self):
-        return (f"Microstructure({self.name!r}: {len(self.patches)} patches, {self.n_tiles} tiles, "
+        return (f"Microstructure({show(self.name)}: {len(self.patches)} patches, {self.n_tiles} tiles, "
                 f"{len(self.interfaces)} interfaces, levels {self.levels})")
 
     @property

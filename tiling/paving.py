@@ -17,11 +17,12 @@ from geometry.resources import check_memory
 from .errors import TilingError
 from .microstructure import Microstructure, PlacedPatch
 from .tile import Tile
+from geometry.errors import show
 
 
 def _check_map(D) -> None:
     if not isinstance(D, BSpline) or D.dim != 3:
-        raise TilingError(f"the deformation map must be a trivariate geometry.BSpline, got {D!r}")
+        raise TilingError(f"the deformation map must be a trivariate geometry.BSpline, got {show(D)}")
     r = check_regular(D, max_depth=6)
     if r.status == "singular":
         raise TilingError(f"the deformation map is singular: {r.message}; fix its control net before paving")
@@ -36,7 +37,7 @@ def _check_counts(counts, n, what):
     ok = isinstance(counts, (list, tuple, np.ndarray)) and len(counts) == n and all(_is_int(v) and v >= 1
                                                                                      for v in counts)
     if not ok:
-        raise TilingError(f"{what} must be {n} positive integers, got {counts!r}")
+        raise TilingError(f"{what} must be {n} positive integers, got {show(counts)}")
     return tuple(int(v) for v in counts)
 
 
@@ -115,7 +116,7 @@ def regular(D: BSpline, tile: Tile, counts, variants: dict | None = None, name: 
     variants = dict(variants or {})
     for key, t in variants.items():
         if not isinstance(t, Tile) or len(key) != 3 or any(v not in (-1, 0, 1) for v in key):
-            raise TilingError(f"variants keys must be (ku, kv, kw) with entries -1/0/1 and values Tiles; got {key!r}")
+            raise TilingError(f"variants keys must be (ku, kv, kw) with entries -1/0/1 and values Tiles; got {show(key)}")
     spans = [len(D.breakpoints(k)) - 1 for k in range(3)]
     _check_budget(float(np.prod([c * s for c, s in zip(counts, spans)], dtype=float)), tile, "the regular paving")
     cells = [_cells(D, k, counts[k]) for k in range(3)]
@@ -152,7 +153,7 @@ def hierarchical(D: BSpline, tile: Tile, counts, levels: int, scale: float | Non
         raise TilingError("hierarchical paving needs a Tile with a branch-in face and branch-out faces")
     cx, cy = _check_counts(counts, 2, "counts")
     if not _is_int(levels) or levels < 1:
-        raise TilingError(f"levels must be a positive integer, got {levels!r}")
+        raise TilingError(f"levels must be a positive integer, got {show(levels)}")
     b = len(tile.branch_outs)
     per_cell = float(levels) if b == 1 else (float(b) ** int(levels) - 1) / (b - 1)  # 1 + b + ... + b^(levels - 1)
     spans = [len(D.breakpoints(k)) - 1 for k in range(2)]

@@ -20,6 +20,7 @@ from geometry import BSpline
 from geometry.faces import FACE_AXIS, FACE_NAMES
 
 from .errors import TilingError
+from geometry.errors import show
 
 TOL = 1e-9
 
@@ -49,7 +50,7 @@ def _rect(tile: "Tile", bf: BranchFace, what: str):
     if not 0 <= bf.patch < len(tile.patches) or tile.patches[bf.patch].dim != 3:
         raise TilingError(f"{what}: patch {bf.patch} is not a trivariate of this tile")
     if bf.face not in FACE_NAMES:
-        raise TilingError(f"{what}: {bf.face!r} is not a face name; use one of {list(FACE_NAMES)}")
+        raise TilingError(f"{what}: {show(bf.face)} is not a face name; use one of {list(FACE_NAMES)}")
     try:
         pts = bf.surface(tile).points.reshape(-1, 3)
     except Exception as exc:  # a bad sub-rectangle
@@ -102,27 +103,27 @@ class Tile:
     def __post_init__(self):
         self.patches = list(self.patches)
         if not self.patches:
-            raise TilingError(f"tile {self.name!r} has no patches")
+            raise TilingError(f"tile {show(self.name)} has no patches")
         for i, p in enumerate(self.patches):
             if not isinstance(p, BSpline):
-                raise TilingError(f"tile {self.name!r} patch {i} is a {type(p).__name__}, not a geometry.BSpline")
+                raise TilingError(f"tile {show(self.name)} patch {i} is a {type(p).__name__}, not a geometry.BSpline")
             pts = p.points.reshape(-1, 3)
             if pts.min() < -TOL or pts.max() > 1 + TOL:
                 raise TilingError(
-                    f"tile {self.name!r} patch {i} leaves the unit cube (control points span "
+                    f"tile {show(self.name)} patch {i} leaves the unit cube (control points span "
                     f"{pts.min(0).round(6).tolist()}..{pts.max(0).round(6).tolist()}); scale it into [0, 1]^3"
                 )
         if self.scale is not None and not (np.isfinite(self.scale) and self.scale > 0):
-            raise TilingError(f"tile {self.name!r}: scale must be positive, got {self.scale!r}")
+            raise TilingError(f"tile {show(self.name)}: scale must be positive, got {show(self.scale)}")
         as_bf = lambda b: b if isinstance(b, BranchFace) else BranchFace(*b)  # noqa: E731
         if self.branch_in is not None:
             self.branch_in = as_bf(self.branch_in)
-            _rect(self, self.branch_in, f"tile {self.name!r} branch-in face")
+            _rect(self, self.branch_in, f"tile {show(self.name)} branch-in face")
         self.branch_outs = [as_bf(b) for b in self.branch_outs]
         if self.branch_outs and self.branch_in is None:
-            raise TilingError(f"tile {self.name!r} has branch-out faces but no branch-in face")
+            raise TilingError(f"tile {show(self.name)} has branch-out faces but no branch-in face")
         for j, bf in enumerate(self.branch_outs):
-            what = f"tile {self.name!r} branch-out face {j}"
+            what = f"tile {show(self.name)} branch-out face {j}"
             if bf.map is None:
                 bf.map = self._branch_map(bf, what)
             bf.map = np.asarray(bf.map, float)
@@ -138,7 +139,7 @@ class Tile:
 
     def _branch_map(self, bf: BranchFace, what: str) -> np.ndarray:
         """Affine map sending the branch-in face frame onto the branch-out face frame (growing outwards)."""
-        o0, a0, b0, n0 = _face_frame(self, self.branch_in, f"tile {self.name!r} branch-in face")
+        o0, a0, b0, n0 = _face_frame(self, self.branch_in, f"tile {show(self.name)} branch-in face")
         o1, a1, b1, n1 = _face_frame(self, bf, what)
         n0 = -n0  # the branch-in face's inward direction is where the tile grows
         h_in = 1.0  # tile height along the growth direction (unit cube)

@@ -1,0 +1,719 @@
+"""The catalogue of bad and hostile inputs: every one ends in the toolkit's own error, naming the input.
+
+One parametrised test per category.  Each case asserts the exception class
+(a subclass of ``geometry.ToolkitError``), that the message names the input
+(a regular expression on it), and that it prints plain numbers (no NumPy
+scalar reprs such as ``np.float64(...)``).  Resource cases also assert that the
+refusal comes within seconds, before any large allocation; CLI cases assert
+exit status 1, one line on stderr and no traceback.
+"""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+import time
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import solvers
+import tiling
+from geometry import BSpline, MultiPatch, SplineError, ToolkitError, check_regular, compose, compose_many, invert
+from geometry import knots as kn
+from geometry import primitives as pr
+from geometry.io import load, save
+from iga import HeatProblem, ProblemError, SingularProblemError, write_vtu
+from iga.config import validate
+from iga.pipeline import heat_sink_config, run_pipeline
+from solvers import SolverError
+from tiling import BranchFace, Tile, TilingError
+from tiling import library as L
+from tiling.materials import graded_channel, interpolate_channel
+
+U2 = [0, 0, 0, 1, 1, 1]
+ID = np.hstack([np.eye(3), np.zeros((3, 1))])
+
+
+def case(name, fn, exc, match):
+    return pytest.param(fn, exc, match, id=name)
+
+
+def check(fn, exc, match, tmp_path):
+    with pytest.raises(exc) as info:
+        fn(tmp_path)
+    assert isinstance(info.value, ToolkitError), type(info.value)
+    msg = str(info.value)
+    assert re.search(match, msg), f"{match!r} not in: {msg}"
+    assert "np.float64(" not in msg and "np.int64(" not in msg and "array(" not in msg, msg
+    assert "\n" not in msg.strip(), msg
+
+
+# ------------------------------------------------------------------ shared objects (built once)
+@lru_cache
+def cube():
+    return pr.box(degrees=(2, 2, 2), elements=(2, 2, 2))
+
+
+@lru_cache
+def curve():
+    return BSpline((3,), [kn.uniform_knots(3, 2)], np.random.default_rng(0).uniform(0.1, 0.9, (5, 3)))
+
+
+@lru_cache
+def solved():
+    return HeatProblem(pr.annulus(0.5, 1.0, 1.0)).dirichlet("vmin", 50.0).robin("vmax", 5.0, 30.0).solve()
+
+
+@lru_cache
+def lattice():
+    return tiling.regular(pr.box((2.0, 1.0, 1.0), degrees=(2, 2, 2)), L.cross(), (2, 1, 1))
+
+
+def folded_patch():
+    """A trilinear cube with one corner pulled through the opposite face (Jacobian negative near it)."""
+    b = pr.box()
+    cp = b.control_points.copy()
+    cp[1, 1, 1] = [-0.5, -0.5, -0.5]
+    return BSpline(b.degrees, b.knots, cp)
+
+
+def folded_map():
+    bx = pr.box(degrees=(2, 1, 1))
+    cp = bx.control_points.copy()
+    cp[1, :, :, 0] = 1.6  # x(u) overshoots and comes back: a fold inside
+    return BSpline(bx.degrees, bx.knots, cp)
+
+
+# =================================================================== 1. spline construction
+SPLINES = [
+    case("degree 2.5", lambda t: BSpline((2.5,), [U2], np.zeros((3, 3))), SplineError, r"integers.*2\.5"),
+    case("degree bool", lambda t: BSpline((True,), [[0, 0, 1, 1]], np.zeros((2, 3))), SplineError, r"True"),
+    case("degree string", lambda t: BSpline(("2",), [U2], np.zeros((3, 3))), SplineError, r"'2'"),
+    case("degree 0", lambda t: BSpline((0,), [[0, 1]], np.zeros((1, 3))), SplineError, r"degree must be an integer >= 1"),
+    case("too few degrees", lambda t: BSpline((2, 2), [U2], np.zeros((3, 3))), SplineError, r"2 degrees given"),
+    case("knot count", lambda t: BSpline((2,), [[0, 0, 0, 1, 1]], np.zeros((3, 3))), SplineError, r"n \+ p \+ 1 = 6"),
+    case("decreasing knots", lambda t: BSpline((2,), [[0, 0, 0, .7, .5, 1, 1, 1]], np.zeros((5, 3))), SplineError,
+         r"decreases at index 4"),
+    case("unclamped knots", lambda t: BSpline((2,), [[0, 0, .1, .5, 1, 1, 1]], np.zeros((4, 3))), SplineError,
+         r"not open"),
+    case("multiplicity", lambda t: BSpline((1,), [[0, 0, .5, .5, .5, 1, 1]], np.zeros((5, 3))), SplineError,
+         r"multiplicity 3 > degree \+ 1 = 2"),
+    case("nan knot", lambda t: BSpline((2,), [[0, 0, 0, np.nan, 1, 1, 1]], np.zeros((4, 3))), SplineError,
+         r"non-finite value nan"),
+    case("empty domain", lambda t: BSpline((1,), [[1, 1, 1, 1]], np.zeros((2, 3))), SplineError, r"empty interval"),
+    case("string knots", lambda t: BSpline((1,), [["a", "b", "c", "d"]], np.zeros((2, 3))), SplineError,
+         r"knot vector is not numeric"),
+    case("2-d knot vector", lambda t: BSpline((1,), [[[0, 0], [1, 1]]], np.zeros((2, 3))), SplineError,
+         r"one-dimensional"),
+    case("negative weight", lambda t: BSpline((2,), [U2], np.zeros((3, 3)), [1, -1, 1]), SplineError,
+         r"weight at \(1,\) must be finite and positive, got -1"),
+    case("weights shape", lambda t: BSpline((2,), [U2], np.zeros((3, 3)), [1, 1]), SplineError,
+         r"weights must have shape \(3,\)"),
+    case("inf control point", lambda t: BSpline((2,), [U2], [[0, 0, 0], [np.inf, 0, 0], [1, 1, 1]]), SplineError,
+         r"control point \(1,\) component 0 is not finite"),
+    case("complex control points", lambda t: BSpline((2,), [U2], np.zeros((3, 3)) + 1j), SplineError, r"complex"),
+    case("text control points", lambda t: BSpline((2,), [U2], [["a"] * 3] * 3), SplineError,
+         r"control points must be a numeric array"),
+    case("2-d points", lambda t: BSpline((2,), [U2], np.zeros((3, 2))), SplineError, r"\(n_1, \.\.\., n_d, 3\)"),
+    case("4-variate", lambda t: BSpline((1,) * 4, [[0, 0, 1, 1]] * 4, np.zeros((2, 2, 2, 2, 3))), SplineError,
+         r"parametric dimension must be 1, 2 or 3"),
+    case("duplicate channels", lambda t: BSpline((2,), [U2], np.zeros((3, 5)), channels=("k", "k")), SplineError,
+         r"unique.*'k', 'k'"),
+    case("unnamed channel", lambda t: BSpline((2,), [U2], np.zeros((3, 4)), channels=("",)), SplineError,
+         r"non-empty strings, got ''"),
+    case("channel count", lambda t: BSpline((2,), [U2], np.zeros((3, 5)), channels=("k",)), SplineError,
+         r"3 coordinates \+ channels \['k'\]"),
+    case("degree beyond points", lambda t: BSpline((3,), [[0, 0, 0, 0, 1, 1, 1]], np.zeros((3, 3))), SplineError,
+         r"n \+ p \+ 1|at least 4 control points"),
+    case("box size", lambda t: pr.box((1.0, -1.0, 1.0)), SplineError, r"box size must be three positive numbers"),
+    case("annulus radii", lambda t: pr.annulus(1.0, 0.5), SplineError, r"r_inner=1.0, r_outer=0.5"),
+    case("annulus angle", lambda t: pr.annulus(angle=7.0), SplineError, r"angle must be in \(0, 2 pi\].*7\.0"),
+    case("skin one surface", lambda t: pr.skin([cube().boundary("wmin")]), SplineError, r"at least two surfaces"),
+    case("extrude zero", lambda t: pr.extrude(cube().boundary("wmin"), [0, 0, 0]), SplineError, r"non-zero 3-vector"),
+    case("tapered scale", lambda t: pr.tapered(cube(), -1.0), SplineError, r"top_scale must be positive, got -1"),
+]
+
+
+@pytest.mark.parametrize("fn, exc, match", SPLINES)
+def test_spline_construction(fn, exc, match, tmp_path):
+    check(fn, exc, match, tmp_path)
+
+
+# =================================================================== 2. evaluation and operations
+OPERATIONS = [
+    case("outside domain", lambda t: cube().evaluate([[0.5, 0.5, 1.5]]), SplineError,
+         r"outside the domain.*1\.5"),
+    case("nan parameter", lambda t: cube().evaluate([[0.5, np.nan, 0.5]]), SplineError, r"non-finite"),
+    case("parameter shape", lambda t: cube().evaluate(np.zeros((4, 2))), SplineError, r"shape \(N, 3\), got \(4, 2\)"),
+    case("derivative orders", lambda t: cube().derivative([[0.5] * 3], (1, 0)), SplineError,
+         r"3 non-negative integers, got \(1, 0\)"),
+    case("negative order", lambda t: cube().derivative([[0.5] * 3], (1, 0, -1)), SplineError, r"\(1, 0, -1\)"),
+    case("grid outside", lambda t: cube().evaluate_grid([[0.5], [0.5], [2.0]]), SplineError,
+         r"grid axis 2 must be .* inside \[0\.0, 1\.0\]"),
+    case("knot at the end", lambda t: cube().insert_knots(0, [1.0]), SplineError, r"knot 1\.0.*strictly inside"),
+    case("knot nan", lambda t: cube().insert_knots(0, [np.nan]), SplineError, r"finite.*nan"),
+    case("knot multiplicity", lambda t: cube().insert_knots(0, [0.5] * 3), SplineError,
+         r"knot 0\.5: it already has multiplicity degree \+ 1 = 3"),
+    case("direction 3", lambda t: cube().insert_knots(3, [0.3]), SplineError, r"direction must be .* 0\.\.2, got 3"),
+    case("direction 1.0", lambda t: cube().elevate(1.0), SplineError, r"got 1\.0"),
+    case("elevate negative", lambda t: cube().elevate(0, -1), SplineError, r"non-negative integer, got -1"),
+    case("elevate 1.5 times", lambda t: cube().elevate(0, 1.5), SplineError, r"got 1\.5"),
+    case("refine -1", lambda t: cube().refine(-1), SplineError, r"non-negative integer, got -1"),
+    case("refine 2.7", lambda t: cube().refine(2.7), SplineError, r"got 2\.7"),
+    case("elevate down", lambda t: cube().elevate_to((1, 2, 2)), SplineError, r"from degree 2 down to 1"),
+    case("split at end", lambda t: cube().split(0, 1.0), SplineError, r"split parameter 1\.0 must lie strictly inside"),
+    case("extract box shape", lambda t: cube().extract([[0, 1]]), SplineError, r"box must have shape \(3, 2\)"),
+    case("extract empty", lambda t: cube().extract([[0.5, 0.5], [0, 1], [0, 1]]), SplineError,
+         r"direction 0: sub-interval \[0\.5, 0\.5\]"),
+    case("boundary name", lambda t: cube().boundary("top"), SplineError, r"unknown boundary 'top'.*umin"),
+    case("curve boundary", lambda t: curve().boundary("umin"), SplineError, r"curve's boundary is two points"),
+    case("permutation", lambda t: cube().permute([0, 0, 1]), SplineError, r"\[0, 0, 1\] is not a permutation"),
+    case("reparametrize empty", lambda t: cube().reparametrize([[0, 1], [1, 1], [0, 1]]), SplineError,
+         r"interval \[1\.0, 1\.0\] is empty"),
+    case("unknown channel", lambda t: cube().channel("k"), SplineError, r"unknown channel 'k'"),
+    case("channel nan", lambda t: cube().with_channel("k", np.nan), SplineError, r"channel 'k' values must be finite"),
+    case("affine shape", lambda t: cube().affine(np.eye(2)), SplineError, r"3x3 matrix .* got \(2, 2\)"),
+    case("regularity of a curve", lambda t: check_regular(curve()), SplineError, r"got a 1-variate spline"),
+    case("invert bad points", lambda t: invert(cube(), [[0, 0]]), SplineError, r"shape \(N, 3\), got shape \(1, 2\)"),
+    case("multiply dims", lambda t: __import__("geometry").multiply(cube(), curve()), SplineError,
+         r"3-variate spline by a 1-variate"),
+]
+
+
+@pytest.mark.parametrize("fn, exc, match", OPERATIONS)
+def test_evaluation_and_operations(fn, exc, match, tmp_path):
+    check(fn, exc, match, tmp_path)
+
+
+# =================================================================== 3. composition
+def _placement(*b, scale=0.5):
+    M = np.zeros((1, 3, 4))
+    M[0, :, :3] = np.eye(3) * scale
+    M[0, :, 3] = b
+    return M
+
+
+COMPOSITION = [
+    case("channel clash", lambda t: compose(pr.box(channels={"k": 1.0}), pr.box(channels={"k": 2.0})), SplineError,
+         r"both define channel\(s\) \['k'\]"),
+    case("not a spline", lambda t: compose(cube(), "tile"), SplineError, r"BSpline objects, got BSpline and str"),
+    case("curve as outer", lambda t: compose(curve(), cube()), SplineError, r"got a 1-variate spline"),
+    case("trivariate into surface", lambda t: compose(cube().boundary("wmin"), cube()), SplineError,
+         r"cannot be composed into a surface"),
+    case("placement shape", lambda t: compose_many(cube(), pr.box(), np.zeros((2, 3, 3))), SplineError,
+         r"shape \(P, 3, 4\), got shape \(2, 3, 3\)"),
+    case("no placements", lambda t: compose_many(cube(), pr.box(), np.zeros((0, 3, 4))), SplineError,
+         r"non-empty .* got shape \(0, 3, 4\)"),
+    case("nan placement", lambda t: compose_many(cube(), pr.box(), np.full((1, 3, 4), np.nan)), SplineError,
+         r"finite"),
+    case("outside domain", lambda t: compose_many(cube(), pr.box(), _placement(0.8, 0, 0)), SplineError,
+         r"placement 0 reaches parameters .*1\.3.* outside the outer domain"),
+    case("singular placement", lambda t: compose_many(cube(), pr.box(), _placement(0, 0, 0, scale=0.0)), SplineError,
+         r"placement 0 is singular \(det A = 0\)"),
+    case("crosses knot line", lambda t: compose_many(cube(), pr.box(), _placement(0.25, 0, 0)), SplineError,
+         r"crosses the outer map's knot line u = 0\.5"),
+    case("surface crossing", lambda t: compose(cube(), pr.box((0.8, 0.2, 0.2), (0.1, 0.1, 0.1)).boundary("wmin")),
+         SplineError, r"knot line u = 0\.5"),
+    case("map points shape", lambda t: __import__("geometry").map_points(cube(), np.zeros((3, 1))), SplineError,
+         r"shape \(N, 3\) or \(N, 3\), got \(3, 1\)|got \(3, 1\)"),
+]
+
+
+@pytest.mark.parametrize("fn, exc, match", COMPOSITION)
+def test_composition(fn, exc, match, tmp_path):
+    check(fn, exc, match, tmp_path)
+
+
+# =================================================================== 4. tiles and pavings
+def _variants_bad(t):
+    return tiling.regular(pr.box(), L.cross(), (2, 2, 2), variants={(2, 0, 0): L.cross()})
+
+
+TILING = [
+    case("tile outside cube", lambda t: Tile([pr.box().translate([0.5, 0, 0])]), TilingError,
+         r"tile 'tile' patch 0 leaves the unit cube"),
+    case("tile not a spline", lambda t: Tile(["box"]), TilingError, r"patch 0 is a str"),
+    case("empty tile", lambda t: Tile([]), TilingError, r"has no patches"),
+    case("tile scale", lambda t: Tile([pr.box()], scale=-2.0), TilingError, r"scale must be positive, got -2\.0"),
+    case("branch face name", lambda t: Tile([pr.box()], (0, "bottom"), [(0, "wmax")]), TilingError,
+         r"'bottom' is not a face name"),
+    case("branch patch index", lambda t: Tile([pr.box()], (3, "wmin"), [(0, "wmax")]), TilingError,
+         r"patch 3 is not a trivariate"),
+    case("outs without in", lambda t: Tile([pr.box()], None, [(0, "wmax")]), TilingError,
+         r"branch-out faces but no branch-in face"),
+    case("curved branch face", lambda t: Tile([pr.annulus(0.2, 0.4, 1.0).translate([0.5, 0.5, 0])], (0, "umax"),
+                                               [(0, "vmax")]), TilingError, r"planar and axis-aligned"),
+    case("bad branch map", lambda t: Tile([pr.box()], (0, "wmin"), [BranchFace(0, "wmax", map=np.column_stack(
+        [np.eye(3), [0, 0, 0.5]]))]), TilingError, r"branch-out face 0: its map does not take the branch-in face"),
+    case("map not a spline", lambda t: tiling.regular("map", L.cross(), (1, 1, 1)), TilingError,
+         r"trivariate geometry\.BSpline, got 'map'"),
+    case("folded map", lambda t: tiling.regular(folded_map(), L.cross(), (1, 1, 1)), TilingError,
+         r"deformation map is singular.*u in"),
+    case("counts string", lambda t: tiling.regular(pr.box(), L.cross(), "22"), TilingError,
+         r"counts must be 3 positive integers, got '22'"),
+    case("counts zero", lambda t: tiling.regular(pr.box(), L.cross(), (1, 0, 1)), TilingError, r"got \(1, 0, 1\)"),
+    case("counts float", lambda t: tiling.regular(pr.box(), L.cross(), (1, 2.5, 1)), TilingError, r"2\.5"),
+    case("counts two", lambda t: tiling.regular(pr.box(), L.cross(), (1, 1)), TilingError, r"3 positive integers"),
+    case("tile not a Tile", lambda t: tiling.regular(pr.box(), pr.box(), (1, 1, 1)), TilingError,
+         r"tiling\.Tile, got BSpline"),
+    case("variants key", _variants_bad, TilingError, r"variants keys must be \(ku, kv, kw\).*\(2, 0, 0\)"),
+    case("hierarchical flat tile", lambda t: tiling.hierarchical(pr.box(), L.cross(), (1, 1), 2), TilingError,
+         r"branch-in face and branch-out faces"),
+    case("levels zero", lambda t: tiling.hierarchical(pr.box(), L.heat_sink_t1(), (1, 1), 0), TilingError,
+         r"levels must be a positive integer, got 0"),
+    case("levels float", lambda t: tiling.hierarchical(pr.box(), L.heat_sink_t1(), (1, 1), 2.0), TilingError,
+         r"got 2\.0"),
+    case("hierarchy across knot", lambda t: tiling.hierarchical(pr.box(elements=(1, 1, 2)), L.heat_sink_t1(),
+                                                                 (1, 1), 2), TilingError,
+         r"crosses the deformation map's knot line w = 0\.5"),
+    case("cross arm", lambda t: L.cross(1.5), TilingError, r"arm width must be in \(0, 1\), got 1\.5"),
+    case("grading face", lambda t: graded_channel(pr.box(), face="top"), TilingError, r"unknown face 'top'"),
+    case("grading mode", lambda t: graded_channel(pr.box(), mode="radial"), TilingError,
+         r"mode must be 'parameter' or 'distance', got 'radial'"),
+    case("channel function", lambda t: interpolate_channel(pr.box(), "k", lambda x: np.ones(3)), TilingError,
+         r"channel function for 'k' must return 8 finite values, got shape \(3,\)"),
+    case("channel on", lambda t: interpolate_channel(pr.box(), "k", np.sum, on="x"), TilingError,
+         r"on must be 'parameters' or 'points', got 'x'"),
+]
+
+
+@pytest.mark.parametrize("fn, exc, match", TILING)
+def test_tiles_and_pavings(fn, exc, match, tmp_path):
+    check(fn, exc, match, tmp_path)
+
+
+# =================================================================== 5. heat problems
+def cube_patch():
+    from geometry import PlacedPatch
+
+    return PlacedPatch(cube())
+
+
+def _box2():
+    a = pr.box()
+    b = pr.box(origin=(1.0, 0.0, 0.0))
+    return [a, b]
+
+
+HEAT = [
+    case("not a model", lambda t: HeatProblem("cube"), ProblemError, r"cannot analyse a str"),
+    case("empty list", lambda t: HeatProblem([]), ProblemError, r"no patches"),
+    case("surface patch", lambda t: HeatProblem(cube().boundary("wmin")), ProblemError,
+         r"patch 0 is a 2-variate spline"),
+    case("list of junk", lambda t: HeatProblem([cube(), 3]), ProblemError, r"patch 1 is a int"),
+    case("touching patches", lambda t: HeatProblem([pr.box(), pr.box((1, 0.5, 1), (1, 0, 0))]), ProblemError,
+         r"face umax of patch 0 touches patch 1|face umin of patch 1 touches patch 0"),
+    case("refine -1", lambda t: HeatProblem(cube(), refine=-1), ProblemError, r"refine must be an integer >= 0, got -1"),
+    case("refine 2.7", lambda t: HeatProblem(cube(), refine=2.7), ProblemError, r"got 2\.7"),
+    case("refine bool", lambda t: HeatProblem(cube(), refine=True), ProblemError, r"got True"),
+    case("elevation list", lambda t: HeatProblem(cube(), degree_elevation=(1, 1)), ProblemError, r"got \(1, 1\)"),
+    case("degree 0", lambda t: HeatProblem(cube(), degree=0), ProblemError, r"degree must be .* >= 1, got 0"),
+    case("quadrature", lambda t: HeatProblem(cube(), quadrature_extra=-2), ProblemError, r"got -2"),
+    case("conductivity negative", lambda t: HeatProblem(cube(), conductivity=-1.0), ProblemError,
+         r"conductivity must be a finite positive number, got -1\.0"),
+    case("conductivity nan", lambda t: HeatProblem(cube(), conductivity=float("nan")), ProblemError, r"got nan"),
+    case("conductivity channel", lambda t: HeatProblem(cube(), conductivity="k"), ProblemError,
+         r"channel 'k', but patch 0 only has channels \[\]"),
+    case("conductivity list", lambda t: HeatProblem(cube(), conductivity=[1, 2]), ProblemError,
+         r"conductivity must be .* got \[1, 2\]"),
+    case("conductivity asymmetric", lambda t: HeatProblem(cube(), conductivity=[[1, 0.5, 0], [0, 1, 0], [0, 0, 1]]),
+         ProblemError, r"must be symmetric"),
+    case("conductivity indefinite", lambda t: HeatProblem(cube(), conductivity=np.diag([1.0, -1.0, 1.0])),
+         ProblemError, r"symmetric positive definite"),
+    case("conductivity callable negative",
+         lambda t: HeatProblem(cube(), conductivity=lambda x: x[:, 2] - 0.5).dirichlet("wmin", 1.0).solve(),
+         ProblemError, r"conductivity must be positive, but is -0\.4"),
+    case("conductivity callable shape",
+         lambda t: HeatProblem(cube(), conductivity=lambda x: np.ones(3)).dirichlet("wmin", 1.0).solve(),
+         ProblemError, r"conductivity callable must return shape"),
+    case("conductivity callable raises",
+         lambda t: HeatProblem(cube(), conductivity=lambda x: 1 / 0).dirichlet("wmin", 1.0).solve(), ProblemError,
+         r"conductivity callable failed on patch 0: division by zero"),
+    case("source text", lambda t: HeatProblem(cube(), source=[1.0]), ProblemError, r"source must be .* got \[1\.0\]"),
+    case("source nan callable",
+         lambda t: HeatProblem(cube(), source=lambda x: np.full(len(x), np.nan)).dirichlet("wmin", 0.0).solve(),
+         ProblemError, r"source is not finite"),
+    case("unknown tag", lambda t: HeatProblem(cube()).dirichlet("top", 1.0), ProblemError,
+         r"unknown boundary tag 'top'"),
+    case("tag not a string", lambda t: HeatProblem(cube()).dirichlet(3, 1.0), ProblemError,
+         r"unknown boundary tag 3"),
+    case("empty tag", lambda t: HeatProblem(MultiPatch([cube_patch()], [], {"top": [], "umin": [(0, "umin")]}))
+         .dirichlet("top", 1.0), ProblemError, r"tag 'top' has no faces in this model"),
+    case("dirichlet twice", lambda t: HeatProblem(cube()).dirichlet("umin", 1.0).dirichlet("umin", 2.0).solve(),
+         ProblemError, r"two dirichlet conditions \(tags 'umin' and 'umin'\)"),
+    case("dirichlet and neumann", lambda t: HeatProblem(cube()).dirichlet("umin", 1.0).neumann("boundary", 2.0)
+         .solve(), ProblemError, r"patch 0 face umin has a Dirichlet condition and a Neumann"),
+    case("dirichlet text", lambda t: HeatProblem(cube()).dirichlet("umin", "hot"), ProblemError,
+         r"Dirichlet value on 'umin' must be a number or a callable .* got 'hot'"),
+    case("dirichlet inf", lambda t: HeatProblem(cube()).dirichlet("umin", float("inf")), ProblemError, r"got inf"),
+    case("neumann bool", lambda t: HeatProblem(cube()).neumann("umin", True), ProblemError, r"got True"),
+    case("robin h negative", lambda t: HeatProblem(cube()).robin("umin", -5.0, 30.0), ProblemError,
+         r"film coefficient h on 'umin' must be a finite positive number, got -5\.0"),
+    case("robin ambient nan", lambda t: HeatProblem(cube()).robin("umin", 5.0, float("nan")), ProblemError,
+         r"ambient temperature on 'umin' .* got nan"),
+    case("singular problem", lambda t: HeatProblem(cube()).neumann("umin", 1.0).solve(), SingularProblemError,
+         r"no Dirichlet or Robin condition"),
+    case("unknown solver", lambda t: HeatProblem(cube()).dirichlet("umin", 0.0).solve(solver="gauss"), SolverError,
+         r"unknown solver 'gauss'"),
+    case("tol zero", lambda t: HeatProblem(cube()).dirichlet("umin", 0.0).solve(tol=0.0), ProblemError,
+         r"tol must be a number in \(0, 1\), got 0\.0"),
+    case("tol nan", lambda t: HeatProblem(cube()).dirichlet("umin", 0.0).solve(tol=float("nan")), ProblemError,
+         r"got nan"),
+    case("tol text", lambda t: HeatProblem(cube()).dirichlet("umin", 0.0).solve(tol="small"), ProblemError,
+         r"got 'small'"),
+    case("maxiter zero", lambda t: HeatProblem(cube()).dirichlet("umin", 0.0).solve(maxiter=0), ProblemError,
+         r"maxiter must be an integer >= 1, got 0"),
+    case("probe outside", lambda t: solved().probe([[5.0, 5.0, 5.0]]), ProblemError,
+         r"1 probe point\(s\) lie outside the model, e.g. \[\[5\.0, 5\.0, 5\.0\]\]"),
+    case("probe shape", lambda t: solved().probe([1.0, 2.0]), ProblemError, r"shape \(N, 3\), got \(2,\)"),
+    case("probe nan", lambda t: solved().probe([[np.nan, 0, 0]]), ProblemError, r"finite array"),
+    case("flux unknown tag", lambda t: solved().flux("top"), ProblemError, r"unknown boundary tag 'top'"),
+]
+
+
+@pytest.mark.parametrize("fn, exc, match", HEAT)
+def test_heat_problems(fn, exc, match, tmp_path):
+    check(fn, exc, match, tmp_path)
+
+
+# =================================================================== 6. silently wrong analysis (refused exactly)
+def _singular_placement(t):
+    ms = tiling.regular(pr.box(), L.cross(), (1, 1, 1))
+    P = ms.patches[0]
+    M = P.placement.copy()
+    M[2, :3] = 0.0  # flattens the block onto a plane
+    bad = tiling.Microstructure(ms.outer, [type(P)(P.spline, M, P.outer, P.tile)], [], {"boundary": []}, ms.tiles)
+    return HeatProblem(bad)
+
+
+def _folded_composed(t):
+    ms = tiling.regular(pr.box(), L.cross(), (1, 1, 1))
+    P = ms.patches[2]  # the arm at u in [0.65, 1], where the folded map's dx/du changes sign (u = 0.73)
+    bad = tiling.Microstructure(folded_map(), [type(P)(P.spline, P.placement, folded_map(), P.tile)], [],
+                                {"boundary": []}, ms.tiles)
+    return HeatProblem(bad)
+
+
+WRONG = [
+    case("folded patch", lambda t: HeatProblem(folded_patch()).dirichlet("umin", 0.0), ProblemError,
+         r"patch 0 is folded or degenerate: .* u in \["),
+    case("folded patch refined", lambda t: HeatProblem(folded_patch(), refine=3), ProblemError, r"patch 0 is folded"),
+    case("folded patch in a list", lambda t: HeatProblem([pr.box((1, 1, 1), (5, 5, 5)), folded_patch()]),
+         ProblemError, r"patch 1 is folded"),
+    case("folded map", _folded_composed, ProblemError, r"patch 0 lies where the deformation map folds.*u in \["),
+    case("singular placement", _singular_placement, ProblemError,
+         r"patch 0 has a singular placement \(det A = 0\)"),
+]
+
+
+@pytest.mark.parametrize("fn, exc, match", WRONG)
+def test_silently_wrong_analysis_is_refused(fn, exc, match, tmp_path):
+    check(fn, exc, match, tmp_path)
+
+
+# =================================================================== 7. solvers
+def _spd(n=5):
+    import scipy.sparse as sp
+
+    return sp.diags([2.0] * n) + sp.diags([-1.0] * (n - 1), 1) + sp.diags([-1.0] * (n - 1), -1)
+
+
+SOLVERS = [
+    case("dense matrix", lambda t: solvers.solve(np.eye(3), np.ones(3)), SolverError, r"scipy sparse matrix, got "
+         r"ndarray"),
+    case("shapes", lambda t: solvers.solve(_spd(), np.ones(4)), SolverError, r"A \(5, 5\), b \(4,\)"),
+    case("nan rhs", lambda t: solvers.solve(_spd(), np.full(5, np.nan)), SolverError, r"non-finite values"),
+    case("unknown method", lambda t: solvers.solve(_spd(), np.ones(5), method="qr"), SolverError,
+         r"unknown solver 'qr'; choose one of"),
+    case("tol negative", lambda t: solvers.solve(_spd(), np.ones(5), method="cg", tol=-1.0), SolverError,
+         r"tol must be a number in \(0, 1\), got -1\.0"),
+    case("tol nan direct", lambda t: solvers.solve(_spd(), np.ones(5), method="direct", tol=float("nan")),
+         SolverError, r"got nan"),
+    case("maxiter text", lambda t: solvers.solve(_spd(), np.ones(5), method="cg", maxiter="many"), SolverError,
+         r"maxiter must be an integer >= 1, got 'many'"),
+    case("singular direct", lambda t: solvers.solve(_spd() * 0 + __import__("scipy.sparse").sparse.diags(
+        [1.0, 0, 1, 1, 1]), np.ones(5), method="direct"), SolverError, r"singular"),
+    case("indefinite cg", lambda t: solvers.solve(__import__("scipy.sparse").sparse.diags([1.0, -1.0, 1, 1, 1]),
+                                                  np.ones(5), method="cg"), SolverError, r"positive diagonal"),
+    case("not converged", lambda t: solvers.solve(_spd(200), np.ones(200), method="cg", maxiter=2), SolverError,
+         r"did not converge: relative residual .* after 2 iterations"),
+    case("unknown option", lambda t: solvers.solve(_spd(), np.ones(5), method="cg", smoother="x"), SolverError,
+         r"unknown option 'smoother'"),
+]
+
+
+@pytest.mark.parametrize("fn, exc, match", SOLVERS)
+def test_solvers(fn, exc, match, tmp_path):
+    check(fn, exc, match, tmp_path)
+
+
+def test_converged_early_is_not_reported_as_failure():
+    # amg-cg with maxiter=1 on a system it solves in one iteration: converged, not "did not converge"
+    x, info = solvers.solve(__import__("scipy.sparse").sparse.diags([2.0] * 50), np.ones(50), method="amg-cg",
+                            maxiter=1)
+    assert info.residual < 1e-14 and np.allclose(x, 0.5)
+
+
+# =================================================================== 8. files
+def _forged_npz(t):
+    """A 300-byte .npz whose array header claims a 745 GiB array."""
+    import io
+    import zipfile
+
+    header = np.lib.format.header_data_from_array_1_0(np.zeros(1))
+    header["shape"] = (100_000_000_000,)
+    buf = io.BytesIO()
+    np.lib.format.write_array_header_1_0(buf, header)
+    buf.write(b"\0" * 64)
+    path = t / "bomb.npz"
+    with zipfile.ZipFile(path, "w") as zf:
+        zf.writestr("format.npy", buf.getvalue())
+    assert path.stat().st_size < 1000
+    return load(path)
+
+
+def _pickled_npz(t):
+    path = t / "objects.npz"
+    np.savez(path, format=np.array([{"a": 1}], dtype=object))
+    return load(path)
+
+
+FILES = [
+    case("load missing", lambda t: load(t / "nothing.npz"), SplineError, r"nothing\.npz does not exist"),
+    case("load folder", lambda t: load(t), SplineError, r"is a folder, not a spline file"),
+    case("load text", lambda t: (t / "x.npz").write_text("hello") and load(t / "x.npz"), SplineError,
+         r"x\.npz is not a spline file: it is not an \.npz archive"),
+    case("load foreign npz", lambda t: np.savez(t / "o.npz", a=np.zeros(3)) or load(t / "o.npz"), SplineError,
+         r"o\.npz is not an iga-toolkit spline file"),
+    case("load forged header", _forged_npz, SplineError, r"claims 8e\+11 bytes but the archive holds"),
+    case("load pickled objects", _pickled_npz, SplineError, r"holds Python objects"),
+    case("save missing folder", lambda t: save(t / "no" / "x.npz", cube()), SplineError,
+         r"folder .*no does not exist"),
+    case("save onto folder", lambda t: (t / "d.npz").mkdir() or save(t / "d.npz", cube()), SplineError,
+         r"d\.npz: it is a folder"),
+    case("save not a spline", lambda t: __import__("geometry").save_all(t / "x.npz", [cube(), "x"]), SplineError,
+         r"item 1 is a str"),
+    case("vtu missing folder", lambda t: write_vtu(t / "no" / "x.vtu", solved()), ProblemError,
+         r"folder .*no does not exist"),
+    case("vtu onto folder", lambda t: (t / "x.vtu").mkdir() or write_vtu(t / "x.vtu", solved()), ProblemError,
+         r"x\.vtu: it is a folder"),
+    case("vtu suffix", lambda t: write_vtu(t / "x.vtk", solved()), ProblemError, r"x\.vtk: VTU files end in \.vtu"),
+    case("vtu samples", lambda t: write_vtu(t / "x.vtu", solved(), samples=0), ProblemError,
+         r"samples must be a positive integer, got 0"),
+    case("vtu cells", lambda t: write_vtu(t / "x.vtu", solved(), cells="quadratic"), ProblemError,
+         r"cells must be 'linear' or 'bezier', got 'quadratic'"),
+    case("surface suffix", lambda t: __import__("tiling.export").export.write_surfaces(t / "s.dxf", lattice()),
+         TilingError, r"cannot export s\.dxf"),
+    case("surface samples", lambda t: __import__("tiling.export").export.surface(lattice(), samples=-1),
+         TilingError, r"samples must be a positive integer, got -1"),
+]
+
+
+@pytest.mark.parametrize("fn, exc, match", FILES)
+def test_files(fn, exc, match, tmp_path):
+    check(fn, exc, match, tmp_path)
+    assert not [p for p in tmp_path.rglob(".*") if p.is_file()], "a temporary file was left behind"
+
+
+def test_full_disk_leaves_nothing(tmp_path, monkeypatch):
+    import geometry.io as gio
+
+    def full(*a, **k):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(np, "savez", full)
+    with pytest.raises(SplineError, match=r"x\.npz: No space left on device; nothing was written"):
+        gio.save(tmp_path / "x.npz", cube())
+    assert list(tmp_path.iterdir()) == []
+
+
+# =================================================================== 9. pipelines (TOML configurations)
+def _cfg(**changes):
+    cfg = heat_sink_config(levels=1, out="o")
+    for path, value in changes.items():
+        *head, key = path.split("__")
+        node = cfg
+        for h in head:
+            node = node[int(h)] if h.isdigit() else node.setdefault(h, {})
+        if value is KeyError:
+            del node[key]
+        else:
+            node[key] = value
+    return cfg
+
+
+def _validate(**changes):
+    return lambda t: validate(_cfg(**changes), t)
+
+
+CONFIG = [
+    case("unknown section", lambda t: validate({**_cfg(), "mesh": {}}, t), ProblemError,
+         r"unknown config section 'mesh'"),
+    case("missing section", lambda t: validate({k: v for k, v in _cfg().items() if k != "tile"}, t), ProblemError,
+         r"missing required config section 'tile'"),
+    case("unknown key", _validate(paving__count=[1, 1]), ProblemError, r"unknown config key paving\.'count'"),
+    case("missing key", _validate(tile__library=KeyError), ProblemError, r"missing required config key tile\.'library'"),
+    case("section not a table", _validate(solver=[1]), ProblemError, r"config key solver: must be a table"),
+    case("map primitive", _validate(map__primitive="sphere"), ProblemError,
+         r"map\.primitive: must be one of \['annulus', 'box'.* got 'sphere'"),
+    case("map file and primitive", _validate(map__file="m.npz"), ProblemError, r"exactly one of 'primitive'"),
+    case("map args unknown", _validate(map__args={"radius": 1.0}), ProblemError,
+         r"map\.args\.radius: is not an argument of circular_heat_sink_map; allowed: \['height', 'r_in'"),
+    case("map args string", _validate(map__args={"r_in": "0.02"}), ProblemError,
+         r"map\.args\.r_in: must be a finite number, got '0\.02'"),
+    case("map args table", _validate(map__args=[1, 2]), ProblemError, r"map\.args: must be a table"),
+    case("grading face", _validate(map__grading__face="top"), ProblemError, r"map\.grading\.face: must be one of"),
+    case("grading near text", _validate(map__grading__near="hot"), ProblemError, r"map\.grading\.near.*'hot'"),
+    case("tile class", _validate(tile__library="Tile"), ProblemError, r"tile\.library: must be one of .*got 'Tile'"),
+    case("tile helper", _validate(tile__library="_hexa"), ProblemError, r"got '_hexa'"),
+    case("tile args unknown", _validate(tile__args={"width": 2}), ProblemError,
+         r"tile\.args\.width: is not an argument of heat_sink_t1; allowed: \['scale'\]"),
+    case("scheme", _validate(paving__scheme="random"), ProblemError, r"paving\.scheme: must be one of"),
+    case("counts string", _validate(paving__counts="22"), ProblemError,
+         r"paving\.counts: must be a list of 2 integers >= 1, got '22'"),
+    case("counts float", _validate(paving__counts=[1, 1.5]), ProblemError, r"paving\.counts\[1\].*1\.5"),
+    case("levels text", _validate(paving__levels="2"), ProblemError, r"paving\.levels: must be an integer >= 1, got '2'"),
+    case("scale string", _validate(paving__scale="0.5"), ProblemError, r"paving\.scale: must be a finite number, got '0\.5'"),
+    case("scale negative", _validate(paving__scale=-1.0), ProblemError, r"paving\.scale: must be > 0, got -1\.0"),
+    case("conductivity text", _validate(material__conductivity=True), ProblemError,
+         r"material\.conductivity: must be a finite number, got True"),
+    case("source text", _validate(material__source="x"), ProblemError, r"material\.source.*'x'"),
+    case("bc kind", _validate(bc__0__kind="fixed"), ProblemError, r"bc\[0\]\.kind: must be one of"),
+    case("bc value text", _validate(bc__0__value="1515.8"), ProblemError, r"bc\[0\]\.value: .*'1515\.8'"),
+    case("bc robin without h", _validate(bc__1__h=KeyError), ProblemError, r"bc\[1\] \(robin\) needs keys 'h'"),
+    case("bc robin value", _validate(bc__1__value=3.0), ProblemError, r"bc\[1\]\.value: a robin condition"),
+    case("bc empty", _validate(bc=[]), ProblemError, r"config section bc is empty"),
+    case("solver method", _validate(solver__method="gauss"), ProblemError,
+         r"solver\.method: must be one of \['amg-cg', 'auto', 'cg', 'direct'\], got 'gauss'"),
+    case("tol small", _validate(solver__tol="small"), ProblemError, r"solver\.tol: must be a finite number, got 'small'"),
+    case("tol negative", _validate(solver__tol=-1e-8), ProblemError, r"solver\.tol: must be > 0"),
+    case("refine float", _validate(solver__refine=1.5), ProblemError, r"solver\.refine: .*got 1\.5"),
+    case("refine negative", _validate(solver__refine=-1), ProblemError, r"solver\.refine: .*got -1"),
+    case("vtu string", _validate(output__vtu="no"), ProblemError, r"output\.vtu: must be true or false, got 'no'"),
+    case("png without vtu", _validate(output__vtu=False), ProblemError, r"output\.png: the picture is rendered"),
+    case("name escapes", _validate(output__name="../../x"), ProblemError,
+         r"output\.name: must be a plain file name .* got '\.\./\.\./x'"),
+    case("absolute name", _validate(output__name="/tmp/x"), ProblemError, r"got '/tmp/x'"),
+    case("samples zero", _validate(output__samples=0), ProblemError, r"output\.samples: must be an integer >= 1"),
+    case("probes shape", _validate(output__probes=[[0, 0]]), ProblemError, r"output\.probes: must be a list of \[x, y, z\]"),
+    case("memory limit", lambda t: validate({**_cfg(), "limits": {"max_memory_gib": -1}}, t), ProblemError,
+         r"limits\.max_memory_gib: must be > 0"),
+]
+
+
+@pytest.mark.parametrize("fn, exc, match", CONFIG)
+def test_pipeline_configuration(fn, exc, match, tmp_path):
+    check(fn, exc, match, tmp_path)
+
+
+def test_probe_outside_is_refused_before_the_solve_and_no_folder_is_left(tmp_path):
+    cfg = _cfg(output__probes=[[5.0, 5.0, 5.0]], output__dir=str(tmp_path / "out"))
+    t = time.perf_counter()
+    with pytest.raises(ProblemError, match=r"output\.probes point\(s\) lie outside the model"):
+        run_pipeline(cfg, progress=False)
+    assert not (tmp_path / "out").exists()  # nothing written, no empty folder left behind
+    assert time.perf_counter() - t < 30
+
+
+# =================================================================== 10. resources: refused within seconds
+RESOURCES = [
+    case("paving 10^6 tiles", lambda t: tiling.regular(pr.box(), L.cross(), (1000, 1000, 1)), TilingError,
+         r"regular paving \(1e\+06 tiles, 7e\+06 patches\) needs about .* GiB"),
+    case("hierarchy 40 levels", lambda t: tiling.hierarchical(pr.box(), L.heat_sink_t1(), (1, 1), 40), TilingError,
+         r"40-level hierarchical paving .* needs about"),
+    case("refine 10", lambda t: HeatProblem(cube(), refine=10), ProblemError,
+         r"the analysis \(.* DOFs on 1 patch\) needs about .* GiB"),
+    case("elevation 30", lambda t: HeatProblem(cube(), degree_elevation=30, refine=4), ProblemError,
+         r"needs about .* GiB"),
+    case("memory limit", lambda t: __import__("geometry").resources.set_memory_limit(0), SplineError,
+         r"positive number of GiB, got 0"),
+    case("pipeline counts", lambda t: run_pipeline(_cfg(paving__counts=[1000, 1000], output__dir=str(t / "o")),
+                                                   progress=False), TilingError, r"hierarchical paving"),
+    case("pipeline refine", lambda t: run_pipeline(_cfg(solver__refine=10, output__dir=str(t / "o")),
+                                                   progress=False), ProblemError, r"the analysis"),
+]
+
+
+@pytest.mark.parametrize("fn, exc, match", RESOURCES)
+def test_resources_are_refused_within_seconds(fn, exc, match, tmp_path, monkeypatch):
+    monkeypatch.setenv("IGA_MAX_MEMORY_GIB", "8")  # the same budget on every machine
+    t = time.perf_counter()
+    check(fn, exc, match, tmp_path)
+    assert time.perf_counter() - t < 5.0
+    assert not (tmp_path / "o").exists()
+
+
+# =================================================================== 11. the command line
+def _cli(tmp_path, *args, toml=None):
+    if toml is not None:
+        (tmp_path / "c.toml").write_text(toml)
+    return subprocess.run([sys.executable, "-m", "iga", *args], capture_output=True, text=True, cwd=tmp_path,
+                          timeout=120)
+
+
+GOOD_TOML = """
+[map]
+primitive = "box"
+[tile]
+library = "cross"
+[paving]
+scheme = "regular"
+counts = [1, 1, 1]
+[[bc]]
+kind = "dirichlet"
+tag = "wmin"
+value = 1.0
+[output]
+png = false
+"""
+
+CLI = [
+    ("missing config", ["run", "missing.toml"], None, r"config file missing\.toml does not exist"),
+    ("config is a folder", ["run", "."], None, r"config file \. is a folder"),
+    ("bad TOML", ["run", "c.toml"], "[map\nprimitive = 1", r"c\.toml is not valid TOML"),
+    ("unknown solver", ["run", "c.toml"], GOOD_TOML + "[solver]\nmethod = 'gauss'\n", r"solver\.method"),
+    ("tol string", ["run", "c.toml"], GOOD_TOML + "[solver]\ntol = 'small'\n", r"solver\.tol"),
+    ("tag without faces", ["run", "c.toml"], GOOD_TOML.replace('tag = "wmin"', 'tag = "nowhere"'),
+     r"unknown boundary tag 'nowhere'"),
+    ("args string", ["run", "c.toml"], GOOD_TOML.replace('primitive = "box"', 'primitive = "box"\nargs = {size = "1"}'),
+     r"map\.args\.size"),
+    ("name escapes", ["run", "c.toml"], GOOD_TOML + "name = '../x'\n", r"output\.name"),
+    ("memory budget", ["--max-memory", "0.001", "run", "c.toml"], GOOD_TOML.replace("[1, 1, 1]", "[20, 20, 20]"),
+     r"needs about .* GiB, more than the 0\.001 GiB"),
+    ("levels zero", ["demo", "heat-sink", "--levels", "0", "--out", "d"], None, r"--levels must be >= 1, got 0"),
+    ("info missing", ["info", "none.npz"], None, r"none\.npz does not exist"),
+    ("info not npz", ["info", "c.toml"], "x = 1", r"not an \.npz archive"),
+]
+
+
+@pytest.mark.parametrize("name, args, toml, match", CLI, ids=[c[0] for c in CLI])
+def test_command_line_errors_are_one_line(name, args, toml, match, tmp_path):
+    out = _cli(tmp_path, *args, toml=toml)
+    assert out.returncode == 1, out
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("iga: error: "), out.stderr
+    assert re.search(match, lines[0]), lines[0]
+    assert "Traceback" not in out.stderr and "np.float64(" not in out.stderr
+    assert not (tmp_path / "out").exists() and not (tmp_path / "d").exists()
+
+
+def test_catalogue_size():
+    n = sum(len(c) for c in (SPLINES, OPERATIONS, COMPOSITION, TILING, HEAT, WRONG, SOLVERS, FILES, CONFIG,
+                             RESOURCES, CLI))
+    assert n >= 150, n
+
+
+def test_conforming_patches_are_coupled_and_reported():
+    a, b = _box2()
+    prob = HeatProblem([a, b]).dirichlet("umin", 0.0).dirichlet("umax", 2.0)
+    assert len(prob.model.interfaces) == 1 and prob.model.interfaces[0].a == (0, "umax")
+    sol = prob.solve()
+    x = np.array([[0.5, 0.5, 0.5], [1.0, 0.3, 0.2], [1.5, 0.5, 0.5]])
+    assert np.allclose(sol.probe(x), x[:, 0], atol=1e-10)  # linear across both patches: they are coupled
+    assert MultiPatch.from_splines([a, b], couple=False).interfaces == []
+    assert ToolkitError in SolverError.__mro__ and issubclass(SplineError, ValueError)
+    assert Path(__file__).exists()
