@@ -234,18 +234,24 @@ def weld(points, cells, point_data, candidates=None, tol: float = 1e-10):
     pairs = cKDTree(points[idx]).query_pairs(tol * scale, output_type="ndarray") if len(idx) else np.zeros((0, 2), int)
     if not len(pairs):
         return points, cells, point_data, 0
-    pairs = idx[pairs]
-    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
-    m, label = connected_components(graph, directed=False)
-    counts = np.bincount(label, minlength=m).astype(float)
-    first = np.full(m, n)
-    np.minimum.at(first, label, np.arange(n))
-    out_pts = points[first]
+    k = len(idx)
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(k, k))
+    mc, lab = connected_components(graph, directed=False)  # components among the candidates
+    first = np.unique(lab, return_index=True)[1]  # first candidate of each component
+    rep = np.ones(n, bool)
+    rep[idx] = False
+    rep[idx[first]] = True  # kept points: every non-candidate and one per component
+    new = np.cumsum(rep) - 1
+    label = new.copy()
+    label[idx] = new[idx[first]][lab]
+    counts = np.bincount(lab, minlength=mc).astype(float)
     out_data = {}
     for key, v in point_data.items():
-        v2 = v.reshape(n, -1)
-        acc = np.zeros((m, v2.shape[1]))
-        for c in range(v2.shape[1]):
-            acc[:, c] = np.bincount(label, weights=v2[:, c], minlength=m)
-        out_data[key] = (acc / counts[:, None]).reshape((m,) + v.shape[1:])
+        out = v[rep].copy()
+        vc = v[idx].reshape(k, -1)
+        avg = np.stack([np.bincount(lab, weights=vc[:, c], minlength=mc) for c in range(vc.shape[1])], 1)
+        out.reshape(len(out), -1)[new[idx[first]]] = avg / counts[:, None]
+        out_data[key] = out
+    m = int(rep.sum())
+    out_pts = points[rep]
     return out_pts, label[cells], out_data, n - m

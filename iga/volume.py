@@ -23,6 +23,7 @@ from .assembly import block_diagonal_csr, load_form, pattern, stiffness_data
 from .coefficients import TENSOR_PAIRS
 from .faces import chunks
 from .forms import diffusion
+from geometry import progress
 from geometry.chain import patches_geometry_derivs_slabs
 
 from .geometry_eval import checked_det
@@ -58,16 +59,15 @@ class VolumeAssembler:
         and the load of ``source`` (a :class:`iga.coefficients.ScalarField`); ``source_total`` is int f dV (W)."""
         blocks, f = [], np.zeros(self.ndof)
         source_total = 0.0
-        for group in self.groups.values():
-            space = self.spaces[group[0]]
-            for members in chunks(group, space.nq_total):
-                pat, data, loads, total = self._group(members, space, conductivity, source)
-                source_total += total
+        work = [members for group in self.groups.values() for members in chunks(group, self.spaces[group[0]].nq_total)]
+        for members in progress.bar(work, desc="assembly", unit="batch"):
+            pat, data, loads, total = self._group(members, self.spaces[members[0]], conductivity, source)
+            source_total += total
+            for j, i in enumerate(members):
+                blocks.append((int(self.offsets[i]), pat, data[j]))
+            if loads is not None:
                 for j, i in enumerate(members):
-                    blocks.append((int(self.offsets[i]), pat, data[j]))
-                if loads is not None:
-                    for j, i in enumerate(members):
-                        f[self.offsets[i] : self.offsets[i + 1]] += loads[j].ravel()
+                    f[self.offsets[i] : self.offsets[i + 1]] += loads[j].ravel()
         return block_diagonal_csr(blocks, self.ndof), f, source_total
 
     def _group(self, members, space, conductivity, source):

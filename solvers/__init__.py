@@ -30,6 +30,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from .errors import SolverError
+from geometry import progress
 from geometry.errors import show
 
 __all__ = ["SolverError", "SolveInfo", "solve", "register", "backends", "AUTO_DIRECT_LIMIT"]
@@ -126,13 +127,20 @@ def _direct(A, b, tol, maxiter, **options):
 def _krylov(A, b, M, tol, maxiter, name, t_setup, extra):
     """CG on ``A`` (a sparse matrix or a LinearOperator computing its product) preconditioned by ``M``."""
     it = [0]
+    bar = progress.bar(None, total=maxiter, desc=name, unit="it", min_items=0) if progress.active() else None
 
     def count(_):
         it[0] += 1
+        if bar is not None:
+            bar.update(1)
 
     t1 = time.perf_counter()
-    with np.errstate(all="ignore"):  # a singular system shows up as non-finite values, reported below
-        x, _flag = spla.cg(A, b, rtol=tol, atol=0.0, maxiter=maxiter, M=M, callback=count)
+    try:
+        with np.errstate(all="ignore"):  # a singular system shows up as non-finite values, reported below
+            x, _flag = spla.cg(A, b, rtol=tol, atol=0.0, maxiter=maxiter, M=M, callback=count)
+    finally:
+        if bar is not None:
+            bar.close()
     t2 = time.perf_counter()
     res = _residual(A, x, b)
     if not np.all(np.isfinite(x)):

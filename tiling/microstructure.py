@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from geometry import BSpline, compose_many
+from geometry import BSpline, compose_many, progress
 from geometry.errors import SplineError
 from geometry.faces import FACE_NAMES, discontinuity_slots, face_knots, nested_refinement
 from geometry.multipatch import Interface, MultiPatch, PlacedPatch, detect_interfaces, tile_corners
@@ -77,7 +77,7 @@ class Microstructure(MultiPatch):
         for i, p in enumerate(self.patches):
             if not p.is_composed:
                 groups.setdefault(id(p.spline), []).append(i)
-        for members in groups.values():
+        for members in progress.bar(list(groups.values()), desc="composition", unit="tile patch"):
             spline = self.patches[members[0]].spline
             res = compose_many(self.outer, spline, np.stack([self.patches[i].placement for i in members]))
             for i, r in zip(members, res):

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from geometry import BSpline, check_regular
+from geometry import BSpline, check_regular, progress
 from geometry.resources import check_memory
 
 from .errors import TilingError
@@ -180,7 +180,7 @@ def hierarchical(D: BSpline, tile: Tile, counts, levels: int, scale: float | Non
     dw = D.domain[2]
     placed, tiles, links, roots, leaves = [], [], [], [], []
     npt = len(tile.patches)
-    for i in range(len(cu)):
+    for i in progress.bar(range(len(cu)), desc="hierarchical paving", unit="column"):
         for j in range(len(cv)):
             lo_c = np.array([cu[i, 0], cv[j, 0], dw[0]])
             hi_c = np.array([cu[i, 1], cv[j, 1], dw[1]])
