@@ -39,6 +39,17 @@ def _kernel():
     return _KERNEL
 
 
+def readonly(a, dtype=float) -> np.ndarray:
+    """A read-only, C-contiguous view (a copy only when needed) of a kernel input.
+
+    Kernel inputs are always passed read-only, so that each kernel compiles
+    one signature (numba types read-only and writable arrays apart).
+    """
+    out = np.ascontiguousarray(a, dtype=dtype).view()
+    out.setflags(write=False)
+    return out
+
+
 def _grid_kernel():
     from ._grid_kernels import grid_derivs3
 
@@ -62,11 +73,11 @@ def evaluate(knots, degrees, coefficients: np.ndarray, x: np.ndarray, derivs: bo
     """
     if not applies(len(degrees), len(x)) or np.ndim(x) != 2 or np.shape(x)[1] != 3:
         return None
-    C = np.ascontiguousarray(coefficients, dtype=float)
-    X = np.ascontiguousarray(x, dtype=float)
+    C = readonly(coefficients)
+    X = readonly(x)
     out = np.empty((4 if derivs else 1, len(X), C.shape[-1]))
     bad = np.zeros(_CHUNKS, np.int64)
-    U = [np.ascontiguousarray(u, dtype=float) for u in knots]
+    U = [readonly(u) for u in knots]
     _kernel()(X, U[0], int(degrees[0]), U[1], int(degrees[1]), U[2], int(degrees[2]), C, out, bad)
     if bad.any():
         return None
@@ -83,7 +94,7 @@ def grid_tables(spline, axes, order=(0, 1, 2)) -> list:
     for k in order:
         U, p, ax = spline.knots[k], spline.degrees[k], axes[k]
         spans, ders = kn.basis_functions(U, p, np.clip(ax, U[0], U[-1]), 1)
-        out.append(((spans - p).astype(np.int64), np.ascontiguousarray(np.moveaxis(ders, 1, 0))))
+        out.append((readonly(spans - p, np.int64), readonly(np.moveaxis(ders, 1, 0))))
     return out
 
 
@@ -95,5 +106,5 @@ def grid_derivs(hom: np.ndarray, rows: slice, tables) -> np.ndarray:
     (f0, B0), (f1, B1), (f2, B2) = tables
     m = hom.shape[-1]
     out = np.empty((4, rows.stop - rows.start, len(f1), len(f2), m))
-    _grid_kernel()(np.ascontiguousarray(hom, dtype=float), rows.start, rows.stop, f0, B0, f1, B1, f2, B2, out)
+    _grid_kernel()(readonly(hom), rows.start, rows.stop, f0, B0, f1, B1, f2, B2, out)
     return out.reshape(4, -1, m)

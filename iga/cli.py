@@ -21,6 +21,7 @@ from geometry import progress, resources
 from geometry.errors import ToolkitError
 
 from .errors import ProblemError
+from .memory import retain_freed_memory
 from geometry.errors import show
 
 
@@ -141,8 +142,6 @@ def main(argv=None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 0
-    from .memory import retain_freed_memory
-
     retain_freed_memory()  # a whole-process choice, so the application (not the library) makes it
     progress.enable(False if args.quiet else None)  # bars on a terminal only
     try:

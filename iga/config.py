@@ -25,9 +25,12 @@ import inspect
 from numbers import Real
 from pathlib import Path
 
+import solvers
 from geometry.faces import FACE_NAMES
+from tiling.library import TILES
 
 from .errors import ProblemError
+from .maps import MAPS
 from geometry.errors import show
 
 __all__ = ["validate", "SECTIONS", "OUTPUT_DEFAULTS"]
@@ -192,12 +195,6 @@ def _output(v, base: Path) -> dict:
 
 def validate(config, base_dir=".") -> dict:
     """The normalised configuration (every default filled in), or :class:`ProblemError` (see module)."""
-    from tiling.library import TILES
-
-    import solvers
-
-    from .pipeline import MAPS
-
     if not isinstance(config, dict):
         raise ProblemError("the configuration must be a table of sections")
     unknown = sorted(set(config) - set(SECTIONS))

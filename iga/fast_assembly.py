@@ -30,9 +30,10 @@ import importlib.util
 from functools import lru_cache
 
 import numpy as np
+import scipy.sparse as sp
 
 from .errors import ProblemError
-from geometry._fast import grid_tables
+from geometry._fast import grid_tables, readonly
 
 from .assembly import _CACHE_NNZ, CSRPattern, _band_limits
 from .space import Space1D, TensorSpace
@@ -88,6 +89,8 @@ def _tables(sp1: Space1D) -> dict:
             "elo": np.searchsorted(first, i - p, side="left").astype(np.int64),
             "ehi": np.searchsorted(first, i, side="right").astype(np.int64),
         }
+        for key, v in cache.items():
+            cache[key] = readonly(v, v.dtype)
         sp1.tables["fast"] = cache
     return cache
 
@@ -101,7 +104,8 @@ def _structure(shape: tuple, degrees: tuple) -> CSRPattern:
     nnz = int(counts.sum())
     indptr = np.empty(n + 1, np.int64)
     indices = np.empty(nnz, np.int32 if n < 2**31 else np.int64)
-    _kernels().csr_structure3(los[0], cs[0], los[1], cs[1], los[2], cs[2], *degrees, indptr, indices)
+    _kernels().csr_structure3(*(readonly(a, np.int64) for a in (los[0], cs[0], los[1], cs[1], los[2], cs[2])),
+                              *degrees, indptr, indices)
     return CSRPattern(indptr, indices, None, None, n)
 
 
@@ -133,14 +137,12 @@ def compact_rows_cols(K, keep: np.ndarray):
     shares read-only (a cached pattern's ``indptr`` and ``indices``) are
     copied first, never written.
     """
-    import scipy.sparse as sp
-
     indptr, indices, data = (a if a.flags.writeable and a.flags.c_contiguous else np.array(a)
                              for a in (K.indptr, K.indices, K.data))
     n = K.shape[0]
     new = np.full(n, -1, indices.dtype)
     new[keep] = np.arange(len(keep), dtype=indices.dtype)
-    rows, nnz = _kernels().compact_rows_cols(indptr, indices, data, new)
+    rows, nnz = _kernels().compact_rows_cols(indptr, indices, data, readonly(new, new.dtype))
     return sp.csr_matrix((data[:nnz], indices[:nnz], indptr[: rows + 1]), shape=(rows, rows))
 
 
@@ -184,13 +186,14 @@ class StiffnessAccumulator:
                                f"got {planes.start}")
         t1, t2, t3 = self.tables
         shape = (6, self.data.shape[0], planes.stop - planes.start) + self.space.qshape[1:]
-        C = np.ascontiguousarray(C, dtype=float).reshape(shape)
+        C = readonly(np.reshape(C, shape))
         if L is not None:  # shaped before anything is added, so that a bad slab changes nothing
-            L = np.ascontiguousarray(L, dtype=float).reshape(shape[1:])
+            L = readonly(np.reshape(L, shape[1:]))
         self.next_element = planes.stop // g
         p3, g3 = t3["b"].shape[2] - 1, t3["b"].shape[3]
         _kernels().stiffness3_for(p3, g3)(C, planes.start // g, t1["b"], t1["first"], t2["W"], t2["r"], t2["s"],
-                                          t3["b"], t3["first"], self.pattern.indptr, t1["lo"], t1["c"],
+                                          t3["b"], t3["first"], readonly(self.pattern.indptr, np.int64),
+                                          t1["lo"], t1["c"],
                                           t2["lo"], t2["c"], t3["lo"], t3["c"], self.ring, self.Z, self.Y, self.data)
         if L is not None:
             if self.load is None:
@@ -232,18 +235,13 @@ def metric_fields(D, kval, fval, w):
     C, L, det = np.empty((6, M)), np.empty(M), np.empty(M)
     kval = np.asarray(kval, float)
     if kval.ndim == 2:
-        kiso, ktensor = np.zeros(M), _writable(np.broadcast_to(kval, (M, 6)))
+        kiso, ktensor = readonly(np.zeros(M)), readonly(np.broadcast_to(kval, (M, 6)))
     else:
-        kiso, ktensor = _writable(np.broadcast_to(kval, (M,))), np.zeros((0, 6))
-    fval = _writable(np.broadcast_to(np.asarray(fval, float), (M,)))
-    _metric_kernels().metric_fields(_writable(Du), _writable(Dv), _writable(Dw), kiso, ktensor, fval,
-                                      _writable(np.broadcast_to(np.asarray(w, float), (M,))), C, L, det)
+        kiso, ktensor = readonly(np.broadcast_to(kval, (M,))), readonly(np.zeros((0, 6)))
+    fval = readonly(np.broadcast_to(np.asarray(fval, float), (M,)))
+    _metric_kernels().metric_fields(readonly(Du), readonly(Dv), readonly(Dw), kiso, ktensor, fval,
+                                    readonly(np.broadcast_to(np.asarray(w, float), (M,))), C, L, det)
     return C, L, det
-
-
-def _writable(a: np.ndarray) -> np.ndarray:
-    """A C-contiguous, writable float array (a copy only when needed): one compiled signature per kernel."""
-    return np.require(a, dtype=float, requirements=["C", "W"])
 
 
 def metric_slabs(spline, space: TensorSpace, points_per_slab: int, kval, fval: float):
@@ -261,11 +259,11 @@ def metric_slabs(spline, space: TensorSpace, points_per_slab: int, kval, fval: f
     hom = spline.homogeneous
     if hom.shape[-1] != (4 if spline.is_rational else 3):  # channels are not needed: coordinates (and weight)
         hom = hom[..., [0, 1, 2, -1] if spline.is_rational else [0, 1, 2]]
-    hom = np.ascontiguousarray(hom, dtype=float)
+    hom = readonly(hom)
     kval = np.asarray(kval, float)
     iso = kval.ndim == 0
-    K = np.array([kval, kval, kval, 0.0, 0.0, 0.0]) if iso else np.ascontiguousarray(kval.reshape(6))
-    qw = [np.ascontiguousarray(d.qw, dtype=float) for d in space.dirs]
+    K = readonly(np.array([kval, kval, kval, 0.0, 0.0, 0.0]) if iso else kval.reshape(6))
+    qw = [readonly(d.qw) for d in space.dirs]
     g, nq0 = space.dirs[0].g, space.dirs[0].nq
     rest = space.dirs[1].nq * space.dirs[2].nq
     rows = g * max(1, points_per_slab // (rest * g))

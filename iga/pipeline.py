@@ -14,35 +14,26 @@ from __future__ import annotations
 
 import json
 import time
-from math import pi
 from pathlib import Path
 
 import numpy as np
 
-from geometry import BSpline, load, primitives as pr, resources
+import tiling
+from geometry import BSpline, load, resources
 from geometry import progress as display
 from geometry.io import atomic_write
+from tiling.library import TILES
+from tiling.materials import graded_channel
 
 from .config import validate
 from .errors import ProblemError
+from .locate import Locator
+from .maps import MAPS, circular_heat_sink_map, vertical_heat_sink_map
+from .problem import HeatProblem
+from .vtu import write_vtu
 from geometry.errors import show
 
 __all__ = ["run_pipeline", "heat_sink_config", "circular_heat_sink_map", "vertical_heat_sink_map", "MAPS"]
-
-
-def circular_heat_sink_map(r_in=0.02, r_out=0.06, height=0.03, twist=pi / 8) -> BSpline:
-    """Twisted cylindrical shell (m): u around the axis, v along it, w radial (Massarwi et al. 2018, Fig. 11(a))."""
-    shell = pr.annulus(r_in, r_out, height, angle=2 * pi, exact=True)  # (angle, radius, z)
-    return pr.twisted(shell, twist).permute([0, 2, 1])  # (angle, z, radius): right-handed
-
-
-def vertical_heat_sink_map(width=0.06, depth=0.06, height=0.03) -> BSpline:
-    """Box base of the vertical heat sink (m), w upwards (Massarwi et al. 2018, Fig. 11(c)-(d))."""
-    return pr.box((width, depth, height), degrees=(2, 2, 2))
-
-
-MAPS = {"circular_heat_sink": circular_heat_sink_map, "vertical_heat_sink": vertical_heat_sink_map,
-        "box": pr.box, "annulus": pr.annulus}
 
 
 def heat_sink_config(variant: str = "circular", levels: int | None = None, refine: int = 0,
@@ -74,17 +65,12 @@ def heat_sink_config(variant: str = "circular", levels: int | None = None, refin
 def _build_map(cfg) -> BSpline:
     D = load(cfg["file"]) if "file" in cfg else MAPS[cfg["primitive"]](**cfg["args"])
     if "grading" in cfg:
-        from tiling.materials import graded_channel
-
         g = cfg["grading"]
         D = graded_channel(D, g["channel"], g["near"], g["far"], g["face"], g["mode"])
     return D
 
 
 def _build_tiling(cfg, D):
-    import tiling
-    from tiling.library import TILES
-
     tile = TILES[cfg["tile"]["library"]](**cfg["tile"]["args"])
     p = cfg["paving"]
     if p["scheme"] == "hierarchical":
@@ -148,9 +134,6 @@ def run_pipeline(config: dict, base_dir: str | Path = ".", progress: bool | None
 
 
 def _run(cfg: dict, out: Path) -> dict:
-    from . import HeatProblem, write_vtu
-    from .locate import Locator
-
     ocfg, scfg = cfg["output"], cfg["solver"]
     stages = display.Stages(6)
     stages.start("deformation map")

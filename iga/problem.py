@@ -30,6 +30,7 @@ from .faces import FaceData, FaceQuadrature
 from .forms import boundary_load, boundary_mass
 from .model import as_model, tag_faces
 from .regularity import prove_regular
+from .solution import Solution
 from .space import make_space, space_size
 from .system import solve_system
 from .volume import VolumeAssembler
@@ -265,8 +266,6 @@ class HeatProblem:
         ``solver``: a name from :func:`solvers.backends`; ``tol``: relative
         residual of iterative solvers (0 < tol < 1); ``maxiter``: their iteration limit.
         """
-        from .solution import Solution
-
         if not (is_number(tol) and 0 < tol < 1):
             raise ProblemError(f"tol must be a number in (0, 1), got {show(tol)}")
         if maxiter is not None:

@@ -22,13 +22,13 @@ from pathlib import Path
 import numpy as np
 
 from geometry.io import atomic_write, check_folder
+from geometry.sampling import sampled_mesh
 
 from .errors import ProblemError
 from .model import as_model
-from geometry.sampling import sampled_mesh
-
 from .sampling import temperature_fields
 from .solution import Solution
+from .vtu_bezier import bezier_grid
 from geometry.errors import show
 
 __all__ = ["write_vtu", "save_grid"]
@@ -80,8 +80,6 @@ def write_vtu(path, solution_or_model, samples: int = 3, cells: str = "linear") 
     sol = solution_or_model if isinstance(solution_or_model, Solution) else None
     model = sol.problem.model if sol is not None else as_model(solution_or_model)
     if cells == "bezier":
-        from .vtu_bezier import bezier_grid
-
         grid = bezier_grid(sol, model)
     else:
         grid = sampled_grid(model, sol, samples)

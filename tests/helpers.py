@@ -33,3 +33,21 @@ def random_points(rng, spline, n=1000):
 
 def rel_err(a, b):
     return np.abs(a - b).max() / max(1.0, np.abs(b).max())
+
+
+def surface_area(surface, n=8):
+    """Area of a spline surface by Gauss-Legendre quadrature (n points per knot span and direction).
+
+    Independent of the analysis code: only the surface's own Jacobian is used.
+    """
+    pts, wts = [], []
+    x, w = np.polynomial.legendre.leggauss(n)
+    for k in range(2):
+        b = surface.breakpoints(k)
+        h = np.diff(b)
+        pts.append((b[:-1, None] + h[:, None] * (x + 1) / 2).ravel())
+        wts.append((h[:, None] * w / 2).ravel())
+    g = np.stack(np.meshgrid(*pts, indexing="ij"), -1).reshape(-1, 2)
+    W = np.multiply.outer(*wts).ravel()
+    J = surface.jacobian(g)[:, :3, :]
+    return float(np.sum(np.linalg.norm(np.cross(J[:, :, 0], J[:, :, 1]), axis=1) * W))

@@ -8,6 +8,8 @@ import tiling
 from tiling import library as L
 from iga import HeatProblem, ProblemError
 
+from helpers import surface_area
+
 AFFINE = pr.box((2.0, 1.0, 1.5), degrees=(1, 1, 1))
 
 
@@ -40,7 +42,11 @@ def test_regular_cross_patch_test_and_energy_balance():
     s = HeatProblem(ms, conductivity=50.0).neumann("umin", 1000.0).robin("cooling", 5.0, 30.0).solve()
     b = s.info["balance"]
     assert b["relative_error"] < 1e-8
-    assert s.flux("umin") < 0 < s.flux("cooling")
+    # independent: the inflow is q times the area of the 9 arm ends on u = 0, each (0.3 * 2/3) x (0.3 * 1/2)
+    area = sum(surface_area(ms.patches[i].composed.boundary(f)) for i, f in ms.tags["umin"])
+    assert area == pytest.approx(9 * 0.3 * (1 / 3) * 0.3 * 0.5, rel=1e-12)
+    assert s.flux("umin") == pytest.approx(-1000.0 * area, rel=1e-10)
+    assert s.flux("cooling") == pytest.approx(1000.0 * area, rel=1e-8)
 
 
 def test_hierarchical_energy_balance_neumann_root_robin_elsewhere():
@@ -49,6 +55,11 @@ def test_hierarchical_energy_balance_neumann_root_robin_elsewhere():
     s = (HeatProblem(ms, conductivity=205.0, refine=1).neumann("branch-in", 1515.8)
          .robin("cooling", 5.0, 30.0).solve())
     assert s.info["balance"]["relative_error"] < 1e-8
+    # independent: q times the area of the root faces, integrated on the composed splines
+    area = sum(surface_area(ms.patches[i].composed.boundary(f)) for i, f in ms.tags["branch-in"])
+    assert s.flux("branch-in") == pytest.approx(-1515.8 * area, rel=1e-10)
+    # and the heat that convects away: h (T - T_inf) integrated on the faces equals it (steady state)
+    assert s.flux("cooling") == pytest.approx(1515.8 * area, rel=1e-8)
     T = s.probe(np.array([P.composed(np.array([[0.5, 0.5, 0.5]]))[0, :3] for P in ms.patches[::9]]))
     assert np.all(T > 30.0)
 

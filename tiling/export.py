@@ -16,6 +16,7 @@ touch at their root), the connected components and the Euler characteristic.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -144,8 +145,6 @@ def write_surfaces(path, ms: Microstructure, samples: int = 4) -> Path:
 
 
 def _save(mesh, tmp, suffix):
-    import os
-
     # pyvista picks the writer by the file's suffix: write to a name with the right one, then move it
     target = str(tmp) + suffix
     mesh.save(target, binary=True)
