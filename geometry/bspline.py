@@ -28,6 +28,18 @@ class BSpline(SplineFunction):
 
     Every operation (refinement, elevation, extraction, products, composition)
     acts on coordinates and channels together and keeps the channel names.
+
+    Example: a quarter circle (exact quadratic NURBS) with a temperature channel.
+
+    >>> import numpy as np
+    >>> w = np.array([1.0, np.sqrt(0.5), 1.0])
+    >>> arc = BSpline((2,), [[0, 0, 0, 1, 1, 1]], [[1, 0, 0, 20], [1, 1, 0, 25], [0, 1, 0, 30]], w, channels=("T",))
+    >>> x = arc.evaluate(np.linspace(0, 1, 7)[:, None])
+    >>> bool(np.allclose(np.hypot(x[:, 0], x[:, 1]), 1.0)), arc.channels
+    (True, ('T',))
+    >>> finer, R = arc.insert_knots(0, [0.5])   # exact: same curve, refinement matrix R (4 x 3)
+    >>> R.shape, bool(np.allclose(finer.evaluate(np.array([[0.3]])), arc.evaluate(np.array([[0.3]]))))
+    ((4, 3), True)
     """
 
     def __init__(self, degrees, knots, control_points, weights=None, channels=()):

@@ -5,8 +5,12 @@ sparse matrix, a right-hand side and options go in; a solution vector and a
 :class:`SolveInfo` come out.  Backends are registered by name, so a
 distributed backend (PETSc) can be added without touching the callers:
 
+    >>> import numpy as np, scipy.sparse as sp
     >>> from solvers import solve
-    >>> x, info = solve(A, b, method="auto", tol=1e-10)
+    >>> A = sp.diags([[-1.0] * 9, [2.0] * 10, [-1.0] * 9], [-1, 0, 1], format="csr")
+    >>> x, info = solve(A, np.ones(10), method="cg", tol=1e-12)
+    >>> info.method, bool(np.allclose(A @ x, 1.0))
+    ('cg', True)
 
 Built-in backends
 -----------------

@@ -108,6 +108,12 @@ def regular(D: BSpline, tile: Tile, counts, variants: dict | None = None, name: 
     -1 (at the min boundary of D's domain), 0 (interior), +1 (at the max
     boundary) to a sealed boundary tile (Elber 2017, Sections 2-3); tiles whose key is
     missing use ``tile``.
+
+    >>> from geometry import primitives
+    >>> from tiling import library
+    >>> lattice = regular(primitives.box((2.0, 1.0, 1.0)), library.cross(), (4, 2, 2))
+    >>> lattice.n_tiles, len(lattice.patches), len(lattice.tags["umin"])   # 7 blocks per tile; 4 arm ends at u = 0
+    (16, 112, 4)
     """
     _check_map(D)
     if not isinstance(tile, Tile):
@@ -147,6 +153,12 @@ def hierarchical(D: BSpline, tile: Tile, counts, levels: int, scale: float | Non
     counts the base level; ``scale`` (default: the tile's) is the height of a
     child relative to its parent along the growth direction.  The whole
     hierarchy is scaled (axis-aligned) into each base cell of D's domain.
+
+    >>> from geometry import primitives
+    >>> from tiling import library
+    >>> sink = hierarchical(primitives.box((0.06, 0.06, 0.03)), library.heat_sink_t2(), (2, 2), levels=2)
+    >>> sink.tiles_per_level(), sum(i.kind == "branch" for i in sink.interfaces)   # 4 pins on every base tile
+    ([4, 16], 16)
     """
     _check_map(D)
     if not isinstance(tile, Tile) or not tile.hierarchical:
