@@ -84,12 +84,13 @@ def render_temperature(vtu_path: Path, png_path: Path, title: str = "temperature
 
     pv.vtk_verbosity("off")  # offscreen (EGL) rendering works without X; silence VTK's note about it
     mesh = pv.read(vtu_path).extract_surface(algorithm="dataset_surface")
-    pl = pv.Plotter(off_screen=True, window_size=[1100, 850])
-    pl.add_mesh(mesh, scalars="temperature", cmap="inferno", smooth_shading=True,
-                scalar_bar_args={"title": title, "vertical": True, "fmt": "%.2f", "position_x": 0.82,
-                                 "position_y": 0.12, "width": 0.1, "height": 0.7, "title_font_size": 18,
+    pl = pv.Plotter(off_screen=True, window_size=[1200, 850])
+    pl.add_mesh(mesh, scalars="temperature", cmap="inferno", smooth_shading=True, split_sharp_edges=True,
+                scalar_bar_args={"title": title, "vertical": True, "fmt": "%.2f", "position_x": 0.86,
+                                 "position_y": 0.12, "width": 0.08, "height": 0.7, "title_font_size": 18,
                                  "label_font_size": 16})
     pl.camera_position = "iso"
+    pl.camera.zoom(0.85)  # room for the scalar bar beside the model
     pl.set_background("white")
     try:
         atomic_write(png_path, lambda tmp: pl.screenshot(tmp), ".png", ProblemError)

@@ -167,13 +167,17 @@ def render_png(ms: Microstructure, path, samples: int = 6, color_by: str = "leve
     if tris.n_cells:
         tris.cell_data[color_by] = np.asarray(attr[color_by])[tris.cell_data["patch"]]
         n = len(np.unique(tris.cell_data[color_by]))
-        pl.add_mesh(tris, scalars=color_by, cmap="viridis", smooth_shading=True, show_scalar_bar=n > 1,
-                    scalar_bar_args={"title": color_by, "vertical": True, "position_x": 0.86, "position_y": 0.15,
-                                     "width": 0.08, "height": 0.6, "n_labels": min(n, 6), "fmt": "%.0f"})
+        if n > 1:
+            pl.add_mesh(tris, scalars=color_by, cmap="viridis", smooth_shading=True, split_sharp_edges=True,
+                        scalar_bar_args={"title": color_by, "vertical": True, "position_x": 0.86,
+                                         "position_y": 0.15, "width": 0.08, "height": 0.6, "n_labels": min(n, 6),
+                                         "fmt": "%.0f"})
+        else:  # one value: a plain colour reads better than the colour map's end
+            pl.add_mesh(tris, color="#8fb3de", smooth_shading=True, split_sharp_edges=True)
     lines = mesh.extract_cells_by_type(3)
     if lines.n_cells:
         size = float(np.ptp(np.asarray(lines.points), axis=0).max())
-        pl.add_mesh(lines.extract_surface().tube(radius=0.01 * size), color="darkred")
+        pl.add_mesh(lines.extract_surface(algorithm="dataset_surface").tube(radius=0.01 * size), color="darkred")
     pl.camera_position = camera
     pl.set_background("white")
     try:
