@@ -90,6 +90,22 @@ def test_iga_run_reduced_heat_sink(tmp_path):
     assert s["probes"]["temperature_C"][0] > 30.0
     k = m.point_data["conductivity"]
     assert 54.0 - 1e-9 <= k.min() and k.max() <= 205.0 + 1e-9
+    # the summary's extremes are sampled values (the VTU's points), its mean a volume average in between
+    t = s["temperature_C"]
+    assert t["min"] == pytest.approx(T.min(), abs=1e-9) and t["max"] == pytest.approx(T.max(), abs=1e-9)
+    assert t["min"] < t["mean"] < t["max"]
+    assert_one_welded_piece(m)
+
+
+def assert_one_welded_piece(grid):
+    """The VTU is one welded mesh: its surface has no open edges (holes) and no non-manifold edges, which
+    is what internal faces between unwelded neighbours (or T-junctions on branch faces) would produce."""
+    surf = grid.extract_surface(algorithm="dataset_surface")
+    edges = {kind: surf.extract_feature_edges(boundary_edges=kind == "open", non_manifold_edges=kind == "nm",
+                                              feature_edges=False, manifold_edges=False).n_cells
+             for kind in ("open", "nm")}
+    assert edges == {"open": 0, "nm": 0}, edges
+    assert int(surf.connectivity().cell_data["RegionId"].max()) == 0  # one piece
 
 
 def test_config_errors_name_the_key(tmp_path):
@@ -109,10 +125,27 @@ def test_config_errors_name_the_key(tmp_path):
 
 
 def test_demo_command_reduced(tmp_path):
-    out = subprocess.run([sys.executable, "-m", "iga", "demo", "heat-sink", "--variant", "vertical", "--levels", "1",
+    import pyvista as pv
+
+    out = subprocess.run([sys.executable, "-m", "iga", "demo", "heat-sink", "--variant", "vertical", "--levels", "2",
                           "--out", str(tmp_path / "demo")], capture_output=True, text=True)
     assert out.returncode == 0, out.stderr
     s = json.loads((tmp_path / "demo" / "summary.json").read_text())
     assert s["energy_balance_error"] < 1e-8 and s["temperature_C"]["min"] > 30.0
     assert (tmp_path / "demo" / "heat_sink.png").stat().st_size > 10_000
     assert out.stderr == ""  # no progress display when not on a terminal
+    assert "2 levels" in out.stdout and "16 + 64" not in out.stdout
+    # independent: the inflow is q times the 60 x 60 mm base
+    assert s["inflow_W"] == pytest.approx(1515.8 * 0.06 * 0.06, rel=1e-10)
+    assert_one_welded_piece(pv.read(tmp_path / "demo" / "heat_sink.vtu"))
+
+
+def test_progress_lines_when_asked(tmp_path, capsys):
+    cfg = heat_sink_config(variant="vertical", levels=1, out=str(tmp_path / "o"))
+    cfg["output"].update(png=False)
+    run_pipeline(cfg, progress=True)
+    err = capsys.readouterr().err
+    for stage in ("[1/6] deformation map", "[2/6] tiling", "[3/6] assembly and solve", "[4/6] VTU output"):
+        assert stage in err
+    run_pipeline(cfg, progress=False)
+    assert capsys.readouterr().err == ""
