@@ -74,6 +74,7 @@ class BSpline(SplineFunction):
         return self.coefficients[..., :3]
 
     def channel_index(self, name: str) -> int:
+        """Index of channel ``name`` in the last axis of :attr:`control_points` (3 + its position)."""
         if name not in self.channels:
             raise SplineError(f"unknown channel {show(name)}; this spline has channels {list(self.channels)}")
         return 3 + self.channels.index(name)
@@ -116,9 +117,11 @@ class BSpline(SplineFunction):
         return BSpline(self.degrees, self.knots, cp, self.weights, self.channels)
 
     def translate(self, b) -> "BSpline":
+        """Image under ``x -> x + b`` (b: 3-vector, model units); channels unchanged."""
         return self.affine(None, b)
 
     def scale(self, s) -> "BSpline":
+        """Image under ``x -> s x`` (s: a number or one factor per axis); channels unchanged."""
         s = np.broadcast_to(np.asarray(s, float), (3,))
         return self.affine(np.diag(s))
 

@@ -62,12 +62,14 @@ class Stages:
         self.t = time.perf_counter()
 
     def start(self, name: str) -> None:
+        """Begin stage ``name`` (prints ``[i/n] name ...`` when progress is on)."""
         self.i += 1
         self.name, self.t = name, time.perf_counter()
         if _ON:
             print(f"[{self.i}/{self.n}] {name} ...", file=sys.stderr, flush=True)
 
     def done(self, detail: str = "") -> float:
+        """End the current stage; records and returns its time in seconds."""
         dt = time.perf_counter() - self.t
         self.timings[self.name] = dt
         if _ON:

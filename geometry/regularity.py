@@ -54,6 +54,7 @@ class RegularityResult:
 
     @property
     def regular(self) -> bool:
+        """True only when regularity is proven."""
         return self.status == "regular"
 
     def __bool__(self) -> bool:

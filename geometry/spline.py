@@ -162,10 +162,12 @@ class SplineFunction(SplineEvaluation):
 
     @property
     def n_components(self) -> int:
+        """Number of components m (coordinates and channels; the weight not counted)."""
         return self._coefs.shape[-1]
 
     @property
     def is_rational(self) -> bool:
+        """Whether the spline has weights (NURBS)."""
         return self.weights is not None
 
     @property
@@ -174,10 +176,12 @@ class SplineFunction(SplineEvaluation):
         return np.array([[U[0], U[-1]] for U in self.knots])
 
     def breakpoints(self, direction: int) -> np.ndarray:
+        """Distinct knot values along ``direction`` (the element boundaries)."""
         return np.unique(self.knots[direction])
 
     @property
     def n_elements(self) -> tuple[int, ...]:
+        """Number of non-empty knot spans per direction."""
         return tuple(len(self.breakpoints(k)) - 1 for k in range(self.dim))
 
     def _check_direction(self, direction) -> int:

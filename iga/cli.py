@@ -94,6 +94,7 @@ class _Formatter(argparse.ArgumentDefaultsHelpFormatter):
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of the ``iga`` command (subcommands demo, run, info)."""
     parser = argparse.ArgumentParser(
         prog="iga",
         description="Exact B-spline micro-structures and isogeometric heat-transfer analysis.",
@@ -137,6 +138,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
+    """Run the ``iga`` command with ``argv``; returns the exit status (0, or 1 after a one-line error)."""
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):

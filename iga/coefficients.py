@@ -165,6 +165,7 @@ class Conductivity:
         return self.scalar.constant if self.scalar is not None else None
 
     def values(self, x: np.ndarray, chans: dict, where: str) -> np.ndarray:
+        """Conductivity at points x (N, 3): (N,) isotropic, (N, 6) tensor components (xx, yy, zz, xy, xz, yz)."""
         n = len(x)
         if self.scalar is not None:
             return self.scalar.values(x, chans, where)

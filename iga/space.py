@@ -115,18 +115,22 @@ class TensorSpace:
 
     @property
     def dim(self) -> int:
+        """Parametric dimension (2 or 3)."""
         return len(self.dirs)
 
     @property
     def shape(self) -> tuple[int, ...]:
+        """Number of basis functions per direction."""
         return tuple(s.n for s in self.dirs)
 
     @property
     def ndof(self) -> int:
+        """Number of basis functions (DOFs) of the tensor space."""
         return int(np.prod(self.shape))
 
     @property
     def qshape(self) -> tuple[int, ...]:
+        """Number of Gauss points per direction."""
         return tuple(s.nq for s in self.dirs)
 
     @property
@@ -136,6 +140,7 @@ class TensorSpace:
 
     @property
     def qaxes(self) -> list[np.ndarray]:
+        """Gauss points per direction (parameter values)."""
         return [s.qpts for s in self.dirs]
 
     def key(self) -> tuple:
@@ -149,6 +154,7 @@ class TensorSpace:
         return np.take(idx, -1 if side else 0, axis=k).ravel()
 
     def face_space(self, face: str) -> "TensorSpace":
+        """The 2-D space of the face ``face`` (its two remaining directions, in order)."""
         k, _ = FACE_AXIS[face]
         return TensorSpace([s for i, s in enumerate(self.dirs) if i != k])
 

@@ -63,6 +63,7 @@ class SolveInfo:
     extra: dict = field(default_factory=dict)
 
     def as_dict(self) -> dict:
+        """The diagnostics as a plain dictionary (for JSON summaries)."""
         return {"method": self.method, "iterations": self.iterations, "residual": self.residual,
                 "setup_s": self.setup_s, "solve_s": self.solve_s, **self.extra}
 

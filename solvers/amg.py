@@ -105,6 +105,7 @@ class AMGPreconditioner:
 
     @property
     def info(self) -> dict:
+        """Levels of the hierarchy and its operator complexity."""
         return {"amg_levels": len(self.levels), "operator_complexity": float(self.ml.operator_complexity())}
 
     def _cycle(self, lvl: int, b: np.ndarray) -> np.ndarray:

@@ -56,13 +56,16 @@ class Microstructure(MultiPatch):
 
     @property
     def n_tiles(self) -> int:
+        """Number of placed tiles."""
         return len({p.tile for p in self.patches})
 
     @property
     def levels(self) -> int:
+        """Number of hierarchy levels (1 for a regular paving)."""
         return 1 + max((p.level for p in self.patches), default=0)
 
     def tiles_per_level(self) -> list[int]:
+        """Tiles on each hierarchy level, from the base."""
         out = [0] * self.levels
         seen = set()
         for p in self.patches:

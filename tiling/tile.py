@@ -41,6 +41,7 @@ class BranchFace:
     map: np.ndarray | None = None
 
     def surface(self, tile: "Tile") -> BSpline:
+        """The face as a surface spline (restricted to ``box`` when given)."""
         s = tile.patches[self.patch].boundary(self.face)
         return s if self.box is None else s.extract(np.asarray(self.box, float))
 
@@ -131,10 +132,12 @@ class Tile:
 
     @property
     def hierarchical(self) -> bool:
+        """Whether the tile has a branch-in face and branch-out faces."""
         return self.branch_in is not None and bool(self.branch_outs)
 
     @property
     def trivariates(self) -> list[int]:
+        """Indices of the tile's trivariate patches."""
         return [i for i, p in enumerate(self.patches) if p.dim == 3]
 
     def _branch_map(self, bf: BranchFace, what: str) -> np.ndarray:
