@@ -25,6 +25,7 @@ from functools import lru_cache
 import numpy as np
 
 from . import bernstein as bz
+from . import knots as kn
 from .errors import SplineError
 from .spline import SplineFunction
 
@@ -82,6 +83,30 @@ def _det(rows, ndim):
     return minor(0, tuple(range(n)))
 
 
+def _elements(spline: SplineFunction):
+    """Homogeneous Bezier elements (E, p_1+1, ..., p_d+1, m) and their parameter boxes (E, d, 2)."""
+    d = spline.dim
+    if d not in (2, 3):
+        raise SplineError(f"check_regular needs a planar surface or a trivariate, got a {d}-variate spline")
+    hom, boxes = spline.bezier_patches(homogeneous=True)
+    E = int(np.prod(hom.shape[:d]))
+    return hom.reshape((E,) + hom.shape[d:]), boxes.reshape(E, d, 2)
+
+
+def _bernstein_jacobian(hom: np.ndarray, d: int, rational: bool) -> np.ndarray:
+    """Bernstein coefficients (E, q_1+1, ...) of the Jacobian determinant of Bezier elements ``hom``."""
+    bern = hom.shape[1 : 1 + d]
+    comps = ([hom[..., -1]] if rational else []) + [hom[..., c] for c in range(d)]  # (w,) X, Y[, Z]
+
+    def deriv(a, k):
+        return (bern[k] - 1) * np.diff(a, axis=1 + k)
+
+    rows = [[deriv(c, k) for c in comps] for k in range(d)]
+    if rational:
+        rows = [comps] + rows
+    return _det(rows, d)
+
+
 def jacobian_bezier(spline: SplineFunction):
     """Per-element Bernstein coefficients of the Jacobian determinant (or a positive multiple).
 
@@ -89,27 +114,109 @@ def jacobian_bezier(spline: SplineFunction):
     first ``d`` components as coordinates (d = 2: planar map in x, y).
     Derivatives are taken in local element coordinates, which scales each
     element's Jacobian by a positive constant and leaves every sign intact.
+    For a NURBS map the determinant is that of the homogeneous map (w^(d+1)
+    times the Jacobian), of the same sign.
+    """
+    hom, boxes = _elements(spline)
+    return _bernstein_jacobian(hom, spline.dim, spline.is_rational), boxes
+
+
+def _element_windows(spline):
+    """Per direction: element boxes (E_k, 2) and the first basis function of each element (E_k,)."""
+    out = []
+    for U, p in zip(spline.knots, spline.degrees):
+        b = np.unique(U)
+        first = kn.find_spans(U, p, b[:-1]) - p
+        out.append((np.stack([b[:-1], b[1:]], 1), first))
+    return out
+
+
+def _gather(arr, firsts, widths, sel):
+    """Windows of ``arr`` (n_1, ..., n_d, c) for the elements ``sel`` (S, d): (S, w_1, ..., w_d, c)."""
+    d = len(firsts)
+    idx = [firsts[k][sel[:, k]][:, None] + np.arange(widths[k])[None, :] for k in range(d)]
+    grids = [idx[k].reshape((len(sel),) + tuple(widths[k] if j == k else 1 for j in range(d))) for k in range(d)]
+    return arr[tuple(grids)]
+
+
+def _window_extremes(Q: np.ndarray, widths) -> tuple[np.ndarray, np.ndarray]:
+    """Componentwise max and min of ``Q`` (n_1, ..., n_d, c) over every window of ``widths`` starting at each index.
+
+    Separable: one sliding maximum (minimum) per axis, so the cost is linear in
+    the window widths, not in their product.
+    """
+    hi, lo = Q, Q
+    for k, w in enumerate(widths):
+        m = hi.shape[k] - w + 1
+
+        def shifted(a, s, k=k, m=m):
+            return a[(slice(None),) * k + (slice(s, s + m),)]
+
+        h, l_ = shifted(hi, 0), shifted(lo, 0)
+        for s in range(1, w):  # contiguous slices: much faster than reducing a strided window axis
+            h, l_ = np.maximum(h, shifted(hi, s)), np.minimum(l_, shifted(lo, s))
+        hi, lo = h, l_
+    return hi, lo
+
+
+def _nearly_affine(spline) -> np.ndarray:
+    """Sign of the Jacobian on every element of a polynomial spline (element grid shape), 0 where not proven.
+
+    On an element, column k of the Jacobian is a convex combination of the
+    B-spline coefficients Q_k,i of the k-th partial derivative whose support
+    meets the element (convex hull property), so it lies in their bounding box:
+    within E_k = |half the box's diagonal| of its centre J0_k.  When
+    sigma_min(J0) > ||(E_1, ..., E_d)||_F every Jacobian on the element is
+    non-singular (Weyl's inequality) and its determinant has the sign of
+    det J0; sigma_min is bounded below by 2 |det J0| / ||J0||_F^2 (d = 3) or
+    |det J0| / ||J0||_F (d = 2).  Nearly affine elements, most elements of a
+    refined patch, are decided from the control net alone, without extracting
+    Bezier elements or forming the determinant's Bernstein form.
     """
     d = spline.dim
-    if d not in (2, 3):
-        raise SplineError(f"check_regular needs a planar surface or a trivariate, got a {d}-variate spline")
-    hom, boxes = spline.bezier_patches(homogeneous=True)
-    E = int(np.prod(hom.shape[:d]))
-    hom = hom.reshape((E,) + hom.shape[d:])
-    bern = hom.shape[1 : 1 + d]
-    if spline.is_rational:
-        comps = [hom[..., -1]] + [hom[..., c] for c in range(d)]  # (w, X, Y[, Z])
+    P = spline.coefficients[..., :d]
+    firsts = [f for _, f in _element_windows(spline)]
+    cols, dev = [], []
+    for k in range(d):
+        U, p = spline.knots[k], spline.degrees[k]
+        n = P.shape[k]
+        den = U[p + 1 : n + p] - U[1:n]  # derivative coefficients Q_i = p (P_i+1 - P_i) / (U_i+p+1 - U_i+1)
+        shape = [1] * (d + 1)
+        shape[k] = n - 1
+        scale = np.where(den > 0, p / np.where(den > 0, den, 1.0), 0.0).reshape(shape)
+        widths = [spline.degrees[j] + (0 if j == k else 1) for j in range(d)]
+        hi, lo = _window_extremes(np.diff(P, axis=k) * scale, widths)
+        at = np.ix_(*firsts)
+        hi, lo = hi[at], lo[at]  # (E_1, ..., E_d, d): the box of each element's coefficients
+        cols.append(0.5 * (hi + lo))
+        dev.append(0.5 * np.sqrt(((hi - lo) ** 2).sum(-1)))
+    J0 = np.stack(cols, axis=-1)  # (E_1, ..., E_d, d, d): columns are the derivative directions
+    if d == 3:  # written out: np.linalg.det pays a LU per 3 x 3 matrix
+        c = J0
+        det = (c[..., 0, 0] * (c[..., 1, 1] * c[..., 2, 2] - c[..., 1, 2] * c[..., 2, 1])
+               - c[..., 0, 1] * (c[..., 1, 0] * c[..., 2, 2] - c[..., 1, 2] * c[..., 2, 0])
+               + c[..., 0, 2] * (c[..., 1, 0] * c[..., 2, 1] - c[..., 1, 1] * c[..., 2, 0]))
     else:
-        comps = [hom[..., c] for c in range(d)]
+        det = J0[..., 0, 0] * J0[..., 1, 1] - J0[..., 0, 1] * J0[..., 1, 0]
+    fro2 = (J0 ** 2).sum(axis=(-2, -1))
+    smin = 2 * np.abs(det) / fro2 if d == 3 else np.abs(det) / np.sqrt(fro2)
+    bound = np.sqrt(sum(e ** 2 for e in dev))
+    ok = smin > (1 + 1e-8) * bound + 1e-14 * np.sqrt(fro2)
+    return np.where(ok, np.sign(det), 0).astype(int)
 
-    def deriv(a, k):
-        return (bern[k] - 1) * np.diff(a, axis=1 + k)
 
-    rows = [[deriv(c, k) for c in comps] for k in range(d)]
-    if spline.is_rational:
-        rows = [comps] + rows
-    J = _det(rows, d)
-    return J, boxes.reshape(E, d, 2)
+def _bezier_subset(spline, sel: np.ndarray):
+    """Homogeneous Bezier elements (S, p_1+1, ..., m) and boxes (S, d, 2) of the elements ``sel`` (S, d)."""
+    d = spline.dim
+    wins = _element_windows(spline)
+    ops = [kn.extraction_operators(U, p)[0] for U, p in zip(spline.knots, spline.degrees)]
+    hom = _gather(spline.homogeneous, [f for _, f in wins], [p + 1 for p in spline.degrees], sel)
+    for k in range(d):  # apply each element's extraction operator along axis k
+        C = ops[k][sel[:, k]]  # (S, p+1, p+1)
+        moved = np.moveaxis(hom, 1 + k, 1)
+        hom = np.moveaxis(np.einsum("sab,sb...->sa...", C, moved), 1, 1 + k)
+    boxes = np.stack([wins[k][0][sel[:, k]] for k in range(d)], axis=1)
+    return hom, boxes
 
 
 def _corners(J, d):
@@ -131,14 +238,27 @@ def check_regular(spline: SplineFunction, max_depth: int = 9, allow_zeros: bool 
     proven fold (values of both signs) or a box where the Jacobian vanishes
     identically.
     """
-    J, boxes = jacobian_bezier(spline)
     d = spline.dim
-    lo_all, hi_all = float(J.min()), float(J.max())
-    scale = max(abs(lo_all), abs(hi_all), 1e-300)
+    if d not in (2, 3):
+        raise SplineError(f"check_regular needs a planar surface or a trivariate, got a {d}-variate spline")
     pos_boxes, neg_boxes, zero_boxes = [], [], []
+    if spline.is_rational:
+        hom, boxes = _elements(spline)
+    else:  # nearly affine elements are decided from the control net; the others take the Bernstein form
+        sel = np.stack(np.meshgrid(*[np.arange(n) for n in spline.n_elements], indexing="ij"), -1).reshape(-1, d)
+        sign = _nearly_affine(spline).reshape(-1)
+        wins = _element_windows(spline)
+        all_boxes = np.stack([wins[k][0][sel[:, k]] for k in range(d)], axis=1)
+        pos_boxes.append(all_boxes[sign > 0])
+        neg_boxes.append(all_boxes[sign < 0])
+        hom, boxes = _bezier_subset(spline, sel[sign == 0])
+    J = _bernstein_jacobian(hom, d, spline.is_rational) if len(hom) else np.zeros((0,) + (1,) * d)
+    lo_all, hi_all = (float(J.min()), float(J.max())) if J.size else (0.0, 0.0)
+    scale = max(abs(lo_all), abs(hi_all), 1e-300)
     depth = 0
     cur, cur_boxes = J, boxes
-    while True:
+    undecided = np.zeros((0, d, 2))
+    while len(cur):
         flat = cur.reshape(cur.shape[0], -1)
         corners = _corners(cur, d)
         mixed = (corners.max(axis=1) > 0) & (corners.min(axis=1) < 0)
@@ -175,9 +295,10 @@ def check_regular(spline: SplineFunction, max_depth: int = 9, allow_zeros: bool 
         cur = np.concatenate([left, right])
         cur_boxes = np.concatenate([bl, br])
         depth += 1
-    P = np.concatenate(pos_boxes)
-    N = np.concatenate(neg_boxes)
-    Z = np.concatenate(zero_boxes)
+    empty = np.zeros((0, d, 2))
+    P = np.concatenate(pos_boxes + [empty])
+    N = np.concatenate(neg_boxes + [empty])
+    Z = np.concatenate(zero_boxes + [empty])
     def vol(B):
         return float(np.prod(B[:, :, 1] - B[:, :, 0], axis=1).sum()) if len(B) else 0.0
 

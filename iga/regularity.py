@@ -20,6 +20,8 @@ assembly.
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 
 from geometry import check_regular
@@ -29,6 +31,16 @@ from .errors import ProblemError
 __all__ = ["prove_regular"]
 
 _DEPTH = 8  # subdivision rounds of each proof
+# proofs of whole splines, kept while the spline lives: splines are immutable (read-only arrays), so a tile
+# or map proven once needs no second proof in the next problem built on it
+_PROVEN: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
+def _proof(spline):
+    r = _PROVEN.get(spline)
+    if r is None:
+        r = _PROVEN[spline] = check_regular(spline, _DEPTH, allow_zeros=True)
+    return r
 
 
 def _boxes(result) -> str:
@@ -45,7 +57,7 @@ def prove_regular(model) -> dict:
     for pi, patch in enumerate(model.patches):
         T = patch.spline
         if id(T) not in tiles:
-            r = check_regular(T, _DEPTH, allow_zeros=True)
+            r = _proof(T)
             tiles[id(T)] = r
             stats["tiles_proven"] += 1
             if r.status == "singular":
@@ -63,7 +75,7 @@ def prove_regular(model) -> dict:
         if D is None:
             continue
         if id(D) not in maps:
-            maps[id(D)] = check_regular(D, _DEPTH, allow_zeros=True)
+            maps[id(D)] = _proof(D)
             stats["maps_proven"] += 1
         if maps[id(D)].status == "regular":
             continue
