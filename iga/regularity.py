@@ -70,7 +70,10 @@ def prove_regular(model) -> dict:
             A = patch.placement[:, :3]
             det = float(np.linalg.det(A))
             if not abs(det) > 1e-12 * float(np.abs(A).max()) ** 3:
-                raise ProblemError(f"patch {pi} has a singular placement (det A = {det:.3g}); it flattens the patch")
+                pts = T.points.reshape(-1, 3) @ A.T + patch.placement[:, 3]
+                box = " x ".join(f"{'uvw'[k]} in [{pts[:, k].min():.4g}, {pts[:, k].max():.4g}]" for k in range(3))
+                raise ProblemError(f"patch {pi} has a singular placement (det A = {det:.3g}): it flattens the patch "
+                                   f"onto the parameter box {box}; give the placement a non-zero volume")
         D = patch.outer
         if D is None:
             continue

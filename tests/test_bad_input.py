@@ -390,6 +390,14 @@ def _singular_placement(t):
     return HeatProblem(bad)
 
 
+def _wedge_solution():
+    """A wedge: the edge u = v = 1 collapsed onto u = 1, v = 0 (the Jacobian vanishes there, a set of measure zero)."""
+    b = pr.box(degrees=(1, 1, 1))
+    cp = b.control_points.copy()
+    cp[1, 1, :] = cp[1, 0, :]
+    return HeatProblem(BSpline(b.degrees, b.knots, cp), refine=1).dirichlet("umin", 1.0).robin("vmax", 1.0, 0.0).solve()
+
+
 def _folded_composed(t):
     ms = tiling.regular(pr.box(), L.cross(), (1, 1, 1))
     P = ms.patches[2]  # the arm at u in [0.65, 1], where the folded map's dx/du changes sign (u = 0.73)
@@ -406,7 +414,9 @@ WRONG = [
          ProblemError, r"patch 1 is folded"),
     case("folded map", _folded_composed, ProblemError, r"patch 0 lies where the deformation map folds.*u in \["),
     case("singular placement", _singular_placement, ProblemError,
-         r"patch 0 has a singular placement \(det A = 0\)"),
+         r"patch 0 has a singular placement \(det A = 0\): it flattens the patch onto the parameter box u in \["),
+    case("flux at a collapsed edge", lambda t: _wedge_solution().heat_flux(0, [[1.0, 1.0, 0.5]]), ProblemError,
+         r"patch 0: the geometry Jacobian is singular at parameters \[1\.0, 1\.0, 0\.5\]"),
 ]
 
 
@@ -685,6 +695,9 @@ CLI = [
     ("memory budget", ["--max-memory", "0.001", "run", "c.toml"], GOOD_TOML.replace("[1, 1, 1]", "[20, 20, 20]"),
      r"needs about .* GiB, more than the 0\.001 GiB"),
     ("levels zero", ["demo", "heat-sink", "--levels", "0", "--out", "d"], None, r"--levels must be >= 1, got 0"),
+    ("levels 40", ["demo", "heat-sink", "--levels", "40", "--out", "d"], None,
+     r"40-level hierarchical paving .* needs about .* GiB"),
+    ("refine 10", ["demo", "heat-sink", "--refine", "10", "--out", "d"], None, r"the analysis .* needs about"),
     ("info missing", ["info", "none.npz"], None, r"none\.npz does not exist"),
     ("info not npz", ["info", "c.toml"], "x = 1", r"not an \.npz archive"),
 ]

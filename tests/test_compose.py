@@ -290,3 +290,35 @@ def test_axis_aligned_boxes_compose_to_the_restricted_map(rational):
     xi = rng.random((300, 3)) * (box.domain[:, 1] - box.domain[:, 0]) + box.domain[:, 0]
     ref = outer.evaluate(box.evaluate(xi)[:, :3] @ R[0, :, :3].T + R[0, :, 3])
     assert rel_err(rot.evaluate(xi), ref) < 1e-12
+
+
+def test_walls_on_knot_planes_flat_placements_and_split_curves_compose_exactly():
+    import tiling
+    from geometry import knots as kn
+    from tiling import library as L
+
+    rng = np.random.default_rng(11)
+    # hollow cells in a map with two knot spans along u: the walls on u = 0.5 lie on the knot plane
+    D = pr.box(degrees=(2, 2, 2), elements=(2, 1, 1))
+    D = BSpline(D.degrees, D.knots, D.control_points + 0.03 * rng.standard_normal(D.control_points.shape))
+    ms = tiling.regular(D, L.hollow_box(), (2, 1, 1))
+    for P, C in zip(ms.patches, ms.compose_all()):
+        t = rng.random((30, 2))
+        y = P.spline.evaluate(t)[:, :3] @ P.placement[:, :3].T + P.placement[:, 3]
+        assert np.abs(C.evaluate(t)[:, :3] - D.evaluate(y)[:, :3]).max() < 1e-12
+    # a flat placement: a wall mapped into the plane w = 0.5, the knot plane of a map with two spans along w
+    Dw = pr.box(degrees=(2, 2, 2), elements=(1, 1, 2))
+    M = np.array([[[1.0, 0, 0, 0], [0, 1, 0, 0], [0, 0, 0, 0.5]]])
+    wall = L.hollow_box().patches[4]
+    [C] = compose_many(Dw, wall, M)
+    t = rng.random((30, 2))
+    y = wall.evaluate(t)[:, :3] @ M[0, :, :3].T + M[0, :, 3]
+    assert np.abs(C.evaluate(t)[:, :3] - Dw.evaluate(y)[:, :3]).max() < 1e-12
+    # cubic curves crossing knot lines: split at the crossings, each piece located by its image, not its hull
+    D3 = pr.box(degrees=(2, 2, 2), elements=(3, 3, 3))
+    D3 = BSpline(D3.degrees, D3.knots, D3.control_points + 0.05 * rng.standard_normal(D3.control_points.shape))
+    for _ in range(100):
+        c = BSpline((3,), [kn.uniform_knots(3, 3)], rng.uniform(0.02, 0.98, (6, 3)))
+        r = compose(D3, c)
+        t = np.linspace(0, 1, 97)[:, None]
+        assert np.abs(r.evaluate(t)[:, :3] - D3.evaluate(c.evaluate(t)[:, :3])[:, :3]).max() < 1e-11
