@@ -218,33 +218,20 @@ def stiffness3_for(p3: int, g3: int):
                             for t in range(g1):
                                 Y0, Y1, Y2, Y3 = Yr[t, 0, i2], Yr[t, 1, i2], Yr[t, 2, i2], Yr[t, 3, i2]
                                 a0, a1, a2, a3 = _weights1(b1, e1, l1, m1, t)
-                                if nb == 4:
-                                    x0, x1, x2, x3 = _weights1(b1, e1, l1, m1 + 1, t)
-                                    y0, y1, y2, y3 = _weights1(b1, e1, l1, m1 + 2, t)
-                                    z0, z1, z2, z3 = _weights1(b1, e1, l1, m1 + 3, t)
-                                    for k in range(K2):
-                                        v0, v1, v2, v3 = Y0[k], Y1[k], Y2[k], Y3[k]
-                                        da[k] += a0 * v0 + a1 * v1 + a2 * v2 + a3 * v3
+                                # weights of the other destinations (zero past nb: those rows are never written)
+                                x0, x1, x2, x3 = _weights1(b1, e1, l1, min(m1 + 1, p1), t)
+                                y0, y1, y2, y3 = _weights1(b1, e1, l1, min(m1 + 2, p1), t)
+                                z0, z1, z2, z3 = _weights1(b1, e1, l1, min(m1 + 3, p1), t)
+                                # nb is fixed for the sweep: LLVM unswitches the branches out of the k loop
+                                for k in range(K2):
+                                    v0, v1, v2, v3 = Y0[k], Y1[k], Y2[k], Y3[k]
+                                    da[k] += a0 * v0 + a1 * v1 + a2 * v2 + a3 * v3
+                                    if nb > 1:
                                         db[k] += x0 * v0 + x1 * v1 + x2 * v2 + x3 * v3
+                                    if nb > 2:
                                         dc[k] += y0 * v0 + y1 * v1 + y2 * v2 + y3 * v3
+                                    if nb > 3:
                                         dd[k] += z0 * v0 + z1 * v1 + z2 * v2 + z3 * v3
-                                elif nb == 3:
-                                    x0, x1, x2, x3 = _weights1(b1, e1, l1, m1 + 1, t)
-                                    y0, y1, y2, y3 = _weights1(b1, e1, l1, m1 + 2, t)
-                                    for k in range(K2):
-                                        v0, v1, v2, v3 = Y0[k], Y1[k], Y2[k], Y3[k]
-                                        da[k] += a0 * v0 + a1 * v1 + a2 * v2 + a3 * v3
-                                        db[k] += x0 * v0 + x1 * v1 + x2 * v2 + x3 * v3
-                                        dc[k] += y0 * v0 + y1 * v1 + y2 * v2 + y3 * v3
-                                elif nb == 2:
-                                    x0, x1, x2, x3 = _weights1(b1, e1, l1, m1 + 1, t)
-                                    for k in range(K2):
-                                        v0, v1, v2, v3 = Y0[k], Y1[k], Y2[k], Y3[k]
-                                        da[k] += a0 * v0 + a1 * v1 + a2 * v2 + a3 * v3
-                                        db[k] += x0 * v0 + x1 * v1 + x2 * v2 + x3 * v3
-                                else:
-                                    for k in range(K2):
-                                        da[k] += a0 * Y0[k] + a1 * Y1[k] + a2 * Y2[k] + a3 * Y3[k]
                             m1 += nb
                 # rows that no later element touches are complete: copy them into CSR order (one
                 # sequential write per entry) and clear their slots

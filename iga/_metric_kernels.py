@@ -55,26 +55,21 @@ def _metric_point(u0, u1, u2, v0, v1, v2, w0, w1, w2, iso, k00, k11, k22, k01, k
     det[k] = dt
     adet = abs(dt)
     L[k] = fval * adet * w
-    if iso:
-        fac = k00 * w / adet
-        C[0, k] = fac * (a0 * a0 + a1 * a1 + a2 * a2)
-        C[1, k] = fac * (b0 * b0 + b1 * b1 + b2 * b2)
-        C[2, k] = fac * (e0 * e0 + e1 * e1 + e2 * e2)
-        C[3, k] = fac * (a0 * b0 + a1 * b1 + a2 * b2)
-        C[4, k] = fac * (a0 * e0 + a1 * e1 + a2 * e2)
-        C[5, k] = fac * (b0 * e0 + b1 * e1 + b2 * e2)
-        return
     fac = w / adet
-    # K c_s for s = b, e (K a is not needed: C is symmetric in r, s and a is only ever the left factor)
-    kb0 = k00 * b0 + k01 * b1 + k02 * b2
-    kb1 = k01 * b0 + k11 * b1 + k12 * b2
-    kb2 = k02 * b0 + k12 * b1 + k22 * b2
-    ke0 = k00 * e0 + k01 * e1 + k02 * e2
-    ke1 = k01 * e0 + k11 * e1 + k12 * e2
-    ke2 = k02 * e0 + k12 * e1 + k22 * e2
-    ka0 = k00 * a0 + k01 * a1 + k02 * a2
-    ka1 = k01 * a0 + k11 * a1 + k12 * a2
-    ka2 = k02 * a0 + k12 * a1 + k22 * a2
+    if iso:  # K = k I: K c = k c, without the tensor products
+        ka0, ka1, ka2 = k00 * a0, k00 * a1, k00 * a2
+        kb0, kb1, kb2 = k00 * b0, k00 * b1, k00 * b2
+        ke0, ke1, ke2 = k00 * e0, k00 * e1, k00 * e2
+    else:
+        ka0 = k00 * a0 + k01 * a1 + k02 * a2
+        ka1 = k01 * a0 + k11 * a1 + k12 * a2
+        ka2 = k02 * a0 + k12 * a1 + k22 * a2
+        kb0 = k00 * b0 + k01 * b1 + k02 * b2
+        kb1 = k01 * b0 + k11 * b1 + k12 * b2
+        kb2 = k02 * b0 + k12 * b1 + k22 * b2
+        ke0 = k00 * e0 + k01 * e1 + k02 * e2
+        ke1 = k01 * e0 + k11 * e1 + k12 * e2
+        ke2 = k02 * e0 + k12 * e1 + k22 * e2
     C[0, k] = fac * (a0 * ka0 + a1 * ka1 + a2 * ka2)
     C[1, k] = fac * (b0 * kb0 + b1 * kb1 + b2 * kb2)
     C[2, k] = fac * (e0 * ke0 + e1 * ke1 + e2 * ke2)

@@ -60,12 +60,8 @@ def prove_regular(model) -> dict:
             r = _proof(T)
             tiles[id(T)] = r
             stats["tiles_proven"] += 1
-            if r.status == "singular":
-                raise ProblemError(
-                    f"patch {pi} is folded or degenerate: its Jacobian determinant changes sign or vanishes in "
-                    f"{_boxes(r)} (its own parameters); fix its control net (geometry.check_regular locates it)")
-            if r.status == "undecided":
-                stats["undecided"].append(f"patch {pi}")
+            _judge(r, stats, f"patch {pi}", "is folded or degenerate", "its own parameters",
+                   "fix its control net (geometry.check_regular locates it)")
         if patch.placement is not None:
             A = patch.placement[:, :3]
             det = float(np.linalg.det(A))
@@ -90,10 +86,15 @@ def prove_regular(model) -> dict:
             continue  # a flat placement: D's one-signed determinant is not needed on a zero-volume box
         r = check_regular(D.extract(box), _DEPTH, allow_zeros=True)
         stats["boxes_proven"] += 1
-        if r.status == "singular":
-            raise ProblemError(
-                f"patch {pi} lies where the deformation map folds or degenerates: its Jacobian determinant changes "
-                f"sign or vanishes in {_boxes(r)} (map parameters); fix the map's control net there")
-        if r.status == "undecided":
-            stats["undecided"].append(f"patch {pi} (deformation map)")
+        _judge(r, stats, f"patch {pi}", "lies where the deformation map folds or degenerates", "map parameters",
+               "fix the map's control net there")
     return stats
+
+
+def _judge(r, stats, who: str, what: str, frame: str, fix: str) -> None:
+    """Refuse a proven fold (naming the parameter box); record an undecided proof."""
+    if r.status == "singular":
+        raise ProblemError(f"{who} {what}: its Jacobian determinant changes sign or vanishes in {_boxes(r)} "
+                           f"({frame}); {fix}")
+    if r.status == "undecided":
+        stats["undecided"].append(f"{who} ({frame})")
