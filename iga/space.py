@@ -113,30 +113,17 @@ class TensorSpace:
 
     dirs: list
 
+    def __post_init__(self):
+        #: basis functions and Gauss points per direction, and their totals (the space is immutable)
+        self.shape = tuple(s.n for s in self.dirs)
+        self.qshape = tuple(s.nq for s in self.dirs)
+        self.ndof = int(np.prod(self.shape))
+        self.nq_total = int(np.prod(self.qshape))
+
     @property
     def dim(self) -> int:
         """Parametric dimension (2 or 3)."""
         return len(self.dirs)
-
-    @property
-    def shape(self) -> tuple[int, ...]:
-        """Number of basis functions per direction."""
-        return tuple(s.n for s in self.dirs)
-
-    @property
-    def ndof(self) -> int:
-        """Number of basis functions (DOFs) of the tensor space."""
-        return int(np.prod(self.shape))
-
-    @property
-    def qshape(self) -> tuple[int, ...]:
-        """Number of Gauss points per direction."""
-        return tuple(s.nq for s in self.dirs)
-
-    @property
-    def nq_total(self) -> int:
-        """Number of Gauss points of the whole tensor grid."""
-        return int(np.prod(self.qshape))
 
     @property
     def qaxes(self) -> list[np.ndarray]:
