@@ -149,3 +149,44 @@ def test_progress_lines_when_asked(tmp_path, capsys):
         assert stage in err
     run_pipeline(cfg, progress=False)
     assert capsys.readouterr().err == ""
+
+
+def test_summary_statistics_without_vtu_are_temperatures_and_a_volume_mean(tmp_path):
+    import pyvista as pv
+
+    cfg = heat_sink_config(variant="vertical", levels=2, out=str(tmp_path / "a"))
+    cfg["output"].update(png=False)
+    with_vtu = run_pipeline(cfg, progress=False)
+    cfg["output"].update(dir=str(tmp_path / "b"), vtu=False)
+    without = run_pipeline(cfg, progress=False)
+    grid = pv.read(with_vtu["files"]["vtu"])
+    T = grid.point_data["temperature"]
+    # extremes are sampled temperatures whether or not a VTU is written (not control coefficients)
+    for s in (with_vtu, without):
+        assert s["temperature_C"]["min"] == pytest.approx(T.min(), abs=1e-9)
+        assert s["temperature_C"]["max"] == pytest.approx(T.max(), abs=1e-9)
+    # the mean is the volume average: against VTK's integral of the sampled field over the welded mesh
+    integral = grid.integrate_data()
+    vtk_mean = float(integral.point_data["temperature"][0] / integral.cell_data["Volume"][0])
+    assert without["temperature_C"]["mean"] == pytest.approx(vtk_mean, abs=1e-3)
+    assert abs(float(T.mean()) - vtk_mean) > 5 * abs(without["temperature_C"]["mean"] - vtk_mean)
+
+
+def test_peak_memory_is_guarded_where_the_platform_lacks_it(monkeypatch):
+    import builtins
+
+    from geometry import resources
+
+    real_import = builtins.__import__
+
+    def no_resource(name, *args, **kwargs):
+        if name == "resource":
+            raise ImportError("no module named resource (Windows)")
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "__import__", no_resource)
+    assert resources.peak_memory_mib() is None
+    monkeypatch.setattr(builtins, "__import__", real_import)
+    linux = resources.peak_memory_mib()
+    monkeypatch.setattr(resources.sys, "platform", "darwin")  # macOS reports bytes, Linux KiB
+    assert resources.peak_memory_mib() == pytest.approx(linux / 1024, rel=0.5)
