@@ -66,15 +66,20 @@ class SplineEvaluation:
             return np.zeros((0, self._hom.shape[-1]))
         return self._ev()(x, nu=orders)
 
-    def evaluate(self, params) -> np.ndarray:
-        """Values at parameter points ``params`` (N, d) -> (N, m)."""
+    def evaluate(self, params, compiled: bool | None = None) -> np.ndarray:
+        """Values at parameter points ``params`` (N, d) -> (N, m).
+
+        ``compiled``: None uses the compiled kernel for many points (numba, when
+        installed); False keeps to SciPy (no numba import: about 90 MB less
+        memory, for callers that evaluate a few hundred thousand points once).
+        """
         h = None
         # compiled kernel for many points; it checks the domain itself and declines on any bad point
-        if _fast.applies(self.dim, np.shape(params)[0] if np.ndim(params) else 0):
+        if compiled is not False and _fast.applies(self.dim, np.shape(params)[0] if np.ndim(params) else 0):
             h = _fast.evaluate(self.knots, self.degrees, self._hom, np.asarray(params, dtype=float))
         if h is None:
             x = self._check_params(params)
-            h = _fast.evaluate(self.knots, self.degrees, self._hom, x)
+            h = _fast.evaluate(self.knots, self.degrees, self._hom, x) if compiled is not False else None
             if h is None:
                 h = self._hom_eval(x, (0,) * self.dim)
         if self.is_rational:

@@ -20,6 +20,7 @@ from .bspline import BSpline
 from .errors import SplineError
 from .faces import FACE_AXIS, FACE_NAMES
 from .products import multiply
+from .shapes import duck  # example shapes live in their own module
 from .spline import SplineFunction
 from .errors import show
 
@@ -36,6 +37,7 @@ __all__ = [
     "coons_volume",
     "make_compatible",
     "refined",
+    "duck",
 ]
 
 

@@ -1,7 +1,8 @@
 """Tiles, pavings and the Microstructure model.
 
 Public names: :class:`Tile`, :class:`BranchFace`, :func:`regular`,
-:func:`hierarchical`, :class:`Microstructure`, :class:`TilingError` and the
+:func:`hierarchical`, :class:`Microstructure`, :func:`random_implicit` (random
+implicit structures, :class:`ImplicitStructure`), :class:`TilingError` and the
 ``library`` module of built-in tiles.
 """
 
@@ -9,7 +10,9 @@ from .errors import TilingError
 from .tile import BranchFace, Tile, discontinuity_branches
 from .microstructure import Interface, Microstructure, PlacedPatch
 from .paving import hierarchical, regular
+from .implicit import ImplicitStructure, canonical_tubes, random_implicit
 from . import library
 
 __all__ = ["TilingError", "Tile", "BranchFace", "discontinuity_branches", "Microstructure", "PlacedPatch",
-           "Interface", "regular", "hierarchical", "library"]
+           "Interface", "regular", "hierarchical", "library",
+           "random_implicit", "ImplicitStructure", "canonical_tubes"]

@@ -29,7 +29,7 @@ from .errors import TilingError
 from .microstructure import Microstructure
 from geometry.errors import show
 
-__all__ = ["surface", "watertightness", "write_surfaces", "render_png"]
+__all__ = ["surface", "watertightness", "mesh_watertightness", "write_surfaces", "write_mesh", "render_png"]
 
 _FORMATS = {".vtu": "vtu", ".obj": "obj", ".stl": "stl", ".ply": "ply", ".vtp": "vtp"}
 
@@ -109,7 +109,11 @@ def watertightness(ms: Microstructure, samples: int = 4) -> dict:
     "triangles"}.  A closed surface of one component has no holes; a
     non-manifold edge is a line where more than two faces meet.
     """
-    mesh = surface(ms, samples)
+    return mesh_watertightness(surface(ms, samples))
+
+
+def mesh_watertightness(mesh) -> dict:
+    """:func:`watertightness` of any welded ``pyvista.PolyData`` (its triangles)."""
     tris = mesh.extract_cells_by_type(5) if mesh.n_cells else mesh  # VTK_TRIANGLE
     tris = tris.extract_surface(algorithm="dataset_surface") if tris.n_cells else tris
     if not tris.n_cells:
@@ -130,10 +134,14 @@ def watertightness(ms: Microstructure, samples: int = 4) -> dict:
 
 def write_surfaces(path, ms: Microstructure, samples: int = 4) -> Path:
     """Write the boundary surface to ``.vtu``, ``.vtp``, ``.obj``, ``.stl`` or ``.ply`` (by suffix), atomically."""
+    return write_mesh(path, surface(ms, samples))
+
+
+def write_mesh(path, mesh) -> Path:
+    """Write a surface ``mesh`` to ``.vtu``, ``.vtp``, ``.obj``, ``.stl`` or ``.ply`` (by suffix), atomically."""
     path = Path(path)
     if path.suffix.lower() not in _FORMATS:
         raise TilingError(f"cannot export {path.name}: use a {', '.join(_FORMATS)} file name")
-    mesh = surface(ms, samples)
     if path.suffix.lower() in (".stl", ".obj", ".ply"):
         mesh = mesh.extract_cells_by_type(5).extract_surface(algorithm="dataset_surface")  # triangles only
         if not mesh.n_cells:

@@ -1,0 +1,439 @@
+"""Random implicit micro-structures with guaranteed connectivity (Massarwi et al. 2018, Section 4).
+
+The parameter domain of a deformation map D is split into a grid of cells;
+each cell carries a scalar trivariate B-spline f (degree d, ``controls``
+coefficients per direction) on its box, and the structure is the region
+f > 0, its surface the zero set f = 0 mapped through D.  Coefficients are
+p = (1 - alpha) p0 + alpha U(-1, 1) (Eq. 6) around a canonical tile's p0.
+
+All cells together form one global B-spline F over D's domain: neighbouring
+cells share their boundary layer of coefficients, which is C0 (Eq. 7; knots
+of multiplicity d at cell boundaries), and with ``continuity="C1"`` the first
+inner layers on both sides are placed symmetrically about it (Eq. 8).  The
+connectivity steps (:mod:`tiling.implicit_connect`) then work on that one
+coefficient array, repeated until none has work left:
+
+* inter-cell (Section 4.2.1): ``connectivity`` edge-disjoint spanning trees
+  of the cells' face-adjacency graph (scipy.sparse.csgraph); every tree face
+  is anchored by a negative sample and raised (even iterations: one more
+  coefficient positive; odd: all raised) until it changes sign on its samples;
+* intra-cell (Section 4.2.2): the sampled inside region of every cell is made
+  one connected component (scipy.ndimage.label) by raising the coefficients
+  along least-cost bridges between its components;
+* cavities (unless shelled): negative pockets enclosed by the inside region,
+  which would be extra surface components (and trap powder in a printed
+  part), are tunnelled to the outside;
+* capping (Section 6.2, item 2): D's boundary layers of coefficients are set
+  to -1 and held, so the zero set stays inside, at least Lemma 1's distance
+  from the boundary (:meth:`ImplicitStructure.cap_distance`); shelling: the
+  coefficients within ``shell`` of the boundary are set positive and the
+  surface is closed by D's boundary where f > 0.
+
+The guarantees hold on the samples of the build ``resolution``.  A face or
+cell that already satisfies its condition is left unchanged, so ``alpha = 0``
+with a connected canonical tile reproduces the canonical tiling.
+Randomness comes from ``numpy.random.default_rng(seed)`` only.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from geometry import BSpline, SplineFunction
+from geometry import knots as kn
+from geometry.errors import show
+from geometry.resources import check_memory
+
+from .errors import TilingError
+from .implicit_render import render_png
+from .implicit_connect import (Builder, cell_knots, connect_cells, connect_faces, grid_graph, open_cavities,
+                               spanning_trees)
+from .export import mesh_watertightness, write_mesh
+
+__all__ = ["random_implicit", "ImplicitStructure", "canonical_tubes"]
+
+_CAP = -1.0  # coefficient of D's boundary layers when capping (Lemma 1's p_0)
+
+
+def canonical_tubes(degree: int = 3, controls: int = 8, radius: float = 0.3) -> np.ndarray:
+    """The default canonical tile's coefficients (controls,) * 3: three tubes through the cell's centre.
+
+    p0 = (radius - distance to the nearest of the three axes through the
+    centre) / radius at the Greville points, clipped to [-1, 1]: positive
+    inside tubes along x, y and z that meet the six faces in discs, so copies
+    connect to their neighbours.
+    """
+    g = kn.greville(kn.uniform_knots(degree, controls - degree), degree)
+    x, y, z = np.meshgrid(g, g, g, indexing="ij")
+    d = np.minimum(np.minimum(np.hypot(y - 0.5, z - 0.5), np.hypot(x - 0.5, z - 0.5)), np.hypot(x - 0.5, y - 0.5))
+    return np.clip((radius - d) / radius, -1.0, 1.0)
+
+
+def _global_knots(lo, hi, cells, degree, controls):
+    """Knots over [lo, hi] of ``cells`` cells glued C0: multiplicity ``degree`` at the cell boundaries."""
+    inner = cell_knots(degree, controls)
+    h = (hi - lo) / cells
+    parts = [np.full(degree + 1, lo)]
+    for c in range(cells):
+        parts.append(lo + h * (c + inner))
+        parts.append(np.full(degree if c < cells - 1 else degree + 1, lo + h * (c + 1)))
+    return np.concatenate(parts)
+
+
+@dataclass
+class ImplicitStructure:
+    """A random implicit micro-structure: the global field F (f > 0 inside) over D's domain, and its statistics.
+
+    ``field``: scalar :class:`geometry.SplineFunction` on D's parameter domain;
+    ``counts``: cells per direction; ``trees``: the spanning trees' edges, each
+    (E, 2) cell indices; ``stats``: iteration counts per face and per cell,
+    trees found, cavities filled; ``materials``: the material channels (one
+    component each, named ``material_names``) on the same space as ``field``.
+    """
+
+    outer: BSpline
+    counts: tuple
+    degree: int
+    controls: int
+    continuity: str
+    field: SplineFunction
+    trees: list
+    stats: dict = field(default_factory=dict)
+    cap: bool = False
+    shell: float | None = None
+    resolution: int = 12
+    materials: SplineFunction | None = None
+    material_names: tuple = ()
+
+    def cell_box(self, cell) -> np.ndarray:
+        """Parameter box (3, 2) of cell (q, r, s) in D's domain."""
+        dom = self.outer.domain
+        h = (dom[:, 1] - dom[:, 0]) / np.asarray(self.counts)
+        lo = dom[:, 0] + h * np.asarray(cell)
+        return np.stack([lo, lo + h], axis=1)
+
+    def cell_coefficients(self, cell) -> np.ndarray:
+        """The (controls,) * 3 coefficients of cell (q, r, s) (a view into the global array)."""
+        n = self.controls - 1
+        G = self.field.coefficients[..., 0]
+        return G[tuple(slice(c * n, c * n + self.controls) for c in cell)]
+
+    def cell_field(self, cell) -> SplineFunction:
+        """Cell (q, r, s)'s own scalar trivariate f^{qrs} on its parameter box (Eq. 5), built from its coefficients."""
+        box = self.cell_box(cell)
+        inner = cell_knots(self.degree, self.controls)
+        knots = [np.concatenate([np.full(self.degree + 1, lo), lo + (hi - lo) * inner, np.full(self.degree + 1, hi)])
+                 for lo, hi in box]
+        return SplineFunction((self.degree,) * 3, knots, self.cell_coefficients(cell)[..., None].copy())
+
+    def cap_distance(self) -> np.ndarray:
+        """Lemma 1's lower bound (3,) on the parameter distance of the zero set from D's boundary (capped only).
+
+        On a line normal to a boundary face, f is a univariate B-spline whose
+        first coefficient is at most p_0 = -1 and the others at most M (the
+        largest coefficient); on the first knot span its Bezier form has
+        p_0 first and coefficients <= M after, so (Massarwi et al. 2018,
+        Lemma 1, with M for 1) a zero at local t satisfies
+        t >= 1 - (M / (M - p_0))^(1/d).  Times the span's length per direction.
+        """
+        if not self.cap:
+            raise TilingError("cap_distance applies to a capped structure; build it with cap=True")
+        M = max(float(self.field.coefficients.max()), 0.0)
+        t = 1.0 - (M / (M - _CAP)) ** (1.0 / self.degree) if M > 0 else 1.0
+        span = (self.outer.domain[:, 1] - self.outer.domain[:, 0]) / np.asarray(self.counts) / (
+            self.controls - self.degree)
+        return t * span
+
+    def sample(self, resolution: int | None = None) -> tuple[list, np.ndarray]:
+        """Parameter axes and F on the global grid with ``resolution`` intervals per cell and direction."""
+        resolution = self.resolution if resolution is None else resolution
+        if not isinstance(resolution, (int, np.integer)) or isinstance(resolution, bool) or resolution < 1:
+            raise TilingError(f"resolution must be a positive integer (samples per cell and direction), got "
+                              f"{show(resolution)}")
+        dom = self.outer.domain
+        axes = [np.linspace(dom[k, 0], dom[k, 1], self.counts[k] * resolution + 1) for k in range(3)]
+        return axes, self.field.evaluate_grid(axes)[..., 0]
+
+    def sample_values(self, resolution: int | None = None) -> np.ndarray:
+        """F on the global grid (:meth:`sample`) without the axes."""
+        return self.sample(resolution)[1]
+
+    def surface(self, resolution: int | None = None, close: bool | None = None, snap: bool = True):
+        """The zero set mapped exactly through D, one welded ``pyvista.PolyData`` (marching cubes: VTK flying edges).
+
+        The field is sampled on the global grid (``resolution`` intervals per
+        cell and direction) and contoured at 0 in parameter space; every vertex
+        is then moved along its grid edge onto the exact zero set of the
+        spline (``snap``: Illinois regula falsi, |f| < 1e-12 max|p|) and mapped
+        through D (exact at the vertices), so shared cell faces carry identical
+        vertices and the mesh is one piece.  The connectivity
+        guarantees (one component, closed when capped) are proved on the
+        samples of the build ``resolution``, the default here; a finer sampling
+        can reveal features smaller than that sampling step (a thin neck, a
+        tiny pocket).  ``close`` (default:
+        when shelled) closes the surface with D's boundary where f > 0.  Point
+        data: every channel of D and every material channel at the vertices,
+        and the parameters (u, v, w).
+        """
+        import pyvista as pv
+
+        axes, F = self.sample(resolution)
+        close = self.shell is not None if close is None else bool(close)
+        spacing = [a[1] - a[0] for a in axes]
+        origin = [a[0] for a in axes]
+        if close:  # a layer of strongly negative values outside: the contour follows the boundary there
+            pad = -1e6 * max(1.0, float(np.abs(F).max()))
+            F = np.pad(F, 1, constant_values=pad)
+            origin = [o - s for o, s in zip(origin, spacing)]
+        grid = pv.ImageData(dimensions=F.shape, spacing=spacing, origin=origin)
+        grid.point_data["f"] = F.ravel(order="F")
+        surf = grid.contour([0.0], scalars="f", method="flying_edges")
+        if surf.n_points == 0:
+            raise TilingError("the implicit structure has an empty zero set; raise alpha or connectivity, or use "
+                              "a canonical tile whose field changes sign")
+        dom = self.outer.domain
+        params = np.asarray(surf.points, dtype=float)
+        if snap:
+            params = self._snap(params, np.asarray(origin), np.asarray(spacing))
+        params = np.clip(params, dom[:, 0], dom[:, 1])
+        mapped = self.outer.evaluate(params, compiled=False)  # SciPy: one pass, no numba import (memory)
+        out = pv.PolyData(mapped[:, :3], surf.faces)
+        for i, c in enumerate(self.outer.channels):
+            out.point_data[c] = mapped[:, 3 + i]
+        if self.materials is not None:
+            values = self.materials.evaluate(params, compiled=False)
+            for i, c in enumerate(self.material_names):
+                out.point_data[c] = values[:, i]
+        out.point_data["u"], out.point_data["v"], out.point_data["w"] = params.T
+        return out
+
+    def _snap(self, params, origin, spacing, iterations: int = 60):
+        """Move marching-cubes vertices (N, 3) along their grid edges onto f = 0 (vectorised Illinois method).
+
+        A vertex lies on a grid edge: two coordinates on grid lines, the third
+        between two samples of opposite sign.  Vertices on edges leaving D's
+        domain (the closing layer) and vertices at a zero sample stay put.
+        """
+        dom = self.outer.domain
+        f = lambda x: self.field.evaluate(x, compiled=False)[:, 0]  # noqa: E731
+        t = (params - origin) / spacing
+        off = np.abs(t - np.round(t))
+        ax = np.argmax(off, axis=1)  # the edge's direction: the coordinate off the grid lines
+        at_sample = off.max(axis=1) < 1e-4  # VTK writes float32: a vertex at a sample (f tiny there)
+        off[np.arange(len(t)), ax] = 0.0
+        rows = np.flatnonzero(off.max(axis=1) < 1e-4)  # the other two on grid lines
+        ax, i = ax[rows], np.arange(len(rows))
+        lower = np.floor(t[rows, ax])
+        # at a sample: of its (up to) 6 edges, the one with a sign change whose root is nearest
+        near = np.flatnonzero(at_sample[rows])
+        if len(near):
+            g = origin + np.round(t[rows[near]]) * spacing
+            fg = f(np.clip(g, dom[:, 0], dom[:, 1]))
+            best, pick = np.full(len(near), np.inf), np.zeros((len(near), 2), int)
+            for k in range(3):
+                for sgn in (-1, 1):
+                    h = g.copy()
+                    h[:, k] += sgn * spacing[k]
+                    valid = (h[:, k] >= dom[k, 0] - 1e-12) & (h[:, k] <= dom[k, 1] + 1e-12)
+                    fh = f(np.clip(h, dom[:, 0], dom[:, 1]))
+                    score = np.where(valid & (fg * fh < 0), np.abs(fg) / (np.abs(fg - fh) + 1e-300), np.inf)
+                    better = score < best
+                    best[better], pick[better] = score[better], (k, sgn)
+            ax[near] = np.where(np.isfinite(best), pick[:, 0], ax[near])
+            lower[near] = np.round(t[rows[near], ax[near]]) - (np.isfinite(best) & (pick[:, 1] < 0))
+        a = origin + np.round(t[rows]) * spacing  # the edge's lower end: grid coordinates ...
+        a[i, ax] = origin[ax] + lower * spacing[ax]  # ... and the sample below along the edge
+        b = a.copy()
+        b[i, ax] += spacing[ax]
+        keep = np.all((a >= dom[:, 0] - 1e-12) & (b <= dom[:, 1] + 1e-12), axis=1)
+        rows, ax = rows[keep], ax[keep]
+        a, b = np.clip(a[keep], dom[:, 0], dom[:, 1]), np.clip(b[keep], dom[:, 0], dom[:, 1])
+        fa, fb = f(a), f(b)
+        ok = fa * fb < 0  # a sign change on the edge (else keep VTK's vertex)
+        rows, a, b, fa, fb, ax = rows[ok], a[ok], b[ok], fa[ok], fb[ok], ax[ok]
+        tol = 1e-12 * max(1.0, float(np.abs(self.field.coefficients).max()))
+        c = a.copy()
+        side = np.zeros(len(rows), int)  # which end the last step replaced: +1 a, -1 b
+        act = np.arange(len(rows))  # edges not converged yet
+        for _it in range(iterations):
+            j, axj = act, ax[act]
+            s = fa[j] / (fa[j] - fb[j])  # the secant's root on the edge
+            c[j, axj] = a[j, axj] + s * (b[j, axj] - a[j, axj])
+            fc = f(c[j])
+            done = np.abs(fc) < tol
+            left = fc * fa[j] > 0  # the root lies between c and b: c replaces a
+            fb[j[left & (side[j] == 1)]] *= 0.5  # Illinois: an end kept twice has its value halved
+            fa[j[~left & (side[j] == -1)]] *= 0.5
+            a[j[left]], fa[j[left]] = c[j[left]], fc[left]
+            b[j[~left]], fb[j[~left]] = c[j[~left]], fc[~left]
+            side[j] = np.where(left, 1, -1)
+            act = j[~done]
+            if not len(act):
+                break
+        self.stats["snap_iterations"] = _it + 1
+        out = params.copy()
+        out[rows] = c
+        return out
+
+    def watertightness(self, resolution: int | None = None) -> dict:
+        """Closedness, components, Euler characteristic of :meth:`surface` (see :func:`tiling.export.watertightness`)."""
+        return mesh_watertightness(self.surface(resolution))
+
+    def render_png(self, path, **options):
+        """Offscreen picture of the surface and/or the spanning trees (:func:`tiling.implicit_render.render_png`)."""
+        return render_png(self, path, **options)
+
+    def write(self, path, resolution: int | None = None):
+        """Write the surface to ``.stl``, ``.obj``, ``.ply``, ``.vtp`` or ``.vtu`` (atomic; by suffix)."""
+        return write_mesh(path, self.surface(resolution))
+
+
+# ----------------------------------------------------------------------------------------------- building
+def _check_inputs(D, counts, degree, controls, alpha, continuity, connectivity, canonical, shell):
+    if not isinstance(D, BSpline) or D.dim != 3:
+        raise TilingError(f"the deformation map must be a trivariate geometry.BSpline, got {type(D).__name__}")
+    if not (isinstance(counts, (list, tuple, np.ndarray)) and len(counts) == 3 and all(
+            isinstance(c, (int, np.integer)) and not isinstance(c, bool) and c >= 1 for c in counts)):
+        raise TilingError(f"counts must be 3 positive integers (cells per direction), got {show(counts)}")
+    for name, v, lo in (("degree", degree, 1), ("controls", controls, 2)):
+        if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < lo:
+            raise TilingError(f"{name} must be an integer >= {lo}, got {show(v)}")
+    if controls < degree + 1:
+        raise TilingError(f"controls must be at least degree + 1 = {degree + 1} coefficients per direction, "
+                          f"got {controls}")
+    if not (isinstance(alpha, (int, float, np.floating)) and not isinstance(alpha, bool) and 0 <= alpha <= 1):
+        raise TilingError(f"alpha must be a number in [0, 1] (the randomization factor of Eq. 6), got {show(alpha)}")
+    if continuity not in ("C0", "C1"):
+        raise TilingError(f"continuity must be 'C0' or 'C1', got {show(continuity)}")
+    if continuity == "C1" and controls < 4:
+        raise TilingError(f"C1 continuity needs at least 4 coefficients per direction, got controls={controls}")
+    if not isinstance(connectivity, (int, np.integer)) or isinstance(connectivity, bool) or not 1 <= connectivity <= 3:
+        raise TilingError(f"connectivity must be 1, 2 or 3 (edge-disjoint spanning trees), got {show(connectivity)}")
+    if shell is not None and not (isinstance(shell, (int, float)) and 0 < shell < 0.5):
+        raise TilingError(f"shell must be a thickness in (0, 0.5) of a boundary cell (its parameter fraction), "
+                          f"got {show(shell)}")
+    shape = (controls,) * 3
+    if canonical is None:
+        return canonical_tubes(degree, controls)
+    p0 = canonical.coefficients[..., 0] if isinstance(canonical, SplineFunction) else np.asarray(canonical, float)
+    if isinstance(canonical, SplineFunction) and (canonical.n_components != 1 or canonical.dim != 3
+                                                  or tuple(canonical.degrees) != (degree,) * 3):
+        raise TilingError(f"the canonical tile must be a scalar trivariate of degree {degree} in every direction, "
+                          f"got {canonical!r}")
+    if isinstance(canonical, SplineFunction):
+        want = cell_knots(degree, controls)
+        for U in canonical.knots:
+            inner = (U[degree + 1:-degree - 1] - U[0]) / (U[-1] - U[0])
+            if inner.shape != want.shape or not np.allclose(inner, want, atol=1e-12):
+                raise TilingError(f"the canonical tile's knots must be uniform ({controls - degree} spans per "
+                                  f"direction, as every cell's), got interior knots {show(inner)} (scaled to [0, 1]); "
+                                  f"pass its coefficients instead to reinterpret them on uniform knots")
+    if p0.shape != shape or not np.all(np.isfinite(p0)):
+        raise TilingError(f"the canonical tile must have {shape} finite coefficients (degree {degree}, "
+                          f"controls {controls}), got shape {p0.shape}")
+    return p0
+
+
+def random_implicit(D: BSpline, counts, *, degree: int = 3, controls: int = 8, alpha: float = 0.5, seed: int = 0,
+                    continuity: str = "C0", connectivity: int = 1, canonical=None, cap: bool = False,
+                    shell: float | None = None, resolution: int = 12, materials: dict | None = None
+                    ) -> ImplicitStructure:
+    """Random implicit micro-structure in D (Massarwi et al. 2018, Section 4; module notes).
+
+    Parameters
+    ----------
+    D : trivariate deformation map; its parameter domain is split into ``counts`` = (cx, cy, cz) cells
+    degree, controls : degree and coefficients per direction of each cell's field
+    alpha : randomization factor in [0, 1] (Eq. 6); 0 gives the canonical tiling
+    seed : seed of the random generator (same seed, same structure)
+    continuity : "C0" (shared boundary coefficients, Eq. 7) or "C1" (and Eq. 8)
+    connectivity : edge-disjoint spanning trees along which neighbouring cells are connected (1 to 3)
+    canonical : the canonical tile, a scalar trivariate of the cells' space or its (controls,) * 3
+        coefficients; default :func:`canonical_tubes`
+    cap : close the structure inside D (negative coefficients on D's boundary)
+    shell : thickness (fraction of a boundary cell) of a solid layer along D's boundary
+    resolution : samples per cell and direction of the connectivity checks (and the surface's default)
+    materials : {name: (controls,) * 3 coefficients of one cell} material channels, tiled into every cell
+        like the canonical tile (not randomized; shared layers take one cell's values, so C0); the surface
+        carries them as point data
+
+    >>> from geometry import primitives
+    >>> s = random_implicit(primitives.box(), (2, 2, 2), alpha=0.6, seed=1, cap=True)
+    >>> s.stats["trees"], s.surface().n_cells > 1000
+    (1, True)
+    """
+    p0 = _check_inputs(D, counts, degree, controls, alpha, continuity, connectivity, canonical, shell)
+    if not isinstance(resolution, (int, np.integer)) or isinstance(resolution, bool) or resolution < 2:
+        raise TilingError(f"resolution must be an integer >= 2 (samples per cell and direction), got {show(resolution)}")
+    counts = tuple(int(c) for c in counts)
+    n_cells = int(np.prod(counts))
+    check_memory(n_cells * (controls ** 3 + (resolution + 1) ** 3) * 8 * 4, f"the random implicit structure "
+                 f"({n_cells} cells)", TilingError, "lower the counts or the resolution")
+    rng = np.random.default_rng(seed)
+    B = Builder(counts, degree, controls, continuity)
+    cells = np.stack(np.unravel_index(np.arange(n_cells), counts), 1)
+    for c in cells:  # Eq. 6 per cell; shared boundary layers take the value of the last cell written (C0, Eq. 7)
+        B.G[B.cell_slices(c)] = (1 - alpha) * p0 + alpha * rng.uniform(-1.0, 1.0, p0.shape)
+    B.enforce_c1()
+    edges, _ = grid_graph(counts)
+    trees = spanning_trees(n_cells, edges, connectivity, rng)
+    stats = {"trees": len(trees), "face_iterations": {}, "cell_iterations": {}, "cavities_opened": 0}
+    # boundary conditions of the structure: capping (negative) or shelling (positive) on D's boundary layers
+    if cap or shell is not None:
+        for k in range(3):
+            G = np.moveaxis(B.G, k, 0)
+            if shell is not None:
+                layers = max(1, int(np.ceil(shell * (controls - 1))))
+                G[:layers] = np.maximum(G[:layers], 1.0)
+                G[-layers:] = np.maximum(G[-layers:], 1.0)
+            else:
+                G[0] = G[-1] = _CAP
+    tree_edges = np.concatenate(trees) if trees else np.zeros((0, 2), np.int64)
+    knots = [_global_knots(*D.domain[k], counts[k], degree, controls) for k in range(3)]
+    out = ImplicitStructure(D, counts, degree, controls, continuity, None, trees, stats, bool(cap), shell,
+                            int(resolution), *_materials(materials, B, cells, knots, D))
+    if cap:  # D's boundary layers stay at the cap value
+        for k in range(3):
+            np.moveaxis(B.fixed, k, 0)[[0, -1]] = True
+    # The steps interact (C1 symmetry moves lines of a face, filling a pocket may start an island, a cell's
+    # steps may fill a face): repeat them all until one round changes nothing.
+    for _ in range(50):
+        work = connect_faces(B, cells, tree_edges, resolution, stats)
+        work += connect_cells(B, cells, resolution, stats)
+        out.field = SplineFunction((degree,) * 3, knots, B.G[..., None])
+        if shell is None:  # (a shell encloses every void by design)
+            work += open_cavities(out.sample_values, B, resolution, stats)
+        if not work:
+            break
+    else:
+        raise TilingError("the connectivity steps did not settle in 50 rounds; lower alpha or use C0 continuity")
+    stats["rounds"] = _ + 1
+    return out
+
+
+def _materials(materials, B, cells, knots, D):
+    """The material channels as one SplineFunction over the cells' space, and their names."""
+    if materials is None or len(materials) == 0:
+        return None, ()
+    if not isinstance(materials, dict):
+        raise TilingError(f"materials must be a dict {{name: coefficients}}, got {type(materials).__name__}")
+    shape = (B.N,) * 3
+    names, coefs = [], []
+    for name, c in materials.items():
+        a = np.asarray(c, dtype=float) if isinstance(c, (list, tuple, np.ndarray)) else None
+        if not isinstance(name, str) or not name or a is None or a.shape != shape or not np.all(np.isfinite(a)):
+            raise TilingError(f"material {name!r} must be named by a non-empty string and have {shape} finite "
+                              f"coefficients (one cell's, degree {B.d}, controls {B.N}), got "
+                              f"{type(c).__name__} of shape {np.shape(c)}")
+        if name in D.channels or name in ("u", "v", "w"):
+            raise TilingError(f"material {name!r} clashes with a channel of the map or a parameter name; rename it")
+        G = np.zeros(B.G.shape)
+        for cell in cells:
+            G[B.cell_slices(cell)] = a
+        names.append(name)
+        coefs.append(G)
+    return SplineFunction((B.d,) * 3, knots, np.stack(coefs, axis=-1)), tuple(names)
+
+
