@@ -102,6 +102,13 @@ def _normalised(U):
     return (U - U[0]) / (U[-1] - U[0])
 
 
+def _snap(x: float, U) -> float:
+    """``x``, or the knot of U within 1e-10 of U's length (a box end computed in floating point)."""
+    kv = np.unique(np.asarray(U, float))
+    i = int(np.argmin(np.abs(kv - x)))
+    return float(kv[i]) if abs(kv[i] - x) <= 1e-10 * (kv[-1] - kv[0]) else x
+
+
 def nested_refinement(parent_knots, box, child_knots) -> sp.csr_matrix:
     """R with child face coefficients = R @ parent face coefficients (Kronecker product of two directions).
 
@@ -115,7 +122,7 @@ def nested_refinement(parent_knots, box, child_knots) -> sp.csr_matrix:
     Rs = []
     for d in range(2):
         (Up, pp), (Uc, pc) = parent_knots[d], child_knots[d]
-        a, b = box[d]
+        a, b = (_snap(float(x), Up) for x in box[d])
         if pc != pp:
             raise SplineError(f"nested faces need equal degrees; parent {pp}, child {pc} (face direction {d})")
         sub, S = kn.restriction(np.asarray(Up, float), pp, a, b)

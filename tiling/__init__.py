@@ -2,7 +2,9 @@
 
 Public names: :class:`Tile`, :class:`BranchFace`, :func:`regular`,
 :func:`hierarchical`, :class:`Microstructure`, :func:`random_implicit` (random
-implicit structures, :class:`ImplicitStructure`), :class:`TilingError` and the
+implicit structures, :class:`ImplicitStructure`), :func:`topo_subdiv` (adaptive
+subdivision, :class:`CellComplex`), :func:`bifurcation` (layered bifurcation
+tilings), :class:`TilingError` and the
 ``library`` module of built-in tiles.
 """
 
@@ -11,8 +13,11 @@ from .tile import BranchFace, Tile, discontinuity_branches
 from .microstructure import Interface, Microstructure, PlacedPatch
 from .paving import hierarchical, regular
 from .implicit import ImplicitStructure, canonical_tubes, random_implicit
+from .topo import CellComplex, topo_subdiv
+from .branching import bifurcation, bifurcation_tiles
 from . import library
 
 __all__ = ["TilingError", "Tile", "BranchFace", "discontinuity_branches", "Microstructure", "PlacedPatch",
            "Interface", "regular", "hierarchical", "library",
-           "random_implicit", "ImplicitStructure", "canonical_tubes"]
+           "random_implicit", "ImplicitStructure", "canonical_tubes", "topo_subdiv", "CellComplex", "bifurcation",
+           "bifurcation_tiles"]

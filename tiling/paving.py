@@ -46,11 +46,10 @@ def _check_counts(counts, n, what):
 BYTES_PER_PATCH = 10_000
 
 
-def _check_budget(n_tiles: float, tile, what: str) -> None:
+def _check_budget(n_tiles: float, tile, what: str, hint: str = "lower the counts or levels") -> None:
     """Refuse pavings whose patches would not fit the memory budget, before building anything."""
     n = float(n_tiles) * len(tile.patches)
-    check_memory(n * BYTES_PER_PATCH, f"{what} ({n_tiles:.3g} tiles, {n:.3g} patches)", TilingError,
-                 "lower the counts or levels")
+    check_memory(n * BYTES_PER_PATCH, f"{what} ({n_tiles:.3g} tiles, {n:.3g} patches)", TilingError, hint)
 
 
 def _cells(D: BSpline, k: int, count: int) -> np.ndarray:

@@ -1,0 +1,79 @@
+"""Adaptive bifurcation in the duck (Massarwi et al. 2018, Section 5): layered parametric tilings with a heat solve.
+
+    python benchmarks/bifurcation.py            # table, JSON, renders
+    python benchmarks/bifurcation.py --no-png
+
+Cases, each in a fresh subprocess (peak memory is per case, imports included):
+  * parametric 1-2, 1-4a and 1-4b bifurcation tilings of the duck map with
+    epsilon = 0.35 (Algorithm 1 layers; Fig. 15/17 analogues), then steady
+    heat: 100 C on the tail layer's end faces, 20 C on the beak's, k = 20 W/(m K),
+    degree elevated to 2 and refined once.
+The paper reports under 4 s and 104 MB for its Fig. 16(b) duck with
+bifurcation (2018 hardware).  Writes benchmarks/out/bifurcation.json and,
+with renders, docs/bifurcation_duck_<kind>.png coloured by level.
+"""
+
+from __future__ import annotations
+
+import json
+import resource
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from _common import print_table, save_json
+
+DOCS = Path(__file__).resolve().parent.parent / "docs"
+CASES = ("1-2", "1-4a", "1-4b")
+
+
+def run(case: str, png: bool) -> dict:
+    import numpy as np
+
+    import tiling
+    from geometry import primitives
+    from iga import HeatProblem
+
+    D = primitives.duck()
+    t0 = time.perf_counter()
+    ms = tiling.bifurcation(D, 0.35, case)
+    t1 = time.perf_counter()
+    s = (HeatProblem(ms, conductivity=20.0, degree_elevation=1, refine=1)
+         .dirichlet("wmin", 100.0).dirichlet("wmax", 20.0).solve())
+    t2 = time.perf_counter()
+    w = tiling.export.watertightness(ms)
+    row = {"case": f"parametric {case}", "layers": len(ms.info["levels"]), "levels": max(ms.info["levels"]),
+           "tiles": ms.n_tiles, "patches": len(ms.patches),
+           "branch interfaces": sum(i.kind == "branch" for i in ms.interfaces), "build s": t1 - t0,
+           "heat s": t2 - t1, "DOFs": int(s.info["free_dofs"]), "heat flow W": float(-s.flux("wmin")),
+           "balance": float(s.info["balance"]["relative_error"]), "closed": bool(w["closed"]),
+           "components": w["components"], "peak MiB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
+    assert np.isfinite(row["heat flow W"]) and row["balance"] < 1e-8
+    if png:
+        tiling.export.render_png(ms, DOCS / f"bifurcation_duck_{case}.png", color_by="level")
+    return row
+
+
+def main():
+    if len(sys.argv) > 2 and sys.argv[1] == "--case":
+        print(json.dumps(run(sys.argv[2], "--png" in sys.argv)))
+        return
+    png = "--no-png" not in sys.argv
+    rows = []
+    for case in CASES:
+        out = subprocess.run([sys.executable, __file__, "--case", case], capture_output=True, text=True)
+        if out.returncode:
+            print(out.stderr[-2000:])
+            continue
+        rows.append(json.loads(out.stdout.strip().splitlines()[-1]))
+        if png:
+            subprocess.run([sys.executable, __file__, "--case", case, "--png"], check=True, capture_output=True)
+    print_table(rows, [("case", "s"), ("layers", "d"), ("levels", "d"), ("tiles", "d"), ("patches", "d"),
+                       ("branch interfaces", "d"), ("build s", ".3f"), ("heat s", ".2f"), ("DOFs", "d"),
+                       ("heat flow W", ".4g"), ("balance", ".1e"), ("components", "d"), ("peak MiB", ".0f")])
+    save_json("bifurcation.json", rows)
+
+
+if __name__ == "__main__":
+    main()

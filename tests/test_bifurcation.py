@@ -1,0 +1,164 @@
+"""Adaptive topological subdivision (Algorithm 1) and layered parametric bifurcation tilings (Massarwi et al. 2018, Section 5)."""
+
+import numpy as np
+import pytest
+
+import tiling
+from geometry import primitives
+from geometry.faces import FACE_NAMES
+from iga import HeatProblem
+from tiling import TilingError
+from tiling.branching import bifurcation, bifurcation_tiles, smooth_levels
+from tiling.topo import topo_subdiv
+
+AFFINE = primitives.box((2.0, 1.0, 3.0))
+
+
+@pytest.fixture(scope="module")
+def duck():
+    return primitives.duck()
+
+
+def _direct_longest(D, box):
+    """Longest chord of the 12 edges of a parameter box, evaluating each edge's two corners on their own."""
+    best = 0.0
+    for k in range(3):
+        rest = [j for j in range(3) if j != k]
+        for a in box[rest[0]]:
+            for b in box[rest[1]]:
+                p, q = np.zeros(3), np.zeros(3)
+                p[rest], q[rest] = (a, b), (a, b)
+                p[k], q[k] = box[k]
+                x = D.evaluate(np.stack([p, q]))[:, :3]
+                best = max(best, float(np.linalg.norm(x[1] - x[0])))
+    return best
+
+
+def test_topo_subdiv_bounds_every_cell_and_tiles_the_domain(duck):
+    c = topo_subdiv(duck, 0.35)
+    assert 20 < len(c) < 500
+    rng = np.random.default_rng(0)
+    for i in rng.choice(len(c), 20, replace=False):
+        assert _direct_longest(duck, c.boxes[i]) < 0.35
+    # cells cover the domain without overlap: volumes add up and random points fall in exactly one cell
+    vol = np.prod(c.boxes[:, :, 1] - c.boxes[:, :, 0], axis=1).sum()
+    assert vol == pytest.approx(np.prod(np.diff(duck.domain, axis=1)), rel=1e-12)
+    x = rng.uniform(duck.domain[:, 0], duck.domain[:, 1], (2000, 3))
+    inside = np.all((x[:, None, :] > c.boxes[None, :, :, 0]) & (x[:, None, :] < c.boxes[None, :, :, 1]), axis=2)
+    assert np.all(inside.sum(axis=1) == 1)
+    # each split was needed: the parent (the cell doubled along some direction) would exceed epsilon
+    # (Algorithm 1 never splits below the threshold) -- at least one cell per direction is near it
+    assert c.longest.max() > 0.35 / 2
+    # reproducible
+    assert np.array_equal(c.boxes, topo_subdiv(duck, 0.35).boxes)
+
+
+def test_face_classification_matches_brute_force(duck):
+    c = topo_subdiv(duck, 0.35)
+    B = c.boxes
+    n = len(B)
+    for i in range(n):
+        for fi, face in enumerate(FACE_NAMES):
+            k, side = fi // 2, fi % 2
+            rest = [j for j in range(3) if j != k]
+            # brute force over every other cell: faces on the same plane, overlapping with positive area
+            plane = B[i, k, side]
+            nb = [j for j in range(n) if j != i and abs(B[j, k, 1 - side] - plane) < 1e-14
+                  and np.all(np.minimum(B[i, rest, 1], B[j, rest, 1]) - np.maximum(B[i, rest, 0], B[j, rest, 0]) > 0)]
+            kind, got = c.faces[i][face]
+            assert sorted(got) == nb
+            if not nb:
+                expect = "boundary"
+                assert plane == duck.domain[k, side]
+            elif len(nb) > 1:
+                expect = "complex"
+            elif np.allclose(B[nb[0], rest], B[i, rest]):
+                expect = "neighbour"
+            else:
+                expect = "partial" if np.all((B[nb[0], rest, 0] <= B[i, rest, 0]) & (B[nb[0], rest, 1] >= B[i, rest, 1])) \
+                    else "complex"
+            assert kind == expect
+    kinds = c.kinds()
+    assert kinds["complex"] > 0 and kinds["partial"] > 0  # the duck needs bifurcations
+    assert len(c.adjacency()) > n - 1
+
+
+def test_layered_subdivision_along_one_direction(duck):
+    c = topo_subdiv(duck, 0.35, directions=(2,))
+    assert np.all(c.boxes[:, :2, 0] == 0.0) and np.all(c.boxes[:, :2, 1] == 1.0)
+    assert set(c.kinds()) and c.kinds()["complex"] == 0
+    assert np.all(c.edge_images()[:, 2] < 0.35)
+
+
+def test_topo_subdiv_bad_input(duck):
+    for eps in (0, -1.0, float("nan"), "0.3", True):
+        with pytest.raises(TilingError, match="epsilon"):
+            topo_subdiv(duck, eps)
+    with pytest.raises(TilingError, match="raise epsilon"):
+        topo_subdiv(duck, 1e-7)
+    with pytest.raises(TilingError, match="directions"):
+        topo_subdiv(duck, 0.3, directions=(3,))
+    with pytest.raises(TilingError, match="trivariate"):
+        topo_subdiv("duck", 0.3)
+
+
+@pytest.mark.parametrize("kind", ["1-2", "1-4a", "1-4b"])
+def test_bifurcation_patch_test(kind):
+    ms = bifurcation(AFFINE, levels=[0, 1, 2, 1, 0], tile=kind)
+    lin = lambda x: 1 + 2 * x[:, 0] - x[:, 1] + 0.5 * x[:, 2]  # noqa: E731
+    s = HeatProblem(ms, refine=1, degree_elevation=1).dirichlet("boundary", lin).solve()
+    assert s.l2_error(lin) < 1e-9
+    assert s.info["constraints"]["branch_rows"] > 0 and s.info["constraints"]["identity_pairs"] > 0
+    assert sum(i.kind == "branch" for i in ms.interfaces) > 0
+    # tiles per layer follow the levels: (split x, split y)^level cells per layer
+    sx, sy = tiling.branching.SPLITS[kind]
+    assert ms.n_tiles == sum((sx * sy) ** v for v in ms.info["levels"])
+
+
+def test_bifurcation_converges_at_rate_p_plus_1():
+    ms = bifurcation(AFFINE, levels=[0, 1, 0], tile="1-2")
+    T = lambda x: np.sin(x[:, 0]) * np.cos(0.7 * x[:, 1]) * np.exp(0.3 * x[:, 2])  # noqa: E731
+    f = lambda x: (1 + 0.49 - 0.09) * T(x)  # noqa: E731  (-lap T)
+    errs = [HeatProblem(ms, source=f, degree_elevation=1, refine=r).dirichlet("boundary", T).solve(tol=1e-13)
+            .l2_error(T) for r in (1, 2, 3)]
+    rates = np.log2(np.array(errs[:-1]) / np.array(errs[1:]))
+    assert np.all(rates > 2.7), rates  # p = 2: rate 3
+
+
+def test_bifurcation_in_the_duck_by_epsilon(duck):
+    for kind in ("1-2", "1-4a"):
+        ms = bifurcation(duck, 0.35, kind)
+        lev = np.array(ms.info["levels"])
+        assert np.all(np.abs(np.diff(lev)) <= 1) and lev.max() >= 1
+        assert not np.any((lev[1:-1] < lev[:-2]) & (lev[1:-1] < lev[2:]))
+        s = HeatProblem(ms, conductivity=20.0).dirichlet("wmin", 100.0).dirichlet("wmax", 20.0).solve()
+        assert s.info["balance"]["relative_error"] < 1e-9
+        assert s.flux("wmin") == pytest.approx(-s.flux("wmax"), rel=1e-9) and s.flux("wmin") < 0
+        w = tiling.export.watertightness(ms)
+        assert w["closed"] and w["components"] == 1
+
+
+def test_smooth_levels():
+    assert smooth_levels([0, 3, 0]).tolist() == [2, 3, 2]
+    assert smooth_levels([2, 0, 2]).tolist() == [2, 2, 2]  # no valley: a layer cannot both join and split
+    out = smooth_levels(np.random.default_rng(0).integers(0, 5, 30))
+    assert np.all(np.abs(np.diff(out)) <= 1)
+
+
+def test_bifurcation_tiles_are_conforming_shears():
+    t = bifurcation_tiles("1-4a", margin=0.25)
+    assert len(t["split"].patches) == 4 and len(t["join"].patches) == 4 and len(t["straight"].patches) == 1
+    for p in t["split"].patches:  # each block is a parallelepiped: bottom and top rectangles of equal size
+        cp = p.control_points[..., :3]
+        assert np.allclose(cp[:, :, 1] - cp[:, :, 0], cp[0, 0, 1] - cp[0, 0, 0])
+
+
+def test_bifurcation_bad_input(duck):
+    cases = [(dict(epsilon=0.0), "epsilon"), (dict(epsilon=-1.0), "epsilon"), (dict(), "give epsilon"),
+             (dict(epsilon=0.3, levels=[0, 1]), "give epsilon"), (dict(epsilon=0.3, tile="1-3"), "1-2"),
+             (dict(epsilon=0.3, direction=3), "direction"), (dict(levels=[0, 1, 2]), "multiple of 5"),
+             (dict(levels=[0, -1, 0, 0, 0]), "levels"), (dict(epsilon=0.3, margin=0.5), "margin"),
+             (dict(epsilon=1e-6), "raise epsilon")]
+    for kw, match in cases:
+        with pytest.raises(TilingError, match=match):
+            bifurcation(duck, **kw)

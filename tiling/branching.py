@@ -1,0 +1,249 @@
+"""Layered bifurcation tilings with parametric tiles (Massarwi et al. 2018, Section 5.2, Figs. 8, 15, 17).
+
+D's parameter domain is cut into layers along the growth ``direction``
+(Algorithm 1 restricted to that direction, :func:`tiling.topo.topo_subdiv`);
+every layer is a grid of cells across it whose size is halved (1-2 along the
+first cross direction; 1-4a along both; 1-4b quartered along the first) per
+*level*, the smallest level whose cells' edge images stay below ``epsilon``.
+Neighbouring layers differ by at most one level and a layer is never finer
+than both neighbours (smoothing raises it), so every transition is one
+bifurcation: the coarse cell below a finer layer holds a *split* tile that
+feeds its 2 or 4 finer neighbours; the coarse cell above a finer layer holds
+the mirrored *join* tile.  Other cells hold the *straight* tile.
+
+Tiles (:func:`bifurcation_tiles`) are volumetric: a column of square
+cross-section ``[c, 1 - c]^2`` along the growth axis (straight); a split tile
+is 2 or 4 sheared blocks, each from one strip of the column's footprint at
+its bottom to the column footprint of one finer cell at its top (a
+parallelepiped: exact under an affine map).  Across a layer plane a block's
+strip face meets a whole column face: the smaller face is constrained to the
+larger one's restriction by refinement matrices (a ``branch`` interface,
+Massarwi et al. 2018, Eqs. 11-12), exactly as in the hierarchical tiling;
+equal faces are glued by identity.  The result is a :class:`Microstructure`,
+a heat model.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from geometry import BSpline, knots as kn
+from geometry.errors import show
+
+from .errors import TilingError
+from .microstructure import Microstructure, PlacedPatch
+from .paving import _check_budget, _check_map, _check_spans
+from .tile import Tile
+from .topo import _edge_lengths, topo_subdiv
+
+__all__ = ["bifurcation", "bifurcation_tiles", "smooth_levels", "SPLITS"]
+
+#: cells of the finer layer per coarse cell along the two cross directions
+SPLITS = {"1-2": (2, 1), "1-4a": (2, 2), "1-4b": (4, 1)}
+_MAX_LEVEL = 12
+
+
+def _block(bottom, top) -> BSpline:
+    """Trilinear block from an axis-aligned bottom rectangle (z = 0) to a top one (z = 1): ((x0, x1), (y0, y1)) each."""
+    cp = np.zeros((2, 2, 2, 3))
+    for k, (rx, ry) in enumerate((bottom, top)):
+        for i in range(2):
+            for j in range(2):
+                cp[i, j, k] = (rx[i], ry[j], float(k))
+    U = kn.uniform_knots(1, 1)
+    return BSpline((1, 1, 1), [U, U, U], cp)
+
+
+def bifurcation_tiles(kind: str = "1-2", margin: float = 0.3) -> dict:
+    """The straight, split and join tiles of one bifurcation kind (tile coordinates, growth along z).
+
+    ``margin``: the column's footprint is ``[margin, 1 - margin]^2``.
+    Returns {"straight": Tile, "split": Tile, "join": Tile}; the split tile's
+    patch i runs from strip i of the footprint (bottom) to the footprint of
+    finer cell i (top), cells ordered x fastest.
+    """
+    if kind not in SPLITS:
+        raise TilingError(f"tile must be one of {list(SPLITS)} (bifurcation kinds), got {show(kind)}")
+    if not isinstance(margin, (int, float)) or not 0 < margin < 0.5:
+        raise TilingError(f"margin must be in (0, 0.5) (the column's distance from the cell's sides), got "
+                          f"{show(margin)}")
+    sx, sy = SPLITS[kind]
+    c0, c1 = margin, 1.0 - margin
+    w = c1 - c0
+    strips, tops = [], []
+    for j in range(sy):
+        for i in range(sx):
+            strips.append(((c0 + i * w / sx, c0 + (i + 1) * w / sx), (c0 + j * w / sy, c0 + (j + 1) * w / sy)))
+            tops.append((((i + c0) / sx, (i + c1) / sx), ((j + c0) / sy, (j + c1) / sy)))
+    foot = ((c0, c1), (c0, c1))
+    split = [_block(s, t) for s, t in zip(strips, tops)]
+    join = [_block(t, s) for s, t in zip(strips, tops)]
+    return {"straight": Tile([_block(foot, foot)], name="column"),
+            "split": Tile(split, name=f"bifurcation {kind}"),
+            "join": Tile(join, name=f"bifurcation {kind} (join)")}
+
+
+def _subdivide(breaks, n) -> np.ndarray:
+    """Breakpoints with every span cut into ``n`` equal parts."""
+    t = np.linspace(0.0, 1.0, n + 1)[:-1]
+    return np.append((breaks[:-1, None] + np.diff(breaks)[:, None] * t[None, :]).ravel(), breaks[-1])
+
+
+def _layers(D, g, epsilon, levels):
+    """Layer intervals (L, 2) along direction g, and their levels (L,) before smoothing."""
+    if levels is not None:
+        if not isinstance(levels, (list, tuple, np.ndarray)) or not len(levels) or not all(
+                isinstance(v, (int, np.integer)) and not isinstance(v, bool) and 0 <= v <= _MAX_LEVEL for v in levels):
+            raise TilingError(f"levels must be a list of integers in [0, {_MAX_LEVEL}], one per layer, got "
+                              f"{show(levels)}")
+        b = D.breakpoints(g)
+        if len(levels) % (len(b) - 1):
+            raise TilingError(f"{len(levels)} levels do not split D's {len(b) - 1} knot spans along direction {g} "
+                              f"into equal layers; give a multiple of {len(b) - 1}")
+        cuts = _subdivide(b, len(levels) // (len(b) - 1))
+        return np.stack([cuts[:-1], cuts[1:]], 1), np.asarray(levels, int)
+    layers = topo_subdiv(D, epsilon, directions=(g,))
+    iv = np.unique(layers.boxes[:, g, :], axis=0)
+    return iv, None
+
+
+def _level_of(D, g, cross, splits, layer, epsilon):
+    """Smallest level whose cells in ``layer`` have every edge image below epsilon along the split directions."""
+    spans = [D.breakpoints(k) for k in cross]
+    for lev in range(_MAX_LEVEL + 1):
+        cuts = [_subdivide(b, s ** lev) for b, s in zip(spans, splits)]
+        boxes = np.zeros(((len(cuts[0]) - 1) * (len(cuts[1]) - 1), 3, 2))
+        ii, jj = np.meshgrid(np.arange(len(cuts[0]) - 1), np.arange(len(cuts[1]) - 1), indexing="ij")
+        for k, cut, idx in ((cross[0], cuts[0], ii.ravel()), (cross[1], cuts[1], jj.ravel())):
+            boxes[:, k, 0], boxes[:, k, 1] = cut[idx], cut[idx + 1]
+        boxes[:, g] = layer
+        split_dirs = [k for k, s in zip(cross, splits) if s > 1]  # 1-2, 1-4b refine one cross direction only
+        if np.all(_edge_lengths(D, boxes)[:, split_dirs] < epsilon):
+            return lev
+    raise TilingError(f"a layer needs more than {_MAX_LEVEL} bifurcation levels for epsilon={show(epsilon)}; "
+                      "raise epsilon")
+
+
+def smooth_levels(levels) -> np.ndarray:
+    """Raise levels until neighbours differ by at most one and no layer is coarser than both neighbours.
+
+    A layer coarser than both neighbours would need a join and a split tile at once.
+    """
+    lev = np.array(levels, int)
+    for _ in range(4 * len(lev) * (_MAX_LEVEL + 1)):
+        new = lev.copy()
+        new[1:] = np.maximum(new[1:], lev[:-1] - 1)
+        new[:-1] = np.maximum(new[:-1], lev[1:] - 1)
+        valley = np.zeros(len(lev), bool)
+        valley[1:-1] = (new[:-2] > new[1:-1]) & (new[2:] > new[1:-1])
+        new[valley] += 1
+        if np.array_equal(new, lev):
+            return lev
+        lev = new
+    return lev
+
+
+def bifurcation(D: BSpline, epsilon: float | None = None, tile: str = "1-2", *, direction: int = 2,
+                levels=None, margin: float = 0.3, name: str = "bifurcation") -> Microstructure:
+    """Layered bifurcation micro-structure of D (module notes): a heat model with branch constraints.
+
+    Parameters
+    ----------
+    D : trivariate deformation map
+    epsilon : largest image of a cell edge (model units): sets the layers (Algorithm 1 along
+        ``direction``) and each layer's level; or None with ``levels``
+    tile : "1-2", "1-4a" (2 x 2) or "1-4b" (1 x 4)
+    direction : growth direction (0, 1 or 2); layers are stacked along it
+    levels : explicit level per layer (layers split D's knot spans along ``direction`` equally);
+        smoothed like computed ones
+    margin : the columns' distance from their cell's sides (fraction of the cell)
+
+    >>> from geometry import primitives
+    >>> ms = bifurcation(primitives.box((1.0, 1.0, 6.0)), levels=[0, 0, 1, 1, 0, 0], tile="1-4a")
+    >>> ms.n_tiles, sum(i.kind == "branch" for i in ms.interfaces)   # strips of a split/join on whole column faces
+    (12, 8)
+    """
+    _check_map(D)
+    if direction not in (0, 1, 2) or isinstance(direction, bool):
+        raise TilingError(f"direction must be 0, 1 or 2 (the growth direction), got {show(direction)}")
+    if (epsilon is None) == (levels is None):
+        raise TilingError("give epsilon (model units) or levels (one per layer), not both and not neither")
+    if epsilon is not None and not (isinstance(epsilon, (int, float, np.floating)) and not isinstance(epsilon, bool)
+                                    and np.isfinite(epsilon) and epsilon > 0):
+        raise TilingError(f"epsilon must be a positive length (model units), got {show(epsilon)}")
+    tiles = bifurcation_tiles(tile, margin)
+    g = int(direction)
+    cross = ((g + 1) % 3, (g + 2) % 3)  # cyclic: tile (x, y, z) -> D directions (cross[0], cross[1], g), det > 0
+    if epsilon is not None:  # a lower bound of the cells before anything is built: domain chords / epsilon
+        whole = _edge_lengths(D, D.domain[None].astype(float))[0]
+        dirs = [g] + [k for k, s in zip(cross, SPLITS[tile]) if s > 1]
+        _check_budget(float(np.prod([max(whole[k] / epsilon, 1.0) for k in dirs])), tiles["split"],
+                      f"the bifurcation tiling for epsilon={show(epsilon)}", "raise epsilon")
+    layers, lev = _layers(D, g, epsilon, levels)
+    if lev is None:
+        lev = np.array([_level_of(D, g, cross, SPLITS[tile], iv, epsilon) for iv in layers])
+    lev = smooth_levels(lev)
+    sx, sy = SPLITS[tile]
+    spans = [D.breakpoints(k) for k in cross]
+    n_cells = sum(int(np.prod([(len(b) - 1) * s ** int(v) for b, s in zip(spans, (sx, sy))])) for v in lev)
+    _check_budget(n_cells, tiles["split"], f"the bifurcation tiling ({len(lev)} layers)", "raise epsilon or lower "
+                  "the levels")
+    P = np.zeros((3, 3))
+    P[cross[0], 0] = P[cross[1], 1] = P[g, 2] = 1.0  # tile axes -> D's directions
+    placed, tile_list, faces = [], [], []  # faces: (patch, face name, plane coordinate, rect in D params (2, 2))
+    for li, (iv, v) in enumerate(zip(layers, lev)):
+        finer_above = li + 1 < len(lev) and lev[li + 1] > v
+        finer_below = li > 0 and lev[li - 1] > v
+        kind = "split" if finer_above else ("join" if finer_below else "straight")
+        t = tiles[kind]
+        cuts = [_subdivide(b, s ** int(v)) for b, s in zip(spans, (sx, sy))]
+        for i in range(len(cuts[0]) - 1):
+            for j in range(len(cuts[1]) - 1):
+                lo = np.array([cuts[0][i], cuts[1][j], iv[0]])
+                size = np.array([cuts[0][i + 1] - cuts[0][i], cuts[1][j + 1] - cuts[1][j], iv[1] - iv[0]])
+                M = np.column_stack([P @ np.diag(size), P @ lo])
+                tid = len(tile_list)
+                tile_list.append(t)
+                for pi, patch in enumerate(t.patches):
+                    idx = len(placed)
+                    placed.append(PlacedPatch(patch, M, D, tid, int(v), pi))
+                    for face, z in (("wmin", 0), ("wmax", 1)):
+                        pts = patch.control_points[:, :, z, :3].reshape(-1, 3)
+                        rect = np.stack([pts.min(0)[:2], pts.max(0)[:2]], 1) * size[:2, None] + lo[:2, None]
+                        faces.append((idx, face, float(lo[2] + z * size[2]), rect))
+    _check_spans(D, placed)
+    links = _links(faces)
+    ms = Microstructure.build(D, placed, tile_list, links, name=name)
+    ms.info = {"levels": [int(x) for x in lev], "layers": layers.tolist(), "tile": tile, "direction": g,
+               "cells": n_cells}
+    return ms
+
+
+def _links(faces) -> list:
+    """Branch links (parent, face, box, child, face) between nested unequal faces on the same layer plane."""
+    tol = 1e-10
+    by_plane: dict = {}
+    for f in faces:
+        by_plane.setdefault(round(f[2] / tol) * tol, []).append(f)
+    links = []
+    for group in by_plane.values():
+        below = [f for f in group if f[1] == "wmax"]
+        above = [f for f in group if f[1] == "wmin"]
+        for a in below:
+            for b in above:
+                lo = np.maximum(a[3][:, 0], b[3][:, 0])
+                hi = np.minimum(a[3][:, 1], b[3][:, 1])
+                if np.any(hi - lo <= tol):
+                    continue  # no common area
+                ra, rb = a[3], b[3]
+                if np.allclose(ra, rb, atol=tol):
+                    continue  # equal faces: identity, found by the model
+                big, small = (a, b) if np.all(ra[:, 0] <= rb[:, 0] + tol) and np.all(ra[:, 1] >= rb[:, 1] - tol) \
+                    else (b, a)
+                R, r = big[3], small[3]
+                if not (np.all(R[:, 0] <= r[:, 0] + tol) and np.all(R[:, 1] >= r[:, 1] - tol)):
+                    raise TilingError("bifurcation faces overlap without nesting; this is a bug in the layering")
+                box = tuple((float((r[k, 0] - R[k, 0]) / (R[k, 1] - R[k, 0])),
+                             float((r[k, 1] - R[k, 0]) / (R[k, 1] - R[k, 0]))) for k in range(2))
+                links.append((big[0], big[1], box, small[0], small[1]))
+    return links
