@@ -162,3 +162,80 @@ def test_bifurcation_bad_input(duck):
     for kw, match in cases:
         with pytest.raises(TilingError, match=match):
             bifurcation(duck, **kw)
+
+
+# ------------------------------------------------------------------ implicit bifurcation (Section 5.1)
+from tiling.implicit_bifurcation import implicit_bifurcation, merge_pieces  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def implicit_duck(duck):
+    return implicit_bifurcation(duck, 0.35, alpha=0.65, seed=3)
+
+
+def test_implicit_bifurcation_is_closed_connected_and_exact(implicit_duck, duck):
+    s = implicit_duck
+    assert s.cells.kinds()["complex"] > 0  # real bifurcations
+    w = s.watertightness()
+    assert w["closed"] and w["manifold"] and w["components"] == 1
+    m = s.surface()
+    params = np.c_[m["u"], m["v"], m["w"]]
+    scale = max(np.abs(f.coefficients).max() for f in s.fields)
+    assert np.abs(s.evaluate(params)).max() < 1e-10 * scale  # vertices on the exact zero set
+    assert np.allclose(m.points, duck.evaluate(params)[:, :3], atol=1e-12)
+    # the random draw was used (not every amplitude halved to the canonical pattern)
+    assert min(s.stats["cell_halvings"].values()) == 0 and min(s.stats["face_halvings"].values()) == 0
+
+
+def test_implicit_bifurcation_is_c0_across_every_face_including_complex_ones(implicit_duck):
+    s, c = implicit_duck, implicit_duck.cells
+    rng = np.random.default_rng(1)
+    checked = {"neighbour": 0, "partial": 0}
+    for i in range(len(c)):
+        for fi, f in enumerate(FACE_NAMES):
+            kind, nb = c.faces[i][f]
+            if kind not in checked:
+                continue
+            k, side = divmod(fi, 2)
+            box = c.boxes[i]  # the smaller (or equal) face: points on it lie on the neighbour's face too
+            x = rng.uniform(box[:, 0], box[:, 1], (40, 3))
+            x[:, k] = box[k, side]
+            a = s.fields[i].evaluate(x)[:, 0]
+            b = s.fields[nb[0]].evaluate(x)[:, 0]
+            assert np.abs(a - b).max() < 1e-12 * max(1.0, np.abs(a).max())
+            checked[kind] += 1
+    assert checked["neighbour"] > 10 and checked["partial"] > 10
+
+
+def test_merge_pieces_is_exact():
+    from geometry import SplineFunction
+    from geometry import knots as kn
+
+    rng = np.random.default_rng(2)
+    U = kn.uniform_knots(3, 5)
+    rects = [((0, 0.5), (0, 1)), ((0.5, 1), (0, 0.5)), ((0.5, 0.75), (0.5, 1)), ((0.75, 1), (0.5, 1))]
+    pieces = []
+    for r in rects:
+        c = rng.uniform(-1, 1, (8, 8))
+        c[[0, -1], :] = -0.5
+        c[:, [0, -1]] = -0.5
+        pieces.append(SplineFunction((3, 3), [r[0][0] + (r[0][1] - r[0][0]) * U, r[1][0] + (r[1][1] - r[1][0]) * U],
+                                     c[..., None]))
+    merged = merge_pieces(pieces, 3)
+    for p, r in zip(pieces, rects):
+        x = np.c_[rng.uniform(*r[0], 200), rng.uniform(*r[1], 200)]
+        assert np.abs(merged.evaluate(x) - p.evaluate(x)).max() < 1e-12
+
+
+def test_implicit_bifurcation_reproducible_and_bad_input(duck):
+    a = implicit_bifurcation(duck, 0.5, alpha=0.5, seed=4)
+    b = implicit_bifurcation(duck, 0.5, alpha=0.5, seed=4)
+    assert all(np.array_equal(f.coefficients, g.coefficients) for f, g in zip(a.fields, b.fields))
+    for kw, match in [(dict(alpha=1.5), "alpha"), (dict(resolution=7), "even"), (dict(radius=0.6), "radius"),
+                      (dict(controls=3), "controls")]:
+        with pytest.raises(TilingError, match=match):
+            implicit_bifurcation(duck, 0.5, **kw)
+    with pytest.raises(TilingError, match="epsilon"):
+        implicit_bifurcation(duck, -0.5)
+    with pytest.raises(TilingError, match="domain"):
+        a.evaluate(np.array([[0.5, 0.5, 1.5]]))

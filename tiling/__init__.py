@@ -4,7 +4,7 @@ Public names: :class:`Tile`, :class:`BranchFace`, :func:`regular`,
 :func:`hierarchical`, :class:`Microstructure`, :func:`random_implicit` (random
 implicit structures, :class:`ImplicitStructure`), :func:`topo_subdiv` (adaptive
 subdivision, :class:`CellComplex`), :func:`bifurcation` (layered bifurcation
-tilings), :class:`TilingError` and the
+tilings), :func:`implicit_bifurcation`, :class:`TilingError` and the
 ``library`` module of built-in tiles.
 """
 
@@ -15,9 +15,10 @@ from .paving import hierarchical, regular
 from .implicit import ImplicitStructure, canonical_tubes, random_implicit
 from .topo import CellComplex, topo_subdiv
 from .branching import bifurcation, bifurcation_tiles
+from .implicit_bifurcation import BifurcationStructure, implicit_bifurcation
 from . import library
 
 __all__ = ["TilingError", "Tile", "BranchFace", "discontinuity_branches", "Microstructure", "PlacedPatch",
            "Interface", "regular", "hierarchical", "library",
            "random_implicit", "ImplicitStructure", "canonical_tubes", "topo_subdiv", "CellComplex", "bifurcation",
-           "bifurcation_tiles"]
+           "bifurcation_tiles", "implicit_bifurcation", "BifurcationStructure"]

@@ -48,6 +48,7 @@ from geometry.resources import check_memory
 
 from .errors import TilingError
 from .implicit_render import render_png
+from .implicit_surface import zero_surface
 from .implicit_connect import (Builder, cell_knots, connect_cells, connect_faces, grid_graph, open_cavities,
                                spanning_trees)
 from .export import mesh_watertightness, write_mesh
@@ -161,121 +162,33 @@ class ImplicitStructure:
         return self.sample(resolution)[1]
 
     def surface(self, resolution: int | None = None, close: bool | None = None, snap: bool = True):
-        """The zero set mapped exactly through D, one welded ``pyvista.PolyData`` (marching cubes: VTK flying edges).
+        """The zero set mapped exactly through D, one welded ``pyvista.PolyData`` (:mod:`tiling.implicit_surface`).
 
         The field is sampled on the global grid (``resolution`` intervals per
-        cell and direction) and contoured at 0 in parameter space; every vertex
-        is then moved along its grid edge onto the exact zero set of the
-        spline (``snap``: Illinois regula falsi, |f| < 1e-12 max|p|) and mapped
-        through D (exact at the vertices), so shared cell faces carry identical
-        vertices and the mesh is one piece.  The connectivity
-        guarantees (one component, closed when capped) are proved on the
-        samples of the build ``resolution``, the default here; a finer sampling
-        can reveal features smaller than that sampling step (a thin neck, a
-        tiny pocket).  ``close`` (default:
-        when shelled) closes the surface with D's boundary where f > 0.  Point
-        data: every channel of D and every material channel at the vertices,
-        and the parameters (u, v, w).
+        cell and direction), contoured at 0 in parameter space (VTK flying
+        edges), every vertex moved along its grid edge onto the exact zero set
+        of the spline (``snap``: |f| < 1e-12 max|p|) and mapped through D, so
+        shared cell faces carry identical vertices and the mesh is one piece.
+        The connectivity guarantees (one component, closed when capped) are
+        proved on the samples of the build ``resolution``, the default here; a
+        finer sampling can reveal features smaller than that sampling step (a
+        thin neck, a tiny pocket).  ``close`` (default: when shelled) closes
+        the surface with D's boundary where f > 0.  Point data: every channel
+        of D and every material channel at the vertices, and the parameters
+        (u, v, w).
         """
-        import pyvista as pv
-
         axes, F = self.sample(resolution)
         close = self.shell is not None if close is None else bool(close)
-        spacing = [a[1] - a[0] for a in axes]
-        origin = [a[0] for a in axes]
-        if close:  # a layer of strongly negative values outside: the contour follows the boundary there
-            pad = -1e6 * max(1.0, float(np.abs(F).max()))
-            F = np.pad(F, 1, constant_values=pad)
-            origin = [o - s for o, s in zip(origin, spacing)]
-        grid = pv.ImageData(dimensions=F.shape, spacing=spacing, origin=origin)
-        grid.point_data["f"] = F.ravel(order="F")
-        surf = grid.contour([0.0], scalars="f", method="flying_edges")
-        if surf.n_points == 0:
-            raise TilingError("the implicit structure has an empty zero set; raise alpha or connectivity, or use "
-                              "a canonical tile whose field changes sign")
-        dom = self.outer.domain
-        params = np.asarray(surf.points, dtype=float)
-        if snap:
-            params = self._snap(params, np.asarray(origin), np.asarray(spacing))
-        params = np.clip(params, dom[:, 0], dom[:, 1])
-        mapped = self.outer.evaluate(params, compiled=False)  # SciPy: one pass, no numba import (memory)
-        out = pv.PolyData(mapped[:, :3], surf.faces)
-        for i, c in enumerate(self.outer.channels):
-            out.point_data[c] = mapped[:, 3 + i]
-        if self.materials is not None:
+
+        def materials(params):
+            if self.materials is None:
+                return {}
             values = self.materials.evaluate(params, compiled=False)
-            for i, c in enumerate(self.material_names):
-                out.point_data[c] = values[:, i]
-        out.point_data["u"], out.point_data["v"], out.point_data["w"] = params.T
-        return out
+            return {c: values[:, i] for i, c in enumerate(self.material_names)}
 
-    def _snap(self, params, origin, spacing, iterations: int = 60):
-        """Move marching-cubes vertices (N, 3) along their grid edges onto f = 0 (vectorised Illinois method).
-
-        A vertex lies on a grid edge: two coordinates on grid lines, the third
-        between two samples of opposite sign.  Vertices on edges leaving D's
-        domain (the closing layer) and vertices at a zero sample stay put.
-        """
-        dom = self.outer.domain
-        f = lambda x: self.field.evaluate(x, compiled=False)[:, 0]  # noqa: E731
-        t = (params - origin) / spacing
-        off = np.abs(t - np.round(t))
-        ax = np.argmax(off, axis=1)  # the edge's direction: the coordinate off the grid lines
-        at_sample = off.max(axis=1) < 1e-4  # VTK writes float32: a vertex at a sample (f tiny there)
-        off[np.arange(len(t)), ax] = 0.0
-        rows = np.flatnonzero(off.max(axis=1) < 1e-4)  # the other two on grid lines
-        ax, i = ax[rows], np.arange(len(rows))
-        lower = np.floor(t[rows, ax])
-        # at a sample: of its (up to) 6 edges, the one with a sign change whose root is nearest
-        near = np.flatnonzero(at_sample[rows])
-        if len(near):
-            g = origin + np.round(t[rows[near]]) * spacing
-            fg = f(np.clip(g, dom[:, 0], dom[:, 1]))
-            best, pick = np.full(len(near), np.inf), np.zeros((len(near), 2), int)
-            for k in range(3):
-                for sgn in (-1, 1):
-                    h = g.copy()
-                    h[:, k] += sgn * spacing[k]
-                    valid = (h[:, k] >= dom[k, 0] - 1e-12) & (h[:, k] <= dom[k, 1] + 1e-12)
-                    fh = f(np.clip(h, dom[:, 0], dom[:, 1]))
-                    score = np.where(valid & (fg * fh < 0), np.abs(fg) / (np.abs(fg - fh) + 1e-300), np.inf)
-                    better = score < best
-                    best[better], pick[better] = score[better], (k, sgn)
-            ax[near] = np.where(np.isfinite(best), pick[:, 0], ax[near])
-            lower[near] = np.round(t[rows[near], ax[near]]) - (np.isfinite(best) & (pick[:, 1] < 0))
-        a = origin + np.round(t[rows]) * spacing  # the edge's lower end: grid coordinates ...
-        a[i, ax] = origin[ax] + lower * spacing[ax]  # ... and the sample below along the edge
-        b = a.copy()
-        b[i, ax] += spacing[ax]
-        keep = np.all((a >= dom[:, 0] - 1e-12) & (b <= dom[:, 1] + 1e-12), axis=1)
-        rows, ax = rows[keep], ax[keep]
-        a, b = np.clip(a[keep], dom[:, 0], dom[:, 1]), np.clip(b[keep], dom[:, 0], dom[:, 1])
-        fa, fb = f(a), f(b)
-        ok = fa * fb < 0  # a sign change on the edge (else keep VTK's vertex)
-        rows, a, b, fa, fb, ax = rows[ok], a[ok], b[ok], fa[ok], fb[ok], ax[ok]
-        tol = 1e-12 * max(1.0, float(np.abs(self.field.coefficients).max()))
-        c = a.copy()
-        side = np.zeros(len(rows), int)  # which end the last step replaced: +1 a, -1 b
-        act = np.arange(len(rows))  # edges not converged yet
-        for _it in range(iterations):
-            j, axj = act, ax[act]
-            s = fa[j] / (fa[j] - fb[j])  # the secant's root on the edge
-            c[j, axj] = a[j, axj] + s * (b[j, axj] - a[j, axj])
-            fc = f(c[j])
-            done = np.abs(fc) < tol
-            left = fc * fa[j] > 0  # the root lies between c and b: c replaces a
-            fb[j[left & (side[j] == 1)]] *= 0.5  # Illinois: an end kept twice has its value halved
-            fa[j[~left & (side[j] == -1)]] *= 0.5
-            a[j[left]], fa[j[left]] = c[j[left]], fc[left]
-            b[j[~left]], fb[j[~left]] = c[j[~left]], fc[~left]
-            side[j] = np.where(left, 1, -1)
-            act = j[~done]
-            if not len(act):
-                break
-        self.stats["snap_iterations"] = _it + 1
-        out = params.copy()
-        out[rows] = c
-        return out
+        return zero_surface(axes, F, self.outer, lambda x: self.field.evaluate(x, compiled=False)[:, 0],
+                            close=close, snap_vertices=snap, scale=float(np.abs(self.field.coefficients).max()),
+                            point_data=materials, stats=self.stats)
 
     def watertightness(self, resolution: int | None = None) -> dict:
         """Closedness, components, Euler characteristic of :meth:`surface` (see :func:`tiling.export.watertightness`)."""

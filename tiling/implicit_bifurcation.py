@@ -1,0 +1,432 @@
+"""Implicit bifurcation structures on an adaptive subdivision (Massarwi et al. 2018, Section 5.1, Figs. 6, 7, 16(b, c)).
+
+The cells of :func:`tiling.topo_subdiv` carry scalar trivariates f > 0
+(inside) built, as in Section 5.1, from six face surfaces by the volumetric
+Boolean sum:
+
+1. every face that is not part of a larger one (a *unit* face) gets a bicubic
+   scalar surface: the canonical pattern (positive disc in the middle, the
+   rim at -1/2) randomised by Eq. 6 in its interior; D's boundary faces are
+   negative throughout when capped (a closed solid).  A *complex* face (several
+   smaller neighbours) is the exact merge of its neighbours' unit faces into
+   one B-spline surface (Fig. 6): knots of every piece, multiplicity d at the
+   junctions, each piece refined to the common knots by knot insertion;
+2. the cell's trivariate is the Boolean sum of its six faces, computed on the
+   control net with Greville abscissae (exact: splines reproduce linear
+   blends).  All rims are the same constant, so the faces agree on every
+   edge, and neighbours agree on shared faces exactly (C0): the big cell of a
+   complex face interpolates the merged surface, which *is* its neighbours' faces;
+3. the interior coefficients are randomised by Eq. 6 around the Boolean sum.
+
+Guarantees, checked on samples of the build ``resolution`` (every cell is
+sampled at the union of all cells' sample lines, so faces are sampled alike
+from both sides): every unit face's inside part is one non-empty piece and
+its outside part one piece touching the rim; every cell's inside samples
+are one component and its voids reach the cell's boundary; where a random
+draw breaks that, its amplitude is halved (down to the canonical pattern).
+The whole inside region is then one component and, capped, the outside one
+too: the surface is closed and connected.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import numpy as np
+from scipy import ndimage
+
+from geometry import BSpline, SplineFunction
+from geometry import knots as kn
+from geometry.errors import show
+from geometry.faces import FACE_NAMES
+
+from .errors import TilingError
+from .export import mesh_watertightness, write_mesh
+from .implicit_render import render_png
+from .implicit_surface import zero_surface
+from .topo import CellComplex, topo_subdiv
+
+__all__ = ["implicit_bifurcation", "BifurcationStructure"]
+
+RIM = -0.5  # every face's boundary curve: all faces agree on every edge (Boolean sum)
+CAP = -1.0  # the inside of D's boundary faces when capped
+_HALVINGS = 10  # after this many halvings of a random draw, the canonical pattern itself (amplitude 0)
+
+
+@dataclass
+class BifurcationStructure:
+    """Implicit bifurcation structure: per cell of ``cells`` a scalar trivariate on its parameter box.
+
+    ``fields[i]``: cell i's :class:`geometry.SplineFunction` over ``cells.boxes[i]``;
+    ``stats``: halvings of the random amplitude per face and per cell.
+    """
+
+    outer: BSpline
+    cells: CellComplex
+    fields: list
+    resolution: int
+    cap: bool
+    stats: dict = field(default_factory=dict)
+    trees: list = field(default_factory=list)  # (no spanning trees here; for the renderer)
+    _cache: dict = field(default_factory=dict, repr=False)  # the cell lookup table, the build resolution's samples
+
+    def evaluate(self, params) -> np.ndarray:
+        """f at parameter points (N, 3): each point evaluated by the cell containing it (equal on shared faces)."""
+        x = np.asarray(params, float)
+        cell = self.locate(x)
+        out = np.empty(len(x))
+        order = np.argsort(cell, kind="stable")
+        bounds = np.searchsorted(cell[order], np.arange(len(self.fields) + 1))
+        for i in np.flatnonzero(np.diff(bounds)):  # one evaluation per cell holding points
+            idx = order[bounds[i]:bounds[i + 1]]
+            out[idx] = self.fields[i].evaluate(x[idx], compiled=False)[:, 0]
+        return out
+
+    def locate(self, params) -> np.ndarray:
+        """Index of a cell containing each parameter point (N, 3) (a table over all cells' boundary planes)."""
+        if "table" not in self._cache:
+            B = self.cells.boxes
+            planes = [np.unique(B[:, k, :]) for k in range(3)]
+            table = np.full(tuple(len(p) - 1 for p in planes), -1, np.int64)
+            for i, b in enumerate(B):
+                sl = tuple(slice(int(np.searchsorted(p, b[k, 0])), int(np.searchsorted(p, b[k, 1])))
+                           for k, p in enumerate(planes))
+                table[sl] = i
+            self._cache["table"] = (planes, table)
+        planes, table = self._cache["table"]
+        x = np.asarray(params, float)
+        dom = self.outer.domain
+        if np.any((x < dom[:, 0] - 1e-12) | (x > dom[:, 1] + 1e-12)) or not np.all(np.isfinite(x)):
+            raise TilingError("parameter points must lie in D's domain " + show(dom.tolist()))
+        idx = tuple(np.clip(np.searchsorted(p, x[:, k], side="right") - 1, 0, len(p) - 2) for k, p in enumerate(planes))
+        return table[idx]
+
+    def axes(self, resolution: int | None = None) -> list:
+        """Per direction, the union of every cell's ``resolution + 1`` sample lines (sorted)."""
+        r = self.resolution if resolution is None else resolution
+        if not isinstance(r, (int, np.integer)) or isinstance(r, bool) or r < 2 or r % 2:
+            raise TilingError(f"resolution must be an even integer >= 2 (samples per cell and direction; the face "
+                              f"centres are samples), got {show(r)}")
+        B = self.cells.boxes
+        t = np.linspace(0.0, 1.0, r + 1)
+        return [np.unique(np.round((B[:, k, :1] + (B[:, k, 1:] - B[:, k, :1]) * t).ravel(), 13)) for k in range(3)]
+
+    def sample(self, resolution: int | None = None):
+        """Axes and f on the rectilinear grid of :meth:`axes` (the build resolution's is kept)."""
+        axes = self.axes(resolution)
+        if resolution in (None, self.resolution):
+            if "samples" not in self._cache:
+                self._cache["samples"] = _sample(self.cells.boxes, self.fields, axes)
+            return axes, self._cache["samples"]
+        return axes, _sample(self.cells.boxes, self.fields, axes)
+
+    def surface(self, resolution: int | None = None, snap: bool = True):
+        """The zero set mapped through D, one welded ``pyvista.PolyData`` (:mod:`tiling.implicit_surface`)."""
+        axes, F = self.sample(resolution)
+        scale = max(float(np.abs(f.coefficients).max()) for f in self.fields)
+        return zero_surface(axes, F, self.outer, self.evaluate, snap_vertices=snap, scale=scale, stats=self.stats)
+
+    def watertightness(self, resolution: int | None = None) -> dict:
+        """Closedness, components, Euler characteristic of :meth:`surface`."""
+        return mesh_watertightness(self.surface(resolution))
+
+    def render_png(self, path, **options):
+        """Offscreen picture of the surface (:func:`tiling.implicit_render.render_png`)."""
+        return render_png(self, path, **options)
+
+    def write(self, path, resolution: int | None = None):
+        """Write the surface to ``.stl``, ``.obj``, ``.ply``, ``.vtp`` or ``.vtu`` (atomic; by suffix)."""
+        return write_mesh(path, self.surface(resolution))
+
+
+def _sample(boxes, fields, axes) -> np.ndarray:
+    F = np.empty(tuple(len(a) for a in axes))
+    for box, f in zip(boxes, fields):
+        sl = [slice(int(np.searchsorted(a, lo - 1e-12)), int(np.searchsorted(a, hi + 1e-12, side="right")))
+              for a, (lo, hi) in zip(axes, box)]
+        F[tuple(sl)] = f.evaluate_grid([a[s] for a, s in zip(axes, sl)])[..., 0]
+    return F
+
+
+def _canonical_face(degree, controls, radius=0.35):
+    """Face pattern (controls, controls): positive disc of ``radius`` in the middle, the rim at RIM."""
+    g = kn.greville(kn.uniform_knots(degree, controls - degree), degree)
+    x, y = np.meshgrid(g, g, indexing="ij")
+    p = np.clip((radius - np.hypot(x - 0.5, y - 0.5)) / radius, -1.0, 1.0)
+    p[[0, -1], :] = RIM
+    p[:, [0, -1]] = RIM
+    return p
+
+
+def _face_ok(c, degree, xs, ys) -> bool:
+    """Inside samples of the face one component holding the centre (the cell's tubes aim there); outside one.
+
+    ``xs``, ``ys``: the face's sample lines (normalised to [0, 1]), those every
+    cell touching the face will use, so the check holds for them all.
+    """
+    U = kn.uniform_knots(degree, c.shape[0] - degree)
+    v = kn.basis_matrix(U, degree, xs).toarray() @ c @ kn.basis_matrix(U, degree, ys).toarray().T
+    i, j = int(np.argmin(np.abs(xs - 0.5))), int(np.argmin(np.abs(ys - 0.5)))
+    return v[i, j] > 0 and ndimage.label(v > 0)[1] == 1 and ndimage.label(v <= 0)[1] == 1
+
+
+def implicit_bifurcation(D: BSpline, epsilon: float, *, degree: int = 3, controls: int = 8, alpha: float = 0.0,
+                         seed: int = 0, cap: bool = True, resolution: int = 8, directions=(0, 1, 2),
+                         radius: float = 0.35) -> BifurcationStructure:
+    """Implicit bifurcation structure over :func:`topo_subdiv` (D, epsilon) (module notes; Fig. 16(b), (c) with alpha).
+
+    ``alpha``: randomisation (Eq. 6) of the faces and cell interiors; ``radius``:
+    the canonical face disc's radius (fraction of the face); ``resolution``:
+    samples per cell and direction of the checks and the surface.
+    """
+    if not isinstance(alpha, (int, float, np.floating)) or isinstance(alpha, bool) or not 0 <= alpha <= 1:
+        raise TilingError(f"alpha must be a number in [0, 1] (the randomization factor of Eq. 6), got {show(alpha)}")
+    for name, v, lo in (("degree", degree, 1), ("controls", controls, 4), ("resolution", resolution, 2)):
+        if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < lo or (name == "resolution" and v % 2):
+            raise TilingError(f"{name} must be an integer >= {lo}{' and even' if name == 'resolution' else ''}, "
+                              f"got {show(v)}")
+    if controls < degree + 1:
+        raise TilingError(f"controls must be at least degree + 1 = {degree + 1}, got {controls}")
+    if not isinstance(radius, (int, float)) or not 0 < radius < 0.5:
+        raise TilingError(f"radius must be in (0, 0.5) (fraction of a face), got {show(radius)}")
+    cells = topo_subdiv(D, epsilon, directions=directions)
+    rng = np.random.default_rng(seed)
+    stats = {"face_halvings": {}, "cell_halvings": {}}
+    out = BifurcationStructure(D, cells, [None] * len(cells), int(resolution), bool(cap), stats)
+    axes = out.axes()
+    unit = _unit_faces(cells, degree, controls, alpha, cap, rng, radius, axes, stats)
+    for i in range(len(cells)):
+        faces = {f: _cell_face(cells, i, f, unit, degree) for f in FACE_NAMES}
+        base = _with_tubes(_boolean_sum(faces, degree, cells.boxes[i]), _targets(cells, i, cap), radius)
+        out.fields[i] = _random_interior(base, alpha, rng, cells.boxes[i], axes, stats, i)
+    _, F = out.sample()
+    if ndimage.label(F > 0)[1] != 1:
+        raise TilingError("the implicit bifurcation structure is not connected on its samples; raise the "
+                          "resolution or lower alpha")
+    if cap and ndimage.label(np.pad(F, 1, constant_values=-1.0) <= 0)[1] != 1:
+        raise TilingError("the implicit bifurcation structure encloses a void on its samples; lower alpha")
+    return out
+
+
+def _unit_faces(cells, degree, controls, alpha, cap, rng, radius, axes, stats) -> dict:
+    """{(cell, face): coefficients (controls, controls)} of every unit face, keyed by each cell that owns it."""
+    p0 = _canonical_face(degree, controls, radius)
+    out = {}
+    for i, faces in enumerate(cells.faces):
+        for f, (kind, nb) in faces.items():
+            if kind == "complex" or (i, f) in out:
+                continue
+            if kind == "boundary" and cap:
+                c = np.full((controls, controls), CAP)
+                c[[0, -1], :] = RIM
+                c[:, [0, -1]] = RIM
+                out[(i, f)] = c
+                continue
+            noise = rng.uniform(-1.0, 1.0, p0.shape)
+            k = FACE_NAMES.index(f) // 2
+            box = cells.boxes[i]
+            lines = []
+            for d in (j for j in range(3) if j != k):  # the face's sample lines, normalised
+                a = axes[d][(axes[d] >= box[d, 0] - 1e-12) & (axes[d] <= box[d, 1] + 1e-12)]
+                lines.append(np.clip((a - box[d, 0]) / (box[d, 1] - box[d, 0]), 0.0, 1.0))
+            for h in range(_HALVINGS + 1):
+                a = 0.0 if h == _HALVINGS else alpha * 0.5 ** h
+                c = (1 - a) * p0 + a * noise
+                c[[0, -1], :] = RIM
+                c[:, [0, -1]] = RIM
+                if _face_ok(c, degree, *lines):
+                    break
+            stats["face_halvings"][(i, f)] = h
+            out[(i, f)] = c
+            if kind == "neighbour":  # the neighbour sees the same face (its opposite face name)
+                j = nb[0]
+                k = FACE_NAMES.index(f) // 2
+                out[(j, FACE_NAMES[2 * k + (1 - FACE_NAMES.index(f) % 2)])] = c
+    return out
+
+
+def _surface(c, degree, box=((0.0, 1.0), (0.0, 1.0))) -> SplineFunction:
+    n = c.shape[0]
+    U = kn.uniform_knots(degree, n - degree)
+    knots = [box[d][0] + (box[d][1] - box[d][0]) * U for d in range(2)]
+    return SplineFunction((degree, degree), knots, c[..., None])
+
+
+def _cell_face(cells, i, f, unit, degree) -> SplineFunction:
+    """Cell i's face f as a scalar surface over [0, 1]^2 (its two remaining directions in order)."""
+    kind, nb = cells.faces[i][f]
+    if kind != "complex":
+        return _surface(unit[(i, f)], degree)
+    k, side = divmod(FACE_NAMES.index(f), 2)
+    rest = [j for j in range(3) if j != k]
+    mine = cells.boxes[i][rest]
+    opposite = FACE_NAMES[2 * k + 1 - side]
+    pieces = []
+    for j in nb:  # each neighbour's unit face, placed on its part of this face (normalised coordinates)
+        r = (cells.boxes[j][rest] - mine[:, :1]) / (mine[:, 1:] - mine[:, :1])
+        pieces.append(_surface(unit[(j, opposite)], degree, np.clip(r, 0.0, 1.0)))
+    return merge_pieces(pieces, degree)
+
+
+def merge_pieces(pieces, degree) -> SplineFunction:
+    """One B-spline surface over [0, 1]^2 equal to the given pieces (which tile it and agree on their junctions).
+
+    Knots: the union of all pieces' knots, multiplicity ``degree`` at every
+    junction (C0); each piece is refined to the union by knot insertion
+    (exact) and its coefficients written into the common net.
+    """
+    cuts = [np.unique(np.concatenate([p.knots[d][[0, -1]] for p in pieces])) for d in range(2)]
+    knots = []
+    for d in range(2):
+        inner = np.unique(np.concatenate([p.knots[d][degree + 1:-degree - 1] for p in pieces]))
+        inner = inner[~np.isin(np.round(inner, 12), np.round(cuts[d], 12))]
+        knots.append(np.sort(np.concatenate([[0.0] * (degree + 1), inner, np.repeat(cuts[d][1:-1], degree),
+                                             [1.0] * (degree + 1)])))
+    g = [kn.greville(U, degree) for U in knots]
+    C = np.full((len(g[0]), len(g[1])), np.nan)
+    for p in pieces:
+        q = p
+        for d in range(2):
+            lo, hi = q.knots[d][0], q.knots[d][-1]
+            want = knots[d][(knots[d] > lo + 1e-12) & (knots[d] < hi - 1e-12)]
+            have = q.knots[d][degree + 1:-degree - 1]
+            extra = _missing(want, have)
+            if len(extra):
+                q = _insert(q, d, extra)
+        i0 = [int(np.argmin(np.abs(g[d] - q.knots[d][0]))) for d in range(2)]
+        c = q.coefficients[..., 0]
+        C[i0[0]:i0[0] + c.shape[0], i0[1]:i0[1] + c.shape[1]] = c
+    if np.isnan(C).any():
+        raise TilingError("the neighbours' faces do not cover the complex face; this is a bug in the subdivision")
+    return SplineFunction((degree, degree), knots, C[..., None])
+
+
+@lru_cache(maxsize=4096)
+def _insertion(U: bytes, degree: int, extra: bytes):
+    """Knot insertion (new knots, matrix) for a knot vector and knots to insert, cached: cells repeat them."""
+    return kn.insertion_matrix(np.frombuffer(U), degree, np.frombuffer(extra))
+
+
+def _insert(f: SplineFunction, d: int, extra) -> SplineFunction:
+    """``f`` with the knots ``extra`` inserted along direction d (exact)."""
+    U, R = _insertion(np.asarray(f.knots[d], float).tobytes(), int(f.degrees[d]), np.asarray(extra, float).tobytes())
+    knots = list(f.knots)
+    knots[d] = U
+    return SplineFunction(f.degrees, knots, kn.apply_along(f.coefficients, d, R))
+
+
+def _missing(want, have) -> np.ndarray:
+    """Knots of ``want`` (with multiplicity) not present in ``have`` (values compared to 1e-12)."""
+    w, wc = np.unique(np.round(np.asarray(want, float), 12), return_counts=True)
+    h, hc = np.unique(np.round(np.asarray(have, float), 12), return_counts=True)
+    pos = np.clip(np.searchsorted(h, w), 0, max(len(h) - 1, 0))
+    present = np.where((len(h) > 0) & (h[pos] == w if len(h) else False), hc[pos] if len(h) else 0, 0)
+    return np.repeat(w, np.maximum(wc - present, 0))
+
+
+def _boolean_sum(faces, degree, box) -> SplineFunction:
+    """Volumetric Boolean sum of six scalar faces with constant rims RIM: P_u + P_v + P_w - 2 RIM (on the net)."""
+    knots = []
+    for k in range(3):  # the union of the knots of the four faces spanning direction k
+        users = [(f, [j for j in range(3) if j != FACE_NAMES.index(f) // 2].index(k)) for f in FACE_NAMES
+                 if FACE_NAMES.index(f) // 2 != k]
+        allk = [faces[f].knots[d] for f, d in users]
+        U = allk[0]
+        for V in allk[1:]:
+            U = np.sort(np.concatenate([U, _missing(V, U)]))
+        knots.append(U)
+    for f in FACE_NAMES:  # refine every face to the cell's knots
+        k = FACE_NAMES.index(f) // 2
+        rest = [j for j in range(3) if j != k]
+        for d in range(2):
+            extra = _missing(knots[rest[d]], faces[f].knots[d])
+            if len(extra):
+                faces[f] = _insert(faces[f], d, extra)
+    g = [kn.greville(U, degree) for U in knots]
+    C = -2.0 * RIM * np.ones(tuple(len(x) for x in g))
+    for k in range(3):
+        lo, hi = faces[FACE_NAMES[2 * k]].coefficients[..., 0], faces[FACE_NAMES[2 * k + 1]].coefficients[..., 0]
+        t = np.moveaxis(g[k][:, None, None], 0, 0)  # (n_k, 1, 1)
+        term = (1 - t) * lo[None] + t * hi[None]  # (n_k, n_a, n_b) with a < b the remaining directions
+        C += np.moveaxis(term, 0, k)
+    return SplineFunction((degree,) * 3, [box[k, 0] + (box[k, 1] - box[k, 0]) * knots[k] for k in range(3)],
+                          C[..., None])
+
+
+def _targets(cells, i, cap) -> list:
+    """Centres (normalised cell coordinates) and sizes of the discs on cell i's faces: (point (3,), size)."""
+    box = cells.boxes[i]
+    out = []
+    for fi, f in enumerate(FACE_NAMES):
+        kind, nb = cells.faces[i][f]
+        if kind == "boundary" and cap:
+            continue
+        k, side = divmod(fi, 2)
+        rest = [j for j in range(3) if j != k]
+        parts = [cells.boxes[j] for j in nb] if kind == "complex" else [box]
+        for b in parts:
+            c = np.full(3, float(side))
+            r = (b[rest] - box[rest, :1]) / (box[rest, 1:] - box[rest, :1])
+            c[rest] = r.mean(axis=1)
+            out.append((c, float(np.min(r[:, 1] - r[:, 0]))))
+    return out
+
+
+def _with_tubes(f, targets, radius) -> SplineFunction:
+    """Interior coefficients raised to tubes from the cell's centre to every face disc (the canonical interior).
+
+    The Boolean sum alone can dip below zero between two discs (a capped
+    cell's discs on two faces); the tubes make the canonical cell one piece.
+    """
+    C = f.coefficients[..., 0].copy()
+    g = [kn.greville(U, d) for U, d in zip(f.knots, f.degrees)]
+    g = [(x - x[0]) / (x[-1] - x[0]) for x in g]
+    X = np.stack(np.meshgrid(*g, indexing="ij"), -1)
+    centre = np.full(3, 0.5)
+    tube = np.full(C.shape, -np.inf)
+    for p, size in targets:
+        d = p - centre
+        t = np.clip(((X - centre) @ d) / (d @ d), 0.0, 1.0)
+        dist = np.linalg.norm(X - centre - t[..., None] * d, axis=-1)
+        r = radius * size
+        tube = np.maximum(tube, np.clip((r - dist) / r, -1.0, 1.0))
+    inner = (slice(1, -1),) * 3
+    C[inner] = np.maximum(C[inner], tube[inner])
+    return SplineFunction(f.degrees, f.knots, C[..., None])
+
+
+def _random_interior(f, alpha, rng, box, axes, stats, i) -> SplineFunction:
+    """Eq. 6 on the interior coefficients, the amplitude halved until the cell's samples are valid."""
+    C = f.coefficients[..., 0]
+    noise = rng.uniform(-1.0, 1.0, C.shape)
+    sl = [slice(int(np.searchsorted(a, lo - 1e-12)), int(np.searchsorted(a, hi + 1e-12, side="right")))
+          for a, (lo, hi) in zip(axes, box)]
+    sub = [a[s] for a, s in zip(axes, sl)]
+    inner = (slice(1, -1),) * 3
+    for h in range(_HALVINGS + 1):
+        a = 0.0 if h == _HALVINGS or alpha == 0 else alpha * 0.5 ** h
+        c = C.copy()
+        c[inner] = (1 - a) * C[inner] + a * noise[inner]
+        g = SplineFunction(f.degrees, f.knots, c[..., None])
+        v = g.evaluate_grid(sub)[..., 0]
+        if _cell_ok(v):
+            stats["cell_halvings"][i] = h
+            return g
+        if a == 0.0:
+            break
+    raise TilingError(f"cell {i} (parameter box {show(box.tolist())}) is not one connected piece even with its "
+                      "canonical faces; raise the resolution or the radius")
+
+
+def _cell_ok(v) -> bool:
+    """Inside samples one component; every outside component reaches the cell's boundary."""
+    if ndimage.label(v > 0)[1] != 1:
+        return False
+    label, n = ndimage.label(v <= 0)
+    if n == 0:
+        return True
+    border = np.zeros(v.shape, bool)
+    for k in range(3):
+        np.moveaxis(border, k, 0)[[0, -1]] = True
+    return len(np.unique(label[border & (label > 0)])) == n
