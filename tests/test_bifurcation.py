@@ -239,3 +239,17 @@ def test_implicit_bifurcation_reproducible_and_bad_input(duck):
         implicit_bifurcation(duck, -0.5)
     with pytest.raises(TilingError, match="domain"):
         a.evaluate(np.array([[0.5, 0.5, 1.5]]))
+
+
+def test_bicubic_surface_bifurcation_tiles(duck):
+    t = bifurcation_tiles("1-4b", surfaces=True)
+    assert all(p.dim == 2 and p.degrees == (3, 3) for k in t for p in t[k].patches)
+    assert len(t["split"].patches) == 16  # 4 side walls of 4 blocks
+    ms = bifurcation(duck, 0.35, "1-4a", surfaces=True)
+    assert all(p.spline.dim == 2 for p in ms.patches) and not ms.interfaces
+    w = tiling.export.watertightness(ms)
+    assert w["manifold"] and w["components"] == 1 and w["open_edges"] > 0  # open tubes, one connected network
+    # the walls pass through the exact composition: a wall's corner lands where D maps it
+    P = ms.patches[0]
+    corner = P.placement[:, :3] @ P.spline.control_points[0, 0, :3] + P.placement[:, 3]
+    assert np.allclose(P.composed.control_points[0, 0, :3], duck.evaluate(corner[None])[0, :3], atol=1e-12)

@@ -54,13 +54,16 @@ def _block(bottom, top) -> BSpline:
     return BSpline((1, 1, 1), [U, U, U], cp)
 
 
-def bifurcation_tiles(kind: str = "1-2", margin: float = 0.3) -> dict:
+def bifurcation_tiles(kind: str = "1-2", margin: float = 0.3, surfaces: bool = False) -> dict:
     """The straight, split and join tiles of one bifurcation kind (tile coordinates, growth along z).
 
     ``margin``: the column's footprint is ``[margin, 1 - margin]^2``.
     Returns {"straight": Tile, "split": Tile, "join": Tile}; the split tile's
     patch i runs from strip i of the footprint (bottom) to the footprint of
-    finer cell i (top), cells ordered x fastest.
+    finer cell i (top), cells ordered x fastest.  ``surfaces``: the tiles of
+    bicubic surfaces instead (as the paper's Fig. 8): the four side walls of
+    every block, degree raised to 3, an open branching tube for surface
+    micro-structures and printing (not a heat model).
     """
     if kind not in SPLITS:
         raise TilingError(f"tile must be one of {list(SPLITS)} (bifurcation kinds), got {show(kind)}")
@@ -76,11 +79,13 @@ def bifurcation_tiles(kind: str = "1-2", margin: float = 0.3) -> dict:
             strips.append(((c0 + i * w / sx, c0 + (i + 1) * w / sx), (c0 + j * w / sy, c0 + (j + 1) * w / sy)))
             tops.append((((i + c0) / sx, (i + c1) / sx), ((j + c0) / sy, (j + c1) / sy)))
     foot = ((c0, c1), (c0, c1))
-    split = [_block(s, t) for s, t in zip(strips, tops)]
-    join = [_block(t, s) for s, t in zip(strips, tops)]
-    return {"straight": Tile([_block(foot, foot)], name="column"),
-            "split": Tile(split, name=f"bifurcation {kind}"),
-            "join": Tile(join, name=f"bifurcation {kind} (join)")}
+    blocks = {"straight": [_block(foot, foot)], "split": [_block(s, t) for s, t in zip(strips, tops)],
+              "join": [_block(t, s) for s, t in zip(strips, tops)]}
+    if surfaces:
+        blocks = {k: [b.boundary(f).elevate_to((3, 3)) for b in v for f in ("umin", "umax", "vmin", "vmax")]
+                  for k, v in blocks.items()}
+    names = {"straight": "column", "split": f"bifurcation {kind}", "join": f"bifurcation {kind} (join)"}
+    return {k: Tile(v, name=names[k] + (" (surfaces)" if surfaces else "")) for k, v in blocks.items()}
 
 
 def _subdivide(breaks, n) -> np.ndarray:
@@ -144,7 +149,7 @@ def smooth_levels(levels) -> np.ndarray:
 
 
 def bifurcation(D: BSpline, epsilon: float | None = None, tile: str = "1-2", *, direction: int = 2,
-                levels=None, margin: float = 0.3, name: str = "bifurcation") -> Microstructure:
+                levels=None, margin: float = 0.3, surfaces: bool = False, name: str = "bifurcation") -> Microstructure:
     """Layered bifurcation micro-structure of D (module notes): a heat model with branch constraints.
 
     Parameters
@@ -157,6 +162,7 @@ def bifurcation(D: BSpline, epsilon: float | None = None, tile: str = "1-2", *, 
     levels : explicit level per layer (layers split D's knot spans along ``direction`` equally);
         smoothed like computed ones
     margin : the columns' distance from their cell's sides (fraction of the cell)
+    surfaces : pave the bicubic surface tiles instead (open branching tubes for printing; no heat model)
 
     >>> from geometry import primitives
     >>> ms = bifurcation(primitives.box((1.0, 1.0, 6.0)), levels=[0, 0, 1, 1, 0, 0], tile="1-4a")
@@ -171,7 +177,7 @@ def bifurcation(D: BSpline, epsilon: float | None = None, tile: str = "1-2", *, 
     if epsilon is not None and not (isinstance(epsilon, (int, float, np.floating)) and not isinstance(epsilon, bool)
                                     and np.isfinite(epsilon) and epsilon > 0):
         raise TilingError(f"epsilon must be a positive length (model units), got {show(epsilon)}")
-    tiles = bifurcation_tiles(tile, margin)
+    tiles = bifurcation_tiles(tile, margin, bool(surfaces))
     g = int(direction)
     cross = ((g + 1) % 3, (g + 2) % 3)  # cyclic: tile (x, y, z) -> D directions (cross[0], cross[1], g), det > 0
     if epsilon is not None:  # a lower bound of the cells before anything is built: domain chords / epsilon
@@ -207,6 +213,8 @@ def bifurcation(D: BSpline, epsilon: float | None = None, tile: str = "1-2", *, 
                 for pi, patch in enumerate(t.patches):
                     idx = len(placed)
                     placed.append(PlacedPatch(patch, M, D, tid, int(v), pi))
+                    if patch.dim != 3:
+                        continue
                     for face, z in (("wmin", 0), ("wmax", 1)):
                         pts = patch.control_points[:, :, z, :3].reshape(-1, 3)
                         rect = np.stack([pts.min(0)[:2], pts.max(0)[:2]], 1) * size[:2, None] + lo[:2, None]
