@@ -34,6 +34,8 @@ CASES = ("1-2", "1-4a", "1-4b", "implicit", "implicit random")
 
 
 def run_implicit(case: str, png: bool) -> dict:
+    import pyvista  # noqa: F401  (imports are not the work measured)
+
     import tiling
     from geometry import primitives
 

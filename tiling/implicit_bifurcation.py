@@ -159,14 +159,19 @@ def _canonical_face(degree, controls, radius=0.35):
     return p
 
 
+@lru_cache(maxsize=1024)
+def _face_basis(degree: int, n: int, x: bytes) -> np.ndarray:
+    """Values (len(x), n) of the uniform face basis at the sample coordinates x (cached: faces repeat them)."""
+    return kn.basis_matrix(kn.uniform_knots(degree, n - degree), degree, np.frombuffer(x)).toarray()
+
+
 def _face_ok(c, degree, xs, ys) -> bool:
     """Inside samples of the face one component holding the centre (the cell's tubes aim there); outside one.
 
     ``xs``, ``ys``: the face's sample lines (normalised to [0, 1]), those every
     cell touching the face will use, so the check holds for them all.
     """
-    U = kn.uniform_knots(degree, c.shape[0] - degree)
-    v = kn.basis_matrix(U, degree, xs).toarray() @ c @ kn.basis_matrix(U, degree, ys).toarray().T
+    v = _face_basis(degree, c.shape[0], xs.tobytes()) @ c @ _face_basis(degree, c.shape[0], ys.tobytes()).T
     i, j = int(np.argmin(np.abs(xs - 0.5))), int(np.argmin(np.abs(ys - 0.5)))
     return v[i, j] > 0 and ndimage.label(v > 0)[1] == 1 and ndimage.label(v <= 0)[1] == 1
 
@@ -318,11 +323,17 @@ def _insert(f: SplineFunction, d: int, extra) -> SplineFunction:
 
 def _missing(want, have) -> np.ndarray:
     """Knots of ``want`` (with multiplicity) not present in ``have`` (values compared to 1e-12)."""
+    return np.frombuffer(_missing_cached(np.asarray(want, float).tobytes(), np.asarray(have, float).tobytes()))
+
+
+@lru_cache(maxsize=4096)
+def _missing_cached(want: bytes, have: bytes) -> bytes:
+    want, have = np.frombuffer(want), np.frombuffer(have)
     w, wc = np.unique(np.round(np.asarray(want, float), 12), return_counts=True)
     h, hc = np.unique(np.round(np.asarray(have, float), 12), return_counts=True)
     pos = np.clip(np.searchsorted(h, w), 0, max(len(h) - 1, 0))
     present = np.where((len(h) > 0) & (h[pos] == w if len(h) else False), hc[pos] if len(h) else 0, 0)
-    return np.repeat(w, np.maximum(wc - present, 0))
+    return np.repeat(w, np.maximum(wc - present, 0)).astype(float).tobytes()
 
 
 def _boolean_sum(faces, degree, box) -> SplineFunction:
