@@ -48,7 +48,7 @@ from geometry.resources import check_memory
 
 from .errors import TilingError
 from .implicit_render import render_png
-from .implicit_surface import zero_surface
+from .implicit_surface import EdgeSplines, zero_surface
 from .implicit_connect import (Builder, cell_knots, connect_cells, connect_faces, grid_graph, open_cavities,
                                spanning_trees)
 from .export import mesh_watertightness, write_mesh
@@ -188,7 +188,8 @@ class ImplicitStructure:
 
         return zero_surface(axes, F, self.outer, lambda x: self.field.evaluate(x, compiled=False)[:, 0],
                             close=close, snap_vertices=snap, scale=float(np.abs(self.field.coefficients).max()),
-                            point_data=materials, stats=self.stats)
+                            point_data=materials, stats=self.stats,
+                            lines=lambda a, b, axis: EdgeSplines.of(self.field, a, b, axis))
 
     def watertightness(self, resolution: int | None = None) -> dict:
         """Closedness, components, Euler characteristic of :meth:`surface` (see :func:`tiling.export.watertightness`)."""

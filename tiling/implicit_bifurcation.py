@@ -44,7 +44,7 @@ from geometry.faces import FACE_NAMES
 from .errors import TilingError
 from .export import mesh_watertightness, write_mesh
 from .implicit_render import render_png
-from .implicit_surface import zero_surface
+from .implicit_surface import EdgeSplines, zero_surface
 from .topo import CellComplex, topo_subdiv
 
 __all__ = ["implicit_bifurcation", "BifurcationStructure"]
@@ -125,7 +125,18 @@ class BifurcationStructure:
         """The zero set mapped through D, one welded ``pyvista.PolyData`` (:mod:`tiling.implicit_surface`)."""
         axes, F = self.sample(resolution)
         scale = max(float(np.abs(f.coefficients).max()) for f in self.fields)
-        return zero_surface(axes, F, self.outer, self.evaluate, snap_vertices=snap, scale=scale, stats=self.stats)
+        return zero_surface(axes, F, self.outer, self.evaluate, snap_vertices=snap, scale=scale, stats=self.stats,
+                            lines=self.edge_splines)
+
+    def edge_splines(self, a, b, axis) -> EdgeSplines:
+        """The field restricted to the grid edges from a (n, 3) to b along ``axis``: each by its cell's spline."""
+        cell = self.locate(0.5 * (a + b))  # an edge lies in one cell (cell boundaries are sample lines)
+        parts, where = [], []
+        for i in np.unique(cell):
+            rows = np.flatnonzero(cell == i)
+            parts.append(EdgeSplines.of(self.fields[i], a[rows], b[rows], axis[rows]))
+            where.append(rows)
+        return EdgeSplines.stack(parts, where, len(a))
 
     def watertightness(self, resolution: int | None = None) -> dict:
         """Closedness, components, Euler characteristic of :meth:`surface`."""
@@ -145,8 +156,25 @@ def _sample(boxes, fields, axes) -> np.ndarray:
     for box, f in zip(boxes, fields):
         sl = [slice(int(np.searchsorted(a, lo - 1e-12)), int(np.searchsorted(a, hi + 1e-12, side="right")))
               for a, (lo, hi) in zip(axes, box)]
-        F[tuple(sl)] = f.evaluate_grid([a[s] for a, s in zip(axes, sl)])[..., 0]
+        F[tuple(sl)] = _grid_values(f, [a[s] for a, s in zip(axes, sl)])
     return F
+
+
+@lru_cache(maxsize=2048)
+def _unit_basis(U: bytes, degree: int, x: bytes) -> np.ndarray:
+    """Dense basis values (len(x), n) of knots U on [0, 1] at x (cached: cells repeat their relative samples)."""
+    return kn.basis_matrix(np.frombuffer(U), degree, np.frombuffer(x)).toarray()
+
+
+def _grid_values(f: SplineFunction, axes) -> np.ndarray:
+    """The scalar trivariate f on the grid of ``axes`` (tensor contractions with cached, normalised bases)."""
+    C = f.coefficients[..., 0]
+    for k, (U, p, x) in enumerate(zip(f.knots, f.degrees, axes)):
+        lo, hi = U[0], U[-1]
+        B = _unit_basis(np.round((U - lo) / (hi - lo), 13).tobytes(), int(p),
+                        np.clip(np.round((x - lo) / (hi - lo), 13), 0.0, 1.0).tobytes())
+        C = np.moveaxis(np.tensordot(B, C, axes=(1, k)), 0, k)
+    return C
 
 
 def _canonical_face(degree, controls, radius=0.35):
@@ -200,12 +228,14 @@ def implicit_bifurcation(D: BSpline, epsilon: float, *, degree: int = 3, control
     stats = {"face_halvings": {}, "cell_halvings": {}}
     out = BifurcationStructure(D, cells, [None] * len(cells), int(resolution), bool(cap), stats)
     axes = out.axes()
+    F = np.empty(tuple(len(a) for a in axes))
     unit = _unit_faces(cells, degree, controls, alpha, cap, rng, radius, axes, stats)
     for i in range(len(cells)):
         faces = {f: _cell_face(cells, i, f, unit, degree) for f in FACE_NAMES}
         base = _with_tubes(_boolean_sum(faces, degree, cells.boxes[i]), _targets(cells, i, cap), radius)
-        out.fields[i] = _random_interior(base, alpha, rng, cells.boxes[i], axes, stats, i)
-    _, F = out.sample()
+        out.fields[i], sl, v = _random_interior(base, alpha, rng, cells.boxes[i], axes, stats, i)
+        F[sl] = v  # the accepted cell's samples: the build resolution's grid, kept for the surface
+    out._cache["samples"] = F
     if ndimage.label(F > 0)[1] != 1:
         raise TilingError("the implicit bifurcation structure is not connected on its samples; raise the "
                           "resolution or lower alpha")
@@ -215,7 +245,7 @@ def implicit_bifurcation(D: BSpline, epsilon: float, *, degree: int = 3, control
 
 
 def _unit_faces(cells, degree, controls, alpha, cap, rng, radius, axes, stats) -> dict:
-    """{(cell, face): coefficients (controls, controls)} of every unit face, keyed by each cell that owns it."""
+    """{(cell, face): surface over [0, 1]^2} of every unit face, keyed by each cell that has it."""
     p0 = _canonical_face(degree, controls, radius)
     out = {}
     for i, faces in enumerate(cells.faces):
@@ -226,7 +256,7 @@ def _unit_faces(cells, degree, controls, alpha, cap, rng, radius, axes, stats) -
                 c = np.full((controls, controls), CAP)
                 c[[0, -1], :] = RIM
                 c[:, [0, -1]] = RIM
-                out[(i, f)] = c
+                out[(i, f)] = _surface(c, degree)
                 continue
             noise = rng.uniform(-1.0, 1.0, p0.shape)
             k = FACE_NAMES.index(f) // 2
@@ -243,7 +273,7 @@ def _unit_faces(cells, degree, controls, alpha, cap, rng, radius, axes, stats) -
                 if _face_ok(c, degree, *lines):
                     break
             stats["face_halvings"][(i, f)] = h
-            out[(i, f)] = c
+            out[(i, f)] = c = _surface(c, degree)  # one surface object, shared by both cells
             if kind == "neighbour":  # the neighbour sees the same face (its opposite face name)
                 j = nb[0]
                 k = FACE_NAMES.index(f) // 2
@@ -262,7 +292,7 @@ def _cell_face(cells, i, f, unit, degree) -> SplineFunction:
     """Cell i's face f as a scalar surface over [0, 1]^2 (its two remaining directions in order)."""
     kind, nb = cells.faces[i][f]
     if kind != "complex":
-        return _surface(unit[(i, f)], degree)
+        return unit[(i, f)]
     k, side = divmod(FACE_NAMES.index(f), 2)
     rest = [j for j in range(3) if j != k]
     mine = cells.boxes[i][rest]
@@ -270,7 +300,7 @@ def _cell_face(cells, i, f, unit, degree) -> SplineFunction:
     pieces = []
     for j in nb:  # each neighbour's unit face, placed on its part of this face (normalised coordinates)
         r = (cells.boxes[j][rest] - mine[:, :1]) / (mine[:, 1:] - mine[:, :1])
-        pieces.append(_surface(unit[(j, opposite)], degree, np.clip(r, 0.0, 1.0)))
+        pieces.append(_surface(unit[(j, opposite)].coefficients[..., 0], degree, np.clip(r, 0.0, 1.0)))
     return merge_pieces(pieces, degree)
 
 
@@ -407,8 +437,11 @@ def _with_tubes(f, targets, radius) -> SplineFunction:
     return SplineFunction(f.degrees, f.knots, C[..., None])
 
 
-def _random_interior(f, alpha, rng, box, axes, stats, i) -> SplineFunction:
-    """Eq. 6 on the interior coefficients, the amplitude halved until the cell's samples are valid."""
+def _random_interior(f, alpha, rng, box, axes, stats, i):
+    """Eq. 6 on the interior coefficients, the amplitude halved until the cell's samples are valid.
+
+    Returns the cell's field, its slice of the global sample grid and its samples there.
+    """
     C = f.coefficients[..., 0]
     noise = rng.uniform(-1.0, 1.0, C.shape)
     sl = [slice(int(np.searchsorted(a, lo - 1e-12)), int(np.searchsorted(a, hi + 1e-12, side="right")))
@@ -420,10 +453,10 @@ def _random_interior(f, alpha, rng, box, axes, stats, i) -> SplineFunction:
         c = C.copy()
         c[inner] = (1 - a) * C[inner] + a * noise[inner]
         g = SplineFunction(f.degrees, f.knots, c[..., None])
-        v = g.evaluate_grid(sub)[..., 0]
+        v = _grid_values(g, sub)
         if _cell_ok(v):
             stats["cell_halvings"][i] = h
-            return g
+            return g, tuple(sl), v
         if a == 0.0:
             break
     raise TilingError(f"cell {i} (parameter box {show(box.tolist())}) is not one connected piece even with its "

@@ -12,9 +12,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from geometry import knots as kn
+
 from .errors import TilingError
 
-__all__ = ["zero_surface", "snap"]
+__all__ = ["zero_surface", "snap", "EdgeSplines"]
 
 
 def _uniform(axis) -> bool:
@@ -23,7 +25,7 @@ def _uniform(axis) -> bool:
 
 
 def zero_surface(axes, F, outer, field, *, close: bool = False, snap_vertices: bool = True, scale: float = 1.0,
-                 point_data=None, stats: dict | None = None):
+                 point_data=None, stats: dict | None = None, lines=None):
     """Contour F (shape of the axes) at 0, snap, map through ``outer``: a ``pyvista.PolyData``.
 
     ``field``: exact values (N,) at parameter points (N, 3); ``scale``: the
@@ -52,7 +54,7 @@ def zero_surface(axes, F, outer, field, *, close: bool = False, snap_vertices: b
     dom = outer.domain
     params = np.asarray(surf.points, dtype=float)
     if snap_vertices:
-        params, its = snap(params, axes, field, dom, 1e-12 * max(1.0, scale))
+        params, its = snap(params, axes, field, dom, 1e-12 * max(1.0, scale), values=F, lines=lines)
         if stats is not None:
             stats["snap_iterations"] = its
     params = np.clip(params, dom[:, 0], dom[:, 1])
@@ -66,8 +68,13 @@ def zero_surface(axes, F, outer, field, *, close: bool = False, snap_vertices: b
     return out
 
 
-def snap(params, axes, f, dom, tol, iterations: int = 60):
+def snap(params, axes, f, dom, tol, iterations: int = 60, values=None, lines=None):
     """Move contour vertices (N, 3) along their grid edges onto f = 0; returns (params, iterations).
+
+    ``values``: f on the grid of ``axes`` when known (the sampled field): the
+    edges' end values are then read, not evaluated.  ``lines``: (a, b, axis)
+    -> :class:`EdgeSplines`: the iterations evaluate the field restricted to
+    each edge (a univariate spline) instead of ``f``.
 
     A vertex lies on a grid edge: two coordinates on grid lines, the third
     between two samples of opposite sign.  A vertex at a sample (VTK writes
@@ -86,9 +93,14 @@ def snap(params, axes, f, dom, tol, iterations: int = 60):
     idx = np.round(t[rows]).astype(int)
     lower = np.floor(t[rows, ax]).astype(int)
     near = np.flatnonzero(at_sample[rows])
+    def at(ix, pts):  # f at grid points: read from the samples, or evaluated
+        if values is not None:
+            return values[tuple(np.clip(ix[:, k], 0, values.shape[k] - 1) for k in range(3))]
+        return f(np.clip(pts, dom[:, 0], dom[:, 1]))
+
     if len(near):
         g = np.stack([axes[k][idx[near, k]] for k in range(3)], 1)
-        fg = f(np.clip(g, dom[:, 0], dom[:, 1]))
+        fg = at(idx[near], g)
         best, pick = np.full(len(near), np.inf), np.zeros((len(near), 2), int)
         for k in range(3):
             for sgn in (-1, 1):
@@ -97,7 +109,9 @@ def snap(params, axes, f, dom, tol, iterations: int = 60):
                 h = g.copy()
                 h[:, k] = axes[k][np.clip(j, 0, len(axes[k]) - 1)]
                 valid &= (h[:, k] >= dom[k, 0] - 1e-12) & (h[:, k] <= dom[k, 1] + 1e-12)
-                fh = f(np.clip(h, dom[:, 0], dom[:, 1]))
+                hi = idx[near].copy()
+                hi[:, k] = np.clip(j, 0, len(axes[k]) - 1)
+                fh = at(hi, h)
                 score = np.where(valid & (fg * fh < 0), np.abs(fg) / (np.abs(fg - fh) + 1e-300), np.inf)
                 better = score < best
                 best[better], pick[better] = score[better], (k, sgn)
@@ -105,18 +119,23 @@ def snap(params, axes, f, dom, tol, iterations: int = 60):
         ax[near] = np.where(found, pick[:, 0], ax[near])
         lower[near] = idx[near, ax[near]] - (found & (pick[:, 1] < 0))
     i = np.arange(len(rows))
-    a = np.stack([axes[k][idx[:, k]] for k in range(3)], 1)  # the edge's ends: grid coordinates ...
-    b = a.copy()
-    for k in range(3):  # ... and the samples below and above along the edge
-        m = ax == k
-        lo = np.clip(lower[m], 0, len(axes[k]) - 2)
-        a[i[m], k], b[i[m], k] = axes[k][lo], axes[k][lo + 1]
+    ia = idx.copy()  # the edge's ends: grid indices ...
+    ia[i, ax] = np.clip(lower, 0, np.array([len(a) for a in axes])[ax] - 2)  # ... the sample below along the edge
+    ib = ia.copy()
+    ib[i, ax] += 1
+    a = np.stack([axes[k][ia[:, k]] for k in range(3)], 1)
+    b = np.stack([axes[k][ib[:, k]] for k in range(3)], 1)
     keep = np.all((a >= dom[:, 0] - 1e-12) & (b <= dom[:, 1] + 1e-12), axis=1)
-    rows, ax, a, b = rows[keep], ax[keep], a[keep], b[keep]
-    fa, fb = f(a), f(b)
+    rows, ax, a, b, ia, ib = rows[keep], ax[keep], a[keep], b[keep], ia[keep], ib[keep]
+    fa, fb = at(ia, a), at(ib, b)
     ok = fa * fb < 0  # a sign change on the edge (else keep VTK's vertex)
     rows, a, b, fa, fb, ax = rows[ok], a[ok], b[ok], fa[ok], fb[ok], ax[ok]
     c = a.copy()
+    if lines is not None:
+        E = lines(a, b, ax)
+        f_edge = lambda j, pts: E(j, pts[np.arange(len(j)), ax[j]])  # noqa: E731
+    else:
+        f_edge = lambda j, pts: f(pts)  # noqa: E731
     side = np.zeros(len(rows), int)  # which end the last step replaced: +1 a, -1 b
     act = np.arange(len(rows))  # edges not converged yet
     its = 0
@@ -125,7 +144,7 @@ def snap(params, axes, f, dom, tol, iterations: int = 60):
         j, axj = act, ax[act]
         s = fa[j] / (fa[j] - fb[j])  # the secant's root on the edge
         c[j, axj] = a[j, axj] + s * (b[j, axj] - a[j, axj])
-        fc = f(c[j])
+        fc = f_edge(j, c[j])
         done = np.abs(fc) < tol
         left = fc * fa[j] > 0  # the root lies between c and b: c replaces a
         fb[j[left & (side[j] == 1)]] *= 0.5  # Illinois: an end kept twice has its value halved
@@ -137,3 +156,81 @@ def snap(params, axes, f, dom, tol, iterations: int = 60):
     out = params.copy()
     out[rows] = c
     return out, its
+
+
+class EdgeSplines:
+    """Scalar trivariates restricted to grid edges: one univariate B-spline per edge, on its few knot spans.
+
+    ``knots`` (n, W + p + 1) and ``coefs`` (n, W) hold each edge's local
+    window (padded rows repeat their last entries), ``count`` (n,) the used
+    coefficients.  Evaluating them is a vectorised de Boor over all edges at
+    once, far cheaper than evaluating the trivariate again at every step.
+    """
+
+    def __init__(self, knots, coefs, count, degree):
+        self.knots, self.coefs, self.count, self.p = knots, coefs, count, int(degree)
+
+    @classmethod
+    def of(cls, spline, a, b, axis) -> "EdgeSplines":
+        """The restrictions of the scalar ``spline`` to the edges from a (n, 3) to b along ``axis`` (n,)."""
+        n = len(a)
+        if len(set(spline.degrees)) != 1:
+            raise TilingError(f"edge restrictions need equal degrees in all directions, got {spline.degrees}")
+        G = spline.coefficients[..., 0]
+        parts, where = [], []
+        chunk = 16384  # rows per gather: (rows, W, p + 1, p + 1) coefficients, about 10 MB
+        for k in range(3):
+            for rows in np.array_split(np.flatnonzero(axis == k), max(1, -(-int(np.sum(axis == k)) // chunk))):
+                if len(rows):
+                    parts.append(cls._restrict(spline, G, a[rows], b[rows], k))
+                    where.append(rows)
+        return cls.stack(parts, where, n)
+
+    @classmethod
+    def _restrict(cls, spline, G, a, b, k) -> "EdgeSplines":
+        """Edges along direction k from a to b (rows of one chunk)."""
+        o = [j for j in range(3) if j != k]
+        p = spline.degrees[k]
+        Uk = spline.knots[k]
+        sa = kn.find_spans(Uk, p, a[:, k])
+        sb = np.maximum(kn.find_spans(Uk, p, b[:, k], side="left"), sa)
+        W = int((sb - sa).max()) + p + 1
+        ik = np.clip(sa[:, None] - p + np.arange(W), 0, G.shape[k] - 1)
+        (s1, v1), (s2, v2) = [kn.basis_functions(spline.knots[j], spline.degrees[j], a[:, j]) for j in o]
+        i1 = s1[:, None] - spline.degrees[o[0]] + np.arange(spline.degrees[o[0]] + 1)
+        i2 = s2[:, None] - spline.degrees[o[1]] + np.arange(spline.degrees[o[1]] + 1)
+        sub = np.moveaxis(G, k, 0)[ik[:, :, None, None], i1[:, None, :, None], i2[:, None, None, :]]
+        coefs = np.einsum("nwij,ni,nj->nw", sub, v1[:, 0], v2[:, 0])
+        knots = Uk[np.clip(sa[:, None] - p + np.arange(W + p + 1), 0, len(Uk) - 1)]
+        return cls(knots, coefs, sb - sa + p + 1, p)
+
+    @classmethod
+    def stack(cls, parts, where, n) -> "EdgeSplines":
+        """One set from parts holding the rows ``where[i]`` (index arrays) of n edges (equal degrees)."""
+        p = parts[0].p
+        W = max(e.coefs.shape[1] for e in parts)
+        knots, coefs, count = np.zeros((n, W + p + 1)), np.zeros((n, W)), np.zeros(n, int)
+        for e, rows in zip(parts, where):
+            w = e.coefs.shape[1]
+            coefs[rows, :w], coefs[rows, w:] = e.coefs, e.coefs[:, -1:]
+            knots[rows, :w + p + 1], knots[rows, w + p + 1:] = e.knots, e.knots[:, -1:]
+            count[rows] = e.count
+        return cls(knots, coefs, count, p)
+
+    def __call__(self, rows, t) -> np.ndarray:
+        """Values of edges ``rows`` at their coordinates ``t`` (de Boor, vectorised)."""
+        p = self.p
+        U, C, W = self.knots[rows], self.coefs[rows], self.count[rows]
+        cols = np.arange(p + 1, U.shape[1])
+        inner = (cols[None, :] <= W[:, None] - 1) & (U[:, p + 1:] <= t[:, None])
+        s = p + inner.sum(axis=1)  # the local span: u_s <= t < u_{s+1}
+        d = np.take_along_axis(C, s[:, None] - p + np.arange(p + 1), axis=1)
+        for r in range(1, p + 1):
+            for j in range(p, r - 1, -1):
+                i = s - p + j
+                lo = np.take_along_axis(U, i[:, None], axis=1)[:, 0]
+                hi = np.take_along_axis(U, (i + p + 1 - r)[:, None], axis=1)[:, 0]
+                den = hi - lo
+                alpha = np.where(den > 0, (t - lo) / np.where(den > 0, den, 1.0), 0.0)
+                d[:, j] = (1.0 - alpha) * d[:, j - 1] + alpha * d[:, j]
+        return d[:, p]
