@@ -15,7 +15,7 @@ from . import faces, knots, bernstein
 from . import primitives
 from .products import multiply
 from .io import save, load, save_all, load_all
-from .compose import compose, compose_many, map_points, result_degrees
+from .composition import compose, compose_many, map_points, result_degrees
 from .regularity import check_regular, RegularityResult
 from .inversion import invert
 from .multipatch import Interface, MultiPatch, PlacedPatch, detect_interfaces

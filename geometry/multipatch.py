@@ -28,7 +28,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .bspline import BSpline
-from .compose import compose_many
+from .composition import compose_many
 from .errors import SplineError
 from .faces import FACE_AXIS, FACE_NAMES, face_knots
 from .inversion import invert

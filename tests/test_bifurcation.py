@@ -165,7 +165,7 @@ def test_bifurcation_bad_input(duck):
 
 
 # ------------------------------------------------------------------ implicit bifurcation (Section 5.1)
-from tiling.implicit_bifurcation import implicit_bifurcation, merge_pieces  # noqa: E402
+from tiling.implicit_branching import implicit_bifurcation, merge_pieces  # noqa: E402
 
 
 @pytest.fixture(scope="module")

@@ -86,3 +86,16 @@ def test_no_import_cycle_inside_a_package(pkg):
     sizes = {lab: [m for m, lb in zip(mods, labels) if lb == lab] for lab in set(labels)}
     cycles = [members for members in sizes.values() if len(members) > 1]
     assert not cycles, f"import cycles in {pkg}: {cycles}"
+
+
+def test_no_public_name_shadows_a_module_of_its_package():
+    """``import tiling.branching as m`` must give the module: a function of the same name would replace it."""
+    import importlib
+    import pkgutil
+    import types
+
+    for pkg in ("geometry", "tiling", "iga", "solvers"):
+        package = importlib.import_module(pkg)
+        for mod in pkgutil.iter_modules(package.__path__):
+            value = getattr(package, mod.name, None)
+            assert value is None or isinstance(value, types.ModuleType), f"{pkg}.{mod.name} is {value!r}"

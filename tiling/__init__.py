@@ -15,7 +15,7 @@ from .paving import hierarchical, regular
 from .implicit import ImplicitStructure, canonical_tubes, random_implicit
 from .topo import CellComplex, topo_subdiv
 from .branching import bifurcation, bifurcation_tiles
-from .implicit_bifurcation import BifurcationStructure, implicit_bifurcation
+from .implicit_branching import BifurcationStructure, implicit_bifurcation
 from . import library
 
 __all__ = ["TilingError", "Tile", "BranchFace", "discontinuity_branches", "Microstructure", "PlacedPatch",

@@ -47,11 +47,9 @@ from geometry.errors import show
 from geometry.resources import check_memory
 
 from .errors import TilingError
-from .implicit_render import render_png
-from .implicit_surface import EdgeSplines, zero_surface
+from .implicit_surface import EdgeSplines, SurfaceOutputs, zero_surface
 from .implicit_connect import (Builder, cell_knots, connect_cells, connect_faces, grid_graph, open_cavities,
                                spanning_trees)
-from .export import mesh_watertightness, write_mesh
 
 __all__ = ["random_implicit", "ImplicitStructure", "canonical_tubes"]
 
@@ -84,7 +82,7 @@ def _global_knots(lo, hi, cells, degree, controls):
 
 
 @dataclass
-class ImplicitStructure:
+class ImplicitStructure(SurfaceOutputs):
     """A random implicit micro-structure: the global field F (f > 0 inside) over D's domain, and its statistics.
 
     ``field``: scalar :class:`geometry.SplineFunction` on D's parameter domain;
@@ -190,18 +188,6 @@ class ImplicitStructure:
                             close=close, snap_vertices=snap, scale=float(np.abs(self.field.coefficients).max()),
                             point_data=materials, stats=self.stats,
                             lines=lambda a, b, axis: EdgeSplines.of(self.field, a, b, axis))
-
-    def watertightness(self, resolution: int | None = None) -> dict:
-        """Closedness, components, Euler characteristic of :meth:`surface` (see :func:`tiling.export.watertightness`)."""
-        return mesh_watertightness(self.surface(resolution))
-
-    def render_png(self, path, **options):
-        """Offscreen picture of the surface and/or the spanning trees (:func:`tiling.implicit_render.render_png`)."""
-        return render_png(self, path, **options)
-
-    def write(self, path, resolution: int | None = None):
-        """Write the surface to ``.stl``, ``.obj``, ``.ply``, ``.vtp`` or ``.vtu`` (atomic; by suffix)."""
-        return write_mesh(path, self.surface(resolution))
 
 
 # ----------------------------------------------------------------------------------------------- building

@@ -15,8 +15,26 @@ import numpy as np
 from geometry import knots as kn
 
 from .errors import TilingError
+from .export import mesh_watertightness, write_mesh
+from .implicit_render import render_png
 
-__all__ = ["zero_surface", "snap", "EdgeSplines"]
+__all__ = ["zero_surface", "snap", "EdgeSplines", "SurfaceOutputs"]
+
+
+class SurfaceOutputs:
+    """What an implicit structure with a ``surface(resolution)`` method offers: report, picture, files."""
+
+    def watertightness(self, resolution: int | None = None) -> dict:
+        """Closedness, components, Euler characteristic of the surface (:func:`tiling.export.mesh_watertightness`)."""
+        return mesh_watertightness(self.surface(resolution))
+
+    def render_png(self, path, **options):
+        """Offscreen picture of the surface (and spanning trees, where any) (:func:`tiling.implicit_render.render_png`)."""
+        return render_png(self, path, **options)
+
+    def write(self, path, resolution: int | None = None):
+        """Write the surface to ``.stl``, ``.obj``, ``.ply``, ``.vtp`` or ``.vtu`` (atomic; by suffix)."""
+        return write_mesh(path, self.surface(resolution))
 
 
 def _uniform(axis) -> bool:
