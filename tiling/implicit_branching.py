@@ -169,7 +169,16 @@ def _face_ok(c, degree, xs, ys) -> bool:
     ``xs``, ``ys``: the face's sample lines (normalised to [0, 1]), those every
     cell touching the face will use, so the check holds for them all.
     """
-    v = _face_basis(degree, c.shape[0], xs.tobytes()) @ c @ _face_basis(degree, c.shape[0], ys.tobytes()).T
+    return _face_ok_cached(np.ascontiguousarray(c, float).tobytes(), c.shape[0], degree,
+                           np.round(xs, 13).tobytes(), np.round(ys, 13).tobytes())
+
+
+@lru_cache(maxsize=4096)
+def _face_ok_cached(c: bytes, n: int, degree: int, xs: bytes, ys: bytes) -> bool:
+    # (cached: the canonical pattern recurs on faces with the same relative samples)
+    c = np.frombuffer(c).reshape(n, n)
+    xs, ys = np.frombuffer(xs), np.frombuffer(ys)
+    v = _face_basis(degree, n, xs.tobytes()) @ c @ _face_basis(degree, n, ys.tobytes()).T
     i, j = int(np.argmin(np.abs(xs - 0.5))), int(np.argmin(np.abs(ys - 0.5)))
     return v[i, j] > 0 and ndimage.label(v > 0)[1] == 1 and ndimage.label(v <= 0)[1] == 1
 
