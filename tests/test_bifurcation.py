@@ -253,3 +253,19 @@ def test_bicubic_surface_bifurcation_tiles(duck):
     P = ms.patches[0]
     corner = P.placement[:, :3] @ P.spline.control_points[0, 0, :3] + P.placement[:, 3]
     assert np.allclose(P.composed.control_points[0, 0, :3], duck.evaluate(corner[None])[0, :3], atol=1e-12)
+
+
+def test_user_bifurcation_tiles(duck):
+    own = bifurcation_tiles("1-2", margin=0.2)
+    ms = bifurcation(AFFINE, levels=[0, 0, 1, 0, 0], tile={"kind": "1-2", **own})
+    lin = lambda x: 1 + 2 * x[:, 0] - x[:, 1] + 0.5 * x[:, 2]  # noqa: E731
+    assert HeatProblem(ms, refine=1, degree_elevation=1).dirichlet("boundary", lin).solve().l2_error(lin) < 1e-9
+    # a tile without branch faces: a block that does not reach the top of its cell
+    from geometry import primitives as pr
+    short = tiling.Tile([pr.box((0.4, 0.4, 0.5), origin=(0.3, 0.3, 0.0))], name="short column")
+    with pytest.raises(TilingError, match="no branch-out face"):
+        bifurcation(AFFINE, levels=[0, 1, 0, 0, 0], tile={"kind": "1-2", **own, "straight": short})
+    with pytest.raises(TilingError, match="kind"):
+        bifurcation(AFFINE, levels=[0, 1, 0, 0, 0], tile={"kind": "1-3", **own})
+    with pytest.raises(TilingError, match="Tile of trivariates"):
+        bifurcation(AFFINE, levels=[0, 1, 0, 0, 0], tile={"kind": "1-2", **own, "join": "x"})

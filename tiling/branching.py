@@ -88,6 +88,24 @@ def bifurcation_tiles(kind: str = "1-2", margin: float = 0.3, surfaces: bool = F
     return {k: Tile(v, name=names[k] + (" (surfaces)" if surfaces else "")) for k, v in blocks.items()}
 
 
+def _user_tiles(given: dict) -> dict:
+    """Check user bifurcation tiles: every tile has branch faces on z = 0 and z = 1 (planar, axis-aligned)."""
+    if given.get("kind") not in SPLITS:
+        raise TilingError(f"tile['kind'] must be one of {list(SPLITS)}, got {show(given.get('kind'))}")
+    out = {}
+    for name in ("straight", "split", "join"):
+        t = given.get(name)
+        if not isinstance(t, Tile) or not all(p.dim == 3 for p in t.patches):
+            raise TilingError(f"tile[{name!r}] must be a tiling.Tile of trivariates, got {type(t).__name__}")
+        for z, face, what in ((0, "wmin", "branch-in"), (1, "wmax", "branch-out")):
+            flat = [p for p in t.patches if np.allclose(p.boundary(face).control_points[..., 2], z, atol=1e-12)]
+            if not flat:
+                raise TilingError(f"tile[{name!r}] ({t.name}) has no {what} face: no patch's {face} face lies "
+                                  f"on z = {z}; bifurcation tiles connect to the layers below and above there")
+        out[name] = t
+    return out
+
+
 def _subdivide(breaks, n) -> np.ndarray:
     """Breakpoints with every span cut into ``n`` equal parts."""
     t = np.linspace(0.0, 1.0, n + 1)[:-1]
@@ -157,7 +175,9 @@ def bifurcation(D: BSpline, epsilon: float | None = None, tile: str = "1-2", *, 
     D : trivariate deformation map
     epsilon : largest image of a cell edge (model units): sets the layers (Algorithm 1 along
         ``direction``) and each layer's level; or None with ``levels``
-    tile : "1-2", "1-4a" (2 x 2) or "1-4b" (1 x 4)
+    tile : "1-2", "1-4a" (2 x 2) or "1-4b" (1 x 4); or your own tiles as
+        {"kind": one of those, "straight": Tile, "split": Tile, "join": Tile} (tile coordinates,
+        growth along z; see :func:`bifurcation_tiles` for the layout they must follow)
     direction : growth direction (0, 1 or 2); layers are stacked along it
     levels : explicit level per layer (layers split D's knot spans along ``direction`` equally);
         smoothed like computed ones
@@ -177,7 +197,10 @@ def bifurcation(D: BSpline, epsilon: float | None = None, tile: str = "1-2", *, 
     if epsilon is not None and not (isinstance(epsilon, (int, float, np.floating)) and not isinstance(epsilon, bool)
                                     and np.isfinite(epsilon) and epsilon > 0):
         raise TilingError(f"epsilon must be a positive length (model units), got {show(epsilon)}")
-    tiles = bifurcation_tiles(tile, margin, bool(surfaces))
+    if isinstance(tile, dict):
+        tiles, tile = _user_tiles(tile), tile.get("kind")
+    else:
+        tiles = bifurcation_tiles(tile, margin, bool(surfaces))
     g = int(direction)
     cross = ((g + 1) % 3, (g + 2) % 3)  # cyclic: tile (x, y, z) -> D directions (cross[0], cross[1], g), det > 0
     if epsilon is not None:  # a lower bound of the cells before anything is built: domain chords / epsilon
