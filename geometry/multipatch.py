@@ -30,7 +30,7 @@ import scipy.sparse as sp
 from .bspline import BSpline
 from .composition import compose_many
 from .errors import SplineError
-from .faces import FACE_AXIS, FACE_NAMES, face_knots
+from .faces import FACE_AXIS, FACE_NAMES, face_knots, nested_refinement
 from .inversion import invert
 
 __all__ = ["PlacedPatch", "Interface", "MultiPatch", "detect_interfaces", "free_faces", "ORIENTATIONS"]
@@ -367,14 +367,19 @@ class MultiPatch:
     face_regions: dict = field(default_factory=dict)
 
     @classmethod
-    def from_splines(cls, splines, couple: bool = True) -> "MultiPatch":
+    def from_splines(cls, splines, couple: bool = True, branches=(), check_contact: bool = True) -> "MultiPatch":
         """A model of independent trivariate patches; with ``couple``, conforming shared faces are glued.
 
         Tags: each face name (``umin`` .. ``wmax``) holds that face of every
         patch that is free; ``patch{i}.{face}`` one face of one patch (free or
         not); ``boundary`` every free face.  Patches that touch without
         conforming (corners coincide but spaces or surfaces differ, or a face
-        lies on another patch's face without matching it) raise :class:`SplineError`.
+        lies on another patch's face without matching it) raise :class:`SplineError`,
+        except the pairs in ``branches``: [(parent (patch, face), box, child
+        (patch, face))], glued by refinement matrices (the child's face space
+        must refine the parent face's restriction to ``box``).  ``check_contact=False``
+        skips the search for touching faces left unglued (for topologies given
+        by a file, whose author decided what is glued).
         """
         patches = []
         for i, s in enumerate(splines):
@@ -384,8 +389,17 @@ class MultiPatch:
             patches.append(PlacedPatch(s, tile=i))
         interfaces = []
         if couple and len(patches) > 1:
-            interfaces, _ = detect_interfaces(patches, strict=True)
-            _refuse_nonconforming_contact(patches, interfaces)
+            linked = {frozenset([a, c]) for a, _, c in branches}
+            interfaces, mismatched = detect_interfaces(patches, strict=not linked)
+            for a, b, why in mismatched:
+                if frozenset([a, b]) not in linked:
+                    raise SplineError(f"faces patch {a[0]} {a[1]} and patch {b[0]} {b[1]} coincide but {why}")
+            interfaces = [i for i in interfaces if frozenset([i.a, i.b]) not in linked]
+            for a, box, c in branches:
+                R = nested_refinement(face_knots(patches[a[0]].spline, a[1]), box, face_knots(patches[c[0]].spline, c[1]))
+                interfaces.append(Interface("branch", a, c, box=tuple(map(tuple, box)), R=R))
+            if check_contact:
+                _refuse_nonconforming_contact(patches, interfaces)
         free = free_faces(patches, interfaces)
         tags = {f: [(i, g) for i, g in free if g == f] for f in FACE_NAMES}
         tags["boundary"] = list(free)

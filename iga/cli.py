@@ -4,7 +4,7 @@ Subcommands
 -----------
 ``iga demo heat-sink --out DIR``  the heat-sink analysis of Massarwi et al. 2018 (VTU, PNG, JSON summary)
 ``iga run CONFIG.toml``           a pipeline described in a TOML file
-``iga info FILE.npz``             describe the splines stored in a file
+``iga info FILE``                describe the splines in a .npz or G+Smo .xml file
 
 Global options: ``--version``, ``--quiet`` (no progress display),
 ``--max-memory GIB`` (the memory budget of the run).  Every error the command
@@ -17,8 +17,10 @@ import argparse
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from geometry import progress, resources
-from geometry.errors import ToolkitError
+from geometry.errors import SplineError, ToolkitError
 
 from .errors import ProblemError
 from .memory import retain_freed_memory
@@ -26,7 +28,7 @@ from geometry.errors import show
 
 
 def _plural(n: int, word: str) -> str:
-    return f"{n} {word}" + ("" if n == 1 else "s")
+    return f"{n} {word}" + ("" if n == 1 else ("es" if word.endswith(("ch", "sh", "s", "x")) else "s"))
 
 
 def _version() -> str:
@@ -77,12 +79,34 @@ def _cmd_run(args) -> int:
 
 
 def _cmd_info(args) -> int:
+    from geometry import check_regular
+    from geometry.gismo_xml import read_gismo
     from geometry.io import load_all
 
-    for i, s in enumerate(load_all(args.file)):
+    path = Path(args.file)
+    if path.suffix.lower() == ".xml":
+        g = read_gismo(path)
+        splines = g.patches
+        print(f"{path.name}: G+Smo XML, {_plural(len(splines), 'patch')}, {_plural(len(g.interfaces), 'interface')}, "
+              f"{_plural(len(g.boundary), 'boundary side')}, {_plural(len(g.branches), 'branch interface')}")
+        for c in g.conditions:
+            print(f"   {c.kind} {c.expression}{' (h ' + c.coefficient + ')' if c.coefficient else ''} on "
+                  f"{_plural(len(c.faces), 'side')}")
+        for label, expr in g.functions.items():
+            print(f"   {label} = {expr}")
+    elif path.suffix.lower() == ".npz":
+        splines = load_all(path)
+        print(f"{path.name}: {_plural(len(splines), 'spline')}")
+    else:
+        raise SplineError(f"cannot describe {path.name}: 'iga info' reads .npz (geometry.save_all) and G+Smo .xml")
+    for i, s in enumerate(splines):
         dom = ", ".join(f"[{a:g}, {b:g}]" for a, b in s.domain)
-        print(f"{i}: {show(s)}")
-        print(f"   domain {dom}; elements {s.n_elements}; bounding box {s.bounding_box().round(6).tolist()}")
+        knots = "; ".join(f"{len(np.unique(U)) - 1} span{'s' if len(np.unique(U)) > 2 else ''}" for U in s.knots)
+        line = f"{i}: {show(s)}\n   domain {dom}; {knots}; bounding box {s.bounding_box().round(6).tolist()}"
+        if s.dim == 3:
+            r = check_regular(s, max_depth=6)
+            line += f"; regularity: {r.status}"
+        print(line)
     return 0
 
 
@@ -130,9 +154,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     run.add_argument("config", help="path to the CONFIG.toml file")
     run.set_defaults(func=_cmd_run)
-    info = sub.add_parser("info", help="describe the splines in a saved .npz file",
-                          description="Print degrees, sizes, channels, domain and bounding box of saved splines.")
-    info.add_argument("file", help="a file written by geometry.save / geometry.save_all")
+    info = sub.add_parser("info", help="describe the splines in a saved .npz or G+Smo .xml file",
+                          description="Print degrees, sizes, channels, knot spans, domain, bounding box and "
+                          "regularity of saved splines; for G+Smo XML also the topology and conditions.")
+    info.add_argument("file", help="a .npz written by geometry.save / save_all, or a G+Smo .xml multipatch")
     info.set_defaults(func=_cmd_info)
     return parser
 
@@ -164,6 +189,9 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print("iga: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # the reader went away (``iga info FILE | head``): stop quietly
+        sys.stderr.close()
+        return 0
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from geometry import Interface, MultiPatch
+from geometry.faces import FACE_NAMES
 from geometry.io import atomic_write
 from geometry.sampling import sample_axes, sampled_mesh, weld
 
@@ -29,7 +30,8 @@ from .errors import TilingError
 from .microstructure import Microstructure
 from geometry.errors import show
 
-__all__ = ["surface", "watertightness", "mesh_watertightness", "write_surfaces", "write_mesh", "render_png"]
+__all__ = ["surface", "watertightness", "mesh_watertightness", "write_surfaces", "write_mesh", "render_png",
+           "boundary_splines", "write_iges"]
 
 _FORMATS = {".vtu": "vtu", ".obj": "obj", ".stl": "stl", ".ply": "ply", ".vtp": "vtp"}
 
@@ -192,3 +194,29 @@ def render_png(ms: Microstructure, path, samples: int = 6, color_by: str = "leve
         return atomic_write(Path(path), lambda tmp: pl.screenshot(tmp), ".png", TilingError)
     finally:
         pl.close()
+
+
+def boundary_splines(ms: Microstructure) -> list:
+    """The exact boundary of ``ms`` as splines in physical space: every free side of a trivariate patch
+    (composed), every surface patch and every curve patch.  Slot faces (free parts of discontinuity
+    planes) are trimmed regions of a side and are not included."""
+    out = []
+    for i, f in ms.tags.get("boundary", []):
+        if f in FACE_NAMES:
+            out.append(ms.patches[i].composed.boundary(f))
+    out += [P.composed for P in ms.patches if P.spline.dim in (1, 2)]
+    return out
+
+
+def write_iges(path, ms: Microstructure, units: str = "m") -> Path:
+    """Write the exact boundary surfaces of ``ms`` (:func:`boundary_splines`) to IGES (entities 128, 126)."""
+    from geometry.errors import SplineError
+    from geometry.iges import write_iges as _write
+
+    splines = boundary_splines(ms)
+    if not splines:
+        raise TilingError(f"{ms.name or 'the micro-structure'} has no boundary surfaces to export")
+    try:
+        return _write(path, splines, units=units, name=ms.name)
+    except SplineError as exc:
+        raise TilingError(str(exc)) from None

@@ -1,0 +1,127 @@
+"""IGES 5.3 export of B-spline curves and surfaces (entities 126 and 128), for CAD and printing.
+
+An IGES file is 80-column records in five sections: Start (S), Global (G),
+Directory Entry (D, two records per entity), Parameter Data (P, free format
+in columns 1-64, the entity's D pointer in 66-72) and Terminate (T).  Every
+spline is written exactly: knots, weights (1 for polynomial splines, with the
+"polynomial" flag set), control points with 17 significant digits, and its
+parameter range.  Channels are not geometry and are left out.  Units: the
+model's, declared as metres (unit flag 6) unless ``units`` says otherwise.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+from pathlib import Path
+
+import numpy as np
+
+from .bspline import BSpline
+from .errors import SplineError, show
+from .io import atomic_write
+
+__all__ = ["write_iges", "UNITS"]
+
+#: IGES unit flags (Global parameter 14) and names
+UNITS = {"in": (1, "INCH"), "mm": (2, "MM"), "ft": (4, "FT"), "m": (6, "M"), "km": (7, "KM"), "cm": (10, "CM")}
+
+
+def _hollerith(s: str) -> str:
+    return f"{len(s)}H{s}"
+
+
+def _num(v) -> str:
+    v = float(v)
+    if v == int(v) and abs(v) < 1e15:
+        return f"{int(v)}."
+    return repr(v).replace("e", "E")
+
+
+def _records(text: str, width: int) -> list[str]:
+    """Split a parameter string into chunks of at most ``width`` columns, breaking after delimiters."""
+    out, line = [], ""
+    for token in text.replace(";", ";\0").replace(",", ",\0").split("\0"):
+        if not token:
+            continue
+        if len(line) + len(token) > width:
+            out.append(line)
+            line = ""
+        while len(token) > width:  # a single huge token (never for numbers) is split hard
+            out.append(token[:width])
+            token = token[width:]
+        line += token
+    if line:
+        out.append(line)
+    return out
+
+
+def _curve(c: BSpline) -> list:
+    (p,), (U,) = c.degrees, c.knots
+    n = c.shape[0]
+    w = np.ones(n) if c.weights is None else c.weights
+    return ([126, n - 1, p, 0, 0, int(c.weights is None), 0] + list(U) + list(w)
+            + list(c.control_points[:, :3].ravel()) + [U[0], U[-1], 0.0, 0.0, 0.0])
+
+
+def _surface(s: BSpline) -> list:
+    (p1, p2), (U, V) = s.degrees, s.knots
+    n1, n2 = s.shape
+    w = np.ones((n1, n2)) if s.weights is None else s.weights
+    cp = s.control_points[..., :3]
+    # IGES orders weights and points with the first index fastest
+    return ([128, n1 - 1, n2 - 1, p1, p2, 0, 0, int(s.weights is None), 0, 0] + list(U) + list(V)
+            + list(w.T.ravel()) + list(np.transpose(cp, (1, 0, 2)).reshape(-1)) + [U[0], U[-1], V[0], V[-1]])
+
+
+def write_iges(path, splines, *, units: str = "m", author: str = "iga-microstructures", name: str = "") -> Path:
+    """Write B-spline curves (entity 126) and surfaces (entity 128) to an IGES file (atomic).
+
+    ``splines``: geometry.BSpline curves and surfaces (trivariates: write
+    their boundary surfaces, e.g. ``[v.boundary(f) for f in FACE_NAMES]``).
+    """
+    items = list(splines)
+    if not items:
+        raise SplineError("write_iges needs at least one curve or surface")
+    if units not in UNITS:
+        raise SplineError(f"units must be one of {sorted(UNITS)}, got {show(units)}")
+    params = []
+    for i, s in enumerate(items):
+        if not isinstance(s, BSpline) or s.dim not in (1, 2):
+            raise SplineError(f"item {i} is {show(s)}: IGES export takes B-spline curves and surfaces (entities "
+                              "126, 128); write a trivariate's boundary surfaces instead")
+        if not np.all(np.isfinite(s.control_points)):
+            raise SplineError(f"item {i} has non-finite control points; IGES cannot hold them")
+        params.append(_curve(s) if s.dim == 1 else _surface(s))
+    path = Path(path)
+    stamp = _dt.datetime.now().strftime("%Y%m%d.%H%M%S")
+    flag, unit = UNITS[units]
+    extent = max(float(np.abs(s.control_points[..., :3]).max()) for s in items)
+    glob = [",", ";", name or path.stem, path.name, "iga-microstructures", "1", 32, 38, 6, 308, 15,
+            name or path.stem, 1.0, flag, unit, 1, 1.0, stamp, 1e-10, max(extent, 1.0), author, "iga", 11, 0, stamp]
+    gtext = ",".join(_hollerith(v) if isinstance(v, str) else (str(v) if isinstance(v, int) else _num(v))
+                     for v in glob) + ";"
+    s_lines = ["IGES export of exact B-spline geometry (iga-microstructures)"]
+    g_lines = _records(gtext, 72)
+    d_lines, p_lines = [], []
+    for i, prm in enumerate(params):
+        de = 2 * i + 1
+        ptext = ",".join(str(prm[0]) if j == 0 else (str(v) if isinstance(v, (int, np.integer)) else _num(v))
+                         for j, v in enumerate(prm)) + ";"
+        chunk = _records(ptext, 64)
+        start = len(p_lines) + 1
+        p_lines += [f"{c:<64} {de:>7}" for c in chunk]
+        etype = prm[0]
+        d_lines.append(f"{etype:>8}{start:>8}{0:>8}{0:>8}{0:>8}{0:>8}{0:>8}{0:>8}{'00000000':>8}")
+        d_lines.append(f"{etype:>8}{0:>8}{0:>8}{len(chunk):>8}{0:>8}{'':>8}{'':>8}{'':>8}{0:>8}")
+    records = ([f"{x:<72}S{k + 1:>7}" for k, x in enumerate(s_lines)]
+               + [f"{x:<72}G{k + 1:>7}" for k, x in enumerate(g_lines)]
+               + [f"{x:<72}D{k + 1:>7}" for k, x in enumerate(d_lines)]
+               + [f"{x:<72}P{k + 1:>7}" for k, x in enumerate(p_lines)])
+    counts = f"S{len(s_lines):>7}G{len(g_lines):>7}D{len(d_lines):>7}P{len(p_lines):>7}"
+    records.append(f"{counts:<72}T{1:>7}")
+    text = "\n".join(records) + "\n"
+
+    def write(tmp):
+        Path(tmp).write_text(text)
+
+    return atomic_write(path, write, ".igs")
