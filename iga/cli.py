@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from geometry import progress, resources
-from geometry.errors import SplineError, ToolkitError
+from geometry.errors import ToolkitError
 
 from .errors import ProblemError
 from .memory import retain_freed_memory
@@ -94,11 +94,9 @@ def _cmd_info(args) -> int:
                   f"{_plural(len(c.faces), 'side')}")
         for label, expr in g.functions.items():
             print(f"   {label} = {expr}")
-    elif path.suffix.lower() == ".npz":
+    else:  # anything else is read as our .npz archive (its loader says what is wrong with other files)
         splines = load_all(path)
         print(f"{path.name}: {_plural(len(splines), 'spline')}")
-    else:
-        raise SplineError(f"cannot describe {path.name}: 'iga info' reads .npz (geometry.save_all) and G+Smo .xml")
     for i, s in enumerate(splines):
         dom = ", ".join(f"[{a:g}, {b:g}]" for a, b in s.domain)
         knots = "; ".join(f"{len(np.unique(U)) - 1} span{'s' if len(np.unique(U)) > 2 else ''}" for U in s.knots)
