@@ -1,11 +1,14 @@
-"""IGES 5.3 export of B-spline curves and surfaces (entities 126 and 128), for CAD and printing.
+"""IGES 5.3 export of B-spline curves, surfaces and trimmed surfaces (entities 126, 128, 142, 144).
 
 An IGES file is 80-column records in five sections: Start (S), Global (G),
 Directory Entry (D, two records per entity), Parameter Data (P, free format
 in columns 1-64, the entity's D pointer in 66-72) and Terminate (T).  Every
 spline is written exactly: knots, weights (1 for polynomial splines, with the
 "polynomial" flag set), control points with 17 significant digits, and its
-parameter range.  Channels are not geometry and are left out.  Units: the
+parameter range.  A :class:`geometry.trimmed.TrimmedSurface` becomes a
+trimmed surface (144) on its surface (128), each loop a curve on the surface
+(142) whose parameter-space curve (126, z = 0) is the loop itself.
+Channels are not geometry and are left out.  Units: the
 model's, declared as metres (unit flag 6) unless ``units`` says otherwise.
 """
 
@@ -74,28 +77,46 @@ def _surface(s: BSpline) -> list:
 
 
 def write_iges(path, splines, *, units: str = "m", author: str = "iga-microstructures", name: str = "") -> Path:
-    """Write B-spline curves (entity 126) and surfaces (entity 128) to an IGES file (atomic).
+    """Write B-spline curves (126), surfaces (128) and trimmed surfaces (144) to an IGES file (atomic).
 
-    ``splines``: geometry.BSpline curves and surfaces (trivariates: write
-    their boundary surfaces, e.g. ``[v.boundary(f) for f in FACE_NAMES]``).
+    ``splines``: geometry.BSpline curves and surfaces and
+    :class:`geometry.trimmed.TrimmedSurface` (trivariates: write their
+    boundary surfaces, e.g. ``[v.boundary(f) for f in FACE_NAMES]``).
     """
     items = list(splines)
     if not items:
         raise SplineError("write_iges needs at least one curve or surface")
     if units not in UNITS:
         raise SplineError(f"units must be one of {sorted(UNITS)}, got {show(units)}")
-    params = []
+    from .trimmed import TrimmedSurface
+
+    params, status = [], []  # per entity: parameter list, DE status digits
+
+    def add(prm, st="00000000") -> int:
+        params.append(prm)
+        status.append(st)
+        return 2 * len(params) - 1  # its directory entry's sequence number
+
     for i, s in enumerate(items):
+        if isinstance(s, TrimmedSurface):
+            S = add(_surface(s.surface), "00010000")  # physically dependent on the 144
+            bounds = []
+            for c in s.loops:
+                curve = add(_curve(c), "00010500")  # parameter-space curve: dependent, "parametric" use
+                bounds.append(add([142, 1, S, curve, 0, 1], "00010000"))
+            add([144, S, 1, len(bounds) - 1] + bounds)
+            continue
         if not isinstance(s, BSpline) or s.dim not in (1, 2):
             raise SplineError(f"item {i} is {show(s)}: IGES export takes B-spline curves and surfaces (entities "
-                              "126, 128); write a trivariate's boundary surfaces instead")
+                              "126, 128) and trimmed surfaces (144); write a trivariate's boundary surfaces instead")
         if not np.all(np.isfinite(s.control_points)):
             raise SplineError(f"item {i} has non-finite control points; IGES cannot hold them")
-        params.append(_curve(s) if s.dim == 1 else _surface(s))
+        add(_curve(s) if s.dim == 1 else _surface(s))
     path = Path(path)
     stamp = _dt.datetime.now().strftime("%Y%m%d.%H%M%S")
     flag, unit = UNITS[units]
-    extent = max(float(np.abs(s.control_points[..., :3]).max()) for s in items)
+    extent = max(float(np.abs((s.surface if isinstance(s, TrimmedSurface) else s).control_points[..., :3]).max())
+                 for s in items)
     glob = [",", ";", name or path.stem, path.name, "iga-microstructures", "1", 32, 38, 6, 308, 15,
             name or path.stem, 1.0, flag, unit, 1, 1.0, stamp, 1e-10, max(extent, 1.0), author, "iga", 11, 0, stamp]
     gtext = ",".join(_hollerith(v) if isinstance(v, str) else (str(v) if isinstance(v, int) else _num(v))
@@ -111,7 +132,7 @@ def write_iges(path, splines, *, units: str = "m", author: str = "iga-microstruc
         start = len(p_lines) + 1
         p_lines += [f"{c:<64} {de:>7}" for c in chunk]
         etype = prm[0]
-        d_lines.append(f"{etype:>8}{start:>8}{0:>8}{0:>8}{0:>8}{0:>8}{0:>8}{0:>8}{'00000000':>8}")
+        d_lines.append(f"{etype:>8}{start:>8}{0:>8}{0:>8}{0:>8}{0:>8}{0:>8}{0:>8}{status[i]:>8}")
         d_lines.append(f"{etype:>8}{0:>8}{0:>8}{len(chunk):>8}{0:>8}{'':>8}{'':>8}{'':>8}{0:>8}")
     records = ([f"{x:<72}S{k + 1:>7}" for k, x in enumerate(s_lines)]
                + [f"{x:<72}G{k + 1:>7}" for k, x in enumerate(g_lines)]

@@ -1,5 +1,7 @@
 """Random spline factories shared by the tests."""
 
+import re
+
 import numpy as np
 
 from geometry import BSpline
@@ -51,3 +53,24 @@ def surface_area(surface, n=8):
     W = np.multiply.outer(*wts).ravel()
     J = surface.jacobian(g)[:, :3, :]
     return float(np.sum(np.linalg.norm(np.cross(J[:, :, 0], J[:, :, 1]), axis=1) * W))
+
+
+def read_own_iges(path):
+    """A minimal reader of our own IGES output: checks the record layout, returns the parameter lists."""
+    lines = path.read_text().splitlines()
+    assert all(len(x) == 80 for x in lines)
+    sections = {k: [x for x in lines if x[72] == k] for k in "SGDPT"}
+    term = sections["T"][0]
+    counts = dict(re.findall(r"([SGDP])\s*(\d+)", term[:72]))
+    assert all(int(counts[k]) == len(sections[k]) for k in "SGDP")
+    d = sections["D"]
+    out = []
+    for i in range(0, len(d), 2):
+        etype, start = int(d[i][:8]), int(d[i][8:16])
+        count = int(d[i + 1][24:32])
+        data = "".join(x[:64] for x in sections["P"][start - 1:start - 1 + count])
+        assert all(int(x[64:72]) == i + 1 for x in sections["P"][start - 1:start - 1 + count])  # back pointers
+        values = [float(v) for v in data.rstrip().rstrip(";").split(",")]
+        assert int(values[0]) == etype
+        out.append(values)
+    return out

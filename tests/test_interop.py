@@ -1,6 +1,5 @@
 """Interoperability: G+Smo XML (exact round trip, topology, heat problems), IGES (entities 126/128), iga info."""
 
-import re
 import subprocess
 import sys
 
@@ -12,7 +11,7 @@ from geometry import BSpline, SplineError, primitives as pr
 from geometry.faces import FACE_AXIS
 from geometry.gismo_xml import GismoCondition, interface_maps, read_gismo, write_gismo
 from geometry.iges import write_iges
-from helpers import random_spline
+from helpers import read_own_iges as _read_own_iges, random_spline
 from iga import HeatProblem, ProblemError
 from iga.gismo import export_gismo, load_gismo, problem_from_gismo
 from tiling import library as L
@@ -134,27 +133,6 @@ def test_gismo_bad_input(tmp_path):
     with pytest.raises(ProblemError, match="constant isotropic conductivity"):
         export_gismo(HeatProblem(AFFINE, conductivity=np.diag([1.0, 2.0, 3.0])), tmp_path / "k.xml")
     assert not (tmp_path / "c.xml").exists() and not (tmp_path / "k.xml").exists()
-
-
-def _read_own_iges(path):
-    """A minimal reader of our own IGES output: checks the record layout, returns the parameter lists."""
-    lines = path.read_text().splitlines()
-    assert all(len(x) == 80 for x in lines)
-    sections = {k: [x for x in lines if x[72] == k] for k in "SGDPT"}
-    term = sections["T"][0]
-    counts = dict(re.findall(r"([SGDP])\s*(\d+)", term[:72]))
-    assert all(int(counts[k]) == len(sections[k]) for k in "SGDP")
-    d = sections["D"]
-    out = []
-    for i in range(0, len(d), 2):
-        etype, start = int(d[i][:8]), int(d[i][8:16])
-        count = int(d[i + 1][24:32])
-        data = "".join(x[:64] for x in sections["P"][start - 1:start - 1 + count])
-        assert all(int(x[64:72]) == i + 1 for x in sections["P"][start - 1:start - 1 + count])  # back pointers
-        values = [float(v) for v in data.rstrip().rstrip(";").split(",")]
-        assert int(values[0]) == etype
-        out.append(values)
-    return out
 
 
 def test_iges_writes_exact_surfaces_and_curves(tmp_path):

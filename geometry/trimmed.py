@@ -1,0 +1,240 @@
+"""Trimmed B-spline surfaces: a surface and closed trimming loops in its parameter domain (Elber 2017, Fig. 7).
+
+A :class:`TrimmedSurface` keeps the tensor-product surface S and its loops,
+B-spline curves (u(t), v(t)) in S's parameter domain: the first loop bounds
+the kept region (made counter-clockwise), the others are holes (made
+clockwise).  Composition into a map D is exact for the tensor-product part,
+``compose(D, S)``, while the loops are carried unaltered (they live in S's
+parameters, which composition keeps); the loops' images in space are the
+exact compositions ``S(loop)`` (:meth:`TrimmedSurface.boundary_curves`).
+
+Tessellation (:meth:`TrimmedSurface.tessellate`): every loop is sampled
+until the chord between consecutive samples deviates from the curve's image
+by less than the tolerance; the polygon with holes is triangulated in the
+parameter plane by mapbox-earcut (a constrained triangulation that keeps the
+loop edges; ISC licence, chosen over Shewchuk's ``triangle`` whose licence
+forbids commercial use without permission), then every triangle is split in
+four (edge midpoints shared, so the mesh stays conforming; a loop edge's
+midpoint is the loop's point at the mean parameter) until each edge's
+midpoint lies within the tolerance of the surface.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .bspline import BSpline
+from .composition import compose
+from .errors import SplineError, show
+from .resources import check_memory
+
+__all__ = ["TrimmedSurface", "reversed_curve"]
+
+_LOOP_SAMPLES = 64  # per knot span, for the validity checks
+
+
+def reversed_curve(c: BSpline) -> BSpline:
+    """The same curve traversed backwards over the same parameter interval."""
+    (U,), (p,) = c.knots, c.degrees
+    a, b = U[0], U[-1]
+    w = None if c.weights is None else c.weights[::-1].copy()
+    return BSpline((p,), [(a + b) - U[::-1]], c.control_points[::-1].copy(), w, c.channels)
+
+
+def _polyline(c: BSpline, per_span: int = _LOOP_SAMPLES) -> np.ndarray:
+    b = c.breakpoints(0)
+    t = np.unique(np.concatenate([np.linspace(x, y, per_span + 1) for x, y in zip(b[:-1], b[1:])]))
+    return c.evaluate(t[:, None])[:, :2]
+
+
+def _signed_area(poly: np.ndarray) -> float:
+    x, y = poly[:, 0], poly[:, 1]
+    return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+
+
+def _crossings(p: np.ndarray, q: np.ndarray, same: bool) -> bool:
+    """Whether closed polylines p and q (or p with itself) have two non-adjacent segments that cross or touch."""
+    a0, a1 = p[:-1], p[1:]
+    b0, b1 = q[:-1], q[1:]
+
+    def orient(x, y, z):
+        return np.sign((y[..., 0] - x[..., 0]) * (z[..., 1] - x[..., 1]) - (y[..., 1] - x[..., 1]) * (z[..., 0] - x[..., 0]))
+
+    A0, A1 = a0[:, None], a1[:, None]
+    B0, B1 = b0[None], b1[None]
+    # crossing or touching (a loop through one of its own points is not simple); boxes rule out collinear misses
+    boxes = np.all((np.minimum(A0, A1) <= np.maximum(B0, B1)) & (np.minimum(B0, B1) <= np.maximum(A0, A1)), axis=-1)
+    hit = boxes & (orient(A0, A1, B0) * orient(A0, A1, B1) <= 0) & (orient(B0, B1, A0) * orient(B0, B1, A1) <= 0)
+    if same:  # neighbouring segments share an end; the first and last close the loop
+        n = len(a0)
+        i, j = np.indices(hit.shape)
+        hit &= (np.abs(i - j) > 1) & ~((i == 0) & (j == n - 1)) & ~((j == 0) & (i == n - 1))
+    return bool(hit.any())
+
+
+def _inside(poly: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    """Even-odd point-in-polygon for points (N, 2) against a closed polyline (M, 2)."""
+    x0, y0 = poly[:-1, 0], poly[:-1, 1]
+    x1, y1 = poly[1:, 0], poly[1:, 1]
+    px, py = pts[:, None, 0], pts[:, None, 1]
+    cond = (y0 > py) != (y1 > py)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        xc = x0 + (py - y0) * (x1 - x0) / (y1 - y0)
+    return np.sum(cond & (px < xc), axis=1) % 2 == 1
+
+
+@dataclass
+class TrimmedSurface:
+    """A surface (2-variate :class:`BSpline`) and its trimming loops (curves in its parameter domain).
+
+    ``loops[0]`` bounds the kept region; further loops are holes.  Loops
+    are checked on construction: closed, inside the domain, free of self-
+    and mutual intersections (on dense samples), holes inside the outer
+    loop; :class:`SplineError` names the loop otherwise.
+    """
+
+    surface: BSpline
+    loops: list = field(default_factory=list)
+
+    def __post_init__(self):
+        s = self.surface
+        if not isinstance(s, BSpline) or s.dim != 2:
+            raise SplineError(f"a trimmed surface needs a 2-variate BSpline, got {show(s)}")
+        if not self.loops or not all(isinstance(c, BSpline) and c.dim == 1 for c in self.loops):
+            raise SplineError("trimming loops must be a non-empty list of B-spline curves (u(t), v(t)) in the "
+                              "surface's parameter domain")
+        dom = s.domain
+        scale = float(np.max(dom[:, 1] - dom[:, 0]))
+        polys, loops = [], []
+        for i, c in enumerate(self.loops):
+            ends = c.evaluate(np.array([[c.domain[0, 0]], [c.domain[0, 1]]]))[:, :2]
+            if np.linalg.norm(ends[1] - ends[0]) > 1e-10 * scale:
+                raise SplineError(f"trimming loop {i} is open: it starts at {ends[0].round(9).tolist()} and ends at "
+                                  f"{ends[1].round(9).tolist()}; close it (last control point = first)")
+            poly = _polyline(c)
+            if np.any(poly < dom[:, 0] - 1e-12 * scale) or np.any(poly > dom[:, 1] + 1e-12 * scale):
+                raise SplineError(f"trimming loop {i} leaves the surface's parameter domain {dom.tolist()}")
+            if _crossings(poly, poly, True):
+                raise SplineError(f"trimming loop {i} intersects itself; a loop must be a simple closed curve")
+            area = _signed_area(poly)
+            if abs(area) < 1e-14 * scale ** 2:
+                raise SplineError(f"trimming loop {i} encloses no area")
+            if (area < 0) == (i == 0):  # outer counter-clockwise, holes clockwise
+                c, poly = reversed_curve(c), poly[::-1]
+            polys.append(poly)
+            loops.append(c)
+        for i in range(len(polys)):
+            for j in range(i + 1, len(polys)):
+                if _crossings(polys[i], polys[j], False):
+                    raise SplineError(f"trimming loops {i} and {j} intersect each other")
+            if i > 0 and not _inside(polys[0], polys[i][:1])[0]:
+                raise SplineError(f"trimming loop {i} (a hole) lies outside loop 0 (the outer boundary)")
+        self.loops = loops
+
+    def evaluate(self, params) -> np.ndarray:
+        """The surface at parameter points (N, 2) (trimming does not change the map)."""
+        return self.surface.evaluate(params)
+
+    def contains(self, params) -> np.ndarray:
+        """Whether parameter points (N, 2) lie in the kept region (on dense loop samples)."""
+        pts = np.asarray(params, float).reshape(-1, 2)
+        inside = _inside(_polyline(self.loops[0]), pts)
+        for c in self.loops[1:]:
+            inside &= ~_inside(_polyline(c), pts)
+        return inside
+
+    def compose(self, outer: BSpline) -> "TrimmedSurface":
+        """``outer(surface)`` exactly, the loops unchanged (Elber 2017, Fig. 7)."""
+        return TrimmedSurface(compose(outer, self.surface), list(self.loops))
+
+    def boundary_curves(self) -> list:
+        """The loops' images in space, exact: the surface composed with each loop (3-D B-spline curves)."""
+        return [compose(self.surface, c) for c in self.loops]
+
+    def area(self, tolerance: float) -> float:
+        """Area of the kept region (model units squared), from :meth:`tessellate` at ``tolerance``."""
+        mesh = self.tessellate(tolerance)
+        return float(mesh.area)
+
+    # ------------------------------------------------------------------------------------------------
+    def tessellate(self, tolerance: float, max_triangles: int = 2_000_000):
+        """Triangles of the kept region in space (``pyvista.PolyData``), chord error below ``tolerance``.
+
+        Point data ``u``, ``v``: the parameters of every vertex.
+        """
+        import mapbox_earcut
+        import pyvista as pv
+
+        if not (isinstance(tolerance, (int, float)) and np.isfinite(tolerance) and tolerance > 0):
+            raise SplineError(f"tolerance must be a positive length (model units), got {show(tolerance)}")
+        S = self.surface
+        rings = [self._sample_loop(c, tolerance) for c in self.loops]
+        uv = np.concatenate([r[0] for r in rings])
+        ends = np.cumsum([len(r[0]) for r in rings]).astype(np.uint32)
+        tris = mapbox_earcut.triangulate_float64(uv, ends).reshape(-1, 3).astype(np.int64)
+        # loop edges: consecutive samples of one loop (the last closes onto the first), with their parameter interval
+        boundary = {}
+        start = 0
+        for k, (c, (_, t)) in enumerate(zip(self.loops, rings)):
+            idx = np.arange(start, start + len(t))
+            t_next = np.append(t[1:], c.domain[0, 1])
+            for i, j, a, b in zip(idx, np.roll(idx, -1), t, t_next):
+                boundary[(min(i, j), max(i, j))] = (k, a, b, i)  # vertex i sits at parameter a
+            start += len(t)
+        uv = list(uv)
+        for _ in range(30):
+            check_memory(len(tris) * 4 * 200.0, f"the tessellation at tolerance {show(tolerance)}", SplineError,
+                         "raise the tolerance")
+            edges = np.sort(np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]]), axis=1)
+            uniq, inv = np.unique(edges, axis=0, return_inverse=True)
+            P = np.asarray(uv)
+            mid_uv = 0.5 * (P[uniq[:, 0]] + P[uniq[:, 1]])
+            on_loop = np.array([tuple(e) in boundary for e in uniq])
+            rows = np.flatnonzero(on_loop)
+            info = [boundary[tuple(uniq[m])] for m in rows]
+            mid_t = np.array([0.5 * (i[1] + i[2]) for i in info])
+            for k in {i[0] for i in info}:  # a loop edge's midpoint is the loop's point at the mean parameter
+                sel = np.array([i[0] == k for i in info])
+                mid_uv[rows[sel]] = self.loops[k].evaluate(mid_t[sel][:, None])[:, :2]
+            X = S.evaluate(P)[:, :3]
+            err = np.linalg.norm(S.evaluate(mid_uv)[:, :3] - 0.5 * (X[uniq[:, 0]] + X[uniq[:, 1]]), axis=1)
+            if err.max() <= tolerance:
+                break
+            if 4 * len(tris) > max_triangles:
+                raise SplineError(f"the tessellation needs more than {max_triangles:,} triangles for tolerance "
+                                  f"{show(tolerance)}; raise the tolerance")
+            # split every triangle in four (uniform: the mesh stays conforming)
+            base = len(uv)
+            uv += list(mid_uv)
+            new_boundary = {}
+            for m, (k, a, b, va), tm in zip(rows, info, mid_t):
+                vb = uniq[m][1] if uniq[m][0] == va else uniq[m][0]
+                new_boundary[(min(va, base + m), max(va, base + m))] = (k, a, tm, va)
+                new_boundary[(min(base + m, vb), max(base + m, vb))] = (k, tm, b, base + m)
+            boundary = new_boundary
+            e = inv.reshape(3, -1).T + base  # midpoints of edges 01, 12, 20 per triangle
+            t0, t1, t2 = tris.T
+            m01, m12, m20 = e.T
+            tris = np.concatenate([np.stack([t0, m01, m20], 1), np.stack([m01, t1, m12], 1),
+                                   np.stack([m20, m12, t2], 1), np.stack([m01, m12, m20], 1)])
+        P = np.asarray(uv)
+        X = S.evaluate(P)[:, :3]
+        mesh = pv.PolyData(X, np.hstack([np.full((len(tris), 1), 3), tris]).ravel())
+        mesh.point_data["u"], mesh.point_data["v"] = P.T
+        return mesh
+
+    def _sample_loop(self, c: BSpline, tol: float):
+        """Parameters along loop c (its end excluded: the ring closes itself) with chord error <= tol in space."""
+        b = c.breakpoints(0)
+        t = np.unique(np.concatenate([np.linspace(x, y, 5) for x, y in zip(b[:-1], b[1:])]))
+        for _ in range(40):
+            pts = self.surface.evaluate(c.evaluate(t[:, None])[:, :2])[:, :3]
+            mid = 0.5 * (t[:-1] + t[1:])
+            mp = self.surface.evaluate(c.evaluate(mid[:, None])[:, :2])[:, :3]
+            bad = np.linalg.norm(mp - 0.5 * (pts[:-1] + pts[1:]), axis=1) > tol
+            if not bad.any():
+                break
+            t = np.sort(np.concatenate([t, mid[bad]]))
+        return c.evaluate(t[:-1, None])[:, :2], t[:-1]
