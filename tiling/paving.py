@@ -16,7 +16,9 @@ from geometry.resources import check_memory
 
 from .errors import TilingError
 from .microstructure import Microstructure, PlacedPatch
+from .seal import sealed_variant
 from .tile import Tile
+from geometry.faces import FACE_NAMES
 from geometry.errors import show
 
 
@@ -100,13 +102,19 @@ def _check_spans(D: BSpline, placed: list) -> None:
                 )
 
 
-def regular(D: BSpline, tile: Tile, counts, variants: dict | None = None, name: str = "regular") -> Microstructure:
+def regular(D: BSpline, tile: Tile, counts, variants: dict | None = None, name: str = "regular",
+            seal: str | None = None, thickness: float = 0.1, seal_sides=None) -> Microstructure:
     """Regular paving: ``counts`` = (cx, cy, cz) copies of ``tile`` per knot span of D.
 
     ``variants`` optionally maps a position key ``(ku, kv, kw)`` with entries
     -1 (at the min boundary of D's domain), 0 (interior), +1 (at the max
     boundary) to a sealed boundary tile (Elber 2017, Sections 2-3); tiles whose key is
-    missing use ``tile``.
+    missing use ``tile``.  ``seal="cap"`` builds those variants itself
+    (:func:`tiling.seal.sealed_variant`: trivariate plates of ``thickness``, a
+    fraction of a cell, conforming to the tiles) on ``seal_sides`` of D's
+    domain (default all six; a cell alone in a direction is sealed on both
+    sides); ``seal="shell"`` seals all six.  The plates' free faces are tagged
+    ``cap`` (or ``shell``), and the heat model includes the plates.
 
     >>> from geometry import primitives
     >>> from tiling import library
@@ -118,6 +126,14 @@ def regular(D: BSpline, tile: Tile, counts, variants: dict | None = None, name: 
     if not isinstance(tile, Tile):
         raise TilingError(f"tile must be a tiling.Tile, got {type(tile).__name__}")
     counts = _check_counts(counts, 3, "counts")
+    if seal is not None and variants:
+        raise TilingError("give variants or seal, not both")
+    if seal not in (None, "cap", "shell"):
+        raise TilingError(f"seal must be 'cap', 'shell' or None, got {show(seal)}")
+    allowed = set(FACE_NAMES) if seal == "shell" or seal_sides is None else set(seal_sides)
+    if not allowed <= set(FACE_NAMES):
+        raise TilingError(f"seal_sides must be face names of D's domain from {list(FACE_NAMES)}, got "
+                          f"{show(seal_sides)}")
     variants = dict(variants or {})
     for key, t in variants.items():
         if not isinstance(t, Tile) or len(key) != 3 or any(v not in (-1, 0, 1) for v in key):
@@ -127,12 +143,21 @@ def regular(D: BSpline, tile: Tile, counts, variants: dict | None = None, name: 
     cells = [_cells(D, k, counts[k]) for k in range(3)]
     N = [len(c) for c in cells]
     placed, tiles = [], []
+    sealed: dict = {}  # sealed variants, built once per set of sides
     for i in range(N[0]):
         for j in range(N[1]):
             for k in range(N[2]):
                 key = tuple(0 if N[d] == 1 else (-1 if n == 0 else (1 if n == N[d] - 1 else 0))
                             for d, n in enumerate((i, j, k)))
                 t = variants.get(key, tile)
+                if seal is not None:
+                    sides = frozenset(f for d, n in enumerate((i, j, k)) for f, at in
+                                      ((FACE_NAMES[2 * d], n == 0), (FACE_NAMES[2 * d + 1], n == N[d] - 1))
+                                      if at and f in allowed)
+                    if sides:
+                        if sides not in sealed:
+                            sealed[sides] = sealed_variant(tile, sides, thickness, seal)
+                        t = sealed[sides]
                 lo = np.array([cells[0][i, 0], cells[1][j, 0], cells[2][k, 0]])
                 hi = np.array([cells[0][i, 1], cells[1][j, 1], cells[2][k, 1]])
                 M = np.column_stack([np.diag(hi - lo), lo])
@@ -141,7 +166,12 @@ def regular(D: BSpline, tile: Tile, counts, variants: dict | None = None, name: 
                 for pi, patch in enumerate(t.patches):
                     placed.append(PlacedPatch(patch, M, D, tid, 0, pi))
     _check_spans(D, placed)
-    return Microstructure.build(D, placed, tiles, [], name=name)
+    ms = Microstructure.build(D, placed, tiles, [], name=name)
+    if seal is not None:
+        plate = {(id(t), i) for t in sealed.values() for i in t.seal_patches}
+        ms.tags[seal] = [(p, f) for p, f in ms.tags["boundary"]
+                         if (id(tiles[placed[p].tile]), placed[p].patch_in_tile) in plate]
+    return ms
 
 
 def hierarchical(D: BSpline, tile: Tile, counts, levels: int, scale: float | None = None,

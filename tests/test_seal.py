@@ -1,0 +1,94 @@
+"""Sealed pavings: trivariate cap and shell plates conforming to the tiles, in the heat model."""
+
+import numpy as np
+import pytest
+
+import tiling
+from geometry import MultiPatch, primitives as pr
+from iga import HeatProblem
+from tiling import TilingError
+from tiling import library as L
+from tiling.seal import sealed_variant
+
+from helpers import surface_area
+
+AFFINE = pr.box((2.0, 1.0, 1.5))
+
+
+def linear(x):
+    return 1 + 2 * x[:, 0] - x[:, 1] + 0.5 * x[:, 2]
+
+
+def test_a_variant_glues_every_sealed_tile_face_to_one_plate():
+    tile = L.cross()
+    v = sealed_variant(tile, {"umin", "wmax"}, 0.1)
+    n = len(tile.patches)
+    assert v.seal_patches == tuple(range(n, len(v.patches)))
+    model = MultiPatch.from_splines(v.patches)  # refuses touching faces that do not conform
+    glued = {(i.a, i.b) for i in model.interfaces} | {(i.b, i.a) for i in model.interfaces}
+    # the arm ends on umin and wmax (tile patches 1 and 6) each meet exactly one plate
+    for p, f in ((1, "umin"), (6, "wmax")):
+        partners = [b for a, b in glued if a == (p, f)]
+        assert len(partners) == 1 and partners[0][0] >= n
+    # the tile is squeezed out of the sealed layers, nothing else moves
+    pts = np.concatenate([p.control_points[..., :3].reshape(-1, 3) for p in v.patches[:n]])
+    assert pts[:, 0].min() == pytest.approx(0.1) and pts[:, 2].max() == pytest.approx(0.9)
+    assert pts[:, 1].min() == pytest.approx(0.0) and pts[:, 1].max() == pytest.approx(1.0)
+    # plates fill the sealed layers exactly: tile volume + plate volume = the cell minus the lattice's voids
+    vol = sum(np.prod(np.ptp(p.control_points[..., :3].reshape(-1, 3), axis=0)) for p in v.patches[n:])
+    layer = 1 - 0.9 * 0.9  # two layers of 0.1 meeting along an edge
+    assert vol == pytest.approx(layer, rel=1e-12)
+
+
+@pytest.mark.parametrize("seal,sides,refine", [("cap", ("wmax", "umin"), 1), ("shell", None, 0)])
+def test_patch_test_with_seal_plates(seal, sides, refine):
+    ms = tiling.regular(AFFINE, L.cross(), (3, 2, 2) if refine else (2, 1, 2), seal=seal, seal_sides=sides)
+    s = HeatProblem(ms, degree_elevation=1, refine=refine).dirichlet("boundary", linear).solve()
+    assert s.l2_error(linear) < 1e-9
+    assert s.info["constraints"]["identity_pairs"] > 0 and len(ms.tags[seal]) > 0
+    # variants are built once per set of sealed sides, not per placed copy
+    assert len({id(t) for t in ms.tiles}) <= 3 * 2 * 2 + 1
+
+
+def test_heat_through_the_cap_balances_and_matches_the_cap_area():
+    ms = tiling.regular(AFFINE, L.cross(), (3, 2, 2), seal="cap", seal_sides=("wmax",))
+    top = ms.tags["wmax"]
+    assert top and all(f in set(ms.tags["cap"]) for f in top)  # the top is all cap now
+    s = HeatProblem(ms, conductivity=50.0).neumann("wmax", 800.0).dirichlet("wmin", 20.0).solve()
+    assert s.info["balance"]["relative_error"] < 1e-9
+    # independent: the cap covers the whole top of D, whose area is that of D's face
+    area = surface_area(AFFINE.boundary("wmax"))
+    assert sum(surface_area(ms.patches[i].composed.boundary(f)) for i, f in top) == pytest.approx(area, rel=1e-12)
+    assert s.flux("wmax") == pytest.approx(-800.0 * area, rel=1e-10)
+    assert s.flux("wmin") == pytest.approx(800.0 * area, rel=1e-8)
+
+
+def test_a_shelled_lattice_is_closed_with_its_inner_void():
+    twisted = pr.twisted(pr.box((1.0, 1.0, 1.0), degrees=(2, 2, 2)), 0.3, axis_point=(0.5, 0.5))
+    ms = tiling.regular(twisted, L.cross(), (2, 2, 2), seal="shell", thickness=0.15)
+    w = tiling.export.watertightness(ms)
+    # the outside of the shell and the void around the lattice inside it: two closed sheets
+    assert w["closed"] and w["manifold"] and w["components"] == 2
+    s = HeatProblem(ms, conductivity=20.0).neumann("umin", 100.0).robin("umax", 10.0, 20.0).solve()
+    assert s.info["balance"]["relative_error"] < 1e-8
+
+
+def test_one_cell_is_sealed_on_both_sides():
+    ms = tiling.regular(AFFINE, L.cross(), (1, 1, 1), seal="shell")
+    (t,) = ms.tiles
+    assert t.name.endswith("(shell umax+umin+vmax+vmin+wmax+wmin)")
+    # grid lines 0, t, the arms' edges, 1 - t, 1 on every axis: 5^3 boxes, the tile's 3^3 inside
+    assert len(t.seal_patches) == 5 ** 3 - 3 ** 3
+
+
+def test_seal_bad_input():
+    with pytest.raises(TilingError, match="seal must be"):
+        tiling.regular(AFFINE, L.cross(), (2, 2, 2), seal="lid")
+    with pytest.raises(TilingError, match="not both"):
+        tiling.regular(AFFINE, L.cross(), (2, 2, 2), seal="cap", variants={(0, 0, 1): L.cross()})
+    with pytest.raises(TilingError, match="thickness"):
+        tiling.regular(AFFINE, L.cross(), (2, 2, 2), seal="cap", thickness=0.6)
+    with pytest.raises(TilingError, match="no trivariate patches"):
+        tiling.regular(AFFINE, L.hollow_box(), (2, 2, 2), seal="cap")
+    with pytest.raises(TilingError, match="seal_sides"):
+        tiling.regular(AFFINE, L.cross(), (2, 2, 2), seal="cap", seal_sides=("top",))
