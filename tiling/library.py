@@ -13,6 +13,7 @@
 ``cross()``          seven trivariates: a centre block and six arms reaching
                      every face of the cell; opposite faces match (periodic)
 ``helix()``          a cubic curve winding around the cell's axis (Elber 2017, Fig. 10)
+``bent_cross()``     the cross at degrees (3, 3, 2) with bent insides (Massarwi et al. 2018, Fig. 10)
 ==================== =====================================================
 
 Discontinuity tiles use a C0 knot at w = 0.4 below which both sides of every
@@ -157,6 +158,21 @@ def cross(arm: float = 0.3) -> Tile:
     return Tile(blocks, name="cross")
 
 
+def bent_cross(degrees=(3, 3, 2), bend: float = 0.02) -> Tile:
+    """The cross at ``degrees`` with every block's inner control points moved by ``bend``: a non-affine tile.
+
+    Its faces stay those of :func:`cross` (neighbours conform); composed into a map of degrees
+    (1, 1, 2) its patches have degrees (12, 12, 8), the setting of Massarwi et al. 2018, Fig. 10.
+    """
+    blocks = []
+    for p in cross().patches:
+        e = p.elevate_to(tuple(degrees))
+        c = e.control_points.copy()
+        c[1:-1, 1:-1, 1:-1, :] += bend
+        blocks.append(BSpline(e.degrees, e.knots, c))
+    return Tile(blocks, name="bent cross")
+
+
 def helix(turns: float = 2.0, radius: float = 0.3, n: int = 16) -> Tile:
     """A cubic curve winding ``turns`` times around the cell's vertical axis (Elber 2017, Fig. 10)."""
     t = np.linspace(0.0, 1.0, n)
@@ -166,4 +182,5 @@ def helix(turns: float = 2.0, radius: float = 0.3, n: int = 16) -> Tile:
 
 
 #: the built-in tiles by name (what ``[tile] library = ...`` of a pipeline may name)
-TILES = {f.__name__: f for f in (heat_sink_t1, heat_sink_t2, skinned_branching, fractal, hollow_box, cross, helix)}
+TILES = {f.__name__: f for f in (heat_sink_t1, heat_sink_t2, skinned_branching, fractal, hollow_box, cross, helix,
+                                 bent_cross)}
