@@ -16,9 +16,11 @@ from .implicit import ImplicitStructure, canonical_tubes, random_implicit
 from .topo import CellComplex, topo_subdiv
 from .branching import bifurcation, bifurcation_tiles
 from .implicit_branching import BifurcationStructure, implicit_bifurcation
+from .polygonal import PolygonTile, pave_polygons
 from . import library
 
 __all__ = ["TilingError", "Tile", "BranchFace", "discontinuity_branches", "Microstructure", "PlacedPatch",
            "Interface", "regular", "hierarchical", "library",
            "random_implicit", "ImplicitStructure", "canonical_tubes", "topo_subdiv", "CellComplex", "bifurcation",
-           "bifurcation_tiles", "implicit_bifurcation", "BifurcationStructure"]
+           "bifurcation_tiles", "implicit_bifurcation", "BifurcationStructure",
+           "PolygonTile", "pave_polygons"]
