@@ -75,6 +75,9 @@ def _build_tiling(cfg, D):
     p = cfg["paving"]
     if p["scheme"] == "hierarchical":
         return tiling.hierarchical(D, tile, p["counts"], p["levels"], p["scale"])
+    if "seal" in p:
+        return tiling.regular(D, tile, p["counts"], seal=p["seal"], thickness=p["thickness"],
+                              seal_sides=p["seal_sides"])
     return tiling.regular(D, tile, p["counts"])
 
 

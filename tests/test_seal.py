@@ -92,3 +92,30 @@ def test_seal_bad_input():
         tiling.regular(AFFINE, L.hollow_box(), (2, 2, 2), seal="cap")
     with pytest.raises(TilingError, match="seal_sides"):
         tiling.regular(AFFINE, L.cross(), (2, 2, 2), seal="cap", seal_sides=("top",))
+
+
+def _sealed_config(**paving):
+    return {"map": {"primitive": "box", "args": {"size": [2.0, 1.0, 1.0]}}, "tile": {"library": "cross"},
+            "paving": {"scheme": "regular", "counts": [4, 2, 2], **paving},
+            "material": {"conductivity": 50.0},
+            "bc": [{"kind": "neumann", "tag": "cap", "value": 500.0}, {"kind": "dirichlet", "tag": "wmin", "value": 20.0}],
+            "output": {"png": False, "vtu": False}}
+
+
+def test_pipeline_with_a_sealed_paving(tmp_path):
+    from iga.pipeline import run_pipeline
+
+    summary = run_pipeline(_sealed_config(seal="cap", seal_sides=["wmax"], thickness=0.15), tmp_path)
+    assert summary["energy_balance_error"] < 1e-9 and summary["temperature_C"]["max"] > 20.0
+    assert summary["inflow_W"] == pytest.approx(summary["outflow_W"], rel=1e-9)
+
+
+@pytest.mark.parametrize("paving,match", [
+    (dict(seal="lid"), "paving.seal"), (dict(thickness=0.1), "needs paving.seal"),
+    (dict(seal="cap", seal_sides=["top"]), "paving.seal_sides"), (dict(seal="cap", thickness=0.7), "paving.thickness")])
+def test_pipeline_seal_errors_name_the_key(tmp_path, paving, match):
+    from iga import ProblemError
+    from iga.pipeline import run_pipeline
+
+    with pytest.raises(ProblemError, match=match):
+        run_pipeline(_sealed_config(**paving), tmp_path)
