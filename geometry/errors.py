@@ -35,3 +35,11 @@ def _plain(v):
     if isinstance(v, list):
         return [_plain(x) for x in v]
     return v
+
+
+def check_seed(seed, error=SplineError) -> None:
+    """Raise ``error`` unless ``seed`` is a non-negative integer (what numpy.random.default_rng takes)."""
+    import numpy as np
+
+    if not isinstance(seed, (int, np.integer)) or isinstance(seed, (bool, np.bool_)) or seed < 0:
+        raise error(f"seed must be a non-negative integer (the random generator's seed), got {show(seed)}")

@@ -141,6 +141,14 @@ def write_gismo(path, patches, interfaces=(), boundary=(), conditions=(), functi
                 np.transpose(cp[..., 3:], order + (d,)))
     mp = ET.SubElement(root, "MultiPatch", parDim=str(d), id=str(len(patches)))
     ET.SubElement(mp, "patches", type="id_range").text = f"0 {len(patches) - 1}"
+    for where, items in (("interfaces", [x for i in interfaces for x in i[:2]]), ("boundary", list(boundary)),
+                         ("conditions", [f for c in conditions for f in c.faces]),
+                         ("branches", [x for b in branches for x in (b[0], b[2])])):
+        for pf in items:
+            if (not isinstance(pf, tuple) or len(pf) != 2 or not isinstance(pf[0], (int, np.integer))
+                    or not 0 <= pf[0] < len(patches) or pf[1] not in FACE_NAMES[:2 * d]):
+                raise SplineError(f"{where}: {show(pf)} is not a (patch index < {len(patches)}, face name of a "
+                                  f"{d}-variate patch) pair")
     if interfaces:
         lines = []
         for (pa, fa), (pb, fb), swap, flip in interfaces:

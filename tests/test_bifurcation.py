@@ -158,7 +158,7 @@ def test_bifurcation_bad_input(duck):
              (dict(epsilon=0.3, levels=[0, 1]), "give epsilon"), (dict(epsilon=0.3, tile="1-3"), "1-2"),
              (dict(epsilon=0.3, direction=3), "direction"), (dict(levels=[0, 1, 2]), "multiple of 5"),
              (dict(levels=[0, -1, 0, 0, 0]), "levels"), (dict(epsilon=0.3, margin=0.5), "margin"),
-             (dict(epsilon=1e-6), "raise epsilon")]
+             (dict(epsilon=1e-6), "raise epsilon"), (dict(epsilon=0.3, surfaces="yes"), "surfaces")]
     for kw, match in cases:
         with pytest.raises(TilingError, match=match):
             bifurcation(duck, **kw)
@@ -232,7 +232,7 @@ def test_implicit_bifurcation_reproducible_and_bad_input(duck):
     b = implicit_bifurcation(duck, 0.5, alpha=0.5, seed=4)
     assert all(np.array_equal(f.coefficients, g.coefficients) for f, g in zip(a.fields, b.fields))
     for kw, match in [(dict(alpha=1.5), "alpha"), (dict(resolution=7), "even"), (dict(radius=0.6), "radius"),
-                      (dict(controls=3), "controls")]:
+                      (dict(controls=3), "controls"), (dict(seed="a"), "seed"), (dict(cap=1), "cap")]:
         with pytest.raises(TilingError, match=match):
             implicit_bifurcation(duck, 0.5, **kw)
     with pytest.raises(TilingError, match="epsilon"):

@@ -126,6 +126,8 @@ def test_gismo_bad_input(tmp_path):
         write_gismo(tmp_path / "x.xml", [pr.box()], conditions=[GismoCondition("Clamped", [(0, "umin")], "1")])
     with pytest.raises(SplineError, match="cannot read"):
         read_gismo(tmp_path / "missing.xml")
+    with pytest.raises(SplineError, match=r"interfaces: \(5, 'top'\)"):
+        write_gismo(tmp_path / "i.xml", [pr.box()], [((0, "umax"), (5, "top"), False, (False, False))])
     # export refuses what has no expression, naming it
     p = HeatProblem(AFFINE).dirichlet("umin", lambda x: x[:, 0])
     with pytest.raises(ProblemError, match="dirichlet value on 'umin' is a callable"):

@@ -192,6 +192,8 @@ def bifurcation(D: BSpline, epsilon: float | None = None, tile: str = "1-2", *, 
     _check_map(D)
     if direction not in (0, 1, 2) or isinstance(direction, bool):
         raise TilingError(f"direction must be 0, 1 or 2 (the growth direction), got {show(direction)}")
+    if not isinstance(surfaces, (bool, np.bool_)):
+        raise TilingError(f"surfaces must be true or false, got {show(surfaces)}")
     if (epsilon is None) == (levels is None):
         raise TilingError("give epsilon (model units) or levels (one per layer), not both and not neither")
     if epsilon is not None and not (isinstance(epsilon, (int, float, np.floating)) and not isinstance(epsilon, bool)

@@ -43,7 +43,7 @@ import numpy as np
 
 from geometry import BSpline, SplineFunction
 from geometry import knots as kn
-from geometry.errors import show
+from geometry.errors import check_seed, show
 from geometry.resources import check_memory
 
 from .errors import TilingError
@@ -265,6 +265,9 @@ def random_implicit(D: BSpline, counts, *, degree: int = 3, controls: int = 8, a
     (1, True)
     """
     p0 = _check_inputs(D, counts, degree, controls, alpha, continuity, connectivity, canonical, shell)
+    check_seed(seed, TilingError)
+    if not isinstance(cap, (bool, np.bool_)):
+        raise TilingError(f"cap must be true or false, got {show(cap)}")
     if not isinstance(resolution, (int, np.integer)) or isinstance(resolution, bool) or resolution < 2:
         raise TilingError(f"resolution must be an integer >= 2 (samples per cell and direction), got {show(resolution)}")
     counts = tuple(int(c) for c in counts)

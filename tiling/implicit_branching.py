@@ -38,7 +38,7 @@ from scipy import ndimage
 
 from geometry import BSpline, SplineFunction
 from geometry import knots as kn
-from geometry.errors import show
+from geometry.errors import check_seed, show
 from geometry.faces import FACE_NAMES
 
 from .errors import TilingError
@@ -202,6 +202,9 @@ def implicit_bifurcation(D: BSpline, epsilon: float, *, degree: int = 3, control
         raise TilingError(f"controls must be at least degree + 1 = {degree + 1}, got {controls}")
     if not isinstance(radius, (int, float)) or not 0 < radius < 0.5:
         raise TilingError(f"radius must be in (0, 0.5) (fraction of a face), got {show(radius)}")
+    check_seed(seed, TilingError)
+    if not isinstance(cap, (bool, np.bool_)):
+        raise TilingError(f"cap must be true or false, got {show(cap)}")
     cells = topo_subdiv(D, epsilon, directions=directions)
     rng = np.random.default_rng(seed)
     stats = {"face_halvings": {}, "cell_halvings": {}}
