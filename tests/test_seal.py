@@ -119,3 +119,17 @@ def test_pipeline_seal_errors_name_the_key(tmp_path, paving, match):
 
     with pytest.raises(ProblemError, match=match):
         run_pipeline(_sealed_config(**paving), tmp_path)
+
+
+def test_surface_to_a_tolerance():
+    D = pr.twisted(pr.box((1.0, 1.0, 1.0), degrees=(2, 2, 2)), 0.5, axis_point=(0.5, 0.5))
+    ms = tiling.regular(D, L.cross(), (2, 2, 2))
+    s = [tiling.export.samples_for_tolerance(ms, tol) for tol in (1e-2, 1e-4, 1e-5)]
+    assert s == sorted(s) and s[-1] > s[0]
+    coarse, fine = ms.surface(tolerance=1e-2), ms.surface(tolerance=1e-5)
+    assert fine.n_cells > coarse.n_cells
+    assert tiling.export.mesh_watertightness(fine)["closed"] == tiling.export.mesh_watertightness(coarse)["closed"]
+    with pytest.raises(TilingError, match="raise the tolerance"):
+        tiling.export.samples_for_tolerance(ms, 1e-14, max_samples=4)
+    with pytest.raises(TilingError, match="tolerance"):
+        ms.surface(tolerance=-1.0)

@@ -31,7 +31,8 @@ from .microstructure import Microstructure
 from geometry.errors import show
 
 __all__ = ["surface", "watertightness", "mesh_watertightness", "write_surfaces", "write_mesh", "render_png",
-           "boundary_splines", "write_iges"]
+           "boundary_splines", "write_iges",
+           "samples_for_tolerance"]
 
 _FORMATS = {".vtu": "vtu", ".obj": "obj", ".stl": "stl", ".ply": "ply", ".vtp": "vtp"}
 
@@ -101,6 +102,32 @@ def surface(ms: Microstructure, samples: int = 4):
         poly.cell_data["level"] = np.full(poly.n_cells, ms.patches[i].level, np.int32)
         mesh = mesh.merge(poly) if mesh.n_points else poly
     return mesh
+
+
+def samples_for_tolerance(ms: Microstructure, tolerance: float, max_samples: int = 64) -> int:
+    """The fewest subdivisions per element (1, 2, 4, ...) for which every boundary face's triangles are within
+    ``tolerance`` (model units) of the exact surface, measured at the centres of the sub-cells."""
+    if not (isinstance(tolerance, (int, float, np.floating)) and np.isfinite(tolerance) and tolerance > 0):
+        raise TilingError(f"tolerance must be a positive length (model units), got {show(tolerance)}")
+    faces = [ms.patches[i].composed.boundary(f) for i, f in ms.tags.get("boundary", []) if f in FACE_NAMES]
+    faces += [P.composed for P in ms.patches if P.spline.dim == 2]
+    s = 1
+    while True:
+        worst = 0.0
+        for F in faces:
+            ax = sample_axes(F.knots, s)
+            mid = [0.5 * (a[:-1] + a[1:]) for a in ax]
+            grid = F.evaluate(np.stack(np.meshgrid(*ax, indexing="ij"), -1).reshape(-1, 2))[:, :3]
+            grid = grid.reshape(len(ax[0]), len(ax[1]), 3)
+            centre = F.evaluate(np.stack(np.meshgrid(*mid, indexing="ij"), -1).reshape(-1, 2))[:, :3]
+            bilinear = 0.25 * (grid[:-1, :-1] + grid[1:, :-1] + grid[:-1, 1:] + grid[1:, 1:]).reshape(-1, 3)
+            worst = max(worst, float(np.linalg.norm(centre - bilinear, axis=1).max()))
+        if worst <= tolerance:
+            return s
+        if 2 * s > max_samples:
+            raise TilingError(f"the boundary needs more than {max_samples} subdivisions per element for tolerance "
+                              f"{show(tolerance)} (measured {worst:.3g} at {s}); raise the tolerance")
+        s *= 2
 
 
 def watertightness(ms: Microstructure, samples: int = 4) -> dict:

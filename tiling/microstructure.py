@@ -74,6 +74,19 @@ class Microstructure(MultiPatch):
                 out[p.level] += 1
         return out
 
+    def surface(self, tolerance: float | None = None, samples: int = 4):
+        """The boundary as one welded triangle mesh (:func:`tiling.export.surface`).
+
+        ``tolerance`` (model units): subdivide elements until every triangle
+        lies within it of the exact surface (:func:`tiling.export.samples_for_tolerance`);
+        otherwise ``samples`` subdivisions per element and direction.
+        """
+        from . import export  # (export builds on this module)
+
+        if tolerance is not None:
+            samples = export.samples_for_tolerance(self, tolerance)
+        return export.surface(self, samples)
+
     def compose_all(self) -> list[BSpline]:
         """Compose every patch into D, batched per tile patch (cached on the patches)."""
         groups: dict = {}
