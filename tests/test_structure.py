@@ -20,8 +20,14 @@ def _modules(pkg):
 
 
 def _imports(path: Path, pkg: str):
-    """(target module, at module level) for every import in ``path``; relative imports resolved."""
+    """(target module, at module level) for every import in ``path``; relative imports resolved.
+
+    Imports under ``if TYPE_CHECKING:`` are left out: they exist for annotations only, never at run time.
+    """
     tree = ast.parse(path.read_text())
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and isinstance(node.test, ast.Name) and node.test.id == "TYPE_CHECKING":
+            node.body = []
     top = set(id(n) for n in tree.body)
     out = []
     for node in ast.walk(tree):

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -27,7 +28,9 @@ from geometry.io import atomic_write
 from geometry.sampling import sample_axes, sampled_mesh, weld
 
 from .errors import TilingError
-from .microstructure import Microstructure
+
+if TYPE_CHECKING:  # annotations only: the Microstructure's own surface() calls into this module
+    from .microstructure import Microstructure
 from geometry.errors import show
 
 __all__ = ["surface", "watertightness", "mesh_watertightness", "write_surfaces", "write_mesh", "render_png",

@@ -32,6 +32,7 @@ from geometry.errors import SplineError
 from geometry.faces import FACE_NAMES, discontinuity_slots, face_knots, nested_refinement
 from geometry.multipatch import Interface, MultiPatch, PlacedPatch, detect_interfaces, tile_corners
 
+from . import export
 from .errors import TilingError
 from geometry.errors import show
 
@@ -81,8 +82,6 @@ class Microstructure(MultiPatch):
         lies within it of the exact surface (:func:`tiling.export.samples_for_tolerance`);
         otherwise ``samples`` subdivisions per element and direction.
         """
-        from . import export  # (export builds on this module)
-
         if tolerance is not None:
             samples = export.samples_for_tolerance(self, tolerance)
         return export.surface(self, samples)
