@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 from pathlib import Path
 
 OUT = Path(__file__).parent / "out"
@@ -11,6 +13,31 @@ OUT = Path(__file__).parent / "out"
 def out_dir() -> Path:
     OUT.mkdir(exist_ok=True)
     return OUT
+
+
+def run_cases(script: str, cases, run, renders: bool = False) -> list[dict] | None:
+    """Each case of a benchmark in a fresh subprocess of ``script``, so that peak memory is per case.
+
+    Called as ``script --case NAME [--png]`` (the child), prints ``run(NAME)`` (``run(NAME, png)`` when
+    ``renders``) as JSON and returns None.  Otherwise (the parent) runs every case, then, with
+    ``renders`` and without ``--no-png``, once more with ``--png`` so that rendering is not timed, and
+    returns the rows (failed cases print their error and are left out).
+    """
+    if len(sys.argv) > 2 and sys.argv[1] == "--case":
+        args = (sys.argv[2], "--png" in sys.argv) if renders else (sys.argv[2],)
+        print(json.dumps(run(*args)))
+        return None
+    png = renders and "--no-png" not in sys.argv
+    rows = []
+    for case in cases:
+        out = subprocess.run([sys.executable, script, "--case", case], capture_output=True, text=True)
+        if out.returncode:
+            print(out.stderr[-2000:])
+            continue
+        rows.append(json.loads(out.stdout.strip().splitlines()[-1]))
+        if png:
+            subprocess.run([sys.executable, script, "--case", case, "--png"], check=True, capture_output=True)
+    return rows
 
 
 def print_table(rows: list[dict], columns: list[tuple[str, str]]) -> None:

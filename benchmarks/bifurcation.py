@@ -20,14 +20,11 @@ docs/implicit_bifurcation_duck*.png.
 
 from __future__ import annotations
 
-import json
 import resource
-import subprocess
-import sys
 import time
 from pathlib import Path
 
-from _common import print_table, save_json
+from _common import print_table, run_cases, save_json
 
 DOCS = Path(__file__).resolve().parent.parent / "docs"
 CASES = ("1-2", "1-4a", "1-4b", "implicit", "implicit random")
@@ -88,19 +85,9 @@ def run(case: str, png: bool) -> dict:
 
 
 def main():
-    if len(sys.argv) > 2 and sys.argv[1] == "--case":
-        print(json.dumps(run(sys.argv[2], "--png" in sys.argv)))
+    rows = run_cases(__file__, CASES, run, renders=True)
+    if rows is None:  # (a child run of one case)
         return
-    png = "--no-png" not in sys.argv
-    rows = []
-    for case in CASES:
-        out = subprocess.run([sys.executable, __file__, "--case", case], capture_output=True, text=True)
-        if out.returncode:
-            print(out.stderr[-2000:])
-            continue
-        rows.append(json.loads(out.stdout.strip().splitlines()[-1]))
-        if png:
-            subprocess.run([sys.executable, __file__, "--case", case, "--png"], check=True, capture_output=True)
     print_table([r for r in rows if "heat s" in r],
                 [("case", "s"), ("layers", "d"), ("levels", "d"), ("tiles", "d"), ("patches", "d"),
                  ("branch interfaces", "d"), ("build s", ".3f"), ("heat s", ".2f"), ("DOFs", "d"),

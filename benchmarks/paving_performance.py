@@ -13,15 +13,12 @@ benchmarks/out/paving_performance.json.
 
 from __future__ import annotations
 
-import json
 import resource
-import subprocess
-import sys
 import time
 
 import numpy as np
 
-from _common import print_table, save_json
+from _common import print_table, run_cases, save_json
 from heat_sink_maps import circular_map
 
 import tiling
@@ -54,16 +51,9 @@ def run(case: str) -> dict:
 
 
 def main():
-    if len(sys.argv) > 2 and sys.argv[1] == "--case":
-        print(json.dumps(run(sys.argv[2])))
+    rows = run_cases(__file__, ("fig11b", "cross10"), run)
+    if rows is None:  # (a child run of one case)
         return
-    rows = []
-    for case in ("fig11b", "cross10"):
-        out = subprocess.run([sys.executable, __file__, "--case", case], capture_output=True, text=True)
-        if out.returncode:
-            print(out.stderr[-2000:])
-            continue
-        rows.append(json.loads(out.stdout.strip().splitlines()[-1]))
     print_table(rows, [("case", "s"), ("tiles", "d"), ("patches", "d"), ("interfaces", "d"),
                        ("composed control points", "d"), ("degrees", "s"), ("paving s", ".2f"),
                        ("composition s", ".2f"), ("total s", ".2f"), ("peak MiB", ".0f")])

@@ -17,14 +17,11 @@ renders, docs/random_duck.png (Fig. 14 analogue), docs/random_duck_trees.png
 
 from __future__ import annotations
 
-import json
 import resource
-import subprocess
-import sys
 import time
 from pathlib import Path
 
-from _common import print_table, save_json
+from _common import print_table, run_cases, save_json
 
 CASES = {
     "fig14": dict(continuity="C1", connectivity=2, cap=False),
@@ -69,19 +66,9 @@ def run(case: str, png: bool) -> dict:
 
 
 def main():
-    if len(sys.argv) > 2 and sys.argv[1] == "--case":
-        print(json.dumps(run(sys.argv[2], "--png" in sys.argv)))
+    rows = run_cases(__file__, CASES, run, renders=True)
+    if rows is None:  # (a child run of one case)
         return
-    png = "--no-png" not in sys.argv
-    rows = []
-    for case in CASES:  # timing runs without renders, so that rendering does not count
-        out = subprocess.run([sys.executable, __file__, "--case", case], capture_output=True, text=True)
-        if out.returncode:
-            print(out.stderr[-2000:])
-            continue
-        rows.append(json.loads(out.stdout.strip().splitlines()[-1]))
-        if png:
-            subprocess.run([sys.executable, __file__, "--case", case, "--png"], check=True, capture_output=True)
     print_table(rows, [("case", "s"), ("build s", ".2f"), ("surface s", ".2f"), ("total s", ".2f"),
                        ("peak MiB", ".0f"), ("imports MiB", ".0f"), ("triangles", "d"), ("components", "d"),
                        ("face its mean", ".2f"), ("face its max", "d"), ("cell its mean", ".2f"),
