@@ -10,6 +10,7 @@ from .coefficients import tensor_matrix
 from .errors import ProblemError
 from .faces import chunks
 from geometry.chain import gradient_and_det, patch_geometry_points, patches_geometry_derivs
+from geometry.sampling import sample_axes
 from .locate import Locator
 from .model import tag_faces
 
@@ -185,17 +186,6 @@ class Solution:
     def h1_error(self, exact_grad) -> float:
         """| T - exact |_H1 (gradient seminorm); ``exact_grad(x) -> (N, 3)``."""
         return float(np.sqrt(self.integrate(lambda x, T, g: np.sum((g - exact_grad(x)) ** 2, axis=1))))
-
-
-def sample_axes(knots, samples: int) -> list[np.ndarray]:
-    """Per direction: every knot span subdivided ``samples`` times, span ends included once."""
-    out = []
-    for U in knots:
-        b = np.unique(U)
-        t = np.linspace(0.0, 1.0, samples + 1)[:-1]
-        ax = (b[:-1, None] + np.diff(b)[:, None] * t[None, :]).ravel()
-        out.append(np.append(ax, b[-1]))
-    return out
 
 
 def physical_gradient(J: np.ndarray, dxi: np.ndarray, where: str, params=None) -> np.ndarray:

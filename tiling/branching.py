@@ -28,6 +28,7 @@ from __future__ import annotations
 import numpy as np
 
 from geometry import BSpline, knots as kn
+from geometry.sampling import sample_axes
 from geometry.errors import show
 
 from .errors import TilingError
@@ -106,10 +107,9 @@ def _user_tiles(given: dict) -> dict:
     return out
 
 
-def _subdivide(breaks, n) -> np.ndarray:
+def _breaks(breaks, n) -> np.ndarray:
     """Breakpoints with every span cut into ``n`` equal parts."""
-    t = np.linspace(0.0, 1.0, n + 1)[:-1]
-    return np.append((breaks[:-1, None] + np.diff(breaks)[:, None] * t[None, :]).ravel(), breaks[-1])
+    return sample_axes([breaks], n)[0]
 
 
 def _layers(D, g, epsilon, levels):
@@ -123,7 +123,7 @@ def _layers(D, g, epsilon, levels):
         if len(levels) % (len(b) - 1):
             raise TilingError(f"{len(levels)} levels do not split D's {len(b) - 1} knot spans along direction {g} "
                               f"into equal layers; give a multiple of {len(b) - 1}")
-        cuts = _subdivide(b, len(levels) // (len(b) - 1))
+        cuts = _breaks(b, len(levels) // (len(b) - 1))
         return np.stack([cuts[:-1], cuts[1:]], 1), np.asarray(levels, int)
     layers = topo_subdiv(D, epsilon, directions=(g,))
     iv = np.unique(layers.boxes[:, g, :], axis=0)
@@ -134,7 +134,7 @@ def _level_of(D, g, cross, splits, layer, epsilon):
     """Smallest level whose cells in ``layer`` have every edge image below epsilon along the split directions."""
     spans = [D.breakpoints(k) for k in cross]
     for lev in range(_MAX_LEVEL + 1):
-        cuts = [_subdivide(b, s ** lev) for b, s in zip(spans, splits)]
+        cuts = [_breaks(b, s ** lev) for b, s in zip(spans, splits)]
         boxes = np.zeros(((len(cuts[0]) - 1) * (len(cuts[1]) - 1), 3, 2))
         ii, jj = np.meshgrid(np.arange(len(cuts[0]) - 1), np.arange(len(cuts[1]) - 1), indexing="ij")
         for k, cut, idx in ((cross[0], cuts[0], ii.ravel()), (cross[1], cuts[1], jj.ravel())):
@@ -227,7 +227,7 @@ def bifurcation(D: BSpline, epsilon: float | None = None, tile: str = "1-2", *, 
         finer_below = li > 0 and lev[li - 1] > v
         kind = "split" if finer_above else ("join" if finer_below else "straight")
         t = tiles[kind]
-        cuts = [_subdivide(b, s ** int(v)) for b, s in zip(spans, (sx, sy))]
+        cuts = [_breaks(b, s ** int(v)) for b, s in zip(spans, (sx, sy))]
         for i in range(len(cuts[0]) - 1):
             for j in range(len(cuts[1]) - 1):
                 lo = np.array([cuts[0][i], cuts[1][j], iv[0]])

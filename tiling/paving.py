@@ -13,6 +13,7 @@ import numpy as np
 
 from geometry import BSpline, check_regular, progress
 from geometry.resources import check_memory
+from geometry.sampling import sample_axes
 
 from .errors import TilingError
 from .microstructure import Microstructure, PlacedPatch
@@ -56,11 +57,8 @@ def _check_budget(n_tiles: float, tile, what: str, hint: str = "lower the counts
 
 def _cells(D: BSpline, k: int, count: int) -> np.ndarray:
     """(N, 2) parameter intervals: ``count`` equal cells per knot span of D along direction k."""
-    b = D.breakpoints(k)
-    t = np.linspace(0.0, 1.0, count + 1)
-    lo = (b[:-1, None] + np.diff(b)[:, None] * t[None, :-1]).ravel()
-    hi = (b[:-1, None] + np.diff(b)[:, None] * t[None, 1:]).ravel()
-    return np.stack([lo, hi], axis=1)
+    cuts = sample_axes([D.breakpoints(k)], count)[0]  # neighbouring cells share their end exactly
+    return np.stack([cuts[:-1], cuts[1:]], axis=1)
 
 
 def _affine(M: np.ndarray) -> np.ndarray:
