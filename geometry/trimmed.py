@@ -174,53 +174,52 @@ class TrimmedSurface:
         uv = np.concatenate([r[0] for r in rings])
         ends = np.cumsum([len(r[0]) for r in rings]).astype(np.uint32)
         tris = mapbox_earcut.triangulate_float64(uv, ends).reshape(-1, 3).astype(np.int64)
-        # loop edges: consecutive samples of one loop (the last closes onto the first), with their parameter interval
-        boundary = {}
-        start = 0
-        for k, (c, (_, t)) in enumerate(zip(self.loops, rings)):
-            idx = np.arange(start, start + len(t))
-            t_next = np.append(t[1:], c.domain[0, 1])
-            for i, j, a, b in zip(idx, np.roll(idx, -1), t, t_next):
-                boundary[(min(i, j), max(i, j))] = (k, a, b, i)  # vertex i sits at parameter a
-            start += len(t)
-        uv = list(uv)
+        # loop edges, as arrays: ends (va at parameter a, vb at b) of consecutive samples of loop k (the last
+        # sample closes onto the first, at the loop's end parameter)
+        va = np.arange(len(uv))
+        vb = np.concatenate([np.roll(np.arange(s0, s1), -1) for s0, s1 in zip(np.r_[0, ends[:-1]], ends)])
+        loop = np.concatenate([np.full(len(t), k) for k, (_, t) in enumerate(rings)])
+        ta = np.concatenate([t for _, t in rings])
+        tb = np.concatenate([np.append(t[1:], c.domain[0, 1]) for c, (_, t) in zip(self.loops, rings)])
+        X = S.evaluate(uv)[:, :3]
+        big = np.int64(1) << 32
         for _ in range(30):
             check_memory(len(tris) * 4 * 200.0, f"the tessellation at tolerance {show(tolerance)}", SplineError,
                          "raise the tolerance")
             edges = np.sort(np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]]), axis=1)
             uniq, inv = np.unique(edges, axis=0, return_inverse=True)
-            P = np.asarray(uv)
-            mid_uv = 0.5 * (P[uniq[:, 0]] + P[uniq[:, 1]])
-            on_loop = np.array([tuple(e) in boundary for e in uniq])
-            rows = np.flatnonzero(on_loop)
-            info = [boundary[tuple(uniq[m])] for m in rows]
-            mid_t = np.array([0.5 * (i[1] + i[2]) for i in info])
-            for k in {i[0] for i in info}:  # a loop edge's midpoint is the loop's point at the mean parameter
-                sel = np.array([i[0] == k for i in info])
+            mid_uv = 0.5 * (uv[uniq[:, 0]] + uv[uniq[:, 1]])
+            # the loop edges among them (their midpoints are the loop's points at the mean parameter)
+            codes = uniq[:, 0] * big + uniq[:, 1]
+            bcodes = np.minimum(va, vb) * big + np.maximum(va, vb)
+            order = np.argsort(bcodes)
+            pos = np.searchsorted(bcodes[order], codes)
+            on_loop = (pos < len(order)) & (bcodes[order][np.minimum(pos, len(order) - 1)] == codes)
+            rows, which = np.flatnonzero(on_loop), order[pos[on_loop]]
+            mid_t = 0.5 * (ta[which] + tb[which])
+            for k in np.unique(loop[which]):
+                sel = loop[which] == k
                 mid_uv[rows[sel]] = self.loops[k].evaluate(mid_t[sel][:, None])[:, :2]
-            X = S.evaluate(P)[:, :3]
-            err = np.linalg.norm(S.evaluate(mid_uv)[:, :3] - 0.5 * (X[uniq[:, 0]] + X[uniq[:, 1]]), axis=1)
+            mid_X = S.evaluate(mid_uv)[:, :3]
+            err = np.linalg.norm(mid_X - 0.5 * (X[uniq[:, 0]] + X[uniq[:, 1]]), axis=1)
             if err.max() <= tolerance:
                 break
             if 4 * len(tris) > max_triangles:
                 raise SplineError(f"the tessellation needs more than {max_triangles:,} triangles for tolerance "
                                   f"{show(tolerance)}; raise the tolerance")
-            # split every triangle in four (uniform: the mesh stays conforming)
+            # split every triangle in four (uniform: the mesh stays conforming); each loop edge in two
             base = len(uv)
-            uv += list(mid_uv)
-            new_boundary = {}
-            for m, (k, a, b, va), tm in zip(rows, info, mid_t):
-                vb = uniq[m][1] if uniq[m][0] == va else uniq[m][0]
-                new_boundary[(min(va, base + m), max(va, base + m))] = (k, a, tm, va)
-                new_boundary[(min(base + m, vb), max(base + m, vb))] = (k, tm, b, base + m)
-            boundary = new_boundary
+            uv, X = np.concatenate([uv, mid_uv]), np.concatenate([X, mid_X])
+            mid = base + rows
+            va, vb = np.concatenate([va[which], mid]), np.concatenate([mid, vb[which]])
+            loop = np.concatenate([loop[which], loop[which]])
+            ta, tb = np.concatenate([ta[which], mid_t]), np.concatenate([mid_t, tb[which]])
             e = inv.reshape(3, -1).T + base  # midpoints of edges 01, 12, 20 per triangle
             t0, t1, t2 = tris.T
             m01, m12, m20 = e.T
             tris = np.concatenate([np.stack([t0, m01, m20], 1), np.stack([m01, t1, m12], 1),
                                    np.stack([m20, m12, t2], 1), np.stack([m01, m12, m20], 1)])
-        P = np.asarray(uv)
-        X = S.evaluate(P)[:, :3]
+        P = uv
         mesh = pv.PolyData(X, np.hstack([np.full((len(tris), 1), 3), tris]).ravel())
         mesh.point_data["u"], mesh.point_data["v"] = P.T
         return mesh
