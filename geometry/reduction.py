@@ -75,18 +75,19 @@ def reduce_degree(spline: BSpline, degree: int = 3, check: int = 9) -> tuple[BSp
     t = np.linspace(0.0, 1.0, s)
     B = _bernstein(q, t)
 
+    lo = np.stack(np.meshgrid(*[b[:, 0] for b in boxes], indexing="ij"), -1).reshape(-1, 3)  # (E, 3)
+    size = np.stack(np.meshgrid(*[b[:, 1] - b[:, 0] for b in boxes], indexing="ij"), -1).reshape(-1, 3)
+
     def at(local):  # exact values at local coordinates (..., 3) of every element -> (E, ..., m)
-        lo = np.stack(np.meshgrid(*[b[:, 0] for b in boxes], indexing="ij"), -1).reshape(-1, 3)
-        hi = np.stack(np.meshgrid(*[b[:, 1] for b in boxes], indexing="ij"), -1).reshape(-1, 3)
-        x = lo[:, None] + local.reshape(-1, 3)[None] * (hi - lo)[:, None]
-        return spline.evaluate(x.reshape(-1, 3)).reshape((len(lo),) + local.shape[:-1] + (m,)), hi - lo
+        x = lo[:, None] + local.reshape(-1, 3)[None] * size[:, None]
+        return spline.evaluate(x.reshape(-1, 3)).reshape((len(lo),) + local.shape[:-1] + (m,))
 
     E = int(np.prod(ne))
     C = np.full((E, q + 1, q + 1, q + 1, m), np.nan)
     corner = np.array([0, q])
     # corners
     g = np.stack(np.meshgrid(*[np.array([0.0, 1.0])] * 3, indexing="ij"), -1)
-    vals, size = at(g)
+    vals = at(g)
     C[:, corner[:, None, None], corner[None, :, None], corner[None, None, :]] = vals
     # edges: along axis k, at the four corner positions of the other two axes
     for k in range(3):
@@ -95,20 +96,19 @@ def reduce_degree(spline: BSpline, degree: int = 3, check: int = 9) -> tuple[BSp
             for b in (0, 1):
                 loc = np.zeros((s, 3))
                 loc[:, k], loc[:, o[0]], loc[:, o[1]] = t, a, b
-                samples, _ = at(loc)  # (E, s, m)
+                samples = at(loc)  # (E, s, m)
                 idx = [slice(None)] * 3
                 idx[o[0]], idx[o[1]] = a * q, b * q
                 edge = C[(slice(None),) + tuple(idx)]  # (E, q+1, m) along k (a view)
                 if q == 3:
                     p0, p3 = samples[:, 0], samples[:, -1]
-                    d0 = _edge_derivative(spline, boxes, k, o, a, b, 0.0, size)
-                    d1 = _edge_derivative(spline, boxes, k, o, a, b, 1.0, size)
+                    d0 = _edge_derivative(spline, lo, size, k, o, a, b, 0.0)
+                    d1 = _edge_derivative(spline, lo, size, k, o, a, b, 1.0)
                     edge[:, 1], edge[:, 2] = p0 + d0 / 3.0, p3 - d1 / 3.0
                 else:
                     inner = np.zeros(q + 1, bool)
                     inner[1:-1] = True
                     edge[:, inner] = _fit_inner(B, edge, samples, inner)
-                C[(slice(None),) + tuple(idx)] = edge
     # faces: normal axis k at side c, inner (q-1)^2 points by least squares
     for k in range(3):
         o = [j for j in range(3) if j != k]
@@ -116,7 +116,7 @@ def reduce_degree(spline: BSpline, degree: int = 3, check: int = 9) -> tuple[BSp
             loc = np.zeros((s, s, 3))
             loc[..., o[0]], loc[..., o[1]] = np.meshgrid(t, t, indexing="ij")
             loc[..., k] = c
-            samples, _ = at(loc)  # (E, s, s, m)
+            samples = at(loc)  # (E, s, s, m)
             idx = [slice(None)] * 3
             idx[k] = c * q
             face = C[(slice(None),) + tuple(idx)]  # (E, q+1, q+1, m), axes o[0], o[1]
@@ -127,25 +127,29 @@ def reduce_degree(spline: BSpline, degree: int = 3, check: int = 9) -> tuple[BSp
             C[(slice(None),) + tuple(idx)] = flat.reshape(face.shape)
     # the volume's inner points
     loc = np.stack(np.meshgrid(t, t, t, indexing="ij"), -1)
-    samples, _ = at(loc)
+    samples = at(loc)
     inner = np.zeros((q + 1,) * 3, bool)
     inner[1:-1, 1:-1, 1:-1] = True
     flat = C.reshape(E, -1, m)
     if inner.any():
         flat[:, inner.ravel()] = _fit_inner(B, flat, samples.reshape(E, -1, m), inner)
-    C = flat.reshape(C.shape).reshape(tuple(ne) + (q + 1,) * 3 + (m,))
-    # join the pieces: C0 knots of multiplicity q; neighbouring pieces share their common side
-    G = np.zeros(tuple(n * q + 1 for n in ne) + (m,))
-    for e in np.ndindex(*ne):
-        G[tuple(slice(i * q, i * q + q + 1) for i in e)] = C[e]
+    # join the pieces (C0 knots of multiplicity q): per direction, every piece's first q layers, then the
+    # last piece's last layer; neighbouring pieces share their common side, so the one kept is theirs
+    G = flat.reshape(tuple(ne) + (q + 1,) * 3 + (m,)).transpose(0, 3, 1, 4, 2, 5, 6)  # (n0, q0, n1, q1, n2, q2, m)
+    for k in range(3):  # the (element, local) pair of direction k sits at axes k, k + 1 (earlier ones merged)
+        body = np.take(G, np.arange(q), axis=k + 1)
+        body = body.reshape(body.shape[:k] + (-1,) + body.shape[k + 2:])
+        last = np.take(np.take(G, [ne[k] - 1], axis=k), q, axis=k + 1)
+        G = np.concatenate([body, last], axis=k)
     knots = [np.concatenate([[b[0]] * (q + 1), np.repeat(b[1:-1], q), [b[-1]] * (q + 1)]) for b in brk]
     reduced = BSpline((q,) * 3, knots, G, channels=spline.channels)
     return reduced, deviation(spline, reduced, check)
 
 
-def _edge_derivative(spline, boxes, k, o, a, b, tk, size) -> np.ndarray:
-    """d/dt of the patch along axis k (local t in [0, 1]) at the edge point, for every element: (E, m)."""
-    lo = np.stack(np.meshgrid(*[bx[:, 0] for bx in boxes], indexing="ij"), -1).reshape(-1, 3)
+def _edge_derivative(spline, lo, size, k, o, a, b, tk) -> np.ndarray:
+    """d/dt of the patch along axis k (local t in [0, 1]) at the edge point, for every element: (E, m).
+
+    ``lo``, ``size``: the elements' lower corners and sizes (E, 3)."""
     x = lo.copy()
     x[:, k] += tk * size[:, k]
     x[:, o[0]] += a * size[:, o[0]]
