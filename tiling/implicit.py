@@ -280,7 +280,7 @@ def random_implicit(D: BSpline, counts, *, degree: int = 3, controls: int = 8, a
     for c in cells:  # Eq. 6 per cell; shared boundary layers take the value of the last cell written (C0, Eq. 7)
         B.G[B.cell_slices(c)] = (1 - alpha) * p0 + alpha * rng.uniform(-1.0, 1.0, p0.shape)
     B.enforce_c1()
-    edges, _ = grid_graph(counts)
+    edges = grid_graph(counts)
     trees = spanning_trees(n_cells, edges, connectivity, rng)
     stats = {"trees": len(trees), "face_iterations": {}, "cell_iterations": {}, "cavities_opened": 0}
     # boundary conditions of the structure: capping (negative) or shelling (positive) on D's boundary layers

@@ -45,16 +45,15 @@ def cell_knots(degree, controls):
 
 
 
-def grid_graph(counts):
-    """Face-adjacency graph of the cells: edges (E, 2) of cell indices and the direction of each edge."""
-    idx = np.arange(int(np.prod(counts))).reshape(counts)
-    edges, dirs = [], []
+def grid_graph(shape):
+    """6-neighbour pairs of a 3-D grid of ``shape`` (the cells' face adjacency): (E, 2) flat indices, each once."""
+    idx = np.arange(int(np.prod(shape))).reshape(shape)
+    edges = []
     for k in range(3):
-        a = np.take(idx, np.arange(counts[k] - 1), axis=k).ravel()
-        b = np.take(idx, np.arange(1, counts[k]), axis=k).ravel()
+        a = np.take(idx, np.arange(shape[k] - 1), axis=k).ravel()
+        b = np.take(idx, np.arange(1, shape[k]), axis=k).ravel()
         edges.append(np.stack([a, b], 1))
-        dirs.append(np.full(len(a), k))
-    return np.concatenate(edges), np.concatenate(dirs)
+    return np.concatenate(edges)
 
 
 def spanning_trees(n_cells, edges, count, rng):
@@ -327,17 +326,6 @@ def open_cavities(field, B, res, stats) -> int:
     return n - 1
 
 
-def _grid_edges(shape):
-    """Both directions of every 6-neighbour pair of a grid of ``shape``: (E, 2) flat indices."""
-    idx = np.arange(int(np.prod(shape))).reshape(shape)
-    pairs = []
-    for k in range(3):
-        a = np.take(idx, np.arange(shape[k] - 1), axis=k).ravel()
-        b = np.take(idx, np.arange(1, shape[k]), axis=k).ravel()
-        pairs += [np.stack([a, b], 1), np.stack([b, a], 1)]
-    return np.concatenate(pairs)
-
-
 def _paths(target, islands, good, blocked):
     """Least-cost 6-connected sample paths (L, 3) from each island to ``target``, or None where none exists.
 
@@ -346,7 +334,8 @@ def _paths(target, islands, good, blocked):
     multi-source Dijkstra (scipy.sparse.csgraph) from the target serves every island.
     """
     shape = target.shape
-    e = _grid_edges(shape)
+    e = grid_graph(shape)
+    e = np.concatenate([e, e[:, ::-1]])  # both directions
     ok = (good | ~blocked).ravel()
     e = e[ok[e[:, 0]] & ok[e[:, 1]]]
     cost = np.where(good.ravel(), 1e-6, 1.0)  # zero weights would be dropped by the sparse graph
