@@ -15,7 +15,7 @@ from . import faces, knots, bernstein
 from . import primitives
 from .products import multiply
 from .io import save, load, save_all, load_all
-from .composition import compose, compose_many, map_points, result_degrees
+from .composition import compose, compose_many, compose_placed, map_points, result_degrees
 from .trimmed import TrimmedSurface
 from .reduction import reduce_degree, reduce_model
 from .regularity import check_regular, RegularityResult
@@ -23,7 +23,7 @@ from .inversion import invert
 from .multipatch import Interface, MultiPatch, PlacedPatch, detect_interfaces
 
 __all__ = [
-    "TrimmedSurface", "reduce_degree", "reduce_model","BSpline", "SplineFunction", "SplineError", "ToolkitError", "FACE_NAMES", "FACE_AXIS", "faces", "knots",
+    "compose_placed", "TrimmedSurface", "reduce_degree", "reduce_model","BSpline", "SplineFunction", "SplineError", "ToolkitError", "FACE_NAMES", "FACE_AXIS", "faces", "knots",
            "bernstein", "primitives", "multiply", "save", "load", "save_all", "load_all", "compose", "compose_many",
            "map_points", "result_degrees", "check_regular", "RegularityResult", "invert", "Interface", "MultiPatch",
            "PlacedPatch", "detect_interfaces"]

@@ -26,13 +26,14 @@ from __future__ import annotations
 import numpy as np
 
 from . import knots as kn
+from . import progress
 from .bspline import BSpline
 from .compose_bezier import compose_batch, inner_bezier
 from .compose_boxes import axis_aligned, restrict_batch
 from .compose_curves import compose_curve_split
 from .errors import SplineError
 
-__all__ = ["compose", "compose_many", "map_points", "result_degrees", "KnotLineCrossing"]
+__all__ = ["compose", "compose_many", "compose_placed", "map_points", "result_degrees", "KnotLineCrossing"]
 
 
 class KnotLineCrossing(SplineError):
@@ -236,6 +237,21 @@ def compose(outer: BSpline, inner: BSpline) -> BSpline:
         if inner.dim != 1:
             raise
     return compose_curve_split(outer, inner, _compose_curve_piece)
+
+
+def compose_placed(patches) -> list[BSpline]:
+    """The composed images ``outer(A spline + b)`` of placed patches (:class:`geometry.PlacedPatch`), in batches:
+    one exact composition per (spline, map) pair for all its placements; results are cached on the patches."""
+    groups: dict = {}
+    for i, p in enumerate(patches):
+        if not p.is_composed and p.outer is not None:
+            groups.setdefault((id(p.spline), id(p.outer)), []).append(i)
+    for members in progress.bar(list(groups.values()), desc="composition", unit="tile patch"):
+        first = patches[members[0]]
+        A = np.stack([_IDENTITY[0] if patches[i].placement is None else patches[i].placement for i in members])
+        for i, r in zip(members, compose_many(first.outer, first.spline, A)):
+            patches[i].set_composed(r)
+    return [p.composed for p in patches]
 
 
 def map_points(outer: BSpline, points) -> np.ndarray:

@@ -28,7 +28,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .bspline import BSpline
-from .composition import compose_many
+from .composition import compose_many, compose_placed
 from .errors import SplineError
 from .faces import FACE_AXIS, FACE_NAMES, face_knots, nested_refinement
 from .inversion import invert
@@ -365,6 +365,10 @@ class MultiPatch:
     interfaces: list = field(default_factory=list)
     tags: dict = field(default_factory=dict)
     face_regions: dict = field(default_factory=dict)
+
+    def compose_all(self) -> list[BSpline]:
+        """Every patch's physical geometry (:func:`geometry.compose_placed`: batched, cached on the patches)."""
+        return compose_placed(self.patches)
 
     @classmethod
     def from_splines(cls, splines, couple: bool = True, branches=(), check_contact: bool = True) -> "MultiPatch":

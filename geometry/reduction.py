@@ -171,7 +171,8 @@ def deviation(exact: BSpline, approx: BSpline, check: int = 9) -> float:
 
 
 def reduce_model(model, degree: int = 3, check: int = 9) -> tuple[list, dict]:
-    """Every patch of a model (its composed physical geometry) reduced to ``degree``; and a report.
+    """Every patch of a model (a :class:`geometry.MultiPatch`: its composed physical geometry) reduced to
+    ``degree``; and a report.
 
     Returns ``(splines, report)``: ``splines`` a list of reduced trivariates (pass it to
     :meth:`geometry.MultiPatch.from_splines` for analysis: sides the model glued stay conforming);
@@ -179,8 +180,7 @@ def reduce_model(model, degree: int = 3, check: int = 9) -> tuple[list, dict]:
     "degrees_before"}.
     """
     out, devs, before, after, degs = [], [], 0, 0, set()
-    for p in model.patches:
-        spline = p.composed if hasattr(p, "composed") else p
+    for spline in model.compose_all():
         r, dev = reduce_degree(spline, degree, check)
         out.append(r)
         devs.append(dev)

@@ -66,7 +66,7 @@ def export_gismo(problem, path) -> Path:
         raise ProblemError("G+Smo export needs a constant isotropic conductivity (a number); this problem's is "
                            f"{'a tensor' if k.tensor else 'a ' + (k.scalar.kind if k.scalar else 'callable')}")
     try:
-        patches = [p.composed for p in model.patches]
+        patches = model.compose_all()
     except SplineError as exc:
         raise ProblemError(f"cannot compose the model's patches for export: {exc}") from None
     # Composition may raise degrees patch by patch (a rotated placement in a trilinear map gives degree 3):

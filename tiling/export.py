@@ -112,8 +112,9 @@ def samples_for_tolerance(ms: Microstructure, tolerance: float, max_samples: int
     ``tolerance`` (model units) of the exact surface, measured at the centres of the sub-cells."""
     if not (isinstance(tolerance, (int, float, np.floating)) and np.isfinite(tolerance) and tolerance > 0):
         raise TilingError(f"tolerance must be a positive length (model units), got {show(tolerance)}")
-    faces = [ms.patches[i].composed.boundary(f) for i, f in ms.tags.get("boundary", []) if f in FACE_NAMES]
-    faces += [P.composed for P in ms.patches if P.spline.dim == 2]
+    composed = ms.compose_all()
+    faces = [composed[i].boundary(f) for i, f in ms.tags.get("boundary", []) if f in FACE_NAMES]
+    faces += [c for c, P in zip(composed, ms.patches) if P.spline.dim == 2]
     s = 1
     while True:
         worst = 0.0
@@ -230,12 +231,9 @@ def boundary_splines(ms: Microstructure) -> list:
     """The exact boundary of ``ms`` as splines in physical space: every free side of a trivariate patch
     (composed), every surface patch and every curve patch.  Slot faces (free parts of discontinuity
     planes) are trimmed regions of a side and are not included."""
-    out = []
-    for i, f in ms.tags.get("boundary", []):
-        if f in FACE_NAMES:
-            out.append(ms.patches[i].composed.boundary(f))
-    out += [P.composed for P in ms.patches if P.spline.dim in (1, 2)]
-    return out
+    composed = ms.compose_all()
+    out = [composed[i].boundary(f) for i, f in ms.tags.get("boundary", []) if f in FACE_NAMES]
+    return out + [c for c, P in zip(composed, ms.patches) if P.spline.dim in (1, 2)]
 
 
 def write_iges(path, ms: Microstructure, units: str = "m") -> Path:

@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from geometry import BSpline, compose_many, progress
+from geometry import BSpline
 from geometry.errors import SplineError
 from geometry.faces import FACE_NAMES, discontinuity_slots, face_knots, nested_refinement
 from geometry.multipatch import Interface, MultiPatch, PlacedPatch, detect_interfaces, tile_corners
@@ -85,19 +85,6 @@ class Microstructure(MultiPatch):
         if tolerance is not None:
             samples = export.samples_for_tolerance(self, tolerance)
         return export.surface(self, samples)
-
-    def compose_all(self) -> list[BSpline]:
-        """Compose every patch into D, batched per tile patch (cached on the patches)."""
-        groups: dict = {}
-        for i, p in enumerate(self.patches):
-            if not p.is_composed:
-                groups.setdefault(id(p.spline), []).append(i)
-        for members in progress.bar(list(groups.values()), desc="composition", unit="tile patch"):
-            spline = self.patches[members[0]].spline
-            res = compose_many(self.outer, spline, np.stack([self.patches[i].placement for i in members]))
-            for i, r in zip(members, res):
-                self.patches[i].set_composed(r)
-        return [p.composed for p in self.patches]
 
     # ------------------------------------------------------------- assembly
     @classmethod
