@@ -32,7 +32,8 @@ from .errors import show
 FORMAT = "iga-toolkit-splines"
 VERSION = 1
 
-__all__ = ["save", "load", "save_all", "load_all", "atomic_write", "check_folder"]
+__all__ = ["save", "load", "save_all", "load_all", "atomic_write", "check_folder", "offscreen_plotter",
+           "save_screenshot"]
 
 
 def check_folder(path, error=SplineError) -> Path:
@@ -183,3 +184,26 @@ def load(path) -> BSpline:
     if len(items) != 1:
         raise SplineError(f"{path} holds {len(items)} splines; use load_all()")
     return items[0]
+
+
+def offscreen_plotter(window=(1000, 800)):
+    """A ``pyvista.Plotter`` that renders off screen (EGL works without X; VTK's note about it is silenced)."""
+    import pyvista as pv
+
+    pv.vtk_verbosity("off")
+    return pv.Plotter(off_screen=True, window_size=list(window))
+
+
+def save_screenshot(pl, path, error=SplineError, camera="iso", zoom: float = 1.0) -> Path:
+    """Frame ``pl`` (``camera``, ``zoom``, white background), write it to the PNG ``path`` atomically, close it.
+
+    ``error``: the calling package's exception for an unwritable path.
+    """
+    pl.camera_position = camera
+    if zoom != 1.0:
+        pl.camera.zoom(zoom)
+    pl.set_background("white")
+    try:
+        return atomic_write(Path(path), lambda tmp: pl.screenshot(tmp), ".png", error)
+    finally:
+        pl.close()

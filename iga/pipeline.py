@@ -21,7 +21,7 @@ import numpy as np
 import tiling
 from geometry import BSpline, load, resources
 from geometry import progress as display
-from geometry.io import atomic_write
+from geometry.io import atomic_write, offscreen_plotter, save_screenshot
 from tiling.library import TILES
 from tiling.materials import graded_channel
 
@@ -85,20 +85,13 @@ def render_temperature(vtu_path: Path, png_path: Path, title: str = "temperature
     """Offscreen render of a written .vtu coloured by temperature, with a scalar bar (atomic)."""
     import pyvista as pv
 
-    pv.vtk_verbosity("off")  # offscreen (EGL) rendering works without X; silence VTK's note about it
     mesh = pv.read(vtu_path).extract_surface(algorithm="dataset_surface")
-    pl = pv.Plotter(off_screen=True, window_size=[1200, 850])
+    pl = offscreen_plotter((1200, 850))
     pl.add_mesh(mesh, scalars="temperature", cmap="inferno", smooth_shading=True, split_sharp_edges=True,
                 scalar_bar_args={"title": title, "vertical": True, "fmt": "%.2f", "position_x": 0.86,
                                  "position_y": 0.12, "width": 0.08, "height": 0.7, "title_font_size": 18,
                                  "label_font_size": 16})
-    pl.camera_position = "iso"
-    pl.camera.zoom(0.85)  # room for the scalar bar beside the model
-    pl.set_background("white")
-    try:
-        atomic_write(png_path, lambda tmp: pl.screenshot(tmp), ".png", ProblemError)
-    finally:
-        pl.close()
+    save_screenshot(pl, png_path, ProblemError, "iso", 0.85)  # zoom out: room for the scalar bar beside the model
 
 
 def _output_folder(path: Path) -> bool:

@@ -24,7 +24,7 @@ import numpy as np
 
 from geometry import Interface, MultiPatch
 from geometry.faces import FACE_NAMES
-from geometry.io import atomic_write
+from geometry.io import atomic_write, offscreen_plotter, save_screenshot
 from geometry.sampling import sample_axes, sampled_mesh, weld
 
 from .errors import TilingError
@@ -195,15 +195,12 @@ def _save(mesh, tmp, suffix):
 def render_png(ms: Microstructure, path, samples: int = 6, color_by: str = "level", window=(1000, 800),
                camera: str = "iso") -> Path:
     """Offscreen pyvista render of the boundary, coloured by ``level``, ``tile`` or ``patch``."""
-    import pyvista as pv
-
-    pv.vtk_verbosity("off")  # offscreen (EGL) rendering works without X; silence VTK's note about it
     attr = {"level": [p.level for p in ms.patches], "tile": [p.tile for p in ms.patches],
             "patch": list(range(len(ms.patches)))}
     if color_by not in attr:
         raise TilingError(f"color_by must be one of {sorted(attr)}, got {show(color_by)}")
     mesh = surface(ms, samples)
-    pl = pv.Plotter(off_screen=True, window_size=list(window))
+    pl = offscreen_plotter(window)
     tris = mesh.extract_cells_by_type(5)
     if tris.n_cells:
         tris.cell_data[color_by] = np.asarray(attr[color_by])[tris.cell_data["patch"]]
@@ -219,12 +216,7 @@ def render_png(ms: Microstructure, path, samples: int = 6, color_by: str = "leve
     if lines.n_cells:
         size = float(np.ptp(np.asarray(lines.points), axis=0).max())
         pl.add_mesh(lines.extract_surface(algorithm="dataset_surface").tube(radius=0.01 * size), color="darkred")
-    pl.camera_position = camera
-    pl.set_background("white")
-    try:
-        return atomic_write(Path(path), lambda tmp: pl.screenshot(tmp), ".png", TilingError)
-    finally:
-        pl.close()
+    return save_screenshot(pl, path, TilingError, camera)
 
 
 def boundary_splines(ms: Microstructure) -> list:

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from geometry.errors import show
-from geometry.io import atomic_write
+from geometry.io import offscreen_plotter, save_screenshot
 
 from .errors import TilingError
 
@@ -44,12 +44,9 @@ def render_png(structure, path, *, trees: bool = False, surface: bool = True, co
     or "u", "v", "w"); default a plain colour.  ``trees``: draw the trees
     (Fig. 5); with ``surface`` as well, the surface is drawn translucent.
     """
-    import pyvista as pv
-
     if not (trees or surface):
         raise TilingError("nothing to render: ask for the surface, the trees, or both")
-    pv.vtk_verbosity("off")  # offscreen (EGL) rendering works without X; silence VTK's note about it
-    pl = pv.Plotter(off_screen=True, window_size=list(window))
+    pl = offscreen_plotter(window)
     if surface:
         mesh = structure.surface(resolution)
         if color_by is not None and color_by not in mesh.point_data:
@@ -64,10 +61,4 @@ def render_png(structure, path, *, trees: bool = False, surface: bool = True, co
         size = float(np.ptp(structure.outer.control_points[..., :3].reshape(-1, 3), axis=0).max())
         for lines, colour in zip(tree_lines(structure), TREE_COLOURS):
             pl.add_mesh(lines.tube(radius=0.006 * size), color=colour)
-    pl.camera_position = camera
-    pl.camera.zoom(zoom)
-    pl.set_background("white")
-    try:
-        return atomic_write(Path(path), lambda tmp: pl.screenshot(tmp), ".png", TilingError)
-    finally:
-        pl.close()
+    return save_screenshot(pl, path, TilingError, camera, zoom)
