@@ -47,6 +47,7 @@ from geometry.errors import check_seed, show
 from geometry.resources import check_memory
 
 from .errors import TilingError
+from .paving import _check_counts
 from .implicit_surface import EdgeSplines, SurfaceOutputs, zero_surface
 from .implicit_connect import (Builder, cell_knots, connect_cells, connect_faces, grid_graph, open_cavities,
                                spanning_trees)
@@ -194,9 +195,7 @@ class ImplicitStructure(SurfaceOutputs):
 def _check_inputs(D, counts, degree, controls, alpha, continuity, connectivity, canonical, shell):
     if not isinstance(D, BSpline) or D.dim != 3:
         raise TilingError(f"the deformation map must be a trivariate geometry.BSpline, got {type(D).__name__}")
-    if not (isinstance(counts, (list, tuple, np.ndarray)) and len(counts) == 3 and all(
-            isinstance(c, (int, np.integer)) and not isinstance(c, bool) and c >= 1 for c in counts)):
-        raise TilingError(f"counts must be 3 positive integers (cells per direction), got {show(counts)}")
+    _check_counts(counts, 3, "counts (cells per direction)")
     for name, v, lo in (("degree", degree, 1), ("controls", controls, 2)):
         if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < lo:
             raise TilingError(f"{name} must be an integer >= {lo}, got {show(v)}")

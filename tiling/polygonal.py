@@ -23,6 +23,7 @@ from geometry.errors import show
 from geometry.resources import check_memory
 
 from .errors import TilingError
+from .paving import _check_counts
 
 __all__ = ["PolygonTile", "pave_polygons", "beam_lattice"]
 
@@ -75,9 +76,7 @@ def pave_polygons(D: BSpline, tile: PolygonTile, counts):
         raise TilingError(f"the deformation map must be a trivariate geometry.BSpline, got {show(D)}")
     if not isinstance(tile, PolygonTile):
         raise TilingError(f"tile must be a tiling.polygonal.PolygonTile, got {type(tile).__name__}")
-    if not (isinstance(counts, (list, tuple)) and len(counts) == 3 and all(
-            isinstance(c, (int, np.integer)) and not isinstance(c, bool) and c >= 1 for c in counts)):
-        raise TilingError(f"counts must be 3 positive integers, got {show(counts)}")
+    counts = _check_counts(counts, 3, "counts")
     n_cells = int(np.prod(counts))
     check_memory(n_cells * len(tile.points) * 200.0, f"the polygonal paving ({n_cells:,} cells)", TilingError,
                  "lower the counts")
