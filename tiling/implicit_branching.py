@@ -141,10 +141,15 @@ class BifurcationStructure(SurfaceOutputs):
 def _sample(boxes, fields, axes) -> np.ndarray:
     F = np.empty(tuple(len(a) for a in axes))
     for box, f in zip(boxes, fields):
-        sl = [slice(int(np.searchsorted(a, lo - 1e-12)), int(np.searchsorted(a, hi + 1e-12, side="right")))
-              for a, (lo, hi) in zip(axes, box)]
-        F[tuple(sl)] = grid_values(f, [a[s] for a, s in zip(axes, sl)])
+        sl = _window(axes, box)
+        F[sl] = grid_values(f, [a[s] for a, s in zip(axes, sl)])
     return F
+
+
+def _window(axes, box) -> tuple:
+    """Slices of the sample ``axes`` (sorted, per direction) that lie in the parameter ``box`` (3, 2), ends included."""
+    return tuple(slice(int(np.searchsorted(a, lo - 1e-12)), int(np.searchsorted(a, hi + 1e-12, side="right")))
+                 for a, (lo, hi) in zip(axes, box))
 
 
 def _canonical_face(degree, controls, radius=0.35):
@@ -244,8 +249,9 @@ def _unit_faces(cells, degree, controls, alpha, cap, rng, radius, axes, stats) -
             k = FACE_NAMES.index(f) // 2
             box = cells.boxes[i]
             lines = []
+            window = _window(axes, box)
             for d in (j for j in range(3) if j != k):  # the face's sample lines, normalised
-                a = axes[d][(axes[d] >= box[d, 0] - 1e-12) & (axes[d] <= box[d, 1] + 1e-12)]
+                a = axes[d][window[d]]
                 lines.append(np.clip((a - box[d, 0]) / (box[d, 1] - box[d, 0]), 0.0, 1.0))
             for h in range(_HALVINGS + 1):
                 a = 0.0 if h == _HALVINGS else alpha * 0.5 ** h
@@ -328,8 +334,7 @@ def _random_interior(f, alpha, rng, box, axes, stats, i):
     """
     C = f.coefficients[..., 0]
     noise = rng.uniform(-1.0, 1.0, C.shape)
-    sl = [slice(int(np.searchsorted(a, lo - 1e-12)), int(np.searchsorted(a, hi + 1e-12, side="right")))
-          for a, (lo, hi) in zip(axes, box)]
+    sl = _window(axes, box)
     sub = [a[s] for a, s in zip(axes, sl)]
     inner = (slice(1, -1),) * 3
     for h in range(_HALVINGS + 1):
@@ -340,7 +345,7 @@ def _random_interior(f, alpha, rng, box, axes, stats, i):
         v = grid_values(g, sub)
         if _cell_ok(v):
             stats["cell_halvings"][i] = h
-            return g, tuple(sl), v
+            return g, sl, v
         if a == 0.0:
             break
     raise TilingError(f"cell {i} (parameter box {show(box.tolist())}) is not one connected piece even with its "
