@@ -43,6 +43,7 @@ from geometry.gismo_xml import GismoCondition, read_gismo, write_gismo
 
 from .errors import ProblemError
 from .model import tag_faces
+from .problem import HeatProblem
 
 __all__ = ["export_gismo", "load_gismo", "problem_from_gismo"]
 
@@ -121,8 +122,6 @@ def problem_from_gismo(path, **options):
     and ``source`` (default 1 and 0); each boundary condition applies to its
     tag ``bc{j}``.  Expressions must be numbers.
     """
-    from .problem import HeatProblem
-
     model = load_gismo(path)
     g = model.gismo
 
