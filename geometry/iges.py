@@ -22,6 +22,7 @@ import numpy as np
 from .bspline import BSpline
 from .errors import SplineError, show
 from .io import atomic_write
+from .trimmed import TrimmedSurface
 
 __all__ = ["write_iges", "UNITS"]
 
@@ -88,8 +89,6 @@ def write_iges(path, splines, *, units: str = "m", author: str = "iga-microstruc
         raise SplineError("write_iges needs at least one curve or surface")
     if units not in UNITS:
         raise SplineError(f"units must be one of {sorted(UNITS)}, got {show(units)}")
-    from .trimmed import TrimmedSurface
-
     params, status = [], []  # per entity: parameter list, DE status digits
 
     def add(prm, st="00000000") -> int:

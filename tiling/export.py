@@ -24,6 +24,8 @@ import numpy as np
 
 from geometry import Interface, MultiPatch
 from geometry.faces import FACE_NAMES
+from geometry.errors import SplineError
+from geometry.iges import write_iges as _write_iges
 from geometry.io import atomic_write, offscreen_plotter, save_screenshot
 from geometry.sampling import sample_axes, sampled_mesh, weld
 
@@ -230,13 +232,10 @@ def boundary_splines(ms: Microstructure) -> list:
 
 def write_iges(path, ms: Microstructure, units: str = "m") -> Path:
     """Write the exact boundary surfaces of ``ms`` (:func:`boundary_splines`) to IGES (entities 128, 126)."""
-    from geometry.errors import SplineError
-    from geometry.iges import write_iges as _write
-
     splines = boundary_splines(ms)
     if not splines:
         raise TilingError(f"{ms.name or 'the micro-structure'} has no boundary surfaces to export")
     try:
-        return _write(path, splines, units=units, name=ms.name)
+        return _write_iges(path, splines, units=units, name=ms.name)
     except SplineError as exc:
         raise TilingError(str(exc)) from None
