@@ -26,6 +26,7 @@ from math import comb
 
 import numpy as np
 
+from . import progress
 from .bspline import BSpline
 from .errors import SplineError, show
 
@@ -180,7 +181,7 @@ def reduce_model(model, degree: int = 3, check: int = 9) -> tuple[list, dict]:
     "degrees_before"}.
     """
     out, devs, before, after, degs = [], [], 0, 0, set()
-    for spline in model.compose_all():
+    for spline in progress.bar(model.compose_all(), desc="degree reduction", unit="patch"):
         r, dev = reduce_degree(spline, degree, check)
         out.append(r)
         devs.append(dev)

@@ -36,7 +36,7 @@ from functools import lru_cache
 import numpy as np
 from scipy import ndimage
 
-from geometry import BSpline, SplineFunction
+from geometry import BSpline, SplineFunction, progress
 from geometry import knots as kn
 from geometry.errors import check_seed, show
 from geometry.faces import FACE_NAMES
@@ -217,7 +217,7 @@ def implicit_bifurcation(D: BSpline, epsilon: float, *, degree: int = 3, control
     axes = out.axes()
     F = np.empty(tuple(len(a) for a in axes))
     unit = _unit_faces(cells, degree, controls, alpha, cap, rng, radius, axes, stats)
-    for i in range(len(cells)):
+    for i in progress.bar(range(len(cells)), desc="implicit bifurcation cells", unit="cell"):
         faces = {f: _cell_face(cells, i, f, unit, degree) for f in FACE_NAMES}
         base = _with_tubes(boolean_sum(faces, degree, cells.boxes[i], RIM), _targets(cells, i, cap), radius)
         out.fields[i], sl, v = _random_interior(base, alpha, rng, cells.boxes[i], axes, stats, i)
