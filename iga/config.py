@@ -12,7 +12,7 @@ folder.  The schema (README, "Pipelines")::
                grading = {channel, near, far, face, mode}        (optional)
     [tile]     library = one of tiling.library.TILES, args = {...}
     [paving]   scheme = "hierarchical" | "regular", counts, levels, scale;
-               regular only: seal = "cap" | "shell", thickness, seal_sides
+               seal = "cap" | "shell", thickness, seal_sides (either scheme)
     [material] conductivity = number | channel | 6 channels | 3 x 3 matrix, source = number
     [[bc]]     kind = "dirichlet" | "neumann" | "robin", tag, value | (h, ambient)
     [solver]   method, tol, maxiter, refine, degree_elevation
@@ -233,24 +233,21 @@ def validate(config, base_dir=".") -> dict:
     if scheme == "hierarchical":
         pav["levels"] = _int(p.get("levels", 2), "paving.levels", 1)
         pav["scale"] = None if "scale" not in p else _number(p["scale"], "paving.scale", lo=0)
-        for key in ("seal", "thickness", "seal_sides"):
-            if key in p:
-                _fail(f"paving.{key}", "applies to the regular scheme only (hierarchical pavings cannot be sealed yet)")
     else:
         for key in ("levels", "scale"):
             if key in p:
                 _fail(f"paving.{key}", "applies to the hierarchical scheme only")
-        if "seal" in p:
-            pav["seal"] = _choice(p["seal"], "paving.seal", ("cap", "shell"))
-            pav["thickness"] = _number(p.get("thickness", 0.1), "paving.thickness", lo=0, hi=0.5)
-            sides = p.get("seal_sides", list(FACE_NAMES))
-            if not isinstance(sides, list) or not sides or any(x not in FACE_NAMES for x in sides):
-                _fail("paving.seal_sides", f"must be a list of face names from {list(FACE_NAMES)}, got {show(sides)}")
-            pav["seal_sides"] = list(sides)
-        else:
-            for key in ("thickness", "seal_sides"):
-                if key in p:
-                    _fail(f"paving.{key}", "needs paving.seal = \"cap\" or \"shell\"")
+    if "seal" in p:
+        pav["seal"] = _choice(p["seal"], "paving.seal", ("cap", "shell"))
+        pav["thickness"] = _number(p.get("thickness", 0.1), "paving.thickness", lo=0, hi=0.5)
+        sides = p.get("seal_sides", list(FACE_NAMES))
+        if not isinstance(sides, list) or not sides or any(x not in FACE_NAMES for x in sides):
+            _fail("paving.seal_sides", f"must be a list of face names from {list(FACE_NAMES)}, got {show(sides)}")
+        pav["seal_sides"] = list(sides)
+    else:
+        for key in ("thickness", "seal_sides"):
+            if key in p:
+                _fail(f"paving.{key}", "needs paving.seal = \"cap\" or \"shell\"")
     cfg["paving"] = pav
     mat = _table(config.get("material", {}), "material", {"conductivity", "source"})
     cfg["material"] = {"conductivity": _conductivity(mat.get("conductivity", 1.0), "material.conductivity"),

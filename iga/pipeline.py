@@ -73,12 +73,10 @@ def _build_map(cfg) -> BSpline:
 def _build_tiling(cfg, D):
     tile = TILES[cfg["tile"]["library"]](**cfg["tile"]["args"])
     p = cfg["paving"]
+    seal = {k: p[k] for k in ("seal", "thickness", "seal_sides") if k in p}
     if p["scheme"] == "hierarchical":
-        return tiling.hierarchical(D, tile, p["counts"], p["levels"], p["scale"])
-    if "seal" in p:
-        return tiling.regular(D, tile, p["counts"], seal=p["seal"], thickness=p["thickness"],
-                              seal_sides=p["seal_sides"])
-    return tiling.regular(D, tile, p["counts"])
+        return tiling.hierarchical(D, tile, p["counts"], p["levels"], p["scale"], **seal)
+    return tiling.regular(D, tile, p["counts"], **seal)
 
 
 def render_temperature(vtu_path: Path, png_path: Path, title: str = "temperature (C)"):

@@ -81,6 +81,44 @@ def test_one_cell_is_sealed_on_both_sides():
     assert len(t.seal_patches) == 5 ** 3 - 3 ** 3
 
 
+SINK = pr.box((0.06, 0.06, 0.03))
+
+
+def test_a_hierarchy_capped_on_top_and_bottom_passes_the_patch_test_and_is_closed():
+    # the lid meets 16 fin tops and the slots between them: refinement interfaces where a plate meets part of a
+    # fin's face, identity where it meets a whole one
+    ms = tiling.hierarchical(SINK, L.heat_sink_t2(), (2, 2), levels=2, seal="cap", seal_sides=("wmin", "wmax"))
+    plates = {id(t): t for t in ms.tiles if t.name.startswith("heat_sink_t2 cap")}
+    assert len(plates) == 1  # one layout for every base cell (all are sealed on the same sides), not one per cell
+    plate_ids = {id(p) for t in plates.values() for p in t.patches}
+    to_plate = [i for i in ms.interfaces if i.kind == "branch" and id(ms.patches[i.b[0]].spline) in plate_ids]
+    assert len(to_plate) > 0
+    s = HeatProblem(ms).dirichlet("boundary", linear).solve()
+    assert s.l2_error(linear) < 1e-9
+    assert ms.tags["branch-in"] == [] and ms.tags["branch-out"] == []  # base and fin tips are covered now
+    w = tiling.export.watertightness(ms)
+    assert w["closed"] and w["manifold"] and w["components"] == 1
+
+
+def test_heat_through_the_lid_of_a_capped_heat_sink():
+    ms = tiling.hierarchical(SINK, L.heat_sink_t2(), (2, 2), levels=2, seal="cap", seal_sides=("wmax",))
+    lid = ms.tags["wmax"]
+    assert lid and set(lid) <= set(ms.tags["cap"])
+    s = HeatProblem(ms, conductivity=200.0).neumann("wmax", -5e4).dirichlet("branch-in", 60.0).solve()
+    assert s.info["balance"]["relative_error"] < 1e-9
+    area = surface_area(SINK.boundary("wmax"))  # the lid covers D's whole top face
+    assert s.flux("wmax") == pytest.approx(5e4 * area, rel=1e-10)
+    assert s.flux("branch-in") == pytest.approx(-5e4 * area, rel=1e-8)
+
+
+def test_a_tapered_side_cannot_be_capped_by_box_plates():
+    with pytest.raises(TilingError, match="heat_sink_t2.*umin.*leave umin out of seal_sides"):
+        tiling.hierarchical(SINK, L.heat_sink_t2(), (2, 2), levels=2, seal="cap")
+    inside = tiling.Tile([pr.box((0.5, 0.5, 0.5), (0.25, 0.25, 0.25))], name="floating block")
+    with pytest.raises(TilingError, match="floating block.*no boundary faces on the cell walls"):
+        tiling.regular(AFFINE, inside, (2, 2, 2), seal="cap")
+
+
 def test_seal_bad_input():
     with pytest.raises(TilingError, match="seal must be"):
         tiling.regular(AFFINE, L.cross(), (2, 2, 2), seal="lid")
@@ -108,6 +146,18 @@ def test_pipeline_with_a_sealed_paving(tmp_path):
     summary = run_pipeline(_sealed_config(seal="cap", seal_sides=["wmax"], thickness=0.15), tmp_path)
     assert summary["energy_balance_error"] < 1e-9 and summary["temperature_C"]["max"] > 20.0
     assert summary["inflow_W"] == pytest.approx(summary["outflow_W"], rel=1e-9)
+
+
+def test_pipeline_with_a_capped_hierarchy(tmp_path):
+    from iga.pipeline import run_pipeline
+
+    cfg = _sealed_config()
+    cfg["map"]["args"]["size"] = [0.06, 0.06, 0.03]
+    cfg["tile"] = {"library": "heat_sink_t1"}
+    cfg["paving"] = {"scheme": "hierarchical", "counts": [2, 2], "levels": 2, "seal": "cap", "seal_sides": ["wmax"]}
+    cfg["bc"] = [{"kind": "neumann", "tag": "branch-in", "value": 1e4}, {"kind": "robin", "tag": "cap", "h": 50.0, "ambient": 20.0}]
+    summary = run_pipeline(cfg, tmp_path)
+    assert summary["energy_balance_error"] < 1e-9 and summary["temperature_C"]["min"] > 20.0
 
 
 @pytest.mark.parametrize("paving,match", [

@@ -153,8 +153,9 @@ def _tags(outer, placed, interfaces, root_faces, leaf_faces=()) -> dict:
                 continue
             tags[names[where[t, fi]]].append((i, f))
             tags["boundary"].append((i, f))
-    tags["branch-in"] = list(root_faces)
-    tags["branch-out"] = list(leaf_faces)  # free branch-out faces of the last level (fin tips)
+    # root and leaf faces a seal plate covers are glued, not free
+    tags["branch-in"] = [f for f in root_faces if f not in glued]
+    tags["branch-out"] = [f for f in leaf_faces if f not in glued]  # free branch-out faces of the last level
     return tags
 
 

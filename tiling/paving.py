@@ -17,7 +17,7 @@ from geometry.sampling import sample_axes
 
 from .errors import TilingError
 from .microstructure import Microstructure, PlacedPatch
-from .seal import sealed_variant
+from .seal import seal_layout, sealed_variant
 from .tile import Tile
 from geometry.faces import FACE_NAMES
 from geometry.errors import show
@@ -126,12 +126,7 @@ def regular(D: BSpline, tile: Tile, counts, variants: dict | None = None, name: 
     counts = _check_counts(counts, 3, "counts")
     if seal is not None and variants:
         raise TilingError("give variants or seal, not both")
-    if seal not in (None, "cap", "shell"):
-        raise TilingError(f"seal must be 'cap', 'shell' or None, got {show(seal)}")
-    allowed = set(FACE_NAMES) if seal == "shell" or seal_sides is None else set(seal_sides)
-    if not allowed <= set(FACE_NAMES):
-        raise TilingError(f"seal_sides must be face names of D's domain from {list(FACE_NAMES)}, got "
-                          f"{show(seal_sides)}")
+    allowed = _seal_sides(seal, seal_sides)
     variants = dict(variants or {})
     for key, t in variants.items():
         if not isinstance(t, Tile) or len(key) != 3 or any(v not in (-1, 0, 1) for v in key):
@@ -140,7 +135,7 @@ def regular(D: BSpline, tile: Tile, counts, variants: dict | None = None, name: 
     _check_budget(float(np.prod([c * s for c, s in zip(counts, spans)], dtype=float)), tile, "the regular paving")
     cells = [_cells(D, k, counts[k]) for k in range(3)]
     N = [len(c) for c in cells]
-    placed, tiles = [], []
+    placed, tiles, links = [], [], []
     sealed: dict = {}  # sealed variants, built once per set of sides
     for i in range(N[0]):
         for j in range(N[1]):
@@ -159,27 +154,53 @@ def regular(D: BSpline, tile: Tile, counts, variants: dict | None = None, name: 
                 lo = np.array([cells[0][i, 0], cells[1][j, 0], cells[2][k, 0]])
                 hi = np.array([cells[0][i, 1], cells[1][j, 1], cells[2][k, 1]])
                 M = np.column_stack([np.diag(hi - lo), lo])
-                tid = len(tiles)
+                tid, first = len(tiles), len(placed)
                 tiles.append(t)
                 for pi, patch in enumerate(t.patches):
                     placed.append(PlacedPatch(patch, M, D, tid, 0, pi))
+                links += [(first + a, f, box, first + b, g) for a, f, box, b, g in getattr(t, "seal_links", ())]
     _check_spans(D, placed)
-    ms = Microstructure.build(D, placed, tiles, [], name=name)
+    ms = Microstructure.build(D, placed, tiles, links, name=name)
     if seal is not None:
-        plate = {(id(t), i) for t in sealed.values() for i in t.seal_patches}
-        ms.tags[seal] = [(p, f) for p, f in ms.tags["boundary"]
-                         if (id(tiles[placed[p].tile]), placed[p].patch_in_tile) in plate]
+        _tag_seal(ms, seal, {(id(t), i) for t in sealed.values() for i in t.seal_patches})
     return ms
 
 
+def _tag_seal(ms: Microstructure, seal: str, plates: set) -> None:
+    """Tag ``seal`` ('cap' / 'shell'): the free faces of the plates, given as (id(tile), patch in tile)."""
+    ms.tags[seal] = [(p, f) for p, f in ms.tags["boundary"]
+                     if (id(ms.tiles[ms.patches[p].tile]), ms.patches[p].patch_in_tile) in plates]
+
+
+def _seal_sides(seal, seal_sides) -> set:
+    if seal not in (None, "cap", "shell"):
+        raise TilingError(f"seal must be 'cap', 'shell' or None, got {show(seal)}")
+    allowed = set(FACE_NAMES) if seal == "shell" or seal_sides is None else set(seal_sides)
+    if not allowed <= set(FACE_NAMES):
+        raise TilingError(f"seal_sides must be face names of D's domain from {list(FACE_NAMES)}, got "
+                          f"{show(seal_sides)}")
+    return allowed
+
+
 def hierarchical(D: BSpline, tile: Tile, counts, levels: int, scale: float | None = None,
-                 name: str = "hierarchical") -> Microstructure:
+                 name: str = "hierarchical", seal: str | None = None, thickness: float = 0.1,
+                 seal_sides=None) -> Microstructure:
     """Hierarchical paving (Massarwi et al. 2018, Section 3): base copies, then a child on every branch-out face, recursively.
 
     ``counts`` = (cx, cy) base copies per knot span of D along u, v; ``levels``
     counts the base level; ``scale`` (default: the tile's) is the height of a
     child relative to its parent along the growth direction.  The whole
     hierarchy is scaled (axis-aligned) into each base cell of D's domain.
+
+    ``seal="cap"`` / ``"shell"`` seals every base cell on the sides of D's
+    domain it touches (``seal_sides``, default all six; every cell spans D's
+    w range, so ``wmin`` is under the base and ``wmax`` over the last level)
+    with plates of ``thickness`` (a fraction of the cell) that conform to the
+    tiles of every level (:func:`tiling.seal.seal_layout`; refinement
+    interfaces where a plate meets part of a face).  The hierarchy of a
+    sealed cell is squeezed out of the layers.  Faces on a sealed wall must
+    be axis-aligned rectangles per continuous piece: the tapered fins of the
+    heat-sink tiles can be capped on ``wmin`` / ``wmax``, not on their sides.
 
     >>> from geometry import primitives
     >>> from tiling import library
@@ -191,6 +212,7 @@ def hierarchical(D: BSpline, tile: Tile, counts, levels: int, scale: float | Non
     if not isinstance(tile, Tile) or not tile.hierarchical:
         raise TilingError("hierarchical paving needs a Tile with a branch-in face and branch-out faces")
     cx, cy = _check_counts(counts, 2, "counts")
+    allowed = _seal_sides(seal, seal_sides)
     if not _is_int(levels) or levels < 1:
         raise TilingError(f"levels must be a positive integer, got {show(levels)}")
     b = len(tile.branch_outs)
@@ -218,27 +240,47 @@ def hierarchical(D: BSpline, tile: Tile, counts, levels: int, scale: float | Non
     cu, cv = _cells(D, 0, cx), _cells(D, 1, cy)
     dw = D.domain[2]
     placed, tiles, links, roots, leaves = [], [], [], [], []
-    npt = len(tile.patches)
+    layouts: dict = {}  # seal plates per set of sealed sides, built once
+    flat = [p.affine(G[:3, :3], G[:3, 3]) for M, *_ in nodes for G in [Nrm @ M] for p in tile.patches] if seal else []
     for i in progress.bar(range(len(cu)), desc="hierarchical paving", unit="column"):
         for j in range(len(cv)):
             lo_c = np.array([cu[i, 0], cv[j, 0], dw[0]])
             hi_c = np.array([cu[i, 1], cv[j, 1], dw[1]])
             cell = _affine(np.column_stack([np.diag(hi_c - lo_c), lo_c]))
-            base = len(tiles)
+            at = {"umin": i == 0, "umax": i == len(cu) - 1, "vmin": j == 0, "vmax": j == len(cv) - 1,
+                  "wmin": True, "wmax": True}
+            sides = frozenset(f for f in FACE_NAMES if at[f] and f in allowed) if seal else frozenset()
+            squeeze = np.eye(4)
+            if sides:
+                if sides not in layouts:
+                    lay = seal_layout(flat, sides, thickness, seal, tile.name)
+                    layouts[sides] = (lay, Tile(lay.plates, name=f"{tile.name} {seal} ({'+'.join(sorted(sides))})"))
+                squeeze = layouts[sides][0].squeeze()
+            cell_first, node_first = len(placed), []
             for M, lev, parent, bj in nodes:
                 tid = len(tiles)
                 tiles.append(tile)
-                G = (cell @ Nrm @ M)[:3]
+                G = (cell @ squeeze @ Nrm @ M)[:3]
                 first = len(placed)
+                node_first.append(first)
                 for pi, patch in enumerate(tile.patches):
                     placed.append(PlacedPatch(patch, G, D, tid, lev, pi))
                 if parent >= 0:
                     bf = tile.branch_outs[bj]
-                    pfirst = (base + parent) * npt
-                    links.append((pfirst + bf.patch, bf.face, bf.box, first + tile.branch_in.patch, tile.branch_in.face))
+                    links.append((node_first[parent] + bf.patch, bf.face, bf.box, first + tile.branch_in.patch,
+                                  tile.branch_in.face))
                 else:
                     roots.append((first + tile.branch_in.patch, tile.branch_in.face))
                 if lev == levels - 1:
                     leaves += [(first + bf.patch, bf.face) for bf in tile.branch_outs]
+            if sides:
+                lay, plates = layouts[sides]
+                tid, pfirst = len(tiles), len(placed)
+                tiles.append(plates)
+                placed += [PlacedPatch(p, cell[:3], D, tid, 0, q) for q, p in enumerate(plates.patches)]
+                links += [(cell_first + a, f, box, pfirst + q, g) for a, f, box, q, g in lay.links]
     _check_spans(D, placed)
-    return Microstructure.build(D, placed, tiles, links, name=name, root_faces=roots, leaf_faces=sorted(set(leaves)))
+    ms = Microstructure.build(D, placed, tiles, links, name=name, root_faces=roots, leaf_faces=sorted(set(leaves)))
+    if layouts:
+        _tag_seal(ms, seal, {(id(t), q) for _, t in layouts.values() for q in range(len(t.patches))})
+    return ms
