@@ -30,7 +30,7 @@ from .composition import compose
 from .errors import SplineError, show
 from .resources import check_memory
 
-__all__ = ["TrimmedSurface", "reversed_curve"]
+__all__ = ["TrimmedSurface", "reversed_curve", "join_curves", "loop_polyline", "inside_polyline"]
 
 _LOOP_SAMPLES = 64  # per knot span, for the validity checks
 
@@ -41,6 +41,37 @@ def reversed_curve(c: BSpline) -> BSpline:
     a, b = U[0], U[-1]
     w = None if c.weights is None else c.weights[::-1].copy()
     return BSpline((p,), [(a + b) - U[::-1]], c.control_points[::-1].copy(), w, c.channels)
+
+
+def join_curves(curves, tol: float = 1e-9) -> BSpline:
+    """One curve through ``curves`` end to start, C0 at the joints: curve i runs over [i, i + 1].
+
+    Degrees are raised to the highest; rational pieces keep their shape (weights rescaled so the joint
+    weights agree).  Raises :class:`SplineError` where a curve does not start where the previous one ends.
+    """
+    curves = list(curves)
+    if not curves or not all(isinstance(c, BSpline) and c.dim == 1 for c in curves):
+        raise SplineError("join_curves needs a non-empty list of B-spline curves")
+    p = max(c.degrees[0] for c in curves)
+    rational = any(c.is_rational for c in curves)
+    knots, pts, wts = [np.zeros(p + 1)], [], []
+    for i, c in enumerate(curves):
+        c = c.elevate_to((p,)).reparametrize([[i, i + 1]])
+        cp = c.control_points[..., :3]
+        w = np.ones(len(cp)) if c.weights is None else c.weights.ravel().copy()
+        if pts:
+            gap = float(np.linalg.norm(cp[0] - pts[-1][-1]))
+            if gap > tol:
+                raise SplineError(f"curve {i} starts {gap:.3g} away from where curve {i - 1} ends; the curves must "
+                                  "follow each other end to start")
+            w *= wts[-1][-1] / w[0]
+            cp, w = cp[1:], w[1:]
+        U = c.knots[0]
+        knots.append(U[p + 1:-(p + 1)])
+        knots.append(np.full(p if i < len(curves) - 1 else p + 1, i + 1.0))
+        pts.append(cp)
+        wts.append(w)
+    return BSpline((p,), [np.concatenate(knots)], np.concatenate(pts), np.concatenate(wts) if rational else None)
 
 
 def _polyline(c: BSpline, per_span: int = _LOOP_SAMPLES) -> np.ndarray:
@@ -83,6 +114,10 @@ def _inside(poly: np.ndarray, pts: np.ndarray) -> np.ndarray:
     with np.errstate(divide="ignore", invalid="ignore"):
         xc = x0 + (py - y0) * (x1 - x0) / (y1 - y0)
     return np.sum(cond & (px < xc), axis=1) % 2 == 1
+
+
+#: public names of the dense loop sampling and the even-odd containment used by the loop checks
+loop_polyline, inside_polyline = _polyline, _inside
 
 
 @dataclass

@@ -126,8 +126,12 @@ def test_seal_bad_input():
         tiling.regular(AFFINE, L.cross(), (2, 2, 2), seal="cap", variants={(0, 0, 1): L.cross()})
     with pytest.raises(TilingError, match="thickness"):
         tiling.regular(AFFINE, L.cross(), (2, 2, 2), seal="cap", thickness=0.6)
+    with pytest.raises(TilingError, match="shell.*thickness"):
+        tiling.regular(AFFINE, L.cross(), (2, 2, 2), seal="shell", thickness=0.5)  # thicker than half a cell
     with pytest.raises(TilingError, match="no trivariate patches"):
-        tiling.regular(AFFINE, L.hollow_box(), (2, 2, 2), seal="cap")
+        sealed_variant(L.hollow_box(), {"umin"})
+    # a surface tile whose walls lie on the cell faces is closed there already: capping adds nothing
+    assert tiling.regular(AFFINE, L.hollow_box(), (2, 2, 2), seal="cap").caps == []
     with pytest.raises(TilingError, match="seal_sides"):
         tiling.regular(AFFINE, L.cross(), (2, 2, 2), seal="cap", seal_sides=("top",))
 

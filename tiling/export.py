@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from geometry import Interface, MultiPatch
-from geometry.faces import FACE_NAMES
+from geometry.faces import FACE_AXIS, FACE_NAMES
 from geometry.errors import SplineError
 from geometry.iges import write_iges as _write_iges
 from geometry.io import atomic_write, offscreen_plotter, save_screenshot
@@ -91,6 +91,12 @@ def surface(ms: Microstructure, samples: int = 4):
         elif s.dim == 1:
             lo, hi = s.domain[0]
             lines.append((i, _map(P, np.linspace(lo, hi, 8 * samples * len(s.breakpoints(0)))[:, None])))
+    for pc in getattr(ms, "caps", []):
+        pts, t = _cap_triangles(ms, pc, samples)
+        parts_pts.append(pts)
+        parts_tri.append(t + off)
+        parts_pid.append(np.full(len(t), pc.first + pc.cap.segments[0][0][0]))  # drawn with its tile's patch
+        off += len(pts)
     if not parts_pts and not lines:
         raise TilingError("the micro-structure has no patches to draw")
     pts = np.concatenate(parts_pts) if parts_pts else np.zeros((0, 3))
@@ -107,6 +113,39 @@ def surface(ms: Microstructure, samples: int = 4):
         poly.cell_data["level"] = np.full(poly.n_cells, ms.patches[i].level, np.int32)
         mesh = mesh.merge(poly) if mesh.n_points else poly
     return mesh
+
+
+def _edge_params(s, edge: str, samples: int) -> np.ndarray:
+    """The parameters of a surface patch's samples along one of its edges, as in its grid in :func:`surface`."""
+    ax = sample_axes(s.knots, samples)
+    k, side = divmod(("umin", "umax", "vmin", "vmax").index(edge), 2)
+    fixed = np.full(len(ax[1 - k]), s.domain[k, side])
+    return np.stack([fixed, ax[1 - k]] if k == 0 else [ax[1 - k], fixed], 1)
+
+
+def _cap_triangles(ms: Microstructure, pc, samples: int):
+    """Physical points and triangles of a trimmed cap whose loop points are its tile's edge samples."""
+    from geometry.triangulate import fill_rings
+
+    k, s = FACE_AXIS[pc.cap.side]
+    rest = [j for j in range(3) if j != k]
+    rings = []  # per ring: the tile points, exactly the tile patches' own edge samples
+    for loop in pc.cap.segments:
+        pts = []
+        for patch, edge, rev in loop:
+            x = ms.patches[pc.first + patch].spline.evaluate(_edge_params(ms.patches[pc.first + patch].spline,
+                                                                          edge, samples))[:, :3]
+            pts.append((x[::-1] if rev else x)[:-1])  # the last point starts the next curve
+        rings.append(np.concatenate(pts))
+    ring_len = max(float(np.linalg.norm(np.diff(np.vstack([r, r[:1]]), axis=0), axis=1).max()) for r in rings)
+    uv, tris = fill_rings([r[:, rest] for r in rings], ring_len)
+    X = np.zeros((len(uv), 3))
+    X[:, k], X[:, rest] = s, uv
+    n_ring = sum(len(r) for r in rings)
+    X[:n_ring] = np.concatenate(rings)  # the ring points exactly as the tile's patches give them
+    P = pc.placed
+    y = X @ P.placement[:, :3].T + P.placement[:, 3]
+    return P.outer.evaluate(np.clip(y, P.outer.domain[:, 0], P.outer.domain[:, 1]))[:, :3], tris
 
 
 def samples_for_tolerance(ms: Microstructure, tolerance: float, max_samples: int = 64) -> int:
@@ -223,11 +262,12 @@ def render_png(ms: Microstructure, path, samples: int = 6, color_by: str = "leve
 
 def boundary_splines(ms: Microstructure) -> list:
     """The exact boundary of ``ms`` as splines in physical space: every free side of a trivariate patch
-    (composed), every surface patch and every curve patch.  Slot faces (free parts of discontinuity
+    (composed), every surface patch, every curve patch, and the trimmed caps (``TrimmedSurface``).  Slot faces (free parts of discontinuity
     planes) are trimmed regions of a side and are not included."""
     composed = ms.compose_all()
     out = [composed[i].boundary(f) for i, f in ms.tags.get("boundary", []) if f in FACE_NAMES]
-    return out + [c for c, P in zip(composed, ms.patches) if P.spline.dim in (1, 2)]
+    out += [c for c, P in zip(composed, ms.patches) if P.spline.dim in (1, 2)]
+    return out + [pc.composed() for pc in getattr(ms, "caps", [])]
 
 
 def write_iges(path, ms: Microstructure, units: str = "m") -> Path:

@@ -12,6 +12,8 @@
 ``hollow_box()``     six bilinear surfaces, the walls of the cell (Elber 2017, Fig. 2)
 ``cross()``          seven trivariates: a centre block and six arms reaching
                      every face of the cell; opposite faces match (periodic)
+``hollow_cross()``   24 bilinear surfaces: the walls of the cross's arms, open
+                     where the arms meet the cell faces (a surface tile to cap)
 ``helix()``          a cubic curve winding around the cell's axis (Elber 2017, Fig. 10)
 ``bent_cross()``     the cross at degrees (3, 3, 2) with bent insides (Massarwi et al. 2018, Fig. 10)
 ==================== =====================================================
@@ -158,6 +160,48 @@ def cross(arm: float = 0.3) -> Tile:
     return Tile(blocks, name="cross")
 
 
+def hollow(tile: Tile) -> Tile:
+    """The boundary of a volumetric tile as a surface tile: every face of its trivariates that no other of its
+    trivariates shares and that does not lie on a cell wall (where neighbours continue it), oriented outwards.
+
+    Paved, the surfaces of neighbouring tiles meet at the cell walls; capped (``seal="cap"``) on D's
+    boundary, the result is a closed surface (Elber 2017, Fig. 2(d); Massarwi et al. 2018, Fig. 9(a, b)).
+    """
+    from geometry import MultiPatch
+    from geometry.faces import FACE_NAMES
+
+    vols = [p for p in tile.patches if p.dim == 3]
+    if not vols:
+        raise TilingError(f"hollow: tile {show(tile.name)} has no trivariates to take the boundary of")
+    model = MultiPatch.from_splines(vols)
+    glued = {itf.a for itf in model.interfaces} | {itf.b for itf in model.interfaces}
+    walls = []
+    for i, p in enumerate(vols):
+        centre = p.evaluate(p.domain.mean(1)[None])[0, :3]
+        for f in FACE_NAMES:
+            face = p.boundary(f)
+            pts = face.points.reshape(-1, 3)
+            if (i, f) in glued or np.any(np.all(np.abs(pts - np.round(pts)) < 1e-12, axis=0)
+                                         & np.all(np.abs(pts - pts[0]) < 1e-12, axis=0)):
+                continue  # shared inside the tile, or on a cell wall
+            mid = face.domain.mean(1)[None]
+            x = face.evaluate(mid)[0, :3]
+            h = 1e-6 * np.ptp(face.domain, axis=1)  # a forward difference gives the normal's side
+            du = face.evaluate(mid + [[h[0], 0.0]])[0, :3] - x
+            dv = face.evaluate(mid + [[0.0, h[1]]])[0, :3] - x
+            if np.dot(np.cross(du, dv), x - centre) < 0:  # make the normal point out of the block
+                face = face.reverse(0)
+            walls.append(face)
+    return Tile(walls, name=f"hollow {tile.name}")
+
+
+def hollow_cross(arm: float = 0.3) -> Tile:
+    """:func:`hollow` of :func:`cross`: the 24 walls of its six arms, open at the cell faces."""
+    t = hollow(cross(arm))
+    t.name = "hollow_cross"
+    return t
+
+
 def bent_cross(degrees=(3, 3, 2), bend: float = 0.02) -> Tile:
     """The cross at ``degrees`` with every block's inner control points moved by ``bend``: a non-affine tile.
 
@@ -183,4 +227,4 @@ def helix(turns: float = 2.0, radius: float = 0.3, n: int = 16) -> Tile:
 
 #: the built-in tiles by name (what ``[tile] library = ...`` of a pipeline may name)
 TILES = {f.__name__: f for f in (heat_sink_t1, heat_sink_t2, skinned_branching, fractal, hollow_box, cross, helix,
-                                 bent_cross)}
+                                 bent_cross, hollow_cross)}

@@ -42,7 +42,11 @@ TOL = 1e-9
 
 
 class Microstructure(MultiPatch):
-    """Result of a paving: patches, interfaces, tags (see module docs), plus the map, tiles and a name."""
+    """Result of a paving: patches, interfaces, tags (see module docs), plus the map, tiles and a name.
+
+    ``caps``: the trimmed planar caps of capped surface tiles (:class:`tiling.caps.PlacedCap`), part of the
+    boundary surface and of the IGES export.
+    """
 
     def __init__(self, outer: BSpline, patches: list, interfaces: list, tags: dict, tiles: list, name: str = "",
                  face_regions: dict | None = None):
@@ -50,6 +54,7 @@ class Microstructure(MultiPatch):
         self.outer = outer
         self.tiles = tiles
         self.name = name
+        self.caps: list = []  # set by pavings that cap surface tiles
 
     def __repr__(self):
         return (f"Microstructure({show(self.name)}: {len(self.patches)} patches, {self.n_tiles} tiles, "

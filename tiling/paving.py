@@ -17,6 +17,7 @@ from geometry.sampling import sample_axes
 
 from .errors import TilingError
 from .microstructure import Microstructure, PlacedPatch
+from .caps import PlacedCap, capped_variant
 from .seal import seal_layout, sealed_variant
 from .tile import Tile
 from geometry.faces import FACE_NAMES
@@ -112,7 +113,9 @@ def regular(D: BSpline, tile: Tile, counts, variants: dict | None = None, name: 
     fraction of a cell, conforming to the tiles) on ``seal_sides`` of D's
     domain (default all six; a cell alone in a direction is sealed on both
     sides); ``seal="shell"`` seals all six.  The plates' free faces are tagged
-    ``cap`` (or ``shell``), and the heat model includes the plates.
+    ``cap`` (or ``shell``), and the heat model includes the plates.  A
+    surface tile is capped by planar trimmed surfaces over its boundary
+    curves instead (:mod:`tiling.caps`; ``Microstructure.caps``).
 
     >>> from geometry import primitives
     >>> from tiling import library
@@ -135,7 +138,7 @@ def regular(D: BSpline, tile: Tile, counts, variants: dict | None = None, name: 
     _check_budget(float(np.prod([c * s for c, s in zip(counts, spans)], dtype=float)), tile, "the regular paving")
     cells = [_cells(D, k, counts[k]) for k in range(3)]
     N = [len(c) for c in cells]
-    placed, tiles, links = [], [], []
+    placed, tiles, links, caps = [], [], [], []
     sealed: dict = {}  # sealed variants, built once per set of sides
     for i in range(N[0]):
         for j in range(N[1]):
@@ -149,7 +152,7 @@ def regular(D: BSpline, tile: Tile, counts, variants: dict | None = None, name: 
                                       if at and f in allowed)
                     if sides:
                         if sides not in sealed:
-                            sealed[sides] = sealed_variant(tile, sides, thickness, seal)
+                            sealed[sides] = variant_for(tile, sides, thickness, seal)
                         t = sealed[sides]
                 lo = np.array([cells[0][i, 0], cells[1][j, 0], cells[2][k, 0]])
                 hi = np.array([cells[0][i, 1], cells[1][j, 1], cells[2][k, 1]])
@@ -159,11 +162,24 @@ def regular(D: BSpline, tile: Tile, counts, variants: dict | None = None, name: 
                 for pi, patch in enumerate(t.patches):
                     placed.append(PlacedPatch(patch, M, D, tid, 0, pi))
                 links += [(first + a, f, box, first + b, g) for a, f, box, b, g in getattr(t, "seal_links", ())]
+                caps += [PlacedCap(c, PlacedPatch(c.trimmed.surface, M, D, tid, 0, -1), first)
+                         for c in getattr(t, "caps", ())]
     _check_spans(D, placed)
     ms = Microstructure.build(D, placed, tiles, links, name=name)
+    ms.caps = caps
     if seal is not None:
         _tag_seal(ms, seal, {(id(t), i) for t in sealed.values() for i in t.seal_patches})
     return ms
+
+
+def variant_for(tile: Tile, sides, thickness: float, seal: str) -> Tile:
+    """The sealed variant of ``tile`` on ``sides``: plates for volumetric tiles, trimmed caps for surface tiles."""
+    if tile.trivariates:
+        return sealed_variant(tile, sides, thickness, seal)
+    if seal != "cap":
+        raise TilingError(f"tile {show(tile.name)} is a surface tile: it can be capped (seal='cap', trimmed planes) "
+                          f"but not given a {seal} (a volumetric slab needs volumetric tiles)")
+    return capped_variant(tile, sides)
 
 
 def _tag_seal(ms: Microstructure, seal: str, plates: set) -> None:

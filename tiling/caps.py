@@ -1,0 +1,165 @@
+"""Parametric caps of surface tiles: planar trimmed surfaces over the tile's boundary curves on the cell walls
+(Massarwi et al. 2018, Section 6.2 item 1, Fig. 9(a, b)).
+
+The boundary curves of a surface tile that lie on a wall of the unit cell
+(x = 0, ..., z = 1) are chained end to start into closed loops; loops nest
+by containment (even depth: an outer boundary, odd: a hole of the loop
+around it) and every outer loop with its holes bounds one planar
+:class:`geometry.TrimmedSurface` on that wall, its loops the joined curves
+in the wall's two coordinates.  The cap becomes part of the tile and is
+composed with it: the wall plane exactly through D, the loops unaltered
+(Elber 2017, Fig. 7), so the cap's boundary is exactly the image of the
+tile's boundary curves.  In :func:`tiling.export.surface` a cap is
+triangulated with the very sample points of the tile's edges on its loops
+(:func:`geometry.triangulate.fill_rings` keeps them), so caps weld to the
+tile into a watertight surface.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from geometry import BSpline, TrimmedSurface
+from geometry.errors import SplineError, show
+from geometry.faces import FACE_AXIS, FACE_NAMES
+from geometry.multipatch import PlacedPatch
+from geometry.trimmed import inside_polyline, join_curves, loop_polyline
+
+from .errors import TilingError
+from .seal import SealedTile
+from .tile import Tile
+
+__all__ = ["Cap", "PlacedCap", "surface_caps", "capped_variant"]
+
+EDGES = ("umin", "umax", "vmin", "vmax")  # the four boundary curves of a surface patch
+_TOL = 1e-9
+
+
+@dataclass
+class Cap:
+    """A cap on the cell wall ``side``: ``trimmed`` is the wall plane (tile coordinates, parameters = the wall's
+    two axes in order) with its loops; ``segments[i]`` lists, for loop i, the tile's boundary curves it joins
+    as (patch in tile, edge name, reversed), curve j running over the loop's parameters [j, j + 1]."""
+
+    side: str
+    trimmed: TrimmedSurface
+    segments: list
+
+
+@dataclass
+class PlacedCap:
+    """A cap of a placed tile: ``placed`` is its wall plane placed and composed like the tile's patches;
+    ``first`` the index of the tile's patch 0 in the micro-structure (its patches follow in order)."""
+
+    cap: Cap
+    placed: PlacedPatch
+    first: int
+
+    def composed(self) -> TrimmedSurface:
+        """The cap in physical space, exact: the composed plane with the loops unaltered."""
+        return TrimmedSurface(self.placed.composed, list(self.cap.trimmed.loops))
+
+
+def _wall_plane(k: int, s: int) -> BSpline:
+    """The wall x_k = s of the unit cell as a bilinear surface, parameters = the other two axes in order."""
+    rest = [j for j in range(3) if j != k]
+    cp = np.zeros((2, 2, 3))
+    cp[..., k] = s
+    cp[..., rest[0]] = np.array([0.0, 1.0])[:, None]
+    cp[..., rest[1]] = np.array([0.0, 1.0])[None, :]
+    return BSpline((1, 1), [np.array([0.0, 0.0, 1.0, 1.0])] * 2, cp)
+
+
+def _chain(segs, side: str, name: str) -> list:
+    """Closed loops of segments [(patch, edge, curve)]: lists of (segment index, reversed)."""
+    ends = [(c.evaluate(c.domain[:, :1].T)[0, :3], c.evaluate(c.domain[:, 1:].T)[0, :3]) for _, _, c in segs]
+    unused, loops = set(range(len(segs))), []
+    while unused:
+        i = min(unused)
+        unused.discard(i)
+        loop, start, cur = [(i, False)], ends[i][0], ends[i][1]
+        while np.linalg.norm(cur - start) > _TOL:
+            nxt = next(((j, r) for j in sorted(unused) for r in (False, True)
+                        if np.linalg.norm(ends[j][int(r)] - cur) <= _TOL), None)
+            if nxt is None:
+                p, e, _ = segs[loop[-1][0]]
+                raise TilingError(f"tile {show(name)}: its boundary curves on the wall {side} do not close (the "
+                                  f"{e} curve of patch {p} ends at {np.round(cur, 9).tolist()} and no curve "
+                                  "continues it); a cap needs closed loops of boundary curves")
+            unused.discard(nxt[0])
+            loop.append(nxt)
+            cur = ends[nxt[0]][1 - int(nxt[1])]
+        loops.append(loop)
+    return loops
+
+
+def _loop_curve(segs, loop, rest) -> BSpline:
+    """The loop as one curve (a(t), b(t), 0) in the wall's coordinates."""
+    parts = []
+    for j, rev in loop:
+        c = segs[j][2]
+        cp = np.zeros(c.control_points.shape[:-1] + (3,))
+        cp[..., :2] = c.control_points[..., rest]
+        w = None if c.weights is None else c.weights
+        part = BSpline(c.degrees, c.knots, cp, w)
+        if rev:
+            part = part.reverse(0)
+        parts.append(part)
+    return join_curves(parts)
+
+
+def surface_caps(tile: Tile, sides) -> list[Cap]:
+    """The caps of ``tile`` (its 2-variate patches) on the cell walls ``sides``; see the module notes.
+
+    A wall that one of the tile's surfaces already covers (lies in) gets no cap.
+    """
+    surfaces = [i for i, p in enumerate(tile.patches) if p.dim == 2]
+    if not surfaces:
+        raise TilingError(f"tile {show(tile.name)} has no surface patches to cap; trimmed caps close surface "
+                          "tiles (volumetric tiles are sealed by plates, curves cannot be capped)")
+    caps = []
+    for side in sorted(set(sides), key=FACE_NAMES.index):
+        k, s = FACE_AXIS[side]
+        if any(np.abs(tile.patches[i].points.reshape(-1, 3)[:, k] - s).max() < _TOL for i in surfaces):
+            continue  # a tile surface lies in this wall: it is closed there already
+        segs = []
+        for i in surfaces:
+            for e in EDGES:
+                c = tile.patches[i].boundary(e)
+                if np.abs(c.points.reshape(-1, 3)[:, k] - s).max() < _TOL:
+                    segs.append((i, e, c))
+        if not segs:
+            continue
+        rest = [j for j in range(3) if j != k]
+        loops = _chain(segs, side, tile.name)
+        curves = [_loop_curve(segs, lp, rest) for lp in loops]
+        polys = [loop_polyline(c) for c in curves]
+        inside = [[j for j in range(len(polys)) if j != i and inside_polyline(polys[j], polys[i][:1])[0]]
+                  for i in range(len(polys))]
+        for i in range(len(polys)):
+            if len(inside[i]) % 2:
+                continue  # a hole
+            holes = [j for j in range(len(polys)) if i in inside[j] and len(inside[j]) == len(inside[i]) + 1]
+            order = [i] + holes
+            try:
+                ts = TrimmedSurface(_wall_plane(k, s), [curves[j] for j in order])
+            except SplineError as exc:
+                raise TilingError(f"tile {show(tile.name)}: the cap on wall {side}: {exc}") from None
+            segments = []
+            for j, lp in zip(order, (loops[j] for j in order)):
+                if ts.loops[len(segments)] is not curves[j]:  # the trimmed surface reversed this loop
+                    lp = [(q, not r) for q, r in reversed(lp)]
+                segments.append([(segs[q][0], segs[q][1], r) for q, r in lp])
+            caps.append(Cap(side, ts, segments))
+    return caps
+
+
+def capped_variant(tile: Tile, sides):
+    """``tile`` with trimmed caps on ``sides`` (a :class:`tiling.seal.SealedTile` whose ``caps`` are set)."""
+    caps = surface_caps(tile, sides)
+    out = SealedTile(list(tile.patches), name=f"{tile.name} (cap {'+'.join(sorted(frozenset(sides)))})")
+    out.caps = tuple(caps)
+    out.seal = "cap"
+    return out
