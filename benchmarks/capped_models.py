@@ -82,12 +82,16 @@ def main():
     rows = run_cases(__file__, CASES, run, renders=True)
     if rows is None:
         return
+    bad = [r["case"] for r in rows if r["closed"] != "yes" or r["components"] != 1
+           or r["euler"] != r["euler of tube graph"]]
     print_table(rows, [("case", "s"), ("surfaces", "d"), ("caps", "d"), ("build s", ".2f"), ("surface s", ".2f"),
                        ("triangles", "d"), ("closed", "s"), ("components", "d"), ("euler", "d"),
                        ("euler of tube graph", "d"), ("peak MiB", ".0f")])
     for r in rows:
         print(f"{r['case']}: degrees {r['degrees']}")
     save_json("capped_models.json", rows)
+    if bad or len(rows) != len(CASES):
+        raise SystemExit(f"not one closed surface with the tube graph's Euler characteristic: {bad or 'a case failed'}")
 
 
 if __name__ == "__main__":

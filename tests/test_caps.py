@@ -130,6 +130,10 @@ def test_cap_bad_input():
     sheet = tiling.Tile([pr.box((1.0, 1.0, 0.5)).boundary("wmax")], name="open sheet")  # the plane z = 0.5
     with pytest.raises(TilingError, match="open sheet.*do not close"):
         tiling.regular(TWISTED, sheet, (2, 2, 2), seal="cap", seal_sides=("umin",))
+    ball = tiling.Tile([pr.box((0.5, 0.5, 0.5), (0.25, 0.25, 0.25)).boundary(f) for f in tiling.tile.FACE_NAMES],
+                       name="floating box")
+    with pytest.raises(TilingError, match="floating box.*no boundary curves on the walls"):
+        tiling.regular(TWISTED, ball, (2, 2, 2), seal="cap")
     with pytest.raises(TilingError, match="hollow_cross.*surface tile.*shell"):
         tiling.regular(TWISTED, L.hollow_cross(), (2, 2, 2), seal="shell")
     with pytest.raises(TilingError, match="helix.*no surface patches"):

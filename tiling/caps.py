@@ -119,10 +119,11 @@ def surface_caps(tile: Tile, sides) -> list[Cap]:
     if not surfaces:
         raise TilingError(f"tile {show(tile.name)} has no surface patches to cap; trimmed caps close surface "
                           "tiles (volumetric tiles are sealed by plates, curves cannot be capped)")
-    caps = []
+    caps, touched = [], False
     for side in sorted(set(sides), key=FACE_NAMES.index):
         k, s = FACE_AXIS[side]
         if any(np.abs(tile.patches[i].points.reshape(-1, 3)[:, k] - s).max() < _TOL for i in surfaces):
+            touched = True
             continue  # a tile surface lies in this wall: it is closed there already
         segs = []
         for i in surfaces:
@@ -132,6 +133,7 @@ def surface_caps(tile: Tile, sides) -> list[Cap]:
                     segs.append((i, e, c))
         if not segs:
             continue
+        touched = True
         rest = [j for j in range(3) if j != k]
         loops = _chain(segs, side, tile.name)
         curves = [_loop_curve(segs, lp, rest) for lp in loops]
@@ -153,6 +155,9 @@ def surface_caps(tile: Tile, sides) -> list[Cap]:
                     lp = [(q, not r) for q, r in reversed(lp)]
                 segments.append([(segs[q][0], segs[q][1], r) for q, r in lp])
             caps.append(Cap(side, ts, segments))
+    if not touched and sides:
+        raise TilingError(f"tile {show(tile.name)} has no boundary curves on the walls {sorted(set(sides))}: there is "
+                          "nothing to cap (a cap closes the openings of a tile's surfaces on the cell walls)")
     return caps
 
 
