@@ -162,6 +162,18 @@ def _support(sp1, i, breaks):
     return np.nonzero((breaks[:-1] >= a) & (breaks[1:] <= b) & (breaks[1:] > breaks[:-1]))[0]
 
 
+def needs_constraints(model, spaces) -> bool:
+    """Interfaces, or patches with full-multiplicity (discontinuity) knots, need a prolongation."""
+    if model.interfaces:
+        return True
+    for s in spaces:
+        for d in s.dirs:
+            _, m = np.unique(d.knots, return_counts=True)
+            if np.any(m[1:-1] >= d.degree + 1):
+                return True
+    return False
+
+
 def prolongation(problem) -> Constraints:
     """The sparse prolongation P (ndof x nred) of all interface constraints, with its statistics."""
     n = problem.ndof

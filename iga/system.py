@@ -66,11 +66,13 @@ class SystemSolution:
     induced_rank: int
 
 
-def solve_system(K, f, constraints, dirichlet, solver="auto", tol=1e-10, maxiter=None) -> SystemSolution:
+def solve_system(K, f, constraints, dirichlet, solver="auto", tol=1e-10, maxiter=None,
+                 options: dict | None = None) -> SystemSolution:
     """Eliminate constraints and Dirichlet data from ``K u = f``, solve, expand.
 
     ``constraints``: :class:`iga.constraints.Constraints` or None; ``dirichlet``:
-    :class:`iga.dirichlet.DirichletData`.  K is consumed (it may be modified).
+    :class:`iga.dirichlet.DirichletData`; ``options``: passed to :func:`solvers.solve` (the spline
+    structure of :mod:`iga.multilevel`).  K is consumed (it may be modified).
     """
     nred = K.shape[0] if constraints is None else constraints.P.shape[1]
     dofs, g = dirichlet.dofs, dirichlet.values
@@ -95,7 +97,8 @@ def solve_system(K, f, constraints, dirichlet, solver="auto", tol=1e-10, maxiter
             induced = int(len(free) - T.shape[1])
         A = (Pf.T @ K @ Pf).tocsr()
         rhs = Pf.T @ (f - K @ offset)
-    x, info = solvers.solve(A, rhs, method=solver, tol=tol, maxiter=maxiter, overwrite_a=True)  # A is ours
+    x, info = solvers.solve(A, rhs, method=solver, tol=tol, maxiter=maxiter, overwrite_a=True,  # A is ours
+                            **(options or {}))
     reduced = int(A.shape[0])
     if constraints is None:
         u = np.zeros(nred)

@@ -18,7 +18,12 @@ Built-in backends
 ``amg-cg``   conjugate gradients preconditioned by smoothed-aggregation AMG (pyamg's hierarchy,
              the V-cycle of :mod:`solvers.amg`).
 ``cg``       conjugate gradients with a Jacobi preconditioner (for comparison).
-``auto``     ``direct`` up to :data:`AUTO_DIRECT_LIMIT` unknowns, ``amg-cg`` above.
+``fd-cg``    conjugate gradients preconditioned by fast diagonalization (:mod:`solvers.kronecker`); needs
+             the option ``kronecker`` (a :class:`solvers.kronecker.KroneckerSum` close to A).
+``gmg-cg``   conjugate gradients preconditioned by a geometric multigrid V-cycle (:mod:`solvers.multigrid`);
+             needs the option ``prolongations`` (sparse matrices, finest level first).
+``auto``     ``direct`` up to :data:`AUTO_DIRECT_LIMIT` unknowns; above, ``fd-cg`` when a ``kronecker``
+             option is given, else ``amg-cg``.
 """
 
 from __future__ import annotations
@@ -174,6 +179,32 @@ def _amg_cg(A, b, tol, maxiter, **options):
     return _krylov(M.system_operator(), b, M.operator(), tol, maxiter, "amg-cg", setup, M.info)
 
 
+@register("fd-cg", options=("kronecker",))
+def _fd_cg(A, b, tol, maxiter, **options):
+    from .kronecker import FastDiagonalization, KroneckerSum
+
+    ks = options.get("kronecker")
+    if not isinstance(ks, KroneckerSum):
+        raise SolverError("the 'fd-cg' solver needs the option kronecker=solvers.kronecker.KroneckerSum(...) (the "
+                          "tensor-product structure of A); iga.HeatProblem.solve supplies it for single patches")
+    t0 = time.perf_counter()
+    M = FastDiagonalization(ks, A)
+    return _krylov(A, b, M.operator(), tol, maxiter, "fd-cg", time.perf_counter() - t0, {})
+
+
+@register("gmg-cg", options=("prolongations",))
+def _gmg_cg(A, b, tol, maxiter, **options):
+    from .multigrid import Multigrid
+
+    P = options.get("prolongations")
+    if not P:
+        raise SolverError("the 'gmg-cg' solver needs the option prolongations=[P_0, P_1, ...] (sparse, finest "
+                          "first); iga.HeatProblem.solve supplies the spline refinement matrices")
+    t0 = time.perf_counter()
+    M = Multigrid(A, P)
+    return _krylov(A, b, M.operator(), tol, maxiter, "gmg-cg", time.perf_counter() - t0, M.info)
+
+
 @register("cg")
 def _jacobi_cg(A, b, tol, maxiter, **options):
     t0 = time.perf_counter()
@@ -222,13 +253,16 @@ def solve(A, b, method: str = "auto", tol: float = 1e-10, maxiter: int | None = 
                                     and maxiter >= 1):
         raise SolverError(f"maxiter must be an integer >= 1, got {show(maxiter)}")
     if method == "auto":
-        method = "direct" if n <= AUTO_DIRECT_LIMIT else "amg-cg"
+        method = "direct" if n <= AUTO_DIRECT_LIMIT else ("fd-cg" if options.get("kronecker") is not None
+                                                          else "amg-cg")
+        # the spline structure is offered to auto; the method it picks takes what it uses
+        options = {k: v for k, v in options.items() if k in _OPTIONS[method] or k not in ("kronecker", "prolongations")}
     unknown = sorted(set(options) - _OPTIONS[method])
     if unknown:
         raise SolverError(f"unknown option {show(unknown[0])} for the {method} solver; it takes "
                           f"{sorted(_OPTIONS[method])}")
     if maxiter is None:
-        maxiter = 1000 if method == "amg-cg" else 20 * n
+        maxiter = 1000 if method in ("amg-cg", "fd-cg", "gmg-cg") else 20 * n
     if not np.any(b):
         return np.zeros(n), SolveInfo(method, 0, 0.0, 0.0, 0.0)
     return _BACKENDS[method](A, b, tol, maxiter, **options)

@@ -1,0 +1,198 @@
+"""Spline structure for the solvers: Kronecker sums for fast diagonalization, refinement matrices for multigrid.
+
+The :mod:`solvers` package knows matrices only; this module hands it what the
+spline spaces know (DESIGN: ``iga -> solvers``):
+
+* :func:`kronecker_sum`: for one unconstrained trivariate patch whose free
+  unknowns form a tensor grid (Dirichlet conditions on whole sides), the
+  parametric 1-D stiffness and mass matrices of each direction and the
+  averaged metric coefficients c_k = mean(k det J (J^-1 J^-T)_kk), so that
+  sum_k c_k M x .. K_k .. x M approximates the stiffness matrix (exactly on an
+  axis-aligned box with constant conductivity; Sangalli and Tani 2016).
+* :func:`prolongations`: the multigrid hierarchy of nested spline spaces,
+  coarse to fine by knot insertion (:func:`geometry.knots.insertion_matrix`,
+  one Kronecker product per patch).  Levels are the problem's ``refine``
+  rounds (every patch, so interfaces and branch refinements stay nested), or,
+  for one unconstrained patch, its own knot vectors with every other
+  breakpoint removed.  Between the reduced systems (constraints and Dirichlet
+  data eliminated) the prolongation of a coarse free unknown is the fine
+  function it equals, read at one DOF that each fine reduced unknown owns.
+"""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import scipy.sparse as sp
+
+from geometry import knots as kn
+from geometry.chain import patch_geometry_grid
+
+from .constraints import needs_constraints, prolongation
+from .space import Space1D, TensorSpace, make_space
+
+__all__ = ["kronecker_sum", "prolongations", "coarsen_knots"]
+
+MIN_COARSE = 1_000  # stop coarsening below this many unknowns
+
+
+def _tensor_masks(space, free) -> list | None:
+    """Per direction the kept indices when the free DOFs form a tensor grid, else None."""
+    mask = np.zeros(space.ndof, bool)
+    mask[free] = True
+    M = mask.reshape(space.shape)
+    masks = [M.any(axis=tuple(j for j in range(M.ndim) if j != k)) for k in range(M.ndim)]
+    full = masks[0][:, None, None] & masks[1][None, :, None] & masks[2][None, None, :]
+    return masks if np.array_equal(M, full) else None
+
+
+def _single_patch(problem) -> bool:
+    return (len(problem.spaces) == 1 and problem.spaces[0].dim == 3
+            and not needs_constraints(problem.model, problem.spaces))
+
+
+def kronecker_sum(problem, free: np.ndarray):
+    """A :class:`solvers.kronecker.KroneckerSum` for the free unknowns of ``problem``, or None (see the notes)."""
+    from solvers.kronecker import KroneckerSum
+
+    if not _single_patch(problem):
+        return None
+    space = problem.spaces[0]
+    masks = _tensor_masks(space, free)
+    if masks is None or all(m.all() for m in masks):
+        return None  # not a tensor grid, or no Dirichlet side at all (the Kronecker sum would be singular)
+    K1, M1 = [], []
+    for s, m in zip(space.dirs, masks):
+        B0, B1 = s.B[0][:, : s.nq], s.B[1][:, : s.nq]
+        K1.append(((B1 * s.qw) @ B1.T)[np.ix_(m, m)])
+        M1.append(((B0 * s.qw) @ B0.T)[np.ix_(m, m)])
+    return KroneckerSum(K1, M1, _metric_coefficients(problem))
+
+
+def _metric_coefficients(problem, per_dir: int = 6) -> np.ndarray:
+    """c_k = mean of k det J (J^-1 K J^-T)_kk over a grid of parameters (K the conductivity tensor)."""
+    P = problem.model.patches[0]
+    dom = P.spline.domain
+    axes = [lo + (np.arange(per_dir) + 0.5) / per_dir * (hi - lo) for lo, hi in dom]
+    x, J, chans = patch_geometry_grid(P, axes)
+    det = np.linalg.det(J)
+    Jinv = np.linalg.inv(J)
+    k = problem.conductivity.values(x, chans, "the preconditioner's sample points")
+    if np.ndim(k) == 1:
+        G = k[:, None, None] * np.einsum("nki,nli->nkl", Jinv, Jinv)
+    else:
+        xx, yy, zz, xy, xz, yz = np.moveaxis(np.asarray(k), -1, 0)
+        Kt = np.stack([np.stack([xx, xy, xz], -1), np.stack([xy, yy, yz], -1), np.stack([xz, yz, zz], -1)], -2)
+        G = np.einsum("nki,nij,nlj->nkl", Jinv, Kt, Jinv)
+    c = np.mean(np.abs(det)[:, None] * np.diagonal(G, axis1=1, axis2=2), axis=0)
+    return np.maximum(c, 1e-12 * c.max())
+
+
+def coarsen_knots(U: np.ndarray, p: int) -> np.ndarray | None:
+    """``U`` without every other interior breakpoint (discontinuities kept): a nested coarser space, or None."""
+    vals, mult = kn.breakpoints(U)
+    inner = np.arange(1, len(vals) - 1)
+    removable = inner[mult[inner] < p + 1]
+    drop = removable[::2]
+    if not len(drop):
+        return None
+    keep = np.ones(len(vals), bool)
+    keep[drop] = False
+    return np.repeat(vals[keep], mult[keep])
+
+
+def _insertion(Uc, Uf, p) -> sp.csr_matrix:
+    """(n_fine, n_coarse) knot-insertion matrix from Uc to Uf (Uc's knots a sub-multiset of Uf's)."""
+    vc, mc = kn.breakpoints(Uc)
+    vf, mf = kn.breakpoints(Uf)
+    have = dict(zip(np.round(vc, 14), mc))
+    new = [v for v, m in zip(vf, mf) for _ in range(m - have.get(round(v, 14), 0))]
+    return sp.csr_matrix(kn.insertion_matrix(Uc, p, new)[1])
+
+
+def _levels(problem) -> list:
+    """Per level (finest first, the problem's own excluded) the list of every patch's (knots, degree) per
+    direction."""
+    fine = [[(d.knots, d.degree) for d in s.dirs] for s in problem.spaces]
+    out = []
+    r = problem.space_args[2]
+    if r >= 1:
+        args = list(problem.space_args)
+        for level in range(r - 1, -1, -1):
+            args[2] = level
+            out.append([[(d.knots, d.degree) for d in make_space(p.spline.knots, p.spline.degrees, *args).dirs]
+                        for p in problem.model.patches])
+        return out
+    if not _single_patch(problem):
+        return out
+    cur = fine[0]
+    while int(np.prod([len(U) - p - 1 for U, p in cur])) > MIN_COARSE:
+        nxt = [(coarsen_knots(U, p), p) for U, p in cur]
+        if all(U is None for U, _ in nxt):
+            break
+        cur = [(U if U is not None else V, p) for (U, p), (V, _) in zip(nxt, cur)]
+        out.append([cur])
+    return out
+
+
+def _reduced(problem_like, dirichlet_faces):
+    """(P (ndof x nred), dof_master, free reduced unknowns) of a level."""
+    if not needs_constraints(problem_like.model, problem_like.spaces):
+        n = problem_like.ndof
+        P, master = sp.identity(n, format="csr"), np.arange(n)
+    else:
+        c = prolongation(problem_like)
+        P, master = c.P, c.dof_master
+    fixed = set()
+    for pi, face in dirichlet_faces:
+        dofs = problem_like.spaces[pi].face_dofs(face) + problem_like.offsets[pi]
+        fixed.update(np.unique(P[dofs].indices).tolist())
+    free = np.setdiff1d(np.arange(P.shape[1]), np.fromiter(fixed, np.int64, len(fixed)))
+    return P, master, free
+
+
+def prolongations(problem, dirichlet_faces, free: np.ndarray, dof_master: np.ndarray | None) -> list | None:
+    """Prolongation matrices between the reduced free unknowns of nested levels (finest first), or None."""
+    levels = _levels(problem)
+    if not levels:
+        return None
+    fine_spaces = [[(d.knots, d.degree) for d in s.dirs] for s in problem.spaces]
+    rows = _owners(np.arange(problem.ndof) if dof_master is None else dof_master)[free]
+    out = []
+    for coarse in levels:
+        Pc, master_c, free_c = _reduced(_problem_like(problem, coarse), dirichlet_faces)
+        blocks = []
+        for cf, cc in zip(fine_spaces, coarse):
+            R = sp.csr_matrix(np.ones((1, 1)))
+            for (Uf, p), (Uc, _) in zip(cf, cc):
+                R = sp.kron(R, _insertion(Uc, Uf, p), format="csr")
+            blocks.append(R)
+        out.append((sp.block_diag(blocks, format="csr") @ Pc[:, free_c])[rows].tocsr())
+        fine_spaces, rows = coarse, _owners(master_c)[free_c]
+        if len(free_c) <= MIN_COARSE:
+            break
+    return out
+
+
+def _owners(master: np.ndarray) -> np.ndarray:
+    """For each reduced unknown one DOF it owns (u_full = P u_red reads the unknown there)."""
+    own = master >= 0
+    out = np.full(int(master.max()) + 1, -1)
+    out[master[own][::-1]] = np.flatnonzero(own)[::-1]
+    return out
+
+
+def _problem_like(problem, spaces_knots):
+    """What :func:`iga.constraints.prolongation` reads of a problem, for a coarse level (equal spaces shared)."""
+    cache: dict = {}
+
+    def space(dirs):
+        key = tuple((U.tobytes(), p) for U, p in dirs)
+        if key not in cache:
+            cache[key] = TensorSpace([Space1D(U, p, p + 1) for U, p in dirs])
+        return cache[key]
+
+    spaces = [space(dirs) for dirs in spaces_knots]
+    offsets = np.concatenate([[0], np.cumsum([s.ndof for s in spaces])]).astype(np.int64)
+    return SimpleNamespace(model=problem.model, spaces=spaces, offsets=offsets, ndof=int(offsets[-1]))
