@@ -30,9 +30,10 @@ from geometry import knots as kn
 from geometry.chain import patch_geometry_grid
 
 from .constraints import needs_constraints, prolongation
+from .errors import ProblemError
 from .space import Space1D, TensorSpace, make_space
 
-__all__ = ["kronecker_sum", "prolongations", "coarsen_knots"]
+__all__ = ["kronecker_sum", "prolongations", "coarsen_knots", "solver_options"]
 
 MIN_COARSE = 1_000  # stop coarsening below this many unknowns
 
@@ -196,3 +197,27 @@ def _problem_like(problem, spaces_knots):
     spaces = [space(dirs) for dirs in spaces_knots]
     offsets = np.concatenate([[0], np.cumsum([s.ndof for s in spaces])]).astype(np.int64)
     return SimpleNamespace(model=problem.model, spaces=spaces, offsets=offsets, ndof=int(offsets[-1]))
+
+
+def solver_options(problem, solver: str, constraints, dd, book) -> dict:
+    """The spline structure a solver needs: a Kronecker sum (fd-cg, auto) or prolongations (gmg-cg).
+
+    ``constraints`` / ``dd`` / ``book``: the problem's prolongation, Dirichlet data and assembly bookkeeping.
+    """
+    if solver not in ("fd-cg", "gmg-cg", "auto"):
+        return {}
+    nred = problem.ndof if constraints is None else constraints.P.shape[1]
+    free = np.setdiff1d(np.arange(nred), dd.dofs)
+    if solver in ("fd-cg", "auto"):
+        ks = kronecker_sum(problem, free) if constraints is None else None
+        if ks is None and solver == "fd-cg":
+            raise ProblemError("solver 'fd-cg' (fast diagonalization) needs one unconstrained trivariate patch "
+                               "with Dirichlet conditions on whole sides (at least one); use 'gmg-cg' or "
+                               "'amg-cg' for this problem")
+        return {} if ks is None else {"kronecker": ks}
+    P = None if len(dd.slave_rows) else prolongations(problem, list(book["dirichlet"]), free,
+                                                      None if constraints is None else constraints.dof_master)
+    if not P:
+        raise ProblemError("solver 'gmg-cg' needs nested levels: refine >= 1 (or one unconstrained patch with "
+                           "several knot spans), and no Dirichlet data on child branch faces; use 'amg-cg'")
+    return {"prolongations": P}

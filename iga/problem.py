@@ -32,7 +32,7 @@ from .model import as_model, tag_faces
 from .regularity import prove_regular
 from .solution import Solution
 from .space import make_space, space_size
-from .multilevel import kronecker_sum, prolongations
+from .multilevel import solver_options
 from .system import solve_system
 from .volume import VolumeAssembler
 from geometry.errors import show
@@ -277,7 +277,7 @@ class HeatProblem:
         self.constraint_stats = dict(constraints.stats) if constraints is not None else {}
         dd = project_dirichlet(self.faces, book["dirichlet"], self.ndof, constraints)
         self.timings["constraints"] = time.perf_counter() - t0
-        options = self._solver_structure(solver, constraints, dd, book)
+        options = solver_options(self, solver, constraints, dd, book)
         res = solve_system(K, f, constraints, dd, solver, tol, maxiter, options)
         self.constraint_stats.update({"prescribed": int(len(dd.dofs)), "induced_rank": res.induced_rank})
         self.timings["solve"] = res.info.setup_s + res.info.solve_s
@@ -285,23 +285,3 @@ class HeatProblem:
         Gd = dd.G[res.reaction_dofs].toarray() if dd.G is not None else np.zeros((len(res.reaction_dofs), 0))
         integrals = {key: Gd[:, j] for j, key in enumerate(dd.keys)}
         return Solution(self, res.u, book, res.reaction_dofs, res.reaction, integrals, res.info)
-
-    def _solver_structure(self, solver, constraints, dd, book) -> dict:
-        """The spline structure a solver needs: a Kronecker sum (fd-cg, auto) or prolongations (gmg-cg)."""
-        if solver not in ("fd-cg", "gmg-cg", "auto"):
-            return {}
-        nred = self.ndof if constraints is None else constraints.P.shape[1]
-        free = np.setdiff1d(np.arange(nred), dd.dofs)
-        if solver in ("fd-cg", "auto"):
-            ks = kronecker_sum(self, free) if constraints is None else None
-            if ks is None and solver == "fd-cg":
-                raise ProblemError("solver 'fd-cg' (fast diagonalization) needs one unconstrained trivariate patch "
-                                   "with Dirichlet conditions on whole sides (at least one); use 'gmg-cg' or "
-                                   "'amg-cg' for this problem")
-            return {} if ks is None else {"kronecker": ks}
-        P = None if len(dd.slave_rows) else prolongations(self, list(book["dirichlet"]), free,
-                                                          None if constraints is None else constraints.dof_master)
-        if not P:
-            raise ProblemError("solver 'gmg-cg' needs nested levels: refine >= 1 (or one unconstrained patch with "
-                               "several knot spans), and no Dirichlet data on child branch faces; use 'amg-cg'")
-        return {"prolongations": P}
