@@ -34,6 +34,7 @@ face coefficients; :func:`induced_elimination`).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from types import SimpleNamespace
 
 import numpy as np
 import scipy.sparse as sp
@@ -105,10 +106,18 @@ def _face_space_knots(problem, pi, face):
     return [(d.knots, d.degree) for i, d in enumerate(problem.spaces[pi].dirs) if i != k]
 
 
-def _branch_R(problem, itf) -> sp.csr_matrix:
+def _branch_R(problem, itf, cache: dict | None = None) -> sp.csr_matrix:
     (pa, fa), (pb, fb) = itf.a, itf.b
+    parent, child = _face_space_knots(problem, pa, fa), _face_space_knots(problem, pb, fb)
+    key = (tuple((U.tobytes(), p) for U, p in parent), tuple(map(tuple, itf.box)),
+           tuple((U.tobytes(), p) for U, p in child))
+    if cache is not None and key in cache:  # a hierarchy repeats the same pair of face spaces many times
+        return cache[key]
     try:
-        return nested_refinement(_face_space_knots(problem, pa, fa), itf.box, _face_space_knots(problem, pb, fb))
+        R = nested_refinement(parent, itf.box, child)
+        if cache is not None:
+            cache[key] = R
+        return R
     except SplineError as exc:
         raise ProblemError(
             f"branch faces patch {pa} {fa} -> patch {pb} {fb}: {exc}; use the same refine/degree_elevation "
@@ -180,6 +189,7 @@ def prolongation(problem) -> Constraints:
     uf = _UnionFind(n)
     stats = {"identity_pairs": 0, "c0_pairs": 0, "branch_rows": 0}
     branch_rows = []  # (child dof, parent dofs, coefficients)
+    cache: dict = {}  # refinement matrices by (parent face space, box, child face space)
     for itf in problem.model.interfaces:
         (pa, fa), (pb, fb) = itf.a, itf.b
         ga, gb = _face_grid(problem, pa, fa), _face_grid(problem, pb, fb)
@@ -192,19 +202,21 @@ def prolongation(problem) -> Constraints:
                 uf.union(int(x), int(y))
             stats["identity_pairs"] += ga.size
         else:
-            R = _branch_R(problem, itf).tocsr()
+            R = _branch_R(problem, itf, cache).tocsr()
             parent, child = ga.ravel(), gb.ravel()
             for r in range(R.shape[0]):
                 cols = R.indices[R.indptr[r] : R.indptr[r + 1]]
                 branch_rows.append((int(child[r]), parent[cols], R.data[R.indptr[r] : R.indptr[r + 1]], itf))
             stats["branch_rows"] += R.shape[0]
-    slots_of: dict = {}  # tiles share their spline: compare each plane once per tile patch
+    pairs_of: dict = {}  # tiles share their spline and space: find each patch's pairs once, then shift them
     for pi, patch in enumerate(problem.model.patches):
-        key = id(patch.spline)
-        if key not in slots_of:
-            slots_of[key] = discontinuity_slots(patch.spline)
-        for a, b in _discontinuity_pairs(problem, pi, slots_of[key]):
-            uf.union(a, b)
+        key = (id(patch.spline), id(problem.spaces[pi]))
+        if key not in pairs_of:
+            local = SimpleNamespace(spaces=[problem.spaces[pi]], offsets=np.zeros(1, np.int64))
+            pairs_of[key] = _discontinuity_pairs(local, 0, discontinuity_slots(patch.spline))
+        off = int(problem.offsets[pi])
+        for a, b in pairs_of[key]:
+            uf.union(a + off, b + off)
             stats["c0_pairs"] += 1
     roots = np.array([uf.find(i) for i in range(n)])
     classes, cls = np.unique(roots, return_inverse=True)

@@ -163,12 +163,15 @@ def prolongations(problem, dirichlet_faces, free: np.ndarray, dof_master: np.nda
     out = []
     for coarse in levels:
         Pc, master_c, free_c = _reduced(_problem_like(problem, coarse), dirichlet_faces)
-        blocks = []
+        blocks, cache = [], {}
         for cf, cc in zip(fine_spaces, coarse):
-            R = sp.csr_matrix(np.ones((1, 1)))
-            for (Uf, p), (Uc, _) in zip(cf, cc):
-                R = sp.kron(R, _insertion(Uc, Uf, p), format="csr")
-            blocks.append(R)
+            key = tuple((Uf.tobytes(), Uc.tobytes(), p) for (Uf, p), (Uc, _) in zip(cf, cc))
+            if key not in cache:  # patches with equal spaces share their refinement matrix
+                R = sp.csr_matrix(np.ones((1, 1)))
+                for (Uf, p), (Uc, _) in zip(cf, cc):
+                    R = sp.kron(R, _insertion(Uc, Uf, p), format="csr")
+                cache[key] = R
+            blocks.append(cache[key])
         out.append((sp.block_diag(blocks, format="csr") @ Pc[:, free_c])[rows].tocsr())
         fine_spaces, rows = coarse, _owners(master_c)[free_c]
         if len(free_c) <= MIN_COARSE:
