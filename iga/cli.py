@@ -72,6 +72,10 @@ def _cmd_run(args) -> int:
         raise ProblemError(f"cannot read config file {path}: {exc}") from None
     s = run_pipeline(cfg, base_dir=path.parent)
     t = s["temperature_C"]
+    from .distributed import is_root
+
+    if not is_root():  # under mpiexec rank 0 reports
+        return 0
     print(f"{_plural(s['tiles'], 'tile')}, {s['dofs']} DOFs; temperature {t['min']:.3f} .. {t['max']:.3f}; "
           f"balance error {s['energy_balance_error']:.1e}; outputs and summary.json in "
           f"{Path(next(iter(s['files'].values()), path)).parent}")

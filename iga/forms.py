@@ -78,8 +78,20 @@ def _by_space(fds) -> dict:
     return out
 
 
-def boundary_mass(fds, coeffs, ndof: int) -> sp.csr_matrix:
-    """Global sparse sum over faces of int_F c N_i N_j dA; ``coeffs[f]`` is c * dA * w at face f's Gauss points."""
+def _kept(fds, values, patches):
+    """The faces (and their values) of the patches in ``patches`` (all when None): one MPI rank's share."""
+    if patches is None:
+        return fds, values
+    keep = [i for i, fd in enumerate(fds) if fd.patch in patches]
+    return [fds[i] for i in keep], [values[i] for i in keep]
+
+
+def boundary_mass(fds, coeffs, ndof: int, patches=None) -> sp.csr_matrix:
+    """Global sparse sum over faces of int_F c N_i N_j dA; ``coeffs[f]`` is c * dA * w at face f's Gauss points.
+
+    ``patches``: only the faces of these patches (a set), default all.
+    """
+    fds, coeffs = _kept(fds, coeffs, patches)
     rows, cols, vals = [], [], []
     for idx in _by_space(fds).values():
         space = fds[idx[0]].space
@@ -109,6 +121,8 @@ def boundary_load_columns(fds, values, ndof: int) -> sp.csc_matrix:
                          shape=(ndof, len(fds)))
 
 
-def boundary_load(fds, values, ndof: int) -> np.ndarray:
-    """Global vector: sum over faces of int_F g N_i dA (see :func:`boundary_load_columns`)."""
+def boundary_load(fds, values, ndof: int, patches=None) -> np.ndarray:
+    """Global vector: sum over faces of int_F g N_i dA (see :func:`boundary_load_columns`); ``patches`` as in
+    :func:`boundary_mass`."""
+    fds, values = _kept(fds, values, patches)
     return np.asarray(boundary_load_columns(fds, values, ndof).sum(axis=1)).ravel()

@@ -29,6 +29,7 @@ from .config import validate
 from .errors import ProblemError
 from .locate import Locator
 from .maps import MAPS, circular_heat_sink_map, vertical_heat_sink_map
+from . import distributed
 from .problem import HeatProblem
 from .vtu import write_vtu
 from geometry.errors import show
@@ -116,10 +117,11 @@ def run_pipeline(config: dict, base_dir: str | Path = ".", progress: bool | None
         resources.set_memory_limit(cfg["limits"]["max_memory_gib"])
     out = cfg["output"]["path"]
     created = False
+    root = distributed.is_root()  # under mpiexec rank 0 alone prints and writes
     try:
-        with display.enabled(display.active() if progress is None else progress):
-            created = _output_folder(out)
-            return _run(cfg, out)
+        with display.enabled((display.active() if progress is None else progress) and root):
+            created = _output_folder(out) if root else False
+            return _run(cfg, out, root)
     except BaseException:
         if created and out.is_dir() and not any(out.iterdir()):
             out.rmdir()  # a failed run leaves no empty folder behind
@@ -128,8 +130,10 @@ def run_pipeline(config: dict, base_dir: str | Path = ".", progress: bool | None
         resources._LIMIT = saved_limit
 
 
-def _run(cfg: dict, out: Path) -> dict:
+def _run(cfg: dict, out: Path, root: bool = True) -> dict:
     ocfg, scfg = cfg["output"], cfg["solver"]
+    if not root:  # another MPI rank: it assembles and solves its share, rank 0 writes
+        ocfg = {**ocfg, "vtu": False, "bezier": False, "png": False}
     stages = display.Stages(6)
     stages.start("deformation map")
     D = _build_map(cfg["map"])
@@ -194,7 +198,8 @@ def _run(cfg: dict, out: Path) -> dict:
         "probes": {"points": probes.tolist(), "temperature_C": sol.probe(probes).tolist() if len(probes) else []},
         "files": files,
     }
-    atomic_write(out / "summary.json", lambda tmp: Path(tmp).write_text(json.dumps(summary, indent=2)), ".json",
-                 ProblemError)
+    if root:
+        atomic_write(out / "summary.json", lambda tmp: Path(tmp).write_text(json.dumps(summary, indent=2)),
+                     ".json", ProblemError)
     stages.done()
     return summary

@@ -32,6 +32,7 @@ from .model import as_model, tag_faces
 from .regularity import prove_regular
 from .solution import Solution
 from .space import make_space, space_size
+from . import distributed
 from .multilevel import solver_options
 from .system import solve_system
 from .volume import VolumeAssembler
@@ -216,11 +217,12 @@ class HeatProblem:
             )
         return out
 
-    def assemble(self):
-        """Assemble the unconstrained system ``a(T, v) = l(v)``. Returns (K, f, bookkeeping dict)."""
+    def assemble(self, patches=None):
+        """Assemble ``a(T, v) = l(v)``: (K, f, bookkeeping dict); only ``patches`` (a set: one MPI rank's share;
+        the bookkeeping covers every face) when given."""
         by_kind = self._faces_by_kind()
         t0 = time.perf_counter()
-        K, f, source_total = self.volume.assemble(self.conductivity, self.source)
+        K, f, source_total = self.volume.assemble(self.conductivity, self.source, patches)
         t1 = time.perf_counter()
         self.faces([key for faces in by_kind.values() for key in faces])
         neumann, robin = {}, {}
@@ -234,7 +236,7 @@ class HeatProblem:
         for tag, keys in neumann.items():  # + int_F q v
             c, fds = by_kind["neumann"][keys[0]], self.faces(keys)
             qs = self._field_on(c.value, fds, tag)
-            f += boundary_load(fds, [q * fd.dAw for q, fd in zip(qs, fds)], self.ndof)
+            f += boundary_load(fds, [q * fd.dAw for q, fd in zip(qs, fds)], self.ndof, patches)
             book["neumann"].update(zip(keys, qs))
         robin_fds, robin_h = [], []
         for tag, keys in robin.items():  # + int_F h T v on the left, + int_F h T_inf v on the right
@@ -242,10 +244,10 @@ class HeatProblem:
             hs, Ts = self._field_on(c.h, fds, tag), self._field_on(c.value, fds, tag)
             robin_fds += fds
             robin_h += [h * fd.dAw for h, fd in zip(hs, fds)]
-            f += boundary_load(fds, [h * T * fd.dAw for h, T, fd in zip(hs, Ts, fds)], self.ndof)
+            f += boundary_load(fds, [h * T * fd.dAw for h, T, fd in zip(hs, Ts, fds)], self.ndof, patches)
             book["robin"].update({k: (h, T) for k, h, T in zip(keys, hs, Ts)})
         if robin_fds:
-            K = (K + boundary_mass(robin_fds, robin_h, self.ndof)).tocsr()
+            K = (K + boundary_mass(robin_fds, robin_h, self.ndof, patches)).tocsr()
         self.timings["assembly_volume"] = t1 - t0
         self.timings["assembly_faces"] = time.perf_counter() - t1
         return K, f, book
@@ -271,7 +273,11 @@ class HeatProblem:
                 "the heat problem has no Dirichlet or Robin condition, so its temperature is only defined up to a "
                 "constant (the system is singular); add problem.dirichlet(tag, T) or problem.robin(tag, h, T_inf)"
             )
-        K, f, book = self.assemble()
+        world = distributed.world() if solver == "petsc" else None  # (comm, rank, size) under mpiexec
+        part = distributed.partition(self, world[2]) if world else None
+        K, f, book = self.assemble(None if part is None else set(np.flatnonzero(part == world[1]).tolist()))
+        if world:  # each rank integrated the source over its own patches
+            book["source"] = world[0].allreduce(book["source"])
         t0 = time.perf_counter()
         constraints = prolongation(self) if self._needs_constraints() else None
         self.constraint_stats = dict(constraints.stats) if constraints is not None else {}
@@ -280,10 +286,14 @@ class HeatProblem:
         t0 = time.perf_counter()
         options = solver_options(self, solver, constraints, dd, book)
         self.timings["solver_structure"] = time.perf_counter() - t0  # Kronecker factors, multigrid levels
-        res = solve_system(K, f, constraints, dd, solver, tol, maxiter, options)
+        if world:
+            res = distributed.solve_system(K, f, constraints, dd, tol, maxiter, part, world[0], self.offsets)
+        else:
+            res = solve_system(K, f, constraints, dd, solver, tol, maxiter, options)
         self.constraint_stats.update({"prescribed": int(len(dd.dofs)), "induced_rank": res.induced_rank})
         self.timings["solve"] = res.info.setup_s + res.info.solve_s
         self.reduced_dofs = res.reduced
         Gd = dd.G[res.reaction_dofs].toarray() if dd.G is not None else np.zeros((len(res.reaction_dofs), 0))
         integrals = {key: Gd[:, j] for j, key in enumerate(dd.keys)}
         return Solution(self, res.u, book, res.reaction_dofs, res.reaction, integrals, res.info)
+

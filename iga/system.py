@@ -20,7 +20,7 @@ import solvers
 from . import fast_assembly
 from .constraints import induced_elimination
 
-__all__ = ["eliminate", "solve_system", "SystemSolution"]
+__all__ = ["eliminate", "solve_system", "SystemSolution", "reduction"]
 
 _IN_PLACE_NNZ = 1 << 22  # in-place Dirichlet elimination (numba) from this many matrix entries
 
@@ -66,6 +66,27 @@ class SystemSolution:
     induced_rank: int
 
 
+def reduction(constraints, dirichlet, ndof: int):
+    """``u = Pf x + offset`` over the free unknowns x: (Pf (ndof x nfree, CSC), offset (ndof,), the reduced
+    unknowns whose reactions are reported, induced rank).  ``constraints`` None: the identity prolongation."""
+    P = sp.identity(ndof, format="csr") if constraints is None else constraints.P
+    nred = P.shape[1]
+    dofs, g = dirichlet.dofs, dirichlet.values
+    free = np.setdiff1d(np.arange(nred), dofs)
+    Pf, Pd = P[:, free].tocsc(), P[:, dofs].tocsc()
+    offset = Pd @ g
+    reaction_dofs, induced = dofs, 0
+    if len(dirichlet.slave_rows):
+        # slave DOFs on Dirichlet faces fix combinations of free unknowns: eliminate them
+        Ps = P[dirichlet.slave_rows]
+        T, x0, touched = induced_elimination(Ps[:, free], dirichlet.slave_values - Ps[:, dofs] @ g)
+        offset = offset + Pf @ x0
+        Pf = (Pf @ T).tocsc()
+        reaction_dofs = np.concatenate([dofs, free[touched]])
+        induced = int(len(free) - T.shape[1])
+    return Pf, offset, reaction_dofs, induced
+
+
 def solve_system(K, f, constraints, dirichlet, solver="auto", tol=1e-10, maxiter=None,
                  options: dict | None = None) -> SystemSolution:
     """Eliminate constraints and Dirichlet data from ``K u = f``, solve, expand.
@@ -84,17 +105,7 @@ def solve_system(K, f, constraints, dirichlet, solver="auto", tol=1e-10, maxiter
         A, rhs = eliminate(K, f, free, dofs, g, in_place=True)
         del K
     else:
-        P = constraints.P
-        Pf, Pd = P[:, free].tocsc(), P[:, dofs].tocsc()
-        offset = Pd @ g
-        if len(dirichlet.slave_rows):
-            # slave DOFs on Dirichlet faces fix combinations of free unknowns: eliminate them
-            Ps = P[dirichlet.slave_rows]
-            T, x0, touched = induced_elimination(Ps[:, free], dirichlet.slave_values - Ps[:, dofs] @ g)
-            offset = offset + Pf @ x0
-            Pf = (Pf @ T).tocsc()
-            reaction_dofs = np.concatenate([dofs, free[touched]])
-            induced = int(len(free) - T.shape[1])
+        Pf, offset, reaction_dofs, induced = reduction(constraints, dirichlet, K.shape[0])
         A = (Pf.T @ K @ Pf).tocsr()
         rhs = Pf.T @ (f - K @ offset)
     x, info = solvers.solve(A, rhs, method=solver, tol=tol, maxiter=maxiter, overwrite_a=True,  # A is ours

@@ -54,12 +54,16 @@ class VolumeAssembler:
         """Whether some group is large enough for the compiled kernels (then large faces use them too)."""
         return any(fast_assembly.applies(self.spaces[g[0]], len(g)) for g in self.groups.values())
 
-    def assemble(self, conductivity, source):
+    def assemble(self, conductivity, source, patches=None):
         """(K, f, source_total): the stiffness of ``conductivity`` (a :class:`iga.coefficients.Conductivity`)
-        and the load of ``source`` (a :class:`iga.coefficients.ScalarField`); ``source_total`` is int f dV (W)."""
+        and the load of ``source`` (a :class:`iga.coefficients.ScalarField`); ``source_total`` is int f dV (W).
+
+        ``patches``: assemble only these patch indices (a set; the other blocks stay zero), default all.
+        """
         blocks, f = [], np.zeros(self.ndof)
         source_total = 0.0
-        work = [members for group in self.groups.values() for members in chunks(group, self.spaces[group[0]].nq_total)]
+        groups = [[i for i in g if patches is None or i in patches] for g in self.groups.values()]
+        work = [members for group in groups if group for members in chunks(group, self.spaces[group[0]].nq_total)]
         for members in progress.bar(work, desc="assembly", unit="batch"):
             pat, data, loads, total = self._group(members, self.spaces[members[0]], conductivity, source)
             source_total += total

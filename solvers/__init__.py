@@ -22,6 +22,8 @@ Built-in backends
              the option ``kronecker`` (a :class:`solvers.kronecker.KroneckerSum` close to A).
 ``gmg-cg``   conjugate gradients preconditioned by a geometric multigrid V-cycle (:mod:`solvers.multigrid`);
              needs the option ``prolongations`` (sparse matrices, finest level first).
+``petsc``    PETSc's CG with GAMG (or hypre) when petsc4py is installed (extra ``[mpi]``); under
+             ``mpiexec`` :mod:`iga.distributed` assembles and solves across the ranks.
 ``auto``     ``direct`` up to :data:`AUTO_DIRECT_LIMIT` unknowns; above, ``fd-cg`` when a ``kronecker``
              option is given, else ``amg-cg``.
 """
@@ -205,6 +207,19 @@ def _gmg_cg(A, b, tol, maxiter, **options):
     return _krylov(A, b, M.operator(), tol, maxiter, "gmg-cg", time.perf_counter() - t0, M.info)
 
 
+@register("petsc", options=("pc", "petsc_options"))
+def _petsc(A, b, tol, maxiter, **options):
+    from .petsc_ksp import serial
+
+    x, its, reason, setup, solve_s = serial(A, b, tol, maxiter, options.get("pc", "gamg"),
+                                            options.get("petsc_options"))
+    res = _residual(A, x, b)
+    if reason < 0 or not np.all(np.isfinite(x)) or res > 10 * tol:
+        raise SolverError(f"PETSc CG did not converge (reason {reason}): relative residual {res:.2e} after {its} "
+                          "iterations; the system may be singular (no Dirichlet or Robin condition?)")
+    return x, SolveInfo(f"petsc ({options.get('pc', 'gamg')})", its, res, setup, solve_s)
+
+
 @register("cg")
 def _jacobi_cg(A, b, tol, maxiter, **options):
     t0 = time.perf_counter()
@@ -262,7 +277,7 @@ def solve(A, b, method: str = "auto", tol: float = 1e-10, maxiter: int | None = 
         raise SolverError(f"unknown option {show(unknown[0])} for the {method} solver; it takes "
                           f"{sorted(_OPTIONS[method])}")
     if maxiter is None:
-        maxiter = 1000 if method in ("amg-cg", "fd-cg", "gmg-cg") else 20 * n
+        maxiter = 1000 if method in ("amg-cg", "fd-cg", "gmg-cg", "petsc") else 20 * n
     if not np.any(b):
         return np.zeros(n), SolveInfo(method, 0, 0.0, 0.0, 0.0)
     return _BACKENDS[method](A, b, tol, maxiter, **options)

@@ -598,7 +598,7 @@ CONFIG = [
     case("bc robin value", _validate(bc__1__value=3.0), ProblemError, r"bc\[1\]\.value: a robin condition"),
     case("bc empty", _validate(bc=[]), ProblemError, r"config section bc is empty"),
     case("solver method", _validate(solver__method="gauss"), ProblemError,
-         r"solver\.method: must be one of \['amg-cg', 'auto', 'cg', 'direct', 'fd-cg', 'gmg-cg'\], got 'gauss'"),
+         r"solver\.method: must be one of \['amg-cg', 'auto', 'cg', 'direct', 'fd-cg', 'gmg-cg', 'petsc'\], got 'gauss'"),
     case("tol small", _validate(solver__tol="small"), ProblemError, r"solver\.tol: must be a finite number, got 'small'"),
     case("tol negative", _validate(solver__tol=-1e-8), ProblemError, r"solver\.tol: must be > 0"),
     case("refine float", _validate(solver__refine=1.5), ProblemError, r"solver\.refine: .*got 1\.5"),

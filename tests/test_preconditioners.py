@@ -116,6 +116,16 @@ def test_auto_uses_fast_diagonalization_for_one_large_patch():
     assert s.info["solver"]["method"] != "fd-cg"
 
 
+def test_petsc_without_petsc4py_says_how_to_install_it(monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "petsc4py", None)  # as if it were not installed
+    with pytest.raises(SolverError, match=r"petsc4py: pip install -e \"\.\[mpi\]\""):
+        solvers.solve(sp.identity(8, format="csr"), np.ones(8), method="petsc")
+    with pytest.raises(SolverError, match="petsc4py"):
+        HeatProblem(pr.box(degrees=(1, 1, 1), elements=(2, 2, 2))).dirichlet("umin", 1.0).solve(solver="petsc")
+
+
 def test_preconditioner_bad_input():
     ms = tiling.regular(pr.box((2.0, 1.0, 1.0)), L.cross(), (2, 1, 1))
     with pytest.raises(ProblemError, match="fd-cg.*one unconstrained trivariate patch"):

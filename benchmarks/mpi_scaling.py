@@ -1,0 +1,132 @@
+"""Strong scaling of the distributed assembly and solve on PETSc (issue #21), on this machine's ranks.
+
+    python benchmarks/mpi_scaling.py [--ranks 1,2] [--quick]
+
+Needs the extra ``[mpi]`` (petsc4py, mpi4py and an ``mpiexec``).  Cases:
+  * ``sink``: the circular heat sink of ``iga demo heat-sink`` at ``--refine 2`` (its pipeline, solver petsc);
+  * ``lattice``: a 14 x 14 x 14 cross lattice in a twisted map at degree 2 (about 1M unknowns;
+    ``--quick``: 6 x 6 x 6).
+For each rank count the case runs under ``mpiexec -n R`` with ``solver="petsc"`` (CG + GAMG, tolerance
+1e-8; R = 1 is PETSc on one process): time per stage (model, spaces and regularity, assembly of the
+rank's patches, constraints and Dirichlet data, matrix build + GAMG set-up, CG), iterations, and peak
+memory per rank (max over ranks).  From the measured per-rank figures, an estimate for 10^7 and 10^8
+unknowns on 16 and 128 ranks, assuming the work per unknown measured here, perfect load balance, and
+CG iterations growing like the measured ones (GAMG: about constant): a model, not a measurement.
+Writes benchmarks/out/mpi_scaling.json.
+"""
+
+from __future__ import annotations
+
+import json
+import resource
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from _common import print_table, save_json
+
+
+def run_case(case: str, quick: bool) -> None:
+    """One case on the ranks of the current ``mpiexec`` (rank 0 prints the JSON row)."""
+    t0 = time.perf_counter()
+    import tempfile
+
+    import tiling
+    from geometry import primitives as pr
+    from iga import HeatProblem
+    from iga.distributed import world
+    from iga.pipeline import heat_sink_config, run_pipeline
+    from tiling import library as L
+
+    w = world()
+    comm, rank, size = w if w else (None, 0, 1)
+    t_import = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    if case == "sink":  # the demo's pipeline, refined twice, on PETSc
+        with tempfile.TemporaryDirectory() as tmp:
+            cfg = heat_sink_config("circular", None, 2, tmp)
+            cfg["solver"].update(method="petsc", tol=1e-8)
+            cfg["output"].update(vtu=False, png=False)
+            s = run_pipeline(cfg, tmp)
+        tm = {k[4:]: v for k, v in s["timings_s"].items() if k.startswith("iga.")}
+        info, dofs, unknowns, t_all = s["solver"], s["dofs"], s["unknowns"], time.perf_counter() - t0
+        t_model = s["timings_s"].get("deformation map", 0.0) + s["timings_s"].get("tiling", 0.0)
+    else:
+        n = 6 if quick else 14
+        D = pr.twisted(pr.box((1.0, 1.0, 1.0), degrees=(2, 2, 2)), 0.3, axis_point=(0.5, 0.5))
+        prob = (HeatProblem(tiling.regular(D, L.cross(), (n, n, n)), conductivity=20.0, degree_elevation=1)
+                .dirichlet("umin", 80.0).robin("umax", 50.0, 20.0))
+        t_model = time.perf_counter() - t0
+        s = prob.solve(solver="petsc", tol=1e-8)
+        t_all = time.perf_counter() - t0
+        tm, info, dofs, unknowns = prob.timings, s.info["solver"], prob.ndof, int(prob.reduced_dofs)
+    row = {"case": case, "ranks": size, "dofs": dofs, "unknowns": unknowns,
+           "iterations": info["iterations"], "model s": t_model,
+           "assembly s": tm["assembly_volume"] + tm["assembly_faces"], "constraints s": tm["constraints"],
+           "matrix + setup s": info["setup_s"], "CG s": info["solve_s"], "total s": t_all,
+           "imports s": t_import, "peak MiB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
+    if comm is not None:
+        rows = comm.gather(row, root=0)
+        if rank:
+            return
+        row = {k: (max(r[k] for r in rows) if isinstance(v, float) else v) for k, v in row.items()}
+        row["peak MiB per rank"] = [round(r["peak MiB"]) for r in rows]
+    else:
+        row["peak MiB per rank"] = [round(row["peak MiB"])]
+    print(json.dumps(row), flush=True)
+
+
+def estimate(rows) -> list[dict]:
+    """Time for 10^7 and 10^8 unknowns on 16 and 128 ranks from the measured per-rank work (see the notes)."""
+    out = []
+    for case in sorted({r["case"] for r in rows}):
+        rr = [r for r in rows if r["case"] == case]
+        best = max(rr, key=lambda r: r["ranks"])
+        per = {k: best[k] * best["ranks"] / best["unknowns"] for k in ("assembly s", "constraints s",
+                                                                         "matrix + setup s", "CG s")}
+        for N in (1e7, 1e8):
+            for R in (16, 128):
+                # CG with GAMG: iterations about constant in N; the replicated constraint set-up does not shrink
+                cons = best["constraints s"] * N / best["unknowns"]
+                t = sum(per[k] * N / R for k in ("assembly s", "matrix + setup s", "CG s")) + cons
+                out.append({"case": case, "unknowns": N, "ranks": R, "estimated s": t,
+                            "of which replicated constraints s": cons,
+                            "memory per rank GiB": best["peak MiB"] * (N / best["unknowns"]) / R / 1024})
+    return out
+
+
+def main():
+    if len(sys.argv) > 2 and sys.argv[1] == "--case":
+        run_case(sys.argv[2], "--quick" in sys.argv)
+        return
+    ranks = [1, 2]
+    for i, a in enumerate(sys.argv):
+        if a == "--ranks":
+            ranks = [int(v) for v in sys.argv[i + 1].split(",")]
+    mpiexec = str(Path(sys.executable).parent / "mpiexec")
+    rows = []
+    for case in ("sink", "lattice"):
+        for R in ranks:
+            cmd = [mpiexec, "-n", str(R), sys.executable, __file__, "--case", case] + (["--quick"] if "--quick" in
+                                                                                      sys.argv else [])
+            out = subprocess.run(cmd, capture_output=True, text=True)
+            if out.returncode:
+                print(f"{case} on {R} ranks failed:\n{out.stderr[-2000:]}")
+                continue
+            rows.append(json.loads(out.stdout.strip().splitlines()[-1]))
+            r = rows[-1]
+            print(f"{case} R={R}: {r['unknowns']:,} unknowns, total {r['total s']:.1f} s, CG {r['CG s']:.1f} s "
+                  f"({r['iterations']} it), peak {r['peak MiB per rank']} MiB", flush=True)
+    print_table(rows, [("case", "s"), ("ranks", "d"), ("unknowns", "d"), ("iterations", "d"), ("model s", ".2f"),
+                       ("assembly s", ".2f"), ("constraints s", ".2f"), ("matrix + setup s", ".2f"), ("CG s", ".2f"),
+                       ("total s", ".2f"), ("peak MiB", ".0f")])
+    est = estimate(rows)
+    print("\nEstimate (a model from the per-rank figures above, not a measurement):")
+    print_table(est, [("case", "s"), ("unknowns", ".0e"), ("ranks", "d"), ("estimated s", ".0f"),
+                      ("of which replicated constraints s", ".0f"), ("memory per rank GiB", ".1f")])
+    save_json("mpi_scaling.json", {"measured": rows, "estimate": est})
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,72 @@
+"""PETSc's Krylov solvers (KSP) behind the backend interface, serial or on an MPI communicator.
+
+``petsc4py`` is optional (extra ``[mpi]``); without it the ``petsc`` backend
+says how to install it.  Defaults: conjugate gradients with PETSc's algebraic
+multigrid (``pc="gamg"``; ``"hypre"`` for BoomerAMG when PETSc was built with
+hypre), relative tolerance ``tol``.  ``petsc_options`` are passed through as
+PETSc options (e.g. ``{"pc_gamg_threshold": 0.02, "ksp_monitor": None}``),
+applied after the defaults, so they win.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from .errors import SolverError
+
+INSTALL = ("the 'petsc' solver needs petsc4py: pip install -e \".[mpi]\" (builds PETSc from source, about 30 "
+           "minutes on 2 cores; see the README for the faster route with a system PETSc)")
+
+
+def petsc():
+    """The ``petsc4py.PETSc`` module, or :class:`SolverError` with the install command."""
+    try:
+        from petsc4py import PETSc
+    except ImportError:
+        raise SolverError(INSTALL) from None
+    return PETSc
+
+
+def ksp_solve(M, b_vec, x_vec, tol: float, maxiter: int, pc: str = "gamg", petsc_options=None):
+    """CG on the assembled PETSc matrix ``M``; returns (iterations, converged reason, set-up s, solve s)."""
+    PETSc = petsc()
+    ksp = PETSc.KSP().create(comm=M.getComm())
+    ksp.setOperators(M)
+    ksp.setType("cg")
+    try:
+        ksp.getPC().setType(pc)
+    except PETSc.Error as exc:
+        raise SolverError(f"PETSc has no preconditioner {pc!r} ({exc}); use pc='gamg' (built in) or a PETSc "
+                          "built with --download-hypre for 'hypre'") from None
+    ksp.setTolerances(rtol=tol, atol=0.0, max_it=int(maxiter))
+    opts = PETSc.Options()
+    for key, value in (petsc_options or {}).items():
+        opts[str(key).lstrip("-")] = "" if value is None else str(value)
+    ksp.setFromOptions()
+    t0 = time.perf_counter()
+    ksp.setUp()
+    t1 = time.perf_counter()
+    ksp.solve(b_vec, x_vec)
+    t2 = time.perf_counter()
+    reason = ksp.getConvergedReason()
+    its = ksp.getIterationNumber()
+    ksp.destroy()
+    return its, reason, t1 - t0, t2 - t1
+
+
+def serial(A, b, tol, maxiter, pc="gamg", petsc_options=None):
+    """Solve with PETSc on one process: (x, iterations, reason, set-up s, solve s)."""
+    PETSc = petsc()
+    A = A.tocsr()
+    M = PETSc.Mat().createAIJ(size=A.shape, csr=(A.indptr.astype(PETSc.IntType), A.indices.astype(PETSc.IntType),
+                                                  A.data), comm=PETSc.COMM_SELF)
+    M.assemble()
+    x = np.zeros_like(b)
+    bv, xv = PETSc.Vec().createWithArray(np.array(b, float), comm=PETSc.COMM_SELF), \
+        PETSc.Vec().createWithArray(x, comm=PETSc.COMM_SELF)
+    its, reason, setup, solve = ksp_solve(M, bv, xv, tol, maxiter, pc, petsc_options)
+    x = xv.getArray().copy()
+    M.destroy()
+    return x, its, reason, setup, solve

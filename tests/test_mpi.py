@@ -1,0 +1,138 @@
+"""PETSc backend and distributed runs (extra ``[mpi]``): skipped, with the reason, where petsc4py is absent.
+
+The distributed checks run ``mpiexec -n 2`` on small models and compare the temperatures with the serial
+solve to the solver tolerance.
+"""
+
+import json
+import shutil
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+import solvers
+import tiling
+from geometry import primitives as pr
+from iga import HeatProblem
+from tiling import library as L
+
+petsc4py = pytest.importorskip("petsc4py", reason="petsc4py is not installed (extra [mpi]); the PETSc backend and "
+                               "the distributed runs are not checked")
+pytest.importorskip("mpi4py", reason="mpi4py is not installed (extra [mpi])")
+MPIEXEC = shutil.which("mpiexec") or str(Path(sys.executable).parent / "mpiexec")
+if not Path(MPIEXEC).exists():
+    pytest.skip("no mpiexec on PATH (pip install mpich)", allow_module_level=True)
+
+ROOT = Path(__file__).resolve().parent.parent
+
+SCRIPT = textwrap.dedent("""
+    import json, sys
+    import numpy as np
+    import tiling
+    from geometry import primitives as pr
+    from iga import HeatProblem
+    from iga.distributed import is_root
+    from tiling import library as L
+
+    kind, out = sys.argv[1], sys.argv[2]
+    if kind == "lattice":
+        D = pr.twisted(pr.box((1.0, 1.0, 1.0), degrees=(2, 2, 2)), 0.3, axis_point=(0.5, 0.5))
+        p = (HeatProblem(tiling.regular(D, L.cross(), (3, 2, 2)), conductivity=20.0, degree_elevation=1)
+             .dirichlet("umin", 80.0).robin("umax", 50.0, 20.0).neumann("vmin", 500.0))
+    elif kind == "sink":
+        ms = tiling.hierarchical(pr.box((0.06, 0.06, 0.03)), L.heat_sink_t2(), (2, 2), levels=2)
+        p = HeatProblem(ms, conductivity=200.0, source=1e5).dirichlet("branch-in", 60.0).robin("exterior", 40.0, 20.0)
+    else:
+        p = HeatProblem(pr.box(degrees=(2, 2, 2), elements=(4, 4, 4))).dirichlet("boundary", 0.0)
+    s = p.solve(solver=sys.argv[3] if len(sys.argv) > 3 else "petsc", tol=1e-12)
+    if is_root():
+        json.dump({"u": s.u.tolist(), "balance": s.info["balance"]["relative_error"], "method": s.info["solver"]["method"],
+                   "flux": s.flux("umin") if kind == "lattice" else s.flux("branch-in")}, open(out, "w"))
+""")
+
+
+def _mpi(tmp_path, ranks, *args):
+    script = tmp_path / "run.py"
+    script.write_text(SCRIPT)
+    return subprocess.run([MPIEXEC, "-n", str(ranks), sys.executable, str(script), *map(str, args)],
+                          capture_output=True, text=True, cwd=ROOT, timeout=600)
+
+
+def test_the_serial_petsc_backend_solves_like_the_direct_solver():
+    rng = np.random.default_rng(0)
+    B = sp.random(200, 200, density=0.02, random_state=1)
+    A = (B @ B.T + 200 * sp.identity(200)).tocsr()
+    b = rng.standard_normal(200)
+    x, info = solvers.solve(A, b, method="petsc", tol=1e-12)
+    assert info.method.startswith("petsc") and info.iterations > 0
+    assert np.abs(x - solvers.solve(A, b, method="direct")[0]).max() < 1e-9 * np.abs(x).max()
+
+
+@pytest.mark.parametrize("kind", ["lattice", "sink"])
+def test_two_ranks_give_the_serial_temperatures(tmp_path, kind):
+    out = _mpi(tmp_path, 2, kind, tmp_path / "mpi.json")
+    assert out.returncode == 0, out.stderr[-3000:]
+    par = json.loads((tmp_path / "mpi.json").read_text())
+    assert "2 ranks" in par["method"]
+    serial = _mpi(tmp_path, 1, kind, tmp_path / "serial.json", "direct")
+    assert serial.returncode == 0, serial.stderr[-3000:]
+    ser = json.loads((tmp_path / "serial.json").read_text())
+    u, v = np.array(par["u"]), np.array(ser["u"])
+    assert np.abs(u - v).max() < 1e-8 * np.abs(v).max()
+    assert par["balance"] < 1e-9 and par["flux"] == pytest.approx(ser["flux"], rel=1e-8)
+
+
+def test_mpiexec_iga_run_writes_one_result(tmp_path):
+    cfg = tmp_path / "sink.toml"
+    cfg.write_text(textwrap.dedent("""
+        [map]
+        primitive = "box"
+        args = {size = [0.06, 0.06, 0.03]}
+        [tile]
+        library = "heat_sink_t1"
+        [paving]
+        scheme = "hierarchical"
+        counts = [2, 2]
+        levels = 2
+        [material]
+        conductivity = 200.0
+        [[bc]]
+        kind = "dirichlet"
+        tag = "branch-in"
+        value = 60.0
+        [[bc]]
+        kind = "robin"
+        tag = "exterior"
+        h = 40.0
+        ambient = 20.0
+        [solver]
+        method = "petsc"
+        tol = 1e-12
+        [output]
+        dir = "out"
+        png = false
+    """))
+    iga = str(Path(sys.executable).parent / "iga")
+    out = subprocess.run([MPIEXEC, "-n", "2", iga, "run", str(cfg)], capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-3000:]
+    assert out.stdout.count("balance error") == 1  # rank 0 reports, once
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["solver"]["ranks"] == 2 and summary["energy_balance_error"] < 1e-9
+    assert (tmp_path / "out" / "heat_sink.vtu").exists() or any((tmp_path / "out").glob("*.vtu"))
+
+
+def test_more_ranks_than_patches_are_refused(tmp_path):
+    out = _mpi(tmp_path, 2, "patch", tmp_path / "x.json")
+    assert out.returncode != 0 and "2 MPI ranks for 1 patch" in out.stderr
+
+
+def test_the_petsc_solver_on_one_process_matches_amg():
+    ms = tiling.regular(pr.box((2.0, 1.0, 1.0)), L.cross(), (2, 1, 1))
+    a = HeatProblem(ms, degree_elevation=1).dirichlet("umin", 0.0).neumann("umax", 1.0).solve(solver="amg-cg", tol=1e-12)
+    p = HeatProblem(ms, degree_elevation=1).dirichlet("umin", 0.0).neumann("umax", 1.0).solve(solver="petsc", tol=1e-12)
+    assert np.abs(a.u - p.u).max() < 1e-9 * np.abs(a.u).max()
