@@ -293,8 +293,11 @@ def banded_to_csr_data(space: TensorSpace, banded: np.ndarray, pat: CSRPattern |
     return banded.reshape(-1, P)[(pat or pattern(space)).take].T
 
 
-def block_diagonal_csr(blocks, n_total: int) -> sp.csr_matrix:
-    """Global CSR from per-patch blocks [(offset, CSRPattern, data (nnz,)), ...]."""
+def block_diagonal_csr(blocks, n_total: int, partial: bool = False) -> sp.csr_matrix:
+    """Global CSR from per-patch blocks [(offset, CSRPattern, data (nnz,)), ...].
+
+    ``partial``: the blocks may leave DOF ranges out (one MPI rank's patches); their rows stay empty.
+    """
     blocks = sorted(blocks, key=lambda t: t[0])
     if len(blocks) == 1 and blocks[0][0] == 0 and blocks[0][1].n == n_total:
         _, pat, dat = blocks[0]
@@ -304,15 +307,17 @@ def block_diagonal_csr(blocks, n_total: int) -> sp.csr_matrix:
     nnz = 0
     expected = 0
     for off, pat, dat in blocks:
-        if off != expected:
+        if off != expected and not (partial and off > expected):
             raise AssertionError("patch DOF ranges must be contiguous")
+        indptr.append(np.full(off - expected, nnz, np.int64))  # the empty rows of patches left out
         indptr.append(pat.indptr[1:] + nnz)
         indices.append(pat.indices.astype(np.int64) + off)
         data.append(dat)
         nnz += len(dat)
         expected = off + pat.n
-    if expected != n_total:
+    if expected != n_total and not partial:
         raise AssertionError("patch DOF ranges do not cover the system")
+    indptr.append(np.full(n_total - expected, nnz, np.int64))
     idx = np.concatenate(indices)
     return sp.csr_matrix(
         (np.concatenate(data), idx.astype(np.int32) if n_total < 2**31 else idx, np.concatenate(indptr)),

@@ -65,8 +65,8 @@ def partition(problem, size: int) -> np.ndarray:
     order = reverse_cuthill_mckee((G + G.T).tocsr(), symmetric_mode=True)
     sizes = np.diff(problem.offsets)[order].astype(float)
     cuts = np.searchsorted(np.cumsum(sizes), np.arange(1, size) * sizes.sum() / size)
-    cuts = np.maximum(cuts, np.arange(1, size))  # at least one patch per rank
-    cuts = np.minimum(cuts, n - size + np.arange(1, size))
+    for k in range(size - 1):  # at least one patch per rank (a loop over ranks, not patches)
+        cuts[k] = min(max(cuts[k], cuts[k - 1] + 1 if k else 1), n - (size - 1 - k))
     part = np.empty(n, np.int64)
     part[order] = np.searchsorted(cuts, np.arange(n), side="right")
     return part
@@ -96,7 +96,9 @@ def solve_system(K, f, constraints, dirichlet, tol, maxiter, part, comm, offsets
     counts = np.bincount(owner, minlength=size)
     lo = int(counts[:rank].sum())
     A = (Pf.T @ K @ Pf).tocoo()
-    rhs = comm.allreduce(Pf.T @ (f - K @ offset), op=MPI.SUM)[order]
+    rhs = np.ascontiguousarray(Pf.T @ (f - K @ offset))
+    comm.Allreduce(MPI.IN_PLACE, rhs, op=MPI.SUM)
+    rhs = rhs[order]
     M = PETSc.Mat().create(comm=comm)
     M.setSizes(((int(counts[rank]), nfree), (int(counts[rank]), nfree)))
     M.setType("aij")
@@ -121,7 +123,8 @@ def solve_system(K, f, constraints, dirichlet, tol, maxiter, part, comm, offsets
                            f"{res:.2e} after {its} iterations")
     u = Pf @ xs + offset
     P = sp.identity(ndof, format="csr") if constraints is None else constraints.P
-    reaction = comm.allreduce((P.T @ (K @ u - f))[reaction_dofs], op=MPI.SUM)
+    reaction = np.ascontiguousarray((P.T @ (K @ u - f))[reaction_dofs])
+    comm.Allreduce(MPI.IN_PLACE, reaction, op=MPI.SUM)
     info = SolveInfo(f"petsc ({pc}, {size} ranks)", its, res, setup + t_build, solve_s,
                      {"ranks": size, "owned_unknowns": counts.tolist()})
     return SystemSolution(u, reaction_dofs, reaction, info, nfree, induced)

@@ -72,7 +72,7 @@ class VolumeAssembler:
             if loads is not None:
                 for j, i in enumerate(members):
                     f[self.offsets[i] : self.offsets[i + 1]] += loads[j].ravel()
-        return block_diagonal_csr(blocks, self.ndof), f, source_total
+        return block_diagonal_csr(blocks, self.ndof, partial=patches is not None), f, source_total
 
     def _group(self, members, space, conductivity, source):
         """Pattern, data (P, nnz), loads (P,) + shape or None, and int f dV of patches sharing a space and spline."""
