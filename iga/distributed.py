@@ -44,7 +44,31 @@ def world():
     except ImportError:
         return None
     comm = MPI.COMM_WORLD
-    return (comm, comm.Get_rank(), comm.Get_size()) if comm.Get_size() > 1 else None
+    if comm.Get_size() == 1:
+        return None
+    _share_cores(comm)
+    return comm, comm.Get_rank(), comm.Get_size()
+
+
+_SHARED = []
+
+
+def _share_cores(comm) -> None:
+    """Give each rank its share of the node's cores for the compiled (numba) kernels: ranks x threads
+    above the core count made the assembly 20x slower (threads of different ranks wait on each other)."""
+    if _SHARED:
+        return
+    _SHARED.append(True)
+    import importlib.util
+    import os
+
+    if importlib.util.find_spec("numba") is None:
+        return
+    import numba
+    from mpi4py import MPI
+
+    local = comm.Split_type(MPI.COMM_TYPE_SHARED).Get_size()
+    numba.set_num_threads(max(1, min(numba.config.NUMBA_NUM_THREADS, (os.cpu_count() or 1) // local)))
 
 
 def is_root() -> bool:

@@ -35,6 +35,7 @@ def ksp_solve(M, b_vec, x_vec, tol: float, maxiter: int, pc: str = "gamg", petsc
     ksp = PETSc.KSP().create(comm=M.getComm())
     ksp.setOperators(M)
     ksp.setType("cg")
+    ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)  # rtol on the true residual, as the other backends
     try:
         ksp.getPC().setType(pc)
     except PETSc.Error as exc:
