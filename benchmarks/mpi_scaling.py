@@ -1,6 +1,6 @@
 """Strong scaling of the distributed assembly and solve on PETSc (issue #21), on this machine's ranks.
 
-    python benchmarks/mpi_scaling.py [--ranks 1,2] [--quick]
+    python benchmarks/mpi_scaling.py [--ranks 1,2] [--quick] [--estimate-only]
 
 Needs the extra ``[mpi]`` (petsc4py, mpi4py and an ``mpiexec``).  Cases:
   * ``sink``: the circular heat sink of ``iga demo heat-sink`` at ``--refine 2`` (its pipeline, solver petsc);
@@ -9,9 +9,9 @@ Needs the extra ``[mpi]`` (petsc4py, mpi4py and an ``mpiexec``).  Cases:
 For each rank count the case runs under ``mpiexec -n R`` with ``solver="petsc"`` (CG + GAMG, tolerance
 1e-8; R = 1 is PETSc on one process): time per stage (model, spaces and regularity, assembly of the
 rank's patches, constraints and Dirichlet data, matrix build + GAMG set-up, CG), iterations, and peak
-memory per rank (max over ranks).  From the runs on 1 and 2 ranks, an estimate for 10^7 and 10^8
-unknowns on 16 and 128 ranks (:func:`estimate`: per stage a part every rank repeats and a part shared
-out, both scaled with the unknowns; CG iterations constant): a model, not a measurement.
+memory per rank (max over ranks).  From these runs, an estimate for 10^7 and 10^8 unknowns on 16 and 128
+ranks (:func:`estimate`: the replicated stages scale with the unknowns, the distributed work with the
+unknowns per rank; memory split into a replicated and a shared-out part): a model, not a measurement.
 Writes benchmarks/out/mpi_scaling.json.
 """
 
@@ -42,6 +42,7 @@ def run_case(case: str, quick: bool) -> None:
     w = world()
     comm, rank, size = w if w else (None, 0, 1)
     t_import = time.perf_counter() - t0
+    base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # the interpreter and libraries
     t0 = time.perf_counter()
     if case == "sink":  # the demo's pipeline, refined twice, on PETSc
         with tempfile.TemporaryDirectory() as tmp:
@@ -65,7 +66,9 @@ def run_case(case: str, quick: bool) -> None:
            "iterations": info["iterations"], "model s": t_model,
            "assembly s": tm["assembly_volume"] + tm["assembly_faces"], "constraints s": tm["constraints"],
            "matrix + setup s": info["setup_s"], "CG s": info["solve_s"], "total s": t_all,
-           "imports s": t_import, "peak MiB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
+           "reduction s": info.get("reduction_s", 0.0),
+           "imports s": t_import, "imports MiB": base,
+           "peak MiB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
     if comm is not None:
         rows = comm.gather(row, root=0)
         if rank:
@@ -84,35 +87,44 @@ def _fit(by: dict, q: str) -> tuple[float, float]:
 
 
 def estimate(rows) -> list[dict]:
-    """Time and memory for 10^7 and 10^8 unknowns on 16 and 128 ranks from the measured runs (see the notes).
+    """Time and memory for 10^7 and 10^8 unknowns on 16 and 128 ranks (one core each) from the runs here.
 
-    Per quantity q (each stage's time, the peak memory) the two-point model q(R) = a + b / R is fitted to the
-    runs on 1 and 2 ranks (a: what every rank repeats, e.g. the replicated constraints; b: what is shared
-    out), then both parts are scaled by the number of unknowns; CG iterations are taken as constant (GAMG).
+    Time, from the run on 2 ranks (one core each): the stages every rank repeats (the model, the
+    constraints, the replicated reduction) scale with the unknowns N; the distributed work (assembly, the
+    rank's reduced matrix, GAMG set-up, CG; 2 x the slower rank's time) with N / R; CG iterations are taken
+    as constant (GAMG).  Memory: q(R) = a + b / R fitted to the runs on 1 and 2 ranks (a: replicated, b:
+    shared out), both scaled with N except the libraries' memory (measured after the imports).  A model,
+    not a measurement.
     """
     out = []
-    keys = ("model s", "assembly s", "constraints s", "matrix + setup s", "CG s")
     for case in sorted({r["case"] for r in rows}):
         by = {r["ranks"]: r for r in rows if r["case"] == case}
         if 1 not in by or 2 not in by:
             continue
-        n0 = by[1]["unknowns"]
-        fit = {q: _fit(by, q) for q in keys + ("peak MiB",)}
+        two = by[2]
+        rep = two["model s"] + two["constraints s"] + two["reduction s"]
+        work = 2 * (two["assembly s"] + two["matrix + setup s"] - two["reduction s"] + two["CG s"])
+        a, b = _fit(by, "peak MiB")
+        base = max(r["imports MiB"] for r in by.values())  # the libraries do not grow with the model
         for N in (1e7, 1e8):
             for R in (16, 128):
-                s = N / n0
-                t = sum((fit[q][0] + fit[q][1] / R) * s for q in keys)
-                rep = sum(fit[q][0] * s for q in keys)
-                a, b = fit["peak MiB"]
-                out.append({"case": case, "unknowns": N, "ranks": R, "estimated s": t,
-                            "of which repeated on every rank s": rep,
-                            "memory per rank GiB": (a + b / R) * s / 1024})
+                s = N / two["unknowns"]
+                out.append({"case": case, "unknowns": N, "ranks": R, "estimated s": rep * s + work * s / R,
+                            "of which repeated on every rank s": rep * s,
+                            "memory per rank GiB": (base + (a - base) * s + b * s / R) / 1024})
     return out
 
 
 def main():
     if len(sys.argv) > 2 and sys.argv[1] == "--case":
         run_case(sys.argv[2], "--quick" in sys.argv)
+        return
+    if "--estimate-only" in sys.argv:  # from the last run's measurements
+        rows = json.loads((Path(__file__).parent / "out" / "mpi_scaling.json").read_text())["measured"]
+        est = estimate(rows)
+        print_table(est, [("case", "s"), ("unknowns", ".0e"), ("ranks", "d"), ("estimated s", ".0f"),
+                          ("of which repeated on every rank s", ".0f"), ("memory per rank GiB", ".1f")])
+        save_json("mpi_scaling.json", {"measured": rows, "estimate": est})
         return
     ranks = [1, 2]
     for i, a in enumerate(sys.argv):
@@ -133,7 +145,8 @@ def main():
             print(f"{case} R={R}: {r['unknowns']:,} unknowns, total {r['total s']:.1f} s, CG {r['CG s']:.1f} s "
                   f"({r['iterations']} it), peak {r['peak MiB per rank']} MiB", flush=True)
     print_table(rows, [("case", "s"), ("ranks", "d"), ("unknowns", "d"), ("iterations", "d"), ("model s", ".2f"),
-                       ("assembly s", ".2f"), ("constraints s", ".2f"), ("matrix + setup s", ".2f"), ("CG s", ".2f"),
+                       ("assembly s", ".2f"), ("constraints s", ".2f"), ("reduction s", ".2f"),
+                       ("matrix + setup s", ".2f"), ("CG s", ".2f"),
                        ("total s", ".2f"), ("peak MiB", ".0f")])
     est = estimate(rows)
     print("\nEstimate (a model from the per-rank figures above, not a measurement):")
