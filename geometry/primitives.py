@@ -20,7 +20,7 @@ from .bspline import BSpline
 from .errors import SplineError
 from .faces import FACE_AXIS, FACE_NAMES
 from .products import multiply
-from .shapes import duck  # example shapes live in their own module
+from .shapes import cylinder, duck  # example shapes live in their own module
 from .spline import SplineFunction
 from .errors import show
 
@@ -38,6 +38,7 @@ __all__ = [
     "make_compatible",
     "refined",
     "duck",
+    "cylinder",
 ]
 
 

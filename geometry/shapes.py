@@ -8,7 +8,7 @@ from . import knots as kn
 from .bspline import BSpline
 from .errors import SplineError
 
-__all__ = ["duck"]
+__all__ = ["duck", "cylinder"]
 
 # (x along the body, centre height, half width, half height) of the cross-sections, tail to beak
 _DUCK_SECTIONS = np.array([
@@ -50,3 +50,30 @@ def duck(length: float = 2.1, channels=None) -> BSpline:
     U = kn.uniform_knots(2, 1)
     W = kn.uniform_knots(3, len(sec) - 3)
     return BSpline((2, 2, 3), [U, U, W], cp, channels=tuple(extra))
+
+
+def cylinder(radius: float = 1.0, length: float = 4.0, axis: int = 2, centre=(0.0, 0.0, 0.0),
+             n: int = 5) -> BSpline:
+    """A solid cylinder as a regular trivariate (Hong and Elber 2021, Figs. 13-14: orthogonal cylinders).
+
+    The cross-section is a biquadratic disk whose ``n`` x ``n`` control points are the square grid mapped
+    by the elliptical grid mapping (x sqrt(1 - y^2 / 2), y sqrt(1 - x^2 / 2)): round to within 3% of
+    the radius, with a positive Jacobian everywhere (an exact rational disk is singular at its corners,
+    which paving refuses).  Degrees (2, 2, 1); the third parameter runs along ``axis`` (0, 1, 2) over
+    ``length`` centred at ``centre`` (model units).
+    """
+    if not (radius > 0 and length > 0 and axis in (0, 1, 2) and n >= 3):
+        raise SplineError(f"cylinder needs radius > 0, length > 0, axis 0/1/2 and n >= 3; got {radius}, {length}, "
+                          f"{axis}, {n}")
+    s = np.linspace(-1.0, 1.0, n)
+    X, Y = np.meshgrid(s, s, indexing="ij")
+    d = np.stack([X * np.sqrt(1 - Y**2 / 2), Y * np.sqrt(1 - X**2 / 2)], -1) * radius
+    cp = np.zeros((n, n, 2, 3))
+    others = [a for a in range(3) if a != axis]
+    for k, z in enumerate((-length / 2, length / 2)):
+        cp[:, :, k, others[0]] = d[..., 0]
+        cp[:, :, k, others[1]] = d[..., 1]
+        cp[:, :, k, axis] = z
+    cp += np.asarray(centre, float)
+    U = kn.uniform_knots(2, n - 2)
+    return BSpline((2, 2, 1), [U, U, kn.uniform_knots(1, 1)], cp)

@@ -1,0 +1,18 @@
+"""Micro-structures in V-rep Boolean models (Hong and Elber 2021): primitives, Boolean trees, tile classification.
+
+:class:`Primitive` (a map, a tile, counts, a priority), combined by ``|``
+(union), ``-`` (subtraction) and ``&`` (intersection) into a :class:`VModel`;
+:func:`classify` sorts a primitive's tiles into inside / outside /
+intersecting / to-be-bridged (Section 3.1); :func:`vrep_microstructure`
+keeps the inside and to-be-bridged tiles of every primitive that carries
+tiles as one :class:`tiling.Microstructure` with per-primitive and anchoring-
+face tags.  Bridging tiles, collisions and union matching (Sections 3.2-3.6)
+are not built yet.
+"""
+
+from .assemble import VResult, vrep_microstructure
+from .classify import INSIDE, INTERSECTING, MARGIN, OUTSIDE, TO_BE_BRIDGED, Classification, classify
+from .model import Primitive, VModel
+
+__all__ = ["Primitive", "VModel", "classify", "Classification", "vrep_microstructure", "VResult", "OUTSIDE",
+           "INTERSECTING", "INSIDE", "TO_BE_BRIDGED", "MARGIN"]

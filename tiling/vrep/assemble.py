@@ -1,0 +1,117 @@
+"""The kept tiles of every positive primitive of a V-model as one :class:`tiling.Microstructure`.
+
+Each positive primitive is paved regularly (:func:`tiling.regular`), classified
+(:func:`tiling.vrep.classify`), and its inside and to-be-bridged tiles are
+kept.  Patches keep their own map (the primitive's), interfaces are found in
+physical space, and the tags name the primitive (``"A"``: every free face of
+A's kept patches) and the anchoring faces (``"anchor"``, ``"anchor:A"``: the
+patch faces lying on an anchoring face of a to-be-bridged tile), where
+bridging tiles will start (Hong and Elber 2021, Section 3.2; not built yet).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from geometry import progress
+from geometry.errors import show
+from geometry.faces import FACE_AXIS, FACE_NAMES
+
+from ..errors import TilingError
+from ..microstructure import Microstructure, PlacedPatch
+from ..paving import regular
+from .classify import Classification, classify
+from .model import VModel
+
+__all__ = ["VResult", "vrep_microstructure"]
+
+
+@dataclass
+class VResult:
+    """The V-model's micro-structure, the classification of every positive primitive, and timings (s)."""
+
+    microstructure: Microstructure
+    classifications: list
+    timings: dict
+
+    def counts(self) -> dict:
+        """Tiles per state, per primitive name."""
+        return {c.primitive.name: c.counts() for c in self.classifications}
+
+
+def vrep_microstructure(model: VModel, samples: int = 4, margin: float = 0.0, name: str = "vrep") -> VResult:
+    """Classify and keep the tiles of every positive primitive of ``model`` (see the module notes)."""
+    import time
+
+    if not isinstance(model, VModel):
+        raise TilingError(f"vrep_microstructure needs a V-model (primitives combined by |, -, &), got {show(model)}")
+    if not (isinstance(samples, (int, np.integer)) and samples >= 2):
+        raise TilingError(f"samples must be an integer >= 2 per direction, got {show(samples)}")
+    if not (isinstance(margin, (int, float)) and np.isfinite(margin) and margin >= 0):
+        raise TilingError(f"margin must be a length >= 0 (model units), got {show(margin)}")
+    names = [p.name for p in model.primitives()]
+    if len(set(names)) != len(names):
+        raise TilingError(f"primitive names must be distinct (they become tags), got {names}")
+    t0 = time.perf_counter()
+    model.check()
+    timings = {"checks": time.perf_counter() - t0}
+    placed, tiles, classes, tags = [], [], [], {}
+    for prim in progress.bar(model.positive(), desc="V-model primitives", unit="primitive"):
+        t0 = time.perf_counter()
+        cls = classify(model, prim, samples, margin)
+        t1 = time.perf_counter()
+        ms = regular(prim.D, prim.tile, prim.counts, name=prim.name)
+        timings[f"classify {prim.name}"], timings[f"pave {prim.name}"] = t1 - t0, time.perf_counter() - t1
+        keep = set(cls.kept.tolist())
+        anchors = {}
+        for tile, face in cls.anchors:
+            anchors.setdefault(tile, []).append(face)
+        tile_map, first = {}, len(placed)
+        for P in ms.patches:
+            if P.tile not in keep:
+                continue
+            if P.tile not in tile_map:
+                tile_map[P.tile] = len(tiles)
+                tiles.append(ms.tiles[P.tile])
+            placed.append(PlacedPatch(P.spline, P.placement, P.outer, tile_map[P.tile], P.level, P.patch_in_tile))
+        tags[prim.name] = (first, len(placed), _anchor_faces(placed[first:], first, cls, anchors, tile_map))
+        classes.append(cls)
+    if not placed:
+        raise TilingError("no tile of the V-model is inside it: every tile is outside or crosses a trimming "
+                          "surface; use smaller tiles (higher counts)")
+    t0 = time.perf_counter()
+    out = Microstructure.build(model.positive()[0].D, placed, tiles, [], name=name)
+    for tag in FACE_NAMES + ("internal",):
+        out.tags[tag] = []  # the faces of one map's domain mean nothing across primitives
+    out.tags["anchor"] = []
+    free = set(out.tags["boundary"])
+    for pname, (a, b, anchor_faces) in tags.items():
+        out.tags[pname] = [f for f in out.tags["boundary"] if a <= f[0] < b]
+        out.tags[f"anchor:{pname}"] = [f for f in anchor_faces if f in free]
+        out.tags["anchor"] += out.tags[f"anchor:{pname}"]
+    timings["build"] = time.perf_counter() - t0
+    return VResult(out, classes, timings)
+
+
+def _anchor_faces(placed, offset: int, cls: Classification, anchors: dict, tile_map: dict) -> list:
+    """(patch, face) of the kept patches lying on an anchoring cell face of their tile."""
+    by_tile = {tile_map[t]: (cls.cells[t], faces) for t, faces in anchors.items()}
+    out = []
+    for j, P in enumerate(placed):
+        if P.tile not in by_tile:
+            continue
+        box, faces = by_tile[P.tile]
+        pts = P.spline.points.reshape(-1, 3) @ P.placement[:, :3].T + P.placement[:, 3]  # in the map's domain
+        scale = float(np.ptp(box, axis=1).max())
+        for cell_face in faces:
+            k, s = FACE_AXIS[cell_face]
+            wall = box[k, s]
+            for f in FACE_NAMES:
+                fk, fs = FACE_AXIS[f]
+                corner = pts.reshape(P.spline.control_points.shape[:3] + (3,))
+                face_pts = np.take(corner, -1 if fs else 0, axis=fk).reshape(-1, 3)
+                if np.abs(face_pts[:, k] - wall).max() < 1e-9 * max(scale, 1e-300) + 1e-12:
+                    out.append((offset + j, f))
+    return out

@@ -1,0 +1,181 @@
+"""V-models: trivariate primitives combined by Booleans, and point membership (Hong and Elber 2021, Section 3).
+
+A :class:`Primitive` is a deformation map with its own tile, counts and
+priority.  A :class:`VModel` is a Boolean tree over primitives
+(``a | b`` union, ``a - b`` subtraction, ``a & b`` intersection; nested
+freely).  Its V-cells are implicit: a point's cell is the set of primitives
+containing it, decided by point inversion into each primitive
+(:func:`geometry.invert`: Gauss-Newton from the nearest point of a sampled
+parameter grid, so a point far from a first guess still lands in the right
+element).  Primitives on the positive side of the tree (union and
+intersection operands, the left side of a subtraction) carry tiles; where
+several of them contain a point, the one of highest priority tiles it
+(Section 3.4: a V-cell shared by A and B is tiled from one of them).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from geometry import BSpline
+from geometry.errors import show
+from geometry.inversion import invert
+
+from ..errors import TilingError
+from ..tile import Tile
+
+__all__ = ["Primitive", "VModel"]
+
+_INSIDE_TOL = 1e-9  # relative to the model size: inversion distances below this are inside
+
+
+@dataclass(eq=False)
+class Primitive:
+    """A trivariate primitive: map ``D``, ``tile`` paved ``counts`` times per knot span, ``priority``, ``name``."""
+
+    D: BSpline
+    tile: Tile
+    counts: tuple
+    priority: int = 0
+    name: str = "primitive"
+
+    def __post_init__(self):
+        if not isinstance(self.D, BSpline) or self.D.dim != 3:
+            raise TilingError(f"primitive {show(self.name)}: the map must be a trivariate geometry.BSpline, "
+                              f"got {show(self.D)}")
+        if not isinstance(self.tile, Tile):
+            raise TilingError(f"primitive {show(self.name)}: tile must be a tiling.Tile, got {show(self.tile)}")
+        if not (isinstance(self.priority, (int, np.integer)) and not isinstance(self.priority, bool)):
+            raise TilingError(f"primitive {show(self.name)}: priority must be an integer, got {show(self.priority)}")
+
+    def contains(self, points: np.ndarray) -> np.ndarray:
+        """Whether physical points (N, 3) lie in the primitive (point inversion).
+
+        Points outside the bounding box of the control points are outside (the convex hull property), so
+        only the others are inverted.
+        """
+        pts = np.asarray(points, float)
+        tol = _INSIDE_TOL * self.size
+        cp = self.D.points.reshape(-1, 3)
+        cand = np.flatnonzero(np.all((pts >= cp.min(0) - tol) & (pts <= cp.max(0) + tol), axis=1))
+        out = np.zeros(len(pts), bool)
+        if len(cand):
+            out[cand] = self.distance(pts[cand]) <= tol
+        return out
+
+    def distance(self, points: np.ndarray) -> np.ndarray:
+        """Distance (model units) from points (N, 3) to the primitive (0 inside)."""
+        return invert(self.D, np.asarray(points, float)).distance
+
+    @property
+    def size(self) -> float:
+        return max(1.0, float(np.abs(self.D.points).max()))
+
+    # Boolean operators build trees
+    def __or__(self, other):
+        return VModel("union", [_node(self), _node(other)])
+
+    def __sub__(self, other):
+        return VModel("subtract", [_node(self), _node(other)])
+
+    def __and__(self, other):
+        return VModel("intersect", [_node(self), _node(other)])
+
+
+def _node(x):
+    if isinstance(x, (Primitive, VModel)):
+        return x
+    raise TilingError(f"V-model operands must be Primitives or V-models, got {show(x)}")
+
+
+@dataclass(eq=False)
+class VModel:
+    """A Boolean tree: ``op`` in ('union', 'subtract', 'intersect') over two children."""
+
+    op: str
+    children: list = field(default_factory=list)
+
+    __or__ = Primitive.__or__
+    __sub__ = Primitive.__sub__
+    __and__ = Primitive.__and__
+
+    def primitives(self) -> list[Primitive]:
+        """Every primitive of the tree, left to right, once."""
+        out = []
+        for c in self.children:
+            for p in ([c] if isinstance(c, Primitive) else c.primitives()):
+                if p not in out:
+                    out.append(p)
+        return out
+
+    def positive(self) -> list[Primitive]:
+        """The primitives that carry tiles: union and intersection operands, the left side of subtractions."""
+        out = []
+        for i, c in enumerate(self.children):
+            if self.op == "subtract" and i == 1:
+                continue
+            for p in ([c] if isinstance(c, Primitive) else c.positive()):
+                if p not in out:
+                    out.append(p)
+        return out
+
+    def contains_from(self, inside: dict) -> np.ndarray:
+        """Membership of points given each primitive's membership ``inside[primitive] (N,)``."""
+        vals = [inside[c] if isinstance(c, Primitive) else c.contains_from(inside) for c in self.children]
+        if self.op == "union":
+            return vals[0] | vals[1]
+        if self.op == "intersect":
+            return vals[0] & vals[1]
+        return vals[0] & ~vals[1]
+
+    def contains(self, points: np.ndarray) -> np.ndarray:
+        """Whether physical points (N, 3) lie in the V-model."""
+        pts = np.asarray(points, float)
+        return self.contains_from({p: p.contains(pts) for p in self.primitives()})
+
+    def territory(self, owner: Primitive, points: np.ndarray) -> np.ndarray:
+        """Whether points of ``owner`` (inside it by construction) are tiled by ``owner``: in the model and in no
+        positive primitive of higher priority."""
+        pts = np.asarray(points, float)
+        inside = {p: (np.ones(len(pts), bool) if p is owner else p.contains(pts)) for p in self.primitives()}
+        keep = self.contains_from(inside)
+        for p in self.positive():
+            if p is not owner and p.priority > owner.priority:
+                keep &= ~inside[p]
+        return keep
+
+    def check(self) -> None:
+        """Refuse trees whose tiling is ambiguous: positive primitives of equal priority that overlap."""
+        pos = self.positive()
+        if not pos:
+            raise TilingError("the V-model has no primitive that carries tiles (everything is subtracted)")
+        for i, a in enumerate(pos):
+            for b in pos[i + 1:]:
+                if a.priority == b.priority and _overlap(a, b):
+                    raise TilingError(f"primitives {show(a.name)} and {show(b.name)} overlap and have the same "
+                                      f"priority {a.priority}: which one tiles their common V-cell is undefined; "
+                                      "give them different priorities")
+        self._check_intersections()
+
+    def _check_intersections(self) -> None:
+        if self.op == "intersect":
+            a, b = ([c] if isinstance(c, Primitive) else c.primitives() for c in self.children)
+            if not any(_overlap(p, q) for p in a for q in b):
+                raise TilingError(f"the intersection of {[p.name for p in a]} and {[q.name for q in b]} is empty: "
+                                  "the primitives do not overlap")
+        for c in self.children:
+            if isinstance(c, VModel):
+                c._check_intersections()
+
+
+def _samples(D: BSpline, n: int = 9) -> np.ndarray:
+    """Physical points of an n^3 grid over D's parameter domain."""
+    axes = [np.linspace(lo, hi, n) for lo, hi in D.domain]
+    return D.evaluate(np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3))[:, :3]
+
+
+def _overlap(a: Primitive, b: Primitive) -> bool:
+    """Whether two primitives share volume (a's or b's sample points inside the other)."""
+    return bool(b.contains(_samples(a.D)).any() or a.contains(_samples(b.D)).any())
