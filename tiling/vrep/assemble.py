@@ -22,6 +22,8 @@ from geometry.faces import FACE_AXIS, FACE_NAMES
 from ..errors import TilingError
 from ..microstructure import Microstructure, PlacedPatch
 from ..paving import regular
+from ..tile import Tile
+from .bridges import build_bridges, resolve_collisions
 from .classify import Classification, classify
 from .model import VModel
 
@@ -35,14 +37,18 @@ class VResult:
     microstructure: Microstructure
     classifications: list
     timings: dict
+    bridges: dict = None  # counts: anchoring faces, bridges, dropped, collisions, swapped, repelled, eliminated
 
     def counts(self) -> dict:
         """Tiles per state, per primitive name."""
         return {c.primitive.name: c.counts() for c in self.classifications}
 
 
-def vrep_microstructure(model: VModel, samples: int = 4, margin: float = 0.0, name: str = "vrep") -> VResult:
-    """Classify and keep the tiles of every positive primitive of ``model`` (see the module notes)."""
+def vrep_microstructure(model: VModel, samples: int = 4, margin: float = 0.0, name: str = "vrep",
+                        bridges: bool = True, beta: float = 0.5) -> VResult:
+    """Classify and keep the tiles of every positive primitive of ``model``, and with ``bridges`` connect their
+    anchoring faces to the trimming surfaces by one-to-one bridging tiles (:mod:`tiling.vrep.bridges`; bend
+    parameter ``beta`` in (0, 1)) whose collisions are resolved."""
     import time
 
     if not isinstance(model, VModel):
@@ -78,6 +84,31 @@ def vrep_microstructure(model: VModel, samples: int = 4, margin: float = 0.0, na
             placed.append(PlacedPatch(P.spline, P.placement, P.outer, tile_map[P.tile], P.level, P.patch_in_tile))
         tags[prim.name] = (first, len(placed), _anchor_faces(placed[first:], first, cls, anchors, tile_map))
         classes.append(cls)
+    report = {}
+    made = []
+    if bridges:
+        t0 = time.perf_counter()
+        for cls in classes:
+            prim = cls.primitive
+            if not tags[prim.name][2]:
+                continue
+            got, rep = build_bridges(model, prim, cls, placed, tags[prim.name][2], beta)
+            made += [(prim.name, b) for b in got]
+            for key, v in rep.items():
+                report[key] = report.get(key, 0) + v
+        kept, counts = resolve_collisions([b for _, b in made])
+        report.update(counts)
+        report["bridges"] = len(kept)
+        alive = {id(b) for b in kept}
+        made = [(n, b) for n, b in made if id(b) in alive]
+        timings["bridges"] = time.perf_counter() - t0
+    bridge_first = len(placed)
+    bridge_tile = None
+    for _, b in made:
+        if bridge_tile is None:
+            bridge_tile = len(tiles)
+            tiles.append(Tile([b.spline], name="bridge"))
+        placed.append(PlacedPatch(b.spline, np.hstack([np.eye(3), np.zeros((3, 1))]), b.D, bridge_tile, 0, 0))
     if not placed:
         raise TilingError("no tile of the V-model is inside it: every tile is outside or crosses a trimming "
                           "surface; use smaller tiles (higher counts)")
@@ -86,13 +117,17 @@ def vrep_microstructure(model: VModel, samples: int = 4, margin: float = 0.0, na
     for tag in FACE_NAMES + ("internal",):
         out.tags[tag] = []  # the faces of one map's domain mean nothing across primitives
     out.tags["anchor"] = []
-    free = set(out.tags["boundary"])
+    out.tags["bridge"] = [f for f in out.tags["boundary"] if f[0] >= bridge_first]
+    for pname in tags:
+        out.tags[f"bridge:{pname}"] = []
+    for j, (pname, _) in enumerate(made):
+        out.tags[f"bridge:{pname}"] += [f for f in out.tags["bridge"] if f[0] == bridge_first + j]
     for pname, (a, b, anchor_faces) in tags.items():
         out.tags[pname] = [f for f in out.tags["boundary"] if a <= f[0] < b]
-        out.tags[f"anchor:{pname}"] = [f for f in anchor_faces if f in free]
+        out.tags[f"anchor:{pname}"] = list(anchor_faces)  # glued to their bridges when bridges are built
         out.tags["anchor"] += out.tags[f"anchor:{pname}"]
     timings["build"] = time.perf_counter() - t0
-    return VResult(out, classes, timings)
+    return VResult(out, classes, timings, report)
 
 
 def _anchor_faces(placed, offset: int, cls: Classification, anchors: dict, tile_map: dict) -> list:

@@ -1,0 +1,241 @@
+"""One-to-one bridging tiles and their collisions (Hong and Elber 2021, Sections 3.2-3.3).
+
+Every anchoring surface (a face of a to-be-bridged tile towards a purged
+neighbour) is swept to the nearest trimming surface.  The bridge is built in
+its primitive's parameter domain and composed through the primitive's map,
+like the tiles (Massarwi et al. 2018, Remark 2), so its first face *is* the
+anchoring face (an identity interface with the tile) and the composition
+carries its continuity into space:
+
+* axis: a cubic Bezier curve C, C + a e, P - b d, P in parameters, with C the
+  anchoring face's centre, e its outward direction, P the parameters of the
+  closest point on the trimming surface to C + beta L e (L = |P - C|), and d
+  the parameter direction whose image is the trimming surface's normal at P
+  (J^-1 n): G1 with the tile at C, orthogonal to the surface at P (the
+  paper's cubic axis, Section 3.3, which frees both end tangents);
+* cross-sections: the anchoring face's control net, moved with the axis and
+  turned (minimal rotation) from e to the end tangent, flattened onto the
+  plane normal to it at the far end.  The second control layer extends the
+  tile's own last layer, so the bridge is G1 with the tile across the whole
+  face, not only at its centre.
+
+Collisions (Section 3.3): two bridges collide when their sampled axes (in
+space) come closer than the sum of their inscribed radii.  A collision is
+resolved by swapping the two far ends if that separates the axes more, then
+by repelling the inner control points along T1 x T2 (the cross product of
+the axes' tangents at their closest points), and if that fails the later
+bridge is eliminated.  The counts of each are reported.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from geometry import BSpline
+from geometry.faces import FACE_AXIS, FACE_NAMES
+from geometry.inversion import invert
+
+from ..errors import TilingError
+
+__all__ = ["Bridge", "build_bridges", "resolve_collisions", "axis_samples"]
+
+_R = np.linspace(0.0, 1.0, 24)  # axis samples for collision tests
+
+
+@dataclass
+class Bridge:
+    """A bridging tile: ``spline`` (3-variate, in the primitive's parameters; its ``wmin`` face is the
+    anchoring face), the primitive's ``D``, the anchoring (patch, face), and its axis control points."""
+
+    spline: BSpline
+    D: BSpline
+    patch: int
+    face: str
+    axis: np.ndarray  # (4, 3) parameters
+    radius: float  # inscribed radius of the sections in space (bounding the tube from inside)
+    section: np.ndarray = field(repr=False, default=None)  # (ns, nt, 3) face offsets from C, parameters
+    rows01: np.ndarray = field(repr=False, default=None)  # the first two control layers (fixed by the tile)
+    target: BSpline = field(repr=False, default=None)  # the trimming surface (a primitive's boundary face)
+
+
+def _bernstein3(r):
+    r = np.asarray(r, float)[:, None]
+    return np.hstack([(1 - r) ** 3, 3 * r * (1 - r) ** 2, 3 * r**2 * (1 - r), r**3])
+
+
+def axis_samples(b: Bridge, r=_R) -> np.ndarray:
+    """Physical points of the bridge's axis at ``r`` (default 24 samples)."""
+    t = _bernstein3(r) @ b.axis
+    return b.D.evaluate(np.clip(t, b.D.domain[:, 0], b.D.domain[:, 1]))[:, :3]
+
+
+def _rotation(a, b):
+    """Minimal rotation taking unit vector a to unit vector b (Rodrigues)."""
+    v = np.cross(a, b)
+    c = float(np.dot(a, b))
+    if np.linalg.norm(v) < 1e-14:
+        if c > 0:
+            return np.eye(3)
+        p = np.eye(3)[np.argmin(np.abs(a))]
+        p = p - a * np.dot(p, a)
+        p /= np.linalg.norm(p)
+        return 2 * np.outer(p, p) - np.eye(3)
+    K = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+    return np.eye(3) + K + K @ K / (1 + c)
+
+
+def _assemble(b: Bridge) -> None:
+    """(Re)build the bridge's control net from its axis (rows 0-1 fixed by the tile, rows 2-3 the far section)."""
+    e = b.axis[1] - b.axis[0]
+    e = e / np.linalg.norm(e)
+    end = b.axis[3] - b.axis[2]
+    end = end / np.linalg.norm(end)
+    flat = b.section - np.einsum("ijk,k->ij", b.section, end)[..., None] * end  # onto the plane normal to `end`
+    R = _rotation(e, end)
+    last = b.axis[3] + flat @ R.T
+    if b.target is not None:  # the far section's control points onto the trimming surface (through D)
+        shape = last.shape
+        x = b.D.evaluate(np.clip(last.reshape(-1, 3), b.D.domain[:, 0], b.D.domain[:, 1]))[:, :3]
+        on = b.target.evaluate(invert(b.target, x).params)[:, :3]
+        back = invert(b.D, on)
+        last = np.where(back.inside[:, None], back.params, last.reshape(-1, 3)).reshape(shape)
+    rows = np.stack([b.rows01[0], b.rows01[1], last - (b.axis[3] - b.axis[2]), last], axis=2)
+    b.spline = BSpline(b.spline.degrees, b.spline.knots, rows)
+
+
+def build_bridges(model, prim, cls, placed, anchors, beta: float = 0.5) -> tuple[list, dict]:
+    """Bridges for the anchoring faces ``anchors`` [(patch index into ``placed``, face)] of primitive ``prim``.
+
+    Returns (bridges, report) with the counts of anchoring faces, bridges built and those dropped because
+    their target lies outside the primitive's domain.
+    """
+    if not (np.isfinite(beta) and 0 < beta < 1):
+        raise TilingError(f"the bend parameter beta must be in (0, 1), got {beta!r}")
+    targets = [q for q in model.primitives() if q is not prim and not (q in model.positive()
+                                                                          and q.priority < prim.priority)]
+    if not targets:
+        raise TilingError(f"primitive {prim.name!r} has anchoring faces but no trimming surface to bridge to")
+    faces = [q.D.boundary(f) for q in targets for f in FACE_NAMES]
+    D = prim.D
+    out, dropped = [], 0
+    for pi, face in anchors:
+        P = placed[pi]
+        S = P.spline.affine(P.placement[:, :3], P.placement[:, 3])  # the tile patch in D's parameters
+        k, s = FACE_AXIS[face]
+        cp = S.control_points[..., :3]
+        F = np.take(cp, -1 if s else 0, axis=k)
+        T1 = np.take(cp, -2 if s else 1, axis=k)
+        C = S.boundary(face).evaluate(S.boundary(face).domain.mean(1)[None])[0, :3]
+        e = (F - T1).mean((0, 1))
+        e /= np.linalg.norm(e)
+        # the target: closest point on a trimming surface to a point ahead of the face
+        ahead = C + 0.5 * e * float(np.ptp(F.reshape(-1, 3), axis=0).max() + 1e-12) * 2
+        ahead = np.clip(ahead, D.domain[:, 0], D.domain[:, 1])
+        M = D.evaluate(ahead[None])[0, :3]
+        best = None
+        for G in faces:
+            inv = invert(G, M[None])
+            if best is None or inv.distance[0] < best[0]:
+                best = (inv.distance[0], G, inv.params[0])
+        _, G, uv = best
+        x, J = G.value_and_jacobian(uv[None])
+        Pphys = x[0, :3]
+        n = np.cross(J[0, :3, 0], J[0, :3, 1])
+        n = n / np.linalg.norm(n)
+        if np.dot(n, M - Pphys) < 0:
+            n = -n
+        inv = invert(D, Pphys[None])
+        if not inv.inside[0]:
+            dropped += 1
+            continue
+        Pp = inv.params[0]
+        JD = D.jacobian(Pp[None])[0, :3, :]
+        d = np.linalg.solve(JD, n)
+        d /= np.linalg.norm(d)
+        L = float(np.linalg.norm(Pp - C))
+        axis = np.stack([C, C + beta * L * e, Pp + beta * L * d, Pp])
+        if np.any(axis < D.domain[:, 0] - 1e-9) or np.any(axis > D.domain[:, 1] + 1e-9):
+            dropped += 1
+            continue
+        fs = S.boundary(face)
+        spline = BSpline(fs.degrees + (3,), list(fs.knots) + [np.array([0, 0, 0, 0, 1, 1, 1, 1.0])],
+                         np.zeros(F.shape[:2] + (4, 3)))
+        lam = beta * L / max(float(np.linalg.norm((F - T1).mean((0, 1)))), 1e-300)
+        b = Bridge(spline, D, pi, face, axis, 0.0, F - C, np.stack([F, F + lam * (F - T1)]), G)
+        _assemble(b)
+        ring = D.evaluate(F.reshape(-1, 3))[:, :3]
+        ring = ring - ring.mean(0)
+        proj = ring @ np.linalg.svd(ring, full_matrices=False)[2][:2].T  # in the face's principal plane
+        b.radius = float(np.abs(proj).max(axis=0).min())  # half the narrower width: inscribed
+        out.append(b)
+    return out, {"anchoring faces": len(anchors), "bridges": len(out), "dropped (target outside)": dropped}
+
+
+def _min_distance(a: Bridge, b: Bridge):
+    pa, pb = axis_samples(a), axis_samples(b)
+    d = np.linalg.norm(pa[:, None] - pb[None], axis=2)
+    i, j = np.unravel_index(np.argmin(d), d.shape)
+    return float(d[i, j]), int(i), int(j), pa, pb
+
+
+def resolve_collisions(bridges: list, max_repel: int = 20) -> tuple[list, dict]:
+    """Detect and resolve collisions (see the module notes); returns (kept bridges, counts)."""
+    counts = {"collisions": 0, "swapped": 0, "repelled": 0, "eliminated": 0}
+    if len(bridges) < 2:
+        return bridges, counts
+    mids = np.array([axis_samples(b, [0.5])[0] for b in bridges])
+    reach = max(float(np.linalg.norm(axis_samples(b, [0.0]) - axis_samples(b, [1.0]))) for b in bridges)
+    rmax = max(b.radius for b in bridges)
+    pairs = cKDTree(mids).query_pairs(reach + 2 * rmax, output_type="ndarray")
+    alive = np.ones(len(bridges), bool)
+    for i, j in pairs:
+        if not (alive[i] and alive[j]):
+            continue
+        a, b = bridges[i], bridges[j]
+        dist, *_ = _min_distance(a, b)
+        need = a.radius + b.radius
+        if dist >= need * (1 - 1e-9):
+            continue
+        counts["collisions"] += 1
+        # 1. swap the far ends when that separates the axes more
+        a2, b2 = a.axis.copy(), b.axis.copy()
+        a.axis[2:], b.axis[2:] = b2[2:].copy(), a2[2:].copy()
+        a.target, b.target = b.target, a.target
+        _assemble(a), _assemble(b)
+        new, *_ = _min_distance(a, b)
+        if new > dist:
+            counts["swapped"] += 1
+            dist = new
+        else:
+            a.axis, b.axis = a2, b2
+            a.target, b.target = b.target, a.target
+            _assemble(a), _assemble(b)
+        # 2. repel the far inner control points along T1 x T2 (the near ones keep the bridge G1 with its tile)
+        for _ in range(max_repel):
+            if dist >= need:
+                break
+            dist, ia, ib, pa, pb = _min_distance(a, b)
+            ta = pa[min(ia + 1, len(pa) - 1)] - pa[max(ia - 1, 0)]
+            tb = pb[min(ib + 1, len(pb) - 1)] - pb[max(ib - 1, 0)]
+            v = np.cross(ta, tb)
+            if np.linalg.norm(v) < 1e-12:
+                v = pa[ia] - pb[ib]
+            v = v / max(np.linalg.norm(v), 1e-300)
+            if np.dot(v, pa[ia] - pb[ib]) < 0:
+                v = -v
+            step = 0.5 * (need - dist) + 1e-3 * need
+            for bb, sgn in ((a, 1.0), (b, -1.0)):
+                J = bb.D.jacobian(bb.axis[2:3])[0, :3, :]
+                bb.axis[2] = np.clip(bb.axis[2] + np.linalg.solve(J, sgn * 2 * step * v), bb.D.domain[:, 0],
+                                     bb.D.domain[:, 1])
+                _assemble(bb)
+            dist, *_ = _min_distance(a, b)
+        if dist >= need:
+            counts["repelled"] += int(dist >= need)
+            continue
+        alive[j] = False
+        counts["eliminated"] += 1
+    return [b for b, ok in zip(bridges, alive) if ok], counts
