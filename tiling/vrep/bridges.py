@@ -58,7 +58,7 @@ class Bridge:
     radius: float  # inscribed radius of the sections in space (bounding the tube from inside)
     section: np.ndarray = field(repr=False, default=None)  # (ns, nt, 3) face offsets from C, parameters
     rows01: np.ndarray = field(repr=False, default=None)  # the first two control layers (fixed by the tile)
-    target: BSpline = field(repr=False, default=None)  # the trimming surface (a primitive's boundary face)
+    target: list = field(repr=False, default=None)  # the trimming primitive's six boundary faces
 
 
 def _bernstein3(r):
@@ -99,7 +99,9 @@ def _assemble(b: Bridge) -> None:
     if b.target is not None:  # the far section's control points onto the trimming surface (through D)
         shape = last.shape
         x = b.D.evaluate(np.clip(last.reshape(-1, 3), b.D.domain[:, 0], b.D.domain[:, 1]))[:, :3]
-        on = b.target.evaluate(invert(b.target, x).params)[:, :3]
+        invs = [invert(G, x) for G in b.target]  # the nearest of the primitive's faces, point by point
+        near = np.argmin(np.stack([v.distance for v in invs]), axis=0)
+        on = np.array([b.target[g].evaluate(invs[g].params[i][None])[0, :3] for i, g in enumerate(near)])
         back = invert(b.D, on)
         last = np.where(back.inside[:, None], back.params, last.reshape(-1, 3)).reshape(shape)
     rows = np.stack([b.rows01[0], b.rows01[1], last - (b.axis[3] - b.axis[2]), last], axis=2)
@@ -114,11 +116,11 @@ def build_bridges(model, prim, cls, placed, anchors, beta: float = 0.5) -> tuple
     """
     if not (np.isfinite(beta) and 0 < beta < 1):
         raise TilingError(f"the bend parameter beta must be in (0, 1), got {beta!r}")
-    targets = [q for q in model.primitives() if q is not prim and not (q in model.positive()
-                                                                          and q.priority < prim.priority)]
+    targets = [q for q in model.primitives() if q is not prim]
     if not targets:
         raise TilingError(f"primitive {prim.name!r} has anchoring faces but no trimming surface to bridge to")
     faces = [q.D.boundary(f) for q in targets for f in FACE_NAMES]
+    owner = [[q.D.boundary(f) for f in FACE_NAMES] for q in targets for _ in FACE_NAMES]
     D = prim.D
     out, dropped = [], 0
     for pi, face in anchors:
@@ -135,12 +137,20 @@ def build_bridges(model, prim, cls, placed, anchors, beta: float = 0.5) -> tuple
         ahead = C + 0.5 * e * float(np.ptp(F.reshape(-1, 3), axis=0).max() + 1e-12) * 2
         ahead = np.clip(ahead, D.domain[:, 0], D.domain[:, 1])
         M = D.evaluate(ahead[None])[0, :3]
-        best = None
-        for G in faces:
+        # the nearest boundary point of another primitive that bounds this primitive's territory: just beyond
+        # it (away from M) the territory ends
+        cands = []
+        for G, own in zip(faces, owner):
             inv = invert(G, M[None])
-            if best is None or inv.distance[0] < best[0]:
-                best = (inv.distance[0], G, inv.params[0])
-        _, G, uv = best
+            cands.append((inv.distance[0], G, inv.params[0], own))
+        cands.sort(key=lambda c: c[0])
+        pts = np.array([G.evaluate(uv[None])[0, :3] for _, G, uv, _ in cands])
+        away = pts - M
+        away /= np.maximum(np.linalg.norm(away, axis=1), 1e-300)[:, None]
+        eps = 1e-3 * max(float(np.ptp(D.points.reshape(-1, 3), axis=0).max()), 1e-300)
+        ends = model.territory(prim, pts + eps * away)
+        best = next((c for c, e in zip(cands, ends) if not e), cands[0])
+        _, G, uv, own = best
         x, J = G.value_and_jacobian(uv[None])
         Pphys = x[0, :3]
         n = np.cross(J[0, :3, 0], J[0, :3, 1])
@@ -164,7 +174,7 @@ def build_bridges(model, prim, cls, placed, anchors, beta: float = 0.5) -> tuple
         spline = BSpline(fs.degrees + (3,), list(fs.knots) + [np.array([0, 0, 0, 0, 1, 1, 1, 1.0])],
                          np.zeros(F.shape[:2] + (4, 3)))
         lam = beta * L / max(float(np.linalg.norm((F - T1).mean((0, 1)))), 1e-300)
-        b = Bridge(spline, D, pi, face, axis, 0.0, F - C, np.stack([F, F + lam * (F - T1)]), G)
+        b = Bridge(spline, D, pi, face, axis, 0.0, F - C, np.stack([F, F + lam * (F - T1)]), own)
         _assemble(b)
         ring = D.evaluate(F.reshape(-1, 3))[:, :3]
         ring = ring - ring.mean(0)
