@@ -87,25 +87,47 @@ def _rotation(a, b):
     return np.eye(3) + K + K @ K / (1 + c)
 
 
-def _assemble(b: Bridge) -> None:
-    """(Re)build the bridge's control net from its axis (rows 0-1 fixed by the tile, rows 2-3 the far section)."""
+def _far_section(b: Bridge) -> np.ndarray:
+    """The far section's control points (parameters) before snapping: the face net turned to the end tangent."""
     e = b.axis[1] - b.axis[0]
     e = e / np.linalg.norm(e)
     end = b.axis[3] - b.axis[2]
     end = end / np.linalg.norm(end)
     flat = b.section - np.einsum("ijk,k->ij", b.section, end)[..., None] * end  # onto the plane normal to `end`
-    R = _rotation(e, end)
-    last = b.axis[3] + flat @ R.T
-    if b.target is not None:  # the far section's control points onto the trimming surface (through D)
-        shape = last.shape
-        x = b.D.evaluate(np.clip(last.reshape(-1, 3), b.D.domain[:, 0], b.D.domain[:, 1]))[:, :3]
-        invs = [invert(G, x) for G in b.target]  # the nearest of the primitive's faces, point by point
-        near = np.argmin(np.stack([v.distance for v in invs]), axis=0)
-        on = np.array([b.target[g].evaluate(invs[g].params[i][None])[0, :3] for i, g in enumerate(near)])
-        back = invert(b.D, on)
-        last = np.where(back.inside[:, None], back.params, last.reshape(-1, 3)).reshape(shape)
-    rows = np.stack([b.rows01[0], b.rows01[1], last - (b.axis[3] - b.axis[2]), last], axis=2)
-    b.spline = BSpline(b.spline.degrees, b.spline.knots, rows)
+    return b.axis[3] + flat @ _rotation(e, end).T
+
+
+def _snap(bridges: list) -> None:
+    """Move the far sections' control points onto their trimming surfaces (through each bridge's map), in one
+    batch of inversions per trimming primitive and map, and rebuild the control nets."""
+    groups: dict = {}
+    for b in bridges:
+        groups.setdefault((id(b.target[0]) if b.target else None, id(b.D)), []).append(b)
+    for members in groups.values():
+        lasts = [_far_section(b) for b in members]
+        b0 = members[0]
+        if b0.target:
+            flat = np.concatenate([x.reshape(-1, 3) for x in lasts])
+            x = b0.D.evaluate(np.clip(flat, b0.D.domain[:, 0], b0.D.domain[:, 1]))[:, :3]
+            invs = [invert(G, x) for G in b0.target]  # the nearest of the primitive's faces, point by point
+            near = np.argmin(np.stack([v.distance for v in invs]), axis=0)
+            on = np.empty_like(x)
+            for g, G in enumerate(b0.target):
+                sel = near == g
+                if sel.any():
+                    on[sel] = G.evaluate(invs[g].params[sel])[:, :3]
+            back = invert(b0.D, on)
+            flat = np.where(back.inside[:, None], back.params, flat)
+            lasts = np.split(flat, np.cumsum([x.size // 3 for x in lasts])[:-1])
+        for b, last in zip(members, lasts):
+            last = np.asarray(last).reshape(b.section.shape)
+            rows = np.stack([b.rows01[0], b.rows01[1], last - (b.axis[3] - b.axis[2]), last], axis=2)
+            b.spline = BSpline(b.spline.degrees, b.spline.knots, rows)
+
+
+def _assemble(b: Bridge) -> None:
+    """(Re)build one bridge's control net from its axis (rows 0-1 fixed by the tile, rows 2-3 the far section)."""
+    _snap([b])
 
 
 def build_bridges(model, prim, cls, placed, anchors, beta: float = 0.5) -> tuple[list, dict]:
@@ -119,73 +141,77 @@ def build_bridges(model, prim, cls, placed, anchors, beta: float = 0.5) -> tuple
     targets = [q for q in model.primitives() if q is not prim]
     if not targets:
         raise TilingError(f"primitive {prim.name!r} has anchoring faces but no trimming surface to bridge to")
-    faces = [q.D.boundary(f) for q in targets for f in FACE_NAMES]
-    owner = [[q.D.boundary(f) for f in FACE_NAMES] for q in targets for _ in FACE_NAMES]
+    sides = {q: [q.D.boundary(f) for f in FACE_NAMES] for q in targets}  # shared: bridges snap in batches
+    faces = [G for q in targets for G in sides[q]]
+    owner = [sides[q] for q in targets for _ in FACE_NAMES]
     D = prim.D
-    out, dropped = [], 0
+    # the anchoring faces, in the primitive's parameters: control net, the tile's next layer, centre, outward e
+    geo = []
     for pi, face in anchors:
         P = placed[pi]
         S = P.spline.affine(P.placement[:, :3], P.placement[:, 3])  # the tile patch in D's parameters
         k, s = FACE_AXIS[face]
         cp = S.control_points[..., :3]
-        F = np.take(cp, -1 if s else 0, axis=k)
-        T1 = np.take(cp, -2 if s else 1, axis=k)
-        C = S.boundary(face).evaluate(S.boundary(face).domain.mean(1)[None])[0, :3]
+        F, T1 = np.take(cp, -1 if s else 0, axis=k), np.take(cp, -2 if s else 1, axis=k)
+        fs = S.boundary(face)
+        C = fs.evaluate(fs.domain.mean(1)[None])[0, :3]
         e = (F - T1).mean((0, 1))
         e /= np.linalg.norm(e)
-        # the target: closest point on a trimming surface to a point ahead of the face
-        ahead = C + 0.5 * e * float(np.ptp(F.reshape(-1, 3), axis=0).max() + 1e-12) * 2
-        ahead = np.clip(ahead, D.domain[:, 0], D.domain[:, 1])
-        M = D.evaluate(ahead[None])[0, :3]
-        # the nearest boundary point of another primitive that bounds this primitive's territory: just beyond
-        # it (away from M) the territory ends
-        cands = []
-        for G, own in zip(faces, owner):
-            inv = invert(G, M[None])
-            cands.append((inv.distance[0], G, inv.params[0], own))
-        cands.sort(key=lambda c: c[0])
-        pts = np.array([G.evaluate(uv[None])[0, :3] for _, G, uv, _ in cands])
-        away = pts - M
-        away /= np.maximum(np.linalg.norm(away, axis=1), 1e-300)[:, None]
-        eps = 1e-3 * max(float(np.ptp(D.points.reshape(-1, 3), axis=0).max()), 1e-300)
-        ends = model.territory(prim, pts + eps * away)
-        best = next((c for c, e in zip(cands, ends) if not e), cands[0])
-        _, G, uv, own = best
-        x, J = G.value_and_jacobian(uv[None])
-        Pphys = x[0, :3]
-        n = np.cross(J[0, :3, 0], J[0, :3, 1])
-        n = n / np.linalg.norm(n)
-        if np.dot(n, M - Pphys) < 0:
-            n = -n
-        inv = invert(D, Pphys[None])
-        if not inv.inside[0]:
+        geo.append((pi, face, fs, F, T1, C, e))
+    if not geo:
+        return [], {"anchoring faces": 0, "bridges": 0, "dropped (target outside)": 0}
+    ahead = np.array([C + e * float(np.ptp(F.reshape(-1, 3), axis=0).max()) for _, _, _, F, _, C, e in geo])
+    M = D.evaluate(np.clip(ahead, D.domain[:, 0], D.domain[:, 1]))[:, :3]
+    # the nearest boundary point of another primitive that bounds this primitive's territory (just beyond it,
+    # away from M, the territory ends): one batch of inversions per candidate face
+    invs = [invert(G, M) for G in faces]
+    dist = np.stack([v.distance for v in invs])  # (faces, anchors)
+    pts = np.stack([G.evaluate(v.params)[:, :3] for G, v in zip(faces, invs)])
+    away = pts - M[None]
+    away /= np.maximum(np.linalg.norm(away, axis=2), 1e-300)[..., None]
+    eps = 1e-3 * max(float(np.ptp(D.points.reshape(-1, 3), axis=0).max()), 1e-300)
+    ends = model.territory(prim, (pts + eps * away).reshape(-1, 3)).reshape(dist.shape)
+    order = np.argsort(dist, axis=0)
+    choice = np.array([next((g for g in order[:, i] if not ends[g, i]), order[0, i]) for i in range(len(geo))])
+    Pphys = pts[choice, np.arange(len(geo))]
+    normals = np.zeros_like(Pphys)
+    for g in np.unique(choice):
+        sel = np.flatnonzero(choice == g)
+        _, J = faces[g].value_and_jacobian(invs[g].params[sel])
+        normals[sel] = np.cross(J[:, :3, 0], J[:, :3, 1])
+    normals /= np.linalg.norm(normals, axis=1)[:, None]
+    normals *= np.sign(np.sum(normals * (M - Pphys), axis=1))[:, None]
+    back = invert(D, Pphys)
+    JD = D.jacobian(back.params)[:, :3, :]
+    out, dropped = [], 0
+    for i, (pi, face, fs, F, T1, C, e) in enumerate(geo):
+        if not back.inside[i]:
             dropped += 1
             continue
-        Pp = inv.params[0]
-        JD = D.jacobian(Pp[None])[0, :3, :]
-        d = np.linalg.solve(JD, n)
+        Pp = back.params[i]
+        d = np.linalg.solve(JD[i], normals[i])
         d /= np.linalg.norm(d)
         L = float(np.linalg.norm(Pp - C))
         axis = np.stack([C, C + beta * L * e, Pp + beta * L * d, Pp])
         if np.any(axis < D.domain[:, 0] - 1e-9) or np.any(axis > D.domain[:, 1] + 1e-9):
             dropped += 1
             continue
-        fs = S.boundary(face)
         spline = BSpline(fs.degrees + (3,), list(fs.knots) + [np.array([0, 0, 0, 0, 1, 1, 1, 1.0])],
                          np.zeros(F.shape[:2] + (4, 3)))
         lam = beta * L / max(float(np.linalg.norm((F - T1).mean((0, 1)))), 1e-300)
-        b = Bridge(spline, D, pi, face, axis, 0.0, F - C, np.stack([F, F + lam * (F - T1)]), own)
-        _assemble(b)
+        b = Bridge(spline, D, pi, face, axis, 0.0, F - C, np.stack([F, F + lam * (F - T1)]), owner[choice[i]])
         ring = D.evaluate(F.reshape(-1, 3))[:, :3]
         ring = ring - ring.mean(0)
         proj = ring @ np.linalg.svd(ring, full_matrices=False)[2][:2].T  # in the face's principal plane
         b.radius = float(np.abs(proj).max(axis=0).min())  # half the narrower width: inscribed
         out.append(b)
+    _snap(out)
     return out, {"anchoring faces": len(anchors), "bridges": len(out), "dropped (target outside)": dropped}
 
 
-def _min_distance(a: Bridge, b: Bridge):
-    pa, pb = axis_samples(a), axis_samples(b)
+def _min_distance(a: Bridge, b: Bridge, pa=None, pb=None):
+    pa = axis_samples(a) if pa is None else pa
+    pb = axis_samples(b) if pb is None else pb
     d = np.linalg.norm(pa[:, None] - pb[None], axis=2)
     i, j = np.unravel_index(np.argmin(d), d.shape)
     return float(d[i, j]), int(i), int(j), pa, pb
@@ -201,11 +227,12 @@ def resolve_collisions(bridges: list, max_repel: int = 20) -> tuple[list, dict]:
     rmax = max(b.radius for b in bridges)
     pairs = cKDTree(mids).query_pairs(reach + 2 * rmax, output_type="ndarray")
     alive = np.ones(len(bridges), bool)
+    axes = [axis_samples(b) for b in bridges]  # kept current: a bridge that moves is sampled again
     for i, j in pairs:
         if not (alive[i] and alive[j]):
             continue
         a, b = bridges[i], bridges[j]
-        dist, *_ = _min_distance(a, b)
+        dist, *_ = _min_distance(a, b, axes[i], axes[j])
         need = a.radius + b.radius
         if dist >= need * (1 - 1e-9):
             continue
@@ -224,8 +251,9 @@ def resolve_collisions(bridges: list, max_repel: int = 20) -> tuple[list, dict]:
             a.target, b.target = b.target, a.target
             _assemble(a), _assemble(b)
         # 2. repel the far inner control points along T1 x T2 (the near ones keep the bridge G1 with its tile)
-        for _ in range(max_repel):
-            if dist >= need:
+        steps = 0
+        for steps in range(max_repel + 1):
+            if dist >= need or steps == max_repel:
                 break
             dist, ia, ib, pa, pb = _min_distance(a, b)
             ta = pa[min(ia + 1, len(pa) - 1)] - pa[max(ia - 1, 0)]
@@ -243,8 +271,9 @@ def resolve_collisions(bridges: list, max_repel: int = 20) -> tuple[list, dict]:
                                      bb.D.domain[:, 1])
                 _assemble(bb)
             dist, *_ = _min_distance(a, b)
+        axes[i], axes[j] = axis_samples(a), axis_samples(b)
         if dist >= need:
-            counts["repelled"] += int(dist >= need)
+            counts["repelled"] += int(steps > 0)
             continue
         alive[j] = False
         counts["eliminated"] += 1
