@@ -3,6 +3,8 @@
 import numpy as np
 import pytest
 
+import tiling
+from geometry import primitives as pr
 from geometry.shapes import cylinder
 from tiling import TilingError
 from tiling import library as L
@@ -129,6 +131,10 @@ def test_v_model_bad_input():
         A | "cylinder"
     with pytest.raises(TilingError, match="no primitive that carries tiles|V-model"):
         vrep_microstructure(A)
+    floating = tiling.Tile([pr.box((0.5, 0.5, 0.5), (0.25, 0.25, 0.25))], name="floating block")
+    F = Primitive(cylinder(1.0, 4.0, 0), floating, (3, 3, 6), priority=3, name="F")
+    with pytest.raises(TilingError, match="'F'.*'floating block' has no patch face on the cell walls"):
+        vrep_microstructure(F - B)
     with pytest.raises(TilingError, match="priority must be an integer"):
         Primitive(cylinder(), L.cross(), (2, 2, 2), priority=1.5, name="bad")
 
@@ -174,13 +180,7 @@ def test_bridges_start_g1_at_their_tiles_and_end_orthogonal_on_the_trimming_surf
         assert np.abs(xt - xb).max() < 1e-10  # the same face, point by point
         assert _angle_deg(Jt[:, :, k], Jb[:, :, 2]).max() < 1e-6  # G1: cross derivatives parallel
     # every bridge ends on the trimming surface (B's boundary), its axis orthogonal to it (within 1 degree)
-    from tiling.vrep.bridges import Bridge  # noqa: F401  (the type the report counts)
-
     faces = [B.D.boundary(f) for f in FACE_NAMES]
-    for j in bridges[:40]:
-        bp = ms.patches[j]
-        ax = bp.spline.control_points[..., :3]
-        assert ax is not None
     for b in _bridge_objects(A - B)[:40]:
         end, before = axis_samples(b, [1.0])[0], axis_samples(b, [1.0 - 1e-6])[0]
         assert B.distance(end[None])[0] < 1e-6 and not B.contains(((end + before) / 2)[None])[0]
@@ -217,4 +217,50 @@ def test_colliding_bridges_are_separated_or_eliminated():
             if np.linalg.norm(x.axis[0] - y.axis[0]) > 3.0:
                 continue
             d = np.linalg.norm(axis_samples(x)[:, None] - axis_samples(y)[None], axis=2).min()
+            assert d >= (x.radius + y.radius) * (1 - 1e-9)
+
+
+def test_v_cells_name_their_primitives_owner_and_trimming_surfaces():
+    A, B, C = _cylinders((1, 1, 4))
+    cells = (A | B).cells()
+    sig = {tuple(p.name for p in c.inside): c for c in cells}
+    assert set(sig) == {("A",), ("B",), ("A", "B")}  # A - B, B - A and A n B
+    assert sig[("A", "B")].owner is A and sig[("B",)].owner is B  # the shared cell is tiled by the higher priority
+    assert {p.name for p in sig[("A",)].trimmed_by} == {"A", "B"}
+    assert [tuple(p.name for p in c.inside) for c in (A - B).cells()] == [("A",)]
+
+
+def test_the_primitives_materials_reach_the_patches():
+    from geometry import BSpline
+    from geometry.chain import patch_geometry_points
+
+    def with_k(D, k):
+        cp = np.concatenate([D.control_points, np.full(D.control_points.shape[:-1] + (1,), k)], -1)
+        return BSpline(D.degrees, D.knots, cp, D.weights, ("k",))
+
+    A = Primitive(with_k(cylinder(1.0, 4.0, 0), 205.0), L.cross(), (1, 1, 6), priority=2, name="aluminium")
+    B = Primitive(with_k(cylinder(1.0, 4.0, 1), 54.0), L.cross(), (1, 1, 6), priority=1, name="steel")
+    ms = vrep_microstructure(A | B).microstructure
+    for name, k in (("aluminium", 205.0), ("steel", 54.0)):
+        p, _ = ms.tags[name][0]
+        P = ms.patches[p]
+        _, _, chans = patch_geometry_points(P, P.spline.domain.mean(1)[None])
+        assert "k" in P.channels and chans["k"][0] == pytest.approx(k)
+
+
+def test_after_collision_handling_no_two_bridges_intersect():
+    from tiling.vrep.bridges import axis_samples
+
+    A, B, C = _cylinders((1, 1, 12))
+    res = vrep_microstructure((A | B) - C)  # bridges of A and B converge on C: collisions happen
+    assert res.bridges["collisions"] > 0
+    ms = res.microstructure
+    first = min(p for p, _ in ms.tags["bridge"])
+    # the tubes' centre lines, sampled in space, against the sum of the inscribed radii (as the handling does)
+    kept = res.bridge_objects
+    assert len(kept) == len(ms.patches) - first
+    for i, x in enumerate(kept):
+        px = axis_samples(x)
+        for y in kept[i + 1:]:
+            d = np.linalg.norm(px[:, None] - axis_samples(y)[None], axis=2).min()
             assert d >= (x.radius + y.radius) * (1 - 1e-9)

@@ -12,7 +12,7 @@ are not built yet.
 
 from .assemble import VResult, vrep_microstructure
 from .classify import INSIDE, INTERSECTING, MARGIN, OUTSIDE, TO_BE_BRIDGED, Classification, classify
-from .model import Primitive, VModel
+from .model import Primitive, VCell, VModel
 
-__all__ = ["Primitive", "VModel", "classify", "Classification", "vrep_microstructure", "VResult", "OUTSIDE",
+__all__ = ["Primitive", "VModel", "VCell", "classify", "Classification", "vrep_microstructure", "VResult", "OUTSIDE",
            "INTERSECTING", "INSIDE", "TO_BE_BRIDGED", "MARGIN"]

@@ -38,6 +38,7 @@ class VResult:
     classifications: list
     timings: dict
     bridges: dict = None  # counts: anchoring faces, bridges, dropped, collisions, swapped, repelled, eliminated
+    bridge_objects: list = None  # the kept :class:`tiling.vrep.bridges.Bridge` objects, in patch order
 
     def counts(self) -> dict:
         """Tiles per state, per primitive name."""
@@ -68,6 +69,10 @@ def vrep_microstructure(model: VModel, samples: int = 4, margin: float = 0.0, na
         t0 = time.perf_counter()
         cls = classify(model, prim, samples, margin)
         t1 = time.perf_counter()
+        classes.append(cls)
+        if not len(cls.kept):  # nothing of this primitive stays (e.g. a lower priority inside an intersection)
+            timings[f"classify {prim.name}"] = t1 - t0
+            continue
         ms = regular(prim.D, prim.tile, prim.counts, name=prim.name)
         timings[f"classify {prim.name}"], timings[f"pave {prim.name}"] = t1 - t0, time.perf_counter() - t1
         keep = set(cls.kept.tolist())
@@ -83,14 +88,17 @@ def vrep_microstructure(model: VModel, samples: int = 4, margin: float = 0.0, na
                 tiles.append(ms.tiles[P.tile])
             placed.append(PlacedPatch(P.spline, P.placement, P.outer, tile_map[P.tile], P.level, P.patch_in_tile))
         tags[prim.name] = (first, len(placed), _anchor_faces(placed[first:], first, cls, anchors, tile_map))
-        classes.append(cls)
+        if bridges and cls.anchors and not tags[prim.name][2]:
+            raise TilingError(f"primitive {show(prim.name)}: its tile {show(prim.tile.name)} has no patch face on the "
+                              f"cell walls, so its {len(cls.anchors)} anchoring faces have nothing to bridge from; use "
+                              "a tile whose patches reach the cell faces, or bridges=False")
     report = {}
     made = []
     if bridges:
         t0 = time.perf_counter()
         for cls in classes:
             prim = cls.primitive
-            if not tags[prim.name][2]:
+            if prim.name not in tags or not tags[prim.name][2]:
                 continue
             got, rep = build_bridges(model, prim, cls, placed, tags[prim.name][2], beta)
             made += [(prim.name, b) for b in got]
@@ -127,7 +135,7 @@ def vrep_microstructure(model: VModel, samples: int = 4, margin: float = 0.0, na
         out.tags[f"anchor:{pname}"] = list(anchor_faces)  # glued to their bridges when bridges are built
         out.tags["anchor"] += out.tags[f"anchor:{pname}"]
     timings["build"] = time.perf_counter() - t0
-    return VResult(out, classes, timings, report)
+    return VResult(out, classes, timings, report, [b for _, b in made])
 
 
 def _anchor_faces(placed, offset: int, cls: Classification, anchors: dict, tile_map: dict) -> list:

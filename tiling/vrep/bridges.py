@@ -125,6 +125,25 @@ def _snap(bridges: list) -> None:
             b.spline = BSpline(b.spline.degrees, b.spline.knots, rows)
 
 
+def _retarget(b: Bridge, x: np.ndarray) -> bool:
+    """Move the bridge's far end to the trimming surface point nearest to the physical point ``x``, its end
+    tangent along the surface normal there; False (unchanged) when that point leaves the primitive."""
+    invs = [invert(G, x[None]) for G in b.target]
+    g = int(np.argmin([v.distance[0] for v in invs]))
+    p, J = b.target[g].value_and_jacobian(invs[g].params)
+    back = invert(b.D, p[:, :3])
+    if not back.inside[0]:
+        return False
+    n = np.cross(J[0, :3, 0], J[0, :3, 1])
+    start = b.D.evaluate(b.axis[:1])[0, :3]
+    n *= np.sign(np.dot(n, start - p[0, :3])) / np.linalg.norm(n)
+    d = np.linalg.solve(b.D.jacobian(back.params)[0, :3, :], n)
+    reach = float(np.linalg.norm(b.axis[2] - b.axis[3]))
+    b.axis[3] = back.params[0]
+    b.axis[2] = np.clip(back.params[0] + reach * d / np.linalg.norm(d), b.D.domain[:, 0], b.D.domain[:, 1])
+    return True
+
+
 def _assemble(b: Bridge) -> None:
     """(Re)build one bridge's control net from its axis (rows 0-1 fixed by the tile, rows 2-3 the far section)."""
     _snap([b])
@@ -250,7 +269,8 @@ def resolve_collisions(bridges: list, max_repel: int = 20) -> tuple[list, dict]:
             a.axis, b.axis = a2, b2
             a.target, b.target = b.target, a.target
             _assemble(a), _assemble(b)
-        # 2. repel the far inner control points along T1 x T2 (the near ones keep the bridge G1 with its tile)
+        # 2. repel along T1 x T2: the far inner control point (the near one keeps the bridge G1 with its tile),
+        # and the far end itself, along the surface, when the axes come closest near the surface
         steps = 0
         for steps in range(max_repel + 1):
             if dist >= need or steps == max_repel:
@@ -265,12 +285,15 @@ def resolve_collisions(bridges: list, max_repel: int = 20) -> tuple[list, dict]:
             if np.dot(v, pa[ia] - pb[ib]) < 0:
                 v = -v
             step = 0.5 * (need - dist) + 1e-3 * need
-            for bb, sgn in ((a, 1.0), (b, -1.0)):
-                J = bb.D.jacobian(bb.axis[2:3])[0, :3, :]
-                bb.axis[2] = np.clip(bb.axis[2] + np.linalg.solve(J, sgn * 2 * step * v), bb.D.domain[:, 0],
-                                     bb.D.domain[:, 1])
-                _assemble(bb)
+            for bb, sgn, idx, pp in ((a, 1.0, ia, pa), (b, -1.0, ib, pb)):
+                if idx >= 0.6 * (len(pp) - 1) and bb.target:
+                    _retarget(bb, pp[-1] + sgn * 2 * step * v)
+                else:
+                    J = bb.D.jacobian(bb.axis[2:3])[0, :3, :]
+                    bb.axis[2] = np.clip(bb.axis[2] + np.linalg.solve(J, sgn * 2 * step * v), bb.D.domain[:, 0],
+                                         bb.D.domain[:, 1])
             dist, *_ = _min_distance(a, b)
+        _snap([a, b])  # the far sections follow the axes once, not at every step
         axes[i], axes[j] = axis_samples(a), axis_samples(b)
         if dist >= need:
             counts["repelled"] += int(steps > 0)

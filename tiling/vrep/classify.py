@@ -6,8 +6,8 @@ P's map) and every sample is tested for P's territory (in the V-model and in
 no positive primitive of higher priority: :meth:`VModel.territory`).  All
 samples in: *inside*; none: *outside*; both: *intersecting* (the tile
 crosses a trimming surface).  Sampling misses a trimming surface that passes
-between samples, so tiles next to an intersecting one are sampled again at
-twice the density (refinement) before they are called inside or outside:
+between samples, so tiles next to an intersecting one are sampled again with
+two more points per direction (refinement) before they are called inside or outside:
 the trimming surfaces here are smooth primitive boundaries whose features
 are larger than a tile, which is what makes sampling plus refinement a firm
 answer in practice, and it needs no surface-surface intersection.  Inside
@@ -101,7 +101,7 @@ def classify(model: VModel, prim: Primitive, samples: int = 4, margin: float = 0
     # refinement: uniform tiles next to an intersecting one are sampled again, twice as densely
     near = np.flatnonzero((state != INTERSECTING) & np.any((nb >= 0) & (state[nb] == INTERSECTING), axis=1))
     if len(near):
-        again = _states(model, prim, boxes[near], 2 * samples - 1)
+        again = _states(model, prim, boxes[near], samples + 2)
         state[near] = np.where(again == state[near], state[near], INTERSECTING)
     purged = (state == OUTSIDE) | (state == INTERSECTING)
     bridged = (state == INSIDE) & np.any((nb >= 0) & (state[nb] == INTERSECTING), axis=1)

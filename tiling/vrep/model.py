@@ -26,7 +26,7 @@ from geometry.inversion import invert
 from ..errors import TilingError
 from ..tile import Tile
 
-__all__ = ["Primitive", "VModel"]
+__all__ = ["Primitive", "VModel", "VCell"]
 
 _INSIDE_TOL = 1e-9  # relative to the model size: inversion distances below this are inside
 
@@ -90,6 +90,21 @@ def _node(x):
     raise TilingError(f"V-model operands must be Primitives or V-models, got {show(x)}")
 
 
+@dataclass
+class VCell:
+    """A V-cell: the zone of the model inside exactly the primitives ``inside`` (and outside the others).
+
+    ``owner``: the positive primitive of highest priority among ``inside`` (it tiles the cell);
+    ``trimmed_by``: the primitives whose boundaries bound the cell (trimming surfaces: the boundaries of the
+    primitives it is inside, and of those it borders from outside); ``fraction``: its share of the samples.
+    """
+
+    inside: tuple
+    owner: Primitive
+    trimmed_by: tuple
+    fraction: float
+
+
 @dataclass(eq=False)
 class VModel:
     """A Boolean tree: ``op`` in ('union', 'subtract', 'intersect') over two children."""
@@ -137,14 +152,56 @@ class VModel:
 
     def territory(self, owner: Primitive, points: np.ndarray) -> np.ndarray:
         """Whether points of ``owner`` (inside it by construction) are tiled by ``owner``: in the model and in no
-        positive primitive of higher priority."""
+        positive primitive of higher priority.  The tree is evaluated lazily: a primitive is asked only about
+        the points its operation can still decide (a point outside the left side of an intersection never
+        meets the right side), which saves most of the point inversions."""
         pts = np.asarray(points, float)
-        inside = {p: (np.ones(len(pts), bool) if p is owner else p.contains(pts)) for p in self.primitives()}
-        keep = self.contains_from(inside)
+        keep = self._lazy(owner, pts, np.arange(len(pts)))
         for p in self.positive():
             if p is not owner and p.priority > owner.priority:
-                keep &= ~inside[p]
+                idx = np.flatnonzero(keep)
+                keep[idx[p.contains(pts[idx])]] = False
         return keep
+
+    def _lazy(self, owner: Primitive, pts: np.ndarray, idx: np.ndarray) -> np.ndarray:
+        """Membership (len(pts),) of pts[idx] (False elsewhere), asking each primitive about as few as possible."""
+        def leaf(c, sub):
+            out = np.zeros(len(pts), bool)
+            if len(sub):
+                out[sub] = True if c is owner else c.contains(pts[sub])
+            return out
+
+        def node(c, sub):
+            return leaf(c, sub) if isinstance(c, Primitive) else c._lazy(owner, pts, sub)
+
+        left = node(self.children[0], idx)
+        if self.op == "union":
+            return left | node(self.children[1], idx[~left[idx]])
+        if self.op == "intersect":
+            return node(self.children[1], idx[left[idx]])
+        return left & ~node(self.children[1], idx[left[idx]])
+
+    def cells(self, per_dir: int = 12) -> list[VCell]:
+        """The V-cells of the model, found by sampling every primitive on a ``per_dir``^3 parameter grid: each
+        sample's membership signature (which primitives contain it) names its cell; a primitive trims the
+        cell when a sample of the cell lies within one grid step of its boundary."""
+        prims = self.primitives()
+        pts = np.concatenate([_samples(p.D, per_dir) for p in prims])
+        inside = {p: p.contains(pts) for p in prims}
+        keep = self.contains_from(inside)
+        sig = np.stack([inside[p] for p in prims], 1)[keep]
+        kept = pts[keep]
+        step = max(float(np.ptp(p.D.points.reshape(-1, 3), axis=0).max()) for p in prims) / (per_dir - 1)
+        out = []
+        for row in np.unique(sig, axis=0):
+            sel = np.all(sig == row, axis=1)
+            members = tuple(p for p, on in zip(prims, row) if on)
+            owners = [p for p in self.positive() if p in members]
+            near = tuple(p for p, on in zip(prims, row) if on or
+                         np.any(p.distance(kept[sel][:: max(1, int(sel.sum()) // 200)]) < step))
+            out.append(VCell(members, max(owners, key=lambda p: p.priority) if owners else None, near,
+                             float(sel.mean())))
+        return out
 
     def check(self) -> None:
         """Refuse trees whose tiling is ambiguous: positive primitives of equal priority that overlap."""
