@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from geometry import progress
+from geometry.primitives import box
 from geometry.errors import show
 from geometry.faces import FACE_AXIS, FACE_NAMES
 
@@ -113,9 +114,9 @@ def vrep_microstructure(model: VModel, samples: int = 4, margin: float = 0.0, na
     bridge_first = len(placed)
     bridge_tile = None
     for _, b in made:
-        if bridge_tile is None:
+        if bridge_tile is None:  # one tile entry stands for all bridges (each is its own spline, in map parameters)
             bridge_tile = len(tiles)
-            tiles.append(Tile([b.spline], name="bridge"))
+            tiles.append(Tile([box()], name="one-to-one bridge"))
         placed.append(PlacedPatch(b.spline, np.hstack([np.eye(3), np.zeros((3, 1))]), b.D, bridge_tile, 0, 0))
     if not placed:
         raise TilingError("no tile of the V-model is inside it: every tile is outside or crosses a trimming "
@@ -128,8 +129,9 @@ def vrep_microstructure(model: VModel, samples: int = 4, margin: float = 0.0, na
     out.tags["bridge"] = [f for f in out.tags["boundary"] if f[0] >= bridge_first]
     for pname in tags:
         out.tags[f"bridge:{pname}"] = []
-    for j, (pname, _) in enumerate(made):
-        out.tags[f"bridge:{pname}"] += [f for f in out.tags["bridge"] if f[0] == bridge_first + j]
+    owner = {bridge_first + j: pname for j, (pname, _) in enumerate(made)}
+    for f in out.tags["bridge"]:
+        out.tags[f"bridge:{owner[f[0]]}"].append(f)
     for pname, (a, b, anchor_faces) in tags.items():
         out.tags[pname] = [f for f in out.tags["boundary"] if a <= f[0] < b]
         out.tags[f"anchor:{pname}"] = list(anchor_faces)  # glued to their bridges when bridges are built
