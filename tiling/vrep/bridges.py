@@ -22,9 +22,10 @@ carries its continuity into space:
 Collisions (Section 3.3): two bridges collide when their sampled axes (in
 space) come closer than the sum of their inscribed radii.  A collision is
 resolved by swapping the two far ends if that separates the axes more, then
-by repelling the inner control points along T1 x T2 (the cross product of
-the axes' tangents at their closest points), and if that fails the later
-bridge is eliminated.  The counts of each are reported.
+by repelling along T1 x T2 (the cross product of the axes' tangents at their
+closest points) the far inner control point, or, when the axes meet near
+the surface, the far end itself, sliding along the surface; if that fails
+the later bridge is eliminated.  The counts of each are reported.
 """
 
 from __future__ import annotations
