@@ -15,6 +15,16 @@ def out_dir() -> Path:
     return OUT
 
 
+def run_child(cmd: list, label: str) -> dict | None:
+    """Run a benchmark child process ``cmd`` whose last stdout line is a JSON row; the row, or None after
+    printing ``label`` and the end of its stderr when it failed."""
+    out = subprocess.run(cmd, capture_output=True, text=True)
+    if out.returncode:
+        print(f"{label} failed:\n{out.stderr[-2000:]}")
+        return None
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
 def run_cases(script: str, cases, run, renders: bool = False) -> list[dict] | None:
     """Each case of a benchmark in a fresh subprocess of ``script``, so that peak memory is per case.
 
@@ -30,11 +40,10 @@ def run_cases(script: str, cases, run, renders: bool = False) -> list[dict] | No
     png = renders and "--no-png" not in sys.argv
     rows = []
     for case in cases:
-        out = subprocess.run([sys.executable, script, "--case", case], capture_output=True, text=True)
-        if out.returncode:
-            print(out.stderr[-2000:])
+        row = run_child([sys.executable, script, "--case", case], f"case {case}")
+        if row is None:
             continue
-        rows.append(json.loads(out.stdout.strip().splitlines()[-1]))
+        rows.append(row)
         if png:
             subprocess.run([sys.executable, script, "--case", case, "--png"], check=True, capture_output=True)
     return rows

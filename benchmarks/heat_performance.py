@@ -32,13 +32,12 @@ from __future__ import annotations
 import argparse
 import json
 import resource
-import subprocess
 import sys
 import time
 
 import numpy as np
 
-from _common import print_table, pyplot, save_json, save_plot
+from _common import print_table, pyplot, run_child, save_json, save_plot
 
 SIZES = {"30k": 31, "110k": 48, "475k": 78, "1M": 100}  # (N + p) per direction, p = 2; p = 3 uses one less element
 
@@ -112,13 +111,11 @@ def main(argv=None):
     mallocs = ("retain", "default") if args.malloc == "both" else (args.malloc,)
     rows = []
     for (p, n), malloc in ((c, m) for c in cases for m in mallocs):
-        out = subprocess.run([sys.executable, __file__, "--case", f"{p},{n}", "--tol", str(args.tol),
-                              "--malloc", malloc, "--repeat", str(args.repeat)] + (["--numpy"] if args.numpy else []),
-                             capture_output=True, text=True)
-        if out.returncode != 0:
-            print(f"case p={p} n={n} failed:\n{out.stderr[-2000:]}")
+        row = run_child([sys.executable, __file__, "--case", f"{p},{n}", "--tol", str(args.tol), "--malloc", malloc,
+                         "--repeat", str(args.repeat)] + (["--numpy"] if args.numpy else []), f"case p={p} n={n}")
+        if row is None:
             continue
-        rows.append(json.loads(out.stdout.strip().splitlines()[-1]))
+        rows.append(row)
         r = rows[-1]
         print(f"p={p} dofs={r['dofs']} malloc={malloc}: total {r['total s']:.2f} s, "
               f"warm assembly {r['assembly warm s']:.2f} s", flush=True)

@@ -19,12 +19,11 @@ from __future__ import annotations
 
 import json
 import resource
-import subprocess
 import sys
 import time
 from pathlib import Path
 
-from _common import print_table, save_json
+from _common import print_table, run_child, save_json
 
 
 def run_case(case: str, quick: bool) -> None:
@@ -136,11 +135,10 @@ def main():
         for R in ranks:
             cmd = [mpiexec, "-n", str(R), sys.executable, __file__, "--case", case] + (["--quick"] if "--quick" in
                                                                                       sys.argv else [])
-            out = subprocess.run(cmd, capture_output=True, text=True)
-            if out.returncode:
-                print(f"{case} on {R} ranks failed:\n{out.stderr[-2000:]}")
+            row = run_child(cmd, f"{case} on {R} ranks")
+            if row is None:
                 continue
-            rows.append(json.loads(out.stdout.strip().splitlines()[-1]))
+            rows.append(row)
             r = rows[-1]
             print(f"{case} R={R}: {r['unknowns']:,} unknowns, total {r['total s']:.1f} s, CG {r['CG s']:.1f} s "
                   f"({r['iterations']} it), peak {r['peak MiB per rank']} MiB", flush=True)

@@ -27,13 +27,12 @@ from __future__ import annotations
 
 import json
 import resource
-import subprocess
 import sys
 import time
 
 import numpy as np
 
-from _common import out_dir, print_table, save_json
+from _common import out_dir, print_table, run_child, save_json
 
 METHODS = ("amg-cg", "fd-cg", "gmg-cg")
 SIZES = {2: (31, 48, 78, 100), 3: (31, 48, 77), 4: (31, 48)}  # (N + p) per direction: 30k .. 1M unknowns
@@ -105,11 +104,9 @@ def main():
         for method in METHODS:
             if method == "fd-cg" and not case.startswith("patch"):
                 continue  # one patch only
-            out = subprocess.run([sys.executable, __file__, "--one", case, method], capture_output=True, text=True)
-            if out.returncode:
-                print(f"{case} {method} failed: {out.stderr.strip().splitlines()[-1]}")
+            row = run_child([sys.executable, __file__, "--one", case, method], f"{case} {method}")
+            if row is None:
                 continue
-            row = json.loads(out.stdout.strip().splitlines()[-1])
             ref = out_dir() / f"_u_{case.replace(':', '_')}_amg-cg.npy"
             if ref.exists():
                 a, b = np.load(ref), np.load(out_dir() / f"_u_{case.replace(':', '_')}_{method}.npy")
