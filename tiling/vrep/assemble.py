@@ -148,15 +148,11 @@ def _anchor_faces(placed, offset: int, cls: Classification, anchors: dict, tile_
         if P.tile not in by_tile:
             continue
         box, faces = by_tile[P.tile]
-        pts = P.spline.points.reshape(-1, 3) @ P.placement[:, :3].T + P.placement[:, 3]  # in the map's domain
-        scale = float(np.ptp(box, axis=1).max())
+        net = P.spline.points @ P.placement[:, :3].T + P.placement[:, 3]  # the control net in the map's domain
+        sides = {f: np.take(net, -1 if FACE_AXIS[f][1] else 0, axis=FACE_AXIS[f][0]).reshape(-1, 3)
+                 for f in FACE_NAMES}
+        tol = 1e-9 * max(float(np.ptp(box, axis=1).max()), 1e-300) + 1e-12
         for cell_face in faces:
             k, s = FACE_AXIS[cell_face]
-            wall = box[k, s]
-            for f in FACE_NAMES:
-                fk, fs = FACE_AXIS[f]
-                corner = pts.reshape(P.spline.control_points.shape[:3] + (3,))
-                face_pts = np.take(corner, -1 if fs else 0, axis=fk).reshape(-1, 3)
-                if np.abs(face_pts[:, k] - wall).max() < 1e-9 * max(scale, 1e-300) + 1e-12:
-                    out.append((offset + j, f))
+            out += [(offset + j, f) for f, pts in sides.items() if np.abs(pts[:, k] - box[k, s]).max() < tol]
     return out

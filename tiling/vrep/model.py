@@ -146,9 +146,9 @@ class VModel:
         return vals[0] & ~vals[1]
 
     def contains(self, points: np.ndarray) -> np.ndarray:
-        """Whether physical points (N, 3) lie in the V-model."""
+        """Whether physical points (N, 3) lie in the V-model (evaluated lazily, as :meth:`territory`)."""
         pts = np.asarray(points, float)
-        return self.contains_from({p: p.contains(pts) for p in self.primitives()})
+        return self._lazy(None, pts, np.arange(len(pts)))
 
     def territory(self, owner: Primitive, points: np.ndarray) -> np.ndarray:
         """Whether points of ``owner`` (inside it by construction) are tiled by ``owner``: in the model and in no
