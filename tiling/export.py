@@ -42,9 +42,14 @@ __all__ = ["surface", "watertightness", "mesh_watertightness", "write_surfaces",
 _FORMATS = {".vtu": "vtu", ".obj": "obj", ".stl": "stl", ".ply": "ply", ".vtp": "vtp"}
 
 
-def _map(P, params, spline=None):
-    spline = P.spline if spline is None else spline
-    y = spline.evaluate(params)[:, :3] @ P.placement[:, :3].T + P.placement[:, 3]
+def _map(P, params):
+    """A placed patch at its parameters (N, d), in physical space."""
+    return _place(P, P.spline.evaluate(params)[:, :3])
+
+
+def _place(P, x):
+    """Tile-space points (N, 3) of a placed patch in physical space: placement, then the map D."""
+    y = x @ P.placement[:, :3].T + P.placement[:, 3]
     return P.outer.evaluate(np.clip(y, P.outer.domain[:, 0], P.outer.domain[:, 1]))[:, :3]
 
 
@@ -143,9 +148,7 @@ def _cap_triangles(ms: Microstructure, pc, samples: int):
     X[:, k], X[:, rest] = s, uv
     n_ring = sum(len(r) for r in rings)
     X[:n_ring] = np.concatenate(rings)  # the ring points exactly as the tile's patches give them
-    P = pc.placed
-    y = X @ P.placement[:, :3].T + P.placement[:, 3]
-    return P.outer.evaluate(np.clip(y, P.outer.domain[:, 0], P.outer.domain[:, 1]))[:, :3], tris
+    return _place(pc.placed, X), tris
 
 
 def samples_for_tolerance(ms: Microstructure, tolerance: float, max_samples: int = 64) -> int:
