@@ -123,6 +123,19 @@ def regular(D: BSpline, tile: Tile, counts, variants: dict | None = None, name: 
     >>> lattice.n_tiles, len(lattice.patches), len(lattice.tags["umin"])   # 7 blocks per tile; 4 arm ends at u = 0
     (16, 112, 4)
     """
+    placed, tiles, links, caps, sealed = regular_placements(D, tile, counts, variants, seal, thickness, seal_sides)
+    ms = Microstructure.build(D, placed, tiles, links, name=name)
+    ms.caps = caps
+    if seal is not None:
+        _tag_seal(ms, seal, {(id(t), i) for t in sealed.values() for i in t.seal_patches})
+    return ms
+
+
+def regular_placements(D: BSpline, tile: Tile, counts, variants: dict | None = None, seal: str | None = None,
+                       thickness: float = 0.1, seal_sides=None):
+    """The placements of :func:`regular` without the interface search: (placed patches, tiles, seal links, caps,
+    sealed variants by sides).  Tiles are numbered in C order over the cells; for callers that keep a subset
+    of them and build one micro-structure from several pavings (:mod:`tiling.vrep`)."""
     _check_map(D)
     if not isinstance(tile, Tile):
         raise TilingError(f"tile must be a tiling.Tile, got {type(tile).__name__}")
@@ -165,11 +178,7 @@ def regular(D: BSpline, tile: Tile, counts, variants: dict | None = None, name: 
                 caps += [PlacedCap(c, PlacedPatch(c.trimmed.surface, M, D, tid, 0, -1), first)
                          for c in getattr(t, "caps", ())]
     _check_spans(D, placed)
-    ms = Microstructure.build(D, placed, tiles, links, name=name)
-    ms.caps = caps
-    if seal is not None:
-        _tag_seal(ms, seal, {(id(t), i) for t in sealed.values() for i in t.seal_patches})
-    return ms
+    return placed, tiles, links, caps, sealed
 
 
 def variant_for(tile: Tile, sides, thickness: float, seal: str) -> Tile:

@@ -1,6 +1,7 @@
 """The kept tiles of every positive primitive of a V-model as one :class:`tiling.Microstructure`.
 
-Each positive primitive is paved regularly (:func:`tiling.regular`), classified
+Each positive primitive is paved regularly (:func:`tiling.paving.regular_placements`: the placements only,
+the interfaces are searched once for the whole model), classified
 (:func:`tiling.vrep.classify`), and its inside and to-be-bridged tiles are
 kept.  Patches keep their own map (the primitive's), interfaces are found in
 physical space, and the tags name the primitive (``"A"``: every free face of
@@ -22,7 +23,7 @@ from geometry.faces import FACE_AXIS, FACE_NAMES
 
 from ..errors import TilingError
 from ..microstructure import Microstructure, PlacedPatch
-from ..paving import regular
+from ..paving import regular_placements
 from ..tile import Tile
 from .bridges import build_bridges, resolve_collisions
 from .classify import Classification, classify
@@ -74,19 +75,19 @@ def vrep_microstructure(model: VModel, samples: int = 4, margin: float = 0.0, na
         if not len(cls.kept):  # nothing of this primitive stays (e.g. a lower priority inside an intersection)
             timings[f"classify {prim.name}"] = t1 - t0
             continue
-        ms = regular(prim.D, prim.tile, prim.counts, name=prim.name)
+        paved, paved_tiles = regular_placements(prim.D, prim.tile, prim.counts)[:2]
         timings[f"classify {prim.name}"], timings[f"pave {prim.name}"] = t1 - t0, time.perf_counter() - t1
         keep = set(cls.kept.tolist())
         anchors = {}
         for tile, face in cls.anchors:
             anchors.setdefault(tile, []).append(face)
         tile_map, first = {}, len(placed)
-        for P in ms.patches:
+        for P in paved:
             if P.tile not in keep:
                 continue
             if P.tile not in tile_map:
                 tile_map[P.tile] = len(tiles)
-                tiles.append(ms.tiles[P.tile])
+                tiles.append(paved_tiles[P.tile])
             placed.append(PlacedPatch(P.spline, P.placement, P.outer, tile_map[P.tile], P.level, P.patch_in_tile))
         tags[prim.name] = (first, len(placed), _anchor_faces(placed[first:], first, cls, anchors, tile_map))
         if bridges and cls.anchors and not tags[prim.name][2]:
