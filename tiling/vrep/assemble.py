@@ -124,8 +124,9 @@ def vrep_microstructure(model: VModel, samples: int = 4, margin: float = 0.0, na
                           "surface; use smaller tiles (higher counts)")
     t0 = time.perf_counter()
     out = Microstructure.build(model.positive()[0].D, placed, tiles, [], name=name)
-    for tag in FACE_NAMES + ("internal",):
+    for tag in FACE_NAMES:
         out.tags[tag] = []  # the faces of one map's domain mean nothing across primitives
+    out.tags["internal"] = list(out.tags["boundary"])  # so every free face is "elsewhere" (DESIGN, section 4)
     out.tags["anchor"] = []
     out.tags["bridge"] = [f for f in out.tags["boundary"] if f[0] >= bridge_first]
     for pname in tags:
