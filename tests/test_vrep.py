@@ -100,8 +100,12 @@ def test_union_tiles_each_v_cell_from_the_primitive_of_highest_priority():
     assert all(len(partner.get(a, [])) <= 1 for a in ms.tags["anchor"])
     glued = sum(len(partner.get(a, [])) for a in ms.tags["anchor"])
     rep = res.bridges
-    assert glued == len(ms.patches) - first == rep["bridges"]
-    assert rep["bridges"] + rep["eliminated"] + rep["dropped (target outside)"] == len(ms.tags["anchor"])
+    assert rep["union anchors"] > 0 and rep["union two-to-one"] + rep["union one-to-one"] > 0
+    assert len(ms.patches) - first == rep["bridges"] == rep["surface bridges"] + sum(len(u.patches) for u in res.unions)
+    # an anchor is glued to a bridge to the surface, to a union bridge, or left open (unmatched or eliminated)
+    assert glued == rep["surface bridges"] + rep["union anchors"] - rep["union open anchors"]
+    assert (rep["surface bridges"] + rep["eliminated"] + rep["dropped (target outside)"] + rep["union anchors"]
+            == len(ms.tags["anchor"]))
 
 
 def test_a_margin_purges_bridged_tiles_too_close_to_the_surface():

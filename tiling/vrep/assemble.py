@@ -20,6 +20,7 @@ from geometry import progress
 from geometry.primitives import box
 from geometry.errors import show
 from geometry.faces import FACE_AXIS, FACE_NAMES
+from geometry.multipatch import face_points, tile_corners
 
 from ..errors import TilingError
 from ..microstructure import Microstructure, PlacedPatch
@@ -28,6 +29,7 @@ from ..tile import Tile
 from .bridges import build_bridges, resolve_collisions
 from .classify import Classification, classify
 from .model import VModel
+from .union import boundary_faces, bridge_union, shared_faces, union_anchors
 
 __all__ = ["VResult", "vrep_microstructure"]
 
@@ -41,6 +43,7 @@ class VResult:
     timings: dict
     bridges: dict = None  # counts: anchoring faces, bridges, dropped, collisions, swapped, repelled, eliminated
     bridge_objects: list = None  # the kept :class:`tiling.vrep.bridges.Bridge` objects, in patch order
+    unions: list = None  # :class:`tiling.vrep.union.UnionBridges` per matched pair of primitives
 
     def counts(self) -> dict:
         """Tiles per state, per primitive name."""
@@ -48,10 +51,15 @@ class VResult:
 
 
 def vrep_microstructure(model: VModel, samples: int = 4, margin: float = 0.0, name: str = "vrep",
-                        bridges: bool = True, beta: float = 0.5) -> VResult:
+                        bridges: bool = True, beta: float = 0.5, d_maxdist: float | None = None, phi: float = 0.0,
+                        alpha: float = np.pi / 4) -> VResult:
     """Classify and keep the tiles of every positive primitive of ``model``, and with ``bridges`` connect their
-    anchoring faces to the trimming surfaces by one-to-one bridging tiles (:mod:`tiling.vrep.bridges`; bend
-    parameter ``beta`` in (0, 1)) whose collisions are resolved."""
+    anchoring faces: to the trimming surfaces by one-to-one bridging tiles (:mod:`tiling.vrep.bridges`; bend
+    parameter ``beta`` in (0, 1)) whose collisions are resolved, and, where the surface is shared with another
+    primitive of a union, to that primitive's boundary tile faces by matched one-to-one tubes and two-to-one
+    bifurcation bridges (:mod:`tiling.vrep.union`; ``d_maxdist`` the longest match in model units, default four
+    face widths; ``phi`` in [0, 1] blends the end directions from the tiles' cross derivatives to the face
+    normals; ``alpha`` in (0, pi/2) the angle between the bifurcation base's bottom and sides)."""
     import time
 
     if not isinstance(model, VModel):
@@ -60,6 +68,7 @@ def vrep_microstructure(model: VModel, samples: int = 4, margin: float = 0.0, na
         raise TilingError(f"samples must be an integer >= 2 per direction, got {show(samples)}")
     if not (isinstance(margin, (int, float)) and np.isfinite(margin) and margin >= 0):
         raise TilingError(f"margin must be a length >= 0 (model units), got {show(margin)}")
+    _check_union_parameters(d_maxdist, phi, alpha)
     names = [p.name for p in model.primitives()]
     if len(set(names)) != len(names):
         raise TilingError(f"primitive names must be distinct (they become tags), got {names}")
@@ -95,20 +104,33 @@ def vrep_microstructure(model: VModel, samples: int = 4, margin: float = 0.0, na
                               f"cell walls, so its {len(cls.anchors)} anchoring faces have nothing to bridge from; use "
                               "a tile whose patches reach the cell faces, or bridges=False")
     report = {}
-    made = []
+    made, union = [], []
     if bridges:
         t0 = time.perf_counter()
+        by_name = {p.name: p for p in model.positive()}
         for cls in classes:
             prim = cls.primitive
             if prim.name not in tags or not tags[prim.name][2]:
                 continue
-            got, rep = build_bridges(model, prim, cls, placed, tags[prim.name][2], beta)
+            anchors = tags[prim.name][2]
+            partners, rest = union_anchors(model, prim, placed, anchors, _reach(placed, anchors, margin))
+            for pname, faces in partners.items():
+                p = by_name[pname]
+                a, b, _ = tags[pname] if pname in tags else (0, 0, None)
+                shared = shared_faces(model, prim, placed, boundary_faces(p, placed, a, b))
+                if shared:
+                    union.append((prim, p, faces, shared))
+                else:  # nothing of the other primitive to meet here: bridge to the surface (Section 3.2)
+                    rest += faces
+                    report["union anchors bridged to the surface"] = report.get(
+                        "union anchors bridged to the surface", 0) + len(faces)
+            got, rep = build_bridges(model, prim, cls, placed, rest, beta)
             made += [(prim.name, b) for b in got]
             for key, v in rep.items():
                 report[key] = report.get(key, 0) + v
         kept, counts = resolve_collisions([b for _, b in made])
         report.update(counts)
-        report["bridges"] = len(kept)
+        report["bridges"] = report["surface bridges"] = len(kept)
         alive = {id(b) for b in kept}
         made = [(n, b) for n, b in made if id(b) in alive]
         timings["bridges"] = time.perf_counter() - t0
@@ -119,6 +141,22 @@ def vrep_microstructure(model: VModel, samples: int = 4, margin: float = 0.0, na
             bridge_tile = len(tiles)
             tiles.append(Tile([box()], name="one-to-one bridge"))
         placed.append(PlacedPatch(b.spline, np.hstack([np.eye(3), np.zeros((3, 1))]), b.D, bridge_tile, 0, 0))
+    owner = {bridge_first + j: pname for j, (pname, _) in enumerate(made)}
+    unions = []
+    if union:
+        t0 = time.perf_counter()
+        union_tile = len(tiles)
+        tiles.append(Tile([box()], name="union bridge"))
+        for q, p, faces, shared in union:
+            ub = bridge_union(model, q, p, placed, faces, shared, union_tile, d_maxdist, beta, phi, alpha)
+            owner.update({len(placed) + j: q.name for j in range(len(ub.patches))})
+            placed += ub.patches
+            unions.append(ub)
+            for key, v in ub.counts.items():
+                key = key if key.startswith("faces of") else f"union {key}"
+                report[key] = report.get(key, 0) + v
+        report["bridges"] = report.get("bridges", 0) + sum(len(u.patches) for u in unions)
+        timings["union bridges"] = time.perf_counter() - t0
     if not placed:
         raise TilingError("no tile of the V-model is inside it: every tile is outside or crosses a trimming "
                           "surface; use smaller tiles (higher counts)")
@@ -131,15 +169,15 @@ def vrep_microstructure(model: VModel, samples: int = 4, margin: float = 0.0, na
     out.tags["bridge"] = [f for f in out.tags["boundary"] if f[0] >= bridge_first]
     for pname in tags:
         out.tags[f"bridge:{pname}"] = []
-    owner = {bridge_first + j: pname for j, (pname, _) in enumerate(made)}
     for f in out.tags["bridge"]:
         out.tags[f"bridge:{owner[f[0]]}"].append(f)
     for pname, (a, b, anchor_faces) in tags.items():
         out.tags[pname] = [f for f in out.tags["boundary"] if a <= f[0] < b]
         out.tags[f"anchor:{pname}"] = list(anchor_faces)  # glued to their bridges when bridges are built
         out.tags["anchor"] += out.tags[f"anchor:{pname}"]
+    _side_tags(out, model, tags)
     timings["build"] = time.perf_counter() - t0
-    return VResult(out, classes, timings, report, [b for _, b in made])
+    return VResult(out, classes, timings, report, [b for _, b in made], unions)
 
 
 def _anchor_faces(placed, offset: int, cls: Classification, anchors: dict, tile_map: dict) -> list:
@@ -158,3 +196,39 @@ def _anchor_faces(placed, offset: int, cls: Classification, anchors: dict, tile_
             k, s = FACE_AXIS[cell_face]
             out += [(offset + j, f) for f, pts in sides.items() if np.abs(pts[:, k] - box[k, s]).max() < tol]
     return out
+
+
+def _check_union_parameters(d_maxdist, phi, alpha) -> None:
+    if d_maxdist is not None and not (isinstance(d_maxdist, (int, float)) and np.isfinite(d_maxdist) and d_maxdist > 0):
+        raise TilingError(f"d_maxdist must be a positive length (model units) or None, got {show(d_maxdist)}")
+    if not (isinstance(phi, (int, float)) and 0.0 <= phi <= 1.0):
+        raise TilingError(f"phi blends the cross derivative (0) with the face normal (1): give a number in [0, 1], "
+                          f"got {show(phi)}")
+    if not (isinstance(alpha, (int, float)) and 0 < alpha < np.pi / 2):
+        raise TilingError(f"alpha, the bifurcation base's side angle, must lie in (0, pi/2) radians, got "
+                          f"{show(alpha)}")
+
+
+def _reach(placed, anchors, margin: float) -> float:
+    """How far (model units) a union anchor may look for the other side: three face widths plus the margin."""
+    pts = face_points(placed, anchors[:1], np.array([[0.0, 0.0], [1.0, 1.0]]))[0]
+    width = float(np.linalg.norm(pts[1] - pts[0]))
+    return 6.0 * width + margin
+
+
+def _side_tags(out, model, tags) -> None:
+    """``"<primitive>:<side>"``: the free faces of a primitive's patches on a side (umin .. wmax) of its map's
+    domain (e.g. where a heat problem puts its boundary conditions)."""
+    free = set(out.tags["boundary"])
+    for prim in model.positive():
+        if prim.name not in tags:
+            continue
+        a, b, _ = tags[prim.name]
+        pidx, fc = tile_corners(out.patches[a:b])
+        dom = prim.D.domain
+        tol = 1e-9 * float(np.abs(dom).max() + 1.0)
+        for fi, side in enumerate(FACE_NAMES):
+            k, s = FACE_AXIS[side]
+            on = np.all(np.abs(fc[:, fi, :, k] - dom[k, s]) < tol, axis=-1)
+            out.tags[f"{prim.name}:{side}"] = [(a + int(pidx[t]), side) for t in np.flatnonzero(on)
+                                               if (a + int(pidx[t]), side) in free]

@@ -103,12 +103,15 @@ def classify(model: VModel, prim: Primitive, samples: int = 4, margin: float = 0
     if len(near):
         again = _states(model, prim, boxes[near], samples + 2)
         state[near] = np.where(again == state[near], state[near], INTERSECTING)
-    purged = (state == OUTSIDE) | (state == INTERSECTING)
     bridged = (state == INSIDE) & np.any((nb >= 0) & (state[nb] == INTERSECTING), axis=1)
     state[bridged] = TO_BE_BRIDGED
-    if margin > 0 and bridged.any():
+    while margin > 0 and bridged.any():  # purged tiles expose the next layer, which is bridged (or purged) in turn
         close = _boundary_distance(model, prim, boxes[bridged], samples) < margin
+        if not close.any():
+            break
         state[np.flatnonzero(bridged)[close]] = MARGIN
+        bridged = (state == INSIDE) & np.any((nb >= 0) & (state[nb] == MARGIN), axis=1)
+        state[bridged] = TO_BE_BRIDGED
     purged = (state == OUTSIDE) | (state == INTERSECTING) | (state == MARGIN)
     anchors = [(int(i), FACE_NAMES[f]) for i in np.flatnonzero(state == TO_BE_BRIDGED)
                for f in range(6) if nb[i, f] >= 0 and purged[nb[i, f]]]

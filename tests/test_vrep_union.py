@@ -1,0 +1,209 @@
+"""Unions of V-models: matched one-to-one tubes and two-to-one bifurcation bridges (Hong and Elber 2021,
+Sections 3.4-3.6), and heat analysis across them."""
+
+import numpy as np
+import pytest
+
+from geometry.faces import FACE_AXIS
+from geometry.multipatch import ORIENTATIONS
+from geometry.primitives import box
+from geometry.regularity import check_regular
+from iga import HeatProblem
+from tiling import library as L
+from tiling.errors import TilingError
+from tiling.tile import Tile
+from tiling.vrep import Primitive, vrep_microstructure
+
+ST = np.random.default_rng(7).random((9, 2))  # random face parameters for continuity checks
+
+
+def _boxes(counts_b=(6, 3, 3), k=None):
+    DA, DB = box((2.0, 1.0, 1.0)), box((2.0, 1.0, 1.0)).translate([1.5, 0.0, 0.0])
+    if k is not None:
+        DA, DB = DA.with_channel("k", k[0]), DB.with_channel("k", k[1])
+    A = Primitive(DA, L.cross(), (4, 2, 2), 2, "A")
+    B = Primitive(DB, L.cross(), counts_b, 1, "B")
+    return A, B
+
+
+@pytest.fixture(scope="module")
+def forked():
+    A, B = _boxes()
+    return vrep_microstructure(A | B)
+
+
+@pytest.fixture(scope="module")
+def tubed():
+    A, B = _boxes((4, 2, 2))
+    return vrep_microstructure(A | B)
+
+
+def _face_image(S, st):
+    return S.evaluate(np.asarray(st, float))[:, :3]
+
+
+def _volume_face(G, face, st):
+    """Points of G's face ``face`` at normalised face parameters st (G on [0, 1]^3)."""
+    k, s = FACE_AXIS[face]
+    prm = np.empty((len(st), 3))
+    prm[:, k] = s
+    prm[:, [d for d in range(3) if d != k]] = st
+    return G.evaluate(prm)[:, :3]
+
+
+def _distance_to(points, surface, n=60):
+    """Largest distance from points to a surface sampled densely and then polished by inversion."""
+    from geometry.inversion import invert
+
+    return float(invert(surface, points).distance.max())
+
+
+def test_two_to_one_bridges_are_continuous_at_both_ends_and_regular(forked):
+    rep = forked.bridges
+    assert rep["union two-to-one"] == 4 and rep["union eliminated (folded)"] == 0
+    (u,) = forked.unions
+    assert len(u.forks) == 4
+    for inlet, G, sides, arms, _ in u.forks:
+        # the base's bottom is the inlet face (same parameters), its sides are the arms' first faces
+        assert np.abs(_volume_face(G, "wmin", ST) - _face_image(inlet.surface, ST)).max() < 1e-10
+        assert check_regular(G).status != "singular"
+        for side, arm in zip(sides, arms):
+            Ga = arm.geometry
+            assert np.abs(_volume_face(Ga, "wmin", ST) - _volume_face(G, side, ST)).max() < 1e-10
+            # the far end lies on the outlet face (its own parametrisation, oriented)
+            assert _distance_to(_volume_face(Ga, "wmax", ST), arm.b.surface) < 1e-10
+            assert check_regular(Ga).status != "singular"
+        # the two arms leave through opposite sides of the base
+        assert {sides[0][1:], sides[1][1:]} == {"min", "max"} and sides[0][0] == sides[1][0]
+
+
+def test_no_face_receives_more_than_two_bridges(forked, tubed):
+    for res in (forked, tubed):
+        ms = res.microstructure
+        first = min(p for p, _ in ms.tags["bridge"]) if ms.tags["bridge"] else len(ms.patches)
+        first = min(first, min(i for i, P in enumerate(ms.patches) if P.placement is None))
+        hits: dict = {}
+        for itf in ms.interfaces:
+            for (p, f), (q, _) in ((itf.a, itf.b), (itf.b, itf.a)):
+                if p < first <= q:
+                    hits.setdefault((p, f), set()).add(q)
+        assert hits and max(len(v) for v in hits.values()) == 1  # one bridge patch per tile face
+        (u,) = res.unions
+        per_face: dict = {}
+        for t in u.tubes:
+            for key in (t.a.key, t.b.key):
+                per_face[key] = per_face.get(key, 0) + 1
+        for inlet, _, _, arms, _ in u.forks:
+            per_face[inlet.key] = per_face.get(inlet.key, 0) + 2  # an inlet carries the two branches
+            for t in arms:
+                per_face[t.b.key] = per_face.get(t.b.key, 0) + 1
+        assert max(per_face.values()) <= 2
+
+
+def test_one_to_one_tubes_join_their_faces_exactly(tubed):
+    rep = tubed.bridges
+    assert rep["union one-to-one"] == 4 and rep["union two-to-one"] == 0 and rep["union open anchors"] == 0
+    (u,) = tubed.unions
+    for t in u.tubes:
+        G = t.geometry
+        assert np.abs(_volume_face(G, "wmin", ST) - _face_image(t.a.surface, ST)).max() < 1e-10
+        assert _distance_to(_volume_face(G, "wmax", ST), t.b.surface) < 1e-10
+        # G1 with the tile at the start: the first control layers continue the tile's cross direction
+        d = (G.control_points[:, :, 1, :3] - G.control_points[:, :, 0, :3]).reshape(-1, 3).mean(0)
+        assert np.dot(d / np.linalg.norm(d), t.a.direction) > 1 - 1e-9
+
+
+def _interface_jumps(ms, s, bridge_first):
+    """Largest point mismatch and temperature jump over every interface that touches a bridge patch."""
+    worst_x = worst_T = 0.0
+    n = 0
+    for itf in ms.interfaces:
+        if max(itf.a[0], itf.b[0]) < bridge_first:
+            continue
+        n += 1
+        swap, flip = itf.swap, itf.flip
+        st_b = ST[:, ::-1].copy() if swap else ST.copy()
+        for d in (0, 1):
+            if flip[d]:
+                st_b[:, d] = 1 - st_b[:, d]
+        vals = []
+        for (p, f), st in ((itf.a, ST), (itf.b, st_b)):
+            P = ms.patches[p]
+            dom = P.spline.domain
+            k, side = FACE_AXIS[f]
+            prm = np.empty((len(st), 3))
+            prm[:, k] = dom[k, side]
+            for c, d in enumerate([d for d in range(3) if d != k]):
+                prm[:, d] = dom[d, 0] + st[:, c] * (dom[d, 1] - dom[d, 0])
+            temp, _, x, _ = s.evaluate(p, prm)
+            vals.append((x, temp))
+        worst_x = max(worst_x, float(np.abs(vals[0][0] - vals[1][0]).max()))
+        worst_T = max(worst_T, float(np.abs(vals[0][1] - vals[1][1]).max()))
+    return n, worst_x, worst_T
+
+
+@pytest.mark.parametrize("which", ["forked", "tubed"])
+def test_heat_across_union_bridges_balances_and_is_continuous(which, request):
+    res = request.getfixturevalue(which)
+    ms = res.microstructure
+    first = min(i for i, P in enumerate(ms.patches) if P.placement is None)
+    s = HeatProblem(ms, conductivity=50.0).dirichlet("A:umin", 100.0).dirichlet("B:umax", 20.0).solve(tol=1e-12)
+    assert s.info["balance"]["relative_error"] < 1e-9
+    assert s.info["balance"]["inflow_W"] > 0
+    n, dx, dT = _interface_jumps(ms, s, first)
+    assert n == 20 if which == "forked" else n == 8  # 5 interfaces per fork, 2 per tube
+    assert dx < 1e-10 and dT < 1e-10
+    lo, hi = s.temperature_range()
+    assert 20.0 - 1e-9 <= lo < hi <= 100.0 + 1e-9  # maximum principle
+
+
+def test_manufactured_solution_converges_across_bifurcations(forked):
+    ms = forked.microstructure
+    T = lambda x: np.sin(x[:, 0]) * np.cos(0.7 * x[:, 1]) * np.exp(0.3 * x[:, 2])  # noqa: E731
+    f = lambda x: (1 + 0.49 - 0.09) * T(x)  # noqa: E731  (-lap T)
+    errs = [HeatProblem(ms, source=f, degree_elevation=1, refine=r).dirichlet("boundary", T).solve(tol=1e-13)
+            .l2_error(T) for r in (0, 1, 2)]
+    rates = np.log2(np.array(errs[:-1]) / np.array(errs[1:]))
+    assert np.all(rates > 2.7), rates  # p = 2: rate 3 (the bridges' geometry is smooth, analysed sub-parametrically)
+
+
+def test_bridges_carry_both_primitives_materials():
+    A, B = _boxes(k=(205.0, 54.0))
+    res = vrep_microstructure(A | B)
+    (u,) = res.unions
+    for inlet, G, sides, arms, _ in u.forks:
+        assert np.allclose(G.channel("k"), 205.0)  # the base stands on A's face
+        for arm in arms:
+            k = arm.geometry.channel("k")
+            assert np.allclose(k[:, :, 0], 205.0) and np.allclose(k[:, :, -1], 54.0)
+    s = HeatProblem(res.microstructure, conductivity="k").dirichlet("A:umin", 1.0).dirichlet("B:umax", 0.0).solve()
+    assert s.info["balance"]["relative_error"] < 1e-9
+
+
+def test_union_bad_input():
+    A, B = _boxes()
+    for kw, word in (({"d_maxdist": 0.0}, "d_maxdist"), ({"d_maxdist": float("nan")}, "d_maxdist"),
+                     ({"phi": 1.5}, "phi"), ({"alpha": 2.0}, "alpha")):
+        with pytest.raises(TilingError, match=word):
+            vrep_microstructure(A | B, **kw)
+    # tiles whose faces have other spline spaces cannot meet a bridge by an identity interface
+    quadratic = Tile([p.elevate_to((2, 2, 2)) for p in L.cross().patches], name="quadratic cross")
+    C = Primitive(box((2.0, 1.0, 1.0)).translate([1.5, 0.0, 0.0]), quadratic, (6, 3, 3), 1, "C")
+    with pytest.raises(TilingError, match="'A'.*'C'|'C'.*'A'"):
+        vrep_microstructure(A | C)
+    # a short d_maxdist leaves every face open, and says so
+    res = vrep_microstructure(A | B, d_maxdist=1e-3)
+    assert res.bridges["union open anchors"] == res.bridges["union anchors"] > 0
+
+
+def test_orientations_follow_the_interface_convention():
+    from tiling.vrep.tubes import orient
+
+    S = box().boundary("wmin")
+    st = np.random.default_rng(3).random((5, 2))
+    for o, (swap, flip) in enumerate(ORIENTATIONS):
+        t = st[:, ::-1].copy() if swap else st.copy()
+        for d in (0, 1):
+            if flip[d]:
+                t[:, d] = 1 - t[:, d]
+        assert np.abs(orient(S, o).evaluate(st) - S.evaluate(t)).max() < 1e-14

@@ -1,0 +1,351 @@
+"""Bridging trivariates between tile faces in space (Hong and Elber 2021, Sections 3.5-3.6).
+
+In a union the two ends of a bridge belong to different primitives, so the
+bridge cannot live in one map's parameters (Section 3.2's bridges do).  It
+is built in space instead, from the *composed* faces it joins (exact
+B-spline surfaces, :attr:`PlacedPatch.composed`), so both of its end faces
+*are* those faces, to round-off:
+
+* :func:`hermite_tube` (one-to-one, Section 3.6): the cubic Hermite blend
+  in w of the two end faces, brought to one spline space (degree elevation
+  and knot union, both exact); the inner control layers continue each tile's
+  last layer (the tile's cross derivative, blended by ``phi`` with the face
+  normal), so the sweep axis is the cubic Hermite curve of Section 3.6.
+  :meth:`Tube.displace` raises it to a quintic and moves the two new inner
+  layers, the paper's collision repulsion.
+* :func:`bifurcation_base` (two-to-one, Section 3.5): the base trivariate on
+  the inlet face.  Its two side faces are the bottom face turned by
+  ``alpha`` about its two opposite edges (the side towards each outlet), its
+  top joins them, and its net is the discrete Boolean sum (Coons) of these
+  faces; two tubes (the arms) join the side faces to the outlets.
+
+Analysis: a bridge is a :class:`PlacedPatch` whose ``outer`` map is its
+geometry G on [0, 1]^3 and whose ``spline`` is the identity of [0, 1]^3 in
+the *analysis* space (:func:`carrier`): the end faces' spaces (those of the
+tiles' faces), so every end of a bridge meets its tile face by an identity
+interface in the constraint machinery (found by
+:func:`geometry.detect_interfaces`, with the orientation), while G keeps the
+exact geometry of both faces.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from geometry import BSpline
+from geometry import knots as kn
+from geometry.faces import FACE_AXIS
+from geometry.multipatch import ORIENTATIONS, PlacedPatch
+
+from ..errors import TilingError
+
+__all__ = ["Face", "face_of", "Tube", "hermite_tube", "bifurcation_base", "carrier", "orient", "orientation_for"]
+
+_TOL = 1e-9  # relative: knots closer than this are one knot
+
+
+@dataclass
+class Face:
+    """A patch face in space: ``surface`` (2-variate, on [0, 1]^2, xyz + channels: the exact composed face),
+    ``out`` (same space, xyz: control layer 0 - layer 1, the tile's outward cross direction), the analysis face
+    space ``space`` [(U normalised, p)] * 2, and its ``key`` (patch, face) in the model."""
+
+    surface: BSpline
+    out: BSpline
+    space: list
+    key: tuple
+
+    @property
+    def centre(self) -> np.ndarray:
+        return self.surface.evaluate(np.array([[0.5, 0.5]]))[0, :3]
+
+    @property
+    def normal(self) -> np.ndarray:
+        """Unit normal at the centre, pointing out of the tile (along ``out``)."""
+        _, J = self.surface.value_and_jacobian(np.array([[0.5, 0.5]]))
+        n = np.cross(J[0, :3, 0], J[0, :3, 1])
+        n /= max(np.linalg.norm(n), 1e-300)
+        return n if np.dot(n, self.direction) >= 0 else -n
+
+    @property
+    def direction(self) -> np.ndarray:
+        """Unit mean outward cross direction (the tile's dT/dw across the face)."""
+        d = self.out.points.reshape(-1, 3).mean(0)
+        return d / max(np.linalg.norm(d), 1e-300)
+
+    @property
+    def width(self) -> float:
+        """Inscribed half-width (model units): half the narrower extent of the face in its principal plane."""
+        ring = self.surface.points.reshape(-1, 3)
+        ring = ring - ring.mean(0)
+        proj = ring @ np.linalg.svd(ring, full_matrices=False)[2][:2].T
+        return float(np.abs(proj).max(axis=0).min())
+
+
+def _surface(degrees, knots, net, channels=()) -> BSpline:
+    s = BSpline(degrees, knots, net, channels=channels)
+    return s.reparametrize(np.array([[0.0, 1.0], [0.0, 1.0]]))
+
+
+def face_of(P: PlacedPatch, face: str, key=None) -> Face:
+    """The composed face ``face`` of placed patch ``P`` (exact; polynomial maps only)."""
+    C = P.composed
+    if C.is_rational:
+        raise TilingError(f"patch face {key}: union bridges join polynomial faces; the composed patch is rational "
+                          "(a rational map or tile); use a polynomial map such as geometry.shapes.cylinder")
+    k, s = FACE_AXIS[face]
+    cp = C.control_points
+    F = np.take(cp, -1 if s else 0, axis=k)
+    inner = np.take(cp[..., :3], -2 if s else 1, axis=k)
+    rest = [d for d in range(3) if d != k]
+    deg = tuple(C.degrees[d] for d in rest)
+    kts = [C.knots[d] for d in rest]
+    surf = _surface(deg, kts, F, C.channels)
+    out = _surface(deg, kts, F[..., :3] - inner)
+    T = P.spline
+    space = [(_normalised(T.knots[d]), T.degrees[d]) for d in rest]
+    return Face(surf, out, space, key)
+
+
+def _normalised(U):
+    U = np.asarray(U, float)
+    return (U - U[0]) / (U[-1] - U[0])
+
+
+def orient(S: BSpline, o: int) -> BSpline:
+    """S re-parametrised by orientation ``o`` (index into ORIENTATIONS): S_o(s, t) = S(s', t') with (s', t') =
+    (s, t) swapped if swap, then reversed per flip (the convention of :class:`geometry.Interface`)."""
+    swap, flip = ORIENTATIONS[o]
+    out = S
+    for d in (0, 1):
+        if flip[d]:
+            out = out.reverse(d)
+    return out.swap(0, 1) if swap else out
+
+
+def _corners(S: BSpline) -> np.ndarray:
+    return S.evaluate(np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]]))[:, :3]
+
+
+def orientation_for(a: Face, b: Face) -> int:
+    """The orientation of b's face seen from a (a bridge from a to b) without a fold or a twist: the bridge's
+    Jacobian keeps its sign from end to end, and b's corners follow a's as closely as possible."""
+    ja = np.sign(np.dot(_jac_normal(a.surface), a.direction))
+    best, best_cost = 0, np.inf
+    ca = _corners(a.surface) - a.centre
+    for o in range(8):
+        S = orient(b.surface, o)
+        jb = np.sign(np.dot(_jac_normal(S), -b.direction))  # w runs into b's tile there
+        if jb != ja:
+            continue
+        cost = np.sum((_corners(S) - b.centre - ca) ** 2)
+        if cost < best_cost:
+            best, best_cost = o, cost
+    return best
+
+
+def _jac_normal(S: BSpline) -> np.ndarray:
+    _, J = S.value_and_jacobian(np.array([[0.5, 0.5]]))
+    return np.cross(J[0, :3, 0], J[0, :3, 1])
+
+
+def _common(surfs: list) -> list:
+    """The surfaces in one spline space: degrees raised to the largest, knots merged (both exact)."""
+    q = [max(s.degrees[d] for s in surfs) for d in range(2)]
+    surfs = [s.elevate_to(q) for s in surfs]
+    for d in range(2):
+        vals, mult = [], []
+        for s in surfs:
+            v, m = kn.breakpoints(s.knots[d])
+            for x, c in zip(v[1:-1], m[1:-1]):
+                hit = [i for i, y in enumerate(vals) if abs(y - x) < _TOL]
+                if hit:
+                    mult[hit[0]] = max(mult[hit[0]], int(c))
+                else:
+                    vals.append(float(x))
+                    mult.append(int(c))
+        target = np.sort(np.concatenate([[0.0] * (q[d] + 1), np.repeat(vals, mult), [1.0] * (q[d] + 1)]))
+        out = []
+        for s in surfs:
+            U = s.knots[d]
+            ins = []
+            for x, c in zip(vals, mult):
+                have = int(np.sum(np.abs(U - x) < _TOL))
+                ins += [x] * (c - have)
+            if ins:
+                s = s.insert_knots(d, ins)[0]
+            knots = list(s.knots)
+            knots[d] = target  # the same values everywhere (the merged ones differ by round-off only)
+            out.append(BSpline(s.degrees, knots, s.control_points, channels=s.channels))
+        surfs = out
+    return surfs
+
+
+def _direction_field(f: Face, phi: float) -> BSpline:
+    """The outward field of a face, unit on average, blended by ``phi`` with the central normal (Fig. 9)."""
+    d = f.out.points
+    scale = max(float(np.linalg.norm(d.reshape(-1, 3).mean(0))), 1e-300)
+    v = (1 - phi) * d / scale + phi * f.normal
+    return BSpline(f.out.degrees, f.out.knots, v)
+
+
+@dataclass
+class Tube:
+    """A one-to-one bridging trivariate in space: control layers (4 cubic, or 6 after :meth:`displace`) in one
+    face space ``(degrees, knots)``, channel names, its end faces and inscribed radius."""
+
+    layers: list
+    degrees: tuple
+    knots: list
+    channels: tuple
+    a: Face
+    b: Face
+    radius: float
+    shift: np.ndarray = field(default_factory=lambda: np.zeros((2, 3)))  # quintic inner-layer offsets
+
+    @property
+    def geometry(self) -> BSpline:
+        """G on [0, 1]^3: the end faces at w = 0 and w = 1."""
+        net = np.stack(self.layers, axis=2)
+        G = BSpline(self.degrees + (3,), self.knots + [np.r_[[0.0] * 4, [1.0] * 4]], net, channels=self.channels)
+        if not np.any(self.shift):
+            return G
+        G = G.elevate(2, 2)  # the quintic: two more inner layers to repel with (Section 3.6)
+        cp = G.control_points.copy()
+        cp[:, :, 2, :3] += self.shift[0]
+        cp[:, :, 3, :3] += self.shift[1]
+        return BSpline(G.degrees, G.knots, cp, channels=self.channels)
+
+    def displace(self, v: np.ndarray) -> None:
+        """Move the quintic's two inner layers by ``v`` (3,) (model units)."""
+        self.shift = self.shift + np.asarray(v, float)[None]
+
+    def axis(self, r=np.linspace(0.0, 1.0, 24)) -> np.ndarray:
+        """Physical points of the sweep axis (the face centres' curve) at w = r."""
+        r = np.asarray(r, float)
+        return self.geometry.evaluate(np.stack([np.full_like(r, 0.5), np.full_like(r, 0.5), r], 1))[:, :3]
+
+
+def hermite_tube(a: Face, b: Face, beta: float = 0.5, phi: float = 0.0) -> Tube:
+    """The one-to-one bridge from face ``a`` to face ``b`` (Section 3.6): cubic Hermite in w, end tangents the
+    tiles' cross directions (``phi`` blends to the face normals), of length ``beta`` x the centres' distance."""
+    o = orientation_for(a, b)
+    sb = orient(b.surface, o)
+    ob = orient(_direction_field(b, phi), o)
+    oa = _direction_field(a, phi)
+    L = float(np.linalg.norm(b.centre - a.centre))
+    fa, fa_d, fb, fb_d = _common([a.surface, oa, sb, ob])
+    nc = len(a.surface.channels)
+    A, B = fa.control_points, fb.control_points
+    L1, L2 = A.copy(), B.copy()
+    L1[..., :3] += beta * L * fa_d.points
+    L2[..., :3] += beta * L * fb_d.points
+    return Tube([A, L1, L2, B], fa.degrees, list(fa.knots), a.surface.channels[:nc], a, b,
+                min(a.width, b.width))
+
+
+def bifurcation_base(inlet: Face, outlets: tuple, alpha: float = np.pi / 4, phi: float = 0.0,
+                     height: float = 0.5):
+    """The base trivariate of a two-to-one bridge on ``inlet`` towards the two ``outlets`` (Faces), Section 3.5.
+
+    Returns (G, split, sides): the base geometry on [0, 1]^3 (its ``wmin`` face is the inlet face), the face
+    direction it splits along (0: the outlets leave through ``umin``/``umax``; 1: ``vmin``/``vmax``), and the
+    side face names in the order of ``outlets``.  ``alpha`` (radians, in (0, pi/2)): the angle between the
+    bottom and each side face; the sides lean in, so their normals turn from the sides towards the outlets
+    (pi/4: halfway).  ``height``: the sides are copies of the
+    bottom scaled by it across their edge (1: the paper's full copies; shorter bases leave the arms more room).
+    """
+    F = inlet.surface
+    d = _direction_field(inlet, phi).points.reshape(-1, 3).mean(0)
+    d /= np.linalg.norm(d)
+    _, J = F.value_and_jacobian(np.array([[0.5, 0.5]]))
+    rel = outlets[1].centre - outlets[0].centre
+    rel -= np.dot(rel, d) * d
+    axes = [J[0, :3, k] - np.dot(J[0, :3, k], d) * d for k in (0, 1)]
+    split = int(np.argmax([abs(np.dot(rel, ax)) / np.linalg.norm(ax) for ax in axes]))
+    net = F.control_points
+    if split == 0:  # build along the second net axis, then transpose back
+        net = np.swapaxes(net, 0, 1)
+    nj = net.shape[1]
+    Ut = F.knots[split]
+    g = kn.greville(Ut, F.degrees[split])
+    g = (g - g[0]) / (g[-1] - g[0])
+    x = axes[1 - split] / np.linalg.norm(axes[1 - split])  # the rotation axis: along the edges kept
+    sides = []
+    for edge, sign in ((0, 1.0), (nj - 1, -1.0)):
+        pivot = net[:, edge, :3]
+        rows = net[:, ::1 if edge == 0 else -1, :3] - pivot[:, None]  # from the edge across the face
+        R = _rotation_about(x, alpha, rows.reshape(-1, 3).mean(0), d)
+        sides.append(pivot[:, None] + height * rows @ R.T)
+    S0, S1 = sides  # (ni, nk, 3), k runs up the side from the bottom edge
+    top = S0[:, -1][:, None] + g[None, :, None] * (S1[:, -1] - S0[:, -1])[:, None]
+    B = net[..., :3]
+    gj, gk = g[None, :, None, None], g[None, None, :, None]
+    T = ((1 - gk) * B[:, :, None] + gk * top[:, :, None] + (1 - gj) * S0[:, None] + gj * S1[:, None]
+         - ((1 - gj) * (1 - gk) * B[:, :1, None] + gj * (1 - gk) * B[:, -1:, None]
+            + (1 - gj) * gk * top[:, :1, None] + gj * gk * top[:, -1:, None]))
+    chan = np.broadcast_to(net[:, :, None, 3:], T.shape[:3] + (net.shape[-1] - 3,))
+    T = np.concatenate([T, chan], axis=-1)
+    degrees = [F.degrees[1 - split], F.degrees[split], F.degrees[split]]
+    knots = [F.knots[1 - split], Ut, Ut]
+    if split == 0:
+        T = np.swapaxes(T, 0, 1)
+        degrees[:2], knots[:2] = degrees[1::-1], knots[1::-1]
+    G = BSpline(tuple(degrees), knots, T, channels=F.channels)
+    names = ("umin", "umax") if split == 0 else ("vmin", "vmax")
+    # which side faces which outlet
+    c0 = G.boundary(names[0]).evaluate(np.array([[0.5, 0.5]]))[0, :3]
+    c1 = G.boundary(names[1]).evaluate(np.array([[0.5, 0.5]]))[0, :3]
+    first = np.linalg.norm(c0 - outlets[0].centre) + np.linalg.norm(c1 - outlets[1].centre)
+    second = np.linalg.norm(c1 - outlets[0].centre) + np.linalg.norm(c0 - outlets[1].centre)
+    return G, split, (names if first <= second else names[::-1])
+
+
+def _rotation_about(axis, angle, v, up):
+    """The rotation by ``angle`` about ``axis`` whose sense lifts ``v`` towards ``up``."""
+    axis = axis / np.linalg.norm(axis)
+    K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    best = None
+    for a in (angle, -angle):
+        R = np.eye(3) + np.sin(a) * K + (1 - np.cos(a)) * K @ K
+        lift = float(np.dot(R @ v, up))
+        if best is None or lift > best[0]:
+            best = (lift, R)
+    return best[1]
+
+
+_CARRIERS: dict = {}
+
+
+def carrier(space: list) -> BSpline:
+    """The identity of [0, 1]^3 in the analysis space ``space`` [(U normalised, p)] * 3 (control points at the
+    Greville abscissae: exact for degree >= 1); one object per space, so patches share it."""
+    key = tuple((np.asarray(U, float).tobytes(), int(p)) for U, p in space)
+    if key not in _CARRIERS:
+        g = [kn.greville(np.asarray(U, float), p) for U, p in space]
+        net = np.stack(np.meshgrid(*g, indexing="ij"), axis=-1)
+        _CARRIERS[key] = BSpline(tuple(p for _, p in space), [np.asarray(U, float) for U, _ in space], net)
+    return _CARRIERS[key]
+
+
+def uniform_space(p: int, n: int):
+    """(U, p): an open uniform knot vector on [0, 1] with ``n`` elements."""
+    return np.r_[[0.0] * p, np.linspace(0.0, 1.0, n + 1), [1.0] * p], p
+
+
+def bridge_patch(G: BSpline, space: list, tile: int) -> PlacedPatch:
+    """A bridging patch: analysis ``space`` (carrier), geometry G (its own outer map, already composed).
+
+    A left-handed G is reversed in w (and its w space with it): the analysis checks the Jacobian's sign over
+    batches of patches, so every patch is right-handed like the tiles.  Its faces keep their images, and the
+    interface search finds their new orientation."""
+    _, J = G.value_and_jacobian(np.array([[0.5, 0.5, 0.5]]))
+    if np.linalg.det(J[0, :3, :]) < 0:
+        G = G.reverse(2)
+        U, p = space[2]
+        space = [space[0], space[1], (1.0 - np.asarray(U, float)[::-1], p)]
+    P = PlacedPatch(carrier(space), None, G, tile, 0, 0)
+    P.set_composed(G)
+    return P

@@ -1,0 +1,335 @@
+"""Bridging across a trimming surface shared by two primitives of a union (Hong and Elber 2021, Sections 3.4-3.6).
+
+In A u B with A of higher priority, every tile of A is kept and B's tiles
+near A are purged (Section 3.4, case 1).  An anchoring face of B whose way
+out leaves B's territory *into the model* (into A's) is a *union anchor*:
+it is matched, by :func:`tiling.vrep.matching.unbalanced_match` (two Hungarian
+stages and GeomFilter, Algorithms 1-2), to the faces of A's tiles that lie
+on A's boundary inside B (the anchoring faces on A's side, M_A is kept
+whole).  One-to-one matches become cubic Hermite tubes, a face matched twice
+the inlet of a bifurcation bridge (a base and two arms,
+:mod:`tiling.vrep.tubes`).  Colliding tubes are raised to quintics whose two
+inner layers are repelled (Section 3.6), and eliminated if that fails.
+Unmatched faces stay open and are counted.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from geometry import BSpline
+from geometry.errors import show
+from geometry.faces import FACE_AXIS, FACE_NAMES
+from geometry.regularity import check_regular
+from geometry.multipatch import PlacedPatch, face_points, tile_corners
+
+from ..errors import TilingError
+from .matching import unbalanced_match
+from .tubes import bifurcation_base, bridge_patch, carrier, face_of, hermite_tube, uniform_space
+
+__all__ = ["UnionBridges", "union_anchors", "boundary_faces", "shared_faces", "bridge_union"]
+
+
+@dataclass
+class UnionBridges:
+    """The patches of the union bridges (geometry in space), with counts and, for tests, the pieces:
+    ``tubes`` the one-to-one tubes, ``forks`` (inlet Face, base G, side names, (arm, arm)) the two-to-one."""
+
+    patches: list = field(default_factory=list)
+    tubes: list = field(default_factory=list)
+    forks: list = field(default_factory=list)
+    counts: dict = field(default_factory=dict)
+
+
+def _centres_and_directions(placed, keys):
+    """Physical centres (N, 3) and unit outward directions (N, 3) of patch faces ``keys`` (cheap: no composition)."""
+    if not keys:
+        return np.zeros((0, 3)), np.zeros((0, 3))
+    mid = face_points(placed, keys, np.array([[0.5, 0.5]]), through_outer=False)[:, 0]
+    cen = face_points(placed, keys, np.array([[0.5, 0.5]]))[:, 0]
+    out = np.zeros((len(keys), 3))
+    for j, (pi, f) in enumerate(keys):
+        P = placed[pi]
+        k, s = FACE_AXIS[f]
+        e = np.zeros(3)
+        e[k] = 1.0 if s else -1.0
+        v = P.placement[:, :3] @ _tile_normal(P.spline, f, e) if P.placement is not None else e
+        if P.outer is not None:
+            dom = P.outer.domain
+            v = P.outer.jacobian(np.clip(mid[j][None], dom[:, 0], dom[:, 1]))[0, :3, :] @ v
+        out[j] = v / max(np.linalg.norm(v), 1e-300)
+    return cen, out
+
+
+def _tile_normal(T, face, e):
+    """The outward cross direction of a tile patch face in tile space (layer 0 - layer 1 at the centre)."""
+    k, s = FACE_AXIS[face]
+    pts = T.points
+    d = (np.take(pts, -1 if s else 0, axis=k) - np.take(pts, -2 if s else 1, axis=k)).reshape(-1, 3).mean(0)
+    return d if np.linalg.norm(d) > 0 else e
+
+
+def union_anchors(model, prim, placed, anchors, reach: float):
+    """Split ``anchors`` [(patch, face)] of ``prim`` into union anchors {partner primitive name: [(patch, face)]}
+    and the rest: a face is a union anchor when the ray out of it leaves ``prim``'s territory within ``reach``
+    (model units) into the territory of another positive primitive (the one that tiles beyond)."""
+    cen, out = _centres_and_directions(placed, anchors)
+    steps = np.linspace(0.05, 1.0, 20) * reach
+    rays = cen[:, None] + steps[None, :, None] * out[:, None]  # (N, S, 3)
+    flat = rays.reshape(-1, 3)
+    mine = prim.contains(flat)
+    idx = np.flatnonzero(mine)
+    mine[idx] = model.territory(prim, flat[idx])
+    mine = mine.reshape(rays.shape[:2])
+    left = ~mine
+    first = np.where(left.any(1), np.argmax(left, 1), -1)
+    partners = {}
+    rest = []
+    others = [q for q in model.positive() if q is not prim]
+    for i, key in enumerate(anchors):
+        if first[i] < 0:
+            rest.append(key)
+            continue
+        x = rays[i, first[i]][None]
+        owner = next((q for q in sorted(others, key=lambda q: -q.priority)
+                      if q.contains(x)[0] and model.territory(q, x)[0]), None)
+        if owner is None:
+            rest.append(key)
+        else:
+            partners.setdefault(owner.name, []).append(key)
+    return partners, rest
+
+
+def boundary_faces(prim, placed, first: int, last: int) -> list:
+    """(patch, face) of ``prim``'s kept patches (placed[first:last]) lying on the boundary of its map's domain."""
+    sub = placed[first:last]
+    pidx, fc = tile_corners(sub)
+    dom = prim.D.domain
+    tol = 1e-9 * float(np.abs(dom).max() + 1.0)
+    out = []
+    for k in range(3):
+        for s in (0, 1):
+            on = np.all(np.abs(fc[..., k] - dom[k, s]) < tol, axis=-1)  # (T, 6)
+            face = 2 * k + s
+            out += [(first + int(pidx[t]), FACE_NAMES[face]) for t in np.flatnonzero(on[:, face])]
+    return out
+
+
+def shared_faces(model, q_prim, placed, p_faces) -> list:
+    """The faces of ``p_faces`` (on a primitive's boundary) that face into ``q_prim``'s territory."""
+    if not p_faces:
+        return []
+    pc, pd = _centres_and_directions(placed, p_faces)
+    probe = pc + pd * 0.05 * _face_size(placed, p_faces, pc)
+    inside = q_prim.contains(probe)
+    idx = np.flatnonzero(inside)
+    inside[idx] = model.territory(q_prim, probe[idx])
+    return [f for f, ok in zip(p_faces, inside) if ok]
+
+
+def bridge_union(model, q_prim, p_prim, placed, q_faces, p_faces, tile: int, d_maxdist=None,
+                 beta: float = 0.5, phi: float = 0.0, alpha: float = np.pi / 4) -> UnionBridges:
+    """Match ``q_faces`` (union anchors of the lower-priority ``q_prim``) to ``p_faces`` (faces of ``p_prim``'s
+    boundary tiles in ``q_prim``'s territory: :func:`shared_faces`) and bridge the matches (module notes)."""
+    res = UnionBridges()
+    if not p_faces:
+        raise TilingError(f"union of {show(q_prim.name)} and {show(p_prim.name)}: {len(q_faces)} anchoring faces of "
+                          f"{show(q_prim.name)} face {show(p_prim.name)}, but no tile face of {show(p_prim.name)} lies "
+                          f"on its boundary inside {show(q_prim.name)} to match them to; use a tile whose patches "
+                          "reach the cell faces")
+    _same_face_spaces(placed, q_faces, p_faces, q_prim.name, p_prim.name)
+    pc, pd = _centres_and_directions(placed, p_faces)
+    qc, qd = _centres_and_directions(placed, q_faces)
+    if d_maxdist is None:
+        d_maxdist = 4.0 * max(_face_size(placed, q_faces, qc), _face_size(placed, p_faces, pc))
+    # the side with more faces is the M side (stage 2 matches its leftovers twice to the other side)
+    q_is_m = len(q_faces) >= len(p_faces)
+    M = (q_faces, qc, qd) if q_is_m else (p_faces, pc, pd)
+    N = (p_faces, pc, pd) if q_is_m else (q_faces, qc, qd)
+    names = (q_prim.name, p_prim.name) if q_is_m else (p_prim.name, q_prim.name)
+    m = unbalanced_match(M[1], M[2], N[1], N[2], d_maxdist, names=names)
+    faces: dict = {}
+
+    def face(key):
+        if key not in faces:
+            faces[key] = face_of(placed[key[0]], key[1], key)
+        return faces[key]
+
+    folded = 0
+    for i, j in m.one_to_one:
+        t = _regular_tube(face(M[0][i]), face(N[0][j]), beta, phi)
+        if t is None:
+            folded += 1
+        else:
+            res.tubes.append(t)
+    for j, (i1, i2) in m.two_to_one.items():
+        fork = _regular_fork(face(N[0][j]), (face(M[0][i1]), face(M[0][i2])), alpha, beta, phi)
+        if fork is None:
+            folded += 1
+        else:
+            res.forks.append(fork)
+    counts = {"anchors": len(q_faces), f"faces of {p_prim.name} on the shared surface": len(p_faces),
+              "one-to-one": len(m.one_to_one), "two-to-one": len(m.two_to_one),
+              "unmatched": len(m.unmatched_m) + len(m.unmatched_n), "eliminated (folded)": folded}
+    kept, coll = resolve_tube_collisions(res)
+    counts.update(coll)
+    res.counts = counts
+    for t in kept["tubes"]:
+        res.patches.append(bridge_patch(t.geometry, _tube_space(t), tile))
+    for inlet, G, sides, arms, space in kept["forks"]:
+        res.patches.append(bridge_patch(G, space, tile))
+        for t in arms:
+            res.patches.append(bridge_patch(t.geometry, _tube_space(t), tile))
+    res.tubes, res.forks = kept["tubes"], kept["forks"]
+    ends = {t.a.key for t in res.tubes} | {t.b.key for t in res.tubes}
+    for inlet, _, _, arms, _ in res.forks:
+        ends |= {inlet.key} | {t.b.key for t in arms}
+    res.counts["open anchors"] = len(set(q_faces) - ends)
+    return res
+
+
+_BETAS = (1.0, 0.7, 1.4, 0.4)  # tangent-length factors tried before a folded bridge is given up
+_ALPHAS = (0.0, np.pi / 12, -np.pi / 12)  # side-angle offsets tried for a folded bifurcation
+
+
+def _regular(G) -> bool:
+    """Whether G's Jacobian keeps one sign (exact Bernstein bound of :func:`geometry.check_regular`;
+    undecided counts as regular, as in :func:`iga.regularity.prove_regular`)."""
+    return check_regular(G).status != "singular"
+
+
+def _regular_tube(a, b, beta, phi):
+    """The first one-to-one tube from a to b that does not fold, over a few tangent lengths; None if all do."""
+    for f in _BETAS:
+        t = hermite_tube(a, b, min(beta * f, 0.95), phi)
+        if _regular(t.geometry):
+            return t
+    return None
+
+
+def _regular_fork(inlet, outs, alpha, beta, phi):
+    """(inlet, base G, side names, arms, base space) of the first bifurcation bridge whose base and arms do not
+    fold, over a few side angles and tangent lengths; None if none."""
+    for da in _ALPHAS:
+        G, split, sides = bifurcation_base(inlet, outs, float(np.clip(alpha + da, 0.15, 1.45)), phi)
+        if not _regular(G):
+            continue
+        space = [inlet.space[0], inlet.space[1], inlet.space[split]]
+        arms = [_regular_tube(_base_face(G, side, space), out, beta, phi) for side, out in zip(sides, outs)]
+        if all(a is not None for a in arms):
+            return inlet, G, sides, tuple(arms), space
+    return None
+
+
+def _face_space(P, face) -> tuple:
+    """A patch face's analysis space (degrees, normalised knots), in either parameter order."""
+    k = FACE_AXIS[face][0]
+    dirs = [(P.spline.degrees[d], tuple(np.round(_norm(P.spline.knots[d]), 12))) for d in range(3) if d != k]
+    return tuple(sorted(dirs))
+
+
+def _norm(U):
+    U = np.asarray(U, float)
+    return (U - U[0]) / (U[-1] - U[0])
+
+
+def _same_face_spaces(placed, q_faces, p_faces, q_name, p_name) -> None:
+    """Refuse faces of other spline spaces: bridges meet both ends by identity interfaces (module notes)."""
+    spaces = {}
+    for faces, name in ((q_faces, q_name), (p_faces, p_name)):
+        for key in faces:
+            spaces.setdefault(_face_space(placed[key[0]], key[1]), (name, key))
+    if len(spaces) > 1:
+        (s1, (n1, k1)), (s2, (n2, k2)) = list(spaces.items())[:2]
+        raise TilingError(f"union of {show(q_name)} and {show(p_name)}: the faces to bridge have different spline "
+                          f"spaces ({n1!r} patch {k1[0]} {k1[1]}: degrees {[d for d, _ in s1]}; {n2!r} patch {k2[0]} "
+                          f"{k2[1]}: degrees {[d for d, _ in s2]}, knots differ or not); the bridges meet both ends by "
+                          "identity interfaces, so give the primitives tiles whose bridged faces share one space")
+
+
+def _face_size(placed, keys, centres) -> float:
+    """A typical face diameter (model units): the median distance from a face centre to its first corner."""
+    if not keys:
+        return 0.0
+    corner = face_points(placed, keys[:64], np.array([[0.0, 0.0]]))[:, 0]
+    return float(2 * np.median(np.linalg.norm(corner - centres[: len(corner)], axis=1)))
+
+
+def _base_face(G, side: str, space: list):
+    """A side face of a bifurcation base as a :class:`Face` (its outward field from the base's own net)."""
+    P = PlacedPatch(carrier(space), None, G)
+    P.set_composed(G)
+    f = face_of(P, side, ("base", side))
+    # the arms leave along the side's normal: a linear base's cross direction runs to the opposite side instead
+    out = f.out
+    _, J = f.surface.value_and_jacobian(np.array([[0.5, 0.5]]))
+    n = np.cross(J[0, :3, 0], J[0, :3, 1])
+    n *= np.sign(np.dot(n, out.points.reshape(-1, 3).mean(0))) / np.linalg.norm(n)
+    f.out = BSpline(out.degrees, out.knots, np.broadcast_to(n, out.points.shape).copy())
+    return f
+
+
+def _tube_space(t) -> list:
+    """A tube's analysis space: its start face's (the end face's, oriented, is the same or refused by the
+    interface search), and in w the larger face degree on elements about as long as the face is wide."""
+    p = max(d for _, d in t.a.space)
+    length = float(np.linalg.norm(t.b.centre - t.a.centre))
+    n = int(np.clip(round(length / max(2 * t.radius, 1e-300)), 1, 4))
+    return [t.a.space[0], t.a.space[1], uniform_space(p, n)]
+
+
+def resolve_tube_collisions(res: UnionBridges, max_repel: int = 20) -> tuple[dict, dict]:
+    """Collisions between tubes (one-to-one tubes and arms): sampled axes closer than the sum of the inscribed
+    radii.  Both tubes of a colliding pair are raised to quintics and their inner layers repelled along
+    T1 x T2 (Section 3.6); a pair still colliding after ``max_repel`` steps loses its later bridge."""
+    items = [("tube", i, t) for i, t in enumerate(res.tubes)]
+    items += [("fork", i, arm) for i, f in enumerate(res.forks) for arm in f[3]]
+    counts = {"collisions": 0, "repelled": 0, "eliminated": 0}
+    dead = {"tube": set(), "fork": set()}
+    if len(items) >= 2:
+        axes = [t.axis() for _, _, t in items]
+        mids = np.array([a[len(a) // 2] for a in axes])
+        reach = max(float(np.linalg.norm(a[-1] - a[0])) for a in axes)
+        rmax = max(t.radius for _, _, t in items)
+        for i, j in cKDTree(mids).query_pairs(reach + 2 * rmax, output_type="ndarray"):
+            (ki, ii, a), (kj, jj, b) = items[i], items[j]
+            if ii in dead[ki] or jj in dead[kj] or (ki == kj == "fork" and ii == jj):
+                continue  # the two arms of one fork meet at their base by construction
+            need = a.radius + b.radius
+            dist, pa, pb, ia, ib = _closest(axes[i], axes[j])
+            if dist >= need:
+                continue
+            counts["collisions"] += 1
+            for _ in range(max_repel):
+                ta = pa[min(ia + 1, len(pa) - 1)] - pa[max(ia - 1, 0)]
+                tb = pb[min(ib + 1, len(pb) - 1)] - pb[max(ib - 1, 0)]
+                v = np.cross(ta, tb)
+                if np.linalg.norm(v) < 1e-12:
+                    v = pa[ia] - pb[ib]
+                v /= max(np.linalg.norm(v), 1e-300)
+                if np.dot(v, pa[ia] - pb[ib]) < 0:
+                    v = -v
+                step = 0.6 * (need - dist) + 1e-3 * need
+                a.displace(step * v)
+                b.displace(-step * v)
+                axes[i], axes[j] = a.axis(), b.axis()
+                dist, pa, pb, ia, ib = _closest(axes[i], axes[j])
+                if dist >= need:
+                    break
+            if dist >= need:
+                counts["repelled"] += 1
+            else:
+                dead[kj].add(jj)
+                counts["eliminated"] += 1
+    kept = {"tubes": [t for i, t in enumerate(res.tubes) if i not in dead["tube"]],
+            "forks": [f for i, f in enumerate(res.forks) if i not in dead["fork"]]}
+    return kept, counts
+
+
+def _closest(pa, pb):
+    d = np.linalg.norm(pa[:, None] - pb[None], axis=2)
+    i, j = np.unravel_index(np.argmin(d), d.shape)
+    return float(d[i, j]), pa, pb, int(i), int(j)
