@@ -108,6 +108,10 @@ def test_one_to_one_tubes_join_their_faces_exactly(tubed):
         G = t.geometry
         assert np.abs(_volume_face(G, "wmin", ST) - _face_image(t.a.surface, ST)).max() < 1e-10
         assert _distance_to(_volume_face(G, "wmax", ST), t.b.surface) < 1e-10
+        # the sweep axis is the centre curve of the geometry, also once raised to a quintic and displaced
+        r = np.linspace(0, 1, 7)
+        centre = lambda G: G.evaluate(np.stack([np.full(7, 0.5), np.full(7, 0.5), r], 1))[:, :3]  # noqa: E731
+        assert np.abs(t.axis(r) - centre(G)).max() < 1e-12
         # G1 with the tile at the start: the first control layers continue the tile's cross direction
         d = (G.control_points[:, :, 1, :3] - G.control_points[:, :, 0, :3]).reshape(-1, 3).mean(0)
         assert np.dot(d / np.linalg.norm(d), t.a.direction) > 1 - 1e-9
@@ -157,6 +161,24 @@ def test_heat_across_union_bridges_balances_and_is_continuous(which, request):
     assert 20.0 - 1e-9 <= lo < hi <= 100.0 + 1e-9  # maximum principle
 
 
+def test_displaced_tubes_are_quintics_with_fixed_ends(tubed):
+    import copy
+
+    t = copy.deepcopy(tubed.unions[0].tubes[0])
+    G0 = t.geometry
+    t.displace([0.0, 0.05, 0.02])
+    G = t.geometry
+    assert G.degrees[2] == 5
+    r = np.linspace(0, 1, 7)
+    assert np.abs(t.axis(r) - G.evaluate(np.stack([np.full(7, 0.5), np.full(7, 0.5), r], 1))[:, :3]).max() < 1e-12
+    for face in ("wmin", "wmax"):  # the ends do not move
+        assert np.abs(_volume_face(G, face, ST) - _volume_face(G0, face, ST)).max() < 1e-12
+    # nor the end tangents: the first and last two layers are those of the elevated cubic
+    d0 = G.control_points[:, :, 1, :3] - G.control_points[:, :, 0, :3]
+    c0 = G0.control_points[:, :, 1, :3] - G0.control_points[:, :, 0, :3]
+    assert np.abs(5 * d0 - 3 * c0).max() < 1e-12
+
+
 def test_manufactured_solution_converges_across_bifurcations(forked):
     ms = forked.microstructure
     T = lambda x: np.sin(x[:, 0]) * np.cos(0.7 * x[:, 1]) * np.exp(0.3 * x[:, 2])  # noqa: E731
@@ -171,7 +193,7 @@ def test_bridges_carry_both_primitives_materials():
     A, B = _boxes(k=(205.0, 54.0))
     res = vrep_microstructure(A | B)
     (u,) = res.unions
-    for inlet, G, sides, arms, _ in u.forks:
+    for _, G, _, arms, _ in u.forks:
         assert np.allclose(G.channel("k"), 205.0)  # the base stands on A's face
         for arm in arms:
             k = arm.geometry.channel("k")
@@ -197,7 +219,7 @@ def test_union_bad_input():
 
 
 def test_orientations_follow_the_interface_convention():
-    from tiling.vrep.tubes import orient
+    from tiling.vrep.tubes import corner_index, orient
 
     S = box().boundary("wmin")
     st = np.random.default_rng(3).random((5, 2))
@@ -207,3 +229,5 @@ def test_orientations_follow_the_interface_convention():
             if flip[d]:
                 t[:, d] = 1 - t[:, d]
         assert np.abs(orient(S, o).evaluate(st) - S.evaluate(t)).max() < 1e-14
+        corners = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
+        assert np.abs(orient(S, o).evaluate(corners) - S.evaluate(corners)[corner_index(o)]).max() < 1e-14

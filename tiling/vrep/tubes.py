@@ -31,10 +31,14 @@ exact geometry of both faces.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
+from scipy.special import comb
+
 from geometry import BSpline
+from geometry.spline import SplineFunction
 from geometry import knots as kn
 from geometry.faces import FACE_AXIS
 from geometry.multipatch import ORIENTATIONS, PlacedPatch
@@ -57,11 +61,11 @@ class Face:
     space: list
     key: tuple
 
-    @property
+    @cached_property
     def centre(self) -> np.ndarray:
         return self.surface.evaluate(np.array([[0.5, 0.5]]))[0, :3]
 
-    @property
+    @cached_property
     def normal(self) -> np.ndarray:
         """Unit normal at the centre, pointing out of the tile (along ``out``)."""
         _, J = self.surface.value_and_jacobian(np.array([[0.5, 0.5]]))
@@ -69,13 +73,13 @@ class Face:
         n /= max(np.linalg.norm(n), 1e-300)
         return n if np.dot(n, self.direction) >= 0 else -n
 
-    @property
+    @cached_property
     def direction(self) -> np.ndarray:
         """Unit mean outward cross direction (the tile's dT/dw across the face)."""
         d = self.out.points.reshape(-1, 3).mean(0)
         return d / max(np.linalg.norm(d), 1e-300)
 
-    @property
+    @cached_property
     def width(self) -> float:
         """Inscribed half-width (model units): half the narrower extent of the face in its principal plane."""
         ring = self.surface.points.reshape(-1, 3)
@@ -126,29 +130,43 @@ def orient(S: BSpline, o: int) -> BSpline:
 
 
 def _corners(S: BSpline) -> np.ndarray:
-    return S.evaluate(np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]]))[:, :3]
+    """The four corners (00, 10, 01, 11) of a clamped surface: its corner control points."""
+    P = S.points
+    return np.stack([P[0, 0], P[-1, 0], P[0, -1], P[-1, -1]])
 
 
 def orientation_for(a: Face, b: Face) -> int:
     """The orientation of b's face seen from a (a bridge from a to b) without a fold or a twist: the bridge's
     Jacobian keeps its sign from end to end, and b's corners follow a's as closely as possible."""
     ja = np.sign(np.dot(_jac_normal(a.surface), a.direction))
+    nb = np.sign(np.dot(_jac_normal(b.surface), -b.direction))  # w runs into b's tile there
     best, best_cost = 0, np.inf
     ca = _corners(a.surface) - a.centre
+    cb = _corners(b.surface) - b.centre
     for o in range(8):
-        S = orient(b.surface, o)
-        jb = np.sign(np.dot(_jac_normal(S), -b.direction))  # w runs into b's tile there
-        if jb != ja:
+        swap, flip = ORIENTATIONS[o]
+        if nb * (-1) ** (int(swap) + int(flip[0]) + int(flip[1])) != ja:  # each swap or flip turns the normal
             continue
-        cost = np.sum((_corners(S) - b.centre - ca) ** 2)
+        cost = np.sum((cb[corner_index(o)] - ca) ** 2)
         if cost < best_cost:
             best, best_cost = o, cost
     return best
 
 
+def corner_index(o: int) -> list:
+    """For orientation ``o``: the index of the original corner (00, 10, 01, 11) at each corner of the oriented face."""
+    swap, flip = ORIENTATIONS[o]
+    idx = []
+    for s_, t_ in ((0, 0), (1, 0), (0, 1), (1, 1)):
+        s2, t2 = (t_, s_) if swap else (s_, t_)
+        idx.append((1 - t2 if flip[1] else t2) * 2 + (1 - s2 if flip[0] else s2))
+    return idx
+
+
 def _jac_normal(S: BSpline) -> np.ndarray:
-    _, J = S.value_and_jacobian(np.array([[0.5, 0.5]]))
-    return np.cross(J[0, :3, 0], J[0, :3, 1])
+    """The face's orientation normal from its corners (the sign of d/ds x d/dt of a regular face)."""
+    c = _corners(S)
+    return np.cross(c[1] - c[0] + c[3] - c[2], c[2] - c[0] + c[3] - c[1])
 
 
 def _common(surfs: list) -> list:
@@ -204,28 +222,53 @@ class Tube:
     b: Face
     radius: float
     shift: np.ndarray = field(default_factory=lambda: np.zeros((2, 3)))  # quintic inner-layer offsets
+    _cache: tuple = field(default=None, repr=False)
+    _quintic: BSpline = field(default=None, repr=False)
+    _centres: np.ndarray = field(default=None, repr=False)
 
     @property
     def geometry(self) -> BSpline:
-        """G on [0, 1]^3: the end faces at w = 0 and w = 1."""
+        """G on [0, 1]^3: the end faces at w = 0 and w = 1 (cubic, or quintic once displaced)."""
+        key = self.shift.tobytes()
+        if self._cache is None or self._cache[0] != key:
+            self._cache = (key, self._geometry())
+        return self._cache[1]
+
+    def _cubic(self) -> BSpline:
         net = np.stack(self.layers, axis=2)
-        G = BSpline(self.degrees + (3,), self.knots + [np.r_[[0.0] * 4, [1.0] * 4]], net, channels=self.channels)
+        return BSpline(self.degrees + (3,), self.knots + [np.r_[[0.0] * 4, [1.0] * 4]], net, channels=self.channels)
+
+    def _geometry(self) -> BSpline:
         if not np.any(self.shift):
-            return G
-        G = G.elevate(2, 2)  # the quintic: two more inner layers to repel with (Section 3.6)
-        cp = G.control_points.copy()
+            return self._cubic()
+        if self._quintic is None:
+            self._quintic = self._cubic().elevate(2, 2)  # two more inner layers to repel with (Section 3.6)
+        Q = self._quintic
+        cp = Q.control_points.copy()
         cp[:, :, 2, :3] += self.shift[0]
         cp[:, :, 3, :3] += self.shift[1]
-        return BSpline(G.degrees, G.knots, cp, channels=self.channels)
+        return BSpline(Q.degrees, Q.knots, cp, channels=self.channels)
 
     def displace(self, v: np.ndarray) -> None:
         """Move the quintic's two inner layers by ``v`` (3,) (model units)."""
         self.shift = self.shift + np.asarray(v, float)[None]
 
-    def axis(self, r=np.linspace(0.0, 1.0, 24)) -> np.ndarray:
-        """Physical points of the sweep axis (the face centres' curve) at w = r."""
-        r = np.asarray(r, float)
-        return self.geometry.evaluate(np.stack([np.full_like(r, 0.5), np.full_like(r, 0.5), r], 1))[:, :3]
+    def axis(self, r=None) -> np.ndarray:
+        """Physical points of the sweep axis (the face centres' curve) at w = r (default 24 samples): the Bezier
+        curve of the control layers' centres (a tensor product's centre curve)."""
+        r = np.linspace(0.0, 1.0, 24) if r is None else np.asarray(r, float)
+        if self._centres is None:
+            S = SplineFunction(self.degrees, self.knots, np.concatenate([L[..., :3] for L in self.layers], axis=-1))
+            self._centres = S.evaluate(np.array([[0.5, 0.5]]))[0].reshape(len(self.layers), 3)
+        c = self._centres
+        if np.any(self.shift):
+            c = np.stack([c[0], 0.4 * c[0] + 0.6 * c[1], 0.1 * c[0] + 0.6 * c[1] + 0.3 * c[2],
+                          0.3 * c[1] + 0.6 * c[2] + 0.1 * c[3], 0.6 * c[2] + 0.4 * c[3], c[3]])  # cubic -> quintic
+            c[2] += self.shift[0]
+            c[3] += self.shift[1]
+        n = len(c) - 1
+        B = np.stack([comb(n, i) * r**i * (1 - r) ** (n - i) for i in range(n + 1)], 1)
+        return B @ c
 
 
 def hermite_tube(a: Face, b: Face, beta: float = 0.5, phi: float = 0.0) -> Tube:
@@ -236,14 +279,19 @@ def hermite_tube(a: Face, b: Face, beta: float = 0.5, phi: float = 0.0) -> Tube:
     ob = orient(_direction_field(b, phi), o)
     oa = _direction_field(a, phi)
     L = float(np.linalg.norm(b.centre - a.centre))
-    fa, fa_d, fb, fb_d = _common([a.surface, oa, sb, ob])
     nc = len(a.surface.channels)
-    A, B = fa.control_points, fb.control_points
+    if tuple(sb.channels) != tuple(a.surface.channels):
+        raise TilingError(f"faces {a.key} and {b.key}: the primitives' maps carry different channels "
+                          f"({list(a.surface.channels)} and {list(sb.channels)}); give every primitive the same ones")
+    # each end with its direction field as three more components: one elevation and insertion per end
+    ends = [BSpline(S.degrees, S.knots, np.concatenate([S.control_points, F.points], -1),
+                    channels=S.channels + ("~dx", "~dy", "~dz")) for S, F in ((a.surface, oa), (sb, ob))]
+    fa, fb = _common(ends)
+    A, B = fa.control_points[..., : 3 + nc], fb.control_points[..., : 3 + nc]
     L1, L2 = A.copy(), B.copy()
-    L1[..., :3] += beta * L * fa_d.points
-    L2[..., :3] += beta * L * fb_d.points
-    return Tube([A, L1, L2, B], fa.degrees, list(fa.knots), a.surface.channels[:nc], a, b,
-                min(a.width, b.width))
+    L1[..., :3] += beta * L * fa.control_points[..., 3 + nc :]
+    L2[..., :3] += beta * L * fb.control_points[..., 3 + nc :]
+    return Tube([A, L1, L2, B], fa.degrees, list(fa.knots), a.surface.channels, a, b, min(a.width, b.width))
 
 
 def bifurcation_base(inlet: Face, outlets: tuple, alpha: float = np.pi / 4, phi: float = 0.0,
@@ -274,7 +322,7 @@ def bifurcation_base(inlet: Face, outlets: tuple, alpha: float = np.pi / 4, phi:
     g = (g - g[0]) / (g[-1] - g[0])
     x = axes[1 - split] / np.linalg.norm(axes[1 - split])  # the rotation axis: along the edges kept
     sides = []
-    for edge, sign in ((0, 1.0), (nj - 1, -1.0)):
+    for edge in (0, nj - 1):
         pivot = net[:, edge, :3]
         rows = net[:, ::1 if edge == 0 else -1, :3] - pivot[:, None]  # from the edge across the face
         R = _rotation_about(x, alpha, rows.reshape(-1, 3).mean(0), d)

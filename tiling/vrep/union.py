@@ -23,7 +23,6 @@ from scipy.spatial import cKDTree
 from geometry import BSpline
 from geometry.errors import show
 from geometry.faces import FACE_AXIS, FACE_NAMES
-from geometry.regularity import check_regular
 from geometry.multipatch import PlacedPatch, face_points, tile_corners
 
 from ..errors import TilingError
@@ -89,13 +88,34 @@ def union_anchors(model, prim, placed, anchors, reach: float):
     partners = {}
     rest = []
     others = [q for q in model.positive() if q is not prim]
+    higher = [q for q in others if q.priority > prim.priority]
+    negative = [q for q in model.primitives() if q not in model.positive()]
+    # faces whose ray leaves into the void (e.g. a face under a purged tile near the other primitive): a union
+    # anchor still when the nearest trimming primitive within reach is a positive one of higher priority
+    near_pos = np.stack([q.distance(cen) for q in higher]) if higher else np.full((1, len(cen)), np.inf)
+    near_neg = np.stack([q.distance(cen) for q in negative]).min(0) if negative else np.full(len(cen), np.inf)
+    # who tiles the first point out of prim's territory: the positive primitives, highest priority first
+    exits = np.flatnonzero(first >= 0)
+    X = rays[exits, first[exits]]
+    who = np.full(len(anchors), -1)
+    todo = np.arange(len(exits))
+    ranked = sorted(others, key=lambda q: -q.priority)
+    for g, q in enumerate(ranked):
+        if not len(todo):
+            break
+        hit = q.contains(X[todo])
+        if hit.any():
+            hit[hit] = model.territory(q, X[todo[hit]])
+        who[exits[todo[hit]]] = g
+        todo = todo[~hit]
     for i, key in enumerate(anchors):
-        if first[i] < 0:
-            rest.append(key)
-            continue
-        x = rays[i, first[i]][None]
-        owner = next((q for q in sorted(others, key=lambda q: -q.priority)
-                      if q.contains(x)[0] and model.territory(q, x)[0]), None)
+        owner = None
+        if first[i] >= 0:
+            owner = ranked[who[i]] if who[i] >= 0 else None
+        elif higher:
+            g = int(np.argmin(near_pos[:, i]))
+            if near_pos[g, i] < min(reach, near_neg[i]):
+                owner = higher[g]
         if owner is None:
             rest.append(key)
         else:
@@ -151,6 +171,7 @@ def bridge_union(model, q_prim, p_prim, placed, q_faces, p_faces, tile: int, d_m
     N = (p_faces, pc, pd) if q_is_m else (q_faces, qc, qd)
     names = (q_prim.name, p_prim.name) if q_is_m else (p_prim.name, q_prim.name)
     m = unbalanced_match(M[1], M[2], N[1], N[2], d_maxdist, names=names)
+    _compose(placed, M[0] + N[0])
     faces: dict = {}
 
     def face(key):
@@ -179,7 +200,7 @@ def bridge_union(model, q_prim, p_prim, placed, q_faces, p_faces, tile: int, d_m
     res.counts = counts
     for t in kept["tubes"]:
         res.patches.append(bridge_patch(t.geometry, _tube_space(t), tile))
-    for inlet, G, sides, arms, space in kept["forks"]:
+    for _, G, _, arms, space in kept["forks"]:
         res.patches.append(bridge_patch(G, space, tile))
         for t in arms:
             res.patches.append(bridge_patch(t.geometry, _tube_space(t), tile))
@@ -195,10 +216,16 @@ _BETAS = (1.0, 0.7, 1.4, 0.4)  # tangent-length factors tried before a folded br
 _ALPHAS = (0.0, np.pi / 12, -np.pi / 12)  # side-angle offsets tried for a folded bifurcation
 
 
+_GRID = np.stack(np.meshgrid(*([np.linspace(0.0, 1.0, 6)] * 2 + [np.linspace(0.0, 1.0, 9)]), indexing="ij"),
+                 -1).reshape(-1, 3)
+
+
 def _regular(G) -> bool:
-    """Whether G's Jacobian keeps one sign (exact Bernstein bound of :func:`geometry.check_regular`;
-    undecided counts as regular, as in :func:`iga.regularity.prove_regular`)."""
-    return check_regular(G).status != "singular"
+    """Whether G's Jacobian keeps one sign on a 6 x 6 x 9 grid (ends included).  A screen: the heat analysis
+    proves every patch regular exactly (:func:`iga.regularity.prove_regular`) before it assembles."""
+    _, J = G.value_and_jacobian(_GRID)
+    det = np.linalg.det(J[:, :3, :])
+    return bool(np.all(det > 0) or np.all(det < 0))
 
 
 def _regular_tube(a, b, beta, phi):
@@ -248,6 +275,21 @@ def _same_face_spaces(placed, q_faces, p_faces, q_name, p_name) -> None:
                           f"spaces ({n1!r} patch {k1[0]} {k1[1]}: degrees {[d for d, _ in s1]}; {n2!r} patch {k2[0]} "
                           f"{k2[1]}: degrees {[d for d, _ in s2]}, knots differ or not); the bridges meet both ends by "
                           "identity interfaces, so give the primitives tiles whose bridged faces share one space")
+
+
+def _compose(placed, keys) -> None:
+    """Compose the patches of ``keys`` that are not yet, in one batch per tile patch and map."""
+    from geometry.composition import compose_many
+
+    groups: dict = {}
+    for pi in {k[0] for k in keys}:
+        P = placed[pi]
+        if not P.is_composed and P.outer is not None and P.placement is not None:
+            groups.setdefault((id(P.spline), id(P.outer)), []).append(pi)
+    for members in groups.values():
+        P0 = placed[members[0]]
+        for pi, C in zip(members, compose_many(P0.outer, P0.spline, np.stack([placed[i].placement for i in members]))):
+            placed[pi].set_composed(C)
 
 
 def _face_size(placed, keys, centres) -> float:
