@@ -104,8 +104,8 @@ def test_union_tiles_each_v_cell_from_the_primitive_of_highest_priority():
     assert len(ms.patches) - first == rep["bridges"] == rep["surface bridges"] + sum(len(u.patches) for u in res.unions)
     # an anchor is glued to a bridge to the surface, to a union bridge, or left open (unmatched or eliminated)
     assert glued == rep["surface bridges"] + rep["union anchors"] - rep["union open anchors"]
-    assert (rep["surface bridges"] + rep["eliminated"] + rep["dropped (target outside)"] + rep["union anchors"]
-            == len(ms.tags["anchor"]))
+    assert (rep["surface bridges"] + rep["eliminated"] + rep["eliminated (folded)"] + rep["dropped (target outside)"]
+            + rep["union anchors"] == len(ms.tags["anchor"]))
 
 
 def test_a_margin_purges_bridged_tiles_too_close_to_the_surface():

@@ -29,6 +29,7 @@ from ..tile import Tile
 from .bridges import build_bridges, resolve_collisions
 from .classify import Classification, classify
 from .model import VModel
+from .tubes import is_regular
 from .union import boundary_faces, bridge_union, shared_faces, union_anchors
 
 __all__ = ["VResult", "vrep_microstructure"]
@@ -129,6 +130,9 @@ def vrep_microstructure(model: VModel, samples: int = 4, margin: float = 0.0, na
             for key, v in rep.items():
                 report[key] = report.get(key, 0) + v
         kept, counts = resolve_collisions([b for _, b in made])
+        folded = [b for b in kept if not is_regular(b.spline)]  # a heat model takes regular patches only
+        kept = [b for b in kept if all(b is not f for f in folded)]
+        counts["eliminated (folded)"] = len(folded)
         report.update(counts)
         report["bridges"] = report["surface bridges"] = len(kept)
         alive = {id(b) for b in kept}

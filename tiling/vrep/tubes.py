@@ -42,10 +42,11 @@ from geometry.spline import SplineFunction
 from geometry import knots as kn
 from geometry.faces import FACE_AXIS
 from geometry.multipatch import ORIENTATIONS, PlacedPatch
+from geometry.regularity import check_regular
 
 from ..errors import TilingError
 
-__all__ = ["Face", "face_of", "Tube", "hermite_tube", "bifurcation_base", "carrier", "orient", "orientation_for"]
+__all__ = ["is_regular", "Face", "face_of", "Tube", "hermite_tube", "bifurcation_base", "carrier", "orient", "orientation_for"]
 
 _TOL = 1e-9  # relative: knots closer than this are one knot
 
@@ -362,6 +363,22 @@ def _rotation_about(axis, angle, v, up):
         if best is None or lift > best[0]:
             best = (lift, R)
     return best[1]
+
+
+_GRID = np.stack(np.meshgrid(*([np.linspace(0.0, 1.0, 6)] * 2 + [np.linspace(0.0, 1.0, 9)]), indexing="ij"),
+                 -1).reshape(-1, 3)
+
+
+def is_regular(G) -> bool:
+    """Whether the trivariate G's Jacobian keeps one sign: a 6 x 6 x 9 sample screen (ends included), then the
+    exact Bernstein proof of :func:`geometry.check_regular` (undecided counts as regular, as in
+    :func:`iga.regularity.prove_regular`, which the heat analysis runs again)."""
+    dom = G.domain
+    _, J = G.value_and_jacobian(dom[:, 0] + _GRID * (dom[:, 1] - dom[:, 0]))
+    det = np.linalg.det(J[:, :3, :])
+    if not (np.all(det > 0) or np.all(det < 0)):
+        return False
+    return check_regular(G).status != "singular"
 
 
 _CARRIERS: dict = {}

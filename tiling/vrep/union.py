@@ -27,7 +27,7 @@ from geometry.multipatch import PlacedPatch, face_points, tile_corners
 
 from ..errors import TilingError
 from .matching import unbalanced_match
-from .tubes import bifurcation_base, bridge_patch, carrier, face_of, hermite_tube, uniform_space
+from .tubes import bifurcation_base, bridge_patch, carrier, face_of, hermite_tube, is_regular as _regular, uniform_space
 
 __all__ = ["UnionBridges", "union_anchors", "boundary_faces", "shared_faces", "bridge_union"]
 
@@ -214,18 +214,6 @@ def bridge_union(model, q_prim, p_prim, placed, q_faces, p_faces, tile: int, d_m
 
 _BETAS = (1.0, 0.7, 1.4, 0.4)  # tangent-length factors tried before a folded bridge is given up
 _ALPHAS = (0.0, np.pi / 12, -np.pi / 12)  # side-angle offsets tried for a folded bifurcation
-
-
-_GRID = np.stack(np.meshgrid(*([np.linspace(0.0, 1.0, 6)] * 2 + [np.linspace(0.0, 1.0, 9)]), indexing="ij"),
-                 -1).reshape(-1, 3)
-
-
-def _regular(G) -> bool:
-    """Whether G's Jacobian keeps one sign on a 6 x 6 x 9 grid (ends included).  A screen: the heat analysis
-    proves every patch regular exactly (:func:`iga.regularity.prove_regular`) before it assembles."""
-    _, J = G.value_and_jacobian(_GRID)
-    det = np.linalg.det(J[:, :3, :])
-    return bool(np.all(det > 0) or np.all(det < 0))
 
 
 def _regular_tube(a, b, beta, phi):
