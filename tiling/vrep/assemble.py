@@ -126,6 +126,7 @@ def vrep_microstructure(model: VModel, samples: int = 4, margin: float = 0.0, na
                     report["union anchors bridged to the surface"] = report.get(
                         "union anchors bridged to the surface", 0) + len(faces)
             got, rep = build_bridges(model, prim, cls, placed, rest, beta)
+            got = _unfold(model, prim, cls, placed, got, beta)
             made += [(prim.name, b) for b in got]
             for key, v in rep.items():
                 report[key] = report.get(key, 0) + v
@@ -236,3 +237,22 @@ def _side_tags(out, model, tags) -> None:
             on = np.all(np.abs(fc[:, fi, :, k] - dom[k, s]) < tol, axis=-1)
             out.tags[f"{prim.name}:{side}"] = [(a + int(pidx[t]), side) for t in np.flatnonzero(on)
                                                if (a + int(pidx[t]), side) in free]
+
+
+_BENDS = (0.3, 0.7, 0.15, 0.85)  # bend parameters tried for a bridge that folds
+
+
+def _unfold(model, prim, cls, placed, bridges: list, beta: float) -> list:
+    """Rebuild the bridges whose spline folds with other bend parameters (the first regular one is kept; those
+    that fold at every bend stay, and are eliminated after the collisions)."""
+    bad = {(b.patch, b.face): i for i, b in enumerate(bridges) if not is_regular(b.spline)}
+    out = list(bridges)
+    for bend in _BENDS:
+        if not bad or bend == beta:
+            continue
+        again, _ = build_bridges(model, prim, cls, placed, list(bad), bend)
+        for b in again:
+            key = (b.patch, b.face)
+            if key in bad and is_regular(b.spline):
+                out[bad.pop(key)] = b
+    return out

@@ -200,7 +200,9 @@ def build_bridges(model, prim, cls, placed, anchors, beta: float = 0.5) -> tuple
         _, J = faces[g].value_and_jacobian(invs[g].params[sel])
         normals[sel] = np.cross(J[:, :3, 0], J[:, :3, 1])
     normals /= np.linalg.norm(normals, axis=1)[:, None]
-    normals *= np.sign(np.sum(normals * (M - Pphys), axis=1))[:, None]
+    # towards the anchoring face: the point ahead (M) may already lie beyond a close surface
+    start = D.evaluate(np.array([C for _, _, _, _, _, C, _ in geo]))[:, :3]
+    normals *= np.sign(np.sum(normals * (start - Pphys), axis=1))[:, None]
     back = invert(D, Pphys)
     JD = D.jacobian(back.params)[:, :3, :]
     out, dropped = [], 0
