@@ -80,8 +80,8 @@ def run(case: str, png: bool) -> dict:
     ms = res.microstructure
     rep = res.bridges
     row = {"case": case, "trivariates": len(ms.patches), "bridging TVs": rep.get("bridges", 0),
-           "to surface": rep.get("surface bridges", 0), "1-1": rep.get("union one-to-one", 0),
-           "2-1": rep.get("union two-to-one", 0), "open": rep.get("union open anchors", 0),
+           "to surface": rep.get("surface bridges", 0), "1-1": rep.get("union tubes", 0),
+           "2-1": rep.get("union forks", 0), "open": rep.get("union open anchors", 0),
            "collisions": rep.get("collisions", 0) + rep.get("union collisions", 0),
            "eliminated": rep.get("eliminated", 0) + rep.get("union eliminated", 0)
            + rep.get("eliminated (folded)", 0) + rep.get("union eliminated (folded)", 0),

@@ -186,15 +186,25 @@ def bridge_union(model, q_prim, p_prim, placed, q_faces, p_faces, tile: int, d_m
             folded += 1
         else:
             res.tubes.append(t)
+    reduced = 0
     for j, (i1, i2) in m.two_to_one.items():
-        fork = _regular_fork(face(N[0][j]), (face(M[0][i1]), face(M[0][i2])), alpha, beta, phi)
-        if fork is None:
+        inlet, outs = face(N[0][j]), (face(M[0][i1]), face(M[0][i2]))
+        fork = _regular_fork(inlet, outs, alpha, beta, phi)
+        if fork is not None:
+            res.forks.append(fork)
+            continue
+        # no room for a base and two arms (e.g. the faces nearly coplanar): one tube to the nearer outlet
+        near = min(outs, key=lambda o: float(np.linalg.norm(o.centre - inlet.centre)))
+        t = _regular_tube(near, inlet, beta, phi)
+        if t is None:
             folded += 1
         else:
-            res.forks.append(fork)
+            res.tubes.append(t)
+            reduced += 1
     counts = {"anchors": len(q_faces), f"faces of {p_prim.name} on the shared surface": len(p_faces),
               "one-to-one": len(m.one_to_one), "two-to-one": len(m.two_to_one),
-              "unmatched": len(m.unmatched_m) + len(m.unmatched_n), "eliminated (folded)": folded}
+              "unmatched": len(m.unmatched_m) + len(m.unmatched_n), "eliminated (folded)": folded,
+              "forks reduced to a tube": reduced}
     kept, coll = resolve_tube_collisions(res)
     counts.update(coll)
     res.counts = counts
@@ -205,6 +215,7 @@ def bridge_union(model, q_prim, p_prim, placed, q_faces, p_faces, tile: int, d_m
         for t in arms:
             res.patches.append(bridge_patch(t.geometry, _tube_space(t), tile))
     res.tubes, res.forks = kept["tubes"], kept["forks"]
+    res.counts["tubes"], res.counts["forks"] = len(res.tubes), len(res.forks)  # built and kept
     ends = {t.a.key for t in res.tubes} | {t.b.key for t in res.tubes}
     for inlet, _, _, arms, _ in res.forks:
         ends |= {inlet.key} | {t.b.key for t in arms}
@@ -213,7 +224,8 @@ def bridge_union(model, q_prim, p_prim, placed, q_faces, p_faces, tile: int, d_m
 
 
 _BETAS = (1.0, 0.7, 1.4, 0.4)  # tangent-length factors tried before a folded bridge is given up
-_ALPHAS = (0.0, np.pi / 12, -np.pi / 12)  # side-angle offsets tried for a folded bifurcation
+# (side-angle offset, base height) tried for a folded bifurcation, the paper's alpha first
+_SHAPES = ((0.0, 0.5), (np.pi / 12, 0.5), (-np.pi / 12, 0.5), (0.0, 0.25), (np.pi / 6, 0.25), (0.0, 0.8))
 
 
 def _regular_tube(a, b, beta, phi):
@@ -227,9 +239,9 @@ def _regular_tube(a, b, beta, phi):
 
 def _regular_fork(inlet, outs, alpha, beta, phi):
     """(inlet, base G, side names, arms, base space) of the first bifurcation bridge whose base and arms do not
-    fold, over a few side angles and tangent lengths; None if none."""
-    for da in _ALPHAS:
-        G, split, sides = bifurcation_base(inlet, outs, float(np.clip(alpha + da, 0.15, 1.45)), phi)
+    fold, over a few side angles, base heights and tangent lengths; None if none."""
+    for da, height in _SHAPES:
+        G, split, sides = bifurcation_base(inlet, outs, float(np.clip(alpha + da, 0.15, 1.45)), phi, height)
         if not _regular(G):
             continue
         space = [inlet.space[0], inlet.space[1], inlet.space[split]]
