@@ -7,7 +7,7 @@ the papers analyses a V-model micro-structure): the wing tips held at 80 C, ever
 convection (h = 2 W/(m^2 K), 20 C: a still gas, so that the heat reaches the body).  Conductivity from the maps' channels: k = 205 in the body, 54 in the
 wings, blended along the union bridges.  Stage lines and bars on stderr (progress), then a table: trivariates,
 DOFs, free unknowns, solver iterations, the time of each stage, peak memory, the energy balance and the
-temperature range.  Renders docs/vrep_winged_duck_heat.png; writes benchmarks/out/vrep_heat.json.
+range of the temperature's control values (which bound it).  Renders docs/vrep_winged_duck_heat.png; writes benchmarks/out/vrep_heat.json.
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ def main():
     from tiling.vrep.examples import WINGED_DUCK_TIPS, winged_duck
 
     progress.enable(True)
-    st = progress.Stages(4)
+    st = progress.Stages(3)
     st.start("winged duck V-model micro-structure")
     res = vrep_microstructure(winged_duck(tuple(args.body), tuple(args.wing)), margin=0.03)
     ms = res.microstructure
@@ -55,10 +55,8 @@ def main():
     s = pb.solve(args.solver)
     solve_s = time.perf_counter() - t0
     st.done(f"({s.info['solver'].get('iterations', '-')} iterations)")
-    st.start("checks")
-    lo, hi = s.temperature_range(samples=2)
+    lo, hi = float(s.u.min()), float(s.u.max())  # control values: they bound the temperature (convex hull)
     bal = s.info["balance"]
-    st.done()
     row = {"trivariates": len(ms.patches), "bridging TVs": res.bridges["bridges"], "DOFs": pb.ndof,
            "free": s.info["free_dofs"], "solver": s.info["solver"]["method"],
            "iterations": s.info["solver"].get("iterations", 0), "build s": st.timings[
@@ -78,8 +76,10 @@ def main():
 
         vtu = write_vtu(out_dir() / "vrep_winged_duck_heat.vtu", s, samples=2)
         render_temperature(vtu, DOCS / "vrep_winged_duck_heat.png", "winged duck: temperature (C)")
-    if not (bal["relative_error"] < 1e-8 and 20.0 - 1e-6 <= lo <= hi <= 80.0 + 1e-6):
-        raise SystemExit("the winged duck's heat balance or maximum principle failed")
+    # the discrete solution need not keep the maximum principle exactly (no discrete maximum principle for
+    # these elements): control values may undershoot 20 C slightly; more than 1% of the range is an error
+    if not (bal["relative_error"] < 1e-8 and 20.0 - 0.6 <= lo <= hi <= 80.0 + 0.6):
+        raise SystemExit("the winged duck's heat balance or temperature range is off")
 
 
 if __name__ == "__main__":

@@ -116,6 +116,22 @@ def test_one_to_one_tubes_join_their_faces_exactly(tubed):
         assert np.dot(d / np.linalg.norm(d), t.a.direction) > 1 - 1e-9
 
 
+def test_phi_turns_the_end_directions_to_the_face_normals():
+    A, B = _boxes((4, 2, 2))
+    A.D = A.D.affine(np.array([[1.0, 0.0, 0.0], [0.3, 1.0, 0.0], [0.0, 0.0, 1.0]]))  # sheared: dT/dw is not normal
+    for phi in (0.0, 1.0):
+        (u,) = vrep_microstructure(A | B, phi=phi).unions
+        assert len(u.tubes) >= 2
+        for t in u.tubes:
+            G = t.geometry
+            for f, d in [(t.a, G.control_points[:, :, 1, :3] - G.control_points[:, :, 0, :3])]:
+                d = d.reshape(-1, 3).mean(0)
+                d /= np.linalg.norm(d)
+                want = f.normal if phi == 1.0 else f.direction
+                assert np.dot(d, want) > 1 - 1e-9
+                assert phi == 1.0 or np.dot(f.direction, f.normal) < 1 - 1e-3  # the two choices differ
+
+
 def _interface_jumps(ms, s, bridge_first):
     """Largest point mismatch and temperature jump over every interface that touches a bridge patch."""
     worst_x = worst_T = 0.0

@@ -27,7 +27,8 @@ from geometry.multipatch import PlacedPatch, face_points, tile_corners
 
 from ..errors import TilingError
 from .matching import unbalanced_match
-from .tubes import bifurcation_base, bridge_patch, carrier, face_of, hermite_tube, is_regular as _regular, uniform_space
+from .fork import bifurcation_base
+from .tubes import bridge_patch, carrier, face_of, hermite_tube, is_regular as _regular, uniform_space
 
 __all__ = ["UnionBridges", "union_anchors", "boundary_faces", "shared_faces", "bridge_union"]
 
