@@ -3,11 +3,15 @@
 Each positive primitive is paved regularly (:func:`tiling.paving.regular_placements`: the placements only,
 the interfaces are searched once for the whole model), classified
 (:func:`tiling.vrep.classify`), and its inside and to-be-bridged tiles are
-kept.  Patches keep their own map (the primitive's), interfaces are found in
-physical space, and the tags name the primitive (``"A"``: every free face of
-A's kept patches) and the anchoring faces (``"anchor"``, ``"anchor:A"``: the
-patch faces lying on an anchoring face of a to-be-bridged tile), where
-bridging tiles will start (Hong and Elber 2021, Section 3.2; not built yet).
+kept.  Anchoring faces are bridged (Hong and Elber 2021): to the trimming surface
+(:mod:`tiling.vrep.bridges`, Sections 3.2-3.3) or, where the way out enters
+another primitive's territory in a union, to that primitive's boundary tile
+faces (:mod:`tiling.vrep.union`, Sections 3.4-3.6).  Patches keep their own
+map (the primitive's; union bridges their own geometry), interfaces are found
+in physical space, and the tags name the primitive (``"A"``: every free face
+of A's kept patches), its map's sides (``"A:umin"`` .. ``"A:wmax"``: where
+boundary conditions go), the anchoring faces (``"anchor"``, ``"anchor:A"``)
+and the free faces of the bridges (``"bridge"``, ``"bridge:A"``).
 """
 
 from __future__ import annotations

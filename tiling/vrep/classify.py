@@ -14,7 +14,8 @@ answer in practice, and it needs no surface-surface intersection.  Inside
 tiles with an intersecting neighbour become *to-be-bridged*; their faces
 towards a purged neighbour are *anchoring faces*.  A ``margin`` (model
 units) purges to-be-bridged tiles closer than that to the boundary of a
-primitive that bounds the territory from outside (Section 4, winged duck).
+primitive that bounds the territory from outside (Section 4, winged duck); the
+inside tiles that this exposes are bridged in turn (or purged, if also too close).
 """
 
 from __future__ import annotations

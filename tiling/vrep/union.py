@@ -51,25 +51,33 @@ def _centres_and_directions(placed, keys):
     mid = face_points(placed, keys, np.array([[0.5, 0.5]]), through_outer=False)[:, 0]
     cen = face_points(placed, keys, np.array([[0.5, 0.5]]))[:, 0]
     out = np.zeros((len(keys), 3))
+    normals: dict = {}  # per (tile spline, face): patches of one tile share it
+    by_outer: dict = {}
     for j, (pi, f) in enumerate(keys):
         P = placed[pi]
-        k, s = FACE_AXIS[f]
-        e = np.zeros(3)
-        e[k] = 1.0 if s else -1.0
-        v = P.placement[:, :3] @ _tile_normal(P.spline, f, e) if P.placement is not None else e
+        if (id(P.spline), f) not in normals:
+            normals[(id(P.spline), f)] = _tile_normal(P.spline, f)
+        v = normals[(id(P.spline), f)]
+        out[j] = v if P.placement is None else P.placement[:, :3] @ v
         if P.outer is not None:
-            dom = P.outer.domain
-            v = P.outer.jacobian(np.clip(mid[j][None], dom[:, 0], dom[:, 1]))[0, :3, :] @ v
-        out[j] = v / max(np.linalg.norm(v), 1e-300)
-    return cen, out
+            by_outer.setdefault(id(P.outer), (P.outer, []))[1].append(j)
+    for D, js in by_outer.values():  # one Jacobian evaluation per map
+        J = D.jacobian(np.clip(mid[js], D.domain[:, 0], D.domain[:, 1]))[:, :3, :]
+        out[js] = np.einsum("nij,nj->ni", J, out[js])
+    return cen, out / np.maximum(np.linalg.norm(out, axis=1), 1e-300)[:, None]
 
 
-def _tile_normal(T, face, e):
-    """The outward cross direction of a tile patch face in tile space (layer 0 - layer 1 at the centre)."""
+def _tile_normal(T, face):
+    """The outward cross direction of a tile patch face in tile space (mean of control layer 0 - layer 1; the
+    axis direction if that vanishes)."""
     k, s = FACE_AXIS[face]
     pts = T.points
     d = (np.take(pts, -1 if s else 0, axis=k) - np.take(pts, -2 if s else 1, axis=k)).reshape(-1, 3).mean(0)
-    return d if np.linalg.norm(d) > 0 else e
+    if np.linalg.norm(d) > 0:
+        return d
+    e = np.zeros(3)
+    e[k] = 1.0 if s else -1.0
+    return e
 
 
 def union_anchors(model, prim, placed, anchors, reach: float):
