@@ -31,12 +31,11 @@ from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
-
 from scipy.special import comb
 
 from geometry import BSpline
-from geometry.spline import SplineFunction
 from geometry import knots as kn
+from geometry.spline import SplineFunction
 from geometry.faces import FACE_AXIS
 from geometry.multipatch import ORIENTATIONS, PlacedPatch
 from geometry.regularity import check_regular

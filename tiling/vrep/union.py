@@ -180,7 +180,8 @@ def bridge_union(model, q_prim, p_prim, placed, q_faces, p_faces, tile: int, d_m
     N = (p_faces, pc, pd) if q_is_m else (q_faces, qc, qd)
     names = (q_prim.name, p_prim.name) if q_is_m else (p_prim.name, q_prim.name)
     m = unbalanced_match(M[1], M[2], N[1], N[2], d_maxdist, names=names)
-    _compose(placed, M[0] + N[0])
+    used = {i for i, _ in m.one_to_one} | {i for arms in m.two_to_one.values() for i in arms}
+    _compose(placed, [M[0][i] for i in used] + [N[0][j] for j in {j for _, j in m.one_to_one} | set(m.two_to_one)])
     faces: dict = {}
 
     def face(key):
