@@ -135,7 +135,7 @@ def vrep_microstructure(model: VModel, samples: int = 4, margin: float = 0.0, na
             for key, v in rep.items():
                 report[key] = report.get(key, 0) + v
         kept, counts = resolve_collisions([b for _, b in made])
-        folded = [b for b in kept if not is_regular(b.spline)]  # a heat model takes regular patches only
+        folded = [b for b in kept if not _valid(b)]  # a heat model takes regular patches only
         kept = [b for b in kept if all(b is not f for f in folded)]
         counts["eliminated (folded)"] = len(folded)
         report.update(counts)
@@ -243,13 +243,23 @@ def _side_tags(out, model, tags) -> None:
                                                if (a + int(pidx[t]), side) in free]
 
 
+def _valid(b) -> bool:
+    """A bridge to a surface the analysis can take: its net inside its map's domain (else its image would be
+    clipped there) and its Jacobian of one sign."""
+    dom = b.D.domain
+    pts = b.spline.points.reshape(-1, 3)
+    tol = 1e-9 * float(np.ptp(dom, axis=1).max())
+    inside = np.all(pts >= dom[:, 0] - tol) and np.all(pts <= dom[:, 1] + tol)
+    return bool(inside) and is_regular(b.spline)
+
+
 _BENDS = (0.3, 0.7, 0.15, 0.85)  # bend parameters tried for a bridge that folds
 
 
 def _unfold(model, prim, cls, placed, bridges: list, beta: float) -> list:
-    """Rebuild the bridges whose spline folds with other bend parameters (the first regular one is kept; those
-    that fold at every bend stay, and are eliminated after the collisions)."""
-    bad = {(b.patch, b.face): i for i, b in enumerate(bridges) if not is_regular(b.spline)}
+    """Rebuild the bridges that fold or leave their map's domain with other bend parameters (the first valid one
+    is kept; the others stay, and are eliminated after the collisions)."""
+    bad = {(b.patch, b.face): i for i, b in enumerate(bridges) if not _valid(b)}
     out = list(bridges)
     for bend in _BENDS:
         if not bad or bend == beta:
@@ -257,6 +267,6 @@ def _unfold(model, prim, cls, placed, bridges: list, beta: float) -> list:
         again, _ = build_bridges(model, prim, cls, placed, list(bad), bend)
         for b in again:
             key = (b.patch, b.face)
-            if key in bad and is_regular(b.spline):
+            if key in bad and _valid(b):
                 out[bad.pop(key)] = b
     return out
