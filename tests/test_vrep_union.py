@@ -246,3 +246,29 @@ def test_orientations_follow_the_interface_convention():
         assert np.abs(orient(S, o).evaluate(st) - S.evaluate(t)).max() < 1e-14
         corners = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
         assert np.abs(orient(S, o).evaluate(corners) - S.evaluate(corners)[corner_index(o)]).max() < 1e-14
+
+
+@pytest.mark.parametrize("which", ["cylinders", "duck"])
+def test_subtraction_v_models_are_heat_models(which):
+    from geometry.shapes import cylinder, duck
+
+    if which == "cylinders":
+        from tiling.vrep.examples import cylinders
+
+        A, B, C = cylinders((1, 1, 12))
+        model, dirichlet = A - B - C, ("A:wmin", "A:wmax")  # B cuts A in two: each half has its own ends
+    else:
+        body = Primitive(duck(channels={"k": 205.0}), L.cross(), (4, 4, 6), 1, "body")
+        hole = Primitive(cylinder(0.09, 1.0, 2, centre=(0.45, 0.0, 0.3)), L.cross(), (1, 1, 1), 4, "hole")
+        model, dirichlet = body - hole, ("body:wmin", "body:wmax")
+    res = vrep_microstructure(model, margin=0.03 if which == "duck" else 0.0)
+    assert res.bridges["surface bridges"] > 0
+    for b in res.bridge_objects:  # every bridge's net stays in its map's domain: its image is never clipped
+        dom = b.D.domain
+        pts = b.spline.points.reshape(-1, 3)
+        assert np.all(pts >= dom[:, 0] - 1e-9) and np.all(pts <= dom[:, 1] + 1e-9)
+    # held at one end, cooled at the bridges' far faces (on the trimming surfaces) and at the other end
+    s = (HeatProblem(res.microstructure).dirichlet(dirichlet[0], 1.0).robin("bridge", 10.0, 0.0)
+         .robin(dirichlet[1], 10.0, 0.0).solve())
+    assert s.info["balance"]["relative_error"] < 1e-9 and s.info["balance"]["inflow_W"] > 0
+    assert abs(s.flux("bridge")) > 0.01 * s.info["balance"]["inflow_W"]  # the heat does reach the bridges
