@@ -167,10 +167,28 @@ def _jac_normal(S: BSpline) -> np.ndarray:
     return np.cross(c[1] - c[0] + c[3] - c[2], c[2] - c[0] + c[3] - c[1])
 
 
+_ELEVATIONS: dict = {}  # (knots, degree, times) -> (new knots, matrix): faces of one tile repeat them
+
+
+def _elevated(S: BSpline, degrees) -> BSpline:
+    """S with its degrees raised to ``degrees`` (exact; the elevation matrices are cached)."""
+    cp, knots = S.control_points, list(S.knots)
+    for d, q in enumerate(degrees):
+        t = q - S.degrees[d]
+        if t <= 0:
+            continue
+        key = (np.asarray(knots[d]).tobytes(), S.degrees[d], t)
+        if key not in _ELEVATIONS:
+            _ELEVATIONS[key] = kn.elevation_matrix(knots[d], S.degrees[d], t)
+        knots[d], E = _ELEVATIONS[key]
+        cp = kn.apply_along(cp, d, E)
+    return BSpline(tuple(degrees), knots, cp, channels=S.channels)
+
+
 def _common(surfs: list) -> list:
     """The surfaces in one spline space: degrees raised to the largest, knots merged (both exact)."""
     q = [max(s.degrees[d] for s in surfs) for d in range(2)]
-    surfs = [s.elevate_to(q) for s in surfs]
+    surfs = [_elevated(s, q) for s in surfs]
     for d in range(2):
         vals, mult = [], []
         for s in surfs:
@@ -264,9 +282,18 @@ class Tube:
                           0.3 * c[1] + 0.6 * c[2] + 0.1 * c[3], 0.6 * c[2] + 0.4 * c[3], c[3]])  # cubic -> quintic
             c[2] += self.shift[0]
             c[3] += self.shift[1]
-        n = len(c) - 1
-        B = np.stack([comb(n, i) * r**i * (1 - r) ** (n - i) for i in range(n + 1)], 1)
-        return B @ c
+        return _bernstein(len(c) - 1, r) @ c
+
+
+def _bernstein(n: int, r: np.ndarray) -> np.ndarray:
+    """(len(r), n + 1) Bernstein basis of degree n at r (the default 24 samples cached per degree)."""
+    key = (n, r.tobytes())
+    if key not in _BERNSTEIN:
+        _BERNSTEIN[key] = np.stack([comb(n, i) * r**i * (1 - r) ** (n - i) for i in range(n + 1)], 1)
+    return _BERNSTEIN[key]
+
+
+_BERNSTEIN: dict = {}
 
 
 def hermite_tube(a: Face, b: Face, beta: float = 0.5, phi: float = 0.0) -> Tube:
