@@ -25,6 +25,18 @@ def run_child(cmd: list, label: str) -> dict | None:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+def collect_rows(jobs, describe) -> list[dict]:
+    """Run each child ``(cmd, label)`` of ``jobs`` (:func:`run_child`) and keep the rows of those that succeed,
+    printing ``describe(row)`` for each as it arrives (long benchmarks show their progress)."""
+    rows = []
+    for cmd, label in jobs:
+        row = run_child(cmd, label)
+        if row is not None:
+            rows.append(row)
+            print(describe(row), flush=True)
+    return rows
+
+
 def run_cases(script: str, cases, run, renders: bool = False) -> list[dict] | None:
     """Each case of a benchmark in a fresh subprocess of ``script``, so that peak memory is per case.
 

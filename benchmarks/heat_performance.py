@@ -37,7 +37,7 @@ import time
 
 import numpy as np
 
-from _common import print_table, pyplot, run_child, save_json, save_plot
+from _common import collect_rows, print_table, pyplot, save_json, save_plot
 
 SIZES = {"30k": 31, "110k": 48, "475k": 78, "1M": 100}  # (N + p) per direction, p = 2; p = 3 uses one less element
 
@@ -109,16 +109,11 @@ def main(argv=None):
     if args.million:
         cases.append((2, SIZES["1M"]))
     mallocs = ("retain", "default") if args.malloc == "both" else (args.malloc,)
-    rows = []
-    for (p, n), malloc in ((c, m) for c in cases for m in mallocs):
-        row = run_child([sys.executable, __file__, "--case", f"{p},{n}", "--tol", str(args.tol), "--malloc", malloc,
-                         "--repeat", str(args.repeat)] + (["--numpy"] if args.numpy else []), f"case p={p} n={n}")
-        if row is None:
-            continue
-        rows.append(row)
-        r = rows[-1]
-        print(f"p={p} dofs={r['dofs']} malloc={malloc}: total {r['total s']:.2f} s, "
-              f"warm assembly {r['assembly warm s']:.2f} s", flush=True)
+    jobs = [([sys.executable, __file__, "--case", f"{p},{n}", "--tol", str(args.tol), "--malloc", malloc, "--repeat",
+              str(args.repeat)] + (["--numpy"] if args.numpy else []), f"case p={p} n={n}")
+            for (p, n), malloc in ((c, m) for c in cases for m in mallocs)]
+    rows = collect_rows(jobs, lambda r: f"p={r['p']} dofs={r['dofs']} malloc={r['malloc']}: total {r['total s']:.2f} "
+                        f"s, warm assembly {r['assembly warm s']:.2f} s")
     print("\nUnit-cube Poisson, one patch, AMG-CG (pyamg smoothed aggregation) to", args.tol)
     print_table(rows, [("p", "d"), ("malloc", "s"), ("compiled", "s"), ("dofs", "d"), ("nnz", "d"),
                        ("assembly cold s", ".2f"), ("assembly warm s", ".2f"), ("CSR floor s", ".3f"),

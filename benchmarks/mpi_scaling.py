@@ -23,7 +23,7 @@ import sys
 import time
 from pathlib import Path
 
-from _common import print_table, run_child, save_json
+from _common import collect_rows, print_table, save_json
 
 
 def run_case(case: str, quick: bool) -> None:
@@ -130,18 +130,12 @@ def main():
         if a == "--ranks":
             ranks = [int(v) for v in sys.argv[i + 1].split(",")]
     mpiexec = str(Path(sys.executable).parent / "mpiexec")
-    rows = []
-    for case in ("sink", "lattice"):
-        for R in ranks:
-            cmd = [mpiexec, "-n", str(R), sys.executable, __file__, "--case", case] + (["--quick"] if "--quick" in
-                                                                                      sys.argv else [])
-            row = run_child(cmd, f"{case} on {R} ranks")
-            if row is None:
-                continue
-            rows.append(row)
-            r = rows[-1]
-            print(f"{case} R={R}: {r['unknowns']:,} unknowns, total {r['total s']:.1f} s, CG {r['CG s']:.1f} s "
-                  f"({r['iterations']} it), peak {r['peak MiB per rank']} MiB", flush=True)
+    quick = ["--quick"] if "--quick" in sys.argv else []
+    jobs = [([mpiexec, "-n", str(R), sys.executable, __file__, "--case", case] + quick, f"{case} on {R} ranks")
+            for case in ("sink", "lattice") for R in ranks]
+    rows = collect_rows(jobs, lambda r: f"{r['case']} R={r['ranks']}: {r['unknowns']:,} unknowns, total "
+                        f"{r['total s']:.1f} s, CG {r['CG s']:.1f} s ({r['iterations']} it), peak "
+                        f"{r['peak MiB per rank']} MiB")
     print_table(rows, [("case", "s"), ("ranks", "d"), ("unknowns", "d"), ("iterations", "d"), ("model s", ".2f"),
                        ("assembly s", ".2f"), ("constraints s", ".2f"), ("reduction s", ".2f"),
                        ("matrix + setup s", ".2f"), ("CG s", ".2f"),
