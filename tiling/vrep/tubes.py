@@ -43,7 +43,7 @@ from geometry.regularity import check_regular
 from ..errors import TilingError
 
 __all__ = ["is_regular", "Face", "face_of", "Tube", "hermite_tube", "carrier", "orient", "orientation_for", "corner_index",
-           "bridge_patch", "uniform_space", "direction_field"]
+           "bridge_patch", "uniform_space", "direction_field", "face_space"]
 
 _TOL = 1e-9  # relative: knots closer than this are one knot
 
@@ -106,14 +106,17 @@ def face_of(P: PlacedPatch, face: str, key=None) -> Face:
     kts = [C.knots[d] for d in rest]
     surf = _surface(deg, kts, F, C.channels)
     out = _surface(deg, kts, F[..., :3] - inner)
-    T = P.spline
-    space = [(_normalised(T.knots[d]), T.degrees[d]) for d in rest]
-    return Face(surf, out, space, key)
+    return Face(surf, out, face_space(P.spline, face), key)
 
 
-def _normalised(U):
-    U = np.asarray(U, float)
-    return (U - U[0]) / (U[-1] - U[0])
+def face_space(T: BSpline, face: str) -> list:
+    """The analysis space [(U normalised to [0, 1], p)] * 2 of the face ``face`` of the patch spline ``T``."""
+    k = FACE_AXIS[face][0]
+    out = []
+    for d in (d for d in range(3) if d != k):
+        U = np.asarray(T.knots[d], float)
+        out.append(((U - U[0]) / (U[-1] - U[0]), T.degrees[d]))
+    return out
 
 
 def orient(S: BSpline, o: int) -> BSpline:

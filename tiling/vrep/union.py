@@ -28,7 +28,7 @@ from geometry.multipatch import PlacedPatch, face_points, tile_corners
 from ..errors import TilingError
 from .matching import unbalanced_match
 from .fork import bifurcation_base
-from .tubes import bridge_patch, carrier, face_of, hermite_tube, is_regular as _regular, uniform_space
+from .tubes import bridge_patch, carrier, face_of, face_space, hermite_tube, is_regular as _regular, uniform_space
 
 __all__ = ["UnionBridges", "union_anchors", "boundary_faces", "shared_faces", "bridge_union"]
 
@@ -49,7 +49,7 @@ def _centres_and_directions(placed, keys):
     if not keys:
         return np.zeros((0, 3)), np.zeros((0, 3))
     mid = face_points(placed, keys, np.array([[0.5, 0.5]]), through_outer=False)[:, 0]
-    cen = face_points(placed, keys, np.array([[0.5, 0.5]]))[:, 0]
+    cen = mid.copy()  # the placed centre is the physical one where there is no map
     out = np.zeros((len(keys), 3))
     normals: dict = {}  # per (tile spline, face): patches of one tile share it
     by_outer: dict = {}
@@ -61,9 +61,10 @@ def _centres_and_directions(placed, keys):
         out[j] = v if P.placement is None else P.placement[:, :3] @ v
         if P.outer is not None:
             by_outer.setdefault(id(P.outer), (P.outer, []))[1].append(j)
-    for D, js in by_outer.values():  # one Jacobian evaluation per map
-        J = D.jacobian(np.clip(mid[js], D.domain[:, 0], D.domain[:, 1]))[:, :3, :]
-        out[js] = np.einsum("nij,nj->ni", J, out[js])
+    for D, js in by_outer.values():  # one evaluation (points and Jacobians) per map
+        x, J = D.value_and_jacobian(np.clip(mid[js], D.domain[:, 0], D.domain[:, 1]))
+        cen[js] = x[:, :3]
+        out[js] = np.einsum("nij,nj->ni", J[:, :3, :], out[js])
     return cen, out / np.maximum(np.linalg.norm(out, axis=1), 1e-300)[:, None]
 
 
@@ -263,14 +264,7 @@ def _regular_fork(inlet, outs, alpha, beta, phi):
 
 def _face_space(P, face) -> tuple:
     """A patch face's analysis space (degrees, normalised knots), in either parameter order."""
-    k = FACE_AXIS[face][0]
-    dirs = [(P.spline.degrees[d], tuple(np.round(_norm(P.spline.knots[d]), 12))) for d in range(3) if d != k]
-    return tuple(sorted(dirs))
-
-
-def _norm(U):
-    U = np.asarray(U, float)
-    return (U - U[0]) / (U[-1] - U[0])
+    return tuple(sorted((p, tuple(np.round(U, 12))) for U, p in face_space(P.spline, face)))
 
 
 def _same_face_spaces(placed, q_faces, p_faces, q_name, p_name) -> None:
