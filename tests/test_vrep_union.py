@@ -228,6 +228,15 @@ def test_union_bad_input():
     C = Primitive(box((2.0, 1.0, 1.0)).translate([1.5, 0.0, 0.0]), quadratic, (6, 3, 3), 1, "C")
     with pytest.raises(TilingError, match="'A'.*'C'|'C'.*'A'"):
         vrep_microstructure(A | C)
+    # the example models refuse bad tile counts, naming the primitive
+    from tiling.vrep.examples import box_cylinder, winged_duck
+
+    with pytest.raises(TilingError, match="'body'.*counts"):
+        winged_duck((0, 2, 2))
+    with pytest.raises(TilingError, match="'box'.*counts"):
+        box_cylinder((2, 2, -1))
+    with pytest.raises(TilingError, match="'cyl'.*counts"):
+        box_cylinder(cyl=(2, 2.5, 3))
     # a short d_maxdist leaves every face open, and says so
     res = vrep_microstructure(A | B, d_maxdist=1e-3)
     assert res.bridges["union open anchors"] == res.bridges["union anchors"] > 0

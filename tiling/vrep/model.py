@@ -47,6 +47,12 @@ class Primitive:
                               f"got {show(self.D)}")
         if not isinstance(self.tile, Tile):
             raise TilingError(f"primitive {show(self.name)}: tile must be a tiling.Tile, got {show(self.tile)}")
+        c = self.counts
+        if not (isinstance(c, (tuple, list)) and len(c) == 3
+                and all(isinstance(n, (int, np.integer)) and not isinstance(n, bool) and n >= 1 for n in c)):
+            raise TilingError(f"primitive {show(self.name)}: counts must be three integers >= 1 (tiles per knot "
+                              f"span in u, v, w), got {show(c)}")
+        self.counts = tuple(int(n) for n in c)
         if not (isinstance(self.priority, (int, np.integer)) and not isinstance(self.priority, bool)):
             raise TilingError(f"primitive {show(self.name)}: priority must be an integer, got {show(self.priority)}")
 
