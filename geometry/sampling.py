@@ -30,7 +30,8 @@ from .chain import gradient_and_det, patches_geometry_derivs
 from .faces import FACE_AXIS
 from .multipatch import PlacedPatch
 
-__all__ = ["conforming_axes", "sample_model", "sampled_mesh", "weld", "sample_axes", "piece_basis", "HEX_CORNERS"]
+__all__ = ["conforming_axes", "sample_model", "sampled_mesh", "weld", "sample_axes", "piece_basis", "piece_boxes",
+           "HEX_CORNERS"]
 
 #: VTK hexahedron corner order as (di, dj, dk) offsets
 HEX_CORNERS = np.array([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)])
@@ -107,8 +108,13 @@ def conforming_axes(model, knots_of, samples: int) -> list[list[np.ndarray]]:
     return [[d[0] + a * (d[1] - d[0]) for a, d in zip(ax, dom)] for ax, dom in zip(axes, doms)]
 
 
-def _pieces(spline):
-    """Parameter boxes between the full-multiplicity (discontinuity) knots of a trivariate."""
+def piece_boxes(spline) -> list[np.ndarray]:
+    """Parameter boxes (d, 2) between the full-multiplicity (discontinuity) knots of a spline.
+
+    On each box the spline is continuous; across a box side that is a
+    discontinuity knot the two boxes have their own one-sided limits (the two
+    walls of a slot).
+    """
     cuts = []
     for U, p in zip(spline.knots, spline.degrees):
         vals, mults = np.unique(U, return_counts=True)
@@ -164,7 +170,7 @@ def sample_model(model, samples: int = 3, knots_of=None, fields=None, spaces_key
     offset = 0
     for members in progress.bar(list(groups.values()), desc="sampling", unit="group"):
         spline = model.patches[members[0]].spline
-        for box in _pieces(spline):
+        for box in piece_boxes(spline):
             sub = spline.extract(box) if not np.array_equal(box, spline.domain) else spline
             pax = [a[(a >= lo - 1e-13 * (hi - lo)) & (a <= hi + 1e-13 * (hi - lo))] for a, (lo, hi) in
                    zip(axes[members[0]], box)]

@@ -16,32 +16,46 @@ from geometry.inversion import newton_inverse, start_grid
 
 from .errors import ProblemError
 from geometry.chain import patch_geometry_grid, patch_geometry_points
+from geometry.multipatch import PlacedPatch
+from geometry.sampling import piece_boxes
 
 __all__ = ["Locator"]
 
 
 class Locator:
-    """Locates physical points in the patches of ``model`` (KD-trees built once, on first use)."""
+    """Locates physical points in the patches of ``model`` (KD-trees built once, on first use).
+
+    Every patch is searched piece by piece between its discontinuity knots
+    (:func:`geometry.sampling.piece_boxes`): on a slot wall the two sides of a
+    discontinuity plane are different surfaces, and each is found on its own
+    piece, with its own one-sided limit.
+    """
 
     def __init__(self, model):
         self.model = model
         self._trees = None
 
     def _build(self):
-        self._trees = []
-        for patch in self.model.patches:
+        self._trees = []  # (patch index, piece, box (3, 2), KD-tree, start parameters, bounding box lo, hi)
+        for pi, patch in enumerate(self.model.patches):
             s = patch.spline
-            axes = start_grid(s.domain, [s.breakpoints(k) for k in range(3)])
-            x, _, _ = patch_geometry_grid(patch, axes)
-            grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
-            pad = 1e-9 * max(1.0, np.abs(x).max()) + 0.05 * np.ptp(x, axis=0)  # curved faces bulge between samples
-            self._trees.append((cKDTree(x), grid, x.min(0) - pad, x.max(0) + pad))
+            for box in piece_boxes(s):
+                piece = patch if np.array_equal(box, s.domain) else PlacedPatch(
+                    s.extract(box), patch.placement, patch.outer, patch.tile, patch.level)
+                ps = piece.spline
+                axes = start_grid(ps.domain, [ps.breakpoints(k) for k in range(3)])
+                x, _, _ = patch_geometry_grid(piece, axes)
+                grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
+                pad = 1e-9 * max(1.0, np.abs(x).max()) + 0.05 * np.ptp(x, axis=0)  # curved faces bulge between samples
+                self._trees.append((pi, piece, box, cKDTree(x), grid, x.min(0) - pad, x.max(0) + pad))
 
     def __call__(self, points, tol: float = 1e-10, what: str = "probe"):
         """(patch index (N,), parameters (N, 3)) of physical points (N, 3).
 
-        Raises :class:`ProblemError` for malformed points and lists the points
-        found in no patch (relative tolerance ``tol``).
+        Parameters on the upper side of a discontinuity knot are returned one
+        floating-point step below it, so that evaluating the whole patch there
+        gives that side's limit.  Raises :class:`ProblemError` for malformed
+        points and lists the points found in no patch (relative tolerance ``tol``).
         """
         pts = np.asarray(points, float)
         if pts.ndim != 2 or pts.shape[1] != 3 or not np.all(np.isfinite(pts)):
@@ -51,21 +65,24 @@ class Locator:
         where = np.full(len(pts), -1)
         params = np.zeros((len(pts), 3))
         scale = max(1.0, float(np.abs(pts).max())) if len(pts) else 1.0
-        for pi, (tree, grid, lo, hi) in enumerate(self._trees):
+        for pi, piece, box, tree, grid, lo, hi in self._trees:
             cand = np.nonzero((where < 0) & np.all((pts >= lo) & (pts <= hi), axis=1))[0]
             if not len(cand):
                 continue
-            patch = self.model.patches[pi]
-            dom = patch.spline.domain
             _, nearest = tree.query(pts[cand])
 
-            def fn(t, patch=patch):
-                x, J, _ = patch_geometry_points(patch, t)
+            def fn(t, piece=piece):
+                x, J, _ = patch_geometry_points(piece, t)
                 return x, J
 
-            xi = newton_inverse(fn, dom, grid[nearest], pts[cand], 1e-14 * float((dom[:, 1] - dom[:, 0]).max()))
-            x, _, _ = patch_geometry_points(patch, xi)
+            xi = newton_inverse(fn, box, grid[nearest], pts[cand], 1e-14 * float((box[:, 1] - box[:, 0]).max()))
+            x, _, _ = patch_geometry_points(piece, xi)
             ok = np.linalg.norm(x - pts[cand], axis=1) <= tol * scale
+            dom = self.model.patches[pi].spline.domain
+            for k in range(3):  # the upper side of an interior discontinuity: one step inside this piece
+                if box[k, 1] < dom[k, 1]:
+                    at = xi[:, k] >= box[k, 1]
+                    xi[at, k] = np.nextafter(box[k, 1], -np.inf)
             where[cand[ok]] = pi
             params[cand[ok]] = xi[ok]
         missing = np.nonzero(where < 0)[0]

@@ -10,9 +10,10 @@ and every channel of the tiles and the deformation map; cell data: ``patch``,
 ``cells="bezier"``: one exact rational Bezier hexahedron (VTK type 79) per
 element (:mod:`iga.vtu_bezier`).
 
-Files are written by VTK's XML writer with raw appended binary data and LZ4
-compression (fast to write and to read), to a temporary name renamed into
-place (atomic).
+Files are written by VTK's XML writer with raw appended binary data and zlib
+compression (which meshio, VTK, ParaView and pyvista all read; VTK's LZ4 is
+faster but meshio cannot decode it), to a temporary name renamed into place
+(atomic).
 """
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ __all__ = ["write_vtu", "save_grid"]
 
 
 def save_grid(grid, path) -> None:
-    """Write a pyvista/VTK unstructured grid as XML (.vtu) with appended raw binary data, LZ4-compressed."""
+    """Write a pyvista/VTK unstructured grid as XML (.vtu) with appended raw binary data, zlib-compressed."""
     import vtk
 
     writer = vtk.vtkXMLUnstructuredGridWriter()
@@ -43,7 +44,7 @@ def save_grid(grid, path) -> None:
     writer.SetInputData(grid)
     writer.SetDataModeToAppended()
     writer.EncodeAppendedDataOff()
-    writer.SetCompressorTypeToLZ4()
+    writer.SetCompressorTypeToZLib()  # zlib: every mainstream reader has it (meshio has no LZ4 decoder)
     if not writer.Write():
         raise OSError(f"VTK could not write {path}")
 
