@@ -26,6 +26,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
+from scipy.spatial import cKDTree
 
 from .bspline import BSpline
 from .composition import compose_many, compose_placed
@@ -33,9 +34,9 @@ from .errors import SplineError
 from .faces import FACE_AXIS, FACE_NAMES, face_knots, nested_refinement
 from .inversion import invert
 
-__all__ = ["PlacedPatch", "Interface", "MultiPatch", "detect_interfaces", "free_faces", "ORIENTATIONS"]
+__all__ = ["PlacedPatch", "Interface", "MultiPatch", "detect_interfaces", "free_faces", "face_points", "ORIENTATIONS"]
 
-TOL = 1e-9  # relative geometric tolerance for coinciding corners and faces
+TOL = 1e-8  # relative geometric tolerance for coinciding corners and faces (of the model's size, at least 1)
 
 _IDENTITY = np.hstack([np.eye(3), np.zeros((3, 1))])
 
@@ -263,9 +264,9 @@ def _oriented_samples(swap, flip):
 def detect_interfaces(patches, strict: bool = False):
     """Identity interfaces between coinciding faces of trivariate patches.
 
-    Faces are matched by their four corners in physical space (a hash of the
-    rounded face centres, then the corner permutation that maps one onto the
-    other), so periodic maps glue across their seam.  A pair is an interface
+    Faces are matched by their four corners in physical space (face centres
+    within the tolerance by a KD-tree, then the corner permutation that maps
+    one onto the other), so periodic maps glue across their seam.  A pair is an interface
     when the two face spline spaces are equal (after the orientation) and the
     images coincide at interior sample points.  Pairs whose corners coincide but
     that fail either check are returned in ``mismatched`` (with the reason), or
@@ -278,22 +279,21 @@ def detect_interfaces(patches, strict: bool = False):
     rec_patch = np.repeat(pidx, 6)
     rec_face = np.tile(np.arange(6), len(pidx))
     scale = max(1.0, float(np.abs(corners).max()))
-    key = np.round(corners.mean(axis=1) / (1e-7 * scale)).astype(np.int64)
-    order = np.lexsort(key.T[::-1])
-    ks = key[order]
-    same = np.all(ks[1:] == ks[:-1], axis=1)
-    triple = same[1:] & same[:-1]
-    if triple.any():
-        a = order[int(np.argmax(triple))]
-        raise SplineError(f"more than two patch faces meet at the face {FACE_NAMES[rec_face[a]]} of patch "
-                          f"{rec_patch[a]}; patches overlap")
-    j = np.nonzero(same)[0]
-    ia, ib = order[j], order[j + 1]
+    # candidate pairs: face centres within the tolerance (a KD-tree, so no rounding bucket can split a pair)
+    found = cKDTree(corners.mean(axis=1)).query_pairs(TOL * scale, output_type="ndarray")
+    found = found[np.lexsort(found.T[::-1])] if len(found) else np.zeros((0, 2), np.int64)  # a fixed order
+    ia, ib = found[:, 0], found[:, 1]
     keep = rec_patch[ia] != rec_patch[ib]
     ia, ib = ia[keep], ib[keep]
     err = np.abs(corners[ib][:, _ORIENTATION_PERMS] - corners[ia][:, None]).max(axis=(2, 3)) if len(ia) else None
     ok = err <= TOL * scale if len(ia) else np.zeros((0, 8), bool)
     orient = np.where(ok.any(axis=1), np.argmax(ok, axis=1), -1)
+    matched = orient >= 0
+    faces, counts = np.unique(np.concatenate([ia[matched], ib[matched]]), return_counts=True)
+    if np.any(counts > 1):
+        a = faces[int(np.argmax(counts > 1))]
+        raise SplineError(f"more than two patch faces meet at the face {FACE_NAMES[rec_face[a]]} of patch "
+                          f"{rec_patch[a]}; patches overlap")
     pairs = [((int(rec_patch[a]), FACE_NAMES[rec_face[a]]), (int(rec_patch[b]), FACE_NAMES[rec_face[b]]), int(o))
              for a, b, o in zip(ia, ib, orient) if o >= 0]  # same centre, other corners: e.g. a face inside a larger one
     out, bad = [], []

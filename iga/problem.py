@@ -23,6 +23,7 @@ import numpy as np
 from geometry.resources import check_memory
 
 from .coefficients import Conductivity, ScalarField, is_number
+from .components import analyse_components
 from .constraints import needs_constraints, prolongation
 from .dirichlet import project_dirichlet
 from .errors import ProblemError, SingularProblemError
@@ -31,7 +32,7 @@ from .forms import boundary_load, boundary_mass
 from .model import as_model, tag_faces
 from .regularity import prove_regular
 from .solution import Solution
-from .space import make_space, space_size
+from .space import estimate, make_space
 from . import distributed
 from .multilevel import solver_options
 from .system import solve_system
@@ -47,30 +48,6 @@ class _Condition:
     tag: str
     value: ScalarField  # temperature, inward flux or ambient temperature
     h: ScalarField | None = None  # film coefficient (Robin)
-
-
-def estimate(model, quadrature_extra=0, degree_elevation=0, refine=0, degree=None) -> dict:
-    """DOFs and a memory estimate (bytes) of the analysis of ``model``, from knot vectors only.
-
-    Memory: the stiffness matrix (12 bytes per non-zero: value and column), the
-    reduced matrix and the solver's hierarchy (together about 1.6 times the
-    matrix, measured on the unit cube up to 1M unknowns), and the quadrature
-    tables of every distinct space.
-    """
-    sizes: dict = {}
-    dofs, nbytes = 0, 0.0
-    for p in model.patches:
-        key = id(p.spline)
-        if key not in sizes:
-            n, _, tables = space_size(p.spline.knots, p.spline.degrees, quadrature_extra, degree_elevation, refine,
-                                      degree)
-            q = [pd + (degree_elevation[k] if isinstance(degree_elevation, tuple) else degree_elevation)
-                 if degree is None else degree[k] for k, pd in enumerate(p.spline.degrees)]
-            sizes[key] = (n, n * float(np.prod([2 * v + 1 for v in q])) * 12 * 1.6)
-            nbytes += tables
-        dofs += sizes[key][0]
-        nbytes += sizes[key][1]
-    return {"dofs": int(dofs), "bytes": nbytes}
 
 
 def _count(name: str, v, minimum: int, three: bool = False):
@@ -154,6 +131,7 @@ class HeatProblem:
         self.timings = {"regularity": t_regular, "spaces": time.perf_counter() - t0 - t_regular}
         self.constraint_stats: dict = {}
         self.reduced_dofs = None
+        self.components, self.idle_components = [], []  # the coupled pieces of the last solve (iga.components)
 
     # ------------------------------------------------------------ conditions
     def _condition(self, kind, tag, value, h=None) -> "HeatProblem":
@@ -281,6 +259,8 @@ class HeatProblem:
         t0 = time.perf_counter()
         constraints = prolongation(self) if self._needs_constraints() else None
         self.constraint_stats = dict(constraints.stats) if constraints is not None else {}
+        self.components, self.idle_components = analyse_components(self, constraints, self._faces_by_kind(),
+                                                                    book["source"])
         dd = project_dirichlet(self.faces, book["dirichlet"], self.ndof, constraints)
         self.timings["constraints"] = time.perf_counter() - t0
         t0 = time.perf_counter()

@@ -44,6 +44,7 @@ class Solution:
             "solver": solver_info.as_dict(),
             "timings": dict(problem.timings),
             "balance": self.balance(),
+            "components": _components_info(problem),
         }
 
     # ---------------------------------------------------------------- fields
@@ -122,9 +123,36 @@ class Solution:
         src = self._book["source"]
         inflow = float(-flows[flows < 0].sum()) + max(src, 0.0)
         outflow = float(flows[flows > 0].sum()) + max(-src, 0.0)
-        scale = max(inflow, outflow, 1e-300)
+        scale = max(inflow, outflow, abs(src), self._flow_scale(), 1e-300)
         return {"inflow_W": inflow, "outflow_W": outflow, "source_W": src,
-                "relative_error": abs(inflow - outflow) / scale}
+                "relative_error": abs(inflow - outflow) / scale, "reference_flow_W": scale}
+
+    def _flow_scale(self) -> float:
+        """A heat flow (W) the model could carry: k A dT / L over the faces with conditions.
+
+        k the largest conductivity on those faces, A their area, dT the span of
+        the temperature coefficients, L the size of the faces' bounding box.
+        The balance error is relative to the larger of this and the measured
+        flows, so a model through which no heat flows does not divide two
+        round-off numbers.
+        """
+        prob = self.problem
+        keys = [k for kind in ("neumann", "robin", "dirichlet") for k in self._book[kind]]
+        if not keys or not len(self.u):
+            return 0.0
+        fds = prob.faces(keys)
+        x = np.concatenate([fd.x for fd in fds])
+        common = [c for c in fds[0].chans if all(c in fd.chans for fd in fds)]
+        chans = {c: np.concatenate([fd.chans[c] for fd in fds]) for c in common}
+        try:
+            k = np.asarray(prob.conductivity.values(x, chans, "the faces with conditions"), float)
+        except ProblemError:  # a channel that only some faces carry: no scale from the conductivity
+            return 0.0
+        k_ref = float(np.abs(k).max()) if k.size else 0.0
+        area = float(sum(fd.dAw.sum() for fd in fds))
+        size = float(np.ptp(x, axis=0).max()) if len(x) > 1 else 0.0
+        dT = float(np.ptp(self.u))
+        return k_ref * area * dT / size if size > 0 else 0.0
 
     # ------------------------------------------------------------ integrals
     def integrate(self, fn) -> float:
@@ -206,3 +234,11 @@ def flux_vector(K: np.ndarray, grad: np.ndarray) -> np.ndarray:
     if K.ndim == 1:
         return -K[:, None] * grad
     return -np.einsum("nij,nj->ni", tensor_matrix(K), grad)
+
+
+def _components_info(problem) -> dict:
+    """The coupled pieces of a solved problem for ``Solution.info`` (:mod:`iga.components`): the count, the
+    idle ones, and the first ten with their DOFs, patches and the tags of the conditions on them."""
+    comps = getattr(problem, "components", [])
+    return {"count": len(comps), "idle": len(getattr(problem, "idle_components", [])),
+            "pieces": [c.as_dict() for c in comps[:10]]}

@@ -124,3 +124,66 @@ def test_flux_at_welded_interface_points_is_the_mean_of_both_sides(tmp_path):
     assert np.abs(sides[0] - sides[1]).max() > 0.05  # the flux does jump here
     written = grid.point_data["heat_flux"][on]
     assert np.abs(written - 0.5 * (sides[0] + sides[1])).max() < 1e-9
+
+
+# ------------------------------------------------------------------ topology
+@pytest.mark.parametrize("gap", [2e-14, 1e-9 * 2.0, 4e-14])
+@pytest.mark.parametrize("x0", [0.0, 3.5e-7, 5e-8 - 1e-14])
+def test_boxes_a_hair_apart_are_coupled_wherever_they_sit(gap, x0):
+    """No rounding bucket splits a pair: the faces' centres are paired by a KD-tree within the tolerance."""
+    from geometry import MultiPatch
+
+    a = pr.box((2.0, 2.0, 2.0), origin=(x0, 0.0, 0.0))
+    b = pr.box((2.0, 2.0, 2.0), origin=(x0 + 2.0 + gap, 0.0, 0.0))
+    m = MultiPatch.from_splines([a, b])
+    assert [(i.a, i.b) for i in m.interfaces] == [((0, "umax"), (1, "umin"))]
+    sol = HeatProblem(m).dirichlet("umin", 0.0).dirichlet("umax", 1.0).solve()
+    assert sol.info["components"]["count"] == 1
+    assert sol.probe(np.array([[x0 + 2.0, 1.0, 1.0]]))[0] == pytest.approx(0.5, abs=1e-8)
+
+
+def test_patches_that_touch_without_conforming_are_refused_naming_the_faces():
+    from geometry import MultiPatch, SplineError
+    from tiling import Tile, TilingError
+
+    a = pr.box((1.0, 1.0, 0.5))
+    b = pr.box((0.5, 0.5, 0.5), origin=(0.25, 0.25, 0.5))  # its wmin lies inside a's wmax
+    with pytest.raises(SplineError, match="face wmax of patch 0 touches patch 1|face wmin of patch 1 touches"):
+        MultiPatch.from_splines([a, b])
+    # the same inside a paving: the tile's two patches meet face on face with no interface between them
+    with pytest.raises(TilingError, match=r"face wmax of patch 0 \(tile 0\) and face wmin of patch 1 \(tile 0\) "
+                                          "touch but no interface glues them"):
+        tiling.regular(pr.box(), Tile([a, b], name="stack"), (1, 1, 1))
+
+
+def test_a_floating_piece_is_refused_and_pieces_are_reported():
+    from iga import SingularProblemError
+
+    ms = tiling.regular(pr.box((2.0, 1.0, 1.0)), L.cross(), (2, 1, 1))
+    cut = [i for i in ms.interfaces if ms.patches[i.a[0]].tile != ms.patches[i.b[0]].tile]
+    assert len(cut) == 1
+    ms.interfaces.remove(cut[0])  # the bond between the two tiles
+    with pytest.raises(SingularProblemError, match="falls apart into 2 connected pieces and 1 of them float"):
+        HeatProblem(ms).dirichlet("umin", 0.0).neumann("umax", 1.0).solve()
+    from iga.components import IdleComponentWarning
+
+    with pytest.warns(IdleComponentWarning, match="2 of the model's 2 connected pieces carry no heat"):
+        sol = HeatProblem(ms).dirichlet("umin", 0.0).robin("umax", 1.0, 1.0).solve()
+    assert sol.info["components"]["count"] == 2
+    whole = tiling.regular(pr.box((2.0, 1.0, 1.0)), L.cross(), (2, 1, 1))
+    ref = HeatProblem(whole).dirichlet("umin", 0.0).robin("umax", 1.0, 1.0).solve()
+    assert ref.info["components"]["count"] == 1
+    assert sol.info["free_dofs"] > ref.info["free_dofs"]  # the cut face's DOFs are no longer shared
+
+
+def test_no_heat_path_between_conditions_is_told_and_the_balance_is_scaled():
+    """The regular paving of the fractal tile joins no wall to the opposite one (Massarwi et al. 2018 Fig. 3)."""
+    from iga.components import IdleComponentWarning
+
+    ms = tiling.regular(pr.box(), L.fractal(), (2, 2, 2))
+    with pytest.warns(IdleComponentWarning, match="no heat path joins conditions of different values"):
+        sol = HeatProblem(ms).dirichlet("wmin", 100.0).robin("wmax", 5.0, 20.0).solve()
+    info = sol.info
+    assert info["components"]["count"] == info["components"]["idle"] > 1
+    assert info["balance"]["inflow_W"] < 1e-9 and info["balance"]["relative_error"] < 1e-9
+    assert info["balance"]["reference_flow_W"] > 1.0  # k A dT / L, not a round-off flow

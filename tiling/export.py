@@ -23,11 +23,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from geometry import Interface, MultiPatch
-from geometry.faces import FACE_AXIS, FACE_NAMES
+from geometry.faces import FACE_AXIS, FACE_NAMES, face_name, parse_slot_face
 from geometry.errors import SplineError
 from geometry.iges import write_iges as _write_iges
 from geometry.io import atomic_write, offscreen_plotter, save_screenshot
-from geometry.sampling import sample_axes, sampled_mesh, weld
+from geometry.sampling import piece_boxes, sample_axes, sampled_mesh, weld
 
 from .errors import TilingError
 
@@ -36,7 +36,7 @@ if TYPE_CHECKING:  # annotations only: the Microstructure's own surface() calls 
 from geometry.errors import show
 
 __all__ = ["surface", "watertightness", "mesh_watertightness", "write_surfaces", "write_mesh", "render_png",
-           "boundary_splines", "write_iges",
+           "boundary_splines", "continuous_pieces", "slot_surfaces", "write_iges",
            "samples_for_tolerance"]
 
 _FORMATS = {".vtu": "vtu", ".obj": "obj", ".stl": "stl", ".ply": "ply", ".vtp": "vtp"}
@@ -264,13 +264,50 @@ def render_png(ms: Microstructure, path, samples: int = 6, color_by: str = "leve
 
 
 def boundary_splines(ms: Microstructure) -> list:
-    """The exact boundary of ``ms`` as splines in physical space: every free side of a trivariate patch
-    (composed), every surface patch, every curve patch, and the trimmed caps (``TrimmedSurface``).  Slot faces (free parts of discontinuity
-    planes) are trimmed regions of a side and are not included."""
+    """The exact, closed boundary of ``ms`` as continuous splines in physical space.
+
+    Every free side of a trivariate patch (composed), every slot face (the
+    free rectangles of a discontinuity plane, each side from its own one-sided
+    sub-patch), every surface patch, every curve patch, and the trimmed caps
+    (``TrimmedSurface``).  A surface with a full-multiplicity (C^-1) knot is
+    two surfaces that happen to share a knot vector; readers such as
+    OpenCASCADE take it as one continuous surface and misread it, so such
+    surfaces are split at those knots into pieces that are each continuous.
+    """
     composed = ms.compose_all()
-    out = [composed[i].boundary(f) for i, f in ms.tags.get("boundary", []) if f in FACE_NAMES]
-    out += [c for c, P in zip(composed, ms.patches) if P.spline.dim in (1, 2)]
+    out = []
+    for i, f in ms.tags.get("boundary", []):
+        if f in FACE_NAMES:
+            out += continuous_pieces(composed[i].boundary(f))
+    for (i, fid), rects in getattr(ms, "face_regions", {}).items():
+        out += [piece for S in slot_surfaces(composed[i], fid, rects) for piece in continuous_pieces(S)]
+    out += [c for c, P in zip(composed, ms.patches) if P.spline.dim in (1, 2) for c in continuous_pieces(c)]
     return out + [pc.composed() for pc in getattr(ms, "caps", [])]
+
+
+def continuous_pieces(spline) -> list:
+    """``spline`` cut at its full-multiplicity (discontinuity) knots: exact sub-splines, each continuous."""
+    boxes = piece_boxes(spline)
+    if len(boxes) == 1:
+        return [spline]
+    return [spline.extract(box) for box in boxes]
+
+
+def slot_surfaces(patch, fid: str, rects) -> list:
+    """The free rectangles ``rects`` of the slot face ``fid`` of a (composed) trivariate, as exact surfaces.
+
+    Each side of a discontinuity plane is evaluated on its own one-sided
+    sub-patch, so the two walls of a slot are two surfaces.
+    """
+    d, v, side = parse_slot_face(fid)
+    rest = [k for k in range(3) if k != d]
+    out = []
+    for (a1, b1), (a2, b2) in rects:
+        box = patch.domain.copy()
+        box[d] = (box[d, 0], v) if side < 0 else (v, box[d, 1])
+        box[rest[0]], box[rest[1]] = (a1, b1), (a2, b2)
+        out.append(patch.extract(box).boundary(face_name(d, 1 if side < 0 else 0)))
+    return out
 
 
 def write_iges(path, ms: Microstructure, units: str = "m") -> Path:

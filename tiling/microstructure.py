@@ -30,6 +30,7 @@ import scipy.sparse as sp
 from geometry import BSpline
 from geometry.errors import SplineError
 from geometry.faces import FACE_NAMES, discontinuity_slots, face_knots, nested_refinement
+from geometry.contact import unglued_contacts
 from geometry.multipatch import Interface, MultiPatch, PlacedPatch, detect_interfaces, tile_corners
 
 from . import export
@@ -108,6 +109,13 @@ class Microstructure(MultiPatch):
         interfaces = [itf for itf in found if frozenset([itf.a, itf.b]) not in linked]
         for parent, pface, pbox, child, cface in branch_links:
             interfaces.append(_branch_interface(placed, parent, pface, pbox, child, cface))
+        touching = unglued_contacts(placed, interfaces)
+        if touching:
+            (a, fa), (b, fb) = touching[0]
+            raise TilingError(f"face {fa} of patch {a} (tile {placed[a].tile}) and face {fb} of patch {b} (tile "
+                              f"{placed[b].tile}) touch but no interface glues them ({len(touching)}"
+                              f"{'+' if len(touching) == 5 else ''} such pairs); their tile patches do not meet "
+                              "face to face: use tiles whose faces on opposite cell walls match corner to corner")
         tags = _tags(outer, placed, interfaces, root_faces, leaf_faces)
         regions = _slot_faces(placed)
         for key in regions:

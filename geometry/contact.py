@@ -1,0 +1,44 @@
+"""Contact without an interface: faces of different patches that lie on each other but are not glued.
+
+A missing interface leaves two touching faces free, so the model falls
+apart there without a word; these checks find such pairs.
+:func:`unglued_contacts` is the cheap, vectorised test every paving runs
+(coinciding sample points of free faces, one KD-tree); user lists of patches
+get the thorough one of :meth:`geometry.MultiPatch.from_splines` (a free
+face's samples inverted into every other patch).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .multipatch import _SAMPLES, TOL, face_points, free_faces
+
+__all__ = ["unglued_contacts"]
+
+
+def unglued_contacts(patches, interfaces, limit: int = 5) -> list[tuple[tuple, tuple]]:
+    """Pairs of free faces of different patches that touch: a sample point of one lies on a sample of the other.
+
+    Every free face is sampled at its centre (which every orientation maps
+    onto the other face's centre) and four interior points; two free faces
+    sharing one of these points (within the coupling tolerance) lie on each
+    other, so an interface is missing or the faces do not conform.  One batched evaluation and one KD-tree; returns at
+    most ``limit`` pairs [((patch, face), (patch, face))].
+    """
+    free = free_faces(patches, interfaces)
+    if len(free) < 2:
+        return []
+    pts = face_points(patches, free, _SAMPLES)  # (F, n, 3)
+    scale = max(1.0, float(np.abs(pts).max()))
+    flat = pts.reshape(-1, 3)
+    owner = np.repeat(np.arange(len(free)), pts.shape[1])
+    pairs = cKDTree(flat).query_pairs(TOL * scale, output_type="ndarray")
+    if not len(pairs):
+        return []
+    fa, fb = owner[pairs[:, 0]], owner[pairs[:, 1]]
+    pa = np.array([free[i][0] for i in fa])
+    pb = np.array([free[i][0] for i in fb])
+    hit = np.unique(np.sort(np.stack([fa, fb], 1)[pa != pb], axis=1), axis=0)
+    return [(free[int(a)], free[int(b)]) for a, b in hit[:limit]]
