@@ -14,6 +14,7 @@ model's, declared as metres (unit flag 6) unless ``units`` says otherwise.
 
 from __future__ import annotations
 
+import bisect
 import datetime as _dt
 from pathlib import Path
 
@@ -30,6 +31,16 @@ __all__ = ["write_iges", "UNITS"]
 UNITS = {"in": (1, "INCH"), "mm": (2, "MM"), "ft": (4, "FT"), "m": (6, "M"), "km": (7, "KM"), "cm": (10, "CM")}
 
 
+def _check_text(what: str, text) -> None:
+    """IGES strings are Hollerith fields of printable ASCII; anything else would corrupt the 80-column records."""
+    if not isinstance(text, str):
+        raise SplineError(f"IGES {what} must be a string, got {show(text)}")
+    bad = [c for c in text if not 32 <= ord(c) <= 126]
+    if bad:
+        raise SplineError(f"IGES {what} {show(text)} holds {show(bad[0])}, which is not printable ASCII (IGES "
+                          "records are 80 ASCII columns); use letters, digits and punctuation only")
+
+
 def _hollerith(s: str) -> str:
     return f"{len(s)}H{s}"
 
@@ -42,29 +53,44 @@ def _num(v) -> str:
 
 
 def _records(text: str, width: int) -> list[str]:
-    """Split a parameter string into chunks of at most ``width`` columns, breaking after delimiters."""
-    out, line = [], ""
-    for token in text.replace(";", ";\0").replace(",", ",\0").split("\0"):
-        if not token:
-            continue
-        if len(line) + len(token) > width:
-            out.append(line)
-            line = ""
-        while len(token) > width:  # a single huge token (never for numbers) is split hard
-            out.append(token[:width])
-            token = token[width:]
-        line += token
-    if line:
-        out.append(line)
+    """Split a parameter string into chunks of at most ``width`` columns, breaking after delimiters.
+
+    Greedy, one step per record: the token ends (after each ``,`` or ``;``)
+    are found at once, and each record ends at the last of them that fits.
+    """
+    codes = np.frombuffer(text.encode("ascii"), np.uint8)
+    ends = (np.flatnonzero((codes == ord(",")) | (codes == ord(";"))) + 1).tolist()
+    if not ends or ends[-1] != len(text):
+        ends.append(len(text))
+    out, start = [], 0
+    while start < len(text):
+        j = bisect.bisect_right(ends, start + width) - 1
+        stop = ends[j] if j >= 0 and ends[j] > start else min(start + width, len(text))  # one huge token: cut hard
+        out.append(text[start:stop])
+        start = stop
     return out
+
+
+def _format(prm) -> str:
+    """An entity's parameter list as IGES free-format text: integers as such, reals with 17 significant digits
+    (``repr``: the shortest string that reads back to the same double), float arrays in one pass."""
+    parts = []
+    for v in prm:
+        if isinstance(v, np.ndarray):
+            parts.append(",".join(map(repr, v.astype(float).ravel().tolist())))
+        elif isinstance(v, (int, np.integer)):
+            parts.append(str(int(v)))
+        else:
+            parts.append(_num(v))
+    return (",".join(parts) + ";").replace("e", "E")
 
 
 def _curve(c: BSpline) -> list:
     (p,), (U,) = c.degrees, c.knots
     n = c.shape[0]
     w = np.ones(n) if c.weights is None else c.weights
-    return ([126, n - 1, p, 0, 0, int(c.weights is None), 0] + list(U) + list(w)
-            + list(c.control_points[:, :3].ravel()) + [U[0], U[-1], 0.0, 0.0, 0.0])
+    return ([126, n - 1, p, 0, 0, int(c.weights is None), 0, np.asarray(U), np.asarray(w),
+             c.control_points[:, :3], float(U[0]), float(U[-1]), 0.0, 0.0, 0.0])
 
 
 def _surface(s: BSpline) -> list:
@@ -73,8 +99,8 @@ def _surface(s: BSpline) -> list:
     w = np.ones((n1, n2)) if s.weights is None else s.weights
     cp = s.control_points[..., :3]
     # IGES orders weights and points with the first index fastest
-    return ([128, n1 - 1, n2 - 1, p1, p2, 0, 0, int(s.weights is None), 0, 0] + list(U) + list(V)
-            + list(w.T.ravel()) + list(np.transpose(cp, (1, 0, 2)).reshape(-1)) + [U[0], U[-1], V[0], V[-1]])
+    return ([128, n1 - 1, n2 - 1, p1, p2, 0, 0, int(s.weights is None), 0, 0, np.asarray(U), np.asarray(V),
+             w.T, np.transpose(cp, (1, 0, 2)), float(U[0]), float(U[-1]), float(V[0]), float(V[-1])])
 
 
 def write_iges(path, splines, *, units: str = "m", author: str = "iga-microstructures", name: str = "") -> Path:
@@ -89,6 +115,9 @@ def write_iges(path, splines, *, units: str = "m", author: str = "iga-microstruc
         raise SplineError("write_iges needs at least one curve or surface")
     if units not in UNITS:
         raise SplineError(f"units must be one of {sorted(UNITS)}, got {show(units)}")
+    path = Path(path)
+    for what, text in (("name", name), ("author", author), ("the file name", path.name)):
+        _check_text(what, text)
     params, status = [], []  # per entity: parameter list, DE status digits
 
     def add(prm, st="00000000") -> int:
@@ -111,7 +140,6 @@ def write_iges(path, splines, *, units: str = "m", author: str = "iga-microstruc
         if not np.all(np.isfinite(s.control_points)):
             raise SplineError(f"item {i} has non-finite control points; IGES cannot hold them")
         add(_curve(s) if s.dim == 1 else _surface(s))
-    path = Path(path)
     stamp = _dt.datetime.now().strftime("%Y%m%d.%H%M%S")
     flag, unit = UNITS[units]
     extent = max(float(np.abs((s.surface if isinstance(s, TrimmedSurface) else s).control_points[..., :3]).max())
@@ -125,9 +153,7 @@ def write_iges(path, splines, *, units: str = "m", author: str = "iga-microstruc
     d_lines, p_lines = [], []
     for i, prm in enumerate(params):
         de = 2 * i + 1
-        ptext = ",".join(str(prm[0]) if j == 0 else (str(v) if isinstance(v, (int, np.integer)) else _num(v))
-                         for j, v in enumerate(prm)) + ";"
-        chunk = _records(ptext, 64)
+        chunk = _records(_format(prm), 64)
         start = len(p_lines) + 1
         p_lines += [f"{c:<64} {de:>7}" for c in chunk]
         etype = prm[0]
@@ -139,9 +165,13 @@ def write_iges(path, splines, *, units: str = "m", author: str = "iga-microstruc
                + [f"{x:<72}P{k + 1:>7}" for k, x in enumerate(p_lines)])
     counts = f"S{len(s_lines):>7}G{len(g_lines):>7}D{len(d_lines):>7}P{len(p_lines):>7}"
     records.append(f"{counts:<72}T{1:>7}")
+    if any(len(r) != 80 for r in records):  # a fixed format: never write a record another reader cannot take
+        bad = next(k for k, r in enumerate(records) if len(r) != 80)
+        raise SplineError(f"IGES record {bad + 1} would have {len(records[bad])} columns instead of 80; nothing "
+                          "was written (please report this)")
     text = "\n".join(records) + "\n"
 
     def write(tmp):
-        Path(tmp).write_text(text)
+        Path(tmp).write_text(text, encoding="ascii")
 
     return atomic_write(path, write, ".igs")

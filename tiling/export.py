@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from geometry import Interface, MultiPatch
+from geometry import Interface, MultiPatch, compose_many
 from geometry.faces import FACE_AXIS, FACE_NAMES, face_name, parse_slot_face
 from geometry.errors import SplineError
 from geometry.iges import write_iges as _write_iges
@@ -39,6 +39,7 @@ __all__ = ["surface", "watertightness", "mesh_watertightness", "write_surfaces",
            "boundary_splines", "continuous_pieces", "slot_surfaces", "write_iges",
            "samples_for_tolerance"]
 
+_IDENTITY = np.hstack([np.eye(3), np.zeros((3, 1))])
 _FORMATS = {".vtu": "vtu", ".obj": "obj", ".stl": "stl", ".ply": "ply", ".vtp": "vtp"}
 
 
@@ -266,23 +267,69 @@ def render_png(ms: Microstructure, path, samples: int = 6, color_by: str = "leve
 def boundary_splines(ms: Microstructure) -> list:
     """The exact, closed boundary of ``ms`` as continuous splines in physical space.
 
-    Every free side of a trivariate patch (composed), every slot face (the
-    free rectangles of a discontinuity plane, each side from its own one-sided
+    Every free side of a trivariate patch, every slot face (the free
+    rectangles of a discontinuity plane, each side from its own one-sided
     sub-patch), every surface patch, every curve patch, and the trimmed caps
     (``TrimmedSurface``).  A surface with a full-multiplicity (C^-1) knot is
     two surfaces that happen to share a knot vector; readers such as
     OpenCASCADE take it as one continuous surface and misread it, so such
     surfaces are split at those knots into pieces that are each continuous.
+    Faces of trivariates are oriented outwards (``S_s x S_t`` along the outward
+    normal), so the pieces bound the solid consistently.
+    The faces are cut from the tile patches in tile space and composed into
+    the map as surfaces (exact, and cheaper than composing whole trivariates),
+    in one batch per tile patch, face and map.
     """
-    composed = ms.compose_all()
-    out = []
+    jobs: dict = {}  # (tile spline, map, face key) -> [patch indices]; face key: a face name or (slot id, rect)
     for i, f in ms.tags.get("boundary", []):
         if f in FACE_NAMES:
-            out += continuous_pieces(composed[i].boundary(f))
+            jobs.setdefault((id(ms.patches[i].spline), id(ms.patches[i].outer), f), []).append(i)
     for (i, fid), rects in getattr(ms, "face_regions", {}).items():
-        out += [piece for S in slot_surfaces(composed[i], fid, rects) for piece in continuous_pieces(S)]
-    out += [c for c, P in zip(composed, ms.patches) if P.spline.dim in (1, 2) for c in continuous_pieces(c)]
+        for rect in rects:
+            jobs.setdefault((id(ms.patches[i].spline), id(ms.patches[i].outer), (fid, tuple(map(tuple, rect)))),
+                            []).append(i)
+    out = []
+    for (_, _, key), members in jobs.items():
+        tile = ms.patches[members[0]].spline
+        face = tile.boundary(key) if isinstance(key, str) else slot_surfaces(tile, key[0], [key[1]])[0]
+        name = key if isinstance(key, str) else face_name(parse_slot_face(key[0])[0], int(key[0][-1] == "-"))
+        hand = _handedness(ms, members)
+        for sign in (1, -1):  # outward normals: reverse the face where S_s x S_t points inwards
+            group = [i for i, h in zip(members, hand) if h * _OUTWARD[name] == sign]
+            for piece in (continuous_pieces(face) if group else []):
+                out += _placed_surfaces(ms, group, piece if sign > 0 else piece.reverse(0))
+    for i, P in enumerate(ms.patches):
+        if P.spline.dim in (1, 2):
+            out += [c for piece in continuous_pieces(P.spline) for c in _placed_surfaces(ms, [i], piece)]
     return out + [pc.composed() for pc in getattr(ms, "caps", [])]
+
+
+#: sign of S_s x S_t against the outward normal for each face of a right-handed trivariate (boundary(face)
+#: takes the two remaining directions in order: umin's (v, w) give x_v x x_w, along +u, so inwards)
+_OUTWARD = {"umin": -1, "umax": 1, "vmin": 1, "vmax": -1, "wmin": -1, "wmax": 1}
+
+
+def _handedness(ms, members) -> np.ndarray:
+    """Sign of the physical Jacobian determinant of each placed patch (at its tile patch's centre)."""
+    P0 = ms.patches[members[0]]
+    c = P0.spline.domain.mean(axis=1)[None]
+    JT = P0.spline.jacobian(c)[0, :3, :]
+    A = np.stack([_IDENTITY if ms.patches[i].placement is None else ms.patches[i].placement for i in members])
+    sign = np.sign(np.linalg.det(JT)) * np.sign(np.linalg.det(A[:, :, :3]))
+    if P0.outer is not None:
+        y = np.einsum("pij,j->pi", A[:, :, :3], P0.spline.evaluate(c)[0, :3]) + A[:, :, 3]
+        dom = P0.outer.domain
+        sign = sign * np.sign(np.linalg.det(P0.outer.jacobian(np.clip(y, dom[:, 0], dom[:, 1]))[:, :3, :]))
+    return sign.astype(int)
+
+
+def _placed_surfaces(ms, members, piece) -> list:
+    """A tile-space curve or surface ``piece`` of the patches ``members``, placed and composed into their map."""
+    first = ms.patches[members[0]]
+    A = np.stack([_IDENTITY if ms.patches[i].placement is None else ms.patches[i].placement for i in members])
+    if first.outer is None:
+        return [piece.affine(a[:, :3], a[:, 3]) for a in A]
+    return compose_many(first.outer, piece, A)
 
 
 def continuous_pieces(spline) -> list:
