@@ -63,8 +63,8 @@ def reduce_degree(spline: BSpline, degree: int = 3, check: int = 9) -> tuple[BSp
     """
     if not isinstance(spline, BSpline) or spline.dim != 3:
         raise SplineError(f"reduce_degree approximates trivariate BSplines, got {show(spline)}")
-    if degree not in (2, 3):
-        raise SplineError(f"the reduced degree must be 2 or 3 (Massarwi et al. 2018, Section 6.3), got {show(degree)}")
+    if not isinstance(degree, (int, np.integer)) or isinstance(degree, (bool, np.bool_)) or degree not in (2, 3):
+        raise SplineError(f"the reduced degree must be the integer 2 or 3 (Massarwi et al. 2018, Section 6.3), got {show(degree)}")
     if not isinstance(check, (int, np.integer)) or check < 2:
         raise SplineError(f"check must be an integer >= 2 (points per direction), got {show(check)}")
     q = degree
@@ -180,6 +180,10 @@ def reduce_model(model, degree: int = 3, check: int = 9) -> tuple[list, dict]:
     ``report``: {"deviation" (largest), "deviations" (per patch), "control_points" (before, after),
     "degrees_before"}.
     """
+    if not callable(getattr(model, "compose_all", None)):
+        raise SplineError(f"reduce_model takes a multi-patch model (a geometry.MultiPatch or tiling.Microstructure), "
+                          f"got {type(model).__name__}; for a list of splines use "
+                          "geometry.MultiPatch.from_splines(splines), or reduce_degree on each")
     out, devs, before, after, degs = [], [], 0, 0, set()
     for spline in progress.bar(model.compose_all(), desc="degree reduction", unit="patch"):
         r, dev = reduce_degree(spline, degree, check)

@@ -86,12 +86,17 @@ class SplineFunction(SplineEvaluation):
     # ------------------------------------------------------------------ basics
     @staticmethod
     def _as_array(a, what):
-        if np.iscomplexobj(a):
-            raise SplineError(f"{what} must be real numbers, got complex values")
         try:
-            return np.array(a, dtype=float)
+            complex_ = np.iscomplexobj(a)
+            out = None if complex_ else np.array(a, dtype=float)
         except (TypeError, ValueError) as exc:
+            if "inhomogeneous" in str(exc):
+                raise SplineError(f"{what} must form one rectangular array: some rows have a different length "
+                                  "(give every control point 3 coordinates plus one value per channel)") from None
             raise SplineError(f"{what} must be a numeric array ({exc})") from None
+        if complex_:
+            raise SplineError(f"{what} must be real numbers, got complex values")
+        return out
 
     @classmethod
     def _from_hom(cls, degrees, knots, hom, rational, **extra):

@@ -272,6 +272,12 @@ def solve(A, b, method: str = "auto", tol: float = 1e-10, maxiter: int | None = 
                                                           else "amg-cg")
         # the spline structure is offered to auto; the method it picks takes what it uses
         options = {k: v for k, v in options.items() if k in _OPTIONS[method] or k not in ("kronecker", "prolongations")}
+    if not isinstance(options.get("overwrite_a", False), (bool, np.bool_)):
+        raise SolverError(f"overwrite_a must be True or False, got {show(options['overwrite_a'])} (a string or "
+                          "number would be read as true and let the solver modify your matrix)")
+    prol = options.get("prolongations")
+    if prol is not None and not (isinstance(prol, (list, tuple)) and all(sp.issparse(P) for P in prol)):
+        raise SolverError(f"prolongations must be a list of sparse matrices (finest level first), got {show(prol)}")
     unknown = sorted(set(options) - _OPTIONS[method])
     if unknown:
         raise SolverError(f"unknown option {show(unknown[0])} for the {method} solver; it takes "

@@ -90,6 +90,8 @@ def folded_map():
 
 # =================================================================== 1. spline construction
 SPLINES = [
+    case("ragged control points", lambda t: BSpline((1,), [[0, 0, 1, 1]], [[0, 0, 0], [1, 1]]), SplineError,
+         r"one rectangular array: some rows have a different length"),
     case("degree 2.5", lambda t: BSpline((2.5,), [U2], np.zeros((3, 3))), SplineError, r"integers.*2\.5"),
     case("degree bool", lambda t: BSpline((True,), [[0, 0, 1, 1]], np.zeros((2, 3))), SplineError, r"True"),
     case("degree string", lambda t: BSpline(("2",), [U2], np.zeros((3, 3))), SplineError, r"'2'"),
@@ -234,6 +236,12 @@ def _variants_bad(t):
 
 
 TILING = [
+    case("hierarchy scale string", lambda t: tiling.hierarchical(pr.box(), L.heat_sink_t2(), (1, 1), 2, scale="0.5"),
+         TilingError, r"scale must be a positive number .* got '0\.5' \(str\)"),
+    case("reduced degree float", lambda t: __import__("geometry.reduction").reduction.reduce_degree(
+        pr.box(degrees=(3, 3, 3)), 2.0), SplineError, r"integer 2 or 3 .* got 2\.0"),
+    case("reduce a list", lambda t: __import__("geometry.reduction").reduction.reduce_model([pr.box()]), SplineError,
+         r"takes a multi-patch model .* got list"),
     case("tile outside cube", lambda t: Tile([pr.box().translate([0.5, 0, 0])]), TilingError,
          r"tile 'tile' patch 0 leaves the unit cube"),
     case("tile not a spline", lambda t: Tile(["box"]), TilingError, r"patch 0 is a str"),
@@ -433,6 +441,10 @@ def _spd(n=5):
 
 
 SOLVERS = [
+    case("overwrite_a string", lambda t: solvers.solve(_spd(), np.ones(5), overwrite_a="no"), SolverError,
+         r"overwrite_a must be True or False, got 'no'"),
+    case("prolongations string", lambda t: solvers.solve(_spd(), np.ones(5), method="gmg-cg", prolongations="abc"),
+         SolverError, r"prolongations must be a list of sparse matrices"),
     case("dense matrix", lambda t: solvers.solve(np.eye(3), np.ones(3)), SolverError, r"scipy sparse matrix, got "
          r"ndarray"),
     case("shapes", lambda t: solvers.solve(_spd(), np.ones(4)), SolverError, r"A \(5, 5\), b \(4,\)"),

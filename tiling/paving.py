@@ -244,6 +244,10 @@ def hierarchical(D: BSpline, tile: Tile, counts, levels: int, scale: float | Non
     per_cell = float(levels) if b == 1 else (float(b) ** int(levels) - 1) / (b - 1)  # 1 + b + ... + b^(levels - 1)
     spans = [len(D.breakpoints(k)) - 1 for k in range(2)]
     _check_budget(per_cell * cx * cy * spans[0] * spans[1], tile, f"the {levels}-level hierarchical paving")
+    if scale is not None and not (isinstance(scale, (int, float, np.integer, np.floating))
+                                  and not isinstance(scale, (bool, np.bool_)) and np.isfinite(scale) and scale > 0):
+        raise TilingError(f"scale must be a positive number (a child's height relative to its parent), got "
+                          f"{show(scale)} ({type(scale).__name__})")
     if scale is not None and scale != tile.scale:
         tile = Tile(tile.patches, tile.branch_in, [(b.patch, b.face, b.box) for b in tile.branch_outs],
                     scale=scale, name=tile.name)
