@@ -74,6 +74,7 @@ class GismoModel:
     conditions: list = field(default_factory=list)
     functions: dict = field(default_factory=dict)  # {label: expression} (e.g. conductivity, source)
     branches: list = field(default_factory=list)  # [(parent (patch, face), box ((a, b), (c, d)), child (patch, face))]
+    root: object = None  # the parsed XML root, for elements of the writer's own (write_gismo's extensions)
 
 
 def interface_maps(a_face: str, b_face: str, swap: bool, flip) -> tuple[list, list]:
@@ -101,7 +102,7 @@ def _text(values) -> str:
 
 
 def write_gismo(path, patches, interfaces=(), boundary=(), conditions=(), functions=None, branches=(),
-                comment: str = "") -> Path:
+                comment: str = "", extensions=()) -> Path:
     """Write patches (geometry.BSpline, all of one parametric dimension) and their topology to G+Smo XML.
 
     ``interfaces``: [((pa, face_a), (pb, face_b), swap, flip)]; ``boundary``:
@@ -109,7 +110,8 @@ def write_gismo(path, patches, interfaces=(), boundary=(), conditions=(), functi
     {label: expression} written as ``<Function type="FunctionExpr">`` with that label;
     ``branches``: [(parent (patch, face), box, child (patch, face))] written as
     ``<BranchInterfaces>`` (G+Smo glues whole sides only and skips it);
-    ``comment``: a line written at the top.
+    ``comment``: a line written at the top; ``extensions``: further ``xml.etree`` elements appended to the
+    root (a writer's own data that G+Smo skips; :attr:`GismoModel.root` gives them back to its reader).
     """
     patches = list(patches)
     if not patches or not all(isinstance(p, BSpline) for p in patches):
@@ -175,6 +177,8 @@ def write_gismo(path, patches, interfaces=(), boundary=(), conditions=(), functi
     if branches:
         ET.SubElement(root, "BranchInterfaces", format="parent side box(4) child side").text = "\n" + "\n".join(
             f"{a[0]} {side_number(a[1])} {_text(np.ravel(box))} {c[0]} {side_number(c[1])}" for a, box, c in branches)
+    for el in extensions:
+        root.append(el)
     ET.indent(root)
     data = ET.tostring(root, encoding="unicode")
     head = '<?xml version="1.0" encoding="UTF-8"?>\n' + (f"<!-- {comment} -->\n" if comment else "")
@@ -228,7 +232,7 @@ def read_gismo(path) -> GismoModel:
         d = p.dim
         ch = np.transpose(values.reshape(tuple(reversed(p.shape)) + (len(names),)), tuple(range(d - 1, -1, -1)) + (d,))
         geos[i] = BSpline(p.degrees, p.knots, np.concatenate([p.control_points, ch], -1), p.weights, names)
-    model = GismoModel(geos)
+    model = GismoModel(geos, root=root)
     mp = next(root.iter("MultiPatch"), None)
     if mp is not None:
         order = _patch_order(mp, ids, path)

@@ -34,7 +34,11 @@ file's interfaces).
 
 from __future__ import annotations
 
+import warnings
+import xml.etree.ElementTree as ET
 from pathlib import Path
+
+import numpy as np
 
 from geometry import MultiPatch
 from geometry.errors import SplineError, show
@@ -45,7 +49,7 @@ from .errors import ProblemError
 from .model import tag_faces
 from .problem import HeatProblem
 
-__all__ = ["export_gismo", "load_gismo", "problem_from_gismo"]
+__all__ = ["export_gismo", "load_gismo", "problem_from_gismo", "GismoExtensionWarning"]
 
 _KINDS = {"dirichlet": "Dirichlet", "neumann": "Neumann", "robin": "Robin"}
 
@@ -57,15 +61,25 @@ def _expression(field, what) -> str:
     return repr(float(field.spec))
 
 
-def export_gismo(problem, path) -> Path:
-    """Write ``problem`` (an :class:`iga.HeatProblem`) as a G+Smo XML multipatch heat problem (module notes)."""
+class GismoExtensionWarning(UserWarning):
+    """Part of an exported problem is written in elements of the toolkit's own, which G+Smo skips."""
+
+
+def export_gismo(problem, path, strict: bool = False) -> Path:
+    """Write ``problem`` (an :class:`iga.HeatProblem`) as a G+Smo XML multipatch heat problem (module notes).
+
+    Everything the problem holds is written, so that :func:`problem_from_gismo` gives the same temperatures:
+    what G+Smo's own format cannot say goes into elements of the toolkit's own (branch interfaces, conditions
+    on slot faces, a conductivity channel, the solution bases), and a :class:`GismoExtensionWarning` names it;
+    with ``strict`` the export refuses it instead, so that the file says nothing G+Smo does not read.
+    """
     model = problem.model
     if any(p.spline.dim != 3 for p in model.patches):
         raise ProblemError("G+Smo export writes trivariate models")
     k = problem.conductivity
-    if k.scalar is None or k.scalar.kind != "number":
-        raise ProblemError("G+Smo export needs a constant isotropic conductivity (a number); this problem's is "
-                           f"{'a tensor' if k.tensor else 'a ' + (k.scalar.kind if k.scalar else 'callable')}")
+    if k.scalar is None or k.scalar.kind not in ("number", "channel"):
+        raise ProblemError("G+Smo export needs an isotropic conductivity that is a number or a channel; this "
+                           f"problem's is {'a tensor' if k.tensor else 'a callable'}: evaluate it into a channel")
     try:
         patches = model.compose_all()
     except SplineError as exc:
@@ -76,18 +90,95 @@ def export_gismo(problem, path) -> Path:
     patches = [p if p.degrees == (top,) * 3 else p.elevate_to((top,) * 3) for p in patches]
     identity = [(i.a, i.b, bool(i.swap), tuple(i.flip)) for i in model.interfaces if i.kind == "identity"]
     sides = [f for f in model.tags.get("boundary", []) if f[1] in FACE_NAMES]
-    conditions = []
-    for c in problem.conditions:
-        faces = [f for f in tag_faces(model, c.tag) if f[1] in FACE_NAMES]
+    conditions, slot_conditions = [], []
+    for j, c in enumerate(problem.conditions):
+        faces = tag_faces(model, c.tag)
         expr = _expression(c.value, f"the {c.kind} value on {show(c.tag)}")
         coef = _expression(c.h, f"the film coefficient on {show(c.tag)}") if c.h is not None else None
-        conditions.append(GismoCondition(_KINDS[c.kind], faces, expr, coef))
-    functions = {"conductivity": repr(float(k.scalar.spec)),
-                 "source": _expression(problem.source, "the heat source")}
+        conditions.append(GismoCondition(_KINDS[c.kind], [f for f in faces if f[1] in FACE_NAMES], expr, coef))
+        slot_conditions += [(j, f) for f in faces if f[1] not in FACE_NAMES]
+    functions = {"source": _expression(problem.source, "the heat source")}
+    if k.scalar.kind == "number":
+        functions["conductivity"] = repr(float(k.scalar.spec))
     branches = [(i.a, i.box, i.b) for i in model.interfaces if i.kind == "branch"]
+    unseen = [what for what, n in ((f"{len(branches)} branch interfaces", len(branches)),
+                                   (f"{len(slot_conditions)} conditions on slot faces", len(slot_conditions)),
+                                   (f"the conductivity channel {show(k.scalar.spec)}", k.scalar.kind == "channel"))
+              if n]
+    if unseen and strict:
+        raise ProblemError(f"G+Smo's format cannot hold {', '.join(unseen)} of this problem; export with "
+                           "strict=False to write them in the toolkit's own elements (G+Smo skips them)")
+    if unseen:
+        warnings.warn(f"{path}: G+Smo itself will not see {', '.join(unseen)} (written in the toolkit's own "
+                      "elements, which problem_from_gismo reads)", GismoExtensionWarning, stacklevel=2)
+    extensions = _extensions(problem, slot_conditions, k)
     return write_gismo(path, patches, identity, sides, conditions, functions, branches, comment=(
         "iga-microstructures heat problem: Dirichlet = temperature; Neumann = inward heat flux q = k dT/dn "
-        "(W/m^2); Robin = ambient temperature with coefficient h: -k dT/dn = h (T - ambient)"))
+        "(W/m^2); Robin = ambient temperature with coefficient h: -k dT/dn = h (T - ambient)"),
+        extensions=extensions)
+
+
+def _extensions(problem, slot_conditions, k) -> list:
+    """The toolkit's own elements: solution bases and options, slot faces and their conditions, a
+    conductivity channel."""
+    model = problem.model
+    q, e, r, d = problem.space_args
+    opts = {"quadrature_extra": str(q), "degree_elevation": " ".join(map(str, np.atleast_1d(e))),
+            "refine": str(r)}
+    if d is not None:
+        opts["degree"] = " ".join(map(str, d))
+    bases = ET.Element("AnalysisBases", **opts)
+    for i, (knots, degrees) in enumerate(problem.bases):
+        b = ET.SubElement(bases, "Basis", patch=str(i))
+        for U, p in zip(knots, degrees):
+            ET.SubElement(b, "KnotVector", degree=str(p)).text = " ".join(repr(float(v)) for v in U)
+    out = [bases]
+    regions = getattr(model, "face_regions", {})
+    if regions:
+        out.append(ET.Element("SlotFaces", format="patch slot a1 b1 a2 b2"))
+        out[-1].text = "\n" + "\n".join(f"{pi} {fid} " + " ".join(repr(float(v)) for v in np.ravel(rect))
+                                          for (pi, fid), rects in regions.items() for rect in rects) + "\n"
+    if slot_conditions:
+        out.append(ET.Element("SlotConditions", format="condition patch slot"))
+        out[-1].text = "\n" + "\n".join(f"{j} {pi} {fid}" for j, (pi, fid) in slot_conditions) + "\n"
+    if k.scalar.kind == "channel":
+        out.append(ET.Element("ChannelFunctions", conductivity=str(k.scalar.spec)))
+    return out
+
+
+def _read_extensions(model, g, path) -> dict:
+    """Slot faces and conditions into ``model`` (tags ``bc{j}``); returns HeatProblem options (bases,
+    conductivity channel) from the toolkit's own elements of a G+Smo file."""
+    root, opts = g.root, {}
+    try:
+        for el in root.iter("SlotFaces"):
+            for line in (el.text or "").split("\n"):
+                if line.strip():
+                    pi, fid, *v = line.split()
+                    model.face_regions.setdefault((int(pi), fid), []).append(
+                        ((float(v[0]), float(v[1])), (float(v[2]), float(v[3]))))
+        for el in root.iter("SlotConditions"):
+            for line in (el.text or "").split("\n"):
+                if line.strip():
+                    j, pi, fid = line.split()
+                    model.tags[f"bc{int(j)}"].append((int(pi), fid))
+        el = root.find("AnalysisBases")
+        if el is not None:
+            opts["bases"] = [([np.array(kv.text.split(), float) for kv in b.iter("KnotVector")],
+                              tuple(int(kv.get("degree")) for kv in b.iter("KnotVector"))) for b in el.iter("Basis")]
+            opts["quadrature_extra"] = int(el.get("quadrature_extra", "0"))
+            elev = [int(v) for v in el.get("degree_elevation", "0").split()]
+            opts["degree_elevation"] = elev[0] if len(elev) == 1 else tuple(elev)
+            opts["refine"] = int(el.get("refine", "0"))
+            if el.get("degree"):
+                opts["degree"] = tuple(int(v) for v in el.get("degree").split())
+        el = root.find("ChannelFunctions")
+        if el is not None and el.get("conductivity"):
+            opts["conductivity"] = el.get("conductivity")
+    except (ValueError, IndexError, KeyError, TypeError, AttributeError) as exc:
+        raise ProblemError(f"{path}: the toolkit's own elements (AnalysisBases, SlotFaces, SlotConditions) are "
+                           f"malformed ({type(exc).__name__}: {exc}); re-export the problem") from None
+    return opts
 
 
 def load_gismo(path) -> MultiPatch:
@@ -132,9 +223,11 @@ def problem_from_gismo(path, **options):
             raise ProblemError(f"{path}: {what} is {show(expr)}; only constant expressions (numbers) are read") \
                 from None
 
-    k = number(g.functions.get("conductivity", "1"), "the conductivity")
-    problem = HeatProblem(model, conductivity=k, source=number(g.functions.get("source", "0"), "the source"),
-                          **options)
+    saved = _read_extensions(model, g, path)  # what the toolkit wrote beside G+Smo's elements
+    if "conductivity" not in saved:
+        saved["conductivity"] = number(g.functions.get("conductivity", "1"), "the conductivity")
+    problem = HeatProblem(model, source=number(g.functions.get("source", "0"), "the source"),
+                          **{**saved, **options})
     for j, c in enumerate(g.conditions):
         value = number(c.expression, f"the value of {c.kind} condition {j}")
         if c.kind == "Dirichlet":

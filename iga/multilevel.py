@@ -122,8 +122,8 @@ def _levels(problem) -> list:
         args = list(problem.space_args)
         for level in range(r - 1, -1, -1):
             args[2] = level
-            out.append([[(d.knots, d.degree) for d in make_space(p.spline.knots, p.spline.degrees, *args).dirs]
-                        for p in problem.model.patches])
+            out.append([[(d.knots, d.degree) for d in make_space(knots, degrees, *args).dirs]
+                        for knots, degrees in problem.bases])
         return out
     if not _single_patch(problem):
         return out

@@ -50,6 +50,22 @@ class _Condition:
     h: ScalarField | None = None  # film coefficient (Robin)
 
 
+def _bases(model, bases) -> list:
+    """Per patch (knot vectors, degrees) of the solution basis: the geometry's, or ``bases`` checked."""
+    own = [(p.spline.knots, p.spline.degrees) for p in model.patches]
+    if bases is None:
+        return own
+    if not isinstance(bases, (list, tuple)) or len(bases) != len(own):
+        raise ProblemError(f"bases must give (knots, degrees) for each of the {len(own)} patches, got {show(bases)}")
+    out = []
+    for i, ((U0, _), b) in enumerate(zip(own, bases)):
+        knots, degrees = [np.asarray(U, float) for U in b[0]], tuple(int(d) for d in b[1])
+        if len(knots) != len(U0) or any(U[0] != V[0] or U[-1] != V[-1] for U, V in zip(knots, U0)):
+            raise ProblemError(f"bases[{i}] must span patch {i}'s parameter domain with {len(U0)} knot vectors")
+        out.append((knots, degrees))
+    return out
+
+
 def _count(name: str, v, minimum: int, three: bool = False):
     """A non-negative integer (or, with ``three``, one integer or three), else ProblemError."""
     vals = list(v) if three and isinstance(v, (list, tuple, np.ndarray)) else [v]
@@ -78,6 +94,9 @@ class HeatProblem:
     degree : optional solution degrees (int or three) replacing patch degree +
         elevation; continuity at each knot is kept, capped at C^(p-1)
     quadrature_extra : Gauss points per element and direction beyond ``p + 1``
+    bases : optional per patch ``(knots, degrees)`` of the solution basis before elevation and
+        refinement, instead of the patch geometry's own (a file of composed geometry analysed in the
+        tiles' bases, :func:`iga.gismo.problem_from_gismo`); same parameter domains
 
     Boundary conditions refer to the model's tags (``umin`` .. ``wmax``,
     ``boundary``, and for micro-structures ``branch-in``, ``internal`` and user
@@ -96,8 +115,9 @@ class HeatProblem:
     """
 
     def __init__(self, model, conductivity=1.0, source=0.0, degree_elevation=0, refine: int = 0,
-                 quadrature_extra: int = 0, degree=None):
+                 quadrature_extra: int = 0, degree=None, bases=None):
         self.model = as_model(model)
+        self.bases = _bases(self.model, bases)
         refine = _count("refine", refine, 0)
         quadrature_extra = _count("quadrature_extra", quadrature_extra, 0)
         degree_elevation = _count("degree_elevation", degree_elevation, 0, three=True)
@@ -111,17 +131,17 @@ class HeatProblem:
         t_regular = time.perf_counter() - t0
         args = (quadrature_extra, degree_elevation, refine, degree)
         self.space_args = args  # (quadrature_extra, degree_elevation, refine, degree): coarse levels reuse them
-        self.estimate = estimate(self.model, *args)
+        self.estimate = estimate(self.model, *args, bases=self.bases)
         n = len(self.model.patches)
         check_memory(self.estimate["bytes"], f"the analysis ({self.estimate['dofs']:,} DOFs on {n} "
                      f"patch{'' if n == 1 else 'es'})", ProblemError,
                      "lower refine, degree_elevation or degree, or analyse fewer tiles")
         shared: dict = {}  # patches with equal knot vectors and degrees share one space (and its tables)
         self.spaces = []
-        for p in self.model.patches:
-            key = (tuple(U.tobytes() for U in p.spline.knots), p.spline.degrees)
+        for knots, degrees in self.bases:
+            key = (tuple(U.tobytes() for U in knots), degrees)
             if key not in shared:
-                shared[key] = make_space(p.spline.knots, p.spline.degrees, *args)
+                shared[key] = make_space(knots, degrees, *args)
             self.spaces.append(shared[key])
         self.offsets = np.concatenate([[0], np.cumsum([s.ndof for s in self.spaces])]).astype(np.int64)
         self.ndof = int(self.offsets[-1])

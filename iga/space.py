@@ -183,23 +183,24 @@ def space_size(knots, degrees, g_extra: int = 0, elevate=0, refine: int = 0, tar
     return int(ndof), int(nq), int(table)
 
 
-def estimate(model, quadrature_extra=0, degree_elevation=0, refine=0, degree=None) -> dict:
+def estimate(model, quadrature_extra=0, degree_elevation=0, refine=0, degree=None, bases=None) -> dict:
     """DOFs and a memory estimate (bytes) of the analysis of ``model``, from knot vectors only.
 
     Memory: the stiffness matrix (12 bytes per non-zero: value and column), the
     reduced matrix and the solver's hierarchy (together about 1.6 times the
     matrix, measured on the unit cube up to 1M unknowns), and the quadrature
-    tables of every distinct space.
+    tables of every distinct space.  ``bases``: per patch (knots, degrees) of the solution basis (default:
+    each patch geometry's).
     """
     sizes: dict = {}
     dofs, nbytes = 0, 0.0
-    for p in model.patches:
-        key = id(p.spline)
+    for i, p in enumerate(model.patches):
+        knots, degrees = (p.spline.knots, p.spline.degrees) if bases is None else bases[i]
+        key = id(p.spline) if bases is None else (tuple(U.tobytes() for U in knots), degrees)
         if key not in sizes:
-            n, _, tables = space_size(p.spline.knots, p.spline.degrees, quadrature_extra, degree_elevation, refine,
-                                      degree)
+            n, _, tables = space_size(knots, degrees, quadrature_extra, degree_elevation, refine, degree)
             q = [pd + (degree_elevation[k] if isinstance(degree_elevation, tuple) else degree_elevation)
-                 if degree is None else degree[k] for k, pd in enumerate(p.spline.degrees)]
+                 if degree is None else degree[k] for k, pd in enumerate(degrees)]
             sizes[key] = (n, n * float(np.prod([2 * v + 1 for v in q])) * 12 * 1.6)
             nbytes += tables
         dofs += sizes[key][0]

@@ -284,3 +284,43 @@ def test_iges_strings_that_would_corrupt_the_records_are_refused(tmp_path):
     path = write_iges(tmp_path / "ok.igs", [s], name="x" * 300, author="a, b; c")
     lines = path.read_text(encoding="ascii").splitlines()
     assert all(len(r) == 80 for r in lines)
+
+
+# ------------------------------------------------------------------ G+Smo XML
+def test_gismo_round_trip_of_the_graded_sink_with_robin_on_exterior(tmp_path):
+    """The README's T2 sink (conductivity graded as the channel k), Robin on every exterior face, slot walls
+    included: read back, the same temperatures at the bases the exported problem used; G+Smo's own reader
+    (pygismo) sees every patch, identity interface and side condition, and the export names what it cannot."""
+    import re
+
+    from geometry.gismo_xml import read_gismo
+    from iga import ProblemError
+    from iga.gismo import GismoExtensionWarning, export_gismo, problem_from_gismo
+
+    p = _demo_problem("vertical")
+    p.conditions.clear()
+    p.neumann("branch-in", 1515.8).robin("exterior", 5.0, 30.0)
+    with pytest.warns(GismoExtensionWarning, match=r"64 branch interfaces, \d+ conditions on slot faces, the "
+                                                    "conductivity channel 'k'"):
+        path = export_gismo(p, tmp_path / "sink.xml")
+    with pytest.raises(ProblemError, match=r"G\+Smo.s format cannot hold 64 branch interfaces"):
+        export_gismo(p, tmp_path / "strict.xml", strict=True)
+    assert not (tmp_path / "strict.xml").exists()
+    q = problem_from_gismo(path)
+    assert q.ndof == p.ndof and [s.shape for s in q.spaces] == [s.shape for s in p.spaces]  # not degree 12
+    s1, s2 = p.solve(tol=1e-12), q.solve(tol=1e-12)
+    rng = np.random.default_rng(2)
+    x = np.concatenate([P.image(rng.random((2, 3))) for P in p.model.patches])
+    t1, t2 = s1.probe(x), s2.probe(x)
+    assert np.abs(t1 - t2).max() < 1e-8 * np.abs(t1).max()
+    assert s2.mean_temperature() == pytest.approx(s1.mean_temperature(), rel=1e-10)
+    assert s2.flux("bc1") == pytest.approx(s1.flux("exterior"), rel=1e-9)
+    gs = pytest.importorskip("pygismo")
+    g = read_gismo(path)
+    mp = gs.core.gsMultiPatch()
+    fd = gs.io.gsFileData(str(path))
+    assert fd.getFirst(mp) and mp.nPatches() == len(p.model.patches)
+    assert len(mp.interfaces()) == sum(i.kind == "identity" for i in p.model.interfaces) == len(g.interfaces)
+    bc = gs.pde.gsBoundaryConditions()
+    fd.getId(int(re.search(r'<boundaryConditions multipatch="\d+" id="(\d+)"', path.read_text()).group(1)), bc)
+    assert bc.size() == sum(len(c.faces) for c in g.conditions) > 0
