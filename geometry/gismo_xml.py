@@ -189,6 +189,19 @@ def write_gismo(path, patches, interfaces=(), boundary=(), conditions=(), functi
     return atomic_write(path, write, ".xml")
 
 
+def _int_attr(node, name, path, what, default=None) -> int:
+    """An integer attribute, or a SplineError naming the file, the element and the attribute."""
+    raw = node.get(name)
+    if raw is None:
+        if default is None:
+            raise SplineError(f"{path}: {what} has no {name} attribute")
+        return default
+    try:
+        return int(raw)
+    except ValueError:
+        raise SplineError(f"{path}: {what}: attribute {name}={show(raw)} is not an integer") from None
+
+
 def _numbers(node, what, path, dtype=float) -> np.ndarray:
     try:
         return np.array((node.text or "").split(), dtype=dtype)
@@ -215,7 +228,10 @@ def read_gismo(path) -> GismoModel:
         if gtype not in ("BSpline", "Nurbs", "TensorBSpline2", "TensorBSpline3", "TensorNurbs2", "TensorNurbs3"):
             raise SplineError(f"{path}: geometry type {show(gtype)} (id {g.get('id')}) is not supported; the "
                               "toolkit reads BSpline, Nurbs, TensorBSpline2-3 and TensorNurbs2-3")
-        ids[g.get("id", str(len(geos)))] = len(geos)
+        gid = g.get("id", str(len(geos)))
+        if gid in ids:
+            raise SplineError(f"{path}: two <Geometry> elements have id {show(gid)}; ids must be unique")
+        ids[gid] = len(geos)
         geos.append(_geometry(g, path))
     if not geos:
         raise SplineError(f"{path}: no <Geometry> element; a G+Smo multipatch file holds at least one")
@@ -251,7 +267,11 @@ def read_gismo(path) -> GismoModel:
             if kind not in BC_TYPES:
                 raise SplineError(f"{path}: boundary condition type {show(kind)} is not supported (the heat "
                                   f"problem has {list(BC_TYPES)})")
-            v = _numbers(bc, "boundary condition sides", path, int).reshape(-1, 2)
+            v = _numbers(bc, "boundary condition sides", path, int)
+            if v.size % 2 or (v.size and (v[::2].min() < 0 or v[::2].max() >= len(model.patches))):
+                raise SplineError(f"{path}: a {kind} <bc> lists {show(v.tolist()[:6])}: not (patch, side) pairs of "
+                                  f"patches 0..{len(model.patches) - 1}")
+            v = v.reshape(-1, 2)
             model.conditions.append(GismoCondition(kind, [(int(p), side_name(s)) for p, s in v],
                                                    funcs.get(bc.get("function"), ""), bc.get("coefficient")))
     for f in root.findall("Function"):
@@ -263,6 +283,10 @@ def read_gismo(path) -> GismoModel:
             raise SplineError(f"{path}: <BranchInterfaces> holds {v.size} numbers, not groups of 8 "
                               "(parent side, box a b c d, child side)")
         for row in v.reshape(-1, 8):
+            for pi in (row[0], row[6]):
+                if pi != int(pi) or not 0 <= int(pi) < len(model.patches):
+                    raise SplineError(f"{path}: <BranchInterfaces> names patch {show(float(pi))}, which is not in "
+                                      f"the multipatch (0..{len(model.patches) - 1})")
             model.branches.append(((int(row[0]), side_name(int(row[1]))), ((row[2], row[3]), (row[4], row[5])),
                                    (int(row[6]), side_name(int(row[7])))))
     return model
@@ -286,12 +310,12 @@ def _geometry(g, path) -> BSpline:
         kv = b.find("KnotVector")
         if kv is None:
             raise SplineError(f"{path}: geometry {g.get('id')} has a basis without <KnotVector>")
-        degrees.append(int(kv.get("degree", -1)))
+        degrees.append(_int_attr(kv, "degree", path, f"geometry {g.get('id')}: <KnotVector>"))
         knots.append(_numbers(kv, "knots", path))
     coefs = g.find("coefs")
     if coefs is None:
         raise SplineError(f"{path}: geometry {g.get('id')} has no <coefs>")
-    gdim = int(coefs.get("geoDim", 3))
+    gdim = _int_attr(coefs, "geoDim", path, f"geometry {g.get('id')}: <coefs>", 3)
     values = _numbers(coefs, "coefficients", path)
     shape = tuple(len(U) - p - 1 for U, p in zip(knots, degrees))
     d = len(shape)
@@ -303,7 +327,11 @@ def _geometry(g, path) -> BSpline:
         cp = np.concatenate([cp, np.zeros(shape + (3 - gdim,))], -1)
     w = None
     if weights is not None:
-        w = np.transpose(_numbers(weights, "weights", path).reshape(tuple(reversed(shape))), tuple(range(d - 1, -1, -1)))
+        wv = _numbers(weights, "weights", path)
+        if wv.size != int(np.prod(shape)):
+            raise SplineError(f"{path}: geometry {g.get('id')} has {wv.size} weights for {int(np.prod(shape))} "
+                              "control points; give one weight per control point")
+        w = np.transpose(wv.reshape(tuple(reversed(shape))), tuple(range(d - 1, -1, -1)))
     try:
         return BSpline(tuple(degrees), knots, cp, w)
     except SplineError as exc:
@@ -315,7 +343,12 @@ def _patch_order(mp, ids, path) -> list:
     if node is None:
         return list(range(len(ids)))
     v = _numbers(node, "patches", path, int)
-    names = [str(x) for x in (range(v[0], v[1] + 1) if node.get("type") == "id_range" else v)]
+    if node.get("type") == "id_range":
+        if v.size != 2 or v[1] < v[0] or v[1] - v[0] + 1 > len(ids):
+            raise SplineError(f"{path}: <patches type=\"id_range\"> must give first and last id of at most "
+                              f"{len(ids)} defined geometries, got {show(v.tolist()[:4])}")
+        v = np.arange(v[0], v[1] + 1)
+    names = [str(x) for x in v]
     missing = [n for n in names if n not in ids]
     if missing:
         raise SplineError(f"{path}: the multipatch names patches {missing} that the file does not define")

@@ -194,6 +194,13 @@ def main(argv=None) -> int:
     except BrokenPipeError:  # the reader went away (``iga info FILE | head``): stop quietly
         sys.stderr.close()
         return 0
+    except OSError as exc:  # the file system refused a name the user gave (too long, not allowed, full disk)
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"iga: error: {where}{exc.strerror or exc}; choose another output name or folder", file=sys.stderr)
+        return 1
+    except ValueError as exc:  # e.g. a NUL character in a path of the configuration
+        print(f"iga: error: {exc}; check the names and paths in the command and the configuration", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -175,6 +175,12 @@ def _output(v, base: Path) -> dict:
     if "name" in t:
         out["name"] = _str(t["name"], "output.name")
     name = out["name"]
+    if any(ord(c) < 32 for c in name) or len(name) > 200:
+        _fail("output.name", f"must be at most 200 printable characters (files {show(name[:40])}... get suffixes "
+                             "such as _bezier.vtu), got one of " + str(len(name)) + " characters"
+              if len(name) > 200 else f"must not hold control characters (NUL, newline), got {show(name)}")
+    if "\0" in out["dir"]:
+        _fail("output.dir", f"must not hold a NUL character, got {show(out['dir'])}")
     if Path(name).is_absolute() or Path(name).name != name or name in (".", ".."):
         _fail("output.name", f"must be a plain file name inside output.dir (no folders, no '..'), got {show(name)}")
     for key in ("vtu", "bezier", "png"):

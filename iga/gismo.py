@@ -15,17 +15,23 @@ Every patch is written at one common degree (the largest after
 composition; degree elevation is exact), so that sides glued in the model
 stay conforming in the file.
 
-What G+Smo's multipatch cannot say, and how it is written:
+What G+Smo's multipatch cannot say is written in the toolkit's own elements,
+which G+Smo skips, named by a :class:`GismoExtensionWarning` (or refused with
+``strict=True``); :func:`problem_from_gismo` reads them back:
 
 * branch interfaces (a child face constrained to a refinement of a
   sub-rectangle of its parent face, Massarwi et al. 2018, Eqs. 11-12): G+Smo
-  topologies glue whole sides only; they go into ``<BranchInterfaces>`` (parent
-  side, its sub-rectangle, child side), which G+Smo ignores, so a G+Smo
-  solver sees those faces as free;
-* slot faces (the free parts of discontinuity planes) are not sides and are
-  left out of the boundary lists;
-* conditions given as Python callables or channel names have no expression:
-  export refuses them, naming the tag.
+  topologies glue whole sides only: ``<BranchInterfaces>`` (parent side, its
+  sub-rectangle, child side);
+* slot faces (the free parts of discontinuity planes) are not sides:
+  ``<SlotFaces>`` (their rectangles) and ``<SlotConditions>`` (the conditions on them);
+* a conductivity channel: ``<ChannelFunctions>`` (the channel values are in ``<Channels>``);
+* the solution bases (each patch's tile basis, with the elevation, refinement,
+  degree and quadrature of the exported problem): ``<AnalysisBases>``, so that
+  the re-import analyses in the same spaces, not at the composed geometry's degree.
+
+Conditions given as Python callables have no expression: export refuses them,
+naming the tag.
 
 :func:`load_gismo` reads a G+Smo file back as a :class:`geometry.MultiPatch`
 whose topology is detected from the geometry (and checked against the

@@ -236,6 +236,13 @@ def _variants_bad(t):
 
 
 TILING = [
+    case("random implicit in a folded map", lambda t: tiling.random_implicit(folded_map(), (2, 2, 2)), TilingError,
+         r"deformation map is singular"),
+    case("implicit bifurcation in a folded map", lambda t: tiling.implicit_bifurcation(folded_map(), 0.3),
+         TilingError, r"deformation map is singular"),
+    case("polygons in a folded map", lambda t: tiling.pave_polygons(folded_map(), tiling.PolygonTile(
+        np.array([[0, 0, 0.5], [1, 0, 0.5], [1, 1, 0.5], [0, 1, 0.5]], float), polygons=[[0, 1, 2, 3]]), (1, 1, 1)),
+         TilingError, r"deformation map is singular"),
     case("hierarchy scale string", lambda t: tiling.hierarchical(pr.box(), L.heat_sink_t2(), (1, 1), 2, scale="0.5"),
          TilingError, r"scale must be a positive number .* got '0\.5' \(str\)"),
     case("reduced degree float", lambda t: __import__("geometry.reduction").reduction.reduce_degree(
@@ -704,6 +711,9 @@ CLI = [
     ("args string", ["run", "c.toml"], GOOD_TOML.replace('primitive = "box"', 'primitive = "box"\nargs = {size = "1"}'),
      r"map\.args\.size"),
     ("name escapes", ["run", "c.toml"], GOOD_TOML + "name = '../x'\n", r"output\.name"),
+    ("name with NUL", ["run", "c.toml"], GOOD_TOML + 'name = "a\\u0000b"\n', r"output\.name: must not hold control"),
+    ("name of 300 characters", ["run", "c.toml"], GOOD_TOML + f"name = '{'a' * 300}'\n",
+     r"output\.name: must be at most 200 printable characters"),
     ("memory budget", ["--max-memory", "0.001", "run", "c.toml"], GOOD_TOML.replace("[1, 1, 1]", "[20, 20, 20]"),
      r"needs about .* GiB, more than the 0\.001 GiB"),
     ("levels zero", ["demo", "heat-sink", "--levels", "0", "--out", "d"], None, r"--levels must be >= 1, got 0"),

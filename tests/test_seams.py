@@ -324,3 +324,32 @@ def test_gismo_round_trip_of_the_graded_sink_with_robin_on_exterior(tmp_path):
     bc = gs.pde.gsBoundaryConditions()
     fd.getId(int(re.search(r'<boundaryConditions multipatch="\d+" id="(\d+)"', path.read_text()).group(1)), bc)
     assert bc.size() == sum(len(c.faces) for c in g.conditions) > 0
+
+
+_GEO = ('<Geometry type="TensorBSpline3" id="{id}"><Basis type="TensorBSplineBasis3">'
+        + "".join(f'<Basis type="BSplineBasis" index="{k}"><KnotVector degree="{{deg}}">0 0 1 1</KnotVector></Basis>'
+                  for k in range(3)) + '</Basis><coefs geoDim="{gdim}">' + " ".join(["0 0 0"] * 8) + "</coefs></Geometry>")
+
+
+@pytest.mark.parametrize("text, match", [
+    ("<xml>" + _GEO.format(id=0, deg="abc", gdim=3) + "</xml>", r"degree='abc' is not an integer"),
+    ("<xml>" + _GEO.format(id=0, deg=1, gdim="x") + "</xml>", r"geoDim='x' is not an integer"),
+    ("<xml>" + _GEO.format(id=0, deg=1, gdim=3) + _GEO.format(id=0, deg=1, gdim=3) + "</xml>",
+     r"two <Geometry> elements have id '0'"),
+    ("<xml>" + _GEO.format(id=0, deg=1, gdim=3) + '<MultiPatch parDim="3" id="1"><patches type="id_range">0 999999999'
+     "</patches></MultiPatch></xml>", r"id_range.*at most 1 defined"),
+    ("<xml>" + _GEO.format(id=0, deg=1, gdim=3) + "<BranchInterfaces>99 1 0 1 0 1 0 2</BranchInterfaces></xml>",
+     r"<BranchInterfaces> names patch 99\.0"),
+    ("<xml>" + _GEO.format(id=0, deg=1, gdim=3).replace('<Basis type="TensorBSplineBasis3">',
+                                                        '<Basis type="TensorNurbsBasis3"><Basis type="TensorBSplineBasis3">')
+     .replace("</Basis><coefs", "</Basis><weights>1 1 1 1 1 1 1</weights></Basis><coefs") + "</xml>",
+     r"7 weights for 8 control points"),
+])
+def test_gismo_reader_names_the_file_element_and_attribute(text, match, tmp_path):
+    from geometry import SplineError
+    from geometry.gismo_xml import read_gismo
+
+    path = tmp_path / "bad.xml"
+    path.write_text(text)
+    with pytest.raises(SplineError, match=match):
+        read_gismo(path)

@@ -47,7 +47,7 @@ from geometry.errors import check_seed, show
 from geometry.resources import check_memory
 
 from .errors import TilingError
-from .paving import _check_counts
+from .paving import _check_counts, _check_map
 from .implicit_surface import EdgeSplines, SurfaceOutputs, zero_surface
 from .implicit_connect import (Builder, cell_knots, connect_cells, connect_faces, grid_graph, open_cavities,
                                spanning_trees)
@@ -193,8 +193,7 @@ class ImplicitStructure(SurfaceOutputs):
 
 # ----------------------------------------------------------------------------------------------- building
 def _check_inputs(D, counts, degree, controls, alpha, continuity, connectivity, canonical, shell):
-    if not isinstance(D, BSpline) or D.dim != 3:
-        raise TilingError(f"the deformation map must be a trivariate geometry.BSpline, got {type(D).__name__}")
+    _check_map(D)  # the check every builder shares: a trivariate, not folded
     _check_counts(counts, 3, "counts (cells per direction)")
     for name, v, lo in (("degree", degree, 1), ("controls", controls, 2)):
         if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < lo:

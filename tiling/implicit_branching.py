@@ -44,6 +44,7 @@ from geometry.faces import FACE_NAMES
 from .errors import TilingError
 from .cell_splines import boolean_sum, grid_values, merge_pieces, scalar_surface
 from .implicit_surface import EdgeSplines, SurfaceOutputs, zero_surface
+from .paving import _check_map
 from .topo import CellComplex, topo_subdiv
 
 __all__ = ["implicit_bifurcation", "BifurcationStructure"]
@@ -197,6 +198,7 @@ def implicit_bifurcation(D: BSpline, epsilon: float, *, degree: int = 3, control
     the canonical face disc's radius (fraction of the face); ``resolution``:
     samples per cell and direction of the checks and the surface.
     """
+    _check_map(D)  # the check every builder shares: a trivariate, not folded
     if not isinstance(alpha, (int, float, np.floating)) or isinstance(alpha, bool) or not 0 <= alpha <= 1:
         raise TilingError(f"alpha must be a number in [0, 1] (the randomization factor of Eq. 6), got {show(alpha)}")
     for name, v, lo in (("degree", degree, 1), ("controls", controls, 4), ("resolution", resolution, 2)):

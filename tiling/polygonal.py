@@ -23,7 +23,7 @@ from geometry.errors import show
 from geometry.resources import check_memory
 
 from .errors import TilingError
-from .paving import _check_counts
+from .paving import _check_counts, _check_map
 
 __all__ = ["PolygonTile", "pave_polygons", "beam_lattice"]
 
@@ -72,8 +72,7 @@ def pave_polygons(D: BSpline, tile: PolygonTile, counts):
     """
     import pyvista as pv
 
-    if not isinstance(D, BSpline) or D.dim != 3:
-        raise TilingError(f"the deformation map must be a trivariate geometry.BSpline, got {show(D)}")
+    _check_map(D)  # the check every builder shares: a trivariate, not folded
     if not isinstance(tile, PolygonTile):
         raise TilingError(f"tile must be a tiling.polygonal.PolygonTile, got {type(tile).__name__}")
     counts = _check_counts(counts, 3, "counts")
