@@ -146,6 +146,22 @@ def _check_archive(path: Path) -> None:
     check_memory(total, f"loading {path}")
 
 
+def _integers(a: np.ndarray, path, name: str) -> np.ndarray:
+    """An archive entry that must hold integers (stored as an integer type, not floats or strings)."""
+    if a.dtype.kind not in "iu":
+        raise SplineError(f"{path}: entry {name!r} holds {a.dtype} values {show(a.tolist())}, not integers; the "
+                          "file is damaged or was not written by save_all")
+    return a
+
+
+def _reals(a: np.ndarray, path, name: str) -> np.ndarray:
+    """An archive entry that must hold real numbers (stored as numbers, not strings)."""
+    if a.dtype.kind not in "fiu":
+        raise SplineError(f"{path}: entry {name!r} holds {a.dtype} values, not numbers; the file is damaged or was "
+                          "not written by save_all")
+    return a
+
+
 def load_all(path) -> list[BSpline]:
     """Load every spline of a file written by :func:`save_all`."""
     path = Path(path)
@@ -160,15 +176,20 @@ def load_all(path) -> list[BSpline]:
                 raise SplineError(f"{path} is not an iga-toolkit spline file (missing 'format' = {show(FORMAT)})")
             if int(data["version"]) != VERSION:
                 raise SplineError(f"{path} has format version {int(data['version'])}; this build reads {VERSION}")
-            count = int(data["count"])
+            count = _integers(data["count"], path, "count")
+            if count.ndim or count < 1 or count > len(data.files):
+                raise SplineError(f"{path}: entry 'count' is {show(count.tolist())}; a spline file holds at least one "
+                                  f"spline and at most as many as its {len(data.files)} entries")
             out = []
-            for i in range(count):
-                deg = tuple(int(p) for p in data[f"s{i}_degrees"])
-                knots = [data[f"s{i}_knots{k}"] for k in range(len(deg))]
-                w = data[f"s{i}_weights"] if f"s{i}_weights" in data else None
-                out.append(
-                    BSpline(deg, knots, data[f"s{i}_control_points"], w, tuple(str(c) for c in data[f"s{i}_channels"]))
-                )
+            for i in range(int(count)):
+                deg = tuple(int(p) for p in _integers(data[f"s{i}_degrees"], path, f"s{i}_degrees").ravel())
+                knots = [_reals(data[f"s{i}_knots{k}"], path, f"s{i}_knots{k}") for k in range(len(deg))]
+                w = _reals(data[f"s{i}_weights"], path, f"s{i}_weights") if f"s{i}_weights" in data else None
+                cp = _reals(data[f"s{i}_control_points"], path, f"s{i}_control_points")
+                try:
+                    out.append(BSpline(deg, knots, cp, w, tuple(str(c) for c in data[f"s{i}_channels"])))
+                except SplineError as exc:
+                    raise SplineError(f"{path}: spline {i}: {exc}") from None
             return out
     except SplineError:
         raise

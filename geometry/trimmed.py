@@ -205,7 +205,11 @@ class TrimmedSurface:
         if not (isinstance(tolerance, (int, float)) and np.isfinite(tolerance) and tolerance > 0):
             raise SplineError(f"tolerance must be a positive length (model units), got {show(tolerance)}")
         S = self.surface
-        rings = [self._sample_loop(c, tolerance) for c in self.loops]
+        size = float(np.ptp(S.points.reshape(-1, 3), axis=0).max())
+        if tolerance < 1e-9 * size:  # below that the chord errors are rounding noise: the refinement never ends
+            raise SplineError(f"tolerance {show(tolerance)} is below 1e-9 of the surface's size ({size:.3g}); "
+                              f"floating point cannot meet it: use at least {1e-9 * size:.3g}")
+        rings = [self._sample_loop(c, tolerance, max_triangles) for c in self.loops]
         uv = np.concatenate([r[0] for r in rings])
         ends = np.cumsum([len(r[0]) for r in rings]).astype(np.uint32)
         tris = mapbox_earcut.triangulate_float64(uv, ends).reshape(-1, 3).astype(np.int64)
@@ -259,11 +263,15 @@ class TrimmedSurface:
         mesh.point_data["u"], mesh.point_data["v"] = P.T
         return mesh
 
-    def _sample_loop(self, c: BSpline, tol: float):
-        """Parameters along loop c (its end excluded: the ring closes itself) with chord error <= tol in space."""
+    def _sample_loop(self, c: BSpline, tol: float, limit: int = 2_000_000):
+        """Parameters along loop c (its end excluded: the ring closes itself) with chord error <= tol in space;
+        more than ``limit`` samples raise :class:`SplineError` (the tolerance is too fine for the loop)."""
         b = c.breakpoints(0)
         t = np.unique(np.concatenate([np.linspace(x, y, 5) for x, y in zip(b[:-1], b[1:])]))
         for _ in range(40):
+            if len(t) > limit:
+                raise SplineError(f"a trimming loop needs more than {limit:,} samples for tolerance {show(tol)}; "
+                                  "raise the tolerance (or max_triangles)")
             pts = self.surface.evaluate(c.evaluate(t[:, None])[:, :2])[:, :3]
             mid = 0.5 * (t[:-1] + t[1:])
             mp = self.surface.evaluate(c.evaluate(mid[:, None])[:, :2])[:, :3]

@@ -155,5 +155,5 @@ def check_components(comps: list[Component], has_source: bool) -> list[Component
             "condition's and no heat path joins conditions of different values; "
             + ("check that the tiles connect the tagged faces (this paving leaves them apart)" if len(comps) > 1
                else "add a condition of another value, a flux or a source"),
-            IdleComponentWarning, stacklevel=3)
+            IdleComponentWarning, stacklevel=4)  # the caller of HeatProblem.solve
     return idle

@@ -236,6 +236,18 @@ def _variants_bad(t):
 
 
 TILING = [
+    case("polygon index True", lambda t: tiling.PolygonTile(np.array([[0, 0, 0.5], [1, 0, 0.5], [1, 1, 0.5]], float),
+                                                             polygons=[[0, True, 2]]), TilingError,
+         r"polygon 0 must list >= 3 vertex indices in \[0, 2\], got \[0, True, 2\]"),
+    case("cap and shell", lambda t: tiling.random_implicit(pr.box(), (2, 2, 2), cap=True, shell=0.2), TilingError,
+         r"cap=True and shell are exclusive"),
+    case("cap nothing", lambda t: tiling.regular(pr.box(), L.cross(), (2, 2, 2), seal="cap", seal_sides=()),
+         TilingError, r"seal_sides=\(\) seals nothing"),
+    case("thickness without seal", lambda t: tiling.regular(pr.box(), L.cross(), (2, 2, 2), thickness=0.2),
+         TilingError, r"thickness is given but seal is None"),
+    case("sides without seal", lambda t: tiling.hierarchical(pr.box(), L.heat_sink_t2(), (1, 1), 2,
+                                                             seal_sides=["wmin"]), TilingError,
+         r"seal_sides is given but seal is None"),
     case("random implicit in a folded map", lambda t: tiling.random_implicit(folded_map(), (2, 2, 2)), TilingError,
          r"deformation map is singular"),
     case("implicit bifurcation in a folded map", lambda t: tiling.implicit_bifurcation(folded_map(), 0.3),
@@ -511,7 +523,23 @@ def _pickled_npz(t):
     return load(path)
 
 
+def _tampered_npz(t, **entries):
+    """A spline file of the unit box with some entries replaced (what a damaged or hand-made file holds)."""
+    path = save(t / "s.npz", pr.box())
+    data = dict(np.load(path))
+    data.update({k: (v(data) if callable(v) else v) for k, v in entries.items()})
+    np.savez(t / "t.npz", **data)
+    return load(t / "t.npz")
+
+
 FILES = [
+    case("npz float degrees", lambda t: _tampered_npz(t, s0_degrees=np.array([1.7, 1.0, 1.0])), SplineError,
+         r"entry 's0_degrees' holds float64 values \[1\.7, 1\.0, 1\.0\], not integers"),
+    case("npz negative count", lambda t: _tampered_npz(t, count=np.array(-3)), SplineError,
+         r"entry 'count' is -3"),
+    case("npz string points", lambda t: _tampered_npz(t, s0_control_points=lambda d: d["s0_control_points"]
+                                                        .astype(str)), SplineError,
+         r"entry 's0_control_points' holds <U32 values, not numbers"),
     case("load missing", lambda t: load(t / "nothing.npz"), SplineError, r"nothing\.npz does not exist"),
     case("load folder", lambda t: load(t), SplineError, r"is a folder, not a spline file"),
     case("load text", lambda t: (t / "x.npz").write_text("hello") and load(t / "x.npz"), SplineError,

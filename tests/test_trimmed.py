@@ -150,3 +150,11 @@ def test_trimmed_iges_area_in_opencascade(tmp_path):
         assert gmsh.model.occ.getMass(2, tag) == pytest.approx(exact, rel=1e-6)
     finally:
         gmsh.finalize()
+
+
+def test_a_tolerance_floating_point_cannot_meet_is_refused_at_once():
+    disc = TrimmedSurface(BENT, [_circle(0.45, 0.5, 0.3)])
+    with pytest.raises(SplineError, match=r"tolerance 1e-13 is below 1e-9 of the surface's size"):
+        disc.tessellate(1e-13)
+    with pytest.raises(SplineError, match=r"a trimming loop needs more than 50 samples"):
+        disc.tessellate(1e-6, max_triangles=50)

@@ -263,6 +263,9 @@ def random_implicit(D: BSpline, counts, *, degree: int = 3, controls: int = 8, a
     (1, True)
     """
     p0 = _check_inputs(D, counts, degree, controls, alpha, continuity, connectivity, canonical, shell)
+    if cap and shell is not None:
+        raise TilingError("cap=True and shell are exclusive: a capped structure closes D's boundary with walls, a "
+                          "shelled one with a shell of the given thickness; choose one")
     check_seed(seed, TilingError)
     if not isinstance(cap, (bool, np.bool_)):
         raise TilingError(f"cap must be true or false, got {show(cap)}")

@@ -64,7 +64,9 @@ def compose_levels(first: Microstructure, tile: Tile, counts, degree: int | None
     placed, tiles, caps, links, origin = [], [], [], [], []
     for i, D in enumerate(progress.bar(maps, desc="second level", unit="map")):
         sides = sorted(free.get(i, ()), key=FACE_NAMES.index)
-        sub = regular(D, tile, counts, seal=seal if sides and seal else None, seal_sides=sides or None)
+        sealed = bool(sides and seal)
+        sub = regular(D, tile, counts, seal=seal if sealed else None,
+                      seal_sides=sides if sealed and seal == "cap" else None)  # a shell seals every side
         p0, t0 = len(placed), len(tiles)
         level = first.patches[i].level
         placed += [PlacedPatch(P.spline, P.placement, P.outer, P.tile + t0, level, P.patch_in_tile)

@@ -142,7 +142,7 @@ def regular_placements(D: BSpline, tile: Tile, counts, variants: dict | None = N
     counts = _check_counts(counts, 3, "counts")
     if seal is not None and variants:
         raise TilingError("give variants or seal, not both")
-    allowed = _seal_sides(seal, seal_sides)
+    allowed = _seal_sides(seal, seal_sides, thickness)
     variants = dict(variants or {})
     for key, t in variants.items():
         if not isinstance(t, Tile) or len(key) != 3 or any(v not in (-1, 0, 1) for v in key):
@@ -197,9 +197,18 @@ def _tag_seal(ms: Microstructure, seal: str, plates: set) -> None:
                      if (id(ms.tiles[ms.patches[p].tile]), ms.patches[p].patch_in_tile) in plates]
 
 
-def _seal_sides(seal, seal_sides) -> set:
+def _seal_sides(seal, seal_sides, thickness=0.1) -> set:
+    """The sides of D's domain to seal; refuses options that would be ignored or seal nothing."""
     if seal not in (None, "cap", "shell"):
         raise TilingError(f"seal must be 'cap', 'shell' or None, got {show(seal)}")
+    if seal is None and (seal_sides is not None or thickness != 0.1):
+        given = "seal_sides" if seal_sides is not None else "thickness"
+        raise TilingError(f"{given} is given but seal is None, so nothing is sealed; pass seal='cap' or 'shell', "
+                          f"or leave {given} out")
+    if seal == "shell" and seal_sides is not None:
+        raise TilingError("seal='shell' seals every side of the cell; seal_sides applies to seal='cap' only")
+    if seal == "cap" and seal_sides is not None and not len(list(seal_sides)):
+        raise TilingError("seal='cap' with seal_sides=() seals nothing; name the sides to cap, or pass seal=None")
     allowed = set(FACE_NAMES) if seal == "shell" or seal_sides is None else set(seal_sides)
     if not allowed <= set(FACE_NAMES):
         raise TilingError(f"seal_sides must be face names of D's domain from {list(FACE_NAMES)}, got "
@@ -237,7 +246,7 @@ def hierarchical(D: BSpline, tile: Tile, counts, levels: int, scale: float | Non
     if not isinstance(tile, Tile) or not tile.hierarchical:
         raise TilingError("hierarchical paving needs a Tile with a branch-in face and branch-out faces")
     cx, cy = _check_counts(counts, 2, "counts")
-    allowed = _seal_sides(seal, seal_sides)
+    allowed = _seal_sides(seal, seal_sides, thickness)
     if not _is_int(levels) or levels < 1:
         raise TilingError(f"levels must be a positive integer, got {show(levels)}")
     b = len(tile.branch_outs)

@@ -50,7 +50,8 @@ class PolygonTile:
         for kind, items, least in (("polygon", self.polygons, 3), ("line", self.lines, 2)):
             for i, c in enumerate(items):
                 c = list(c)
-                if len(c) < least or any(not isinstance(v, (int, np.integer)) or not 0 <= v < len(P) for v in c):
+                if len(c) < least or any(not isinstance(v, (int, np.integer)) or isinstance(v, (bool, np.bool_))
+                                         or not 0 <= v < len(P) for v in c):
                     raise TilingError(f"polygon tile {show(self.name)}: {kind} {i} must list >= {least} vertex "
                                       f"indices in [0, {len(P) - 1}], got {show(c)}")
         self.points = P
