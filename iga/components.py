@@ -105,10 +105,12 @@ def model_components(problem, P, faces_by_kind: dict) -> list[Component]:
     count, labels = dof_labels(problem, P)
     offsets = problem.offsets
     patch_of = np.repeat(np.arange(len(offsets) - 1), np.diff(offsets))
-    comps = []
-    for c in range(count):
-        members = np.flatnonzero(labels == c)
-        comps.append(Component(int(len(members)), np.unique(patch_of[members]).tolist(), {}))
+    sizes = np.bincount(labels, minlength=count)
+    n_patches = len(offsets) - 1
+    pairs = np.unique(labels.astype(np.int64) * n_patches + patch_of)  # (component, patch) keys, by component
+    comp_of, patch_in = np.divmod(pairs, n_patches)
+    starts = np.searchsorted(comp_of, np.arange(count + 1))
+    comps = [Component(int(sizes[c]), patch_in[starts[c]:starts[c + 1]].tolist(), {}) for c in range(count)]
     touching: list = [dict() for _ in comps]  # per component: the condition objects on its faces, by id
     for kind, faces in faces_by_kind.items():
         keys = list(faces)

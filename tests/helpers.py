@@ -37,11 +37,8 @@ def rel_err(a, b):
     return np.abs(a - b).max() / max(1.0, np.abs(b).max())
 
 
-def surface_area(surface, n=8):
-    """Area of a spline surface by Gauss-Legendre quadrature (n points per knot span and direction).
-
-    Independent of the analysis code: only the surface's own Jacobian is used.
-    """
+def surface_gauss(surface, n=8):
+    """Gauss-Legendre points (M, 2) and weights (M,), n per knot span and direction, on any surface's domain."""
     pts, wts = [], []
     x, w = np.polynomial.legendre.leggauss(n)
     for k in range(2):
@@ -49,8 +46,15 @@ def surface_area(surface, n=8):
         h = np.diff(b)
         pts.append((b[:-1, None] + h[:, None] * (x + 1) / 2).ravel())
         wts.append((h[:, None] * w / 2).ravel())
-    g = np.stack(np.meshgrid(*pts, indexing="ij"), -1).reshape(-1, 2)
-    W = np.multiply.outer(*wts).ravel()
+    return np.stack(np.meshgrid(*pts, indexing="ij"), -1).reshape(-1, 2), np.multiply.outer(*wts).ravel()
+
+
+def surface_area(surface, n=8):
+    """Area of a spline surface by Gauss-Legendre quadrature (n points per knot span and direction).
+
+    Independent of the analysis code: only the surface's own Jacobian is used.
+    """
+    g, W = surface_gauss(surface, n)
     J = surface.jacobian(g)[:, :3, :]
     return float(np.sum(np.linalg.norm(np.cross(J[:, :, 0], J[:, :, 1]), axis=1) * W))
 

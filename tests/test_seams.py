@@ -6,6 +6,7 @@ import pytest
 import tiling
 from geometry import primitives as pr
 from geometry.chain import patch_geometry_points, gradient_and_det
+from helpers import surface_gauss
 from iga import HeatProblem, write_vtu
 from iga.config import validate
 from iga.pipeline import _build_map, _build_tiling, heat_sink_config
@@ -190,21 +191,9 @@ def test_no_heat_path_between_conditions_is_told_and_the_balance_is_scaled():
 
 
 # ---------------------------------------------------------------------- IGES
-def _gauss(s, n=8):
-    """Gauss points (M, 2) and weights (M,) on every knot span of a surface: our rule, for any reader's surface."""
-    pts, wts = [], []
-    x, w = np.polynomial.legendre.leggauss(n)
-    for k in range(2):
-        b = s.breakpoints(k)
-        h = np.diff(b)
-        pts.append((b[:-1, None] + h[:, None] * (x + 1) / 2).ravel())
-        wts.append((h[:, None] * w / 2).ravel())
-    return np.stack(np.meshgrid(*pts, indexing="ij"), -1).reshape(-1, 2), np.multiply.outer(*wts).ravel()
-
-
 def _area_and_volume_flux(s):
     """(area, int x . (S_s x S_t) ds dt) of a surface: its share of 3 V by the divergence theorem."""
-    g, W = _gauss(s)
+    g, W = surface_gauss(s)
     J = s.jacobian(g)[:, :3, :]
     n = np.cross(J[:, :, 0], J[:, :, 1])
     return float(np.sum(np.linalg.norm(n, axis=1) * W)), float(np.sum(np.einsum("ni,ni->n", s.evaluate(g)[:, :3], n) * W))
@@ -259,7 +248,7 @@ def test_opencascade_rereads_the_iges_with_every_area(which, tmp_path):
         assert len(tags) == len(ours)
         mass_check = set(rng.choice(len(tags), min(len(tags), 40), replace=False).tolist())
         for j, (tag, s) in enumerate(zip(tags, ours)):
-            g, W = _gauss(s)
+            g, W = surface_gauss(s)
             d = np.array(gmsh.model.getDerivative(2, tag, g.ravel())).reshape(-1, 2, 3)
             area = float(np.sum(np.linalg.norm(np.cross(d[:, 0], d[:, 1]), axis=1) * W))
             mine = _area_and_volume_flux(s)[0]
