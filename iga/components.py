@@ -79,10 +79,14 @@ def dof_labels(problem, P: sp.spmatrix | None) -> tuple[int, np.ndarray]:
     that of ``P``, not of the stiffness matrix.
     """
     piece, count = [], 0
+    known: dict = {}  # patches share space objects: one labelling per distinct space, for this call only
     for s in problem.spaces:
-        lab = _piece_of_dofs(s)
+        if id(s) not in known:
+            lab = _piece_of_dofs(s)
+            known[id(s)] = (lab, int(lab.max()) + 1)
+        lab, n = known[id(s)]
         piece.append(lab + count)
-        count += int(lab.max()) + 1
+        count += n
     piece = np.concatenate(piece)
     if P is None:
         n_comp, lab = connected_components(sp.csr_matrix((count, count)), directed=False)
