@@ -318,6 +318,10 @@ def _geometry(g, path) -> BSpline:
     gdim = _int_attr(coefs, "geoDim", path, f"geometry {g.get('id')}: <coefs>", 3)
     values = _numbers(coefs, "coefficients", path)
     shape = tuple(len(U) - p - 1 for U, p in zip(knots, degrees))
+    for k, (U, p) in enumerate(zip(knots, degrees)):
+        if p < 1 or len(U) < p + 2:
+            raise SplineError(f"{path}: geometry {g.get('id')}: direction {k} has degree {p} and {len(U)} knots; a "
+                              f"degree >= 1 needs at least degree + 2 knots")
     d = len(shape)
     if values.size != int(np.prod(shape)) * gdim or gdim < 1 or gdim > 3:
         raise SplineError(f"{path}: geometry {g.get('id')} has {values.size} coefficients, expected "

@@ -323,6 +323,9 @@ _GEO = ('<Geometry type="TensorBSpline3" id="{id}"><Basis type="TensorBSplineBas
 @pytest.mark.parametrize("text, match", [
     ("<xml>" + _GEO.format(id=0, deg="abc", gdim=3) + "</xml>", r"degree='abc' is not an integer"),
     ("<xml>" + _GEO.format(id=0, deg=1, gdim="x") + "</xml>", r"geoDim='x' is not an integer"),
+    ("<xml>" + _GEO.format(id=0, deg=1, gdim=3).replace('degree="1"', "", 1) + "</xml>",
+     r"<KnotVector> has no degree attribute"),
+    ("<xml>" + _GEO.format(id=0, deg=4000000000, gdim=3) + "</xml>", r"direction 0 has degree 4000000000 and 4 knots"),
     ("<xml>" + _GEO.format(id=0, deg=1, gdim=3) + _GEO.format(id=0, deg=1, gdim=3) + "</xml>",
      r"two <Geometry> elements have id '0'"),
     ("<xml>" + _GEO.format(id=0, deg=1, gdim=3) + '<MultiPatch parDim="3" id="1"><patches type="id_range">0 999999999'
