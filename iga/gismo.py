@@ -86,14 +86,6 @@ def export_gismo(problem, path, strict: bool = False) -> Path:
     if k.scalar is None or k.scalar.kind not in ("number", "channel"):
         raise ProblemError("G+Smo export needs an isotropic conductivity that is a number or a channel; this "
                            f"problem's is {'a tensor' if k.tensor else 'a callable'}: evaluate it into a channel")
-    try:
-        patches = model.compose_all()
-    except SplineError as exc:
-        raise ProblemError(f"cannot compose the model's patches for export: {exc}") from None
-    # Composition may raise degrees patch by patch (a rotated placement in a trilinear map gives degree 3):
-    # one common degree keeps every glued pair of sides conforming for G+Smo (elevation is exact)
-    top = max(max(p.degrees) for p in patches)
-    patches = [p if p.degrees == (top,) * 3 else p.elevate_to((top,) * 3) for p in patches]
     identity = [(i.a, i.b, bool(i.swap), tuple(i.flip)) for i in model.interfaces if i.kind == "identity"]
     sides = [f for f in model.tags.get("boundary", []) if f[1] in FACE_NAMES]
     conditions, slot_conditions = [], []
@@ -117,6 +109,14 @@ def export_gismo(problem, path, strict: bool = False) -> Path:
     if unseen:
         warnings.warn(f"{path}: G+Smo itself will not see {', '.join(unseen)} (written in the toolkit's own "
                       "elements, which problem_from_gismo reads)", GismoExtensionWarning, stacklevel=2)
+    try:
+        patches = model.compose_all()
+    except SplineError as exc:
+        raise ProblemError(f"cannot compose the model's patches for export: {exc}") from None
+    # Composition may raise degrees patch by patch (a rotated placement in a trilinear map gives degree 3):
+    # one common degree keeps every glued pair of sides conforming for G+Smo (elevation is exact)
+    top = max(max(p.degrees) for p in patches)
+    patches = [p if p.degrees == (top,) * 3 else p.elevate_to((top,) * 3) for p in patches]
     extensions = _extensions(problem, slot_conditions, k)
     return write_gismo(path, patches, identity, sides, conditions, functions, branches, comment=(
         "iga-microstructures heat problem: Dirichlet = temperature; Neumann = inward heat flux q = k dT/dn "
