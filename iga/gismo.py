@@ -152,10 +152,10 @@ def _extensions(problem, slot_conditions, k) -> list:
     return out
 
 
-def _read_extensions(model, g, path) -> dict:
-    """Slot faces and conditions into ``model`` (tags ``bc{j}``); returns HeatProblem options (bases,
-    conductivity channel) from the toolkit's own elements of a G+Smo file."""
-    root, opts = g.root, {}
+def _read_slots(model, g, path) -> None:
+    """Slot faces (``face_regions``) and the conditions on them (tags ``bc{j}``) from the toolkit's own
+    elements of a G+Smo file, into ``model``."""
+    root = g.root
     try:
         for el in root.iter("SlotFaces"):
             for line in (el.text or "").split("\n"):
@@ -168,6 +168,16 @@ def _read_extensions(model, g, path) -> dict:
                 if line.strip():
                     j, pi, fid = line.split()
                     model.tags[f"bc{int(j)}"].append((int(pi), fid))
+    except (ValueError, IndexError, KeyError) as exc:
+        raise ProblemError(f"{path}: the toolkit's own <SlotFaces> / <SlotConditions> are malformed "
+                           f"({type(exc).__name__}: {exc}); re-export the problem") from None
+
+
+def _read_extensions(g, path) -> dict:
+    """HeatProblem options (solution bases, conductivity channel) from the toolkit's own elements of a G+Smo
+    file."""
+    root, opts = g.root, {}
+    try:
         el = root.find("AnalysisBases")
         if el is not None:
             opts["bases"] = [([np.array(kv.text.split(), float) for kv in b.iter("KnotVector")],
@@ -182,7 +192,7 @@ def _read_extensions(model, g, path) -> dict:
         if el is not None and el.get("conductivity"):
             opts["conductivity"] = el.get("conductivity")
     except (ValueError, IndexError, KeyError, TypeError, AttributeError) as exc:
-        raise ProblemError(f"{path}: the toolkit's own elements (AnalysisBases, SlotFaces, SlotConditions) are "
+        raise ProblemError(f"{path}: the toolkit's own <AnalysisBases> / <ChannelFunctions> are "
                            f"malformed ({type(exc).__name__}: {exc}); re-export the problem") from None
     return opts
 
@@ -208,6 +218,7 @@ def load_gismo(path) -> MultiPatch:
                                "sides do not coincide in the geometry")
     for j, c in enumerate(g.conditions):
         model.tags[f"bc{j}"] = list(c.faces)
+    _read_slots(model, g, path)  # slot faces and their conditions, written beside G+Smo's elements
     model.gismo = g
     return model
 
@@ -229,7 +240,7 @@ def problem_from_gismo(path, **options):
             raise ProblemError(f"{path}: {what} is {show(expr)}; only constant expressions (numbers) are read") \
                 from None
 
-    saved = _read_extensions(model, g, path)  # what the toolkit wrote beside G+Smo's elements
+    saved = _read_extensions(g, path)  # what the toolkit wrote beside G+Smo's elements
     if "conductivity" not in saved:
         saved["conductivity"] = number(g.functions.get("conductivity", "1"), "the conductivity")
     problem = HeatProblem(model, source=number(g.functions.get("source", "0"), "the source"),
