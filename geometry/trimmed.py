@@ -151,6 +151,11 @@ class TrimmedSurface:
             poly = _polyline(c)
             if np.any(poly < dom[:, 0] - 1e-12 * scale) or np.any(poly > dom[:, 1] + 1e-12 * scale):
                 raise SplineError(f"trimming loop {i} leaves the surface's parameter domain {dom.tolist()}")
+            # a loop whose points lie on one line (it runs back along itself, or is a point) overlaps itself
+            # everywhere: say that it encloses nothing, before the crossings test calls it self-intersecting
+            if np.linalg.svd(poly - poly.mean(axis=0), compute_uv=False)[-1] < 1e-12 * scale * np.sqrt(len(poly)):
+                raise SplineError(f"trimming loop {i} encloses no area (it runs back along itself or is a point); "
+                                  "a loop must be a simple closed curve around a region")
             if _crossings(poly, poly, True):
                 raise SplineError(f"trimming loop {i} intersects itself; a loop must be a simple closed curve")
             area = _signed_area(poly)

@@ -235,7 +235,15 @@ def _variants_bad(t):
     return tiling.regular(pr.box(), L.cross(), (2, 2, 2), variants={(2, 0, 0): L.cross()})
 
 
+def _a_minus_a():
+    from tiling.vrep import Primitive, vrep_microstructure
+
+    return vrep_microstructure(Primitive(pr.box(), L.cross(), (2, 2, 2), 1, "A")
+                               - Primitive(pr.box(), L.cross(), (2, 2, 2), 1, "B"))
+
+
 TILING = [
+    case("empty V-model", lambda t: _a_minus_a(), TilingError, r"the V-model \(subtract of A, B\) is empty"),
     case("polygon index True", lambda t: tiling.PolygonTile(np.array([[0, 0, 0.5], [1, 0, 0.5], [1, 1, 0.5]], float),
                                                              polygons=[[0, True, 2]]), TilingError,
          r"polygon 0 must list >= 3 vertex indices in \[0, 2\], got \[0, True, 2\]"),

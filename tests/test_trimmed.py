@@ -158,3 +158,9 @@ def test_a_tolerance_floating_point_cannot_meet_is_refused_at_once():
         disc.tessellate(1e-13)
     with pytest.raises(SplineError, match=r"a trimming loop needs more than 50 samples"):
         disc.tessellate(1e-6, max_triangles=50)
+
+
+def test_a_loop_that_runs_back_along_itself_is_told_it_encloses_no_area():
+    back = BSpline((1,), [np.array([0, 0, 0.5, 1, 1.0])], np.array([[0.2, 0.2, 0], [0.8, 0.8, 0], [0.2, 0.2, 0]]))
+    with pytest.raises(SplineError, match=r"trimming loop 0 encloses no area \(it runs back along itself"):
+        TrimmedSurface(pr.box().boundary("wmin"), [back])

@@ -167,6 +167,10 @@ def vrep_microstructure(model: VModel, samples: int = 4, margin: float = 0.0, na
         report["bridges"] = report.get("bridges", 0) + sum(len(u.patches) for u in unions)
         timings["union bridges"] = time.perf_counter() - t0
     if not placed:
+        if _is_empty(model):
+            raise TilingError(f"the V-model ({model.op} of {', '.join(_names(model))}) is empty: its Boolean "
+                              "expression leaves no volume (no sample point of its primitives lies inside it), so "
+                              "there is nothing to pave; check the expression (e.g. A - A)")
         raise TilingError("no tile of the V-model is inside it: every tile is outside or crosses a trimming "
                           "surface; use smaller tiles (higher counts)")
     t0 = time.perf_counter()
@@ -270,3 +274,20 @@ def _unfold(model, prim, cls, placed, bridges: list, beta: float) -> list:
             if key in bad and _valid(b):
                 out[bad.pop(key)] = b
     return out
+
+
+def _is_empty(model, n: int = 9) -> bool:
+    """Whether no point of an n^3 parameter grid of any positive primitive lies inside the V-model."""
+    for prim in model.positive():
+        D = prim.D
+        axes = [np.linspace(lo, hi, n + 2)[1:-1] for lo, hi in D.domain]
+        grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
+        if np.any(model.contains(D.evaluate(grid)[:, :3])):
+            return False
+    return True
+
+
+def _names(model) -> list[str]:
+    """The names of the primitives of a V-model tree, left to right."""
+    return [c.name for c in model.children if not hasattr(c, "children")] + [
+        n for c in model.children if hasattr(c, "children") for n in _names(c)]
