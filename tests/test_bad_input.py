@@ -243,6 +243,11 @@ def _a_minus_a():
 
 
 TILING = [
+    case("V-rep primitive counts 1000^3", lambda t: __import__("tiling.vrep").vrep.Primitive(
+        pr.box(), L.cross(), (1000, 1000, 1000), 1, "A"), TilingError,
+         r"the paving of primitive 'A' \(1e\+09 tiles, 7e\+09 patches\) needs about"),
+    case("implicit surface resolution 3000", lambda t: tiling.random_implicit(pr.box(), (2, 2, 2)).surface(3000),
+         TilingError, r"sampling the field at resolution 3000 \(2\.16e\+11 grid points\) needs about"),
     case("empty V-model", lambda t: _a_minus_a(), TilingError, r"the V-model \(subtract of A, B\) is empty"),
     case("polygon index True", lambda t: tiling.PolygonTile(np.array([[0, 0, 0.5], [1, 0, 0.5], [1, 1, 0.5]], float),
                                                              polygons=[[0, True, 2]]), TilingError,

@@ -152,6 +152,10 @@ class ImplicitStructure(SurfaceOutputs):
         if not isinstance(resolution, (int, np.integer)) or isinstance(resolution, bool) or resolution < 1:
             raise TilingError(f"resolution must be a positive integer (samples per cell and direction), got "
                               f"{show(resolution)}")
+        n = float(np.prod([c * resolution + 1.0 for c in self.counts]))
+        # the grid values, VTK's copy of them, the contour's masks and edge tables: about 6 doubles per point
+        check_memory(n * 8 * 6, f"sampling the field at resolution {resolution} ({n:.3g} grid points)", TilingError,
+                     "lower the resolution")
         dom = self.outer.domain
         axes = [np.linspace(dom[k, 0], dom[k, 1], self.counts[k] * resolution + 1) for k in range(3)]
         return axes, self.field.evaluate_grid(axes)[..., 0]

@@ -24,6 +24,7 @@ from geometry.errors import show
 from geometry.inversion import invert
 
 from ..errors import TilingError
+from ..paving import _check_budget
 from ..tile import Tile
 
 __all__ = ["Primitive", "VModel", "VCell"]
@@ -53,6 +54,9 @@ class Primitive:
             raise TilingError(f"primitive {show(self.name)}: counts must be three integers >= 1 (tiles per knot "
                               f"span in u, v, w), got {show(c)}")
         self.counts = tuple(int(n) for n in c)
+        spans = np.prod([len(self.D.breakpoints(k)) - 1 for k in range(3)])
+        _check_budget(float(np.prod(self.counts, dtype=float)) * spans, self.tile,
+                      f"the paving of primitive {show(self.name)}", "lower its counts")
         if not (isinstance(self.priority, (int, np.integer)) and not isinstance(self.priority, bool)):
             raise TilingError(f"primitive {show(self.name)}: priority must be an integer, got {show(self.priority)}")
 
