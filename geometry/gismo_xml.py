@@ -33,7 +33,7 @@ from .errors import SplineError, show
 from .faces import FACE_AXIS, FACE_NAMES
 from .io import atomic_write
 
-__all__ = ["GismoModel", "GismoCondition", "read_gismo", "write_gismo", "side_number", "side_name",
+__all__ = ["GismoModel", "GismoCondition", "read_gismo", "write_gismo", "number_text", "side_number", "side_name",
            "interface_maps"]
 
 BC_TYPES = ("Dirichlet", "Neumann", "Robin")
@@ -97,7 +97,7 @@ def interface_maps(a_face: str, b_face: str, swap: bool, flip) -> tuple[list, li
     return dmap, orient
 
 
-def _text(values) -> str:
+def number_text(values) -> str:
     """Numbers as text, each with 17 significant digits (``repr`` of Python floats: exact round trip)."""
     return " ".join(map(repr, np.ravel(np.asarray(values, float)).tolist()))
 
@@ -133,14 +133,14 @@ def write_gismo(path, patches, interfaces=(), boundary=(), conditions=(), functi
             tensor = outer
         for k in range(d):
             b = tensor if d == 1 else ET.SubElement(tensor, "Basis", type="BSplineBasis", index=str(k))
-            ET.SubElement(b, "KnotVector", degree=str(p.degrees[k])).text = _text(p.knots[k])
+            ET.SubElement(b, "KnotVector", degree=str(p.degrees[k])).text = number_text(p.knots[k])
         order = tuple(range(d - 1, -1, -1))  # first parametric direction fastest
         if p.is_rational:
-            ET.SubElement(outer, "weights").text = _text(np.transpose(p.weights, order))
+            ET.SubElement(outer, "weights").text = number_text(np.transpose(p.weights, order))
         cp = p.control_points
-        ET.SubElement(g, "coefs", geoDim="3").text = _text(np.transpose(cp[..., :3], order + (d,)))
+        ET.SubElement(g, "coefs", geoDim="3").text = number_text(np.transpose(cp[..., :3], order + (d,)))
         if p.channels:
-            ET.SubElement(root, "Channels", patch=str(i), names=" ".join(p.channels)).text = _text(
+            ET.SubElement(root, "Channels", patch=str(i), names=" ".join(p.channels)).text = number_text(
                 np.transpose(cp[..., 3:], order + (d,)))
     mp = ET.SubElement(root, "MultiPatch", parDim=str(d), id=str(len(patches)))
     ET.SubElement(mp, "patches", type="id_range").text = f"0 {len(patches) - 1}"
@@ -177,7 +177,7 @@ def write_gismo(path, patches, interfaces=(), boundary=(), conditions=(), functi
         next_id += 1
     if branches:
         ET.SubElement(root, "BranchInterfaces", format="parent side box(4) child side").text = "\n" + "\n".join(
-            f"{a[0]} {side_number(a[1])} {_text(np.ravel(box))} {c[0]} {side_number(c[1])}" for a, box, c in branches)
+            f"{a[0]} {side_number(a[1])} {number_text(np.ravel(box))} {c[0]} {side_number(c[1])}" for a, box, c in branches)
     for el in extensions:
         root.append(el)
     ET.indent(root)

@@ -49,7 +49,7 @@ import numpy as np
 from geometry import MultiPatch
 from geometry.errors import SplineError, show
 from geometry.faces import FACE_NAMES
-from geometry.gismo_xml import GismoCondition, read_gismo, write_gismo
+from geometry.gismo_xml import GismoCondition, number_text, read_gismo, write_gismo
 
 from .errors import ProblemError
 from .model import tag_faces
@@ -137,12 +137,12 @@ def _extensions(problem, slot_conditions, k) -> list:
     for i, (knots, degrees) in enumerate(problem.bases):
         b = ET.SubElement(bases, "Basis", patch=str(i))
         for U, p in zip(knots, degrees):
-            ET.SubElement(b, "KnotVector", degree=str(p)).text = " ".join(repr(float(v)) for v in U)
+            ET.SubElement(b, "KnotVector", degree=str(p)).text = number_text(U)
     out = [bases]
     regions = getattr(model, "face_regions", {})
     if regions:
         out.append(ET.Element("SlotFaces", format="patch slot a1 b1 a2 b2"))
-        out[-1].text = "\n" + "\n".join(f"{pi} {fid} " + " ".join(repr(float(v)) for v in np.ravel(rect))
+        out[-1].text = "\n" + "\n".join(f"{pi} {fid} " + number_text(rect)
                                           for (pi, fid), rects in regions.items() for rect in rects) + "\n"
     if slot_conditions:
         out.append(ET.Element("SlotConditions", format="condition patch slot"))

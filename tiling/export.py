@@ -292,7 +292,7 @@ def boundary_splines(ms: Microstructure) -> list:
     for (_, _, key), members in jobs.items():
         tile = ms.patches[members[0]].spline
         face = tile.boundary(key) if isinstance(key, str) else slot_surfaces(tile, key[0], [key[1]])[0]
-        name = key if isinstance(key, str) else face_name(parse_slot_face(key[0])[0], int(key[0][-1] == "-"))
+        name = key if isinstance(key, str) else _slot_side_face(key[0])
         hand = _handedness(ms, members)
         for sign in (1, -1):  # outward normals: reverse the face where S_s x S_t points inwards
             group = [i for i, h in zip(members, hand) if h * _OUTWARD[name] == sign]
@@ -309,12 +309,23 @@ def boundary_splines(ms: Microstructure) -> list:
 _OUTWARD = {"umin": -1, "umax": 1, "vmin": 1, "vmax": -1, "wmin": -1, "wmax": 1}
 
 
+def _placements(ms, members) -> np.ndarray:
+    """The placements [A | b] (P, 3, 4) of the patches ``members`` (the identity where a patch has none)."""
+    return np.stack([_IDENTITY if ms.patches[i].placement is None else ms.patches[i].placement for i in members])
+
+
+def _slot_side_face(fid: str) -> str:
+    """The face of the one-sided sub-patch that a slot face is: ``u=0.5-`` is the umax face of u <= 0.5."""
+    d, _, side = parse_slot_face(fid)
+    return face_name(d, 1 if side < 0 else 0)
+
+
 def _handedness(ms, members) -> np.ndarray:
     """Sign of the physical Jacobian determinant of each placed patch (at its tile patch's centre)."""
     P0 = ms.patches[members[0]]
     c = P0.spline.domain.mean(axis=1)[None]
     JT = P0.spline.jacobian(c)[0, :3, :]
-    A = np.stack([_IDENTITY if ms.patches[i].placement is None else ms.patches[i].placement for i in members])
+    A = _placements(ms, members)
     sign = np.sign(np.linalg.det(JT)) * np.sign(np.linalg.det(A[:, :, :3]))
     if P0.outer is not None:
         y = np.einsum("pij,j->pi", A[:, :, :3], P0.spline.evaluate(c)[0, :3]) + A[:, :, 3]
@@ -326,7 +337,7 @@ def _handedness(ms, members) -> np.ndarray:
 def _placed_surfaces(ms, members, piece) -> list:
     """A tile-space curve or surface ``piece`` of the patches ``members``, placed and composed into their map."""
     first = ms.patches[members[0]]
-    A = np.stack([_IDENTITY if ms.patches[i].placement is None else ms.patches[i].placement for i in members])
+    A = _placements(ms, members)
     if first.outer is None:
         return [piece.affine(a[:, :3], a[:, 3]) for a in A]
     return compose_many(first.outer, piece, A)
@@ -353,7 +364,7 @@ def slot_surfaces(patch, fid: str, rects) -> list:
         box = patch.domain.copy()
         box[d] = (box[d, 0], v) if side < 0 else (v, box[d, 1])
         box[rest[0]], box[rest[1]] = (a1, b1), (a2, b2)
-        out.append(patch.extract(box).boundary(face_name(d, 1 if side < 0 else 0)))
+        out.append(patch.extract(box).boundary(_slot_side_face(fid)))
     return out
 
 

@@ -24,6 +24,10 @@ from geometry.faces import FACE_NAMES
 from geometry.errors import show
 
 
+#: default thickness of seal plates (a fraction of the cell); a different one without ``seal`` is refused
+SEAL_THICKNESS = 0.1
+
+
 def _check_map(D) -> None:
     if not isinstance(D, BSpline) or D.dim != 3:
         raise TilingError(f"the deformation map must be a trivariate geometry.BSpline, got {show(D)}")
@@ -102,7 +106,7 @@ def _check_spans(D: BSpline, placed: list) -> None:
 
 
 def regular(D: BSpline, tile: Tile, counts, variants: dict | None = None, name: str = "regular",
-            seal: str | None = None, thickness: float = 0.1, seal_sides=None) -> Microstructure:
+            seal: str | None = None, thickness: float = SEAL_THICKNESS, seal_sides=None) -> Microstructure:
     """Regular paving: ``counts`` = (cx, cy, cz) copies of ``tile`` per knot span of D.
 
     ``variants`` optionally maps a position key ``(ku, kv, kw)`` with entries
@@ -132,7 +136,7 @@ def regular(D: BSpline, tile: Tile, counts, variants: dict | None = None, name: 
 
 
 def regular_placements(D: BSpline, tile: Tile, counts, variants: dict | None = None, seal: str | None = None,
-                       thickness: float = 0.1, seal_sides=None):
+                       thickness: float = SEAL_THICKNESS, seal_sides=None):
     """The placements of :func:`regular` without the interface search: (placed patches, tiles, seal links, caps,
     sealed variants by sides).  Tiles are numbered in C order over the cells; for callers that keep a subset
     of them and build one micro-structure from several pavings (:mod:`tiling.vrep`)."""
@@ -197,11 +201,11 @@ def _tag_seal(ms: Microstructure, seal: str, plates: set) -> None:
                      if (id(ms.tiles[ms.patches[p].tile]), ms.patches[p].patch_in_tile) in plates]
 
 
-def _seal_sides(seal, seal_sides, thickness=0.1) -> set:
+def _seal_sides(seal, seal_sides, thickness) -> set:
     """The sides of D's domain to seal; refuses options that would be ignored or seal nothing."""
     if seal not in (None, "cap", "shell"):
         raise TilingError(f"seal must be 'cap', 'shell' or None, got {show(seal)}")
-    if seal is None and (seal_sides is not None or thickness != 0.1):
+    if seal is None and (seal_sides is not None or thickness != SEAL_THICKNESS):
         given = "seal_sides" if seal_sides is not None else "thickness"
         raise TilingError(f"{given} is given but seal is None, so nothing is sealed; pass seal='cap' or 'shell', "
                           f"or leave {given} out")
@@ -217,7 +221,7 @@ def _seal_sides(seal, seal_sides, thickness=0.1) -> set:
 
 
 def hierarchical(D: BSpline, tile: Tile, counts, levels: int, scale: float | None = None,
-                 name: str = "hierarchical", seal: str | None = None, thickness: float = 0.1,
+                 name: str = "hierarchical", seal: str | None = None, thickness: float = SEAL_THICKNESS,
                  seal_sides=None) -> Microstructure:
     """Hierarchical paving (Massarwi et al. 2018, Section 3): base copies, then a child on every branch-out face, recursively.
 
