@@ -32,7 +32,7 @@ from .forms import boundary_load, boundary_mass
 from .model import as_model, tag_faces
 from .regularity import prove_regular
 from .solution import Solution
-from .space import estimate, make_space
+from .space import estimate, make_space, solution_bases
 from . import distributed
 from .multilevel import solver_options
 from .system import solve_system
@@ -48,22 +48,6 @@ class _Condition:
     tag: str
     value: ScalarField  # temperature, inward flux or ambient temperature
     h: ScalarField | None = None  # film coefficient (Robin)
-
-
-def _bases(model, bases) -> list:
-    """Per patch (knot vectors, degrees) of the solution basis: the geometry's, or ``bases`` checked."""
-    own = [(p.spline.knots, p.spline.degrees) for p in model.patches]
-    if bases is None:
-        return own
-    if not isinstance(bases, (list, tuple)) or len(bases) != len(own):
-        raise ProblemError(f"bases must give (knots, degrees) for each of the {len(own)} patches, got {show(bases)}")
-    out = []
-    for i, ((U0, _), b) in enumerate(zip(own, bases)):
-        knots, degrees = [np.asarray(U, float) for U in b[0]], tuple(int(d) for d in b[1])
-        if len(knots) != len(U0) or any(U[0] != V[0] or U[-1] != V[-1] for U, V in zip(knots, U0)):
-            raise ProblemError(f"bases[{i}] must span patch {i}'s parameter domain with {len(U0)} knot vectors")
-        out.append((knots, degrees))
-    return out
 
 
 def _count(name: str, v, minimum: int, three: bool = False):
@@ -117,7 +101,7 @@ class HeatProblem:
     def __init__(self, model, conductivity=1.0, source=0.0, degree_elevation=0, refine: int = 0,
                  quadrature_extra: int = 0, degree=None, bases=None):
         self.model = as_model(model)
-        self.bases = _bases(self.model, bases)
+        self.bases = solution_bases(self.model, bases)
         refine = _count("refine", refine, 0)
         quadrature_extra = _count("quadrature_extra", quadrature_extra, 0)
         degree_elevation = _count("degree_elevation", degree_elevation, 0, three=True)

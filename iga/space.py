@@ -20,8 +20,10 @@ from functools import cached_property
 import numpy as np
 
 from geometry import knots as kn
+from geometry.errors import show
 from geometry.faces import FACE_AXIS
 
+from .errors import ProblemError
 from .quadrature import element_rule
 
 
@@ -206,3 +208,23 @@ def estimate(model, quadrature_extra=0, degree_elevation=0, refine=0, degree=Non
         dofs += sizes[key][0]
         nbytes += sizes[key][1]
     return {"dofs": int(dofs), "bytes": nbytes}
+
+
+def solution_bases(model, bases=None) -> list:
+    """Per patch (knot vectors, degrees) of the solution basis: the geometry's, or ``bases`` checked."""
+    own = [(p.spline.knots, p.spline.degrees) for p in model.patches]
+    if bases is None:
+        return own
+    if not isinstance(bases, (list, tuple)) or len(bases) != len(own):
+        raise ProblemError(f"bases must give (knots, degrees) for each of the {len(own)} patches, got {show(bases)}")
+    out = []
+    for i, ((U0, _), b) in enumerate(zip(own, bases)):
+        try:
+            knots, degrees = [np.asarray(U, float).ravel() for U in b[0]], tuple(int(d) for d in b[1])
+        except (TypeError, ValueError, IndexError):
+            raise ProblemError(f"bases[{i}] must be (knot vectors, degrees), got {show(b)}") from None
+        if (len(knots) != len(U0) or len(degrees) != len(U0) or any(len(U) < 2 for U in knots)
+                or any(U[0] != V[0] or U[-1] != V[-1] for U, V in zip(knots, U0))):
+            raise ProblemError(f"bases[{i}] must span patch {i}'s parameter domain with {len(U0)} knot vectors")
+        out.append((knots, degrees))
+    return out

@@ -340,6 +340,10 @@ def _box2():
 
 
 HEAT = [
+    case("bases not pairs", lambda t: HeatProblem(pr.box(), bases=[3]), ProblemError,
+         r"bases\[0\] must be \(knot vectors, degrees\), got 3"),
+    case("bases off the domain", lambda t: HeatProblem(pr.box(), bases=[([[0, 0, 2, 2]] * 3, (1, 1, 1))]),
+         ProblemError, r"bases\[0\] must span patch 0's parameter domain"),
     case("not a model", lambda t: HeatProblem("cube"), ProblemError, r"cannot analyse a str"),
     case("empty list", lambda t: HeatProblem([]), ProblemError, r"no patches"),
     case("surface patch", lambda t: HeatProblem(cube().boundary("wmin")), ProblemError,
