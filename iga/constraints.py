@@ -13,10 +13,10 @@ encodes
   R @ parent branch-out face coefficients, R the knot-insertion
   (refinement) matrix between the two analysis face spaces.
 
-Equalities are merged with a union-find (chains, shared edges and corners
-collapse to one unknown); branch rows make a class a *slave* expressed
-through other classes, and slaves of slaves are substituted until only
-master classes remain.
+Equalities are merged into classes, the connected components of the equality
+graph (chains, shared edges and corners collapse to one unknown); branch rows
+make a class a *slave* expressed through other classes, and slaves of slaves
+are substituted until only master classes remain.
 
 Number of free unknowns (``Solution.info["free_dofs"]``)::
 
@@ -34,7 +34,6 @@ face coefficients; :func:`induced_elimination`).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from types import SimpleNamespace
 
 import numpy as np
 import scipy.sparse as sp
@@ -43,8 +42,14 @@ from scipy.sparse.csgraph import connected_components
 
 from geometry.errors import SplineError
 from geometry.faces import FACE_AXIS, discontinuity_slots, nested_refinement, slot_face_id
+from geometry.grouping import ObjectIndex
 
 from .errors import ProblemError
+
+# coefficients of a branch row below this are round-off of the knot insertion (entries are O(1))
+_ZERO_WEIGHT = 1e-14
+# two branch rows of one DOF class that differ by more than this prescribe it differently
+_CONSISTENT = 1e-10
 
 
 @dataclass
@@ -61,29 +66,22 @@ class Constraints:
     stats: dict = field(default_factory=dict)
 
 
-class _UnionFind:
-    def __init__(self, n):
-        self.parent = np.arange(n)
+@dataclass
+class BranchRows:
+    """Branch constraints as triplets: row ``r`` says DOF ``child[r]`` = sum of ``weight`` x ``parent``
+    over the entries ``e`` with ``row[e] == r``; ``interface[r]`` indexes ``model.interfaces``."""
 
-    def find(self, a):
-        root = a
-        while self.parent[root] != root:
-            root = self.parent[root]
-        while self.parent[a] != root:  # path compression
-            self.parent[a], a = root, self.parent[a]
-        return root
-
-    def union(self, a, b):
-        ra, rb = self.find(a), self.find(b)
-        if ra != rb:
-            self.parent[max(ra, rb)] = min(ra, rb)
+    child: np.ndarray  # (rows,) global DOF on a child branch-in face
+    interface: np.ndarray  # (rows,)
+    row: np.ndarray  # (entries,)
+    parent: np.ndarray  # (entries,) global DOF on the parent's branch-out face
+    weight: np.ndarray  # (entries,)
 
 
-def _face_grid(problem, pi, face):
+def _face_grid(spaces, offsets, pi, face):
     """Global DOFs of a patch face as an (n_s, n_t) grid in face-parameter order."""
-    space = problem.spaces[pi]
-    fs = space.face_space(face)
-    return (space.face_dofs(face) + problem.offsets[pi]).reshape(fs.shape)
+    space = spaces[pi]
+    return (space.face_dofs(face) + offsets[pi]).reshape(space.face_space(face).shape)
 
 
 def _oriented(grid, swap, flip):
@@ -101,74 +99,204 @@ def _oriented(grid, swap, flip):
     return g.T if swap else g
 
 
-def _face_space_knots(problem, pi, face):
+def _face_space_knots(space, face):
     k, _ = FACE_AXIS[face]
-    return [(d.knots, d.degree) for i, d in enumerate(problem.spaces[pi].dirs) if i != k]
+    return [(d.knots, d.degree) for i, d in enumerate(space.dirs) if i != k]
 
 
-def _branch_R(problem, itf, cache: dict | None = None) -> sp.csr_matrix:
+def _branch_R(spaces, itf, cache: dict) -> sp.csr_matrix:
+    """The refinement matrix of a branch interface (child face coefficients = R @ parent's), cached on
+    the two face spaces and the box: a hierarchy repeats the same pair many times."""
     (pa, fa), (pb, fb) = itf.a, itf.b
-    parent, child = _face_space_knots(problem, pa, fa), _face_space_knots(problem, pb, fb)
+    parent, child = _face_space_knots(spaces[pa], fa), _face_space_knots(spaces[pb], fb)
     key = (tuple((U.tobytes(), p) for U, p in parent), tuple(map(tuple, itf.box)),
            tuple((U.tobytes(), p) for U, p in child))
-    if cache is not None and key in cache:  # a hierarchy repeats the same pair of face spaces many times
-        return cache[key]
-    try:
-        R = nested_refinement(parent, itf.box, child)
-        if cache is not None:
-            cache[key] = R
-        return R
-    except SplineError as exc:
-        raise ProblemError(
-            f"branch faces patch {pa} {fa} -> patch {pb} {fb}: {exc}; use the same refine/degree_elevation "
-            "for all patches of a hierarchy"
-        ) from None
+    if key not in cache:
+        try:
+            cache[key] = nested_refinement(parent, itf.box, child).tocsr()
+        except SplineError as exc:
+            raise ProblemError(
+                f"branch faces patch {pa} {fa} -> patch {pb} {fb}: {exc}; use the same refine/degree_elevation "
+                "for all patches of a hierarchy"
+            ) from None
+    return cache[key]
 
 
-def _discontinuity_pairs(problem, pi, slots):
-    """DOF pairs to equate across full-multiplicity knot planes of patch ``pi`` where both sides coincide.
+def identity_pairs(model, spaces, offsets) -> tuple[np.ndarray, np.ndarray]:
+    """DOF pairs (a, b) made equal by the identity interfaces (each face pair with its orientation).
 
-    ``slots``: :func:`tiling.microstructure.discontinuity_slots` of the patch's
-    tile spline, the free (non-coinciding) rectangles of each plane; the rest
-    of the plane is one material.
+    Interfaces between the same two spaces, faces and orientation share their local index pairs
+    (a paving repeats a handful of them thousands of times); each group is shifted by its offsets at once.
     """
-    space = problem.spaces[pi]
-    pairs = []
+    objects = ObjectIndex()
+    groups: dict = {}
+    for itf in model.interfaces:
+        if itf.kind == "identity":
+            (pa, fa), (pb, fb) = itf.a, itf.b
+            key = (objects(spaces[pa]), fa, objects(spaces[pb]), fb, itf.swap, tuple(itf.flip))
+            groups.setdefault(key, []).append((pa, pb))
+    a, b = [], []
+    for (_, fa, _, fb, swap, flip), members in groups.items():
+        pa, pb = np.array(members).T
+        ga = _face_grid(spaces, np.zeros(len(spaces), np.int64), pa[0], fa)
+        gb = _oriented(_face_grid(spaces, np.zeros(len(spaces), np.int64), pb[0], fb), swap, flip)
+        if ga.shape != gb.shape:
+            raise ProblemError(f"identity interface patch {pa[0]} {fa} / patch {pb[0]} {fb}: face spaces differ "
+                               f"({ga.shape} vs {gb.shape} coefficients); refine all patches alike")
+        a.append((offsets[pa][:, None] + ga.ravel()).ravel())
+        b.append((offsets[pb][:, None] + gb.ravel()).ravel())
+    return _cat(a), _cat(b)
+
+
+def _cat(parts) -> np.ndarray:
+    return np.concatenate(parts).astype(np.int64) if parts else np.zeros(0, np.int64)
+
+
+def _support_range(space1d, breaks) -> tuple[np.ndarray, np.ndarray]:
+    """Per basis function of a 1-D space, its support as the element range [lo, hi) of ``breaks``."""
+    U, p = space1d.knots, space1d.degree
+    n = len(U) - p - 1
+    return np.searchsorted(breaks, U[:n]), np.searchsorted(breaks, U[p + 1 : p + 1 + n])
+
+
+def plane_pairs(space, slots) -> tuple[np.ndarray, np.ndarray]:
+    """Local DOF pairs to equate across the full-multiplicity knot planes of one patch where both sides
+    coincide as material (Massarwi et al. 2018, Section 3.1).
+
+    ``slots``: :func:`geometry.faces.discontinuity_slots` of the patch's tile
+    spline, the free (non-coinciding) rectangles of each plane; the rest of the
+    plane is one material.  A pair is the last function ending on the plane and
+    the first starting there, for every function pair whose support meets a
+    coinciding element piece of the plane.
+    """
+    a, b = [], []
+    idx = np.arange(space.ndof).reshape(space.shape)
     for d in range(3):
         sd = space.dirs[d]
         vals, mults = np.unique(sd.knots, return_counts=True)
+        rest = [k for k in range(3) if k != d]
+        b1, b2 = np.unique(space.dirs[rest[0]].knots), np.unique(space.dirs[rest[1]].knots)
+        m1, m2 = np.meshgrid(0.5 * (b1[:-1] + b1[1:]), 0.5 * (b2[:-1] + b2[1:]), indexing="ij")
+        lo1, hi1 = _support_range(space.dirs[rest[0]], b1)
+        lo2, hi2 = _support_range(space.dirs[rest[1]], b2)
         for v in vals[1:-1][mults[1:-1] >= sd.degree + 1]:
+            coincide = np.ones(m1.shape, bool)  # analysis element pieces of the plane outside every slot
+            for (a1, c1), (a2, c2) in slots.get(slot_face_id(d, v, -1), []):
+                coincide &= ~((m1 > a1) & (m1 < c1) & (m2 > a2) & (m2 < c2))
+            # a summed-area table counts the coinciding pieces in each function pair's support box
+            S = np.zeros((m1.shape[0] + 1, m1.shape[1] + 1), np.int64)
+            S[1:, 1:] = coincide.cumsum(0).cumsum(1)
+            count = (S[hi1[:, None], hi2[None, :]] - S[lo1[:, None], hi2[None, :]]
+                     - S[hi1[:, None], lo2[None, :]] + S[lo1[:, None], lo2[None, :]])
             # with v repeated p + 1 times from index s, N_{s-1} is the last function ending at v
             # and N_s the first starting at v: the two DOF layers on either side of the plane
             left = int(np.searchsorted(sd.knots, v, side="left")) - 1
-            right = left + 1
-            rest = [k for k in range(3) if k != d]
-            # analysis element pieces of the plane that are not in a free slot rectangle coincide
-            b1, b2 = np.unique(space.dirs[rest[0]].knots), np.unique(space.dirs[rest[1]].knots)
-            m1, m2 = np.meshgrid(0.5 * (b1[:-1] + b1[1:]), 0.5 * (b2[:-1] + b2[1:]), indexing="ij")
-            coincide = np.ones(m1.shape, bool)
-            for (a1, c1), (a2, c2) in slots.get(slot_face_id(d, v, -1), []):
-                coincide &= ~((m1 > a1) & (m1 < c1) & (m2 > a2) & (m2 < c2))
-            if not coincide.any():
-                continue
-            # couple the functions whose support meets a coinciding piece
-            idx = np.arange(space.ndof).reshape(space.shape) + problem.offsets[pi]
-            L = np.take(idx, left, axis=d)
-            R = np.take(idx, right, axis=d)
-            for j in range(L.shape[0]):
-                e1 = _support(space.dirs[rest[0]], j, b1)
-                for k in range(L.shape[1]):
-                    e2 = _support(space.dirs[rest[1]], k, b2)
-                    if coincide[np.ix_(e1, e2)].any():
-                        pairs.append((int(L[j, k]), int(R[j, k])))
-    return pairs
+            hit = count > 0
+            a.append(np.take(idx, left, axis=d)[hit])
+            b.append(np.take(idx, left + 1, axis=d)[hit])
+    return _cat(a), _cat(b)
 
 
-def _support(sp1, i, breaks):
-    """Element indices in the support of basis function i of a 1-D space."""
-    U = sp1.knots
-    a, b = U[i], U[i + sp1.degree + 1]
-    return np.nonzero((breaks[:-1] >= a) & (breaks[1:] <= b) & (breaks[1:] > breaks[:-1]))[0]
+def c0_pairs(model, spaces, offsets) -> tuple[np.ndarray, np.ndarray]:
+    """Global DOF pairs of :func:`plane_pairs` for every patch; patches that share their tile spline and
+    space share the local pairs (found once, then shifted by each patch's offset)."""
+    objects = ObjectIndex()
+    local: dict = {}
+    a, b = [], []
+    for pi, patch in enumerate(model.patches):
+        key = (objects(patch.spline), spaces[pi].key())
+        if key not in local:
+            local[key] = plane_pairs(spaces[pi], discontinuity_slots(patch.spline))
+        la, lb = local[key]
+        a.append(la + offsets[pi])
+        b.append(lb + offsets[pi])
+    return _cat(a), _cat(b)
+
+
+def equivalence_classes(n: int, a: np.ndarray, b: np.ndarray) -> tuple[int, np.ndarray]:
+    """(number of classes, class of each of the n DOFs) of the equalities a[i] = b[i]: the connected
+    components of the equality graph (SciPy's csgraph); classes are numbered by their smallest DOF."""
+    graph = sp.coo_matrix((np.ones(len(a), np.int8), (a, b)), shape=(n, n))
+    return connected_components(graph, directed=False)
+
+
+def branch_rows(model, spaces, offsets) -> BranchRows:
+    """Every branch interface's rows (Massarwi et al. 2018, Eqs. 11-12) as triplets."""
+    cache: dict = {}
+    child, interface, row, parent, weight = [], [], [], [], []
+    nrows = 0
+    for j, itf in enumerate(model.interfaces):
+        if itf.kind == "identity":
+            continue
+        (pa, fa), (pb, fb) = itf.a, itf.b
+        R = _branch_R(spaces, itf, cache)
+        child.append(_face_grid(spaces, offsets, pb, fb).ravel())
+        interface.append(np.full(R.shape[0], j))
+        row.append(nrows + np.repeat(np.arange(R.shape[0]), np.diff(R.indptr)))
+        parent.append(_face_grid(spaces, offsets, pa, fa).ravel()[R.indices])
+        weight.append(R.data)
+        nrows += R.shape[0]
+    return BranchRows(_cat(child), _cat(interface), _cat(row), _cat(parent),
+                      np.concatenate(weight) if weight else np.zeros(0))
+
+
+def class_expressions(model, ncls: int, cls: np.ndarray, rows: BranchRows) -> tuple[sp.csr_matrix, np.ndarray]:
+    """(C, slaves): C (ncls x ncls) expresses every class through classes (the identity for masters, its
+    branch row for a slave class); ``slaves`` the sorted slave classes.
+
+    A class reached by several branch rows (edges and corners shared by child
+    faces, one DOF class on two branch faces) must be given the same row by all
+    of them; otherwise the constraints contradict each other and are refused.
+    """
+    nr = len(rows.child)
+    M = sp.csr_matrix((rows.weight, (rows.row, cls[rows.parent])), shape=(nr, ncls))  # sums duplicates
+    M.data[np.abs(M.data) <= _ZERO_WEIGHT] = 0.0
+    M.eliminate_zeros()
+    owner = cls[rows.child]
+    slaves, first = np.unique(owner, return_index=True)
+    if nr:
+        ref = first[np.searchsorted(slaves, owner)]  # each row against the first row of its class
+        D = abs(M - M[ref]).tocsr()
+        worst = np.zeros(nr)
+        nz = np.diff(D.indptr) > 0
+        worst[nz] = np.maximum.reduceat(D.data, D.indptr[:-1][nz]) if D.nnz else 0.0
+        bad = np.flatnonzero(worst > _CONSISTENT)
+        if len(bad):
+            r = int(bad[0])
+            one, two = model.interfaces[rows.interface[ref[r]]], model.interfaces[rows.interface[r]]
+            raise ProblemError(
+                f"inconsistent constraints: DOF {rows.child[r]} is constrained by branch faces patch {one.a[0]} "
+                f"{one.a[1]} -> patch {one.b[0]} {one.b[1]} and patch {two.a[0]} {two.a[1]} -> patch "
+                f"{two.b[0]} {two.b[1]} with different values; check these faces and their refinement")
+    is_slave = np.zeros(ncls, bool)
+    is_slave[slaves] = True
+    masters = np.flatnonzero(~is_slave)
+    S = M[first].tocoo()
+    C = sp.csr_matrix((np.r_[S.data, np.ones(len(masters))], (np.r_[slaves[S.row], masters], np.r_[S.col, masters])),
+                      shape=(ncls, ncls))
+    return C, slaves
+
+
+def substitute_slaves(C: sp.csr_matrix, slaves: np.ndarray) -> sp.csr_matrix:
+    """C^k: slaves expressed through master classes only.
+
+    A slave's row may name other slaves (a child face whose parent face DOFs
+    are themselves on a branch-in face, e.g. a tile branching sideways from a
+    tile that branched upwards); each product substitutes one level.  A cycle
+    among slaves (a face its own ancestor) has no solution and is refused.
+    """
+    if not len(slaves):
+        return C
+    among = C[slaves][:, slaves]
+    nscc, _ = connected_components(among, directed=True, connection="strong")
+    if nscc < len(slaves) or among.diagonal().any():
+        raise ProblemError("branch constraints form a cycle (a face is its own ancestor); check the interfaces")
+    Q = C
+    while Q[:, slaves].nnz:  # ends: the slave graph is acyclic, so its longest chain bounds the rounds
+        Q = (C @ Q).tocsr()
+        Q.data[np.abs(Q.data) < 0.1 * _ZERO_WEIGHT] = 0.0
+        Q.eliminate_zeros()
+    return Q
 
 
 def needs_constraints(model, spaces) -> bool:
@@ -183,93 +311,30 @@ def needs_constraints(model, spaces) -> bool:
     return False
 
 
-def prolongation(problem) -> Constraints:
-    """The sparse prolongation P (ndof x nred) of all interface constraints, with its statistics."""
-    n = problem.ndof
-    uf = _UnionFind(n)
-    stats = {"identity_pairs": 0, "c0_pairs": 0, "branch_rows": 0}
-    branch_rows = []  # (child dof, parent dofs, coefficients)
-    cache: dict = {}  # refinement matrices by (parent face space, box, child face space)
-    for itf in problem.model.interfaces:
-        (pa, fa), (pb, fb) = itf.a, itf.b
-        ga, gb = _face_grid(problem, pa, fa), _face_grid(problem, pb, fb)
-        if itf.kind == "identity":
-            gb = _oriented(gb, itf.swap, itf.flip)
-            if ga.shape != gb.shape:
-                raise ProblemError(f"identity interface patch {pa} {fa} / patch {pb} {fb}: face spaces differ "
-                                   f"({ga.shape} vs {gb.shape} coefficients); refine all patches alike")
-            for x, y in zip(ga.ravel(), gb.ravel()):
-                uf.union(int(x), int(y))
-            stats["identity_pairs"] += ga.size
-        else:
-            R = _branch_R(problem, itf, cache).tocsr()
-            parent, child = ga.ravel(), gb.ravel()
-            for r in range(R.shape[0]):
-                cols = R.indices[R.indptr[r] : R.indptr[r + 1]]
-                branch_rows.append((int(child[r]), parent[cols], R.data[R.indptr[r] : R.indptr[r + 1]], itf))
-            stats["branch_rows"] += R.shape[0]
-    pairs_of: dict = {}  # tiles share their spline and space: find each patch's pairs once, then shift them
-    for pi, patch in enumerate(problem.model.patches):
-        key = (id(patch.spline), id(problem.spaces[pi]))
-        if key not in pairs_of:
-            local = SimpleNamespace(spaces=[problem.spaces[pi]], offsets=np.zeros(1, np.int64))
-            pairs_of[key] = _discontinuity_pairs(local, 0, discontinuity_slots(patch.spline))
-        off = int(problem.offsets[pi])
-        for a, b in pairs_of[key]:
-            uf.union(a + off, b + off)
-            stats["c0_pairs"] += 1
-    roots = np.array([uf.find(i) for i in range(n)])
-    classes, cls = np.unique(roots, return_inverse=True)
-    ncls = len(classes)
-    # class-level slave expressions (branch rows), checked for consistency
-    expr: dict = {}
-    source: dict = {}
-    for child, parents, coef, itf in branch_rows:
-        c = int(cls[child])
-        row = {}
-        for p, w in zip(cls[parents], coef):
-            row[int(p)] = row.get(int(p), 0.0) + float(w)
-        row = {k: w for k, w in row.items() if abs(w) > 1e-14}
-        if c in expr:
-            old = expr[c]
-            keys = set(old) | set(row)
-            if max(abs(old.get(k, 0.0) - row.get(k, 0.0)) for k in keys) > 1e-10:
-                first = source[c]
-                raise ProblemError(
-                    f"inconsistent constraints: DOF {child} is constrained by branch faces patch {first.a[0]} "
-                    f"{first.a[1]} -> patch {first.b[0]} {first.b[1]} and patch {itf.a[0]} {itf.a[1]} -> patch "
-                    f"{itf.b[0]} {itf.b[1]} with different values; check these faces and their refinement"
-                )
-        else:
-            expr[c] = row
-            source[c] = itf
-    slaves = np.array(sorted(expr), dtype=np.int64)
+def prolongation(model, spaces, offsets) -> Constraints:
+    """The sparse prolongation P (ndof x nred) of all interface constraints, with its statistics.
+
+    ``spaces``: each patch's :class:`iga.space.TensorSpace`; ``offsets`` (patches + 1,) the first global
+    DOF of each patch.  Identity and C0 equalities become classes, branch rows make slave classes, slaves
+    are substituted down to masters, and each DOF reads its class's expression.
+    """
+    offsets = np.asarray(offsets, np.int64)
+    n = int(offsets[-1])
+    ia, ib = identity_pairs(model, spaces, offsets)
+    ca, cb = c0_pairs(model, spaces, offsets)
+    ncls, cls = equivalence_classes(n, np.r_[ia, ca], np.r_[ib, cb])
+    rows = branch_rows(model, spaces, offsets)
+    C, slaves = class_expressions(model, ncls, cls, rows)
+    Q = substitute_slaves(C, slaves)
     is_slave = np.zeros(ncls, bool)
     is_slave[slaves] = True
-    rows, cols, vals = [], [], []
-    for c in range(ncls):
-        if is_slave[c]:
-            for k, w in expr[c].items():
-                rows.append(c); cols.append(k); vals.append(w)
-        else:
-            rows.append(c); cols.append(c); vals.append(1.0)
-    C = sp.csr_matrix((vals, (rows, cols)), shape=(ncls, ncls))
-    Q = C
-    for _ in range(200):  # substitute slaves of slaves (one round per hierarchy level)
-        if not len(slaves) or Q[:, slaves].nnz == 0:
-            break
-        Q = (C @ Q).tocsr()
-        Q.data[np.abs(Q.data) < 1e-15] = 0.0
-        Q.eliminate_zeros()
-    else:
-        raise ProblemError("branch constraints form a cycle (a face is its own ancestor); check the interfaces")
-    masters = np.nonzero(~is_slave)[0]
-    Qm = Q[:, masters]
+    masters = np.flatnonzero(~is_slave)
     E = sp.csr_matrix((np.ones(n), (np.arange(n), cls)), shape=(n, ncls))
-    P = (E @ Qm).tocsr()
+    P = (E @ Q[:, masters]).tocsr()
     column = np.full(ncls, -1)
     column[masters] = np.arange(len(masters))
-    stats.update({"classes": int(ncls), "slave_classes": int(len(slaves)), "reduced": int(len(masters))})
+    stats = {"identity_pairs": int(len(ia)), "c0_pairs": int(len(ca)), "branch_rows": int(len(rows.child)),
+             "classes": int(ncls), "slave_classes": int(len(slaves)), "reduced": int(len(masters))}
     return Constraints(P, column[cls], stats)
 
 

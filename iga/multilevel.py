@@ -21,7 +21,6 @@ spline spaces know (DESIGN: ``iga -> solvers``):
 
 from __future__ import annotations
 
-from types import SimpleNamespace
 
 import numpy as np
 import scipy.sparse as sp
@@ -137,19 +136,16 @@ def _levels(problem) -> list:
     return out
 
 
-def _reduced(problem_like, dirichlet_faces):
+def _reduced(model, spaces, offsets, dirichlet_faces):
     """(P (ndof x nred), dof_master, free reduced unknowns) of a level."""
-    if not needs_constraints(problem_like.model, problem_like.spaces):
-        n = problem_like.ndof
+    if not needs_constraints(model, spaces):
+        n = int(offsets[-1])
         P, master = sp.identity(n, format="csr"), np.arange(n)
     else:
-        c = prolongation(problem_like)
+        c = prolongation(model, spaces, offsets)
         P, master = c.P, c.dof_master
-    fixed = set()
-    for pi, face in dirichlet_faces:
-        dofs = problem_like.spaces[pi].face_dofs(face) + problem_like.offsets[pi]
-        fixed.update(np.unique(P[dofs].indices).tolist())
-    free = np.setdiff1d(np.arange(P.shape[1]), np.fromiter(fixed, np.int64, len(fixed)))
+    fixed = [np.unique(P[spaces[pi].face_dofs(face) + offsets[pi]].indices) for pi, face in dirichlet_faces]
+    free = np.setdiff1d(np.arange(P.shape[1]), np.concatenate(fixed) if fixed else [])
     return P, master, free
 
 
@@ -162,7 +158,7 @@ def prolongations(problem, dirichlet_faces, free: np.ndarray, dof_master: np.nda
     rows = _owners(np.arange(problem.ndof) if dof_master is None else dof_master)[free]
     out = []
     for coarse in levels:
-        Pc, master_c, free_c = _reduced(_problem_like(problem, coarse), dirichlet_faces)
+        Pc, master_c, free_c = _reduced(problem.model, *_level_spaces(coarse), dirichlet_faces)
         blocks, cache = [], {}
         for cf, cc in zip(fine_spaces, coarse):
             key = tuple((Uf.tobytes(), Uc.tobytes(), p) for (Uf, p), (Uc, _) in zip(cf, cc))
@@ -187,19 +183,18 @@ def _owners(master: np.ndarray) -> np.ndarray:
     return out
 
 
-def _problem_like(problem, spaces_knots):
-    """What :func:`iga.constraints.prolongation` reads of a problem, for a coarse level (equal spaces shared)."""
-    cache: dict = {}
+def _level_spaces(spaces_knots):
+    """(spaces, offsets) of a coarse level, patches with equal knots and degrees sharing one space."""
+    shared: dict = {}
 
     def space(dirs):
         key = tuple((U.tobytes(), p) for U, p in dirs)
-        if key not in cache:
-            cache[key] = TensorSpace([Space1D(U, p, p + 1) for U, p in dirs])
-        return cache[key]
+        if key not in shared:
+            shared[key] = TensorSpace([Space1D(U, p, p + 1) for U, p in dirs])
+        return shared[key]
 
     spaces = [space(dirs) for dirs in spaces_knots]
-    offsets = np.concatenate([[0], np.cumsum([s.ndof for s in spaces])]).astype(np.int64)
-    return SimpleNamespace(model=problem.model, spaces=spaces, offsets=offsets, ndof=int(offsets[-1]))
+    return spaces, np.concatenate([[0], np.cumsum([s.ndof for s in spaces])]).astype(np.int64)
 
 
 def solver_options(problem, solver: str, constraints, dd, book) -> dict:

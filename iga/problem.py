@@ -261,7 +261,7 @@ class HeatProblem:
         if world:  # each rank integrated the source over its own patches
             book["source"] = world[0].allreduce(book["source"])
         t0 = time.perf_counter()
-        constraints = prolongation(self) if self._needs_constraints() else None
+        constraints = prolongation(self.model, self.spaces, self.offsets) if self._needs_constraints() else None
         self.constraint_stats = dict(constraints.stats) if constraints is not None else {}
         self.components, self.idle_components = analyse_components(self, constraints, self._faces_by_kind(),
                                                                     book["source"])

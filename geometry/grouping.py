@@ -1,0 +1,36 @@
+"""Grouping of objects that are the same object (patches sharing one tile spline, one map).
+
+Batching keys on object identity: a paving places one tile spline many times,
+and the work done once per spline (face spaces, corners, proofs) is shared by
+its placements.  ``id(obj)`` alone is a valid key only while ``obj`` lives; an
+:class:`ObjectIndex` holds every object it has numbered, so a number is never
+reused for another object during the index's life (one call, one model).
+"""
+
+from __future__ import annotations
+
+
+class ObjectIndex:
+    """Numbers distinct objects 0, 1, 2, ... by identity, holding each one so its number stays its own.
+
+    >>> index = ObjectIndex()
+    >>> a, b = [1], [1]  # equal values, two objects
+    >>> index(a), index(b), index(a)
+    (0, 1, 0)
+    """
+
+    def __init__(self):
+        self._number: dict[int, int] = {}
+        self._held: list = []
+
+    def __call__(self, obj) -> int:
+        """The number of ``obj`` (a new one the first time it is seen)."""
+        key = id(obj)
+        number = self._number.get(key)
+        if number is None:
+            number = self._number[key] = len(self._held)
+            self._held.append(obj)  # keeps obj alive, so id(obj) cannot be reused while the index lives
+        return number
+
+    def __len__(self) -> int:
+        return len(self._held)
