@@ -12,6 +12,7 @@ import numpy as np
 from . import _fast
 from . import knots as kn
 from .errors import SplineError
+from .grouping import ObjectIndex
 
 
 def _dehomogenise(spline, H, dH):
@@ -139,6 +140,7 @@ def _outer_map(patches, xT, DT):
     {name: (P, N)}: the tile's (broadcast) and the map's; one evaluation of each
     deformation map serves all its patches.
     """
+    same = ObjectIndex()  # patches share splines and maps: group by object
     P, N = len(patches), len(xT)
     chans = {c: np.broadcast_to(xT[:, 3 + i], (P, N)) for i, c in enumerate(patches[0].spline.channels)}
     if all(p.placement is None for p in patches):
@@ -152,7 +154,7 @@ def _outer_map(patches, xT, DT):
         Dy = [np.matmul(dk[:, :3], AT) for dk in DT]
     groups: dict = {}
     for i, p in enumerate(patches):
-        groups.setdefault(id(p.outer), []).append(i)
+        groups.setdefault(same(p.outer), []).append(i)
     if len(groups) == 1 and patches[0].outer is None:
         return y, Dy, chans
     x = np.empty_like(y)

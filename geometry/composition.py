@@ -32,6 +32,7 @@ from .compose_bezier import compose_batch, inner_bezier
 from .compose_boxes import axis_aligned, restrict_batch
 from .compose_curves import compose_curve_split
 from .errors import SplineError
+from .grouping import ObjectIndex
 
 __all__ = ["compose", "compose_many", "compose_placed", "map_points", "result_degrees", "KnotLineCrossing"]
 
@@ -242,10 +243,11 @@ def compose(outer: BSpline, inner: BSpline) -> BSpline:
 def compose_placed(patches) -> list[BSpline]:
     """The composed images ``outer(A spline + b)`` of placed patches (:class:`geometry.PlacedPatch`), in batches:
     one exact composition per (spline, map) pair for all its placements; results are cached on the patches."""
+    same = ObjectIndex()  # patches share splines and maps: group by object
     groups: dict = {}
     for i, p in enumerate(patches):
         if not p.is_composed and p.outer is not None:
-            groups.setdefault((id(p.spline), id(p.outer)), []).append(i)
+            groups.setdefault((same(p.spline), same(p.outer)), []).append(i)
     for members in progress.bar(list(groups.values()), desc="composition", unit="tile patch"):
         first = patches[members[0]]
         A = np.stack([_IDENTITY[0] if patches[i].placement is None else patches[i].placement for i in members])

@@ -33,6 +33,7 @@ from .composition import compose_many, compose_placed
 from .errors import SplineError
 from .faces import FACE_AXIS, FACE_NAMES, face_knots, nested_refinement
 from .inversion import invert
+from .grouping import ObjectIndex
 
 __all__ = ["PlacedPatch", "Interface", "MultiPatch", "detect_interfaces", "free_faces", "face_points", "ORIENTATIONS"]
 
@@ -158,7 +159,8 @@ def tile_corners(patches):
     One array operation per tile spline (patches sharing a spline share its
     corners; the corner control points of a clamped spline are its corners).
     """
-    groups = _groups(patches, lambda P: id(P.spline))
+    same = ObjectIndex()  # patches share splines and maps: group by object
+    groups = _groups(patches, lambda P: same(P.spline))
     if not groups:
         return np.zeros(0, np.int64), np.zeros((0, 6, 4, 3))
     idx, out = [], []
@@ -175,11 +177,12 @@ def tile_corners(patches):
 
 def _physical_corners(patches, pidx, fc):
     """Face corners (T, 6, 4, 3) in physical space: through each patch's outer map (one evaluation per map)."""
+    same = ObjectIndex()  # patches share splines and maps: group by object
     out = fc.copy()
     by_outer: dict = {}
     for t, i in enumerate(pidx):
         if patches[int(i)].outer is not None:
-            by_outer.setdefault(id(patches[int(i)].outer), []).append(t)
+            by_outer.setdefault(same(patches[int(i)].outer), []).append(t)
     for ts in by_outer.values():
         D = patches[int(pidx[ts[0]])].outer
         dom = D.domain
@@ -220,12 +223,13 @@ def face_points(patches, keys, st, through_outer: bool = True) -> np.ndarray:
     outer map's parameter space.  One tile evaluation per (tile spline, face,
     samples), one evaluation per outer map.
     """
+    same = ObjectIndex()  # patches share splines and maps: group by object
     sts = st if isinstance(st, list) else [np.asarray(st, float)] * len(keys)
     n = len(sts[0]) if sts else 0
     y = np.empty((len(keys), n, 3))
     by_sf: dict = {}
     for j, (pi, f) in enumerate(keys):
-        by_sf.setdefault((id(patches[pi].spline), f, sts[j].tobytes()), []).append(j)
+        by_sf.setdefault((same(patches[pi].spline), f, sts[j].tobytes()), []).append(j)
     for (_, f, _), js in by_sf.items():
         s = patches[keys[js[0]][0]].spline
         k, side = FACE_AXIS[f]
@@ -243,7 +247,7 @@ def face_points(patches, keys, st, through_outer: bool = True) -> np.ndarray:
     by_outer: dict = {}
     for j, (pi, _) in enumerate(keys):
         if patches[pi].outer is not None:
-            by_outer.setdefault(id(patches[pi].outer), []).append(j)
+            by_outer.setdefault(same(patches[pi].outer), []).append(j)
     for js in by_outer.values():
         D = patches[keys[js[0]][0]].outer
         dom = D.domain
@@ -272,6 +276,7 @@ def detect_interfaces(patches, strict: bool = False):
     that fail either check are returned in ``mismatched`` (with the reason), or
     raise :class:`SplineError` when ``strict``.  Returns ``(interfaces, mismatched)``.
     """
+    same = ObjectIndex()  # patches share splines and maps: group by object
     pidx, fc = tile_corners(patches)
     if not len(pidx):
         return [], []
@@ -301,7 +306,7 @@ def detect_interfaces(patches, strict: bool = False):
     todo = []  # pairs whose images must be compared at interior points
     for a, b, o in pairs:
         swap, flip = ORIENTATIONS[o]
-        sig = (id(patches[a[0]].spline), a[1], id(patches[b[0]].spline), b[1], o)
+        sig = (same(patches[a[0]].spline), a[1], same(patches[b[0]].spline), b[1], o)
         if sig not in checked:  # face spaces depend on the tile patches only
             checked[sig] = _same_face_space(patches, a, b, swap, flip)
         if not checked[sig]:

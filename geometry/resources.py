@@ -6,23 +6,37 @@ every such entry point estimates its memory first and raises the calling
 package's error (naming the estimate and the fix) when it exceeds the budget.
 
 The budget is the memory available on this machine (``MemAvailable`` on
-Linux, the physical memory elsewhere) unless set: ``set_memory_limit(gib)``,
-the environment variable ``IGA_MAX_MEMORY_GIB``, the CLI option
-``--max-memory`` or ``max_memory_gib`` under ``[limits]`` of a pipeline.
+Linux, the physical memory elsewhere) unless set: ``with memory_budget(gib):``
+around the work (a pipeline's ``max_memory_gib`` under ``[limits]`` does
+this), ``set_memory_limit(gib)`` for the rest of the current context (the CLI
+option ``--max-memory``), or the environment variable ``IGA_MAX_MEMORY_GIB``.
+The budget is a context variable: a ``with`` block restores the caller's on
+exit, and threads or asyncio tasks started elsewhere do not see it.
 """
 
 from __future__ import annotations
 
 import os
 import sys
+from contextlib import contextmanager
+from contextvars import ContextVar
 
 from .errors import SplineError
 from .errors import show
 
-__all__ = ["available_memory", "memory_limit", "set_memory_limit", "check_memory", "peak_memory_mib", "GiB"]
+__all__ = ["usable_cores", "available_memory", "memory_limit", "memory_budget", "set_memory_limit", "check_memory", "peak_memory_mib", "GiB"]
 
 GiB = float(1 << 30)
-_LIMIT: float | None = None  # bytes; None: use the available memory
+_LIMIT: ContextVar[float | None] = ContextVar("memory_limit_bytes", default=None)  # None: available memory
+
+
+def usable_cores() -> int:
+    """CPU cores this process may run on: its affinity mask where the OS has one (``taskset``, cgroups,
+    batch schedulers), not the machine's count."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):  # no affinity on this platform
+        return max(1, os.cpu_count() or 1)
 
 
 def available_memory() -> float:
@@ -40,18 +54,33 @@ def available_memory() -> float:
         return 16 * GiB
 
 
-def set_memory_limit(gib: float | None) -> None:
-    """Set the memory budget in GiB (None: the available memory)."""
-    global _LIMIT
-    if gib is not None and not (isinstance(gib, (int, float)) and gib > 0 and gib < float("inf")):
+def _bytes(gib: float | None) -> float | None:
+    if gib is not None and not (isinstance(gib, (int, float)) and not isinstance(gib, bool) and 0 < gib < float("inf")):
         raise SplineError(f"the memory limit must be a positive number of GiB, got {show(gib)}")
-    _LIMIT = None if gib is None else float(gib) * GiB
+    return None if gib is None else float(gib) * GiB
+
+
+def set_memory_limit(gib: float | None) -> None:
+    """Set the memory budget in GiB for the rest of the current context (None: the available memory)."""
+    _LIMIT.set(_bytes(gib))
+
+
+@contextmanager
+def memory_budget(gib: float | None):
+    """The memory budget in GiB inside a ``with`` block (None: leave the current one); restored on exit."""
+    token = _LIMIT.set(_bytes(gib)) if gib is not None else None
+    try:
+        yield
+    finally:
+        if token is not None:
+            _LIMIT.reset(token)
 
 
 def memory_limit() -> float:
     """The memory budget in bytes (see the module notes)."""
-    if _LIMIT is not None:
-        return _LIMIT
+    limit = _LIMIT.get()
+    if limit is not None:
+        return limit
     env = os.environ.get("IGA_MAX_MEMORY_GIB")
     if env:
         try:

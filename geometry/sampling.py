@@ -29,6 +29,7 @@ from . import progress
 from .chain import gradient_and_det, patches_geometry_derivs
 from .faces import FACE_AXIS
 from .multipatch import PlacedPatch
+from .grouping import ObjectIndex
 
 __all__ = ["conforming_axes", "sample_model", "sampled_mesh", "weld", "sample_axes", "piece_basis", "piece_boxes",
            "HEX_CORNERS"]
@@ -162,9 +163,10 @@ def sample_model(model, samples: int = 3, knots_of=None, fields=None, spaces_key
             return model.patches[pi].spline.knots
     axes = conforming_axes(model, knots_of, samples)
     names = sorted({c for p in model.patches for c in p.channels})
+    same = ObjectIndex()  # patches share splines: group by object
     groups: dict = {}
     for pi, patch in enumerate(model.patches):
-        key = (id(patch.spline), spaces_key(pi) if spaces_key else None, tuple(a.tobytes() for a in axes[pi]))
+        key = (same(patch.spline), spaces_key(pi) if spaces_key else None, tuple(a.tobytes() for a in axes[pi]))
         groups.setdefault(key, []).append(pi)
     points, cells, rims, pdata, cdata = [], [], [], {}, {"patch": [], "tile": [], "level": []}
     offset = 0

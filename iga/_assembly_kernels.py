@@ -54,7 +54,7 @@ def _weights1(b1, e1, l1, m1, t):
     return u1 * b1[1, e1, m1, t], u1 * b1[0, e1, m1, t], u0 * b1[1, e1, m1, t], u0 * b1[0, e1, m1, t]
 
 
-@lru_cache(maxsize=None)
+@lru_cache(maxsize=64)  # one kernel per (p3, g3): a handful per process
 def stiffness3_for(p3: int, g3: int):
     """The stiffness kernel ``stiffness3`` for degree p3 and g3 Gauss points per element in direction 3.
 

@@ -23,13 +23,14 @@ stiffness with compiled kernels (numba) for large 3-D patches.
 
 from __future__ import annotations
 
-import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
 import scipy.sparse as sp
+
+from geometry.resources import usable_cores
 
 from .space import Space1D, TensorSpace
 
@@ -67,28 +68,23 @@ def _contract_first(X: np.ndarray, sp1: Space1D, a: int, b: int | None) -> np.nd
     return Y.reshape((sp1.n,) + ((2 * sp1.degree + 1,) if b is not None else ()) + rest)
 
 
-_POOL = None
-
-
 def _spmm(M: sp.csr_matrix, X: np.ndarray) -> np.ndarray:
     """M @ X for a dense X, with the output rows split over the CPU cores when large.
 
     SciPy's sparse kernels release the GIL, so threads scale; splitting rows
     needs no copy of X.
     """
-    global _POOL
-    workers = os.cpu_count() or 1
+    workers = usable_cores()
     if workers == 1 or X.size < (1 << 20) or M.shape[0] < 2 * workers:
         return np.asarray(M @ X)
-    if _POOL is None:
-        _POOL = ThreadPoolExecutor(workers)
     cuts = np.linspace(0, M.shape[0], workers + 1).astype(int)
     Y = np.empty((M.shape[0], X.shape[1]))
 
     def part(k):
         Y[cuts[k] : cuts[k + 1]] = M[cuts[k] : cuts[k + 1]] @ X
 
-    list(_POOL.map(part, range(workers)))
+    with ThreadPoolExecutor(workers) as pool:  # per call: starting threads is tiny next to 1M-entry products
+        list(pool.map(part, range(workers)))
     return Y
 
 

@@ -27,6 +27,7 @@ from scipy.sparse.csgraph import connected_components
 from geometry.errors import show
 
 from .errors import SingularProblemError
+from geometry.grouping import ObjectIndex
 
 __all__ = ["Component", "IdleComponentWarning", "model_components", "check_components", "analyse_components"]
 
@@ -78,13 +79,14 @@ def dof_labels(problem, P: sp.spmatrix | None) -> tuple[int, np.ndarray]:
     unknown one of its DOFs depends on (the pattern of ``P``).  Its size is
     that of ``P``, not of the stiffness matrix.
     """
+    same = ObjectIndex()  # patches share splines and maps: group by object
     piece, count = [], 0
     known: dict = {}  # patches share space objects: one labelling per distinct space, for this call only
     for s in problem.spaces:
-        if id(s) not in known:
+        if same(s) not in known:
             lab = _piece_of_dofs(s)
-            known[id(s)] = (lab, int(lab.max()) + 1)
-        lab, n = known[id(s)]
+            known[same(s)] = (lab, int(lab.max()) + 1)
+        lab, n = known[same(s)]
         piece.append(lab + count)
         count += n
     piece = np.concatenate(piece)
@@ -106,6 +108,7 @@ def model_components(problem, P, faces_by_kind: dict) -> list[Component]:
     discontinuities); ``faces_by_kind``: {kind: {(patch, face): condition}} as
     the problem books them.
     """
+    same = ObjectIndex()  # patches share splines and maps: group by object
     count, labels = dof_labels(problem, P)
     offsets = problem.offsets
     patch_of = np.repeat(np.arange(len(offsets) - 1), np.diff(offsets))
@@ -123,7 +126,7 @@ def model_components(problem, P, faces_by_kind: dict) -> list[Component]:
         for key, fd in zip(keys, problem.faces(keys)):
             for c in np.unique(labels[fd.dofs]):
                 comps[int(c)].conditions.setdefault(kind, set()).add(faces[key].tag)
-                touching[int(c)][id(faces[key])] = faces[key]
+                touching[int(c)][same(faces[key])] = faces[key]
     for comp, conds in zip(comps, touching):
         comp.conditions = {k: sorted(v) for k, v in sorted(comp.conditions.items())}
         only = list(conds.values())

@@ -19,6 +19,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from .forms import boundary_load, boundary_load_columns, boundary_mass
+from geometry.grouping import ObjectIndex
 
 __all__ = ["DirichletData", "project_dirichlet"]
 
@@ -64,6 +65,7 @@ def project_dirichlet(faces, dirichlet: dict, ndof: int, constraints=None) -> Di
     face): (value field, where)} with a :class:`iga.coefficients.ScalarField`
     per face; ``constraints``: the :class:`iga.constraints.Constraints` or None.
     """
+    same = ObjectIndex()  # patches share splines and maps: group by object
     empty = np.zeros(0, np.int64)
     if not dirichlet:
         return DirichletData(empty, np.zeros(0), None, [], empty, np.zeros(0))
@@ -71,7 +73,7 @@ def project_dirichlet(faces, dirichlet: dict, ndof: int, constraints=None) -> Di
     fds = faces(keys)
     by_cond: dict = {}
     for j, key in enumerate(keys):
-        by_cond.setdefault(id(dirichlet[key][0]), []).append(j)
+        by_cond.setdefault(same(dirichlet[key][0]), []).append(j)
     gs = [None] * len(keys)
     for idx in by_cond.values():
         field_, where = dirichlet[keys[idx[0]]]

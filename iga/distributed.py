@@ -23,6 +23,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
+from geometry.resources import usable_cores
 from solvers import SolveInfo
 from solvers.petsc_ksp import ksp_solve, petsc
 
@@ -50,17 +51,11 @@ def world():
     return comm, comm.Get_rank(), comm.Get_size()
 
 
-_SHARED = []
-
-
 def _share_cores(comm) -> None:
     """Give each rank its share of the node's cores for the compiled (numba) kernels: ranks x threads
-    above the core count made the assembly 20x slower (threads of different ranks wait on each other)."""
-    if _SHARED:
-        return
-    _SHARED.append(True)
+    above the core count made the assembly 20x slower (threads of different ranks wait on each other).
+    Idempotent (the thread count is the process's), so every call of :func:`world` may run it."""
     import importlib.util
-    import os
 
     if importlib.util.find_spec("numba") is None:
         return
@@ -68,7 +63,7 @@ def _share_cores(comm) -> None:
     from mpi4py import MPI
 
     local = comm.Split_type(MPI.COMM_TYPE_SHARED).Get_size()
-    numba.set_num_threads(max(1, min(numba.config.NUMBA_NUM_THREADS, (os.cpu_count() or 1) // local)))
+    numba.set_num_threads(max(1, min(numba.config.NUMBA_NUM_THREADS, usable_cores() // local)))
 
 
 def is_root() -> bool:

@@ -20,6 +20,7 @@ from geometry.multipatch import PlacedPatch
 from .errors import ProblemError
 from geometry.chain import patches_geometry_derivs
 from geometry.errors import show
+from geometry.grouping import ObjectIndex
 
 __all__ = ["FaceData", "FaceQuadrature", "cross"]
 
@@ -76,6 +77,7 @@ class FaceQuadrature:
         self.cache: dict = {}
 
     def __call__(self, keys) -> list[FaceData]:
+        same = ObjectIndex()  # patches share splines and maps: group by object
         groups: dict = {}
         n = len(self.model.patches)
         for pi, face in keys:
@@ -85,7 +87,7 @@ class FaceQuadrature:
                 raise ProblemError(f"patch index {pi} out of range (the model has {n} patches)")
             if face not in FACE_AXIS and parse_slot_face(face) is None:
                 raise ProblemError(f"unknown face {show(face)}; use umin .. wmax or a slot face id such as 'u=0.5-'")
-            gk = (id(self.model.patches[pi].spline), self.spaces[pi].key(), face)
+            gk = (same(self.model.patches[pi].spline), self.spaces[pi].key(), face)
             groups.setdefault(gk, []).append(pi)
         for (_, _, face), members in groups.items():
             space = self.spaces[members[0]]

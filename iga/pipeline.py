@@ -127,22 +127,18 @@ def run_pipeline(config: dict, base_dir: str | Path = ".", progress: bool | None
     setting of :mod:`geometry.progress`, off unless an application turned it on).
     """
     cfg = validate(config, base_dir)
-    saved_limit = resources._LIMIT
-    if cfg["limits"]["max_memory_gib"] is not None:
-        resources.set_memory_limit(cfg["limits"]["max_memory_gib"])
     out = cfg["output"]["path"]
     created = False
     root = distributed.is_root()  # under mpiexec rank 0 alone prints and writes
     try:
-        with display.enabled((display.active() if progress is None else progress) and root):
+        with (resources.memory_budget(cfg["limits"]["max_memory_gib"]),
+              display.enabled((display.active() if progress is None else progress) and root)):
             created = _output_folder(out) if root else False
             return _run(cfg, out, root)
     except BaseException:
         if created and out.is_dir() and not any(out.iterdir()):
             out.rmdir()  # a failed run leaves no empty folder behind
         raise
-    finally:
-        resources._LIMIT = saved_limit
 
 
 def _run(cfg: dict, out: Path, root: bool = True) -> dict:

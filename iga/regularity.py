@@ -27,6 +27,7 @@ import numpy as np
 from geometry import check_regular
 
 from .errors import ProblemError
+from geometry.grouping import ObjectIndex
 
 __all__ = ["prove_regular"]
 
@@ -51,14 +52,15 @@ def _boxes(result) -> str:
 
 def prove_regular(model) -> dict:
     """Prove every trivariate patch of ``model`` fold-free (see the module notes); returns counts."""
+    same = ObjectIndex()  # patches share splines and maps: group by object
     stats = {"tiles_proven": 0, "maps_proven": 0, "boxes_proven": 0, "undecided": []}
     tiles: dict = {}
     maps: dict = {}
     for pi, patch in enumerate(model.patches):
         T = patch.spline
-        if id(T) not in tiles:
+        if same(T) not in tiles:
             r = _proof(T)
-            tiles[id(T)] = r
+            tiles[same(T)] = r
             stats["tiles_proven"] += 1
             _judge(r, stats, f"patch {pi}", "is folded or degenerate", "its own parameters",
                    "fix its control net (geometry.check_regular locates it)")
@@ -73,10 +75,10 @@ def prove_regular(model) -> dict:
         D = patch.outer
         if D is None:
             continue
-        if id(D) not in maps:
-            maps[id(D)] = _proof(D)
+        if same(D) not in maps:
+            maps[same(D)] = _proof(D)
             stats["maps_proven"] += 1
-        if maps[id(D)].status == "regular":
+        if maps[same(D)].status == "regular":
             continue
         M = np.eye(3, 4) if patch.placement is None else patch.placement
         pts = T.points.reshape(-1, 3) @ M[:, :3].T + M[:, 3]

@@ -13,6 +13,7 @@ from geometry.chain import gradient_and_det, patch_geometry_points, patches_geom
 from geometry.sampling import sample_axes
 from .locate import Locator
 from .model import tag_faces
+from geometry.grouping import ObjectIndex
 
 
 class Solution:
@@ -159,10 +160,11 @@ class Solution:
         ``fn(x (N, 3), T (N,), grad (N, 3)) -> (N,)``; patches sharing a tile
         spline and a space are evaluated together.
         """
+        same = ObjectIndex()  # patches share splines and maps: group by object
         prob = self.problem
         groups: dict = {}
         for i, s in enumerate(prob.spaces):
-            groups.setdefault((s.key(), id(prob.model.patches[i].spline)), []).append(i)
+            groups.setdefault((s.key(), same(prob.model.patches[i].spline)), []).append(i)
         total = 0.0
         for members in groups.values():
             space = prob.spaces[members[0]]

@@ -25,6 +25,7 @@ from geometry.faces import FACE_AXIS
 
 from .errors import ProblemError
 from .quadrature import element_rule
+from geometry.grouping import ObjectIndex
 
 
 
@@ -194,11 +195,12 @@ def estimate(model, quadrature_extra=0, degree_elevation=0, refine=0, degree=Non
     tables of every distinct space.  ``bases``: per patch (knots, degrees) of the solution basis (default:
     each patch geometry's).
     """
+    same = ObjectIndex()  # patches share splines and maps: group by object
     sizes: dict = {}
     dofs, nbytes = 0, 0.0
     for i, p in enumerate(model.patches):
         knots, degrees = (p.spline.knots, p.spline.degrees) if bases is None else bases[i]
-        key = id(p.spline) if bases is None else (tuple(U.tobytes() for U in knots), degrees)
+        key = same(p.spline) if bases is None else (tuple(U.tobytes() for U in knots), degrees)
         if key not in sizes:
             n, _, tables = space_size(knots, degrees, quadrature_extra, degree_elevation, refine, degree)
             q = [pd + (degree_elevation[k] if isinstance(degree_elevation, tuple) else degree_elevation)

@@ -27,6 +27,7 @@ from geometry import progress
 from geometry.chain import patches_geometry_derivs_slabs
 
 from .geometry_eval import checked_det
+from geometry.grouping import ObjectIndex
 
 __all__ = ["VolumeAssembler"]
 
@@ -43,11 +44,12 @@ class VolumeAssembler:
     """Stiffness (CSR) and source load of all patches of a model on their spaces."""
 
     def __init__(self, model, spaces, offsets):
+        same = ObjectIndex()  # patches share splines and maps: group by object
         self.model, self.spaces, self.offsets = model, spaces, offsets
         self.ndof = int(offsets[-1])
         self.groups: dict = {}
         for i, s in enumerate(spaces):
-            self.groups.setdefault((s.key(), id(model.patches[i].spline)), []).append(i)
+            self.groups.setdefault((s.key(), same(model.patches[i].spline)), []).append(i)
 
     @property
     def compiled(self) -> bool:

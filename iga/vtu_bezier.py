@@ -29,10 +29,12 @@ from geometry import bernstein as bz, compose_many
 from geometry.products import common_refinement
 
 from .errors import ProblemError
+from geometry.grouping import ObjectIndex
 
 
 def _exact_geometries(model) -> list:
     """Every patch's exact geometry as one BSpline: ``D(A T + b)``, composed in batches per tile patch."""
+    same = ObjectIndex()  # patches share splines and maps: group by object
     out = [None] * len(model.patches)
     groups: dict = {}
     for i, patch in enumerate(model.patches):
@@ -40,7 +42,7 @@ def _exact_geometries(model) -> list:
             s = patch.spline
             out[i] = s if patch.placement is None else s.affine(patch.placement[:, :3], patch.placement[:, 3])
         else:
-            groups.setdefault((id(patch.spline), id(patch.outer)), []).append(i)
+            groups.setdefault((same(patch.spline), same(patch.outer)), []).append(i)
     for members in groups.values():
         first = model.patches[members[0]]
         placements = np.stack([model.patches[i].placement if model.patches[i].placement is not None

@@ -37,6 +37,13 @@ import scipy.sparse.linalg as spla
 from .errors import SolverError
 
 
+class _Scaled(sp.csr_matrix):
+    """The Jacobi-scaled matrix S A S that the hierarchy is built on, with its spectral radius ``rho``:
+    pyamg's convention is to read (and cache) ``rho`` on the matrix it is given."""
+
+    rho: float
+
+
 def spectral_radius(A, steps: int = 15) -> float:
     """Largest eigenvalue of a symmetric positive semi-definite ``A`` from ``steps`` Lanczos steps.
 
@@ -90,12 +97,13 @@ class AMGPreconditioner:
             raise SolverError(f"AMG needs a positive diagonal, but diagonal entry {i} is {d[i]:g}: "
                               "the matrix is not positive definite")
         self.s = 1.0 / np.sqrt(d)
-        if not overwrite:
-            A = sp.csr_matrix((A.data.copy(), A.indices, A.indptr), shape=A.shape)
+        # our own matrix object (a copy, or with overwrite a view of the caller's arrays), so the spectral
+        # radius pyamg caches on it is not left on the caller's matrix
+        A = _Scaled((A.data if overwrite else A.data.copy(), A.indices, A.indptr), shape=A.shape)
         scale_rows(A, self.s, copy=False)
         scale_columns(A, self.s, copy=False)
+        A.rho = spectral_radius(A)
         self.scaled = A
-        A.rho = spectral_radius(A)  # pyamg reads the cached attribute instead of estimating again
         smoother = ("chebyshev", {"degree": degree})
         self.ml = pyamg.smoothed_aggregation_solver(
             A, B=(1.0 / self.s)[:, None], symmetry="symmetric", max_coarse=max_coarse, strength=None,

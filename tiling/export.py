@@ -34,6 +34,7 @@ from .errors import TilingError
 if TYPE_CHECKING:  # annotations only: the Microstructure's own surface() calls into this module
     from .microstructure import Microstructure
 from geometry.errors import show
+from geometry.grouping import ObjectIndex
 
 __all__ = ["surface", "watertightness", "mesh_watertightness", "write_surfaces", "write_mesh", "render_png",
            "boundary_splines", "continuous_pieces", "slot_surfaces", "write_iges",
@@ -280,13 +281,14 @@ def boundary_splines(ms: Microstructure) -> list:
     the map as surfaces (exact, and cheaper than composing whole trivariates),
     in one batch per tile patch, face and map.
     """
+    same = ObjectIndex()  # patches share splines and maps: group by object
     jobs: dict = {}  # (tile spline, map, face key) -> [patch indices]; face key: a face name or (slot id, rect)
     for i, f in ms.tags.get("boundary", []):
         if f in FACE_NAMES:
-            jobs.setdefault((id(ms.patches[i].spline), id(ms.patches[i].outer), f), []).append(i)
+            jobs.setdefault((same(ms.patches[i].spline), same(ms.patches[i].outer), f), []).append(i)
     for (i, fid), rects in getattr(ms, "face_regions", {}).items():
         for rect in rects:
-            jobs.setdefault((id(ms.patches[i].spline), id(ms.patches[i].outer), (fid, tuple(map(tuple, rect)))),
+            jobs.setdefault((same(ms.patches[i].spline), same(ms.patches[i].outer), (fid, tuple(map(tuple, rect)))),
                             []).append(i)
     out = []
     for (_, _, key), members in jobs.items():

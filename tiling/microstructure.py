@@ -36,6 +36,7 @@ from geometry.multipatch import Interface, MultiPatch, PlacedPatch, detect_inter
 from . import export
 from .errors import TilingError
 from geometry.errors import show
+from geometry.grouping import ObjectIndex
 
 __all__ = ["Microstructure", "PlacedPatch", "Interface", "branch_refinement"]
 
@@ -173,11 +174,12 @@ def _tags(outer, placed, interfaces, root_faces, leaf_faces=()) -> dict:
 
 
 def _slot_faces(placed) -> dict:
+    same = ObjectIndex()  # patches share splines and maps: group by object
     cache, out = {}, {}
     for i, P in enumerate(placed):
         if P.spline.dim != 3:
             continue
-        key = id(P.spline)
+        key = same(P.spline)
         if key not in cache:
             cache[key] = discontinuity_slots(P.spline)
         for fid, rects in cache[key].items():

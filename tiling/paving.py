@@ -22,6 +22,7 @@ from .seal import seal_layout, sealed_variant
 from .tile import Tile
 from geometry.faces import FACE_NAMES
 from geometry.errors import show
+from geometry.grouping import ObjectIndex
 
 
 #: default thickness of seal plates (a fraction of the cell); a different one without ``seal`` is refused
@@ -74,9 +75,10 @@ def _affine(M: np.ndarray) -> np.ndarray:
 
 def _check_spans(D: BSpline, placed: list) -> None:
     """Every placed patch must lie inside one knot span of D (exact composition per Bezier piece)."""
+    same = ObjectIndex()
     groups: dict = {}
     for i, P in enumerate(placed):
-        groups.setdefault(id(P.spline), []).append(i)
+        groups.setdefault(same(P.spline), []).append(i)
     dom = D.domain
     tol = 1e-9 * (dom[:, 1] - dom[:, 0])
     inner = [D.breakpoints(k)[1:-1] for k in range(3)]
@@ -131,7 +133,7 @@ def regular(D: BSpline, tile: Tile, counts, variants: dict | None = None, name: 
     ms = Microstructure.build(D, placed, tiles, links, name=name)
     ms.caps = caps
     if seal is not None:
-        _tag_seal(ms, seal, {(id(t), i) for t in sealed.values() for i in t.seal_patches})
+        _tag_seal(ms, seal, [(t, i) for t in sealed.values() for i in t.seal_patches])
     return ms
 
 
@@ -196,9 +198,11 @@ def variant_for(tile: Tile, sides, thickness: float, seal: str) -> Tile:
 
 
 def _tag_seal(ms: Microstructure, seal: str, plates: set) -> None:
-    """Tag ``seal`` ('cap' / 'shell'): the free faces of the plates, given as (id(tile), patch in tile)."""
+    """Tag ``seal`` ('cap' / 'shell'): the free faces of the plates, given as [(tile, patch in tile)]."""
+    same = ObjectIndex()
+    wanted = {(same(t), q) for t, q in plates}
     ms.tags[seal] = [(p, f) for p, f in ms.tags["boundary"]
-                     if (id(ms.tiles[ms.patches[p].tile]), ms.patches[p].patch_in_tile) in plates]
+                     if (same(ms.tiles[ms.patches[p].tile]), ms.patches[p].patch_in_tile) in wanted]
 
 
 def _seal_sides(seal, seal_sides, thickness) -> set:
@@ -324,5 +328,5 @@ def hierarchical(D: BSpline, tile: Tile, counts, levels: int, scale: float | Non
     _check_spans(D, placed)
     ms = Microstructure.build(D, placed, tiles, links, name=name, root_faces=roots, leaf_faces=sorted(set(leaves)))
     if layouts:
-        _tag_seal(ms, seal, {(id(t), q) for _, t in layouts.values() for q in range(len(t.patches))})
+        _tag_seal(ms, seal, [(t, q) for _, t in layouts.values() for q in range(len(t.patches))])
     return ms

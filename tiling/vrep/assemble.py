@@ -35,6 +35,7 @@ from .classify import Classification, classify
 from .model import VModel
 from .tubes import is_regular
 from .union import boundary_faces, bridge_union, shared_faces, union_anchors
+from geometry.grouping import ObjectIndex
 
 __all__ = ["VResult", "vrep_microstructure"]
 
@@ -140,8 +141,9 @@ def vrep_microstructure(model: VModel, samples: int = 4, margin: float = 0.0, na
         counts["eliminated (folded)"] = len(folded)
         report.update(counts)
         report["bridges"] = report["surface bridges"] = len(kept)
-        alive = {id(b) for b in kept}
-        made = [(n, b) for n, b in made if id(b) in alive]
+        same = ObjectIndex()
+        alive = {same(b) for b in kept}
+        made = [(n, b) for n, b in made if same(b) in alive]
         timings["bridges"] = time.perf_counter() - t0
     bridge_first = len(placed)
     bridge_tile = None

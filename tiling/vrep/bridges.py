@@ -40,6 +40,7 @@ from geometry.faces import FACE_AXIS, FACE_NAMES
 from geometry.inversion import invert
 
 from ..errors import TilingError
+from geometry.grouping import ObjectIndex
 
 __all__ = ["Bridge", "build_bridges", "resolve_collisions", "axis_samples"]
 
@@ -101,9 +102,10 @@ def _far_section(b: Bridge) -> np.ndarray:
 def _snap(bridges: list) -> None:
     """Move the far sections' control points onto their trimming surfaces (through each bridge's map), in one
     batch of inversions per trimming primitive and map, and rebuild the control nets."""
+    same = ObjectIndex()  # bridges share trimming primitives and maps: group by object
     groups: dict = {}
     for b in bridges:
-        groups.setdefault((id(b.target[0]) if b.target else None, id(b.D)), []).append(b)
+        groups.setdefault((same(b.target[0]) if b.target else None, same(b.D)), []).append(b)
     for members in groups.values():
         lasts = [_far_section(b) for b in members]
         b0 = members[0]

@@ -39,6 +39,7 @@ from geometry.spline import SplineFunction
 from geometry.faces import FACE_AXIS
 from geometry.multipatch import ORIENTATIONS, PlacedPatch
 from geometry.regularity import check_regular
+from geometry.cache import BoundedCache
 
 from ..errors import TilingError
 
@@ -170,7 +171,7 @@ def _jac_normal(S: BSpline) -> np.ndarray:
     return np.cross(c[1] - c[0] + c[3] - c[2], c[2] - c[0] + c[3] - c[1])
 
 
-_ELEVATIONS: dict = {}  # (knots, degree, times) -> (new knots, matrix): faces of one tile repeat them
+_ELEVATIONS = BoundedCache(256)  # (knots, degree, times) -> (new knots, matrix): faces of one tile repeat them
 
 
 def _elevated(S: BSpline, degrees) -> BSpline:
@@ -181,9 +182,7 @@ def _elevated(S: BSpline, degrees) -> BSpline:
         if t <= 0:
             continue
         key = (np.asarray(knots[d]).tobytes(), S.degrees[d], t)
-        if key not in _ELEVATIONS:
-            _ELEVATIONS[key] = kn.elevation_matrix(knots[d], S.degrees[d], t)
-        knots[d], E = _ELEVATIONS[key]
+        knots[d], E = _ELEVATIONS.get(key, lambda U=knots[d], p=S.degrees[d], t=t: kn.elevation_matrix(U, p, t))
         cp = kn.apply_along(cp, d, E)
     return BSpline(tuple(degrees), knots, cp, channels=S.channels)
 
@@ -290,13 +289,11 @@ class Tube:
 
 def _bernstein(n: int, r: np.ndarray) -> np.ndarray:
     """(len(r), n + 1) Bernstein basis of degree n at r (the default 24 samples cached per degree)."""
-    key = (n, r.tobytes())
-    if key not in _BERNSTEIN:
-        _BERNSTEIN[key] = np.stack([comb(n, i) * r**i * (1 - r) ** (n - i) for i in range(n + 1)], 1)
-    return _BERNSTEIN[key]
+    return _BERNSTEIN.get((n, r.tobytes()), lambda: np.stack([comb(n, i) * r**i * (1 - r) ** (n - i)
+                                                               for i in range(n + 1)], 1))
 
 
-_BERNSTEIN: dict = {}
+_BERNSTEIN = BoundedCache(64)
 
 
 def hermite_tube(a: Face, b: Face, beta: float = 0.5, phi: float = 0.0) -> Tube:
@@ -340,18 +337,18 @@ def is_regular(G) -> bool:
     return bool(a.min() > 0.1 * a.max()) or check_regular(G).status != "singular"
 
 
-_CARRIERS: dict = {}
+_CARRIERS = BoundedCache(64)
 
 
 def carrier(space: list) -> BSpline:
     """The identity of [0, 1]^3 in the analysis space ``space`` [(U normalised, p)] * 3 (control points at the
     Greville abscissae: exact for degree >= 1); one object per space, so patches share it."""
-    key = tuple((np.asarray(U, float).tobytes(), int(p)) for U, p in space)
-    if key not in _CARRIERS:
+    def make():
         g = [kn.greville(np.asarray(U, float), p) for U, p in space]
         net = np.stack(np.meshgrid(*g, indexing="ij"), axis=-1)
-        _CARRIERS[key] = BSpline(tuple(p for _, p in space), [np.asarray(U, float) for U, _ in space], net)
-    return _CARRIERS[key]
+        return BSpline(tuple(p for _, p in space), [np.asarray(U, float) for U, _ in space], net)
+
+    return _CARRIERS.get(tuple((np.asarray(U, float).tobytes(), int(p)) for U, p in space), make)
 
 
 def uniform_space(p: int, n: int):

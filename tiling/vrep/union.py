@@ -29,6 +29,7 @@ from ..errors import TilingError
 from .matching import unbalanced_match
 from .fork import bifurcation_base
 from .tubes import bridge_patch, carrier, face_of, face_space, hermite_tube, is_regular as _regular, uniform_space
+from geometry.grouping import ObjectIndex
 
 __all__ = ["UnionBridges", "union_anchors", "boundary_faces", "shared_faces", "bridge_union"]
 
@@ -51,16 +52,18 @@ def _centres_and_directions(placed, keys):
     mid = face_points(placed, keys, np.array([[0.5, 0.5]]), through_outer=False)[:, 0]
     cen = mid.copy()  # the placed centre is the physical one where there is no map
     out = np.zeros((len(keys), 3))
+    same = ObjectIndex()  # patches share splines and maps: group by object
     normals: dict = {}  # per (tile spline, face): patches of one tile share it
     by_outer: dict = {}
     for j, (pi, f) in enumerate(keys):
         P = placed[pi]
-        if (id(P.spline), f) not in normals:
-            normals[(id(P.spline), f)] = _tile_normal(P.spline, f)
-        v = normals[(id(P.spline), f)]
+        key = (same(P.spline), f)
+        if key not in normals:
+            normals[key] = _tile_normal(P.spline, f)
+        v = normals[key]
         out[j] = v if P.placement is None else P.placement[:, :3] @ v
         if P.outer is not None:
-            by_outer.setdefault(id(P.outer), (P.outer, []))[1].append(j)
+            by_outer.setdefault(same(P.outer), (P.outer, []))[1].append(j)
     for D, js in by_outer.values():  # one evaluation (points and Jacobians) per map
         x, J = D.value_and_jacobian(np.clip(mid[js], D.domain[:, 0], D.domain[:, 1]))
         cen[js] = x[:, :3]
@@ -285,11 +288,12 @@ def _compose(placed, keys) -> None:
     """Compose the patches of ``keys`` that are not yet, in one batch per tile patch and map."""
     from geometry.composition import compose_many
 
+    same = ObjectIndex()
     groups: dict = {}
     for pi in {k[0] for k in keys}:
         P = placed[pi]
         if not P.is_composed and P.outer is not None and P.placement is not None:
-            groups.setdefault((id(P.spline), id(P.outer)), []).append(pi)
+            groups.setdefault((same(P.spline), same(P.outer)), []).append(pi)
     for members in groups.values():
         P0 = placed[members[0]]
         for pi, C in zip(members, compose_many(P0.outer, P0.spline, np.stack([placed[i].placement for i in members]))):

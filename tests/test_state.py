@@ -1,0 +1,76 @@
+"""No module-level switches: limits and progress are scoped, caches bounded, thread counts from the affinity."""
+
+import os
+import threading
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from geometry import progress, resources
+from geometry.cache import BoundedCache
+from geometry.errors import SplineError
+from solvers.amg import AMGPreconditioner
+
+
+def test_a_memory_budget_holds_inside_its_block_only_and_not_in_other_threads():
+    seen = {}
+    with resources.memory_budget(0.5):
+        assert resources.memory_limit() == 0.5 * resources.GiB
+        t = threading.Thread(target=lambda: seen.setdefault("thread", resources.memory_limit()))
+        t.start()
+        t.join()
+        with pytest.raises(SplineError, match="needs about 1 GiB, more than the 0.5 GiB"):
+            resources.check_memory(resources.GiB, "the test")
+    assert resources.memory_limit() != 0.5 * resources.GiB  # the default again (the available memory)
+    assert seen["thread"] != 0.5 * resources.GiB  # a thread started elsewhere keeps the default
+    with pytest.raises(SplineError, match="positive number of GiB"):
+        with resources.memory_budget(True):
+            pass
+
+
+def test_a_pipeline_limit_is_gone_after_the_run(tmp_path):
+    from iga.errors import ToolkitError
+    from iga.pipeline import heat_sink_config, run_pipeline
+
+    cfg = {**heat_sink_config("vertical", levels=1, out=str(tmp_path / "out")), "limits": {"max_memory_gib": 1e-6}}
+    with pytest.raises(ToolkitError, match="more than the 1e-06 GiB"):
+        run_pipeline(cfg, tmp_path)
+    assert resources.memory_limit() > 1e-3 * resources.GiB and not (tmp_path / "out").exists()
+
+
+def test_progress_is_scoped_to_its_block():
+    assert not progress.active()
+    with progress.enabled(True):
+        assert progress.active()
+        with progress.enabled(False):
+            assert not progress.active() and progress.bar([1, 2, 3]) == [1, 2, 3]
+        assert progress.active()
+    assert not progress.active()
+
+
+def test_the_core_count_is_the_affinity_mask():
+    if not hasattr(os, "sched_getaffinity"):
+        pytest.skip("no CPU affinity on this platform")
+    assert resources.usable_cores() == len(os.sched_getaffinity(0))
+
+
+def test_a_bounded_cache_keeps_its_size():
+    cache = BoundedCache(3)
+    made = []
+    for k in [1, 2, 3, 1, 4, 5, 1]:
+        cache.get(k, lambda k=k: made.append(k) or k)
+    assert len(cache) == 3 and made == [1, 2, 3, 4, 5] and 1 in cache and 2 not in cache
+    with pytest.raises(ValueError):
+        BoundedCache(0)
+
+
+def test_amg_leaves_nothing_on_the_callers_matrix():
+    n = 400
+    A = sp.diags([-np.ones(n - 1), 2.0 * np.ones(n), -np.ones(n - 1)], [-1, 0, 1], format="csr")
+    data = A.data.copy()
+    AMGPreconditioner(A, max_coarse=10)
+    assert not hasattr(A, "rho") and np.array_equal(A.data, data)
+    M = AMGPreconditioner(A, max_coarse=10, overwrite=True)
+    assert not hasattr(A, "rho") and M.scaled.rho > 0
+    assert np.allclose(A.diagonal(), 1.0)  # overwrite: the caller's values hold S A S, as documented
