@@ -22,6 +22,7 @@ from scipy.interpolate import NdBSpline
 from . import _fast
 from . import knots as kn
 from .errors import SplineError
+from .tolerances import ON_DOMAIN, ROUNDOFF
 
 __all__ = ["SplineEvaluation"]
 
@@ -44,7 +45,7 @@ class SplineEvaluation:
                 return x
         if not np.all(np.isfinite(x)):
             raise SplineError("parameters contain non-finite values")
-        tol = 1e-12 * (dom[:, 1] - dom[:, 0]) + 1e-14
+        tol = ON_DOMAIN * (dom[:, 1] - dom[:, 0]) + ROUNDOFF
         out = np.any((x < dom[:, 0] - tol) | (x > dom[:, 1] + tol), axis=1)
         if out.any():
             bad = x[out][:3]
@@ -170,7 +171,7 @@ class SplineEvaluation:
         for k, ax in enumerate(axes):
             ax = np.asarray(ax, float)
             lo, hi = self.knots[k][0], self.knots[k][-1]
-            if ax.ndim != 1 or np.any(ax < lo - 1e-12 * (hi - lo)) or np.any(ax > hi + 1e-12 * (hi - lo)) or not np.all(np.isfinite(ax)):
+            if ax.ndim != 1 or np.any(ax < lo - ON_DOMAIN * (hi - lo)) or np.any(ax > hi + ON_DOMAIN * (hi - lo)) or not np.all(np.isfinite(ax)):
                 raise SplineError(f"grid axis {k} must be 1-D values inside [{lo}, {hi}]")
             B = kn.basis_matrix(self.knots[k], self.degrees[k], np.clip(ax, lo, hi), orders[k])
             out = kn.apply_along(out, k, B)

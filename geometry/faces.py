@@ -18,6 +18,7 @@ import scipy.sparse as sp
 
 from . import knots as kn
 from .errors import SplineError
+from .tolerances import COINCIDENT, SAME_KNOT
 
 __all__ = ["FACE_NAMES", "FACE_AXIS", "face_name", "slot_face_id", "parse_slot_face", "is_face", "face_knots",
            "discontinuity_slots", "nested_refinement"]
@@ -88,7 +89,7 @@ def discontinuity_slots(spline) -> dict:
                 x[..., rest[0]] = (b1[:-1, None] + np.diff(b1)[:, None] * t)[:, None, :, None]
                 x[..., rest[1]] = (b2[:-1, None] + np.diff(b2)[:, None] * t)[None, :, None, :]
                 sides.append(sub.evaluate(x.reshape(-1, 3))[:, :3].reshape(x.shape[:4] + (3,)))
-            free = np.linalg.norm(sides[0] - sides[1], axis=-1).max(axis=(2, 3)) > 1e-9 * size
+            free = np.linalg.norm(sides[0] - sides[1], axis=-1).max(axis=(2, 3)) > COINCIDENT * size
             if free.any():
                 rects = [((float(b1[i]), float(b1[i + 1])), (float(b2[j]), float(b2[j + 1])))
                          for i, j in zip(*np.nonzero(free))]
@@ -131,11 +132,11 @@ def nested_refinement(parent_knots, box, child_knots) -> sp.csr_matrix:
         vals_c, m_c = kn.breakpoints(mapped)
         need = []
         for v, m in zip(vals_c, m_c):
-            have = m_s[np.abs(vals_s - v) < 1e-12]
+            have = m_s[np.abs(vals_s - v) < SAME_KNOT]
             have = int(have[0]) if len(have) else 0
             need += [v] * max(0, m - have)
         for v, m in zip(vals_s, m_s):
-            if not np.any((np.abs(vals_c - v) < 1e-12) & (m_c >= m)):
+            if not np.any((np.abs(vals_c - v) < SAME_KNOT) & (m_c >= m)):
                 raise SplineError(
                     f"the child face space does not contain the parent face space: parent knot {v:g} "
                     f"(multiplicity {m}) is missing on the child (face direction {d}); the spaces are not nested"

@@ -34,10 +34,11 @@ from .errors import SplineError
 from .faces import FACE_AXIS, FACE_NAMES, face_knots, nested_refinement
 from .inversion import invert
 from .grouping import ObjectIndex
+from .tolerances import CONTACT, INTERFACE, same_space
 
 __all__ = ["PlacedPatch", "Interface", "MultiPatch", "detect_interfaces", "free_faces", "face_points", "ORIENTATIONS"]
 
-TOL = 1e-8  # relative geometric tolerance for coinciding corners and faces (of the model's size, at least 1)
+TOL = INTERFACE  # coinciding corners and faces, relative to the model's size (at least 1)
 
 _IDENTITY = np.hstack([np.eye(3), np.zeros((3, 1))])
 
@@ -191,23 +192,12 @@ def _physical_corners(patches, pidx, fc):
     return out
 
 
-def _normalised(U):
-    U = np.asarray(U, float)
-    return (U - U[0]) / (U[-1] - U[0])
-
-
 def _same_face_space(patches, a, b, swap, flip) -> bool:
     ka, kb = face_knots(patches[a[0]].spline, a[1]), face_knots(patches[b[0]].spline, b[1])
     if swap:
         kb, flip = kb[::-1], flip[::-1]
-    for d in range(2):
-        (Ua, pa), (Ub, pb) = ka[d], kb[d]
-        Ua, Ub = _normalised(Ua), _normalised(Ub)
-        if flip[d]:
-            Ub = 1 - Ub[::-1]
-        if pa != pb or len(Ua) != len(Ub) or np.abs(Ua - Ub).max() > 1e-12:
-            return False
-    return True
+    kb = [(U[0] + U[-1] - U[::-1], p) if f else (U, p) for (U, p), f in zip(kb, flip)]  # b's axes as a's
+    return same_space(ka, kb)
 
 
 # interior sample points of a face (normalised face parameters): images must coincide on conforming faces
@@ -430,7 +420,7 @@ def _refuse_nonconforming_contact(patches, interfaces) -> None:
         return
     pts = face_points(patches, free, _SAMPLES)  # (F, n, 3)
     scale = max(1.0, float(np.abs(pts).max()))
-    tol = 1e-7 * scale
+    tol = CONTACT * scale
     boxes = [P.spline.bounding_box() for P in patches]
     for j, (pi, f) in enumerate(free):
         for qi, P in enumerate(patches):

@@ -30,6 +30,7 @@ from .chain import gradient_and_det, patches_geometry_derivs
 from .faces import FACE_AXIS
 from .multipatch import PlacedPatch
 from .grouping import ObjectIndex
+from .tolerances import ON_DOMAIN, SAME_SAMPLE
 
 __all__ = ["conforming_axes", "sample_model", "sampled_mesh", "weld", "sample_axes", "piece_basis", "piece_boxes",
            "HEX_CORNERS"]
@@ -37,7 +38,7 @@ __all__ = ["conforming_axes", "sample_model", "sampled_mesh", "weld", "sample_ax
 #: VTK hexahedron corner order as (di, dj, dk) offsets
 HEX_CORNERS = np.array([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)])
 _MAX_AXIS = 20_000  # sample points per direction and patch beyond which conformity is given up
-_SAME = 1e-9  # normalised parameters closer than this are one sample (the weld's tolerance is finer)
+_SAME = SAME_SAMPLE  # normalised parameters closer than this are one sample (the weld is finer)
 
 
 def sample_axes(knots, samples: int) -> list[np.ndarray]:
@@ -95,7 +96,7 @@ def conforming_axes(model, knots_of, samples: int) -> list[list[np.ndarray]]:
                 to_a = 1 - B if flip else B
             else:
                 lo, hi = box
-                inside = A[(A >= lo - 1e-12) & (A <= hi + 1e-12)]
+                inside = A[(A >= lo - ON_DOMAIN) & (A <= hi + ON_DOMAIN)]
                 to_b = np.clip((inside - lo) / (hi - lo), 0, 1)
                 to_a = lo + B * (hi - lo)
             axes[pb][kb], cb = _unite(B, to_b)
@@ -174,7 +175,7 @@ def sample_model(model, samples: int = 3, knots_of=None, fields=None, spaces_key
         spline = model.patches[members[0]].spline
         for box in piece_boxes(spline):
             sub = spline.extract(box) if not np.array_equal(box, spline.domain) else spline
-            pax = [a[(a >= lo - 1e-13 * (hi - lo)) & (a <= hi + 1e-13 * (hi - lo))] for a, (lo, hi) in
+            pax = [a[(a >= lo - 0.1 * ON_DOMAIN * (hi - lo)) & (a <= hi + 0.1 * ON_DOMAIN * (hi - lo))] for a, (lo, hi) in
                    zip(axes[members[0]], box)]
             shape = tuple(len(a) for a in pax)
             geos = [PlacedPatch(sub, p.placement, p.outer, p.tile, p.level) for p in (model.patches[i] for i in members)]

@@ -45,11 +45,11 @@ from geometry.faces import FACE_AXIS, discontinuity_slots, nested_refinement, sl
 from geometry.grouping import ObjectIndex
 
 from .errors import ProblemError
+from geometry.tolerances import CONSISTENT, RANK, ROUNDOFF
 
-# coefficients of a branch row below this are round-off of the knot insertion (entries are O(1))
-_ZERO_WEIGHT = 1e-14
-# two branch rows of one DOF class that differ by more than this prescribe it differently
-_CONSISTENT = 1e-10
+# coefficients of a branch row below this are round-off of the knot insertion (entries are O(1));
+# two branch rows of one DOF class that differ by more than _CONSISTENT prescribe it differently
+_ZERO_WEIGHT, _CONSISTENT = ROUNDOFF, CONSISTENT
 
 
 @dataclass
@@ -338,7 +338,7 @@ def prolongation(model, spaces, offsets) -> Constraints:
     return Constraints(P, column[cls], stats)
 
 
-def induced_elimination(C: sp.spmatrix, rhs: np.ndarray, tol: float = 1e-10):
+def induced_elimination(C: sp.spmatrix, rhs: np.ndarray, tol: float = RANK):
     """Solve the linear constraints ``C x = rhs`` on free unknowns by elimination.
 
     Dirichlet DOFs that are *slaves* (child branch-in DOFs on a Dirichlet face,
@@ -354,7 +354,7 @@ def induced_elimination(C: sp.spmatrix, rhs: np.ndarray, tol: float = 1e-10):
     """
     C = sp.csr_matrix(C)
     n = C.shape[1]
-    C.data[np.abs(C.data) < 1e-14] = 0.0
+    C.data[np.abs(C.data) < ROUNDOFF] = 0.0
     C.eliminate_zeros()
     rows = np.nonzero(np.diff(C.indptr))[0]
     touched = np.unique(C.indices)
@@ -386,7 +386,7 @@ def induced_elimination(C: sp.spmatrix, rhs: np.ndarray, tol: float = 1e-10):
         gp, gr = touched[cols_b[piv]], touched[cols_b[rest]]
         x0[gp] = base
         keep[gp] = False
-        ii, jj = np.nonzero(np.abs(coup) > 1e-15)
+        ii, jj = np.nonzero(np.abs(coup) > 0.1 * ROUNDOFF)
         t_rows.append(gp[ii]); t_cols.append(gr[jj]); t_vals.append(coup[ii, jj])
     col_of = np.full(n, -1)
     col_of[keep] = np.arange(int(keep.sum()))

@@ -20,6 +20,7 @@ import scipy.sparse.linalg as spla
 
 from .forms import boundary_load, boundary_load_columns, boundary_mass
 from geometry.grouping import ObjectIndex
+from geometry.tolerances import ROUNDOFF
 
 __all__ = ["DirichletData", "project_dirichlet"]
 
@@ -87,7 +88,7 @@ def project_dirichlet(faces, dirichlet: dict, ndof: int, constraints=None) -> Di
     # DOFs whose functions have no trace on the faces (e.g. masked parts of slot faces) are not prescribed
     cand = np.unique(np.concatenate([fd.dofs for fd in fds]))
     diag = M.diagonal()[cand]
-    dofs = cand[diag > 1e-14 * max(diag.max(), 1e-300)]
+    dofs = cand[diag > ROUNDOFF * max(diag.max(), 1e-300)]
     vals = _solve_mass(M[dofs][:, dofs].tocsc(), rhs[dofs])
     slave_rows, slave_vals = empty, np.zeros(0)
     if constraints is not None:

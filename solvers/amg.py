@@ -65,7 +65,7 @@ def spectral_radius(A, steps: int = 15) -> float:
         w -= alpha * v
         alphas.append(alpha)
         beta = float(np.linalg.norm(w))
-        if beta <= 1e-12 * max(abs(alpha), 1e-300):
+        if beta <= 1e-12 * max(abs(alpha), 1e-300):  # Lanczos breakdown: an invariant subspace
             break
         betas.append(beta)
         v_prev, v = v, w / beta

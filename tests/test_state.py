@@ -74,3 +74,13 @@ def test_amg_leaves_nothing_on_the_callers_matrix():
     M = AMGPreconditioner(A, max_coarse=10, overwrite=True)
     assert not hasattr(A, "rho") and M.scaled.rho > 0
     assert np.allclose(A.diagonal(), 1.0)  # overwrite: the caller's values hold S A S, as documented
+
+
+def test_one_definition_of_the_same_space():
+    from geometry.tolerances import SAME_KNOT, same_knots, same_space
+
+    U = np.r_[0, 0, 0, 0.3, 1, 1, 1]
+    assert same_knots(U, U * 2 + 5)  # normalised: the same space on another interval
+    assert same_knots(U, U + np.r_[0, 0, 0, 0.4 * SAME_KNOT, 0, 0, 0])
+    assert not same_knots(U, U + np.r_[0, 0, 0, 3 * SAME_KNOT, 0, 0, 0]) and not same_knots(U, U[1:])
+    assert same_space([(U, 2), (U, 2)], [(U, 2), (U * 3, 2)]) and not same_space([(U, 2)], [(U, 3)])

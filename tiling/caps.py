@@ -30,11 +30,12 @@ from geometry.trimmed import inside_polyline, join_curves, loop_polyline
 from .errors import TilingError
 from .seal import SealedTile
 from .tile import Tile
+from geometry.tolerances import COINCIDENT
 
 __all__ = ["Cap", "PlacedCap", "surface_caps", "capped_variant"]
 
 EDGES = ("umin", "umax", "vmin", "vmax")  # the four boundary curves of a surface patch
-_TOL = 1e-9
+_TOL = COINCIDENT  # unit-cell tiles: plates on a plane, chained curve ends
 
 
 @dataclass

@@ -22,6 +22,7 @@ from geometry import knots as kn
 from geometry.faces import FACE_NAMES
 
 from .errors import TilingError
+from geometry.tolerances import SAME_KNOT
 
 __all__ = ["merge_pieces", "boolean_sum", "grid_values", "scalar_surface"]
 
@@ -61,7 +62,7 @@ def merge_pieces(pieces, degree) -> SplineFunction:
     knots = []
     for d in range(2):
         inner = np.unique(np.concatenate([p.knots[d][degree + 1:-degree - 1] for p in pieces]))
-        inner = inner[~np.isin(np.round(inner, 12), np.round(cuts[d], 12))]
+        inner = inner[np.abs(inner[:, None] - cuts[d][None, :]).min(axis=1) > SAME_KNOT]
         knots.append(np.sort(np.concatenate([[0.0] * (degree + 1), inner, np.repeat(cuts[d][1:-1], degree),
                                              [1.0] * (degree + 1)])))
     g = [kn.greville(U, degree) for U in knots]
@@ -70,7 +71,7 @@ def merge_pieces(pieces, degree) -> SplineFunction:
         q = p
         for d in range(2):
             lo, hi = q.knots[d][0], q.knots[d][-1]
-            want = knots[d][(knots[d] > lo + 1e-12) & (knots[d] < hi - 1e-12)]
+            want = knots[d][(knots[d] > lo + SAME_KNOT) & (knots[d] < hi - SAME_KNOT)]
             have = q.knots[d][degree + 1:-degree - 1]
             extra = _missing(want, have)
             if len(extra):

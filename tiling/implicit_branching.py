@@ -46,6 +46,7 @@ from .cell_splines import boolean_sum, grid_values, merge_pieces, scalar_surface
 from .implicit_surface import EdgeSplines, SurfaceOutputs, zero_surface
 from .paving import _check_map
 from .topo import CellComplex, topo_subdiv
+from geometry.tolerances import ON_DOMAIN
 
 __all__ = ["implicit_bifurcation", "BifurcationStructure"]
 
@@ -97,7 +98,7 @@ class BifurcationStructure(SurfaceOutputs):
         planes, table = self._cache["table"]
         x = np.asarray(params, float)
         dom = self.outer.domain
-        if np.any((x < dom[:, 0] - 1e-12) | (x > dom[:, 1] + 1e-12)) or not np.all(np.isfinite(x)):
+        if np.any((x < dom[:, 0] - ON_DOMAIN) | (x > dom[:, 1] + ON_DOMAIN)) or not np.all(np.isfinite(x)):
             raise TilingError("parameter points must lie in D's domain " + show(dom.tolist()))
         idx = tuple(np.clip(np.searchsorted(p, x[:, k], side="right") - 1, 0, len(p) - 2) for k, p in enumerate(planes))
         return table[idx]
@@ -149,7 +150,7 @@ def _sample(boxes, fields, axes) -> np.ndarray:
 
 def _window(axes, box) -> tuple:
     """Slices of the sample ``axes`` (sorted, per direction) that lie in the parameter ``box`` (3, 2), ends included."""
-    return tuple(slice(int(np.searchsorted(a, lo - 1e-12)), int(np.searchsorted(a, hi + 1e-12, side="right")))
+    return tuple(slice(int(np.searchsorted(a, lo - ON_DOMAIN)), int(np.searchsorted(a, hi + ON_DOMAIN, side="right")))
                  for a, (lo, hi) in zip(axes, box))
 
 

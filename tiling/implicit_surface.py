@@ -17,6 +17,7 @@ from geometry import knots as kn
 from .errors import TilingError
 from .export import mesh_watertightness, write_mesh
 from .implicit_render import render_png
+from geometry.tolerances import ON_DOMAIN
 
 __all__ = ["zero_surface", "snap", "EdgeSplines", "SurfaceOutputs"]
 
@@ -126,7 +127,7 @@ def snap(params, axes, f, dom, tol, iterations: int = 60, values=None, lines=Non
                 valid = (j >= 0) & (j < len(axes[k]))
                 h = g.copy()
                 h[:, k] = axes[k][np.clip(j, 0, len(axes[k]) - 1)]
-                valid &= (h[:, k] >= dom[k, 0] - 1e-12) & (h[:, k] <= dom[k, 1] + 1e-12)
+                valid &= (h[:, k] >= dom[k, 0] - ON_DOMAIN) & (h[:, k] <= dom[k, 1] + ON_DOMAIN)
                 hi = idx[near].copy()
                 hi[:, k] = np.clip(j, 0, len(axes[k]) - 1)
                 fh = at(hi, h)
@@ -143,7 +144,7 @@ def snap(params, axes, f, dom, tol, iterations: int = 60, values=None, lines=Non
     ib[i, ax] += 1
     a = np.stack([axes[k][ia[:, k]] for k in range(3)], 1)
     b = np.stack([axes[k][ib[:, k]] for k in range(3)], 1)
-    keep = np.all((a >= dom[:, 0] - 1e-12) & (b <= dom[:, 1] + 1e-12), axis=1)
+    keep = np.all((a >= dom[:, 0] - ON_DOMAIN) & (b <= dom[:, 1] + ON_DOMAIN), axis=1)
     rows, ax, a, b, ia, ib = rows[keep], ax[keep], a[keep], b[keep], ia[keep], ib[keep]
     fa, fb = at(ia, a), at(ib, b)
     ok = fa * fb < 0  # a sign change on the edge (else keep VTK's vertex)

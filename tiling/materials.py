@@ -17,6 +17,7 @@ from geometry.faces import FACE_NAMES
 
 from .errors import TilingError
 from geometry.errors import show
+from geometry.tolerances import COINCIDENT
 
 
 def interpolate_channel(spline: BSpline, name: str, fn, on: str = "parameters") -> BSpline:
@@ -74,7 +75,7 @@ def graded_channel(spline: BSpline, name: str = "k", near: float = 205.0, far: f
         n = np.linalg.svd(pts - c)[2][-1]  # plane through the face's control net
         allp = spline.points.reshape(-1, 3)
         size = np.ptp(allp, axis=0).max()
-        if np.abs((pts - c) @ n).max() > 1e-9 * size:
+        if np.abs((pts - c) @ n).max() > COINCIDENT * size:
             raise TilingError(f"face {face} is curved; mode='distance' needs a planar face, use mode='parameter'")
         dmax = np.abs((allp - c) @ n).max()
         return interpolate_channel(spline, name, lambda x: near + (far - near) * np.clip(np.abs((x - c) @ n) / dmax, 0, 1),

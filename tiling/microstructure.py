@@ -37,10 +37,11 @@ from . import export
 from .errors import TilingError
 from geometry.errors import show
 from geometry.grouping import ObjectIndex
+from geometry.tolerances import COINCIDENT
 
 __all__ = ["Microstructure", "PlacedPatch", "Interface", "branch_refinement"]
 
-TOL = 1e-9
+TOL = COINCIDENT  # tile walls on a cell face, relative to the tile's size
 
 
 class Microstructure(MultiPatch):

@@ -23,6 +23,7 @@ from .tile import Tile
 from geometry.faces import FACE_NAMES
 from geometry.errors import show
 from geometry.grouping import ObjectIndex
+from geometry.tolerances import COINCIDENT
 
 
 #: default thickness of seal plates (a fraction of the cell); a different one without ``seal`` is refused
@@ -80,7 +81,7 @@ def _check_spans(D: BSpline, placed: list) -> None:
     for i, P in enumerate(placed):
         groups.setdefault(same(P.spline), []).append(i)
     dom = D.domain
-    tol = 1e-9 * (dom[:, 1] - dom[:, 0])
+    tol = COINCIDENT * (dom[:, 1] - dom[:, 0])
     inner = [D.breakpoints(k)[1:-1] for k in range(3)]
     for members in groups.values():
         pts0 = placed[members[0]].spline.points.reshape(-1, 3)

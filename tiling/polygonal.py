@@ -24,6 +24,7 @@ from geometry.resources import check_memory
 
 from .errors import TilingError
 from .paving import _check_counts, _check_map
+from geometry.tolerances import ON_DOMAIN
 
 __all__ = ["PolygonTile", "pave_polygons", "beam_lattice"]
 
@@ -42,7 +43,7 @@ class PolygonTile:
         if P.ndim != 2 or P.shape[1] != 3 or not len(P) or not np.all(np.isfinite(P)):
             raise TilingError(f"polygon tile {show(self.name)}: points must be a finite (N, 3) array, got shape "
                               f"{np.shape(self.points)}")
-        if P.min() < -1e-12 or P.max() > 1 + 1e-12:
+        if P.min() < -ON_DOMAIN or P.max() > 1 + ON_DOMAIN:
             raise TilingError(f"polygon tile {show(self.name)}: points leave the unit cube "
                               f"({P.min(0).round(6).tolist()}..{P.max(0).round(6).tolist()})")
         if not self.polygons and not self.lines:

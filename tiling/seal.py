@@ -42,10 +42,11 @@ from geometry.faces import FACE_AXIS, FACE_NAMES
 
 from .errors import TilingError
 from .tile import Tile
+from geometry.tolerances import COINCIDENT, SAME_KNOT
 
 __all__ = ["sealed_variant", "seal_layout", "SealedTile", "SealLayout"]
 
-_TOL = 1e-9
+_TOL = COINCIDENT  # unit-cell tiles: plates on a plane
 
 
 class SealedTile(Tile):
@@ -187,7 +188,7 @@ def _box(lo, hi, spaces) -> BSpline:
 
 
 def _same_space(U, p, V, q) -> bool:
-    return p == q and len(U) == len(V) and np.allclose(U, V, atol=1e-12)
+    return p == q and len(U) == len(V) and bool(np.abs(np.asarray(U) - np.asarray(V)).max() <= SAME_KNOT)
 
 
 def seal_layout(patches, sides, thickness: float = 0.1, seal: str = "cap", name: str = "tile") -> SealLayout:

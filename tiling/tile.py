@@ -21,8 +21,9 @@ from geometry.faces import FACE_AXIS, FACE_NAMES
 
 from .errors import TilingError
 from geometry.errors import show
+from geometry.tolerances import COINCIDENT
 
-TOL = 1e-9
+TOL = COINCIDENT  # unit-cell tiles: walls on the cell faces, flat patches
 
 
 @dataclass

@@ -36,6 +36,7 @@ from .model import VModel
 from .tubes import is_regular
 from .union import boundary_faces, bridge_union, shared_faces, union_anchors
 from geometry.grouping import ObjectIndex
+from geometry.tolerances import COINCIDENT, ON_DOMAIN
 
 __all__ = ["VResult", "vrep_microstructure"]
 
@@ -206,7 +207,7 @@ def _anchor_faces(placed, offset: int, cls: Classification, anchors: dict, tile_
         net = P.spline.points @ P.placement[:, :3].T + P.placement[:, 3]  # the control net in the map's domain
         sides = {f: np.take(net, -1 if FACE_AXIS[f][1] else 0, axis=FACE_AXIS[f][0]).reshape(-1, 3)
                  for f in FACE_NAMES}
-        tol = 1e-9 * max(float(np.ptp(box, axis=1).max()), 1e-300) + 1e-12
+        tol = COINCIDENT * max(float(np.ptp(box, axis=1).max()), 1e-300) + ON_DOMAIN
         for cell_face in faces:
             k, s = FACE_AXIS[cell_face]
             out += [(offset + j, f) for f, pts in sides.items() if np.abs(pts[:, k] - box[k, s]).max() < tol]
@@ -241,7 +242,7 @@ def _side_tags(out, model, tags) -> None:
         a, b, _ = tags[prim.name]
         pidx, fc = tile_corners(out.patches[a:b])
         dom = prim.D.domain
-        tol = 1e-9 * float(np.abs(dom).max() + 1.0)
+        tol = COINCIDENT * float(np.abs(dom).max() + 1.0)
         for fi, side in enumerate(FACE_NAMES):
             k, s = FACE_AXIS[side]
             on = np.all(np.abs(fc[:, fi, :, k] - dom[k, s]) < tol, axis=-1)
@@ -254,7 +255,7 @@ def _valid(b) -> bool:
     clipped there) and its Jacobian of one sign."""
     dom = b.D.domain
     pts = b.spline.points.reshape(-1, 3)
-    tol = 1e-9 * float(np.ptp(dom, axis=1).max())
+    tol = COINCIDENT * float(np.ptp(dom, axis=1).max())
     inside = np.all(pts >= dom[:, 0] - tol) and np.all(pts <= dom[:, 1] + tol)
     return bool(inside) and is_regular(b.spline)
 

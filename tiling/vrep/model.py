@@ -26,10 +26,11 @@ from geometry.inversion import invert
 from ..errors import TilingError
 from ..paving import _check_budget
 from ..tile import Tile
+from geometry.tolerances import COINCIDENT
 
 __all__ = ["Primitive", "VModel", "VCell"]
 
-_INSIDE_TOL = 1e-9  # relative to the model size: inversion distances below this are inside
+_INSIDE_TOL = COINCIDENT  # relative to the model size: inversion distances below this are inside
 
 
 @dataclass(eq=False)

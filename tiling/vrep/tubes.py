@@ -42,11 +42,12 @@ from geometry.regularity import check_regular
 from geometry.cache import BoundedCache
 
 from ..errors import TilingError
+from geometry.tolerances import COINCIDENT
 
 __all__ = ["is_regular", "Face", "face_of", "Tube", "hermite_tube", "carrier", "orient", "orientation_for", "corner_index",
            "bridge_patch", "uniform_space", "direction_field", "face_space"]
 
-_TOL = 1e-9  # relative: knots closer than this are one knot
+_TOL = COINCIDENT  # composed knots closer than this (x span) are one knot
 
 
 @dataclass

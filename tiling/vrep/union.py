@@ -30,6 +30,7 @@ from .matching import unbalanced_match
 from .fork import bifurcation_base
 from .tubes import bridge_patch, carrier, face_of, face_space, hermite_tube, is_regular as _regular, uniform_space
 from geometry.grouping import ObjectIndex
+from geometry.tolerances import COINCIDENT, same_space
 
 __all__ = ["UnionBridges", "union_anchors", "boundary_faces", "shared_faces", "bridge_union"]
 
@@ -141,7 +142,7 @@ def boundary_faces(prim, placed, first: int, last: int) -> list:
     sub = placed[first:last]
     pidx, fc = tile_corners(sub)
     dom = prim.D.domain
-    tol = 1e-9 * float(np.abs(dom).max() + 1.0)
+    tol = COINCIDENT * float(np.abs(dom).max() + 1.0)
     out = []
     for k in range(3):
         for s in (0, 1):
@@ -265,23 +266,21 @@ def _regular_fork(inlet, outs, alpha, beta, phi):
     return None
 
 
-def _face_space(P, face) -> tuple:
-    """A patch face's analysis space (degrees, normalised knots), in either parameter order."""
-    return tuple(sorted((p, tuple(np.round(U, 12))) for U, p in face_space(P.spline, face)))
-
-
 def _same_face_spaces(placed, q_faces, p_faces, q_name, p_name) -> None:
-    """Refuse faces of other spline spaces: bridges meet both ends by identity interfaces (module notes)."""
-    spaces = {}
-    for faces, name in ((q_faces, q_name), (p_faces, p_name)):
-        for key in faces:
-            spaces.setdefault(_face_space(placed[key[0]], key[1]), (name, key))
-    if len(spaces) > 1:
-        (s1, (n1, k1)), (s2, (n2, k2)) = list(spaces.items())[:2]
-        raise TilingError(f"union of {show(q_name)} and {show(p_name)}: the faces to bridge have different spline "
-                          f"spaces ({n1!r} patch {k1[0]} {k1[1]}: degrees {[d for d, _ in s1]}; {n2!r} patch {k2[0]} "
-                          f"{k2[1]}: degrees {[d for d, _ in s2]}, knots differ or not); the bridges meet both ends by "
-                          "identity interfaces, so give the primitives tiles whose bridged faces share one space")
+    """Refuse faces of other spline spaces (:func:`geometry.tolerances.same_space`, in either parameter
+    order): bridges meet both ends by identity interfaces (module notes)."""
+    faces = [(name, key, face_space(placed[key[0]].spline, key[1]))
+             for keys, name in ((q_faces, q_name), (p_faces, p_name)) for key in keys]
+    if not faces:
+        return
+    n1, k1, s1 = faces[0]
+    for n2, k2, s2 in faces[1:]:
+        if not (same_space(s2, s1) or same_space(s2[::-1], s1)):
+            raise TilingError(f"union of {show(q_name)} and {show(p_name)}: the faces to bridge have different spline "
+                              f"spaces ({n1!r} patch {k1[0]} {k1[1]}: degrees {[d for _, d in s1]}; {n2!r} patch "
+                              f"{k2[0]} {k2[1]}: degrees {[d for _, d in s2]}, knots differ or not); the bridges meet "
+                              "both ends by identity interfaces, so give the primitives tiles whose bridged faces "
+                              "share one space")
 
 
 def _compose(placed, keys) -> None:
