@@ -32,6 +32,7 @@ import scipy.sparse as sp
 
 from geometry.resources import usable_cores
 
+from .errors import ProblemError
 from .space import Space1D, TensorSpace
 
 
@@ -304,7 +305,8 @@ def block_diagonal_csr(blocks, n_total: int, partial: bool = False) -> sp.csr_ma
     expected = 0
     for off, pat, dat in blocks:
         if off != expected and not (partial and off > expected):
-            raise AssertionError("patch DOF ranges must be contiguous")
+            raise ProblemError(f"patch DOF ranges must follow each other: a block starts at {off}, expected "
+                               f"{expected} (the offsets do not match the spaces)")
         indptr.append(np.full(off - expected, nnz, np.int64))  # the empty rows of patches left out
         indptr.append(pat.indptr[1:] + nnz)
         indices.append(pat.indices.astype(np.int64) + off)
@@ -312,7 +314,8 @@ def block_diagonal_csr(blocks, n_total: int, partial: bool = False) -> sp.csr_ma
         nnz += len(dat)
         expected = off + pat.n
     if expected != n_total and not partial:
-        raise AssertionError("patch DOF ranges do not cover the system")
+        raise ProblemError(f"patch DOF ranges end at {expected}, but the system has {n_total} unknowns (the "
+                           "offsets do not match the spaces)")
     indptr.append(np.full(n_total - expected, nnz, np.int64))
     idx = np.concatenate(indices)
     return sp.csr_matrix(

@@ -133,6 +133,7 @@ def test_bifurcation_in_the_duck_by_epsilon(duck):
         assert not np.any((lev[1:-1] < lev[:-2]) & (lev[1:-1] < lev[2:]))
         s = HeatProblem(ms, conductivity=20.0).dirichlet("wmin", 100.0).dirichlet("wmax", 20.0).solve()
         assert s.info["balance"]["relative_error"] < 1e-9
+        assert s.info["components"]["count"] == 1 and not s.info["components"]["idle"]  # one coupled piece: no interface missing
         assert s.flux("wmin") == pytest.approx(-s.flux("wmax"), rel=1e-9) and s.flux("wmin") < 0
         w = tiling.export.watertightness(ms)
         assert w["closed"] and w["components"] == 1

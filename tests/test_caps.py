@@ -115,6 +115,7 @@ def test_a_two_level_volumetric_structure_is_a_heat_model():
     assert ms.tags["umin"] and ms.tags["umax"]
     s = HeatProblem(ms, conductivity=10.0).neumann("umin", 100.0).dirichlet("umax", 20.0).solve()
     assert s.info["balance"]["relative_error"] < 1e-9
+    assert s.info["components"]["count"] == 1 and not s.info["components"]["idle"]  # one coupled piece: no interface missing
 
 
 def test_iges_export_writes_the_caps_as_trimmed_surfaces(tmp_path):

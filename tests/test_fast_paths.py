@@ -240,8 +240,12 @@ def test_amg_cg_is_robust_to_conductivity_jumps():
     prob.dirichlet("boundary", 0.0)
     amg = prob.solve(solver="amg-cg", tol=1e-10)
     direct = HeatProblem(prob.model, conductivity=k, source=1.0).dirichlet("boundary", 0.0).solve(solver="direct")
-    assert amg.info["solver"]["iterations"] <= 30  # measured 22 (2 levels at this size)
     assert np.abs(amg.u - direct.u).max() <= 1e-7 * np.abs(direct.u).max()
+    # robust: the jump of 1000 costs a small factor of the iterations without it (22 against 11 measured),
+    # where the unscaled hierarchy needed hundreds
+    plain = HeatProblem(prob.model, conductivity=1.0, source=1.0).dirichlet("boundary", 0.0).solve(solver="amg-cg",
+                                                                                                    tol=1e-10)
+    assert amg.info["solver"]["iterations"] <= 3 * plain.info["solver"]["iterations"]
 
 
 def test_amg_does_not_modify_the_matrix_unless_allowed():

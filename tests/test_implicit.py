@@ -236,8 +236,7 @@ def test_bad_input_names_the_input(duck, tmp_path):
     with pytest.raises(TilingError, match="counts"):
         random_implicit(duck, (2, 0, 2))
     with pytest.raises(TilingError, match="trivariate"):
-        random_implicit(primitives.box().extract_face("u0") if hasattr(primitives.box(), "extract_face") else 3,
-                        (1, 1, 1))
+        random_implicit(primitives.box().boundary("umin"), (1, 1, 1))  # a bivariate map: a surface, not a volume
     # more trees than the cell graph holds: the message says how many can exist
     with pytest.raises(TilingError, match=r"at most 1 can exist\); 1 found; use connectivity=1"):
         random_implicit(duck, (2, 2, 2), connectivity=2)

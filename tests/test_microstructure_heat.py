@@ -55,6 +55,8 @@ def test_hierarchical_energy_balance_neumann_root_robin_elsewhere():
     s = (HeatProblem(ms, conductivity=205.0, refine=1).neumann("branch-in", 1515.8)
          .robin("cooling", 5.0, 30.0).solve())
     assert s.info["balance"]["relative_error"] < 1e-8
+    # one piece per root cell: the fractal tile keeps off its cell's sides, so the two trees do not touch
+    assert s.info["components"]["count"] == 2 and not s.info["components"]["idle"]
     # independent: q times the area of the root faces, integrated on the composed splines
     area = sum(surface_area(ms.patches[i].composed.boundary(f)) for i, f in ms.tags["branch-in"])
     assert s.flux("branch-in") == pytest.approx(-1515.8 * area, rel=1e-10)
@@ -105,6 +107,9 @@ def test_energy_balance_with_dirichlet_on_slave_dofs():
     s = HeatProblem(ms, conductivity=3.0, source=2.0).dirichlet("branch-in", 10.0).dirichlet("rest", 0.0).solve()
     assert s.info["constraints"]["induced_rank"] > 0
     assert s.info["balance"]["relative_error"] < 1e-8
+    # the skinned tile's six arms meet only on a line of its base (the slots open from zero width), so each
+    # arm with its child is a piece of its own
+    assert s.info["components"]["count"] == 6 and not s.info["components"]["idle"]
     # heat enters at the hot base, leaves through the cold faces; together they carry the source
     assert s.flux("branch-in") < 0 < s.flux("rest")
     assert s.flux("branch-in") + s.flux("rest") == pytest.approx(s.info["balance"]["source_W"], rel=1e-8)

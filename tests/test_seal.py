@@ -56,6 +56,7 @@ def test_heat_through_the_cap_balances_and_matches_the_cap_area():
     assert top and all(f in set(ms.tags["cap"]) for f in top)  # the top is all cap now
     s = HeatProblem(ms, conductivity=50.0).neumann("wmax", 800.0).dirichlet("wmin", 20.0).solve()
     assert s.info["balance"]["relative_error"] < 1e-9
+    assert s.info["components"]["count"] == 1 and not s.info["components"]["idle"]  # one coupled piece: no interface missing
     # independent: the cap covers the whole top of D, whose area is that of D's face
     area = surface_area(AFFINE.boundary("wmax"))
     assert sum(surface_area(ms.patches[i].composed.boundary(f)) for i, f in top) == pytest.approx(area, rel=1e-12)
@@ -71,6 +72,7 @@ def test_a_shelled_lattice_is_closed_with_its_inner_void():
     assert w["closed"] and w["manifold"] and w["components"] == 2
     s = HeatProblem(ms, conductivity=20.0).neumann("umin", 100.0).robin("umax", 10.0, 20.0).solve()
     assert s.info["balance"]["relative_error"] < 1e-8
+    assert s.info["components"]["count"] == 1 and not s.info["components"]["idle"]  # one coupled piece: no interface missing
 
 
 def test_one_cell_is_sealed_on_both_sides():
@@ -106,6 +108,7 @@ def test_heat_through_the_lid_of_a_capped_heat_sink():
     assert lid and set(lid) <= set(ms.tags["cap"])
     s = HeatProblem(ms, conductivity=200.0).neumann("wmax", -5e4).dirichlet("branch-in", 60.0).solve()
     assert s.info["balance"]["relative_error"] < 1e-9
+    assert s.info["components"]["count"] == 1 and not s.info["components"]["idle"]  # one coupled piece: no interface missing
     area = surface_area(SINK.boundary("wmax"))  # the lid covers D's whole top face
     assert s.flux("wmax") == pytest.approx(5e4 * area, rel=1e-10)
     assert s.flux("branch-in") == pytest.approx(-5e4 * area, rel=1e-8)

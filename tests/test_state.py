@@ -84,3 +84,31 @@ def test_one_definition_of_the_same_space():
     assert same_knots(U, U + np.r_[0, 0, 0, 0.4 * SAME_KNOT, 0, 0, 0])
     assert not same_knots(U, U + np.r_[0, 0, 0, 3 * SAME_KNOT, 0, 0, 0]) and not same_knots(U, U[1:])
     assert same_space([(U, 2), (U, 2)], [(U, 2), (U * 3, 2)]) and not same_space([(U, 2)], [(U, 3)])
+
+
+def test_block_assembly_names_offsets_that_do_not_match_the_spaces():
+    from iga.assembly import block_diagonal_csr
+    from iga.errors import ProblemError
+
+    class Pattern:  # what block_diagonal_csr reads of a CSR pattern
+        n = 2
+        indptr = np.array([0, 1, 2])
+        indices = np.array([0, 1], np.int32)
+
+    with pytest.raises(ProblemError, match="a block starts at 3, expected 2"):
+        block_diagonal_csr([(0, Pattern, np.ones(2)), (3, Pattern, np.ones(2))], 5)
+    with pytest.raises(ProblemError, match="end at 4, but the system has 6"):
+        block_diagonal_csr([(0, Pattern, np.ones(2)), (2, Pattern, np.ones(2))], 6)
+
+
+def test_a_tile_branch_face_with_a_bad_box_is_one_tiling_error_and_a_bug_stays_a_bug(monkeypatch):
+    from tiling import library
+    from tiling.errors import TilingError
+    from tiling.tile import BranchFace, _rect
+
+    tile = library.cross()
+    with pytest.raises(TilingError, match="cannot extract the face"):
+        _rect(tile, BranchFace(0, "wmax", box=((0.0, 0.5), (0.0, 0.5), (0.0, 0.5), (0, 1))), "branch-out 0")
+    monkeypatch.setattr(BranchFace, "surface", lambda self, t: 1 / 0)  # a programming error is not hidden
+    with pytest.raises(ZeroDivisionError):
+        _rect(tile, BranchFace(0, "wmax"), "branch-out 0")

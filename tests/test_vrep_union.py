@@ -168,6 +168,7 @@ def test_heat_across_union_bridges_balances_and_is_continuous(which, request):
     first = min(i for i, P in enumerate(ms.patches) if P.placement is None)
     s = HeatProblem(ms, conductivity=50.0).dirichlet("A:umin", 100.0).dirichlet("B:umax", 20.0).solve(tol=1e-12)
     assert s.info["balance"]["relative_error"] < 1e-9
+    assert s.info["components"]["count"] == 1 and not s.info["components"]["idle"]  # one coupled piece: no interface missing
     assert s.info["balance"]["inflow_W"] > 0
     n, dx, dT = _interface_jumps(ms, s, first)
     assert n == 20 if which == "forked" else n == 8  # 5 interfaces per fork, 2 per tube
@@ -215,6 +216,7 @@ def test_bridges_carry_both_primitives_materials():
             assert np.allclose(k[:, :, 0], 205.0) and np.allclose(k[:, :, -1], 54.0)
     s = HeatProblem(res.microstructure, conductivity="k").dirichlet("A:umin", 1.0).dirichlet("B:umax", 0.0).solve()
     assert s.info["balance"]["relative_error"] < 1e-9
+    assert s.info["components"]["count"] == 1 and not s.info["components"]["idle"]  # one coupled piece: no interface missing
 
 
 def test_union_bad_input():
@@ -280,4 +282,6 @@ def test_subtraction_v_models_are_heat_models(which):
     s = (HeatProblem(res.microstructure).dirichlet(dirichlet[0], 1.0).robin("bridge", 10.0, 0.0)
          .robin(dirichlet[1], 10.0, 0.0).solve())
     assert s.info["balance"]["relative_error"] < 1e-9 and s.info["balance"]["inflow_W"] > 0
+    # the coupled pieces: B cuts the cylinders' A in two halves; the duck minus a hole stays one piece
+    assert s.info["components"]["count"] == (2 if which == "cylinders" else 1) and not s.info["components"]["idle"]
     assert abs(s.flux("bridge")) > 0.01 * s.info["balance"]["inflow_W"]  # the heat does reach the bridges

@@ -17,11 +17,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from geometry import BSpline
+from geometry.errors import SplineError, show
 from geometry.faces import FACE_AXIS, FACE_NAMES
+from geometry.tolerances import COINCIDENT
 
 from .errors import TilingError
-from geometry.errors import show
-from geometry.tolerances import COINCIDENT
 
 TOL = COINCIDENT  # unit-cell tiles: walls on the cell faces, flat patches
 
@@ -55,7 +55,7 @@ def _rect(tile: "Tile", bf: BranchFace, what: str):
         raise TilingError(f"{what}: {show(bf.face)} is not a face name; use one of {list(FACE_NAMES)}")
     try:
         pts = bf.surface(tile).points.reshape(-1, 3)
-    except Exception as exc:  # a bad sub-rectangle
+    except (SplineError, ValueError, TypeError, IndexError) as exc:  # a bad sub-rectangle (shape, order, range)
         raise TilingError(f"{what}: cannot extract the face ({exc})") from None
     lo, hi = pts.min(0), pts.max(0)
     flat = np.nonzero(hi - lo < TOL)[0]
