@@ -7,20 +7,38 @@ Public names: :class:`BSpline`, :class:`SplineFunction`, :class:`SplineError`,
 ``primitives`` and ``faces`` modules.
 """
 
+from importlib import import_module
+
 from .errors import SplineError, ToolkitError
-from .faces import FACE_AXIS, FACE_NAMES
-from .spline import SplineFunction
-from .bspline import BSpline
-from . import faces, knots, bernstein
-from . import primitives
-from .products import multiply
-from .io import save, load, save_all, load_all
-from .composition import compose, compose_many, compose_placed, map_points, result_degrees
-from .trimmed import TrimmedSurface
-from .reduction import reduce_degree, reduce_model
-from .regularity import check_regular, RegularityResult
-from .inversion import invert
-from .multipatch import Interface, MultiPatch, PlacedPatch, detect_interfaces
+
+# the rest is loaded on first use (PEP 562): ``import geometry.errors`` (as the solvers package does, for the
+# base exception and the progress display) must not pull in the whole spline stack
+_LAZY = {
+    "FACE_AXIS": "faces", "FACE_NAMES": "faces", "SplineFunction": "spline", "BSpline": "bspline",
+    "multiply": "products", "save": "io", "load": "io", "save_all": "io", "load_all": "io",
+    "compose": "composition", "compose_many": "composition", "compose_placed": "composition",
+    "map_points": "composition", "result_degrees": "composition", "TrimmedSurface": "trimmed",
+    "reduce_degree": "reduction", "reduce_model": "reduction", "check_regular": "regularity",
+    "RegularityResult": "regularity", "invert": "inversion", "Interface": "multipatch",
+    "MultiPatch": "multipatch", "PlacedPatch": "multipatch", "detect_interfaces": "multipatch",
+}
+_MODULES = {"faces", "knots", "bernstein", "primitives"}
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        value = getattr(import_module(f".{_LAZY[name]}", __name__), name)
+    elif name in _MODULES:
+        value = import_module(f".{name}", __name__)
+    else:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    globals()[name] = value  # later lookups are plain attribute reads
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY) | _MODULES)
+
 
 __all__ = [
     "compose_placed", "TrimmedSurface", "reduce_degree", "reduce_model","BSpline", "SplineFunction", "SplineError", "ToolkitError", "FACE_NAMES", "FACE_AXIS", "faces", "knots",

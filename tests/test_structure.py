@@ -105,3 +105,13 @@ def test_no_public_name_shadows_a_module_of_its_package():
         for mod in pkgutil.iter_modules(package.__path__):
             value = getattr(package, mod.name, None)
             assert value is None or isinstance(value, types.ModuleType), f"{pkg}.{mod.name} is {value!r}"
+
+
+def test_solvers_import_without_the_spline_stack():
+    """``import solvers`` takes the base exception and the progress display, nothing of the splines."""
+    import subprocess
+    import sys
+
+    code = "import sys, solvers; print(sorted(m for m in sys.modules if m.split('.')[0] in ('geometry', 'tiling', 'iga')))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, check=True)
+    assert out.stdout.strip() == str(["geometry", "geometry.errors", "geometry.progress"]), out.stdout
