@@ -23,6 +23,7 @@ The heat solve on the winged duck is benchmarks/vrep_heat.py.
 
 from __future__ import annotations
 
+import dataclasses
 import resource
 import time
 from pathlib import Path
@@ -87,14 +88,12 @@ def run(case: str, png: bool) -> dict:
     t = times[0]
     ms = res.microstructure
     rep = res.bridges
-    row = {"case": case, "trivariates": len(ms.patches), "bridging TVs": rep.get("bridges", 0),
-           "to surface": rep.get("surface bridges", 0), "1-1": rep.get("union tubes", 0),
-           "2-1": rep.get("union forks", 0), "open": rep.get("union open anchors", 0),
-           "collisions": rep.get("collisions", 0) + rep.get("union collisions", 0),
-           "eliminated": rep.get("eliminated", 0) + rep.get("union eliminated", 0)
-           + rep.get("eliminated (folded)", 0) + rep.get("union eliminated (folded)", 0),
+    row = {"case": case, "trivariates": len(ms.patches), "bridging TVs": rep.bridges,
+           "to surface": rep.surface_bridges, "1-1": rep.union.tubes, "2-1": rep.union.forks,
+           "open": rep.union.open_anchors, "collisions": rep.collisions.collisions + rep.union.collisions.collisions,
+           "eliminated": rep.collisions.eliminated + rep.union.collisions.eliminated + rep.folded + rep.union.folded,
            "time s": t, "best s": min(times), "times s": times, "peak MiB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-           "timings": res.timings, "report": rep,
+           "timings": res.timings, "report": dataclasses.asdict(rep),
            "tiles kept": {n: c["inside"] + c["to-be-bridged"] for n, c in res.counts().items()}}
     if case in TABLE1:
         row["paper trivariates"], row["paper bridges"], row["paper s"] = TABLE1[case]

@@ -41,7 +41,7 @@ def main():
     st.start("winged duck V-model micro-structure")
     res = vrep_microstructure(winged_duck(tuple(args.body), tuple(args.wing)), margin=0.03)
     ms = res.microstructure
-    st.done(f"({len(ms.patches):,} trivariates, {res.bridges['bridges']} bridging)")
+    st.done(f"({len(ms.patches):,} trivariates, {res.bridges.bridges} bridging)")
     tips = {f for tag in WINGED_DUCK_TIPS for f in ms.tags[tag]}
     ms.tags["cooled"] = [f for f in ms.tags["boundary"] if f not in tips]
     st.start("spaces, regularity proof")
@@ -57,7 +57,7 @@ def main():
     st.done(f"({s.info['solver'].get('iterations', '-')} iterations)")
     lo, hi = float(s.u.min()), float(s.u.max())  # control values: they bound the temperature (convex hull)
     bal = s.info["balance"]
-    row = {"trivariates": len(ms.patches), "bridging TVs": res.bridges["bridges"], "DOFs": pb.ndof,
+    row = {"trivariates": len(ms.patches), "bridging TVs": res.bridges.bridges, "DOFs": pb.ndof,
            "free": s.info["free_dofs"], "solver": s.info["solver"]["method"],
            "iterations": s.info["solver"].get("iterations", 0), "build s": st.timings[
                "winged duck V-model micro-structure"], "set-up s": st.timings["spaces, regularity proof"],

@@ -16,11 +16,19 @@ ALLOWED = {"geometry": set(), "tiling": {"geometry"}, "iga": {"geometry", "tilin
 
 
 def _modules(pkg):
-    return sorted((ROOT / pkg).glob("*.py"))
+    """Every module of ``pkg`` and of its sub-packages (``tiling/vrep/union.py``), sorted."""
+    return sorted((ROOT / pkg).rglob("*.py"))
 
 
-def _imports(path: Path, pkg: str):
-    """(target module, at module level) for every import in ``path``; relative imports resolved.
+def _dotted(path: Path) -> str:
+    """``tiling/vrep/union.py`` -> ``tiling.vrep.union``; a package's ``__init__.py`` -> the package."""
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _imports(path: Path, pkg: str = ""):
+    """(target module, at module level) for every import in ``path``; relative imports resolved against the
+    module's own package (``from ..tile import`` in ``tiling/vrep/x.py`` is ``tiling.tile``).
 
     Imports under ``if TYPE_CHECKING:`` are left out: they exist for annotations only, never at run time.
     """
@@ -28,18 +36,19 @@ def _imports(path: Path, pkg: str):
     for node in ast.walk(tree):
         if isinstance(node, ast.If) and isinstance(node.test, ast.Name) and node.test.id == "TYPE_CHECKING":
             node.body = []
+    here = _dotted(path).split(".")
+    package = here if path.name == "__init__.py" else here[:-1]
     top = set(id(n) for n in tree.body)
     out = []
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
             out += [(a.name, id(node) in top) for a in node.names]
         elif isinstance(node, ast.ImportFrom):
-            base = node.module or ""
             if node.level:
-                base = f"{pkg}.{base}" if base else pkg
-                names = [f"{base}.{a.name}" if not node.module else base for a in node.names]
+                base = ".".join(package[: len(package) - node.level + 1] + ([node.module] if node.module else []))
             else:
-                names = [f"{base}.{a.name}" for a in node.names]
+                base = node.module or ""
+            names = [f"{base}.{a.name}" for a in node.names]  # a name, or a module of the package base
             out += [(n, id(node) in top) for n in names]
     return out
 
@@ -49,42 +58,76 @@ def test_module_sizes(pkg):
     for path in _modules(pkg):
         n = len(path.read_text().splitlines())
         limit = 300 if path.name == "problem.py" and pkg == "iga" else 450
-        assert n <= limit, f"{pkg}/{path.name} has {n} lines (limit {limit}): split it"
+        assert n <= limit, f"{path.relative_to(ROOT)} has {n} lines (limit {limit}): split it"
+
+
+FUNCTION_LINES = 60  # code lines of one function, its docstring left out
+
+
+def _long_functions(path: Path):
+    """(name, first line, code lines) of the functions of ``path`` over :data:`FUNCTION_LINES`."""
+    out = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            body = node.body
+            doc = isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant) and isinstance(
+                body[0].value.value, str)
+            start = body[1].lineno if doc and len(body) > 1 else body[0].lineno
+            n = node.end_lineno - start + 1
+            if n > FUNCTION_LINES:
+                out.append((node.name, node.lineno, n))
+    return out
+
+
+@pytest.mark.parametrize("pkg", PACKAGES)
+def test_function_sizes(pkg):
+    """No function over 60 code lines; the compiled kernels (``_*kernels.py``) are exempt: their loops are
+    unrolled by hand for numba, and splitting them costs speed."""
+    long = [f"{path.relative_to(ROOT)}:{line} {name} ({n} lines)" for path in _modules(pkg)
+            if not (path.name.startswith("_") and path.name.endswith("kernels.py"))
+            for name, line, n in _long_functions(path)]
+    assert not long, f"functions over {FUNCTION_LINES} code lines, split them: {long}"
 
 
 @pytest.mark.parametrize("pkg", PACKAGES)
 def test_imports_flow_one_way(pkg):
     others = set(PACKAGES) - {pkg}
     for path in _modules(pkg):
-        for target, _ in _imports(path, pkg):
+        for target, _ in _imports(path):
             root = target.split(".")[0]
             if root in others:
                 ok = root in ALLOWED[pkg] or any(target == a or target.startswith(a + ".") for a in ALLOWED[pkg])
-                assert ok, f"{pkg}/{path.name} imports {target}"
+                assert ok, f"{path.relative_to(ROOT)} imports {target}"
 
 
 def test_iga_imports_tiling_only_at_module_level():
     for path in _modules("iga"):
-        for target, top in _imports(path, "iga"):
+        for target, top in _imports(path):
             if target.split(".")[0] == "tiling":
                 assert top, f"iga/{path.name} imports {target} inside a function"
 
 
 @pytest.mark.parametrize("pkg", PACKAGES)
 def test_no_import_cycle_inside_a_package(pkg):
-    mods = [p.stem for p in _modules(pkg)]
+    mods = [_dotted(p) for p in _modules(pkg)]
     index = {m: i for i, m in enumerate(mods)}
+
+    def resolve(target):  # the deepest module of the package that the target names
+        parts = target.split(".")
+        for k in range(len(parts), 0, -1):
+            if ".".join(parts[:k]) in index:
+                return ".".join(parts[:k])
+        return None
+
     rows, cols = [], []
     for path in _modules(pkg):
-        for target, _ in _imports(path, pkg):
-            parts = target.split(".")
-            if parts[0] != pkg:
-                continue
-            dep = parts[1] if len(parts) > 1 and parts[1] in index else "__init__"
-            if dep != path.stem:
-                rows.append(index[path.stem])
+        me = _dotted(path)
+        for target, _ in _imports(path):
+            dep = resolve(target) if target.split(".")[0] == pkg else None
+            if dep is not None and dep != me:
+                rows.append(index[me])
                 cols.append(index[dep])
-    # the package's __init__ imports its modules; a module importing the package itself (``from . import x``
+    # a package's __init__ imports its modules; a module importing the package itself (``from . import x``
     # resolves to pkg.x) is the only way back, so a cycle is a strongly connected component of size > 1
     n = len(mods)
     graph = coo_matrix(([1] * len(rows), (rows, cols)), shape=(n, n))

@@ -100,12 +100,12 @@ def test_union_tiles_each_v_cell_from_the_primitive_of_highest_priority():
     assert all(len(partner.get(a, [])) <= 1 for a in ms.tags["anchor"])
     glued = sum(len(partner.get(a, [])) for a in ms.tags["anchor"])
     rep = res.bridges
-    assert rep["union anchors"] > 0 and rep["union two-to-one"] + rep["union one-to-one"] > 0
-    assert len(ms.patches) - first == rep["bridges"] == rep["surface bridges"] + sum(len(u.patches) for u in res.unions)
+    assert rep.union.anchors > 0 and rep.union.two_to_one + rep.union.one_to_one > 0
+    assert len(ms.patches) - first == rep.bridges == rep.surface_bridges + sum(len(u.patches) for u in res.unions)
     # an anchor is glued to a bridge to the surface, to a union bridge, or left open (unmatched or eliminated)
-    assert glued == rep["surface bridges"] + rep["union anchors"] - rep["union open anchors"]
-    assert (rep["surface bridges"] + rep["eliminated"] + rep["eliminated (folded)"] + rep["dropped (target outside)"]
-            + rep["union anchors"] == len(ms.tags["anchor"]))
+    assert glued == rep.surface_bridges + rep.union.anchors - rep.union.open_anchors
+    assert (rep.surface_bridges + rep.collisions.eliminated + rep.folded + rep.surface.dropped
+            + rep.union.anchors == len(ms.tags["anchor"]))
 
 
 def test_a_margin_purges_bridged_tiles_too_close_to_the_surface():
@@ -157,7 +157,7 @@ def test_bridges_start_g1_at_their_tiles_and_end_orthogonal_on_the_trimming_surf
     A, B, C = _cylinders()
     res = vrep_microstructure(A - B)
     ms = res.microstructure
-    assert res.bridges["bridges"] == res.bridges["anchoring faces"] > 0
+    assert res.bridges.bridges == res.bridges.surface.anchoring_faces > 0
     first = min(p for p, _ in ms.tags["bridge"])
     glued = {(i.a[0], i.b[0]) for i in ms.interfaces} | {(i.b[0], i.a[0]) for i in ms.interfaces}
     rng = np.random.default_rng(11)
@@ -215,7 +215,7 @@ def test_colliding_bridges_are_separated_or_eliminated():
     a.axis[2], b.axis[2] = a.axis[2] + 0.3 * (b.axis[3] - a.axis[3]), b.axis[2] + 0.3 * (a.axis[3] - b.axis[3])
     _assemble(a), _assemble(b)
     kept, counts = resolve_collisions(bridges)
-    assert counts["collisions"] >= 1 and counts["swapped"] + counts["repelled"] + counts["eliminated"] >= 1
+    assert counts.collisions >= 1 and counts.swapped + counts.repelled + counts.eliminated >= 1
     for i, x in enumerate(kept):
         for y in kept[i + 1:]:
             if np.linalg.norm(x.axis[0] - y.axis[0]) > 3.0:
@@ -257,7 +257,7 @@ def test_after_collision_handling_no_two_bridges_intersect():
 
     A, B, C = _cylinders((1, 1, 12))
     res = vrep_microstructure((A | B) - C)  # bridges of A and B converge on C: collisions happen
-    assert res.bridges["collisions"] > 0
+    assert res.bridges.collisions.collisions > 0
     ms = res.microstructure
     first = min(p for p, _ in ms.tags["bridge"])
     # the tubes' centre lines, sampled in space, against the sum of the inscribed radii (as the handling does)

@@ -60,10 +60,11 @@ def _distance_to(points, surface):
 
 def test_two_to_one_bridges_are_continuous_at_both_ends_and_regular(forked):
     rep = forked.bridges
-    assert rep["union two-to-one"] == 4 and rep["union eliminated (folded)"] == 0
+    assert rep.union.two_to_one == 4 and rep.union.folded == 0
     (u,) = forked.unions
     assert len(u.forks) == 4
-    for inlet, G, sides, arms, _ in u.forks:
+    for fork in u.forks:
+        inlet, G, sides, arms = fork.inlet, fork.base, fork.sides, fork.arms
         # the base's bottom is the inlet face (same parameters), its sides are the arms' first faces
         assert np.abs(_volume_face(G, "wmin", ST) - _face_image(inlet.surface, ST)).max() < 1e-10
         assert check_regular(G).status != "singular"
@@ -93,7 +94,8 @@ def test_no_face_receives_more_than_two_bridges(forked, tubed):
         for t in u.tubes:
             for key in (t.a.key, t.b.key):
                 per_face[key] = per_face.get(key, 0) + 1
-        for inlet, _, _, arms, _ in u.forks:
+        for fork in u.forks:
+            inlet, arms = fork.inlet, fork.arms
             per_face[inlet.key] = per_face.get(inlet.key, 0) + 2  # an inlet carries the two branches
             for t in arms:
                 per_face[t.b.key] = per_face.get(t.b.key, 0) + 1
@@ -102,7 +104,7 @@ def test_no_face_receives_more_than_two_bridges(forked, tubed):
 
 def test_one_to_one_tubes_join_their_faces_exactly(tubed):
     rep = tubed.bridges
-    assert rep["union one-to-one"] == 4 and rep["union two-to-one"] == 0 and rep["union open anchors"] == 0
+    assert rep.union.one_to_one == 4 and rep.union.two_to_one == 0 and rep.union.open_anchors == 0
     (u,) = tubed.unions
     for t in u.tubes:
         G = t.geometry
@@ -209,7 +211,8 @@ def test_bridges_carry_both_primitives_materials():
     A, B = _boxes(k=(205.0, 54.0))
     res = vrep_microstructure(A | B)
     (u,) = res.unions
-    for _, G, _, arms, _ in u.forks:
+    for fork in u.forks:
+        G, arms = fork.base, fork.arms
         assert np.allclose(G.channel("k"), 205.0)  # the base stands on A's face
         for arm in arms:
             k = arm.geometry.channel("k")
@@ -241,7 +244,7 @@ def test_union_bad_input():
         box_cylinder(cyl=(2, 2.5, 3))
     # a short d_maxdist leaves every face open, and says so
     res = vrep_microstructure(A | B, d_maxdist=1e-3)
-    assert res.bridges["union open anchors"] == res.bridges["union anchors"] > 0
+    assert res.bridges.union.open_anchors == res.bridges.union.anchors > 0
 
 
 def test_orientations_follow_the_interface_convention():
@@ -273,7 +276,7 @@ def test_subtraction_v_models_are_heat_models(which):
         hole = Primitive(cylinder(0.09, 1.0, 2, centre=(0.45, 0.0, 0.3)), L.cross(), (1, 1, 1), 4, "hole")
         model, dirichlet = body - hole, ("body:wmin", "body:wmax")
     res = vrep_microstructure(model, margin=0.03 if which == "duck" else 0.0)
-    assert res.bridges["surface bridges"] > 0
+    assert res.bridges.surface_bridges > 0
     for b in res.bridge_objects:  # every bridge's net stays in its map's domain: its image is never clipped
         dom = b.D.domain
         pts = b.spline.points.reshape(-1, 3)

@@ -16,7 +16,8 @@ and the free faces of the bridges (``"bridge"``, ``"bridge:A"``).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import time
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -33,6 +34,7 @@ from ..tile import Tile
 from .bridges import build_bridges, resolve_collisions
 from .classify import Classification, classify
 from .model import VModel
+from .report import BridgeReport
 from .tubes import is_regular
 from .union import boundary_faces, bridge_union, shared_faces, union_anchors
 from geometry.grouping import ObjectIndex
@@ -48,7 +50,7 @@ class VResult:
     microstructure: Microstructure
     classifications: list
     timings: dict
-    bridges: dict = None  # counts: anchoring faces, bridges, dropped, collisions, swapped, repelled, eliminated
+    bridges: BridgeReport = None  # what the bridging did (typed counts)
     bridge_objects: list = None  # the kept :class:`tiling.vrep.bridges.Bridge` objects, in patch order
     unions: list = None  # :class:`tiling.vrep.union.UnionBridges` per matched pair of primitives
 
@@ -67,8 +69,36 @@ def vrep_microstructure(model: VModel, samples: int = 4, margin: float = 0.0, na
     bifurcation bridges (:mod:`tiling.vrep.union`; ``d_maxdist`` the longest match in model units, default four
     face widths; ``phi`` in [0, 1] blends the end directions from the tiles' cross derivatives to the face
     normals; ``alpha`` in (0, pi/2) the angle between the bifurcation base's bottom and sides)."""
-    import time
+    _check_arguments(model, samples, margin, d_maxdist, phi, alpha)
+    t0 = time.perf_counter()
+    model.check()
+    timings = {"checks": time.perf_counter() - t0}
+    kept = _keep_tiles(model, samples, margin, bridges, timings)
+    report = BridgeReport()
+    made, union = _surface_bridges(model, kept, margin, beta, report, timings) if bridges else ([], [])
+    bridge_first = len(kept.placed)
+    owner = _place_surface_bridges(kept, made)
+    unions = _union_bridges(model, kept, union, owner, (d_maxdist, beta, phi, alpha), report, timings)
+    if not kept.placed:
+        _refuse_empty(model)
+    t0 = time.perf_counter()
+    out = _build(model, kept, bridge_first, owner, name)
+    timings["build"] = time.perf_counter() - t0
+    return VResult(out, kept.classes, timings, report, [b for _, b in made], unions)
 
+
+@dataclass
+class _Kept:
+    """The kept tiles of every positive primitive: placed patches, tile list, classifications, and per
+    primitive name (first patch, end, anchoring (patch, face) list)."""
+
+    placed: list = field(default_factory=list)
+    tiles: list = field(default_factory=list)
+    classes: list = field(default_factory=list)
+    spans: dict = field(default_factory=dict)
+
+
+def _check_arguments(model, samples, margin, d_maxdist, phi, alpha) -> None:
     if not isinstance(model, VModel):
         raise TilingError(f"vrep_microstructure needs a V-model (primitives combined by |, -, &), got {show(model)}")
     if not (isinstance(samples, (int, np.integer)) and samples >= 2):
@@ -79,121 +109,136 @@ def vrep_microstructure(model: VModel, samples: int = 4, margin: float = 0.0, na
     names = [p.name for p in model.primitives()]
     if len(set(names)) != len(names):
         raise TilingError(f"primitive names must be distinct (they become tags), got {names}")
-    t0 = time.perf_counter()
-    model.check()
-    timings = {"checks": time.perf_counter() - t0}
-    placed, tiles, classes, tags = [], [], [], {}
+
+
+def _keep_tiles(model, samples, margin, bridges: bool, timings: dict) -> _Kept:
+    """Classify and pave every positive primitive, keeping its inside and to-be-bridged tiles."""
+    kept = _Kept()
     for prim in progress.bar(model.positive(), desc="V-model primitives", unit="primitive"):
         t0 = time.perf_counter()
         cls = classify(model, prim, samples, margin)
         t1 = time.perf_counter()
-        classes.append(cls)
+        kept.classes.append(cls)
+        timings[f"classify {prim.name}"] = t1 - t0
         if not len(cls.kept):  # nothing of this primitive stays (e.g. a lower priority inside an intersection)
-            timings[f"classify {prim.name}"] = t1 - t0
             continue
         paved, paved_tiles = regular_placements(prim.D, prim.tile, prim.counts)[:2]
-        timings[f"classify {prim.name}"], timings[f"pave {prim.name}"] = t1 - t0, time.perf_counter() - t1
+        timings[f"pave {prim.name}"] = time.perf_counter() - t1
         keep = set(cls.kept.tolist())
         anchors = {}
         for tile, face in cls.anchors:
             anchors.setdefault(tile, []).append(face)
-        tile_map, first = {}, len(placed)
+        tile_map, first = {}, len(kept.placed)
         for P in paved:
             if P.tile not in keep:
                 continue
             if P.tile not in tile_map:
-                tile_map[P.tile] = len(tiles)
-                tiles.append(paved_tiles[P.tile])
-            placed.append(PlacedPatch(P.spline, P.placement, P.outer, tile_map[P.tile], P.level, P.patch_in_tile))
-        tags[prim.name] = (first, len(placed), _anchor_faces(placed[first:], first, cls, anchors, tile_map))
-        if bridges and cls.anchors and not tags[prim.name][2]:
+                tile_map[P.tile] = len(kept.tiles)
+                kept.tiles.append(paved_tiles[P.tile])
+            kept.placed.append(PlacedPatch(P.spline, P.placement, P.outer, tile_map[P.tile], P.level,
+                                           P.patch_in_tile))
+        faces = _anchor_faces(kept.placed[first:], first, cls, anchors, tile_map)
+        kept.spans[prim.name] = (first, len(kept.placed), faces)
+        if bridges and cls.anchors and not faces:
             raise TilingError(f"primitive {show(prim.name)}: its tile {show(prim.tile.name)} has no patch face on the "
                               f"cell walls, so its {len(cls.anchors)} anchoring faces have nothing to bridge from; use "
                               "a tile whose patches reach the cell faces, or bridges=False")
-    report = {}
-    made, union = [], []
-    if bridges:
-        t0 = time.perf_counter()
-        by_name = {p.name: p for p in model.positive()}
-        for cls in classes:
-            prim = cls.primitive
-            if prim.name not in tags or not tags[prim.name][2]:
-                continue
-            anchors = tags[prim.name][2]
-            partners, rest = union_anchors(model, prim, placed, anchors, _reach(placed, anchors, margin))
-            for pname, faces in partners.items():
-                p = by_name[pname]
-                a, b, _ = tags[pname] if pname in tags else (0, 0, None)
-                shared = shared_faces(model, prim, placed, boundary_faces(p, placed, a, b))
-                if shared:
-                    union.append((prim, p, faces, shared))
-                else:  # nothing of the other primitive to meet here: bridge to the surface (Section 3.2)
-                    rest += faces
-                    report["union anchors bridged to the surface"] = report.get(
-                        "union anchors bridged to the surface", 0) + len(faces)
-            got, rep = build_bridges(model, prim, cls, placed, rest, beta)
-            got = _unfold(model, prim, cls, placed, got, beta)
-            made += [(prim.name, b) for b in got]
-            for key, v in rep.items():
-                report[key] = report.get(key, 0) + v
-        kept, counts = resolve_collisions([b for _, b in made])
-        folded = [b for b in kept if not _valid(b)]  # a heat model takes regular patches only
-        kept = [b for b in kept if all(b is not f for f in folded)]
-        counts["eliminated (folded)"] = len(folded)
-        report.update(counts)
-        report["bridges"] = report["surface bridges"] = len(kept)
-        same = ObjectIndex()
-        alive = {same(b) for b in kept}
-        made = [(n, b) for n, b in made if same(b) in alive]
-        timings["bridges"] = time.perf_counter() - t0
-    bridge_first = len(placed)
-    bridge_tile = None
-    for _, b in made:
-        if bridge_tile is None:  # one tile entry stands for all bridges (each is its own spline, in map parameters)
-            bridge_tile = len(tiles)
-            tiles.append(Tile([box()], name="one-to-one bridge"))
-        placed.append(PlacedPatch(b.spline, np.hstack([np.eye(3), np.zeros((3, 1))]), b.D, bridge_tile, 0, 0))
-    owner = {bridge_first + j: pname for j, (pname, _) in enumerate(made)}
-    unions = []
-    if union:
-        t0 = time.perf_counter()
-        union_tile = len(tiles)
-        tiles.append(Tile([box()], name="union bridge"))
-        for q, p, faces, shared in union:
-            ub = bridge_union(model, q, p, placed, faces, shared, union_tile, d_maxdist, beta, phi, alpha)
-            owner.update({len(placed) + j: q.name for j in range(len(ub.patches))})
-            placed += ub.patches
-            unions.append(ub)
-            for key, v in ub.counts.items():
-                key = key if key.startswith("faces of") else f"union {key}"
-                report[key] = report.get(key, 0) + v
-        report["bridges"] = report.get("bridges", 0) + sum(len(u.patches) for u in unions)
-        timings["union bridges"] = time.perf_counter() - t0
-    if not placed:
-        if _is_empty(model):
-            raise TilingError(f"the V-model ({model.op} of {', '.join(_names(model))}) is empty: its Boolean "
-                              "expression leaves no volume (no sample point of its primitives lies inside it), so "
-                              "there is nothing to pave; check the expression (e.g. A - A)")
-        raise TilingError("no tile of the V-model is inside it: every tile is outside or crosses a trimming "
-                          "surface; use smaller tiles (higher counts)")
+    return kept
+
+
+def _surface_bridges(model, kept: _Kept, margin, beta, report: BridgeReport, timings: dict):
+    """Bridges to the trimming surfaces (after collisions and folds), and the union pairs to bridge:
+    ([(primitive name, Bridge)], [(q, p, q's union anchors, p's shared faces)])."""
     t0 = time.perf_counter()
-    out = Microstructure.build(model.positive()[0].D, placed, tiles, [], name=name)
+    by_name = {p.name: p for p in model.positive()}
+    made, union = [], []
+    for cls in kept.classes:
+        prim = cls.primitive
+        if prim.name not in kept.spans or not kept.spans[prim.name][2]:
+            continue
+        anchors = kept.spans[prim.name][2]
+        partners, rest = union_anchors(model, prim, kept.placed, anchors, _reach(kept.placed, anchors, margin))
+        for pname, faces in partners.items():
+            a, b, _ = kept.spans.get(pname, (0, 0, None))
+            shared = shared_faces(model, prim, kept.placed, boundary_faces(by_name[pname], kept.placed, a, b))
+            if shared:
+                union.append((prim, by_name[pname], faces, shared))
+            else:  # nothing of the other primitive to meet here: bridge to the surface (Section 3.2)
+                rest += faces
+                report.union_anchors_to_surface += len(faces)
+        got, counts = build_bridges(model, prim, cls, kept.placed, rest, beta)
+        made += [(prim.name, b) for b in _unfold(model, prim, cls, kept.placed, got, beta)]
+        report.add_surface(counts)
+    survivors, report.collisions = resolve_collisions([b for _, b in made])
+    valid = [b for b in survivors if _valid(b)]  # a heat model takes regular patches only
+    report.folded = len(survivors) - len(valid)
+    report.surface_bridges = len(valid)
+    same = ObjectIndex()
+    alive = {same(b) for b in valid}
+    timings["bridges"] = time.perf_counter() - t0
+    return [(n, b) for n, b in made if same(b) in alive], union
+
+
+def _place_surface_bridges(kept: _Kept, made: list) -> dict:
+    """Append the surface bridges as patches (one tile entry stands for all: each is its own spline, in map
+    parameters); returns {patch index: owning primitive name}."""
+    if made:
+        bridge_tile = len(kept.tiles)
+        kept.tiles.append(Tile([box()], name="one-to-one bridge"))
+    owner = {}
+    for pname, b in made:
+        owner[len(kept.placed)] = pname
+        kept.placed.append(PlacedPatch(b.spline, np.hstack([np.eye(3), np.zeros((3, 1))]), b.D, bridge_tile, 0, 0))
+    return owner
+
+
+def _union_bridges(model, kept: _Kept, union: list, owner: dict, params, report: BridgeReport,
+                   timings: dict) -> list:
+    """Bridge every union pair (:func:`tiling.vrep.union.bridge_union`) and append the patches."""
+    if not union:
+        return []
+    t0 = time.perf_counter()
+    d_maxdist, beta, phi, alpha = params
+    union_tile = len(kept.tiles)
+    kept.tiles.append(Tile([box()], name="union bridge"))
+    unions = []
+    for q, p, faces, shared in union:
+        ub = bridge_union(model, q, p, kept.placed, faces, shared, union_tile, d_maxdist, beta, phi, alpha)
+        owner.update({len(kept.placed) + j: q.name for j in range(len(ub.patches))})
+        kept.placed += ub.patches
+        unions.append(ub)
+        report.add_union(ub.counts, len(ub.patches))
+    timings["union bridges"] = time.perf_counter() - t0
+    return unions
+
+
+def _refuse_empty(model) -> None:
+    if _is_empty(model):
+        raise TilingError(f"the V-model ({model.op} of {', '.join(_names(model))}) is empty: its Boolean "
+                          "expression leaves no volume (no sample point of its primitives lies inside it), so "
+                          "there is nothing to pave; check the expression (e.g. A - A)")
+    raise TilingError("no tile of the V-model is inside it: every tile is outside or crosses a trimming "
+                      "surface; use smaller tiles (higher counts)")
+
+
+def _build(model, kept: _Kept, bridge_first: int, owner: dict, name: str) -> Microstructure:
+    """The micro-structure of the kept patches and bridges, with the V-model's tags (module notes)."""
+    out = Microstructure.build(model.positive()[0].D, kept.placed, kept.tiles, [], name=name)
     for tag in FACE_NAMES:
         out.tags[tag] = []  # the faces of one map's domain mean nothing across primitives
     out.tags["internal"] = list(out.tags["boundary"])  # so every free face is "elsewhere" (DESIGN, section 4)
     out.tags["anchor"] = []
     out.tags["bridge"] = [f for f in out.tags["boundary"] if f[0] >= bridge_first]
-    for pname in tags:
+    for pname in kept.spans:
         out.tags[f"bridge:{pname}"] = []
     for f in out.tags["bridge"]:
         out.tags[f"bridge:{owner[f[0]]}"].append(f)
-    for pname, (a, b, anchor_faces) in tags.items():
+    for pname, (a, b, anchor_faces) in kept.spans.items():
         out.tags[pname] = [f for f in out.tags["boundary"] if a <= f[0] < b]
         out.tags[f"anchor:{pname}"] = list(anchor_faces)  # glued to their bridges when bridges are built
         out.tags["anchor"] += out.tags[f"anchor:{pname}"]
-    _side_tags(out, model, tags)
-    timings["build"] = time.perf_counter() - t0
-    return VResult(out, classes, timings, report, [b for _, b in made], unions)
+    _side_tags(out, model, kept.spans)
+    return out
 
 
 def _anchor_faces(placed, offset: int, cls: Classification, anchors: dict, tile_map: dict) -> list:

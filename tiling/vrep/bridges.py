@@ -31,6 +31,7 @@ the later bridge is eliminated.  The counts of each are reported.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -40,6 +41,8 @@ from geometry.faces import FACE_AXIS, FACE_NAMES
 from geometry.inversion import invert
 
 from ..errors import TilingError
+from .report import SurfaceCounts
+from .repulsion import Collisions, closest, repel
 from geometry.grouping import ObjectIndex
 
 __all__ = ["Bridge", "build_bridges", "resolve_collisions", "axis_samples"]
@@ -152,7 +155,7 @@ def _assemble(b: Bridge) -> None:
     _snap([b])
 
 
-def build_bridges(model, prim, cls, placed, anchors, beta: float = 0.5) -> tuple[list, dict]:
+def build_bridges(model, prim, cls, placed, anchors, beta: float = 0.5) -> tuple[list, SurfaceCounts]:
     """Bridges for the anchoring faces ``anchors`` [(patch index into ``placed``, face)] of primitive ``prim``.
 
     Returns (bridges, report) with the counts of anchoring faces, bridges built and those dropped because
@@ -181,7 +184,7 @@ def build_bridges(model, prim, cls, placed, anchors, beta: float = 0.5) -> tuple
         e /= np.linalg.norm(e)
         geo.append((pi, face, fs, F, T1, C, e))
     if not geo:
-        return [], {"anchoring faces": 0, "bridges": 0, "dropped (target outside)": 0}
+        return [], SurfaceCounts()
     ahead = np.array([C + e * float(np.ptp(F.reshape(-1, 3), axis=0).max()) for _, _, _, F, _, C, e in geo])
     M = D.evaluate(np.clip(ahead, D.domain[:, 0], D.domain[:, 1]))[:, :3]
     # the nearest boundary point of another primitive that bounds this primitive's territory (just beyond it,
@@ -230,20 +233,12 @@ def build_bridges(model, prim, cls, placed, anchors, beta: float = 0.5) -> tuple
         b.radius = float(np.abs(proj).max(axis=0).min())  # half the narrower width: inscribed
         out.append(b)
     _snap(out)
-    return out, {"anchoring faces": len(anchors), "bridges": len(out), "dropped (target outside)": dropped}
+    return out, SurfaceCounts(anchoring_faces=len(anchors), built=len(out), dropped=dropped)
 
 
-def _min_distance(a: Bridge, b: Bridge, pa=None, pb=None):
-    pa = axis_samples(a) if pa is None else pa
-    pb = axis_samples(b) if pb is None else pb
-    d = np.linalg.norm(pa[:, None] - pb[None], axis=2)
-    i, j = np.unravel_index(np.argmin(d), d.shape)
-    return float(d[i, j]), int(i), int(j), pa, pb
-
-
-def resolve_collisions(bridges: list, max_repel: int = 20) -> tuple[list, dict]:
+def resolve_collisions(bridges: list, max_repel: int = 20) -> tuple[list, Collisions]:
     """Detect and resolve collisions (see the module notes); returns (kept bridges, counts)."""
-    counts = {"collisions": 0, "swapped": 0, "repelled": 0, "eliminated": 0}
+    counts = Collisions()
     if len(bridges) < 2:
         return bridges, counts
     mids = np.array([axis_samples(b, [0.5])[0] for b in bridges])
@@ -256,53 +251,49 @@ def resolve_collisions(bridges: list, max_repel: int = 20) -> tuple[list, dict]:
         if not (alive[i] and alive[j]):
             continue
         a, b = bridges[i], bridges[j]
-        dist, *_ = _min_distance(a, b, axes[i], axes[j])
+        dist = closest(axes[i], axes[j])[0]
         need = a.radius + b.radius
         if dist >= need * (1 - 1e-9):
             continue
-        counts["collisions"] += 1
-        # 1. swap the far ends when that separates the axes more
-        a2, b2 = a.axis.copy(), b.axis.copy()
-        a.axis[2:], b.axis[2:] = b2[2:].copy(), a2[2:].copy()
-        a.target, b.target = b.target, a.target
-        _assemble(a), _assemble(b)
-        new, *_ = _min_distance(a, b)
-        if new > dist:
-            counts["swapped"] += 1
-            dist = new
-        else:
-            a.axis, b.axis = a2, b2
-            a.target, b.target = b.target, a.target
-            _assemble(a), _assemble(b)
-        # 2. repel along T1 x T2: the far inner control point (the near one keeps the bridge G1 with its tile),
-        # and the far end itself, along the surface, when the axes come closest near the surface
-        steps = 0
-        for steps in range(max_repel + 1):
-            if dist >= need or steps == max_repel:
-                break
-            dist, ia, ib, pa, pb = _min_distance(a, b)
-            ta = pa[min(ia + 1, len(pa) - 1)] - pa[max(ia - 1, 0)]
-            tb = pb[min(ib + 1, len(pb) - 1)] - pb[max(ib - 1, 0)]
-            v = np.cross(ta, tb)
-            if np.linalg.norm(v) < 1e-12:
-                v = pa[ia] - pb[ib]
-            v = v / max(np.linalg.norm(v), 1e-300)
-            if np.dot(v, pa[ia] - pb[ib]) < 0:
-                v = -v
-            step = 0.5 * (need - dist) + 1e-3 * need
-            for bb, sgn, idx, pp in ((a, 1.0, ia, pa), (b, -1.0, ib, pb)):
-                if idx >= 0.6 * (len(pp) - 1) and bb.target:
-                    _retarget(bb, pp[-1] + sgn * 2 * step * v)
-                else:
-                    J = bb.D.jacobian(bb.axis[2:3])[0, :3, :]
-                    bb.axis[2] = np.clip(bb.axis[2] + np.linalg.solve(J, sgn * 2 * step * v), bb.D.domain[:, 0],
-                                         bb.D.domain[:, 1])
-            dist, *_ = _min_distance(a, b)
+        counts.collisions += 1
+        if _swap_far_ends(a, b, dist):
+            counts.swapped += 1
+        dist, steps = repel(partial(axis_samples, a), partial(axis_samples, b), _mover(a, b), need, max_repel)
         _snap([a, b])  # the far sections follow the axes once, not at every step
         axes[i], axes[j] = axis_samples(a), axis_samples(b)
         if dist >= need:
-            counts["repelled"] += int(steps > 0)
+            counts.repelled += int(steps > 0)
             continue
         alive[j] = False
-        counts["eliminated"] += 1
+        counts.eliminated += 1
     return [b for b, ok in zip(bridges, alive) if ok], counts
+
+
+def _swap_far_ends(a: Bridge, b: Bridge, dist: float) -> bool:
+    """Swap the two bridges' far ends (and targets) when that separates their axes more; else leave them."""
+    a2, b2 = a.axis.copy(), b.axis.copy()
+    a.axis[2:], b.axis[2:] = b2[2:].copy(), a2[2:].copy()
+    a.target, b.target = b.target, a.target
+    _assemble(a), _assemble(b)
+    if closest(axis_samples(a), axis_samples(b))[0] > dist:
+        return True
+    a.axis, b.axis = a2, b2
+    a.target, b.target = b.target, a.target
+    _assemble(a), _assemble(b)
+    return False
+
+
+def _mover(a: Bridge, b: Bridge):
+    """How surface bridges move apart (:func:`tiling.vrep.repulsion.repel`): the far inner control point
+    (the near one keeps the bridge G1 with its tile), or the far end itself, sliding along its surface, when
+    the axes come closest near the surface.  A control point moves its axis by less than itself, hence
+    twice the step."""
+    def move(v, s, ia, ib, pa, pb):
+        for bb, sgn, idx, pp in ((a, 1.0, ia, pa), (b, -1.0, ib, pb)):
+            if idx >= 0.6 * (len(pp) - 1) and bb.target:
+                _retarget(bb, pp[-1] + sgn * 2 * s * v)
+            else:
+                J = bb.D.jacobian(bb.axis[2:3])[0, :3, :]
+                bb.axis[2] = np.clip(bb.axis[2] + np.linalg.solve(J, sgn * 2 * s * v), bb.D.domain[:, 0],
+                                     bb.D.domain[:, 1])
+    return move

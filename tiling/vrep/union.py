@@ -27,23 +27,38 @@ from geometry.multipatch import PlacedPatch, face_points, tile_corners
 
 from ..errors import TilingError
 from .matching import unbalanced_match
+from .report import UnionCounts
+from .repulsion import Collisions, closest, repel
 from .fork import bifurcation_base
 from .tubes import bridge_patch, carrier, face_of, face_space, hermite_tube, is_regular as _regular, uniform_space
 from geometry.grouping import ObjectIndex
 from geometry.tolerances import COINCIDENT, same_space
 
-__all__ = ["UnionBridges", "union_anchors", "boundary_faces", "shared_faces", "bridge_union"]
+__all__ = ["Fork", "UnionBridges", "union_anchors", "boundary_faces", "shared_faces", "bridge_union"]
+
+
+@dataclass
+class Fork:
+    """A two-to-one bifurcation bridge (Section 3.5): the ``inlet`` face, the ``base`` trivariate whose bottom
+    is the inlet and whose two ``sides`` (face names) start the two ``arms`` (tubes to the outlets), and the
+    base's analysis ``space`` [(knots, degree)] * 3."""
+
+    inlet: object  # tiling.vrep.tubes.Face
+    base: BSpline
+    sides: tuple
+    arms: tuple
+    space: list
 
 
 @dataclass
 class UnionBridges:
     """The patches of the union bridges (geometry in space), with counts and, for tests, the pieces:
-    ``tubes`` the one-to-one tubes, ``forks`` (inlet Face, base G, side names, (arm, arm)) the two-to-one."""
+    ``tubes`` the one-to-one tubes, ``forks`` the two-to-one :class:`Fork` bridges."""
 
     patches: list = field(default_factory=list)
     tubes: list = field(default_factory=list)
     forks: list = field(default_factory=list)
-    counts: dict = field(default_factory=dict)
+    counts: UnionCounts = field(default_factory=UnionCounts)
 
 
 def _centres_and_directions(placed, keys):
@@ -216,25 +231,21 @@ def bridge_union(model, q_prim, p_prim, placed, q_faces, p_faces, tile: int, d_m
         else:
             res.tubes.append(t)
             reduced += 1
-    counts = {"anchors": len(q_faces), f"faces of {p_prim.name} on the shared surface": len(p_faces),
-              "one-to-one": len(m.one_to_one), "two-to-one": len(m.two_to_one),
-              "unmatched": len(m.unmatched_m) + len(m.unmatched_n), "eliminated (folded)": folded,
-              "forks reduced to a tube": reduced}
-    kept, coll = resolve_tube_collisions(res)
-    counts.update(coll)
-    res.counts = counts
+    kept, collisions = resolve_tube_collisions(res)
     for t in kept["tubes"]:
         res.patches.append(bridge_patch(t.geometry, _tube_space(t), tile))
-    for _, G, _, arms, space in kept["forks"]:
-        res.patches.append(bridge_patch(G, space, tile))
-        for t in arms:
+    for f in kept["forks"]:
+        res.patches.append(bridge_patch(f.base, f.space, tile))
+        for t in f.arms:
             res.patches.append(bridge_patch(t.geometry, _tube_space(t), tile))
     res.tubes, res.forks = kept["tubes"], kept["forks"]
-    res.counts["tubes"], res.counts["forks"] = len(res.tubes), len(res.forks)  # built and kept
     ends = {t.a.key for t in res.tubes} | {t.b.key for t in res.tubes}
-    for inlet, _, _, arms, _ in res.forks:
-        ends |= {inlet.key} | {t.b.key for t in arms}
-    res.counts["open anchors"] = len(set(q_faces) - ends)
+    for f in res.forks:
+        ends |= {f.inlet.key} | {t.b.key for t in f.arms}
+    res.counts = UnionCounts(anchors=len(q_faces), partner_faces=len(p_faces), one_to_one=len(m.one_to_one),
+                             two_to_one=len(m.two_to_one), unmatched=len(m.unmatched_m) + len(m.unmatched_n),
+                             folded=folded, forks_reduced=reduced, collisions=collisions, tubes=len(res.tubes),
+                             forks=len(res.forks), open_anchors=len(set(q_faces) - ends))
     return res
 
 
@@ -252,9 +263,9 @@ def _regular_tube(a, b, beta, phi):
     return None
 
 
-def _regular_fork(inlet, outs, alpha, beta, phi):
-    """(inlet, base G, side names, arms, base space) of the first bifurcation bridge whose base and arms do not
-    fold, over a few side angles, base heights and tangent lengths; None if none."""
+def _regular_fork(inlet, outs, alpha, beta, phi) -> Fork | None:
+    """The first bifurcation bridge whose base and arms do not fold, over a few side angles, base heights and
+    tangent lengths; None if none."""
     for da, height in _SHAPES:
         G, split, sides = bifurcation_base(inlet, outs, float(np.clip(alpha + da, 0.15, 1.45)), phi, height)
         if not _regular(G):
@@ -262,7 +273,7 @@ def _regular_fork(inlet, outs, alpha, beta, phi):
         space = [inlet.space[0], inlet.space[1], inlet.space[split]]
         arms = [_regular_tube(_base_face(G, side, space), out, beta, phi) for side, out in zip(sides, outs)]
         if all(a is not None for a in arms):
-            return inlet, G, sides, tuple(arms), space
+            return Fork(inlet, G, tuple(sides), tuple(arms), space)
     return None
 
 
@@ -330,13 +341,14 @@ def _tube_space(t) -> list:
     return [t.a.space[0], t.a.space[1], uniform_space(p, n)]
 
 
-def resolve_tube_collisions(res: UnionBridges, max_repel: int = 20) -> tuple[dict, dict]:
+def resolve_tube_collisions(res: UnionBridges, max_repel: int = 20) -> tuple[dict, Collisions]:
     """Collisions between tubes (one-to-one tubes and arms): sampled axes closer than the sum of the inscribed
     radii.  Both tubes of a colliding pair are raised to quintics and their inner layers repelled along
-    T1 x T2 (Section 3.6); a pair still colliding after ``max_repel`` steps loses its later bridge."""
+    T1 x T2 (Section 3.6, :func:`tiling.vrep.repulsion.repel`); a pair still colliding after ``max_repel``
+    steps loses its later bridge."""
     items = [("tube", i, t) for i, t in enumerate(res.tubes)]
-    items += [("fork", i, arm) for i, f in enumerate(res.forks) for arm in f[3]]
-    counts = {"collisions": 0, "repelled": 0, "eliminated": 0}
+    items += [("fork", i, arm) for i, f in enumerate(res.forks) for arm in f.arms]
+    counts = Collisions()
     dead = {"tube": set(), "fork": set()}
     if len(items) >= 2:
         axes = [t.axis() for _, _, t in items]
@@ -348,37 +360,21 @@ def resolve_tube_collisions(res: UnionBridges, max_repel: int = 20) -> tuple[dic
             if ii in dead[ki] or jj in dead[kj] or (ki == kj == "fork" and ii == jj):
                 continue  # the two arms of one fork meet at their base by construction
             need = a.radius + b.radius
-            dist, pa, pb, ia, ib = _closest(axes[i], axes[j])
-            if dist >= need:
+            if closest(axes[i], axes[j])[0] >= need:
                 continue
-            counts["collisions"] += 1
-            for _ in range(max_repel):
-                ta = pa[min(ia + 1, len(pa) - 1)] - pa[max(ia - 1, 0)]
-                tb = pb[min(ib + 1, len(pb) - 1)] - pb[max(ib - 1, 0)]
-                v = np.cross(ta, tb)
-                if np.linalg.norm(v) < 1e-12:
-                    v = pa[ia] - pb[ib]
-                v /= max(np.linalg.norm(v), 1e-300)
-                if np.dot(v, pa[ia] - pb[ib]) < 0:
-                    v = -v
-                step = 0.6 * (need - dist) + 1e-3 * need
-                a.displace(step * v)
-                b.displace(-step * v)
-                axes[i], axes[j] = a.axis(), b.axis()
-                dist, pa, pb, ia, ib = _closest(axes[i], axes[j])
-                if dist >= need:
-                    break
+            counts.collisions += 1
+
+            def move(v, s, *_, a=a, b=b):
+                a.displace(s * v)
+                b.displace(-s * v)
+
+            dist, _ = repel(a.axis, b.axis, move, need, max_repel)
+            axes[i], axes[j] = a.axis(), b.axis()
             if dist >= need:
-                counts["repelled"] += 1
+                counts.repelled += 1
             else:
                 dead[kj].add(jj)
-                counts["eliminated"] += 1
+                counts.eliminated += 1
     kept = {"tubes": [t for i, t in enumerate(res.tubes) if i not in dead["tube"]],
             "forks": [f for i, f in enumerate(res.forks) if i not in dead["fork"]]}
     return kept, counts
-
-
-def _closest(pa, pb):
-    d = np.linalg.norm(pa[:, None] - pb[None], axis=2)
-    i, j = np.unravel_index(np.argmin(d), d.shape)
-    return float(d[i, j]), pa, pb, int(i), int(j)
