@@ -200,39 +200,39 @@ def _output(v, base: Path) -> dict:
     return out
 
 
-def validate(config, base_dir=".") -> dict:
-    """The normalised configuration (every default filled in), or :class:`ProblemError` (see module)."""
-    if not isinstance(config, dict):
-        raise ProblemError("the configuration must be a table of sections")
-    unknown = sorted(set(config) - set(SECTIONS))
-    if unknown:
-        raise ProblemError(f"unknown config section {show(unknown[0])}; sections: {list(SECTIONS)}")
-    for sec in ("map", "tile", "paving", "bc"):
-        if sec not in config:
-            raise ProblemError(f"missing required config section {show(sec)}")
-    cfg: dict = {}
-    m = _table(config["map"], "map", {"primitive", "args", "file", "grading"})
+def _map(m, base_dir) -> dict:
+    """The checked [map] section."""
+    m = _table(m, "map", {"primitive", "args", "file", "grading"})
     if ("primitive" in m) == ("file" in m):
         raise ProblemError("config section map needs exactly one of 'primitive' (a built-in map) or 'file' (a .npz)")
     if "file" in m:
         if "args" in m:
             _fail("map.args", "arguments go with 'primitive', not with 'file'")
-        cfg["map"] = {"file": Path(base_dir) / _str(m["file"], "map.file")}
+        out = {"file": Path(base_dir) / _str(m["file"], "map.file")}
     else:
         name = _choice(m["primitive"], "map.primitive", MAPS)
-        cfg["map"] = {"primitive": name, "args": _kwargs(m.get("args", {}), "map.args", MAPS[name])}
+        out = {"primitive": name, "args": _kwargs(m.get("args", {}), "map.args", MAPS[name])}
     if "grading" in m:
         g = _table(m["grading"], "map.grading", {"channel", "near", "far", "face", "mode"})
-        cfg["map"]["grading"] = {
+        out["grading"] = {
             "channel": _str(g.get("channel", "k"), "map.grading.channel"),
             "near": _number(g.get("near", 205.0), "map.grading.near"),
             "far": _number(g.get("far", 54.0), "map.grading.far"),
             "face": _choice(g.get("face", "wmin"), "map.grading.face", FACE_NAMES),
             "mode": _choice(g.get("mode", "parameter"), "map.grading.mode", ("parameter", "distance"))}
-    t = _table(config["tile"], "tile", {"library", "args"}, ("library",))
+    return out
+
+
+def _tile(t) -> dict:
+    """The checked [tile] section."""
+    t = _table(t, "tile", {"library", "args"}, ("library",))
     lib = _choice(t["library"], "tile.library", TILES)
-    cfg["tile"] = {"library": lib, "args": _kwargs(t.get("args", {}), "tile.args", TILES[lib])}
-    p = _table(config["paving"], "paving", {"scheme", "counts", "levels", "scale", "seal", "thickness", "seal_sides"},
+    return {"library": lib, "args": _kwargs(t.get("args", {}), "tile.args", TILES[lib])}
+
+
+def _paving(p) -> dict:
+    """The checked [paving] section."""
+    p = _table(p, "paving", {"scheme", "counts", "levels", "scale", "seal", "thickness", "seal_sides"},
                ("scheme", "counts"))
     scheme = _choice(p["scheme"], "paving.scheme", ("hierarchical", "regular"))
     pav = {"scheme": scheme, "counts": _ints(p["counts"], "paving.counts", 2 if scheme == "hierarchical" else 3)}
@@ -254,7 +254,20 @@ def validate(config, base_dir=".") -> dict:
         for key in ("thickness", "seal_sides"):
             if key in p:
                 _fail(f"paving.{key}", "needs paving.seal = \"cap\" or \"shell\"")
-    cfg["paving"] = pav
+    return pav
+
+
+def validate(config, base_dir=".") -> dict:
+    """The normalised configuration (every default filled in), or :class:`ProblemError` (see module)."""
+    if not isinstance(config, dict):
+        raise ProblemError("the configuration must be a table of sections")
+    unknown = sorted(set(config) - set(SECTIONS))
+    if unknown:
+        raise ProblemError(f"unknown config section {show(unknown[0])}; sections: {list(SECTIONS)}")
+    for sec in ("map", "tile", "paving", "bc"):
+        if sec not in config:
+            raise ProblemError(f"missing required config section {show(sec)}")
+    cfg: dict = {"map": _map(config["map"], base_dir), "tile": _tile(config["tile"]), "paving": _paving(config["paving"])}
     mat = _table(config.get("material", {}), "material", {"conductivity", "source"})
     cfg["material"] = {"conductivity": _conductivity(mat.get("conductivity", 1.0), "material.conductivity"),
                        "source": _number(mat.get("source", 0.0), "material.source")}

@@ -141,21 +141,9 @@ def run_pipeline(config: dict, base_dir: str | Path = ".", progress: bool | None
         raise
 
 
-def _run(cfg: dict, out: Path, root: bool = True) -> dict:
-    ocfg, scfg = cfg["output"], cfg["solver"]
-    if not root:  # another MPI rank: it assembles and solves its share, rank 0 writes
-        ocfg = {**ocfg, "vtu": False, "bezier": False, "png": False}
-    stages = display.Stages(6)
-    stages.start("deformation map")
-    D = _build_map(cfg["map"])
-    stages.done(f"(degrees {D.degrees}, channels {list(D.channels)})")
-
-    stages.start("tiling")
-    ms = _build_tiling(cfg, D)
-    stages.done(f"({ms.n_tiles} tiles, {len(ms.interfaces)} interfaces)")
-
-    stages.start("assembly and solve")
-    mat = cfg["material"]
+def _heat_problem(cfg: dict, ms) -> HeatProblem:
+    """The configured heat problem on the model ``ms`` with its boundary conditions."""
+    mat, scfg = cfg["material"], cfg["solver"]
     prob = HeatProblem(ms, conductivity=mat["conductivity"], source=mat["source"], refine=scfg["refine"],
                        degree_elevation=scfg["degree_elevation"])
     for bc in cfg["bc"]:
@@ -165,14 +153,11 @@ def _run(cfg: dict, out: Path, root: bool = True) -> dict:
             prob.neumann(bc["tag"], bc["value"])
         else:
             prob.robin(bc["tag"], bc["h"], bc["ambient"])
-    probes = np.asarray(ocfg["probes"], float).reshape(-1, 3)
-    if len(probes):  # before the solve: a probe outside the model is a configuration error
-        Locator(prob.model)(probes, what="output.probes")
-    sol = prob.solve(solver=scfg["method"], tol=scfg["tol"], maxiter=scfg["maxiter"])
-    stages.done(f"({prob.ndof} DOFs, {sol.info['free_dofs']} unknowns)")
-    # high-water mark of the analysis alone (map, tiling, assembly, solve), before VTK is loaded for output
-    analysis_peak = resources.peak_memory_mib()
+    return prob
 
+
+def _write_outputs(ocfg: dict, out: Path, sol, stages) -> tuple[dict, float | None]:
+    """The VTU files and the picture asked for; returns ({kind: path}, volume of the sampled mesh or None)."""
     files = {}
     stages.start("VTU output")
     name = ocfg["name"]
@@ -192,26 +177,59 @@ def _run(cfg: dict, out: Path, root: bool = True) -> dict:
         render_temperature(vtu, out / f"{name}.png")
         files["png"] = str(out / f"{name}.png")
     stages.done()
+    return files, mesh_volume
 
-    stages.start("summary")
-    t0 = time.perf_counter()
-    tmin, tmax = sol.temperature_range(ocfg["samples"])
-    bal = sol.info["balance"]
-    summary = {
+
+def _summary(cfg, prob, sol, trange, mesh_volume, probes, files, analysis_peak) -> dict:
+    """The run's summary (``summary.json``), timings left to the caller."""
+    ms, bal = prob.model, sol.info["balance"]
+    return {
         "dofs": prob.ndof, "unknowns": sol.info["free_dofs"], "tiles": ms.n_tiles, "patches": len(ms.patches),
         "levels": ms.levels, "tiles_per_level": ms.tiles_per_level(), "interfaces": len(ms.interfaces),
-        "temperature_C": {"min": tmin, "max": tmax, "mean": sol.mean_temperature()},
+        "temperature_C": {"min": trange[0], "max": trange[1], "mean": sol.mean_temperature()},
         "inflow_W": bal["inflow_W"], "outflow_W": bal["outflow_W"], "energy_balance_error": bal["relative_error"],
+        "connected_pieces": sol.info["components"]["count"],
         "flux_W": {bc["tag"]: sol.flux(bc["tag"]) for bc in cfg["bc"]},
         "solver": sol.info["solver"],
         "volume_m3": _volumes(sol.volume(), mesh_volume),
-        "timings_s": {**stages.timings, "statistics": time.perf_counter() - t0,
-                      **{f"iga.{k}": v for k, v in prob.timings.items()}},
         "analysis_peak_memory_MiB": analysis_peak,
         "peak_memory_MiB": resources.peak_memory_mib(),
         "probes": {"points": probes.tolist(), "temperature_C": sol.probe(probes).tolist() if len(probes) else []},
         "files": files,
     }
+
+
+def _run(cfg: dict, out: Path, root: bool = True) -> dict:
+    ocfg, scfg = cfg["output"], cfg["solver"]
+    if not root:  # another MPI rank: it assembles and solves its share, rank 0 writes
+        ocfg = {**ocfg, "vtu": False, "bezier": False, "png": False}
+    stages = display.Stages(6)
+    stages.start("deformation map")
+    D = _build_map(cfg["map"])
+    stages.done(f"(degrees {D.degrees}, channels {list(D.channels)})")
+
+    stages.start("tiling")
+    ms = _build_tiling(cfg, D)
+    stages.done(f"({ms.n_tiles} tiles, {len(ms.interfaces)} interfaces)")
+
+    stages.start("assembly and solve")
+    prob = _heat_problem(cfg, ms)
+    probes = np.asarray(ocfg["probes"], float).reshape(-1, 3)
+    if len(probes):  # before the solve: a probe outside the model is a configuration error
+        Locator(prob.model)(probes, what="output.probes")
+    sol = prob.solve(solver=scfg["method"], tol=scfg["tol"], maxiter=scfg["maxiter"])
+    stages.done(f"({prob.ndof} DOFs, {sol.info['free_dofs']} unknowns)")
+    # high-water mark of the analysis alone (map, tiling, assembly, solve), before VTK is loaded for output
+    analysis_peak = resources.peak_memory_mib()
+
+    files, mesh_volume = _write_outputs(ocfg, out, sol, stages)
+
+    stages.start("summary")
+    t0 = time.perf_counter()
+    tmin, tmax = sol.temperature_range(ocfg["samples"])
+    summary = _summary(cfg, prob, sol, (tmin, tmax), mesh_volume, probes, files, analysis_peak)
+    summary["timings_s"] = {**stages.timings, "statistics": time.perf_counter() - t0,
+                            **{f"iga.{k}": v for k, v in prob.timings.items()}}
     if root:
         atomic_write(out / "summary.json", lambda tmp: Path(tmp).write_text(json.dumps(summary, indent=2)),
                      ".json", ProblemError)

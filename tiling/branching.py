@@ -189,16 +189,7 @@ def bifurcation(D: BSpline, epsilon: float | None = None, tile: str = "1-2", *, 
     >>> ms.n_tiles, sum(i.kind == "branch" for i in ms.interfaces)   # strips of a split/join on whole column faces
     (12, 8)
     """
-    _check_map(D)
-    if direction not in (0, 1, 2) or isinstance(direction, bool):
-        raise TilingError(f"direction must be 0, 1 or 2 (the growth direction), got {show(direction)}")
-    if not isinstance(surfaces, (bool, np.bool_)):
-        raise TilingError(f"surfaces must be true or false, got {show(surfaces)}")
-    if (epsilon is None) == (levels is None):
-        raise TilingError("give epsilon (model units) or levels (one per layer), not both and not neither")
-    if epsilon is not None and not (isinstance(epsilon, (int, float, np.floating)) and not isinstance(epsilon, bool)
-                                    and np.isfinite(epsilon) and epsilon > 0):
-        raise TilingError(f"epsilon must be a positive length (model units), got {show(epsilon)}")
+    _check_arguments(D, epsilon, levels, direction, surfaces)
     if isinstance(tile, dict):
         tiles, tile = _user_tiles(tile), tile.get("kind")
     else:
@@ -219,15 +210,40 @@ def bifurcation(D: BSpline, epsilon: float | None = None, tile: str = "1-2", *, 
     n_cells = sum(int(np.prod([(len(b) - 1) * s ** int(v) for b, s in zip(spans, (sx, sy))])) for v in lev)
     _check_budget(n_cells, tiles["split"], f"the bifurcation tiling ({len(lev)} layers)", "raise epsilon or lower "
                   "the levels")
+    placed, tile_list, faces = _place_layers(D, tiles, layers, lev, spans, cross, g, (sx, sy))
+    _check_spans(D, placed)
+    links = _links(faces)
+    ms = Microstructure.build(D, placed, tile_list, links, name=name)
+    ms.info = {"levels": [int(x) for x in lev], "layers": layers.tolist(), "tile": tile, "direction": g,
+               "cells": n_cells}
+    return ms
+
+
+def _check_arguments(D, epsilon, levels, direction, surfaces) -> None:
+    _check_map(D)
+    if direction not in (0, 1, 2) or isinstance(direction, bool):
+        raise TilingError(f"direction must be 0, 1 or 2 (the growth direction), got {show(direction)}")
+    if not isinstance(surfaces, (bool, np.bool_)):
+        raise TilingError(f"surfaces must be true or false, got {show(surfaces)}")
+    if (epsilon is None) == (levels is None):
+        raise TilingError("give epsilon (model units) or levels (one per layer), not both and not neither")
+    if epsilon is not None and not (isinstance(epsilon, (int, float, np.floating)) and not isinstance(epsilon, bool)
+                                    and np.isfinite(epsilon) and epsilon > 0):
+        raise TilingError(f"epsilon must be a positive length (model units), got {show(epsilon)}")
+
+
+def _place_layers(D, tiles: dict, layers, lev, spans, cross, g: int, splits):
+    """Place every layer's tiles (a split below a finer layer, a join above one, else straight) in its cells;
+    returns (placed patches, tile per cell, faces (patch, face name, plane coordinate, rect in D params))."""
     P = np.zeros((3, 3))
     P[cross[0], 0] = P[cross[1], 1] = P[g, 2] = 1.0  # tile axes -> D's directions
-    placed, tile_list, faces = [], [], []  # faces: (patch, face name, plane coordinate, rect in D params (2, 2))
+    placed, tile_list, faces = [], [], []
     for li, (iv, v) in enumerate(zip(layers, lev)):
         finer_above = li + 1 < len(lev) and lev[li + 1] > v
         finer_below = li > 0 and lev[li - 1] > v
         kind = "split" if finer_above else ("join" if finer_below else "straight")
         t = tiles[kind]
-        cuts = [_breaks(b, s ** int(v)) for b, s in zip(spans, (sx, sy))]
+        cuts = [_breaks(b, s ** int(v)) for b, s in zip(spans, splits)]
         for i in range(len(cuts[0]) - 1):
             for j in range(len(cuts[1]) - 1):
                 lo = np.array([cuts[0][i], cuts[1][j], iv[0]])
@@ -244,12 +260,7 @@ def bifurcation(D: BSpline, epsilon: float | None = None, tile: str = "1-2", *, 
                         pts = patch.control_points[:, :, z, :3].reshape(-1, 3)
                         rect = np.stack([pts.min(0)[:2], pts.max(0)[:2]], 1) * size[:2, None] + lo[:2, None]
                         faces.append((idx, face, float(lo[2] + z * size[2]), rect))
-    _check_spans(D, placed)
-    links = _links(faces)
-    ms = Microstructure.build(D, placed, tile_list, links, name=name)
-    ms.info = {"levels": [int(x) for x in lev], "layers": layers.tolist(), "tile": tile, "direction": g,
-               "cells": n_cells}
-    return ms
+    return placed, tile_list, faces
 
 
 def _links(faces) -> list:

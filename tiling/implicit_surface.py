@@ -111,32 +111,15 @@ def snap(params, axes, f, dom, tol, iterations: int = 60, values=None, lines=Non
     ax = ax[rows]
     idx = np.round(t[rows]).astype(int)
     lower = np.floor(t[rows, ax]).astype(int)
-    near = np.flatnonzero(at_sample[rows])
+
     def at(ix, pts):  # f at grid points: read from the samples, or evaluated
         if values is not None:
             return values[tuple(np.clip(ix[:, k], 0, values.shape[k] - 1) for k in range(3))]
         return f(np.clip(pts, dom[:, 0], dom[:, 1]))
 
+    near = np.flatnonzero(at_sample[rows])
     if len(near):
-        g = np.stack([axes[k][idx[near, k]] for k in range(3)], 1)
-        fg = at(idx[near], g)
-        best, pick = np.full(len(near), np.inf), np.zeros((len(near), 2), int)
-        for k in range(3):
-            for sgn in (-1, 1):
-                j = idx[near, k] + sgn
-                valid = (j >= 0) & (j < len(axes[k]))
-                h = g.copy()
-                h[:, k] = axes[k][np.clip(j, 0, len(axes[k]) - 1)]
-                valid &= (h[:, k] >= dom[k, 0] - ON_DOMAIN) & (h[:, k] <= dom[k, 1] + ON_DOMAIN)
-                hi = idx[near].copy()
-                hi[:, k] = np.clip(j, 0, len(axes[k]) - 1)
-                fh = at(hi, h)
-                score = np.where(valid & (fg * fh < 0), np.abs(fg) / (np.abs(fg - fh) + 1e-300), np.inf)
-                better = score < best
-                best[better], pick[better] = score[better], (k, sgn)
-        found = np.isfinite(best)
-        ax[near] = np.where(found, pick[:, 0], ax[near])
-        lower[near] = idx[near, ax[near]] - (found & (pick[:, 1] < 0))
+        _edges_at_samples(near, idx, ax, lower, axes, dom, at)
     i = np.arange(len(rows))
     ia = idx.copy()  # the edge's ends: grid indices ...
     ia[i, ax] = np.clip(lower, 0, np.array([len(a) for a in axes])[ax] - 2)  # ... the sample below along the edge
@@ -149,14 +132,47 @@ def snap(params, axes, f, dom, tol, iterations: int = 60, values=None, lines=Non
     fa, fb = at(ia, a), at(ib, b)
     ok = fa * fb < 0  # a sign change on the edge (else keep VTK's vertex)
     rows, a, b, fa, fb, ax = rows[ok], a[ok], b[ok], fa[ok], fb[ok], ax[ok]
-    c = a.copy()
     if lines is not None:
         E = lines(a, b, ax)
         f_edge = lambda j, pts: E(j, pts[np.arange(len(j)), ax[j]])  # noqa: E731
     else:
         f_edge = lambda j, pts: f(pts)  # noqa: E731
-    side = np.zeros(len(rows), int)  # which end the last step replaced: +1 a, -1 b
-    act = np.arange(len(rows))  # edges not converged yet
+    c, its = _illinois(a, b, fa, fb, ax, f_edge, tol, iterations)
+    out = params.copy()
+    out[rows] = c
+    return out, its
+
+
+def _edges_at_samples(near, idx, ax, lower, axes, dom, at) -> None:
+    """For the vertices ``near`` that sit at a grid sample: of their up to six edges, the one with a sign
+    change whose (linear) root is nearest; ``ax`` and ``lower`` are updated in place."""
+    g = np.stack([axes[k][idx[near, k]] for k in range(3)], 1)
+    fg = at(idx[near], g)
+    best, pick = np.full(len(near), np.inf), np.zeros((len(near), 2), int)
+    for k in range(3):
+        for sgn in (-1, 1):
+            j = idx[near, k] + sgn
+            valid = (j >= 0) & (j < len(axes[k]))
+            h = g.copy()
+            h[:, k] = axes[k][np.clip(j, 0, len(axes[k]) - 1)]
+            valid &= (h[:, k] >= dom[k, 0] - ON_DOMAIN) & (h[:, k] <= dom[k, 1] + ON_DOMAIN)
+            hi = idx[near].copy()
+            hi[:, k] = np.clip(j, 0, len(axes[k]) - 1)
+            fh = at(hi, h)
+            score = np.where(valid & (fg * fh < 0), np.abs(fg) / (np.abs(fg - fh) + 1e-300), np.inf)
+            better = score < best
+            best[better], pick[better] = score[better], (k, sgn)
+    found = np.isfinite(best)
+    ax[near] = np.where(found, pick[:, 0], ax[near])
+    lower[near] = idx[near, ax[near]] - (found & (pick[:, 1] < 0))
+
+
+def _illinois(a, b, fa, fb, ax, f_edge, tol, iterations):
+    """Roots of f on the edges [a, b] (along axis ``ax``, f of opposite signs at the ends) by the Illinois
+    variant of regula falsi, all edges at once; returns (roots (N, 3), iterations used)."""
+    c = a.copy()
+    side = np.zeros(len(a), int)  # which end the last step replaced: +1 a, -1 b
+    act = np.arange(len(a))  # edges not converged yet
     its = 0
     while len(act) and its < iterations:
         its += 1
@@ -172,9 +188,7 @@ def snap(params, axes, f, dom, tol, iterations: int = 60, values=None, lines=Non
         b[j[~left]], fb[j[~left]] = c[j[~left]], fc[~left]
         side[j] = np.where(left, 1, -1)
         act = j[~done]
-    out = params.copy()
-    out[rows] = c
-    return out, its
+    return c, its
 
 
 class EdgeSplines:

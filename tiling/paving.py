@@ -9,6 +9,8 @@ parameter box where its Jacobian vanishes (:func:`geometry.check_regular`).
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import numpy as np
 
 from geometry import BSpline, check_regular, progress
@@ -225,6 +227,81 @@ def _seal_sides(seal, seal_sides, thickness) -> set:
     return allowed
 
 
+@dataclass
+class _Paving:
+    """What a hierarchical paving accumulates: placed patches, a tile per copy, branch links, root and leaf
+    faces."""
+
+    placed: list = field(default_factory=list)
+    tiles: list = field(default_factory=list)
+    links: list = field(default_factory=list)
+    roots: list = field(default_factory=list)
+    leaves: list = field(default_factory=list)
+
+
+def _hierarchical_arguments(D, tile, counts, levels, scale, seal, thickness, seal_sides):
+    """Checked arguments of :func:`hierarchical`: (tile with the scale applied, cx, cy, sealable sides)."""
+    _check_map(D)
+    if not isinstance(tile, Tile) or not tile.hierarchical:
+        raise TilingError("hierarchical paving needs a Tile with a branch-in face and branch-out faces")
+    cx, cy = _check_counts(counts, 2, "counts")
+    allowed = _seal_sides(seal, seal_sides, thickness)
+    if not _is_int(levels) or levels < 1:
+        raise TilingError(f"levels must be a positive integer, got {show(levels)}")
+    b = len(tile.branch_outs)
+    per_cell = float(levels) if b == 1 else (float(b) ** int(levels) - 1) / (b - 1)  # 1 + b + ... + b^(levels - 1)
+    spans = [len(D.breakpoints(k)) - 1 for k in range(2)]
+    _check_budget(per_cell * cx * cy * spans[0] * spans[1], tile, f"the {levels}-level hierarchical paving")
+    if scale is not None and not (isinstance(scale, (int, float, np.integer, np.floating))
+                                  and not isinstance(scale, (bool, np.bool_)) and np.isfinite(scale) and scale > 0):
+        raise TilingError(f"scale must be a positive number (a child's height relative to its parent), got "
+                          f"{show(scale)} ({type(scale).__name__})")
+    if scale is not None and scale != tile.scale:
+        tile = Tile(tile.patches, tile.branch_in, [(b.patch, b.face, b.box) for b in tile.branch_outs],
+                    scale=scale, name=tile.name)
+    return tile, cx, cy, allowed
+
+
+def _hierarchy(tile: Tile, levels: int):
+    """The hierarchy in tile coordinates, (nodes [(placement 4x4, level, parent node, branch-out index)], the
+    4x4 map of its bounding box onto the unit cube)."""
+    nodes = [(np.eye(4), 0, -1, -1)]
+    frontier = [0]
+    for lev in range(1, levels):
+        nxt = []
+        for n in frontier:
+            M = nodes[n][0]
+            for j, bf in enumerate(tile.branch_outs):
+                nodes.append((M @ _affine(bf.map), lev, n, j))
+                nxt.append(len(nodes) - 1)
+        frontier = nxt
+    pts = np.concatenate([np.concatenate([p.points.reshape(-1, 3) for p in tile.patches]) @ M[:3, :3].T + M[:3, 3]
+                          for M, *_ in nodes])
+    lo, hi = pts.min(0), pts.max(0)
+    return nodes, _affine(np.column_stack([np.diag(1.0 / (hi - lo)), -lo / (hi - lo)]))
+
+
+def _place_hierarchy(out: _Paving, D, tile: Tile, nodes, cell, levels: int) -> None:
+    """Place one cell's hierarchy (``cell``: the 4x4 map of the unit cube into it) with its branch links."""
+    node_first = []
+    for M, lev, parent, bj in nodes:
+        tid = len(out.tiles)
+        out.tiles.append(tile)
+        G = (cell @ M)[:3]
+        first = len(out.placed)
+        node_first.append(first)
+        for pi, patch in enumerate(tile.patches):
+            out.placed.append(PlacedPatch(patch, G, D, tid, lev, pi))
+        if parent >= 0:
+            bf = tile.branch_outs[bj]
+            out.links.append((node_first[parent] + bf.patch, bf.face, bf.box, first + tile.branch_in.patch,
+                              tile.branch_in.face))
+        else:
+            out.roots.append((first + tile.branch_in.patch, tile.branch_in.face))
+        if lev == levels - 1:
+            out.leaves += [(first + bf.patch, bf.face) for bf in tile.branch_outs]
+
+
 def hierarchical(D: BSpline, tile: Tile, counts, levels: int, scale: float | None = None,
                  name: str = "hierarchical", seal: str | None = None, thickness: float = SEAL_THICKNESS,
                  seal_sides=None) -> Microstructure:
@@ -251,42 +328,11 @@ def hierarchical(D: BSpline, tile: Tile, counts, levels: int, scale: float | Non
     >>> sink.tiles_per_level(), sum(i.kind == "branch" for i in sink.interfaces)   # 4 pins on every base tile
     ([4, 16], 16)
     """
-    _check_map(D)
-    if not isinstance(tile, Tile) or not tile.hierarchical:
-        raise TilingError("hierarchical paving needs a Tile with a branch-in face and branch-out faces")
-    cx, cy = _check_counts(counts, 2, "counts")
-    allowed = _seal_sides(seal, seal_sides, thickness)
-    if not _is_int(levels) or levels < 1:
-        raise TilingError(f"levels must be a positive integer, got {show(levels)}")
-    b = len(tile.branch_outs)
-    per_cell = float(levels) if b == 1 else (float(b) ** int(levels) - 1) / (b - 1)  # 1 + b + ... + b^(levels - 1)
-    spans = [len(D.breakpoints(k)) - 1 for k in range(2)]
-    _check_budget(per_cell * cx * cy * spans[0] * spans[1], tile, f"the {levels}-level hierarchical paving")
-    if scale is not None and not (isinstance(scale, (int, float, np.integer, np.floating))
-                                  and not isinstance(scale, (bool, np.bool_)) and np.isfinite(scale) and scale > 0):
-        raise TilingError(f"scale must be a positive number (a child's height relative to its parent), got "
-                          f"{show(scale)} ({type(scale).__name__})")
-    if scale is not None and scale != tile.scale:
-        tile = Tile(tile.patches, tile.branch_in, [(b.patch, b.face, b.box) for b in tile.branch_outs],
-                    scale=scale, name=tile.name)
-    # the hierarchy in tile coordinates: (placement 4x4, level, parent tile, branch-out index)
-    nodes = [(np.eye(4), 0, -1, -1)]
-    frontier = [0]
-    for lev in range(1, int(levels)):
-        nxt = []
-        for n in frontier:
-            M = nodes[n][0]
-            for j, bf in enumerate(tile.branch_outs):
-                nodes.append((M @ _affine(bf.map), lev, n, j))
-                nxt.append(len(nodes) - 1)
-        frontier = nxt
-    pts = np.concatenate([np.concatenate([p.points.reshape(-1, 3) for p in tile.patches]) @ M[:3, :3].T + M[:3, 3]
-                          for M, *_ in nodes])
-    lo, hi = pts.min(0), pts.max(0)
-    Nrm = _affine(np.column_stack([np.diag(1.0 / (hi - lo)), -lo / (hi - lo)]))  # hierarchy -> unit cube
+    tile, cx, cy, allowed = _hierarchical_arguments(D, tile, counts, levels, scale, seal, thickness, seal_sides)
+    nodes, Nrm = _hierarchy(tile, int(levels))
     cu, cv = _cells(D, 0, cx), _cells(D, 1, cy)
     dw = D.domain[2]
-    placed, tiles, links, roots, leaves = [], [], [], [], []
+    out = _Paving()
     layouts: dict = {}  # seal plates per set of sealed sides, built once
     flat = [p.affine(G[:3, :3], G[:3, 3]) for M, *_ in nodes for G in [Nrm @ M] for p in tile.patches] if seal else []
     for i in progress.bar(range(len(cu)), desc="hierarchical paving", unit="column"):
@@ -303,29 +349,15 @@ def hierarchical(D: BSpline, tile: Tile, counts, levels: int, scale: float | Non
                     lay = seal_layout(flat, sides, thickness, seal, tile.name)
                     layouts[sides] = (lay, Tile(lay.plates, name=f"{tile.name} {seal} ({'+'.join(sorted(sides))})"))
                 squeeze = layouts[sides][0].squeeze()
-            cell_first, node_first = len(placed), []
-            for M, lev, parent, bj in nodes:
-                tid = len(tiles)
-                tiles.append(tile)
-                G = (cell @ squeeze @ Nrm @ M)[:3]
-                first = len(placed)
-                node_first.append(first)
-                for pi, patch in enumerate(tile.patches):
-                    placed.append(PlacedPatch(patch, G, D, tid, lev, pi))
-                if parent >= 0:
-                    bf = tile.branch_outs[bj]
-                    links.append((node_first[parent] + bf.patch, bf.face, bf.box, first + tile.branch_in.patch,
-                                  tile.branch_in.face))
-                else:
-                    roots.append((first + tile.branch_in.patch, tile.branch_in.face))
-                if lev == levels - 1:
-                    leaves += [(first + bf.patch, bf.face) for bf in tile.branch_outs]
+            cell_first = len(out.placed)
+            _place_hierarchy(out, D, tile, nodes, (cell @ squeeze @ Nrm), int(levels))
             if sides:
                 lay, plates = layouts[sides]
-                tid, pfirst = len(tiles), len(placed)
-                tiles.append(plates)
-                placed += [PlacedPatch(p, cell[:3], D, tid, 0, q) for q, p in enumerate(plates.patches)]
-                links += [(cell_first + a, f, box, pfirst + q, g) for a, f, box, q, g in lay.links]
+                tid, pfirst = len(out.tiles), len(out.placed)
+                out.tiles.append(plates)
+                out.placed += [PlacedPatch(p, cell[:3], D, tid, 0, q) for q, p in enumerate(plates.patches)]
+                out.links += [(cell_first + a, f, box, pfirst + q, g) for a, f, box, q, g in lay.links]
+    placed, tiles, links, roots, leaves = out.placed, out.tiles, out.links, out.roots, out.leaves
     _check_spans(D, placed)
     ms = Microstructure.build(D, placed, tiles, links, name=name, root_faces=roots, leaf_faces=sorted(set(leaves)))
     if layouts:

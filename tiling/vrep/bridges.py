@@ -155,22 +155,9 @@ def _assemble(b: Bridge) -> None:
     _snap([b])
 
 
-def build_bridges(model, prim, cls, placed, anchors, beta: float = 0.5) -> tuple[list, SurfaceCounts]:
-    """Bridges for the anchoring faces ``anchors`` [(patch index into ``placed``, face)] of primitive ``prim``.
-
-    Returns (bridges, report) with the counts of anchoring faces, bridges built and those dropped because
-    their target lies outside the primitive's domain.
-    """
-    if not (np.isfinite(beta) and 0 < beta < 1):
-        raise TilingError(f"the bend parameter beta must be in (0, 1), got {beta!r}")
-    targets = [q for q in model.primitives() if q is not prim]
-    if not targets:
-        raise TilingError(f"primitive {prim.name!r} has anchoring faces but no trimming surface to bridge to")
-    sides = {q: [q.D.boundary(f) for f in FACE_NAMES] for q in targets}  # shared: bridges snap in batches
-    faces = [G for q in targets for G in sides[q]]
-    owner = [sides[q] for q in targets for _ in FACE_NAMES]
-    D = prim.D
-    # the anchoring faces, in the primitive's parameters: control net, the tile's next layer, centre, outward e
+def _anchor_geometry(placed, anchors) -> list:
+    """Per anchoring face, in the primitive's parameters: (patch, face, face surface, control net F, the tile's
+    next layer T1, centre C, unit outward direction e)."""
     geo = []
     for pi, face in anchors:
         P = placed[pi]
@@ -183,12 +170,16 @@ def build_bridges(model, prim, cls, placed, anchors, beta: float = 0.5) -> tuple
         e = (F - T1).mean((0, 1))
         e /= np.linalg.norm(e)
         geo.append((pi, face, fs, F, T1, C, e))
-    if not geo:
-        return [], SurfaceCounts()
+    return geo
+
+
+def _targets(model, prim, faces: list, geo: list):
+    """(points (N, 3) in space, unit normals towards the anchors (N, 3), index of the chosen face (N,)): for
+    every anchor the nearest boundary point of another primitive that bounds ``prim``'s territory (just beyond
+    it, away from the point ahead of the anchor, the territory ends); one batch of inversions per face."""
+    D = prim.D
     ahead = np.array([C + e * float(np.ptp(F.reshape(-1, 3), axis=0).max()) for _, _, _, F, _, C, e in geo])
     M = D.evaluate(np.clip(ahead, D.domain[:, 0], D.domain[:, 1]))[:, :3]
-    # the nearest boundary point of another primitive that bounds this primitive's territory (just beyond it,
-    # away from M, the territory ends): one batch of inversions per candidate face
     invs = [invert(G, M) for G in faces]
     dist = np.stack([v.distance for v in invs])  # (faces, anchors)
     pts = np.stack([G.evaluate(v.params)[:, :3] for G, v in zip(faces, invs)])
@@ -208,6 +199,28 @@ def build_bridges(model, prim, cls, placed, anchors, beta: float = 0.5) -> tuple
     # towards the anchoring face: the point ahead (M) may already lie beyond a close surface
     start = D.evaluate(np.array([C for _, _, _, _, _, C, _ in geo]))[:, :3]
     normals *= np.sign(np.sum(normals * (start - Pphys), axis=1))[:, None]
+    return Pphys, normals, choice
+
+
+def build_bridges(model, prim, cls, placed, anchors, beta: float = 0.5) -> tuple[list, SurfaceCounts]:
+    """Bridges for the anchoring faces ``anchors`` [(patch index into ``placed``, face)] of primitive ``prim``.
+
+    Returns (bridges, report) with the counts of anchoring faces, bridges built and those dropped because
+    their target lies outside the primitive's domain.
+    """
+    if not (np.isfinite(beta) and 0 < beta < 1):
+        raise TilingError(f"the bend parameter beta must be in (0, 1), got {beta!r}")
+    targets = [q for q in model.primitives() if q is not prim]
+    if not targets:
+        raise TilingError(f"primitive {prim.name!r} has anchoring faces but no trimming surface to bridge to")
+    sides = {q: [q.D.boundary(f) for f in FACE_NAMES] for q in targets}  # shared: bridges snap in batches
+    faces = [G for q in targets for G in sides[q]]
+    owner = [sides[q] for q in targets for _ in FACE_NAMES]
+    D = prim.D
+    geo = _anchor_geometry(placed, anchors)
+    if not geo:
+        return [], SurfaceCounts()
+    Pphys, normals, choice = _targets(model, prim, faces, geo)
     back = invert(D, Pphys)
     JD = D.jacobian(back.params)[:, :3, :]
     out, dropped = [], 0

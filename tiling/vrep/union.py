@@ -202,35 +202,7 @@ def bridge_union(model, q_prim, p_prim, placed, q_faces, p_faces, tile: int, d_m
     m = unbalanced_match(M[1], M[2], N[1], N[2], d_maxdist, names=names)
     used = {i for i, _ in m.one_to_one} | {i for arms in m.two_to_one.values() for i in arms}
     _compose(placed, [M[0][i] for i in used] + [N[0][j] for j in {j for _, j in m.one_to_one} | set(m.two_to_one)])
-    faces: dict = {}
-
-    def face(key):
-        if key not in faces:
-            faces[key] = face_of(placed[key[0]], key[1], key)
-        return faces[key]
-
-    folded = 0
-    for i, j in m.one_to_one:
-        t = _regular_tube(face(M[0][i]), face(N[0][j]), beta, phi)
-        if t is None:
-            folded += 1
-        else:
-            res.tubes.append(t)
-    reduced = 0
-    for j, (i1, i2) in m.two_to_one.items():
-        inlet, outs = face(N[0][j]), (face(M[0][i1]), face(M[0][i2]))
-        fork = _regular_fork(inlet, outs, alpha, beta, phi)
-        if fork is not None:
-            res.forks.append(fork)
-            continue
-        # no room for a base and two arms (e.g. the faces nearly coplanar): one tube to the nearer outlet
-        near = min(outs, key=lambda o: float(np.linalg.norm(o.centre - inlet.centre)))
-        t = _regular_tube(near, inlet, beta, phi)
-        if t is None:
-            folded += 1
-        else:
-            res.tubes.append(t)
-            reduced += 1
+    folded, reduced = _bridge_matches(res, placed, m, M[0], N[0], alpha, beta, phi)
     kept, collisions = resolve_tube_collisions(res)
     for t in kept["tubes"]:
         res.patches.append(bridge_patch(t.geometry, _tube_space(t), tile))
@@ -247,6 +219,40 @@ def bridge_union(model, q_prim, p_prim, placed, q_faces, p_faces, tile: int, d_m
                              folded=folded, forks_reduced=reduced, collisions=collisions, tubes=len(res.tubes),
                              forks=len(res.forks), open_anchors=len(set(q_faces) - ends))
     return res
+
+
+def _bridge_matches(res: UnionBridges, placed, m, m_faces, n_faces, alpha, beta, phi) -> tuple[int, int]:
+    """Tubes for the one-to-one matches and forks for the two-to-one ones (a fork with no room for a base
+    becomes one tube to the nearer outlet), appended to ``res``; returns (given up folded, forks reduced)."""
+    faces: dict = {}
+
+    def face(key):
+        if key not in faces:
+            faces[key] = face_of(placed[key[0]], key[1], key)
+        return faces[key]
+
+    folded = reduced = 0
+    for i, j in m.one_to_one:
+        t = _regular_tube(face(m_faces[i]), face(n_faces[j]), beta, phi)
+        if t is None:
+            folded += 1
+        else:
+            res.tubes.append(t)
+    for j, (i1, i2) in m.two_to_one.items():
+        inlet, outs = face(n_faces[j]), (face(m_faces[i1]), face(m_faces[i2]))
+        fork = _regular_fork(inlet, outs, alpha, beta, phi)
+        if fork is not None:
+            res.forks.append(fork)
+            continue
+        # no room for a base and two arms (e.g. the faces nearly coplanar): one tube to the nearer outlet
+        near = min(outs, key=lambda o: float(np.linalg.norm(o.centre - inlet.centre)))
+        t = _regular_tube(near, inlet, beta, phi)
+        if t is None:
+            folded += 1
+        else:
+            res.tubes.append(t)
+            reduced += 1
+    return folded, reduced
 
 
 _BETAS = (1.0, 0.7, 1.4, 0.4)  # tangent-length factors tried before a folded bridge is given up
