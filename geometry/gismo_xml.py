@@ -102,6 +102,41 @@ def number_text(values) -> str:
     return " ".join(map(repr, np.ravel(np.asarray(values, float)).tolist()))
 
 
+def _write_patch(root, i: int, p: BSpline, d: int) -> None:
+    """One ``<Geometry>`` element (and its ``<Channels>``) for patch ``i`` of parametric dimension ``d``."""
+    kind = "Nurbs" if p.is_rational else "BSpline"
+    tensor_name = f"Tensor{kind}" if d > 1 else kind  # G+Smo's curves are "BSpline" / "Nurbs"
+    g = ET.SubElement(root, "Geometry", type=f"{tensor_name}{d if d > 1 else ''}", id=str(i))
+    outer = ET.SubElement(g, "Basis", type=f"{tensor_name}Basis{d if d > 1 else ''}")
+    if p.is_rational:
+        tensor = ET.SubElement(outer, "Basis", type=f"TensorBSplineBasis{d}" if d > 1 else "BSplineBasis")
+    else:
+        tensor = outer
+    for k in range(d):
+        b = tensor if d == 1 else ET.SubElement(tensor, "Basis", type="BSplineBasis", index=str(k))
+        ET.SubElement(b, "KnotVector", degree=str(p.degrees[k])).text = number_text(p.knots[k])
+    order = tuple(range(d - 1, -1, -1))  # first parametric direction fastest
+    if p.is_rational:
+        ET.SubElement(outer, "weights").text = number_text(np.transpose(p.weights, order))
+    cp = p.control_points
+    ET.SubElement(g, "coefs", geoDim="3").text = number_text(np.transpose(cp[..., :3], order + (d,)))
+    if p.channels:
+        ET.SubElement(root, "Channels", patch=str(i), names=" ".join(p.channels)).text = number_text(
+            np.transpose(cp[..., 3:], order + (d,)))
+
+
+def _check_faces(n: int, d: int, interfaces, boundary, conditions, branches) -> None:
+    """Every (patch, face) the topology names must be a patch index < n and a face of a d-variate patch."""
+    for where, items in (("interfaces", [x for i in interfaces for x in i[:2]]), ("boundary", list(boundary)),
+                         ("conditions", [f for c in conditions for f in c.faces]),
+                         ("branches", [x for b in branches for x in (b[0], b[2])])):
+        for pf in items:
+            if (not isinstance(pf, tuple) or len(pf) != 2 or not isinstance(pf[0], (int, np.integer))
+                    or not 0 <= pf[0] < n or pf[1] not in FACE_NAMES[:2 * d]):
+                raise SplineError(f"{where}: {show(pf)} is not a (patch index < {n}, face name of a "
+                                  f"{d}-variate patch) pair")
+
+
 def write_gismo(path, patches, interfaces=(), boundary=(), conditions=(), functions=None, branches=(),
                 comment: str = "", extensions=()) -> Path:
     """Write patches (geometry.BSpline, all of one parametric dimension) and their topology to G+Smo XML.
@@ -123,35 +158,10 @@ def write_gismo(path, patches, interfaces=(), boundary=(), conditions=(), functi
                           f"{sorted({p.dim for p in patches})}")
     root = ET.Element("xml")
     for i, p in enumerate(patches):
-        kind = "Nurbs" if p.is_rational else "BSpline"
-        tensor_name = f"Tensor{kind}" if d > 1 else kind  # G+Smo's curves are "BSpline" / "Nurbs"
-        g = ET.SubElement(root, "Geometry", type=f"{tensor_name}{d if d > 1 else ''}", id=str(i))
-        outer = ET.SubElement(g, "Basis", type=f"{tensor_name}Basis{d if d > 1 else ''}")
-        if p.is_rational:
-            tensor = ET.SubElement(outer, "Basis", type=f"TensorBSplineBasis{d}" if d > 1 else "BSplineBasis")
-        else:
-            tensor = outer
-        for k in range(d):
-            b = tensor if d == 1 else ET.SubElement(tensor, "Basis", type="BSplineBasis", index=str(k))
-            ET.SubElement(b, "KnotVector", degree=str(p.degrees[k])).text = number_text(p.knots[k])
-        order = tuple(range(d - 1, -1, -1))  # first parametric direction fastest
-        if p.is_rational:
-            ET.SubElement(outer, "weights").text = number_text(np.transpose(p.weights, order))
-        cp = p.control_points
-        ET.SubElement(g, "coefs", geoDim="3").text = number_text(np.transpose(cp[..., :3], order + (d,)))
-        if p.channels:
-            ET.SubElement(root, "Channels", patch=str(i), names=" ".join(p.channels)).text = number_text(
-                np.transpose(cp[..., 3:], order + (d,)))
+        _write_patch(root, i, p, d)
     mp = ET.SubElement(root, "MultiPatch", parDim=str(d), id=str(len(patches)))
     ET.SubElement(mp, "patches", type="id_range").text = f"0 {len(patches) - 1}"
-    for where, items in (("interfaces", [x for i in interfaces for x in i[:2]]), ("boundary", list(boundary)),
-                         ("conditions", [f for c in conditions for f in c.faces]),
-                         ("branches", [x for b in branches for x in (b[0], b[2])])):
-        for pf in items:
-            if (not isinstance(pf, tuple) or len(pf) != 2 or not isinstance(pf[0], (int, np.integer))
-                    or not 0 <= pf[0] < len(patches) or pf[1] not in FACE_NAMES[:2 * d]):
-                raise SplineError(f"{where}: {show(pf)} is not a (patch index < {len(patches)}, face name of a "
-                                  f"{d}-variate patch) pair")
+    _check_faces(len(patches), d, interfaces, boundary, conditions, branches)
     if interfaces:
         lines = []
         for (pa, fa), (pb, fb), swap, flip in interfaces:
@@ -226,6 +236,29 @@ def read_gismo(path) -> GismoModel:
         raise SplineError(f"{path}: malformed XML ({exc}); is it a G+Smo file?") from None
     except OSError as exc:
         raise SplineError(f"cannot read {path}: {exc.strerror or exc}") from None
+    geos, ids = _geometries(root, path)
+    model = GismoModel(geos, root=root)
+    mp = next(root.iter("MultiPatch"), None)
+    if mp is not None:
+        order = _patch_order(mp, ids, path)
+        model.patches = [geos[j] for j in order]
+        position = {g: k for k, g in enumerate(order)}
+        local = {int(i): position[j] for i, j in ids.items() if j in position and i.lstrip("-").isdigit()}
+        model.interfaces = _interfaces(mp, local, geos[0].dim, path)
+        b = mp.find("boundary")
+        if b is not None:
+            v = _numbers(b, "boundary", path, int).reshape(-1, 2)
+            model.boundary = [(_patch(local, p, path), side_name(s, geos[0].dim)) for p, s in v]
+    model.conditions += _conditions(root, len(model.patches), path)
+    for f in root.findall("Function"):
+        if f.get("label"):
+            model.functions[f.get("label")] = (f.text or "").strip()
+    model.branches += _branches(root, len(model.patches), path)
+    return model
+
+
+def _geometries(root, path):
+    """The ``<Geometry>`` patches with their channels, and {id: index}."""
     geos, ids = [], {}
     for g in root.iter("Geometry"):
         gtype = g.get("type", "")
@@ -252,18 +285,12 @@ def read_gismo(path) -> GismoModel:
         d = p.dim
         ch = np.transpose(values.reshape(tuple(reversed(p.shape)) + (len(names),)), tuple(range(d - 1, -1, -1)) + (d,))
         geos[i] = BSpline(p.degrees, p.knots, np.concatenate([p.control_points, ch], -1), p.weights, names)
-    model = GismoModel(geos, root=root)
-    mp = next(root.iter("MultiPatch"), None)
-    if mp is not None:
-        order = _patch_order(mp, ids, path)
-        model.patches = [geos[j] for j in order]
-        position = {g: k for k, g in enumerate(order)}
-        local = {int(i): position[j] for i, j in ids.items() if j in position and i.lstrip("-").isdigit()}
-        model.interfaces = _interfaces(mp, local, geos[0].dim, path)
-        b = mp.find("boundary")
-        if b is not None:
-            v = _numbers(b, "boundary", path, int).reshape(-1, 2)
-            model.boundary = [(_patch(local, p, path), side_name(s, geos[0].dim)) for p, s in v]
+    return geos, ids
+
+
+def _conditions(root, n: int, path) -> list:
+    """The ``<bc>`` entries of every ``<boundaryConditions>`` on the n patches of the multipatch."""
+    out = []
     for bcs in root.iter("boundaryConditions"):
         funcs = {f.get("index"): (f.text or "").strip() for f in bcs.iter("Function")}
         for bc in bcs.iter("bc"):
@@ -272,15 +299,18 @@ def read_gismo(path) -> GismoModel:
                 raise SplineError(f"{path}: boundary condition type {show(kind)} is not supported (the heat "
                                   f"problem has {list(BC_TYPES)})")
             v = _numbers(bc, "boundary condition sides", path, int)
-            if v.size % 2 or (v.size and (v[::2].min() < 0 or v[::2].max() >= len(model.patches))):
+            if v.size % 2 or (v.size and (v[::2].min() < 0 or v[::2].max() >= n)):
                 raise SplineError(f"{path}: a {kind} <bc> lists {show(v.tolist()[:6])}: not (patch, side) pairs of "
-                                  f"patches 0..{len(model.patches) - 1}")
+                                  f"patches 0..{n - 1}")
             v = v.reshape(-1, 2)
-            model.conditions.append(GismoCondition(kind, [(int(p), side_name(s)) for p, s in v],
+            out.append(GismoCondition(kind, [(int(p), side_name(s)) for p, s in v],
                                                    funcs.get(bc.get("function"), ""), bc.get("coefficient")))
-    for f in root.findall("Function"):
-        if f.get("label"):
-            model.functions[f.get("label")] = (f.text or "").strip()
+    return out
+
+
+def _branches(root, n: int, path) -> list:
+    """The rows of ``<BranchInterfaces>``: (parent (patch, side), box, child (patch, side))."""
+    out = []
     for b in root.iter("BranchInterfaces"):
         v = _numbers(b, "branch interfaces", path)
         if v.size % 8:
@@ -288,12 +318,12 @@ def read_gismo(path) -> GismoModel:
                               "(parent side, box a b c d, child side)")
         for row in v.reshape(-1, 8):
             for pi in (row[0], row[6]):
-                if pi != int(pi) or not 0 <= int(pi) < len(model.patches):
+                if pi != int(pi) or not 0 <= int(pi) < n:
                     raise SplineError(f"{path}: <BranchInterfaces> names patch {show(float(pi))}, which is not in "
-                                      f"the multipatch (0..{len(model.patches) - 1})")
-            model.branches.append(((int(row[0]), side_name(int(row[1]))), ((row[2], row[3]), (row[4], row[5])),
+                                      f"the multipatch (0..{n - 1})")
+            out.append(((int(row[0]), side_name(int(row[1]))), ((row[2], row[3]), (row[4], row[5])),
                                    (int(row[6]), side_name(int(row[7])))))
-    return model
+    return out
 
 
 def _geometry(g, path) -> BSpline:

@@ -103,21 +103,9 @@ def _surface(s: BSpline) -> list:
              w.T, np.transpose(cp, (1, 0, 2)), float(U[0]), float(U[-1]), float(V[0]), float(V[-1])])
 
 
-def write_iges(path, splines, *, units: str = "m", author: str = "iga-microstructures", name: str = "") -> Path:
-    """Write B-spline curves (126), surfaces (128) and trimmed surfaces (144) to an IGES file (atomic).
-
-    ``splines``: geometry.BSpline curves and surfaces and
-    :class:`geometry.trimmed.TrimmedSurface` (trivariates: write their
-    boundary surfaces, e.g. ``[v.boundary(f) for f in FACE_NAMES]``).
-    """
-    items = list(splines)
-    if not items:
-        raise SplineError("write_iges needs at least one curve or surface")
-    if units not in UNITS:
-        raise SplineError(f"units must be one of {sorted(UNITS)}, got {show(units)}")
-    path = Path(path)
-    for what, text in (("name", name), ("author", author), ("the file name", path.name)):
-        _check_text(what, text)
+def _entities(items) -> tuple[list, list]:
+    """(parameter list, directory-entry status digits) per IGES entity of the curves, surfaces and trimmed
+    surfaces ``items``; a directory entry's sequence number is 2 x its index + 1."""
     params, status = [], []  # per entity: parameter list, DE status digits
 
     def add(prm, st="00000000") -> int:
@@ -140,14 +128,11 @@ def write_iges(path, splines, *, units: str = "m", author: str = "iga-microstruc
         if not np.all(np.isfinite(s.control_points)):
             raise SplineError(f"item {i} has non-finite control points; IGES cannot hold them")
         add(_curve(s) if s.dim == 1 else _surface(s))
-    stamp = _dt.datetime.now().strftime("%Y%m%d.%H%M%S")
-    flag, unit = UNITS[units]
-    extent = max(float(np.abs((s.surface if isinstance(s, TrimmedSurface) else s).control_points[..., :3]).max())
-                 for s in items)
-    glob = [",", ";", name or path.stem, path.name, "iga-microstructures", "1", 32, 38, 6, 308, 15,
-            name or path.stem, 1.0, flag, unit, 1, 1.0, stamp, 1e-10, max(extent, 1.0), author, "iga", 11, 0, stamp]
-    gtext = ",".join(_hollerith(v) if isinstance(v, str) else (str(v) if isinstance(v, int) else _num(v))
-                     for v in glob) + ";"
+    return params, status
+
+
+def _sections(gtext: str, params: list, status: list) -> list[str]:
+    """The 80-column records of the start, global, directory, parameter and terminate sections."""
     s_lines = ["IGES export of exact B-spline geometry (iga-microstructures)"]
     g_lines = _records(gtext, 72)
     d_lines, p_lines = [], []
@@ -169,6 +154,34 @@ def write_iges(path, splines, *, units: str = "m", author: str = "iga-microstruc
         bad = next(k for k, r in enumerate(records) if len(r) != 80)
         raise SplineError(f"IGES record {bad + 1} would have {len(records[bad])} columns instead of 80; nothing "
                           "was written (please report this)")
+    return records
+
+
+def write_iges(path, splines, *, units: str = "m", author: str = "iga-microstructures", name: str = "") -> Path:
+    """Write B-spline curves (126), surfaces (128) and trimmed surfaces (144) to an IGES file (atomic).
+
+    ``splines``: geometry.BSpline curves and surfaces and
+    :class:`geometry.trimmed.TrimmedSurface` (trivariates: write their
+    boundary surfaces, e.g. ``[v.boundary(f) for f in FACE_NAMES]``).
+    """
+    items = list(splines)
+    if not items:
+        raise SplineError("write_iges needs at least one curve or surface")
+    if units not in UNITS:
+        raise SplineError(f"units must be one of {sorted(UNITS)}, got {show(units)}")
+    path = Path(path)
+    for what, text in (("name", name), ("author", author), ("the file name", path.name)):
+        _check_text(what, text)
+    params, status = _entities(items)
+    stamp = _dt.datetime.now().strftime("%Y%m%d.%H%M%S")
+    flag, unit = UNITS[units]
+    extent = max(float(np.abs((s.surface if isinstance(s, TrimmedSurface) else s).control_points[..., :3]).max())
+                 for s in items)
+    glob = [",", ";", name or path.stem, path.name, "iga-microstructures", "1", 32, 38, 6, 308, 15,
+            name or path.stem, 1.0, flag, unit, 1, 1.0, stamp, 1e-10, max(extent, 1.0), author, "iga", 11, 0, stamp]
+    gtext = ",".join(_hollerith(v) if isinstance(v, str) else (str(v) if isinstance(v, int) else _num(v))
+                     for v in glob) + ";"
+    records = _sections(gtext, params, status)
     text = "\n".join(records) + "\n"
 
     def write(tmp):

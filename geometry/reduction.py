@@ -90,6 +90,19 @@ def reduce_degree(spline: BSpline, degree: int = 3, check: int = 9) -> tuple[BSp
     g = np.stack(np.meshgrid(*[np.array([0.0, 1.0])] * 3, indexing="ij"), -1)
     vals = at(g)
     C[:, corner[:, None, None], corner[None, :, None], corner[None, None, :]] = vals
+    _fit_edges(C, at, spline, lo, size, q, t, B)
+    _fit_faces(C, at, q, t, B)
+    flat = _fit_interior(C, at, q, t, B)
+    G = _join_pieces(flat, ne, q, m)
+    knots = [np.concatenate([[b[0]] * (q + 1), np.repeat(b[1:-1], q), [b[-1]] * (q + 1)]) for b in brk]
+    reduced = BSpline((q,) * 3, knots, G, channels=spline.channels)
+    return reduced, deviation(spline, reduced, check)
+
+
+def _fit_edges(C, at, spline, lo, size, q: int, t, B) -> None:
+    """The edge control points of every Bezier piece (C (E, q+1, q+1, q+1, m), filled in place): Hermite
+    end derivatives for q = 3, least squares on the samples ``t`` for q = 2."""
+    s = len(t)
     # edges: along axis k, at the four corner positions of the other two axes
     for k in range(3):
         o = [j for j in range(3) if j != k]
@@ -110,6 +123,12 @@ def reduce_degree(spline: BSpline, degree: int = 3, check: int = 9) -> tuple[BSp
                     inner = np.zeros(q + 1, bool)
                     inner[1:-1] = True
                     edge[:, inner] = _fit_inner(B, edge, samples, inner)
+
+
+def _fit_faces(C, at, q: int, t, B) -> None:
+    """The inner (q-1)^2 control points of every face, by least squares on an s x s sample grid (in place)."""
+    E, m = C.shape[0], C.shape[-1]
+    s = len(t)
     # faces: normal axis k at side c, inner (q-1)^2 points by least squares
     for k in range(3):
         o = [j for j in range(3) if j != k]
@@ -126,6 +145,11 @@ def reduce_degree(spline: BSpline, degree: int = 3, check: int = 9) -> tuple[BSp
             flat = face.reshape(E, -1, m)
             flat[:, inner.ravel()] = _fit_inner(B, flat, samples.reshape(E, -1, m), inner)
             C[(slice(None),) + tuple(idx)] = flat.reshape(face.shape)
+
+
+def _fit_interior(C, at, q: int, t, B):
+    """The inner control points of every piece by least squares; returns C viewed as (E, (q+1)^3, m)."""
+    E, m = C.shape[0], C.shape[-1]
     # the volume's inner points
     loc = np.stack(np.meshgrid(t, t, t, indexing="ij"), -1)
     samples = at(loc)
@@ -134,6 +158,12 @@ def reduce_degree(spline: BSpline, degree: int = 3, check: int = 9) -> tuple[BSp
     flat = C.reshape(E, -1, m)
     if inner.any():
         flat[:, inner.ravel()] = _fit_inner(B, flat, samples.reshape(E, -1, m), inner)
+    return flat
+
+
+def _join_pieces(flat, ne, q: int, m: int):
+    """The control net of the C0 join of the Bezier pieces ``flat`` (E, (q+1)^3, m) on an ne[0] x ne[1] x ne[2]
+    grid."""
     # join the pieces (C0 knots of multiplicity q): per direction, every piece's first q layers, then the
     # last piece's last layer; neighbouring pieces share their common side, so the one kept is theirs
     G = flat.reshape(tuple(ne) + (q + 1,) * 3 + (m,)).transpose(0, 3, 1, 4, 2, 5, 6)  # (n0, q0, n1, q1, n2, q2, m)
@@ -142,9 +172,7 @@ def reduce_degree(spline: BSpline, degree: int = 3, check: int = 9) -> tuple[BSp
         body = body.reshape(body.shape[:k] + (-1,) + body.shape[k + 2:])
         last = np.take(np.take(G, [ne[k] - 1], axis=k), q, axis=k + 1)
         G = np.concatenate([body, last], axis=k)
-    knots = [np.concatenate([[b[0]] * (q + 1), np.repeat(b[1:-1], q), [b[-1]] * (q + 1)]) for b in brk]
-    reduced = BSpline((q,) * 3, knots, G, channels=spline.channels)
-    return reduced, deviation(spline, reduced, check)
+    return G
 
 
 def _edge_derivative(spline, lo, size, k, o, a, b, tk) -> np.ndarray:

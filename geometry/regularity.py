@@ -225,6 +225,53 @@ def _corners(J, d):
     return J[np.ix_(np.arange(J.shape[0]), *ends)].reshape(J.shape[0], -1)
 
 
+def _halves(sub, boxes, k: int):
+    """Bernstein arrays ``sub`` (n, ...) and their parameter boxes (n, d, 2) split in half along direction k
+    (batched de Casteljau): the left halves, then the right ones."""
+    q = sub.shape[1 + k] - 1
+    L, R = bz.split_matrices(q, 0.5)
+    left = np.moveaxis(np.tensordot(L, np.moveaxis(sub, 1 + k, 0), axes=(1, 0)), 0, 1 + k)
+    right = np.moveaxis(np.tensordot(R, np.moveaxis(sub, 1 + k, 0), axes=(1, 0)), 0, 1 + k)
+    mid = 0.5 * (boxes[:, k, 0] + boxes[:, k, 1])
+    bl, br = boxes.copy(), boxes.copy()
+    bl[:, k, 1] = mid
+    br[:, k, 0] = mid
+    return np.concatenate([left, right]), np.concatenate([bl, br])
+
+
+def _verdict(pos_boxes, neg_boxes, zero_boxes, undecided, bounds, scale, depth, d) -> RegularityResult:
+    """The result from the boxes proven positive, negative, containing a zero, and left undecided."""
+    empty = np.zeros((0, d, 2))
+    P = np.concatenate(pos_boxes + [empty])
+    N = np.concatenate(neg_boxes + [empty])
+    Z = np.concatenate(zero_boxes + [empty])
+    def vol(B):
+        return float(np.prod(B[:, :, 1] - B[:, :, 0], axis=1).sum()) if len(B) else 0.0
+
+    orientation = 1 if vol(P) >= vol(N) else -1
+    if vol(P) == 0 and vol(N) == 0:
+        orientation = 0
+    wrong = N if orientation > 0 else P
+    lo_all = bounds[0]
+    if len(Z) or (len(P) and len(N)):
+        where = np.concatenate([Z, wrong])
+        hull = np.stack([where[:, :, 0].min(0), where[:, :, 1].max(0)], axis=1)
+        msg = (
+            f"singular: the Jacobian vanishes or changes sign in {len(where)} parameter box(es) within "
+            + " x ".join(f"{'uvw'[k]} in [{hull[k, 0]:.4g}, {hull[k, 1]:.4g}]" for k in range(d))
+        )
+        return RegularityResult("singular", orientation, where, bounds, msg, depth)
+    if len(undecided):
+        msg = (
+            f"undecided after {depth} subdivision rounds: {len(undecided)} box(es) such as "
+            f"{np.round(undecided[0], 6).tolist()} have Jacobian near zero (relative {abs(lo_all) / scale:.1e}); "
+            "raise max_depth or inspect the map there"
+        )
+        return RegularityResult("undecided", orientation, undecided, bounds, msg, depth)
+    msg = f"regular: the Jacobian is {'positive' if orientation > 0 else 'negative'} everywhere"
+    return RegularityResult("regular", orientation, np.zeros((0, d, 2)), bounds, msg, depth)
+
+
 def check_regular(spline: SplineFunction, max_depth: int = 9, allow_zeros: bool = False) -> RegularityResult:
     """Decide whether ``spline`` (trivariate, or planar surface) has a non-vanishing Jacobian.
 
@@ -280,47 +327,6 @@ def check_regular(spline: SplineFunction, max_depth: int = 9, allow_zeros: bool 
             break
         # keep splitting inconclusive boxes (to decide) and crossing boxes (to localise the zero set)
         todo = todo | crossing
-        # split in half along direction depth % d (batched de Casteljau)
-        k = depth % d
-        q = cur.shape[1 + k] - 1
-        L, R = bz.split_matrices(q, 0.5)
-        sub = cur[todo]
-        left = np.moveaxis(np.tensordot(L, np.moveaxis(sub, 1 + k, 0), axes=(1, 0)), 0, 1 + k)
-        right = np.moveaxis(np.tensordot(R, np.moveaxis(sub, 1 + k, 0), axes=(1, 0)), 0, 1 + k)
-        b = cur_boxes[todo]
-        mid = 0.5 * (b[:, k, 0] + b[:, k, 1])
-        bl, br = b.copy(), b.copy()
-        bl[:, k, 1] = mid
-        br[:, k, 0] = mid
-        cur = np.concatenate([left, right])
-        cur_boxes = np.concatenate([bl, br])
+        cur, cur_boxes = _halves(cur[todo], cur_boxes[todo], depth % d)  # along direction depth % d
         depth += 1
-    empty = np.zeros((0, d, 2))
-    P = np.concatenate(pos_boxes + [empty])
-    N = np.concatenate(neg_boxes + [empty])
-    Z = np.concatenate(zero_boxes + [empty])
-    def vol(B):
-        return float(np.prod(B[:, :, 1] - B[:, :, 0], axis=1).sum()) if len(B) else 0.0
-
-    orientation = 1 if vol(P) >= vol(N) else -1
-    if vol(P) == 0 and vol(N) == 0:
-        orientation = 0
-    wrong = N if orientation > 0 else P
-    bounds = (lo_all, hi_all)
-    if len(Z) or (len(P) and len(N)):
-        where = np.concatenate([Z, wrong])
-        hull = np.stack([where[:, :, 0].min(0), where[:, :, 1].max(0)], axis=1)
-        msg = (
-            f"singular: the Jacobian vanishes or changes sign in {len(where)} parameter box(es) within "
-            + " x ".join(f"{'uvw'[k]} in [{hull[k, 0]:.4g}, {hull[k, 1]:.4g}]" for k in range(d))
-        )
-        return RegularityResult("singular", orientation, where, bounds, msg, depth)
-    if len(undecided):
-        msg = (
-            f"undecided after {depth} subdivision rounds: {len(undecided)} box(es) such as "
-            f"{np.round(undecided[0], 6).tolist()} have Jacobian near zero (relative {abs(lo_all) / scale:.1e}); "
-            "raise max_depth or inspect the map there"
-        )
-        return RegularityResult("undecided", orientation, undecided, bounds, msg, depth)
-    msg = f"regular: the Jacobian is {'positive' if orientation > 0 else 'negative'} everywhere"
-    return RegularityResult("regular", orientation, np.zeros((0, d, 2)), bounds, msg, depth)
+    return _verdict(pos_boxes, neg_boxes, zero_boxes, undecided, (lo_all, hi_all), scale, depth, d)

@@ -226,24 +226,10 @@ class TrimmedSurface:
         ta = np.concatenate([t for _, t in rings])
         tb = np.concatenate([np.append(t[1:], c.domain[0, 1]) for c, (_, t) in zip(self.loops, rings)])
         X = S.evaluate(uv)[:, :3]
-        big = np.int64(1) << 32
         for _ in range(30):
             check_memory(len(tris) * 4 * 200.0, f"the tessellation at tolerance {show(tolerance)}", SplineError,
                          "raise the tolerance")
-            edges = np.sort(np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]]), axis=1)
-            uniq, inv = np.unique(edges, axis=0, return_inverse=True)
-            mid_uv = 0.5 * (uv[uniq[:, 0]] + uv[uniq[:, 1]])
-            # the loop edges among them (their midpoints are the loop's points at the mean parameter)
-            codes = uniq[:, 0] * big + uniq[:, 1]
-            bcodes = np.minimum(va, vb) * big + np.maximum(va, vb)
-            order = np.argsort(bcodes)
-            pos = np.searchsorted(bcodes[order], codes)
-            on_loop = (pos < len(order)) & (bcodes[order][np.minimum(pos, len(order) - 1)] == codes)
-            rows, which = np.flatnonzero(on_loop), order[pos[on_loop]]
-            mid_t = 0.5 * (ta[which] + tb[which])
-            for k in np.unique(loop[which]):
-                sel = loop[which] == k
-                mid_uv[rows[sel]] = self.loops[k].evaluate(mid_t[sel][:, None])[:, :2]
+            uniq, inv, mid_uv, rows, which, mid_t = self._midpoints(uv, tris, va, vb, loop, ta, tb)
             mid_X = S.evaluate(mid_uv)[:, :3]
             err = np.linalg.norm(mid_X - 0.5 * (X[uniq[:, 0]] + X[uniq[:, 1]]), axis=1)
             if err.max() <= tolerance:
@@ -258,15 +244,32 @@ class TrimmedSurface:
             va, vb = np.concatenate([va[which], mid]), np.concatenate([mid, vb[which]])
             loop = np.concatenate([loop[which], loop[which]])
             ta, tb = np.concatenate([ta[which], mid_t]), np.concatenate([mid_t, tb[which]])
-            e = inv.reshape(3, -1).T + base  # midpoints of edges 01, 12, 20 per triangle
-            t0, t1, t2 = tris.T
-            m01, m12, m20 = e.T
-            tris = np.concatenate([np.stack([t0, m01, m20], 1), np.stack([m01, t1, m12], 1),
-                                   np.stack([m20, m12, t2], 1), np.stack([m01, m12, m20], 1)])
+            tris = _split_in_four(tris, inv, base)
         P = uv
         mesh = pv.PolyData(X, np.hstack([np.full((len(tris), 1), 3), tris]).ravel())
         mesh.point_data["u"], mesh.point_data["v"] = P.T
         return mesh
+
+    def _midpoints(self, uv, tris, va, vb, loop, ta, tb):
+        """Midpoints (in parameters) of the unique edges of ``tris``: (unique edges, edge of each side, midpoints,
+        rows of the loop edges among the unique ones, which loop edge each is, its mid parameter); a loop
+        edge's midpoint is the loop's point at the mean parameter, not the chord's."""
+        big = np.int64(1) << 32
+        edges = np.sort(np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]]), axis=1)
+        uniq, inv = np.unique(edges, axis=0, return_inverse=True)
+        mid_uv = 0.5 * (uv[uniq[:, 0]] + uv[uniq[:, 1]])
+        # the loop edges among them (their midpoints are the loop's points at the mean parameter)
+        codes = uniq[:, 0] * big + uniq[:, 1]
+        bcodes = np.minimum(va, vb) * big + np.maximum(va, vb)
+        order = np.argsort(bcodes)
+        pos = np.searchsorted(bcodes[order], codes)
+        on_loop = (pos < len(order)) & (bcodes[order][np.minimum(pos, len(order) - 1)] == codes)
+        rows, which = np.flatnonzero(on_loop), order[pos[on_loop]]
+        mid_t = 0.5 * (ta[which] + tb[which])
+        for k in np.unique(loop[which]):
+            sel = loop[which] == k
+            mid_uv[rows[sel]] = self.loops[k].evaluate(mid_t[sel][:, None])[:, :2]
+        return uniq, inv, mid_uv, rows, which, mid_t
 
     def _sample_loop(self, c: BSpline, tol: float, limit: int = 2_000_000):
         """Parameters along loop c (its end excluded: the ring closes itself) with chord error <= tol in space;
@@ -285,3 +288,14 @@ class TrimmedSurface:
                 break
             t = np.sort(np.concatenate([t, mid[bad]]))
         return c.evaluate(t[:-1, None])[:, :2], t[:-1]
+
+
+def _split_in_four(tris, inv, base: int):
+    """Every triangle split in four at its edge midpoints (``inv``: the unique edge of each side, numbered
+    from ``base``): uniform, so the mesh stays conforming."""
+    e = inv.reshape(3, -1).T + base  # midpoints of edges 01, 12, 20 per triangle
+    t0, t1, t2 = tris.T
+    m01, m12, m20 = e.T
+    tris = np.concatenate([np.stack([t0, m01, m20], 1), np.stack([m01, t1, m12], 1),
+                           np.stack([m20, m12, t2], 1), np.stack([m01, m12, m20], 1)])
+    return tris
