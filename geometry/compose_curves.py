@@ -17,6 +17,7 @@ from math import comb
 import numpy as np
 
 from .bspline import BSpline
+from .tolerances import ON_DOMAIN
 
 __all__ = ["crossings", "compose_curve_split"]
 
@@ -36,7 +37,7 @@ def crossings(curve: BSpline, k: int, value: float) -> np.ndarray:
                 pw[j] += num[i] * comb(p, i) * comb(p - i, j - i) * (-1) ** (j - i)
         r = np.roots(pw[::-1]) if np.any(pw[1:]) else np.array([])
         r = r[np.abs(r.imag) < 1e-9].real
-        r = r[(r > 1e-12) & (r < 1 - 1e-12)]
+        r = r[(r > ON_DOMAIN) & (r < 1 - ON_DOMAIN)]
         roots += list(t0 + r * (t1 - t0))
     return np.array(roots)
 

@@ -16,6 +16,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .errors import SplineError
+from .tolerances import ROUNDOFF
 
 __all__ = ["Inversion", "invert", "newton_inverse", "start_grid"]
 
@@ -57,7 +58,7 @@ def newton_inverse(fn, domain: np.ndarray, start: np.ndarray, targets: np.ndarra
         A = JT @ J
         g = (JT @ r[:, :, None])[:, :, 0]
         # a rank-deficient normal matrix (degenerate point) gets a tiny regularisation instead of a LinAlgError
-        reg = 1e-14 * (np.trace(A, axis1=1, axis2=2) + 1e-300)
+        reg = ROUNDOFF * (np.trace(A, axis1=1, axis2=2) + 1e-300)
         A = A + reg[:, None, None] * np.eye(A.shape[1])
         step = np.linalg.solve(A, g[:, :, None])[:, :, 0]
         new = np.clip(t[active] - step, domain[:, 0], domain[:, 1])

@@ -23,6 +23,7 @@ from .products import multiply
 from .shapes import cylinder, duck  # example shapes live in their own module
 from .spline import SplineFunction
 from .errors import show
+from .tolerances import ON_DOMAIN
 
 __all__ = [
     "box",
@@ -86,7 +87,7 @@ def arc(radius: float, angle: float, start: float = 0.0, exact: bool = True):
     with the standard ``4/3 tan(theta/4)`` handles (radial error 2.7e-4 r for
     90-degree segments, smaller for shorter ones).
     """
-    if not (np.isfinite(angle) and 0 < angle <= 2 * pi + 1e-12):
+    if not (np.isfinite(angle) and 0 < angle <= 2 * pi + ON_DOMAIN):
         raise SplineError(f"arc angle must be in (0, 2 pi] radians, got {show(angle)}")
     if not (np.isfinite(radius) and radius > 0):
         raise SplineError(f"arc radius must be positive, got {show(radius)}")
@@ -333,7 +334,7 @@ def revolve(profile: BSpline, angle: float = 2 * pi, start: float = 0.0) -> BSpl
     if profile.dim != 2:
         raise SplineError("revolve() needs a surface profile")
     P = profile.points
-    if np.max(np.abs(P[..., 1])) > 1e-12 * max(1.0, np.abs(P).max()) or np.min(P[..., 0]) < 0:
+    if np.max(np.abs(P[..., 1])) > ON_DOMAIN * max(1.0, np.abs(P).max()) or np.min(P[..., 0]) < 0:
         raise SplineError("revolve() profile must lie in the xz half-plane (y = 0, x >= 0)")
     p, U, A, wa = arc(1.0, angle, start, exact=True)
     wp = profile.weights if profile.is_rational else np.ones(profile.shape)

@@ -16,6 +16,7 @@ from . import bernstein
 from . import knots as kn
 from .errors import SplineError
 from .spline import SplineFunction
+from .tolerances import ROUNDOFF
 
 __all__ = ["multiply", "product_knots", "from_bezier_elements", "common_refinement"]
 
@@ -69,7 +70,7 @@ def multiply(f: SplineFunction, g: SplineFunction) -> SplineFunction:
     """
     if f.dim != g.dim:
         raise SplineError(f"cannot multiply a {f.dim}-variate spline by a {g.dim}-variate one")
-    if not np.allclose(f.domain, g.domain, rtol=0, atol=1e-14):
+    if not np.allclose(f.domain, g.domain, rtol=0, atol=ROUNDOFF):
         raise SplineError(f"factors must share the parameter domain: {f.domain.tolist()} vs {g.domain.tolist()}")
     mf, mg = f.n_components, g.n_components
     if not (mf == 1 or mg == 1 or mf == mg):

@@ -29,6 +29,7 @@ import numpy as np
 from . import progress
 from .bspline import BSpline
 from .errors import SplineError, show
+from .tolerances import ON_DOMAIN
 
 __all__ = ["reduce_degree", "reduce_model", "deviation"]
 
@@ -185,7 +186,7 @@ def _edge_derivative(spline, lo, size, k, o, a, b, tk) -> np.ndarray:
     x[:, o[1]] += b * size[:, o[1]]
     orders = tuple(int(j == k) for j in range(3))
     # at a patch's inner knot the one-sided derivative of this element is needed: step inside it
-    eps = 1e-12 * size[:, k]
+    eps = ON_DOMAIN * size[:, k]
     x[:, k] += np.where(tk == 0.0, eps, -eps)
     return spline.derivative(x, orders) * size[:, k:k + 1]
 

@@ -29,6 +29,7 @@ from .bspline import BSpline
 from .composition import compose
 from .errors import SplineError, show
 from .resources import check_memory
+from .tolerances import ON_DOMAIN, ROUNDOFF
 
 __all__ = ["TrimmedSurface", "reversed_curve", "join_curves", "loop_polyline", "inside_polyline"]
 
@@ -149,7 +150,7 @@ class TrimmedSurface:
                 raise SplineError(f"trimming loop {i} is open: it starts at {ends[0].round(9).tolist()} and ends at "
                                   f"{ends[1].round(9).tolist()}; close it (last control point = first)")
             poly = _polyline(c)
-            if np.any(poly < dom[:, 0] - 1e-12 * scale) or np.any(poly > dom[:, 1] + 1e-12 * scale):
+            if np.any(poly < dom[:, 0] - ON_DOMAIN * scale) or np.any(poly > dom[:, 1] + ON_DOMAIN * scale):
                 raise SplineError(f"trimming loop {i} leaves the surface's parameter domain {dom.tolist()}")
             # a loop whose points lie on one line (it runs back along itself, or is a point) overlaps itself
             # everywhere: say that it encloses nothing, before the crossings test calls it self-intersecting
@@ -159,7 +160,7 @@ class TrimmedSurface:
             if _crossings(poly, poly, True):
                 raise SplineError(f"trimming loop {i} intersects itself; a loop must be a simple closed curve")
             area = _signed_area(poly)
-            if abs(area) < 1e-14 * scale ** 2:
+            if abs(area) < ROUNDOFF * scale ** 2:
                 raise SplineError(f"trimming loop {i} encloses no area")
             if (area < 0) == (i == 0):  # outer counter-clockwise, holes clockwise
                 c, poly = reversed_curve(c), poly[::-1]

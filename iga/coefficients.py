@@ -18,6 +18,7 @@ import numpy as np
 
 from .errors import ProblemError
 from geometry.errors import show
+from geometry.tolerances import ON_DOMAIN
 
 __all__ = ["ScalarField", "Conductivity", "is_number", "TENSOR_PAIRS", "tensor_matrix"]
 
@@ -146,7 +147,7 @@ class Conductivity:
                 raise ProblemError(
                     "conductivity must be a number, a channel name, a callable of x (N, 3), a constant 3 x 3 "
                     f"symmetric positive definite matrix or six channel names (xx, yy, zz, xy, xz, yz); got {show(spec)}")
-            if not np.allclose(M, M.T, rtol=1e-12, atol=0):
+            if not np.allclose(M, M.T, rtol=ON_DOMAIN, atol=0):
                 raise ProblemError(f"conductivity matrix must be symmetric, got {M.tolist()}")
             K6 = np.array([M[r, s] for r, s in TENSOR_PAIRS])
             _check_spd(K6[None], np.zeros((0, 3)), "the model")
@@ -180,7 +181,7 @@ class Conductivity:
             if v.shape != (n, 3, 3):
                 raise ProblemError(f"conductivity callable must return shape ({n},) or ({n}, 3, 3) for x of shape "
                                    f"({n}, 3), got {v.shape}")
-            if not np.allclose(v, np.transpose(v, (0, 2, 1)), rtol=1e-12, atol=1e-300):
+            if not np.allclose(v, np.transpose(v, (0, 2, 1)), rtol=ON_DOMAIN, atol=1e-300):
                 raise ProblemError(f"conductivity callable returned non-symmetric tensors on {where}")
             K6 = np.stack([v[:, r, s] for r, s in TENSOR_PAIRS], axis=1)
         _check_spd(K6, x, where)

@@ -53,7 +53,7 @@ def _solve_mass(M: sp.csc_matrix, b: np.ndarray) -> np.ndarray:
     if M.shape[0] <= 200:
         return np.atleast_1d(np.linalg.solve(M.toarray(), b))
     d = M.diagonal()
-    x, info = spla.cg(M, b, rtol=1e-14, atol=0.0, maxiter=2000, M=sp.diags(1.0 / d))
+    x, info = spla.cg(M, b, rtol=ROUNDOFF, atol=0.0, maxiter=2000, M=sp.diags(1.0 / d))
     if info != 0 or not np.all(np.isfinite(x)):
         x = spla.splu(M.tocsc(), permc_spec="MMD_AT_PLUS_A").solve(b)
     return x

@@ -18,6 +18,7 @@ from .errors import ProblemError
 from geometry.chain import patch_geometry_grid, patch_geometry_points
 from geometry.multipatch import PlacedPatch
 from geometry.sampling import piece_boxes
+from geometry.tolerances import ROUNDOFF
 
 __all__ = ["Locator"]
 
@@ -75,7 +76,7 @@ class Locator:
                 x, J, _ = patch_geometry_points(piece, t)
                 return x, J
 
-            xi = newton_inverse(fn, box, grid[nearest], pts[cand], 1e-14 * float((box[:, 1] - box[:, 0]).max()))
+            xi = newton_inverse(fn, box, grid[nearest], pts[cand], ROUNDOFF * float((box[:, 1] - box[:, 0]).max()))
             x, _, _ = patch_geometry_points(piece, xi)
             ok = np.linalg.norm(x - pts[cand], axis=1) <= tol * scale
             dom = self.model.patches[pi].spline.domain

@@ -31,6 +31,7 @@ from geometry.chain import patch_geometry_grid
 from .constraints import needs_constraints, prolongation
 from .errors import ProblemError
 from .space import Space1D, TensorSpace, make_space
+from geometry.tolerances import ON_DOMAIN
 
 __all__ = ["kronecker_sum", "prolongations", "coarsen_knots", "solver_options"]
 
@@ -86,7 +87,7 @@ def _metric_coefficients(problem, per_dir: int = 6) -> np.ndarray:
         Kt = np.stack([np.stack([xx, xy, xz], -1), np.stack([xy, yy, yz], -1), np.stack([xz, yz, zz], -1)], -2)
         G = np.einsum("nki,nij,nlj->nkl", Jinv, Kt, Jinv)
     c = np.mean(np.abs(det)[:, None] * np.diagonal(G, axis1=1, axis2=2), axis=0)
-    return np.maximum(c, 1e-12 * c.max())
+    return np.maximum(c, ON_DOMAIN * c.max())
 
 
 def coarsen_knots(U: np.ndarray, p: int) -> np.ndarray | None:

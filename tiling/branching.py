@@ -36,6 +36,7 @@ from .microstructure import Microstructure, PlacedPatch
 from .paving import _check_budget, _check_map, _check_spans
 from .tile import Tile
 from .topo import _edge_lengths, topo_subdiv
+from geometry.tolerances import ON_DOMAIN
 
 __all__ = ["bifurcation", "bifurcation_tiles", "smooth_levels", "SPLITS"]
 
@@ -99,7 +100,7 @@ def _user_tiles(given: dict) -> dict:
         if not isinstance(t, Tile) or not all(p.dim == 3 for p in t.patches):
             raise TilingError(f"tile[{name!r}] must be a tiling.Tile of trivariates, got {type(t).__name__}")
         for z, face, what in ((0, "wmin", "branch-in"), (1, "wmax", "branch-out")):
-            flat = [p for p in t.patches if np.allclose(p.boundary(face).control_points[..., 2], z, atol=1e-12)]
+            flat = [p for p in t.patches if np.allclose(p.boundary(face).control_points[..., 2], z, atol=ON_DOMAIN)]
             if not flat:
                 raise TilingError(f"tile[{name!r}] ({t.name}) has no {what} face: no patch's {face} face lies "
                                   f"on z = {z}; bifurcation tiles connect to the layers below and above there")

@@ -51,6 +51,7 @@ from .paving import _check_counts, _check_map
 from .implicit_surface import EdgeSplines, SurfaceOutputs, zero_surface
 from .implicit_connect import (Builder, cell_knots, connect_cells, connect_faces, grid_graph, open_cavities,
                                spanning_trees)
+from geometry.tolerances import SAME_KNOT
 
 __all__ = ["random_implicit", "ImplicitStructure", "canonical_tubes"]
 
@@ -228,7 +229,7 @@ def _check_inputs(D, counts, degree, controls, alpha, continuity, connectivity, 
         want = cell_knots(degree, controls)
         for U in canonical.knots:
             inner = (U[degree + 1:-degree - 1] - U[0]) / (U[-1] - U[0])
-            if inner.shape != want.shape or not np.allclose(inner, want, atol=1e-12):
+            if inner.shape != want.shape or not np.allclose(inner, want, atol=SAME_KNOT):
                 raise TilingError(f"the canonical tile's knots must be uniform ({controls - degree} spans per "
                                   f"direction, as every cell's), got interior knots {show(inner)} (scaled to [0, 1]); "
                                   f"pass its coefficients instead to reinterpret them on uniform knots")

@@ -35,6 +35,7 @@ from geometry import BSpline, knots as kn, primitives as pr
 from .errors import TilingError
 from .tile import BranchFace, Tile, discontinuity_branches
 from geometry.errors import show
+from geometry.tolerances import ON_DOMAIN
 
 _W_KNOTS = np.array([0, 0, 0, 0.4, 0.4, 1, 1, 1.0])  # quadratic, C0 at 0.4: solid base below
 _Z_LAYERS = np.array([0.0, 0.2, 0.4, 0.7, 1.0])  # Greville abscissae of _W_KNOTS: z linear in w
@@ -181,8 +182,8 @@ def hollow(tile: Tile) -> Tile:
         for f in FACE_NAMES:
             face = p.boundary(f)
             pts = face.points.reshape(-1, 3)
-            if (i, f) in glued or np.any(np.all(np.abs(pts - np.round(pts)) < 1e-12, axis=0)
-                                         & np.all(np.abs(pts - pts[0]) < 1e-12, axis=0)):
+            if (i, f) in glued or np.any(np.all(np.abs(pts - np.round(pts)) < ON_DOMAIN, axis=0)
+                                         & np.all(np.abs(pts - pts[0]) < ON_DOMAIN, axis=0)):
                 continue  # shared inside the tile, or on a cell wall
             mid = face.domain.mean(1)[None]
             x = face.evaluate(mid)[0, :3]

@@ -42,7 +42,7 @@ from geometry.faces import FACE_AXIS, FACE_NAMES
 
 from .errors import TilingError
 from .tile import Tile
-from geometry.tolerances import COINCIDENT, SAME_KNOT
+from geometry.tolerances import COINCIDENT, ON_DOMAIN, SAME_KNOT
 
 __all__ = ["sealed_variant", "seal_layout", "SealedTile", "SealLayout"]
 
@@ -127,7 +127,7 @@ def _wall_pieces(patches) -> list:
                     want = np.stack([lo[j] + g[j] * (hi[j] - lo[j]) for j in range(2)], -1)
                     w = piece.weights
                     affine = not (np.abs(piece.control_points[..., rest] - want).max() > 1e-7
-                                  or (w is not None and np.ptp(w) > 1e-12))
+                                  or (w is not None and np.ptp(w) > ON_DOMAIN))
                     out.append(_Piece(pi, f, k, s, np.stack([lo, hi], 1), box, knots, piece.degrees,
                                       len(c0) + len(c1) == 4, affine))
     return out

@@ -28,6 +28,7 @@ from geometry.faces import FACE_NAMES
 from geometry.resources import check_memory
 
 from .errors import TilingError
+from geometry.tolerances import ON_DOMAIN
 
 __all__ = ["topo_subdiv", "CellComplex", "FACE_KINDS"]
 
@@ -166,7 +167,7 @@ def classify_faces(boxes: np.ndarray, domain: np.ndarray) -> list:
     is tested for overlap (positive area) with the group only.
     """
     n = len(boxes)
-    tol = 1e-12 * float(np.abs(domain).max() + 1.0)
+    tol = ON_DOMAIN * float(np.abs(domain).max() + 1.0)
     out = [dict() for _ in range(n)]
     for k in range(3):
         rest = [j for j in range(3) if j != k]

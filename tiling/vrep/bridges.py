@@ -44,6 +44,7 @@ from ..errors import TilingError
 from .report import SurfaceCounts
 from .repulsion import Collisions, closest, repel
 from geometry.grouping import ObjectIndex
+from geometry.tolerances import COINCIDENT, ROUNDOFF
 
 __all__ = ["Bridge", "build_bridges", "resolve_collisions", "axis_samples"]
 
@@ -81,7 +82,7 @@ def _rotation(a, b):
     """Minimal rotation taking unit vector a to unit vector b (Rodrigues)."""
     v = np.cross(a, b)
     c = float(np.dot(a, b))
-    if np.linalg.norm(v) < 1e-14:
+    if np.linalg.norm(v) < ROUNDOFF:
         if c > 0:
             return np.eye(3)
         p = np.eye(3)[np.argmin(np.abs(a))]
@@ -233,7 +234,7 @@ def build_bridges(model, prim, cls, placed, anchors, beta: float = 0.5) -> tuple
         d /= np.linalg.norm(d)
         L = float(np.linalg.norm(Pp - C))
         axis = np.stack([C, C + beta * L * e, Pp + beta * L * d, Pp])
-        if np.any(axis < D.domain[:, 0] - 1e-9) or np.any(axis > D.domain[:, 1] + 1e-9):
+        if np.any(axis < D.domain[:, 0] - COINCIDENT) or np.any(axis > D.domain[:, 1] + COINCIDENT):
             dropped += 1
             continue
         spline = BSpline(fs.degrees + (3,), list(fs.knots) + [np.array([0, 0, 0, 0, 1, 1, 1, 1.0])],
