@@ -33,6 +33,7 @@ from .compose_boxes import axis_aligned, restrict_batch
 from .compose_curves import compose_curve_split
 from .errors import SplineError
 from .grouping import ObjectIndex
+from .tolerances import SINGULAR, SNAP
 
 __all__ = ["compose", "compose_many", "compose_placed", "map_points", "result_degrees", "KnotLineCrossing"]
 
@@ -94,7 +95,7 @@ def _placements(outer, inner, placements, name):
     if inner.dim == 3:
         det = np.linalg.det(P[:, :, :3])
         scale = np.abs(P[:, :, :3]).max(axis=(1, 2)) ** 3
-        flat = ~(np.abs(det) > 1e-12 * scale)
+        flat = ~(np.abs(det) > SINGULAR * scale)
         if flat.any():
             i = int(np.argmax(flat))
             raise SplineError(f"{name} placement {i} is singular (det A = {det[i]:.3g}): it flattens the "
@@ -109,7 +110,7 @@ def _locate(outer, inner, P, name):
     placed = np.einsum("pkj,nj->pnk", A, inner.points.reshape(-1, 3)) + b[:, None, :]
     lo, hi = placed.min(axis=1), placed.max(axis=1)
     dom = outer.domain
-    tol = 1e-10 * (dom[:, 1] - dom[:, 0])
+    tol = SNAP * (dom[:, 1] - dom[:, 0])
     outside = np.any((lo < dom[:, 0] - tol) | (hi > dom[:, 1] + tol), axis=1)
     if outside.any():
         i = int(np.argmax(outside))

@@ -18,7 +18,7 @@ import scipy.sparse as sp
 
 from . import knots as kn
 from .errors import SplineError
-from .tolerances import COINCIDENT, SAME_KNOT
+from .tolerances import COINCIDENT, SAME_KNOT, SNAP
 
 __all__ = ["FACE_NAMES", "FACE_AXIS", "face_name", "slot_face_id", "parse_slot_face", "is_face", "face_knots",
            "discontinuity_slots", "nested_refinement"]
@@ -107,7 +107,7 @@ def _snap(x: float, U) -> float:
     """``x``, or the knot of U within 1e-10 of U's length (a box end computed in floating point)."""
     kv = np.unique(np.asarray(U, float))
     i = int(np.argmin(np.abs(kv - x)))
-    return float(kv[i]) if abs(kv[i] - x) <= 1e-10 * (kv[-1] - kv[0]) else x
+    return float(kv[i]) if abs(kv[i] - x) <= SNAP * (kv[-1] - kv[0]) else x
 
 
 def nested_refinement(parent_knots, box, child_knots) -> sp.csr_matrix:

@@ -19,8 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["COINCIDENT", "INTERFACE", "CONTACT", "ON_DOMAIN", "SAME_KNOT", "SAME_SAMPLE", "ROUNDOFF",
-           "RANK", "CONSISTENT", "same_knots", "same_space"]
+__all__ = ["COINCIDENT", "INTERFACE", "CONTACT", "ON_DOMAIN", "SAME_KNOT", "SAME_SAMPLE", "SNAP", "ROUNDOFF",
+           "RANK", "CONSISTENT", "SINGULAR", "same_knots", "same_space"]
 
 # ---------------------------------------------------------------- geometric (x size)
 COINCIDENT = 1e-9
@@ -48,6 +48,10 @@ SAME_SAMPLE = 1e-9
 """Normalised sample parameters closer than this are one sample (a sampled grid conforming across
 patches; the weld of written points is finer)."""
 
+SNAP = 1e-10
+"""A computed parameter within this (x its range) of a known value (a knot, a loop's start, a domain
+side, a layer plane) is that value: box ends and loop ends computed in floating point."""
+
 # ---------------------------------------------------------------- algebraic (x largest magnitude)
 ROUNDOFF = 1e-14
 """Entries below this (x the largest, or absolute for O(1) coefficients such as knot-insertion
@@ -58,6 +62,10 @@ RANK = 1e-10
 
 CONSISTENT = 1e-10
 """Two rows prescribing one unknown that differ by more than this contradict each other."""
+
+SINGULAR = 1e-12
+"""A 3 x 3 determinant below this (x the largest entry cubed) is zero: a placement or Jacobian that
+flattens its patch."""
 
 
 def same_knots(U, V) -> bool:

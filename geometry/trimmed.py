@@ -29,7 +29,7 @@ from .bspline import BSpline
 from .composition import compose
 from .errors import SplineError, show
 from .resources import check_memory
-from .tolerances import ON_DOMAIN, ROUNDOFF
+from .tolerances import ON_DOMAIN, ROUNDOFF, SNAP
 
 __all__ = ["TrimmedSurface", "reversed_curve", "join_curves", "loop_polyline", "inside_polyline"]
 
@@ -146,7 +146,7 @@ class TrimmedSurface:
         polys, loops = [], []
         for i, c in enumerate(self.loops):
             ends = c.evaluate(np.array([[c.domain[0, 0]], [c.domain[0, 1]]]))[:, :2]
-            if np.linalg.norm(ends[1] - ends[0]) > 1e-10 * scale:
+            if np.linalg.norm(ends[1] - ends[0]) > SNAP * scale:
                 raise SplineError(f"trimming loop {i} is open: it starts at {ends[0].round(9).tolist()} and ends at "
                                   f"{ends[1].round(9).tolist()}; close it (last control point = first)")
             poly = _polyline(c)

@@ -28,6 +28,7 @@ from geometry import check_regular
 
 from .errors import ProblemError
 from geometry.grouping import ObjectIndex
+from geometry.tolerances import SINGULAR
 
 __all__ = ["prove_regular"]
 
@@ -67,7 +68,7 @@ def prove_regular(model) -> dict:
         if patch.placement is not None:
             A = patch.placement[:, :3]
             det = float(np.linalg.det(A))
-            if not abs(det) > 1e-12 * float(np.abs(A).max()) ** 3:
+            if not abs(det) > SINGULAR * float(np.abs(A).max()) ** 3:
                 pts = T.points.reshape(-1, 3) @ A.T + patch.placement[:, 3]
                 box = " x ".join(f"{'uvw'[k]} in [{pts[:, k].min():.4g}, {pts[:, k].max():.4g}]" for k in range(3))
                 raise ProblemError(f"patch {pi} has a singular placement (det A = {det:.3g}): it flattens the patch "

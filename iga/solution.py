@@ -14,6 +14,7 @@ from geometry.sampling import sample_axes
 from .locate import Locator
 from .model import tag_faces
 from geometry.grouping import ObjectIndex
+from geometry.tolerances import SINGULAR
 
 
 class Solution:
@@ -220,7 +221,7 @@ def physical_gradient(J: np.ndarray, dxi: np.ndarray, where: str, params=None) -
     """grad T = J^-T dT/dxi (N, 3); :class:`ProblemError` where the geometry Jacobian J (N, 3, 3) is singular."""
     det = np.linalg.det(J)
     scale = np.abs(J).max(axis=(1, 2)) ** 3
-    bad = ~(np.abs(det) > 1e-13 * scale)
+    bad = ~(np.abs(det) > 0.1 * SINGULAR * scale)
     if bad.any():
         i = int(np.argmax(bad))
         at = f" at parameters {np.round(params[i], 6).tolist()}" if params is not None else ""

@@ -123,6 +123,7 @@ def test_mpiexec_iga_run_writes_one_result(tmp_path):
     assert out.stdout.count("balance error") == 1  # rank 0 reports, once
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["solver"]["ranks"] == 2 and summary["energy_balance_error"] < 1e-9
+    assert summary["connected_pieces"] == 1  # the paving is one coupled piece
     assert (tmp_path / "out" / "heat_sink.vtu").exists() or any((tmp_path / "out").glob("*.vtu"))
 
 

@@ -66,6 +66,7 @@ def test_iga_run_reduced_heat_sink(tmp_path):
     assert 0 < s["analysis_peak_memory_MiB"] <= s["peak_memory_MiB"]
     assert s["tiles"] == 4 + 8 and s["levels"] == 2
     assert s["energy_balance_error"] < 1e-8
+    assert s["connected_pieces"] == 1  # the paving is one coupled piece
     area = 2 * np.pi * 0.02 * 0.02  # inner ring: an exact cylinder without twist
     assert s["inflow_W"] == pytest.approx(1515.8 * area, rel=1e-5)  # Gauss quadrature of a rational area element
     exact = pv.read(s["files"]["bezier_vtu"])  # exact Bezier hexahedra beside the sampled file
@@ -132,6 +133,7 @@ def test_demo_command_reduced(tmp_path):
     assert out.returncode == 0, out.stderr
     s = json.loads((tmp_path / "demo" / "summary.json").read_text())
     assert s["energy_balance_error"] < 1e-8 and s["temperature_C"]["min"] > 30.0
+    assert s["connected_pieces"] == 1  # the paving is one coupled piece
     assert (tmp_path / "demo" / "heat_sink.png").stat().st_size > 10_000
     assert out.stderr == ""  # no progress display when not on a terminal
     assert "2 levels" in out.stdout and "16 + 64" not in out.stdout

@@ -152,6 +152,7 @@ def test_pipeline_with_a_sealed_paving(tmp_path):
 
     summary = run_pipeline(_sealed_config(seal="cap", seal_sides=["wmax"], thickness=0.15), tmp_path)
     assert summary["energy_balance_error"] < 1e-9 and summary["temperature_C"]["max"] > 20.0
+    assert summary["connected_pieces"] == 1  # the paving is one coupled piece
     assert summary["inflow_W"] == pytest.approx(summary["outflow_W"], rel=1e-9)
 
 
@@ -165,6 +166,7 @@ def test_pipeline_with_a_capped_hierarchy(tmp_path):
     cfg["bc"] = [{"kind": "neumann", "tag": "branch-in", "value": 1e4}, {"kind": "robin", "tag": "cap", "h": 50.0, "ambient": 20.0}]
     summary = run_pipeline(cfg, tmp_path)
     assert summary["energy_balance_error"] < 1e-9 and summary["temperature_C"]["min"] > 20.0
+    assert summary["connected_pieces"] == 1  # the paving is one coupled piece
 
 
 @pytest.mark.parametrize("paving,match", [

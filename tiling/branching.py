@@ -36,7 +36,7 @@ from .microstructure import Microstructure, PlacedPatch
 from .paving import _check_budget, _check_map, _check_spans
 from .tile import Tile
 from .topo import _edge_lengths, topo_subdiv
-from geometry.tolerances import ON_DOMAIN
+from geometry.tolerances import ON_DOMAIN, SNAP
 
 __all__ = ["bifurcation", "bifurcation_tiles", "smooth_levels", "SPLITS"]
 
@@ -266,7 +266,7 @@ def _place_layers(D, tiles: dict, layers, lev, spans, cross, g: int, splits):
 
 def _links(faces) -> list:
     """Branch links (parent, face, box, child, face) between nested unequal faces on the same layer plane."""
-    tol = 1e-10
+    tol = SNAP
     by_plane: dict = {}
     for f in faces:
         by_plane.setdefault(round(f[2] / tol) * tol, []).append(f)
