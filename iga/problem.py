@@ -20,23 +20,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from geometry.resources import check_memory
 
 from .coefficients import Conductivity, ScalarField, is_number
 from .components import analyse_components
 from .constraints import needs_constraints, prolongation
 from .dirichlet import project_dirichlet
+from .discretisation import Discretisation, count
 from .errors import ProblemError, SingularProblemError
-from .faces import FaceData, FaceQuadrature
+from .faces import FaceData
 from .forms import boundary_load, boundary_mass
-from .model import as_model, tag_faces
-from .regularity import prove_regular
+from .model import tag_faces
 from .solution import Solution
-from .space import estimate, make_space, solution_bases
 from . import distributed
 from .multilevel import solver_options
 from .system import solve_system
-from .volume import VolumeAssembler
 from geometry.errors import show
 
 __all__ = ["HeatProblem"]
@@ -50,15 +47,7 @@ class _Condition:
     h: ScalarField | None = None  # film coefficient (Robin)
 
 
-def _count(name: str, v, minimum: int, three: bool = False):
-    """A non-negative integer (or, with ``three``, one integer or three), else ProblemError."""
-    vals = list(v) if three and isinstance(v, (list, tuple, np.ndarray)) else [v]
-    ok = len(vals) in ((1, 3) if three else (1,)) and all(
-        isinstance(x, (int, np.integer)) and not isinstance(x, (bool, np.bool_)) and x >= minimum for x in vals)
-    if not ok:
-        what = "an integer" if not three else "an integer or three integers"
-        raise ProblemError(f"{name} must be {what} >= {minimum}, got {show(v)}")
-    return tuple(int(x) for x in vals) if three and len(vals) == 3 else int(vals[0])
+_count = count
 
 
 class HeatProblem:
@@ -100,39 +89,13 @@ class HeatProblem:
 
     def __init__(self, model, conductivity=1.0, source=0.0, degree_elevation=0, refine: int = 0,
                  quadrature_extra: int = 0, degree=None, bases=None):
-        self.model = as_model(model)
-        self.bases = solution_bases(self.model, bases)
-        refine = _count("refine", refine, 0)
-        quadrature_extra = _count("quadrature_extra", quadrature_extra, 0)
-        degree_elevation = _count("degree_elevation", degree_elevation, 0, three=True)
-        if degree is not None:
-            degree = _count("degree", degree, 1, three=True)
-            degree = degree if isinstance(degree, tuple) else (degree,) * 3
+        d = Discretisation(model, degree_elevation, refine, quadrature_extra, degree, bases)
+        self.model, self.bases, self.regularity, self.space_args = d.model, d.bases, d.regularity, d.space_args
+        self.estimate, self.spaces, self.offsets, self.ndof = d.estimate, d.spaces, d.offsets, d.ndof
+        self.volume, self.faces, self.timings = d.volume, d.faces, d.timings
         self.conductivity = Conductivity(conductivity, self.model)
         self.source = ScalarField(source, "source", model=self.model)
-        t0 = time.perf_counter()
-        self.regularity = prove_regular(self.model)  # exact: a folded patch never reaches the assembly
-        t_regular = time.perf_counter() - t0
-        args = (quadrature_extra, degree_elevation, refine, degree)
-        self.space_args = args  # (quadrature_extra, degree_elevation, refine, degree): coarse levels reuse them
-        self.estimate = estimate(self.model, *args, bases=self.bases)
-        n = len(self.model.patches)
-        check_memory(self.estimate["bytes"], f"the analysis ({self.estimate['dofs']:,} DOFs on {n} "
-                     f"patch{'' if n == 1 else 'es'})", ProblemError,
-                     "lower refine, degree_elevation or degree, or analyse fewer tiles")
-        shared: dict = {}  # patches with equal knot vectors and degrees share one space (and its tables)
-        self.spaces = []
-        for knots, degrees in self.bases:
-            key = (tuple(U.tobytes() for U in knots), degrees)
-            if key not in shared:
-                shared[key] = make_space(knots, degrees, *args)
-            self.spaces.append(shared[key])
-        self.offsets = np.concatenate([[0], np.cumsum([s.ndof for s in self.spaces])]).astype(np.int64)
-        self.ndof = int(self.offsets[-1])
-        self.volume = VolumeAssembler(self.model, self.spaces, self.offsets)
-        self.faces = FaceQuadrature(self.model, self.spaces, self.offsets, compiled=self.volume.compiled)
         self.conditions: list[_Condition] = []
-        self.timings = {"regularity": t_regular, "spaces": time.perf_counter() - t0 - t_regular}
         self.constraint_stats: dict = {}
         self.reduced_dofs = None
         self.components, self.idle_components = [], []  # the coupled pieces of the last solve (iga.components)
