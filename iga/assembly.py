@@ -151,6 +151,19 @@ def load_form(space: TensorSpace, F: np.ndarray) -> np.ndarray:
     return np.moveaxis(X, -1, 0)
 
 
+def derivative_load_form(space: TensorSpace, terms) -> np.ndarray:
+    """sum over terms of sum_q G(q) prod_k d^{a_k} N_{i_k}(q_k) for terms [(G (P,) + qshape, ((a_k, None),) * d)]
+    -> (P,) + shape (a load that tests derivatives, e.g. int g div v)."""
+    out = None
+    for G, variants in terms:
+        X = np.ascontiguousarray(np.moveaxis(G, 0, -1))
+        for k in range(space.dim - 1, -1, -1):
+            X = _contract_first(_to_front(X, k), space.dirs[k], variants[k][0], None)
+            X = np.moveaxis(X, 0, k) if k > 0 else X
+        out = X if out is None else out + X
+    return np.moveaxis(out, -1, 0)
+
+
 @dataclass(eq=False)
 class CSRPattern:
     """CSR pattern of a banded tensor-product operator on one space.

@@ -108,8 +108,12 @@ def solve_system(K, f, constraints, dirichlet, solver="auto", tol=1e-10, maxiter
         Pf, offset, reaction_dofs, induced = reduction(constraints, dirichlet, K.shape[0])
         A = (Pf.T @ K @ Pf).tocsr()
         rhs = Pf.T @ (f - K @ offset)
+    options = dict(options or {})
+    B = options.pop("near_nullspace", None)  # (nred, k) in the reduced unknowns: restricted to the free ones
+    if B is not None and A.shape[0] == len(free):
+        options["near_nullspace"] = np.asarray(B)[free]
     x, info = solvers.solve(A, rhs, method=solver, tol=tol, maxiter=maxiter, overwrite_a=True,  # A is ours
-                            **(options or {}))
+                            **options)
     reduced = int(A.shape[0])
     if constraints is None:
         u = np.zeros(nred)

@@ -37,6 +37,16 @@ import scipy.sparse.linalg as spla
 from .errors import SolverError
 
 
+def _candidates(near_nullspace, s: np.ndarray) -> np.ndarray:
+    """The near-nullspace of the scaled matrix S A S: S^-1 B (B the constants by default)."""
+    if near_nullspace is None:
+        return (1.0 / s)[:, None]
+    B = np.asarray(near_nullspace, float)
+    if B.ndim != 2 or B.shape[0] != len(s) or not np.all(np.isfinite(B)):
+        raise SolverError(f"near_nullspace must be a finite ({len(s)}, k) array, got shape {B.shape}")
+    return B / s[:, None]
+
+
 class _Scaled(sp.csr_matrix):
     """The Jacobi-scaled matrix S A S that the hierarchy is built on, with its spectral radius ``rho``:
     pyamg's convention is to read (and cache) ``rho`` on the matrix it is given."""
@@ -77,10 +87,12 @@ class AMGPreconditioner:
 
     ``overwrite=True`` lets it scale A's own ``data`` in place (A then holds
     S A S; :meth:`system_operator` still applies the original A) instead of
-    scaling a copy of the values (8 bytes per non-zero).
+    scaling a copy of the values (8 bytes per non-zero).  ``near_nullspace``
+    (n, k): the vectors A nearly annihilates (the rigid-body modes of
+    elasticity); default the constants (diffusion).
     """
 
-    def __init__(self, A, max_coarse: int = 500, degree: int = 3, overwrite: bool = False):
+    def __init__(self, A, max_coarse: int = 500, degree: int = 3, overwrite: bool = False, near_nullspace=None):
         import pyamg
         from pyamg.util.utils import scale_columns, scale_rows
 
@@ -106,7 +118,7 @@ class AMGPreconditioner:
         self.scaled = A
         smoother = ("chebyshev", {"degree": degree})
         self.ml = pyamg.smoothed_aggregation_solver(
-            A, B=(1.0 / self.s)[:, None], symmetry="symmetric", max_coarse=max_coarse, strength=None,
+            A, B=_candidates(near_nullspace, self.s), symmetry="symmetric", max_coarse=max_coarse, strength=None,
             improve_candidates=None, smooth=("richardson", {"omega": 4.0 / 3.0}),
             presmoother=smoother, postsmoother=smoother)
         self.levels = self.ml.levels

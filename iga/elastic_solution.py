@@ -1,0 +1,181 @@
+"""Post-processing of a solved elastic problem: displacement, strain, stress, reactions, energy, errors."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from geometry import SplineFunction
+from geometry.chain import gradient_and_det, patch_geometry_points, patches_geometry_derivs
+from geometry.grouping import ObjectIndex
+
+from .elastic_forms import lame
+from .errors import ProblemError
+from .faces import chunks
+from .locate import Locator
+from .model import tag_faces
+from .solution import physical_gradient
+
+__all__ = ["ElasticSolution"]
+
+
+class ElasticSolution:
+    """Displacement field of an :class:`iga.ElasticityProblem`.
+
+    Attributes
+    ----------
+    u : (3 ndof,) coefficients, component-major (x block, y block, z block)
+    info : dict with DOF counts, constraints, solver diagnostics, timings and the work balance
+    """
+
+    def __init__(self, problem, res, K, f, dd, work, applied):
+        self.problem = problem
+        self.u = res.u
+        self._splines: dict = {}
+        self._locator = Locator(problem.model)
+        self._applied = applied
+        total = np.asarray(dd.G[res.reaction_dofs].sum(axis=1)).ravel() if dd.G is not None else np.zeros(0)
+        safe = np.where(total != 0, total, 1.0)
+        Gd = dd.G[res.reaction_dofs].toarray() if dd.G is not None else np.zeros((len(res.reaction_dofs), 0))
+        self._face_forces = {}  # (component, (patch, face)) -> support force on the body (N)
+        for j, key in enumerate(dd.keys):
+            self._face_forces[key] = float(np.sum(res.reaction * Gd[:, j] / safe))
+        Ku = K @ self.u
+        support_work = float(self.u @ (Ku - f))  # the supports' work: r . u on the prescribed unknowns
+        energy2 = float(self.u @ Ku)
+        external = float(self.u @ f) + support_work
+        self.info = {
+            "dofs": 3 * problem.ndof,
+            "free_dofs": int(problem.reduced_dofs),
+            "constraints": dict(problem.constraint_stats),
+            "patches": len(problem.model.patches),
+            "solver": res.info.as_dict(),
+            "timings": dict(problem.timings),
+            "work": {"external_J": external, "strain_energy_J": 0.5 * energy2,
+                     "relative_error": abs(external - energy2) / max(abs(external), abs(energy2), 1e-300),
+                     "thermal": problem.thermal_strain is not None},
+            "applied_N": {tag: v.tolist() for tag, v in applied.items()},
+            "body_force_N": work["body"].tolist(),
+        }
+
+    # ---------------------------------------------------------------- fields
+    def displacement_spline(self, pi: int) -> SplineFunction:
+        """The displacement on patch ``pi`` as a 3-component spline over the patch parameters."""
+        if pi not in self._splines:
+            prob = self.problem
+            space, o, n = prob.spaces[pi], prob.offsets, prob.ndof
+            coef = np.stack([self.u[a * n + o[pi] : a * n + o[pi + 1]].reshape(space.shape) for a in range(3)], -1)
+            self._splines[pi] = SplineFunction([d.degree for d in space.dirs], [d.knots for d in space.dirs], coef)
+        return self._splines[pi]
+
+    def evaluate(self, pi: int, params):
+        """Displacement (N, 3), its gradient (N, 3, 3) (``[n, a, k] = d u_a / d x_k``), x (N, 3) and channels at
+        parameters of patch ``pi``."""
+        params = np.asarray(params, float)
+        U = self.displacement_spline(pi)
+        val = U.evaluate(params)
+        dxi = U.jacobian(params)  # (N, 3 components, 3 parameters)
+        x, J, chans = patch_geometry_points(self.problem.model.patches[pi], params)
+        grad = np.stack([physical_gradient(J, dxi[:, a, :], f"patch {pi}", params) for a in range(3)], 1)
+        return val, grad, x, chans
+
+    def _at_points(self, points, fn):
+        where, params = self._locator(np.asarray(points, float), 1e-10)
+        out = None
+        for pi in np.unique(where):
+            sel = where == pi
+            v = fn(int(pi), params[sel])
+            if out is None:
+                out = np.empty((len(where),) + v.shape[1:])
+            out[sel] = v
+        return out
+
+    def _stress_at(self, pi, params):
+        u, grad, x, chans = self.evaluate(pi, params)
+        eps = 0.5 * (grad + np.transpose(grad, (0, 2, 1)))
+        prob = self.problem
+        lam, mu = lame(prob.youngs.values(x, chans, f"patch {pi}"), prob.poisson.values(x, chans, f"patch {pi}"),
+                       f"patch {pi}")
+        tr = np.trace(eps, axis1=1, axis2=2)
+        if prob.thermal_strain is not None:
+            tr = tr - 3 * prob.thermal_strain(pi, x, params, chans)
+            eps = eps - (prob.thermal_strain(pi, x, params, chans))[:, None, None] * np.eye(3)
+        return lam[:, None, None] * tr[:, None, None] * np.eye(3) + 2 * mu[:, None, None] * eps
+
+    def displacement(self, points) -> np.ndarray:
+        """Displacement (N, 3) in m at physical points (N, 3)."""
+        return self._at_points(points, lambda pi, p: self.displacement_spline(pi).evaluate(p))
+
+    def strain(self, points) -> np.ndarray:
+        """Total small strain sym(grad u) (N, 3, 3) at physical points."""
+        def eps(pi, p):
+            g = self.evaluate(pi, p)[1]
+            return 0.5 * (g + np.transpose(g, (0, 2, 1)))
+        return self._at_points(points, eps)
+
+    def stress(self, points) -> np.ndarray:
+        """Cauchy stress (N, 3, 3) in Pa at physical points (thermal strain taken off the total)."""
+        return self._at_points(points, self._stress_at)
+
+    def von_mises(self, points) -> np.ndarray:
+        """Von Mises equivalent stress (N,) in Pa at physical points."""
+        return _von_mises(self.stress(points))
+
+    # ------------------------------------------------------------ reactions
+    def reaction(self, tag: str) -> np.ndarray:
+        """Force (3,) in N that the supports on the faces tagged ``tag`` exert on the body (the consistent
+        residual of the prescribed unknowns, split among faces by their share of int N_i dA)."""
+        faces = set(tag_faces(self.problem.model, tag))
+        if not faces:
+            raise ProblemError(f"tag {tag!r} has no faces in this model")
+        out = np.zeros(3)
+        for (a, key), v in self._face_forces.items():
+            if key in faces:
+                out[a] += v
+        return out
+
+    # ------------------------------------------------------------ integrals
+    def integrate(self, fn) -> float:
+        """Sum over the model of int fn(x, u, grad u) dV by the problem's Gauss rule; ``fn(x (N, 3), u (N, 3),
+        grad (N, 3, 3)) -> (N,)``."""
+        prob = self.problem
+        same = ObjectIndex()
+        groups: dict = {}
+        for i, s in enumerate(prob.spaces):
+            groups.setdefault((s.key(), same(prob.model.patches[i].spline)), []).append(i)
+        total, n = 0.0, prob.ndof
+        for members in groups.values():
+            space = prob.spaces[members[0]]
+            B = [d.B[:, :, :-1] for d in space.dirs]
+            w = np.einsum("i,j,k->ijk", *[d.qw for d in space.dirs]).ravel()
+            for chunk in chunks(members, 3 * space.nq_total):
+                x, D, _ = patches_geometry_derivs([prob.model.patches[i] for i in chunk], space.qaxes)
+                vals, grads = [], []
+                for a in range(3):
+                    U = np.stack([self.u[a * n + prob.offsets[i] : a * n + prob.offsets[i + 1]].reshape(space.shape)
+                                  for i in chunk])
+                    vals.append(np.einsum("pabc,ai,bj,ck->pijk", U, B[0][0], B[1][0], B[2][0],
+                                          optimize=True).reshape(-1))
+                    dxi = np.stack([np.einsum("pabc,ai,bj,ck->pijk", U, *(B[d][int(d == k)] for d in range(3)),
+                                              optimize=True).reshape(-1) for k in range(3)], -1)
+                    g, det = gradient_and_det(D, dxi)
+                    grads.append(g)
+                wv = np.broadcast_to(w, (len(chunk), len(w))).reshape(-1)
+                total += float(np.sum(fn(x.reshape(-1, 3), np.stack(vals, 1), np.stack(grads, 1)) * np.abs(det) * wv))
+        return total
+
+    def strain_energy(self) -> float:
+        """Elastic strain energy (J): 1/2 u^T K u (with a thermal strain, the energy of the total strain)."""
+        return self.info["work"]["strain_energy_J"]
+
+    def l2_error(self, exact) -> float:
+        """|| u - exact ||_L2 (m^{5/2}); ``exact(x (N, 3)) -> (N, 3)``."""
+        return float(np.sqrt(self.integrate(lambda x, u, g: np.sum((u - exact(x)) ** 2, axis=1))))
+
+    def h1_error(self, exact_grad) -> float:
+        """| u - exact |_H1 (gradient seminorm); ``exact_grad(x) -> (N, 3, 3)`` with ``[n, a, k] = d u_a/d x_k``."""
+        return float(np.sqrt(self.integrate(lambda x, u, g: np.sum((g - exact_grad(x)) ** 2, axis=(1, 2)))))
+
+
+def _von_mises(S: np.ndarray) -> np.ndarray:
+    dev = S - np.trace(S, axis1=1, axis2=2)[:, None, None] / 3 * np.eye(3)
+    return np.sqrt(1.5 * np.sum(dev * dev, axis=(1, 2)))

@@ -1,0 +1,135 @@
+"""Volume assembly of linear elasticity on the scalar spaces of a :class:`iga.discretisation.Discretisation`.
+
+The displacement is numbered component-major: unknown ``a * ndof + i`` is
+component a (x, y, z) of scalar DOF i, so each of the nine blocks K^{ab} lives
+on the scalar sparsity pattern and the interface constraints of the scalar
+problem apply to every component (:func:`vector_constraints`).  Each block is
+one sum-factorised banded form (:func:`iga.assembly.banded_form`) of the
+terms of :mod:`iga.elastic_forms`, batched over patches sharing a space and a
+tile spline; the lower blocks are transposes (a gather of the CSR data).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from geometry import progress
+from geometry.chain import patches_geometry_derivs_slabs
+
+from .assembly import (banded_form, banded_to_csr_data, block_diagonal_csr, derivative_load_form, load_form,
+                       pattern)
+from .constraints import Constraints
+from .elastic_forms import block_terms, divergence_terms, lame, metric_rows
+from .faces import chunks
+from .geometry_eval import checked_det
+
+__all__ = ["ElasticVolume", "vector_constraints"]
+
+_SLAB_POINTS = 1 << 16
+
+
+class ElasticVolume:
+    """Stiffness (3 ndof x 3 ndof, CSR) and volume loads of all patches; ``disc`` the shared discretisation."""
+
+    def __init__(self, disc):
+        self.disc = disc
+
+    def assemble(self, youngs, poisson, body=None, thermal=None):
+        """(K, f, work): ``youngs``, ``poisson`` :class:`iga.coefficients.ScalarField` (Pa, -); ``body`` a
+        vector field of x (N/m^3) or None; ``thermal`` a callable ``(patch index, x, params, chans) -> (N,)``
+        of alpha (T - T_ref) or None.  ``work``: {"body": int f dV (N, (3,))}."""
+        d = self.disc
+        n = d.ndof
+        blocks = {(a, b): [] for a in range(3) for b in range(a, 3)}
+        f = np.zeros(3 * n)
+        total = np.zeros(3)
+        work = [m for g in d.volume.groups.values() for m in chunks(g, 3 * d.spaces[g[0]].nq_total)]
+        for members in progress.bar(work, desc="elastic assembly", unit="batch"):
+            pat, data, loads, force = self._group(members, youngs, poisson, body, thermal)
+            total += force
+            for (a, b), dat in data.items():
+                blocks[(a, b)] += [(int(d.offsets[i]), pat, dat[j]) for j, i in enumerate(members)]
+            for a in range(3):
+                if loads[a] is not None:
+                    for j, i in enumerate(members):
+                        f[a * n + d.offsets[i] : a * n + d.offsets[i + 1]] += loads[a][j].ravel()
+        M = {ab: block_diagonal_csr(bl, n) for ab, bl in blocks.items()}
+        K = sp.bmat([[M[(a, b)] if a <= b else M[(b, a)].T for b in range(3)] for a in range(3)], format="csr")
+        return K, f, {"body": total}
+
+    def _fields(self, members, youngs, poisson, body, thermal):
+        """Metric rows c (3 rows x (3, M)), w/|det| (M,), lambda, mu (M,), body force (M, 3) or None and
+        thermal divergence weight (M,) or None, on the Gauss grid of ``members`` (C order per patch)."""
+        d = self.disc
+        space = d.spaces[members[0]]
+        patches = [d.model.patches[i] for i in members]
+        where = f"patch {members[0]}" if len(members) == 1 else f"patches {members[0]}..{members[-1]}"
+        w_rest = np.multiply.outer(space.dirs[1].qw, space.dirs[2].qw).ravel()
+        parts = []
+        for planes, x, D, chans in patches_geometry_derivs_slabs(patches, space.qaxes, _SLAB_POINTS,
+                                                                  rows_multiple=space.dirs[0].g):
+            P, m = x.shape[:2]
+            xs = x.reshape(-1, 3)
+            flat = {ch: np.reshape(v, -1) for ch, v in chans.items()}
+            c, det = metric_rows(D)
+            checked_det(det, where)
+            w = np.broadcast_to(np.multiply.outer(space.dirs[0].qw[planes], w_rest).ravel(), (P, m)).reshape(-1)
+            lam, mu = lame(youngs.values(xs, flat, where), poisson.values(xs, flat, where), where)
+            adet = np.abs(det)
+            fb = None if body is None else body.values(xs, where) * (adet * w)[:, None]
+            th = None
+            if thermal is not None:
+                params = _slab_params(space, planes, P)
+                strain = np.concatenate([thermal(i, x[j], params, {k: v[j] for k, v in chans.items()})
+                                         for j, i in enumerate(members)])
+                th = (3 * lam + 2 * mu) * strain * np.sign(det) * w
+            parts.append((planes, c, w / adet, lam, mu, fb, th))
+        return parts
+
+    def _group(self, members, youngs, poisson, body, thermal):
+        """Pattern, {(a, b): data (P, nnz)} for a <= b, loads [(P,) + shape or None] * 3, int f dV (3,)."""
+        space = self.disc.spaces[members[0]]
+        P = len(members)
+        shape = (P,) + space.qshape
+        parts = self._fields(members, youngs, poisson, body, thermal)
+
+        def grid(values):  # slabs (P * m,) each -> (P,) + qshape
+            return np.concatenate([v.reshape(P, -1) for v in values], axis=1).reshape(shape)
+
+        c = [[grid([p[1][r][a] for p in parts]) for a in range(3)] for r in range(3)]
+        fac, lam, mu = grid([p[2] for p in parts]), grid([p[3] for p in parts]), grid([p[4] for p in parts])
+        pat = pattern(space)
+        data = {}
+        for a in range(3):
+            for b in range(a, 3):
+                H = banded_to_csr_data(space, banded_form(space, block_terms(c, fac, lam, mu, a, b, shape)), pat)
+                data[(a, b)] = H + H[:, pat.transpose] if a == b else H
+        loads, force = [None, None, None], np.zeros(3)
+        if parts[0][5] is not None:
+            for a in range(3):
+                F = grid([p[5][:, a] for p in parts])
+                loads[a] = load_form(space, F)
+                force[a] = float(F.sum())
+        if parts[0][6] is not None:
+            beta = grid([p[6] for p in parts])
+            for a in range(3):
+                L = derivative_load_form(space, divergence_terms(c, beta, a, shape))
+                loads[a] = L if loads[a] is None else loads[a] + L
+        return pat, data, loads, force
+
+
+def _slab_params(space, planes, P: int) -> np.ndarray:
+    """Parameters (m, 3) of the Gauss points of a slab of first-axis planes (C order)."""
+    ax = [space.qaxes[0][planes], space.qaxes[1], space.qaxes[2]]
+    return np.stack(np.meshgrid(*ax, indexing="ij"), -1).reshape(-1, 3)
+
+
+def vector_constraints(scalar: Constraints | None, ndof: int) -> Constraints | None:
+    """The scalar prolongation applied to each displacement component (component-major numbering)."""
+    if scalar is None:
+        return None
+    nred = scalar.P.shape[1]
+    m = scalar.dof_master
+    master = np.concatenate([np.where(m >= 0, m + a * nred, -1) for a in range(3)])
+    return Constraints(sp.block_diag([scalar.P] * 3, format="csr"), master, dict(scalar.stats))

@@ -1,0 +1,207 @@
+"""Small-strain linear elasticity and thermal stress (Elber 2017, Section 3 and Fig. 12).
+
+Units are the user's, consistently: with lengths in m, Young's modulus in
+Pa, tractions and pressures in Pa, body forces in N/m^3 and expansion
+coefficients in 1/K, displacements are in m, stresses in Pa and forces in N.
+
+:class:`ElasticityProblem` uses what the heat analysis uses: the same
+discretisation (:mod:`iga.discretisation`: regularity proof, the tile's own
+basis per patch), the same interface constraints for every displacement
+component (:func:`iga.elastic_volume.vector_constraints`), the same Dirichlet
+projection per component and the same reduced solve (:mod:`iga.system`);
+the volume forms are those of :mod:`iga.elastic_forms`.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from geometry.errors import show
+
+from .coefficients import ScalarField, is_number
+from .components import dof_labels
+from .constraints import needs_constraints, prolongation
+from .discretisation import Discretisation, count
+from .elastic_solution import ElasticSolution
+from .elastic_volume import ElasticVolume, vector_constraints
+from .errors import ProblemError
+from .forms import boundary_load
+from .model import tag_faces
+from .rigid import free_modes, greville_points, rigid_modes
+from .system import solve_system
+from .vector_data import VectorField, component_field, merge_dirichlet
+
+__all__ = ["ElasticityProblem"]
+
+_AXES = "xyz"
+
+
+@dataclass
+class _Support:
+    tag: str
+    value: VectorField
+    components: tuple
+
+
+@dataclass
+class _Load:
+    tag: str
+    kind: str  # "traction" or "pressure"
+    value: object  # VectorField (traction) or ScalarField (pressure)
+
+
+class ElasticityProblem:
+    """Linear elasticity of an isotropic, possibly graded material on a patch, a list of patches or a
+    micro-structure (every model :class:`iga.HeatProblem` takes).
+
+    Parameters
+    ----------
+    model : BSpline, list of BSpline, or a model such as ``tiling.Microstructure``
+    youngs : Young's modulus E in Pa: a number, a channel name or a callable ``E(x (N, 3)) -> (N,)``; > 0
+    poisson : Poisson's ratio nu in (-1, 0.5): a number, a channel name or a callable
+    degree_elevation, refine, quadrature_extra, degree, bases : the analysis spaces, as for
+        :class:`iga.HeatProblem`
+
+    Example: a unit cube stretched by 1e-3 along x with the sides free to slide is in uniaxial stress.
+
+    >>> from geometry import primitives
+    >>> p = ElasticityProblem(primitives.box(), youngs=200e9, poisson=0.3)
+    >>> s = (p.dirichlet("umin", 0.0, components="x").dirichlet("umax", 1e-3, components="x")
+    ...       .dirichlet("vmin", 0.0, components="y").dirichlet("wmin", 0.0, components="z").solve())
+    >>> round(float(s.stress(np.array([[0.5, 0.5, 0.5]]))[0, 0, 0]) / 1e6, 6)  # MPa: E x strain
+    200.0
+    """
+
+    def __init__(self, model, youngs, poisson, degree_elevation=0, refine: int = 0, quadrature_extra: int = 0,
+                 degree=None, bases=None):
+        d = Discretisation(model, degree_elevation, refine, quadrature_extra, degree, bases, components=3)
+        self.disc = d
+        self.model, self.spaces, self.offsets, self.ndof = d.model, d.spaces, d.offsets, d.ndof
+        self.faces, self.timings, self.regularity = d.faces, d.timings, d.regularity
+        self.youngs = ScalarField(youngs, "Young's modulus", positive=True, model=self.model)
+        self.poisson = ScalarField(poisson, "Poisson's ratio", model=self.model)
+        if self.poisson.constant is not None and not -1.0 < self.poisson.constant < 0.5:
+            raise ProblemError(f"Poisson's ratio must lie in (-1, 0.5), got {show(poisson)}")
+        self.supports: list[_Support] = []
+        self.loads: list[_Load] = []
+        self.body = None
+        self.thermal_strain = None
+        self.constraint_stats: dict = {}
+
+    # ------------------------------------------------------------ conditions
+    def _faces_of(self, tag: str, what: str) -> list:
+        faces = tag_faces(self.model, tag) if isinstance(tag, str) else []
+        if not faces:
+            raise ProblemError(f"{what}: tag {show(tag)} has no faces in this model (every face it named is glued to "
+                               f"a neighbour or absent); choose another tag from {sorted(self.model.tags)[:20]}")
+        return faces
+
+    def dirichlet(self, tag: str, value=0.0, components: str = "xyz") -> "ElasticityProblem":
+        """Prescribed displacement (m) on ``tag``: a number (every component held to it), three numbers, or a
+        callable ``u(x (N, 3)) -> (N, 3)``; only ``components`` (a string of x, y, z) are prescribed, the
+        others stay free ("held vertically, free to slide" is ``components="z"``)."""
+        self._faces_of(tag, "dirichlet")
+        if not (isinstance(components, str) and components and set(components) <= set(_AXES)
+                and len(set(components)) == len(components)):
+            raise ProblemError(f"components must be a string of distinct letters from 'xyz' (e.g. 'z' or 'xy'), got "
+                               f"{show(components)}")
+        field = VectorField(value, f"displacement on {show(tag)}", broadcast=True)
+        self.supports.append(_Support(tag, field, tuple(_AXES.index(c) for c in components)))
+        return self
+
+    def traction(self, tag: str, t) -> "ElasticityProblem":
+        """Surface traction (Pa) on ``tag``: three numbers or a callable ``t(x (N, 3)) -> (N, 3)``."""
+        self._faces_of(tag, "traction")
+        self.loads.append(_Load(tag, "traction", VectorField(t, f"traction on {show(tag)}")))
+        return self
+
+    def pressure(self, tag: str, p) -> "ElasticityProblem":
+        """Pressure (Pa) on ``tag``, pushing along the inward normal (traction -p n): a number or callable."""
+        self._faces_of(tag, "pressure")
+        self.loads.append(_Load(tag, "pressure", ScalarField(p, f"pressure on {show(tag)}", channels=False)))
+        return self
+
+    def body_force(self, f) -> "ElasticityProblem":
+        """Body force density (N/m^3): three numbers or a callable ``f(x (N, 3)) -> (N, 3)``."""
+        self.body = VectorField(f, "body force")
+        return self
+
+    def thermal(self, temperature, expansion, reference=0.0) -> "ElasticityProblem":
+        """Thermal strain alpha (T - T_ref) I: ``temperature`` a heat :class:`iga.Solution` on this model, a
+        number or a callable of x (K or C); ``expansion`` alpha (1/K) a number, channel name or callable;
+        ``reference`` T_ref, the temperature of the unstressed body."""
+        from .thermal import thermal_strain
+
+        self.thermal_strain = thermal_strain(self, temperature, expansion, reference)
+        return self
+
+    # ------------------------------------------------------------------ solve
+    def _loads(self, f: np.ndarray) -> dict:
+        """Add the traction and pressure loads to f; returns {tag: applied force (3,)}."""
+        n, applied = self.ndof, {}
+        for load in self.loads:
+            keys = tag_faces(self.model, load.tag)
+            fds = self.faces(keys)
+            force = np.zeros(3)
+            for fd in fds:
+                if load.kind == "traction":
+                    t = load.value.values(fd.x, f"patch {fd.patch} face {fd.face}")
+                else:
+                    t = -load.value.values(fd.x, fd.chans, f"patch {fd.patch} face {fd.face}")[:, None] * fd.normal
+                for a in range(3):
+                    f[a * n : (a + 1) * n] += boundary_load([fd], [t[:, a] * fd.dAw], n)
+                force += (t * fd.dAw[:, None]).sum(0)
+            applied[load.tag] = applied.get(load.tag, 0.0) + force
+        return applied
+
+    def _support_faces(self) -> list:
+        """Per component, {(patch, face): (field, where)}; a component prescribed twice on one face is refused."""
+        out = [{}, {}, {}]
+        owner = [{}, {}, {}]
+        for s in self.supports:
+            for key in tag_faces(self.model, s.tag):
+                for a in s.components:
+                    if key in out[a]:
+                        raise ProblemError(f"patch {key[0]} face {key[1]}: displacement component {_AXES[a]} is "
+                                           f"prescribed by tags {show(owner[a][key])} and {show(s.tag)}; give each "
+                                           "component of a face one condition")
+                    out[a][key] = (component_field(s.value, a), f"the faces tagged {show(s.tag)}")
+                    owner[a][key] = s.tag
+        return out
+
+    def solve(self, solver: str = "auto", tol: float = 1e-10, maxiter: int | None = None) -> ElasticSolution:
+        """Assemble, apply the conditions, refuse free rigid motions, solve; returns an :class:`ElasticSolution`."""
+        if not (is_number(tol) and 0 < tol < 1):
+            raise ProblemError(f"tol must be a number in (0, 1), got {show(tol)}")
+        if maxiter is not None:
+            count("maxiter", maxiter, 1)
+        supports = self._support_faces()
+        t0 = time.perf_counter()
+        K, f, work = ElasticVolume(self.disc).assemble(self.youngs, self.poisson, self.body, self.thermal_strain)
+        applied = self._loads(f)
+        t1 = time.perf_counter()
+        scalar = prolongation(self.model, self.spaces, self.offsets) if needs_constraints(self.model, self.spaces) \
+            else None
+        self.constraint_stats = dict(scalar.stats) if scalar is not None else {}
+        constraints = vector_constraints(scalar, self.ndof)
+        dd = merge_dirichlet(self.faces, supports, self.ndof, scalar)
+        points = greville_points(self.model, self.spaces, self.offsets)
+        pieces, labels = dof_labels(self, None if scalar is None else scalar.P)
+        free_modes(points, labels, [np.unique(np.concatenate([self.faces([k])[0].dofs for k in sup]))
+                                    if sup else np.zeros(0, np.int64) for sup in supports], pieces)
+        B = rigid_modes(points)
+        if constraints is not None:
+            owner = np.full(constraints.P.shape[1], -1)
+            m = constraints.dof_master
+            owner[m[m >= 0][::-1]] = np.flatnonzero(m >= 0)[::-1]
+            B = B[owner]
+        t2 = time.perf_counter()
+        options = {"near_nullspace": B} if solver in ("auto", "amg-cg") else None  # rigid modes for AMG
+        res = solve_system(K.copy(), f, constraints, dd, solver, tol, maxiter, options)
+        self.timings.update({"assembly": t1 - t0, "constraints": t2 - t1,
+                             "solve": res.info.setup_s + res.info.solve_s})
+        self.reduced_dofs = res.reduced
+        return ElasticSolution(self, res, K, f, dd, work, applied)

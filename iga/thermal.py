@@ -1,0 +1,40 @@
+"""Thermal strain of the thermo-elastic coupling: alpha (T - T_ref), with T from a heat solution on the same
+model (evaluated on each patch's own temperature spline at the elastic Gauss points), a number or a callable."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from geometry.errors import show
+
+from .coefficients import ScalarField, is_number
+from .errors import ProblemError
+
+__all__ = ["thermal_strain"]
+
+
+def thermal_strain(problem, temperature, expansion, reference=0.0):
+    """The callable ``(patch, x (m, 3), params (m, 3), chans) -> (m,)`` of alpha (T - T_ref) for
+    :class:`iga.elastic_volume.ElasticVolume`."""
+    alpha = ScalarField(expansion, "thermal expansion coefficient", model=problem.model)
+    if not is_number(reference) or not np.isfinite(reference):
+        raise ProblemError(f"the reference temperature must be a finite number, got {show(reference)}")
+    ref = float(reference)
+    if hasattr(temperature, "temperature_spline") and hasattr(temperature, "problem"):
+        heat = temperature
+        if heat.problem.model is not problem.model and len(heat.problem.model.patches) != len(problem.model.patches):
+            raise ProblemError("the heat solution was computed on another model; solve the heat problem on the "
+                               "model of the elastic problem")
+
+        def T_at(pi, x, params, chans):
+            return heat.temperature_spline(pi).evaluate(params)[:, 0]
+    else:
+        T = ScalarField(temperature, "temperature", model=problem.model)
+
+        def T_at(pi, x, params, chans):
+            return T.values(x, chans, f"patch {pi}")
+
+    def strain(pi, x, params, chans):
+        return alpha.values(x, chans, f"patch {pi}") * (T_at(pi, x, params, chans) - ref)
+
+    return strain

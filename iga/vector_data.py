@@ -1,0 +1,81 @@
+"""Vector-valued data of the elastic problem (displacements, tractions, body forces) and the Dirichlet data of
+its three components, projected one component at a time by the scalar machinery (:mod:`iga.dirichlet`)."""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from geometry.errors import show
+
+from .coefficients import is_number
+from .dirichlet import DirichletData, project_dirichlet
+from .errors import ProblemError
+
+__all__ = ["VectorField", "component_field", "merge_dirichlet"]
+
+
+class VectorField:
+    """Three numbers or a callable ``v(x (N, 3)) -> (N, 3)``; with ``broadcast`` one number serves all three."""
+
+    def __init__(self, spec, what: str, broadcast: bool = False):
+        self.what = what
+        if broadcast and is_number(spec):
+            spec = [spec] * 3
+        if callable(spec):
+            self.spec, self.kind = spec, "callable"
+            return
+        try:
+            v = np.asarray(spec, float)
+        except (TypeError, ValueError):
+            v = None
+        if v is None or v.shape != (3,) or not np.all(np.isfinite(v)) or isinstance(spec, (str, bytes)):
+            one = "a number, " if broadcast else ""
+            raise ProblemError(f"{what} must be {one}three finite numbers or a callable of x (N, 3) returning (N, 3), "
+                               f"got {show(spec)}")
+        self.spec, self.kind = v, "vector"
+
+    def values(self, x: np.ndarray, where: str) -> np.ndarray:
+        """Values (N, 3) at physical points x (N, 3)."""
+        n = len(x)
+        if self.kind == "vector":
+            return np.broadcast_to(self.spec, (n, 3))
+        try:
+            v = np.asarray(self.spec(x), float)
+        except ProblemError:
+            raise
+        except Exception as exc:  # the user's callable: say whose and where
+            raise ProblemError(f"{self.what} callable failed on {where}: {type(exc).__name__}: {exc}") from None
+        if v.shape != (n, 3):
+            raise ProblemError(f"{self.what} callable must return shape ({n}, 3) for x of shape ({n}, 3), got {v.shape}")
+        if not np.all(np.isfinite(v)):
+            raise ProblemError(f"{self.what} callable returned non-finite values on {where}")
+        return v
+
+
+class _Component:
+    """One component of a :class:`VectorField`, as the scalar field :func:`project_dirichlet` reads."""
+
+    def __init__(self, field: VectorField, a: int):
+        self.field, self.a = field, a
+
+    def values(self, x, chans, where):
+        return np.ascontiguousarray(self.field.values(x, where)[:, self.a])
+
+
+def component_field(field: VectorField, a: int) -> _Component:
+    return _Component(field, a)
+
+
+def merge_dirichlet(faces, supports: list, ndof: int, scalar) -> DirichletData:
+    """The Dirichlet data of the three components in the component-major numbering: each component projected
+    on its own faces (``supports[a]``: {(patch, face): (field, where)}) and shifted by its block."""
+    nred = ndof if scalar is None else scalar.P.shape[1]
+    parts = [project_dirichlet(faces, sup, ndof, scalar) for sup in supports]
+    dofs = np.concatenate([p.dofs + a * nred for a, p in enumerate(parts)]).astype(np.int64)
+    values = np.concatenate([p.values for p in parts])
+    G = sp.block_diag([p.G if p.G is not None else sp.csr_matrix((nred, 0)) for p in parts], format="csr")
+    keys = [(a, k) for a, p in enumerate(parts) for k in p.keys]
+    slave_rows = np.concatenate([p.slave_rows + a * ndof for a, p in enumerate(parts)]).astype(np.int64)
+    slave_values = np.concatenate([p.slave_values for p in parts])
+    return DirichletData(dofs, values, G, keys, slave_rows, slave_values)
