@@ -1,4 +1,5 @@
-"""The temperature on the model's sample grids (:mod:`geometry.sampling`): values, heat flux, conductivity."""
+"""Solution fields on the model's sample grids (:mod:`geometry.sampling`): the temperature, heat flux and
+conductivity of a heat solution; the displacement, stress, von Mises stress and material of an elastic one."""
 
 from __future__ import annotations
 
@@ -8,8 +9,9 @@ from geometry.chain import gradient_and_det
 from geometry.sampling import piece_basis
 
 from .coefficients import tensor_matrix
+from .elastic_forms import lame
 
-__all__ = ["temperature_fields"]
+__all__ = ["temperature_fields", "displacement_fields"]
 
 
 def temperature_fields(solution):
@@ -42,4 +44,47 @@ def _temperature_fields(solution, members, pax, x, D, chans, out: dict) -> np.nd
     cond = K if K.ndim == 1 else tensor_matrix(K).reshape(-1, 9)
     out.update({"temperature": T, "heat_flux": flux.reshape(P, N, 3),
                 "conductivity": cond.reshape((P, N) + cond.shape[1:])})
+    return det
+
+
+def displacement_fields(solution):
+    """The ``fields`` hook for an :class:`iga.ElasticSolution`: displacement (m), stress (Pa, six components
+    xx, yy, zz, xy, xz, yz), von Mises stress (Pa), Young's modulus and Poisson's ratio at the sample points."""
+    def hook(members, pax, x, D, chans, out):
+        return _displacement_fields(solution, members, pax, x, D, chans, out)
+
+    return hook
+
+
+def _displacement_fields(solution, members, pax, x, D, chans, out: dict) -> np.ndarray:
+    prob = solution.problem
+    space, n = prob.spaces[members[0]], prob.ndof
+    B = [piece_basis(d, a) for d, a in zip(space.dirs, pax)]
+    P, N = x.shape[:2]
+    u, grad, det = np.empty((P * N, 3)), np.empty((P * N, 3, 3)), None
+    for a in range(3):
+        U = np.stack([solution.u[a * n + prob.offsets[i] : a * n + prob.offsets[i + 1]].reshape(space.shape)
+                      for i in members])
+        u[:, a] = np.einsum("pabc,ia,jb,kc->pijk", U, B[0][0], B[1][0], B[2][0], optimize=True).reshape(-1)
+        dxi = np.stack([np.einsum("pabc,ia,jb,kc->pijk", U, *(B[d][int(d == k)] for d in range(3)), optimize=True)
+                        .reshape(-1) for k in range(3)], axis=-1)
+        grad[:, a], det = gradient_and_det(D, dxi)
+    grad[~np.all(np.isfinite(grad), axis=(1, 2))] = 0.0  # degenerate points: no gradient
+    flat = {c: np.reshape(v, -1) for c, v in chans.items()}
+    xs = x.reshape(-1, 3)
+    where = f"patches {members[0]}..{members[-1]}"
+    E, nu = prob.youngs.values(xs, flat, where), prob.poisson.values(xs, flat, where)
+    lam, mu = lame(E, nu, where)
+    eps = 0.5 * (grad + np.transpose(grad, (0, 2, 1)))
+    if prob.thermal_strain is not None:
+        params = np.stack(np.meshgrid(*pax, indexing="ij"), -1).reshape(-1, 3)
+        th = np.concatenate([prob.thermal_strain(i, x[j], params, {c: v[j] for c, v in chans.items()})
+                             for j, i in enumerate(members)])
+        eps = eps - th[:, None, None] * np.eye(3)
+    S = lam[:, None, None] * np.trace(eps, axis1=1, axis2=2)[:, None, None] * np.eye(3) + 2 * mu[:, None, None] * eps
+    voigt = np.stack([S[:, 0, 0], S[:, 1, 1], S[:, 2, 2], S[:, 0, 1], S[:, 0, 2], S[:, 1, 2]], 1)
+    dev = S - np.trace(S, axis1=1, axis2=2)[:, None, None] / 3 * np.eye(3)
+    out.update({"displacement": u.reshape(P, N, 3), "stress": voigt.reshape(P, N, 6),
+                "von_mises": np.sqrt(1.5 * np.sum(dev * dev, axis=(1, 2))).reshape(P, N),
+                "youngs_modulus": E.reshape(P, N), "poisson_ratio": nu.reshape(P, N)})
     return det

@@ -2,9 +2,11 @@
 
 ``cells="linear"``: every patch sampled on conforming grids of linear
 hexahedra (VTK type 12) and welded into one mesh without internal faces
-(:mod:`iga.sampling`).  Point data: ``temperature`` (with a solution),
-``heat_flux`` (W/m^2, vector), ``conductivity`` (a scalar, or the 3 x 3 tensor)
-and every channel of the tiles and the deformation map; cell data: ``patch``,
+(:mod:`iga.sampling`).  Point data: ``temperature`` (with a heat solution),
+``heat_flux`` (W/m^2, vector), ``conductivity`` (a scalar, or the 3 x 3 tensor);
+``displacement`` (m, vector: ParaView's Warp By Vector), ``stress`` (Pa, xx, yy, zz,
+xy, xz, yz), ``von_mises`` (Pa), ``youngs_modulus`` and ``poisson_ratio`` (with an
+elastic solution); and every channel of the tiles and the deformation map; cell data: ``patch``,
 ``tile`` and ``level`` (filter by level in ParaView with Threshold).
 
 ``cells="bezier"``: one exact rational Bezier hexahedron (VTK type 79) per
@@ -27,7 +29,8 @@ from geometry.sampling import sampled_mesh
 
 from .errors import ProblemError
 from .model import as_model
-from .sampling import temperature_fields
+from .elastic_solution import ElasticSolution
+from .sampling import displacement_fields, temperature_fields
 from .solution import Solution
 from .vtu_bezier import bezier_grid
 from geometry.errors import show
@@ -55,7 +58,8 @@ def write_vtu(path, solution_or_model, samples: int = 3, cells: str = "linear") 
     Parameters
     ----------
     path : output file (``.vtu``); its folder must exist and be writable
-    solution_or_model : :class:`iga.Solution`, or anything :func:`iga.model.as_model` accepts
+    solution_or_model : :class:`iga.Solution`, :class:`iga.ElasticSolution`, or anything
+        :func:`iga.model.as_model` accepts
     samples : subdivisions of every element per direction (>= 1), for ``cells="linear"``
     cells : ``"linear"`` (sampled linear hexahedra, with heat flux) or ``"bezier"``: one exact
         rational Bezier hexahedron (VTK type 79) per element, geometry and temperature exact
@@ -78,7 +82,7 @@ def write_vtu(path, solution_or_model, samples: int = 3, cells: str = "linear") 
     if path.suffix.lower() != ".vtu":
         raise ProblemError(f"cannot write {path.name}: VTU files end in .vtu")
     check_folder(path, ProblemError)  # before sampling: fail fast on a bad output path
-    sol = solution_or_model if isinstance(solution_or_model, Solution) else None
+    sol = solution_or_model if isinstance(solution_or_model, (Solution, ElasticSolution)) else None
     model = sol.problem.model if sol is not None else as_model(solution_or_model)
     if cells == "bezier":
         grid = bezier_grid(sol, model)
@@ -92,5 +96,6 @@ def sampled_grid(model, solution=None, samples: int = 3):
     if solution is None:
         return sampled_mesh(model, samples)
     prob = solution.problem
+    fields = displacement_fields(solution) if isinstance(solution, ElasticSolution) else temperature_fields(solution)
     return sampled_mesh(model, samples, knots_of=lambda pi: [d.knots for d in prob.spaces[pi].dirs],
-                        spaces_key=lambda pi: prob.spaces[pi].key(), fields=temperature_fields(solution))
+                        spaces_key=lambda pi: prob.spaces[pi].key(), fields=fields)

@@ -66,11 +66,34 @@ def _vtk_order(degrees) -> np.ndarray:
     return order
 
 
+def _solution_field(solution):
+    """(name, patch -> spline) of the field a solution carries: the temperature or the displacement."""
+    if solution is None:
+        return None, None
+    if hasattr(solution, "displacement_spline"):
+        return "displacement", solution.displacement_spline
+    return "temperature", solution.temperature_spline
+
+
+def _field_values(th, gh, pg, rational: bool):
+    """(elevated homogeneous geometry, field control values (E, ..., c)) on common Bezier degrees."""
+    pt = np.array(th.shape[1:4]) - 1
+    if rational:  # the field's values carried with the rational basis w_i B_i / W: multiply by W, then divide
+        W = np.moveaxis(gh[..., -1:], -1, 1)
+        tw = np.concatenate([bz.multiply(np.moveaxis(th[..., c:c + 1], -1, 1), W, 3) for c in range(th.shape[-1])], 1)
+        gh = np.moveaxis(bz.elevate(np.moveaxis(gh, -1, 1), list(pt), 3), 1, -1)
+        return gh, np.moveaxis(tw, 1, -1) / gh[..., -1:]
+    target = np.maximum(pg, pt)
+    gh = np.moveaxis(bz.elevate(np.moveaxis(gh, -1, 1), list(target - pg), 3), 1, -1)
+    return gh, np.moveaxis(bz.elevate(np.moveaxis(th, -1, 1), list(target - pt), 3), 1, -1)
+
+
 def bezier_cells(solution, model):
     """Per-patch Bezier cells: list of dicts with points, weights, degrees, point fields and ids."""
     out = []
+    name, field_of = _solution_field(solution)
     for pi, (patch, G) in enumerate(zip(model.patches, _exact_geometries(model))):
-        T = solution.temperature_spline(pi) if solution is not None else None
+        T = field_of(pi) if field_of is not None else None
         breaks = [np.union1d(G.breakpoints(k), T.breakpoints(k) if T is not None else []) for k in range(3)]
         G = common_refinement(G, breaks)
         gh, _ = G.bezier_patches(homogeneous=True)  # (e1, e2, e3, q1+1, q2+1, q3+1, m+1)
@@ -79,20 +102,10 @@ def bezier_cells(solution, model):
         pg = np.array(gh.shape[1:4]) - 1
         fields = {}
         if T is not None:
-            th, _ = common_refinement(T, breaks).bezier_patches()  # polynomial, one component
+            th, _ = common_refinement(T, breaks).bezier_patches()  # polynomial, one or three components
             th = th.reshape((-1,) + th.shape[3:])
-            pt = np.array(th.shape[1:4]) - 1
-            if G.is_rational:
-                W = gh[..., -1:]
-                tw = bz.multiply(np.moveaxis(th[..., :1], -1, 1), np.moveaxis(W, -1, 1), 3)  # (E, 1, ...) degree pt + pg
-                target = pt + pg
-                gh = np.moveaxis(bz.elevate(np.moveaxis(gh, -1, 1), list(target - pg), 3), 1, -1)
-                tvals = np.moveaxis(tw, 1, -1)[..., 0] / gh[..., -1]
-            else:
-                target = np.maximum(pg, pt)
-                gh = np.moveaxis(bz.elevate(np.moveaxis(gh, -1, 1), list(target - pg), 3), 1, -1)
-                tvals = np.moveaxis(bz.elevate(np.moveaxis(th[..., :1], -1, 1), list(target - pt), 3), 1, -1)[..., 0]
-            fields["temperature"] = tvals
+            gh, tvals = _field_values(th, gh, pg, G.is_rational)
+            fields[name] = tvals[..., 0] if tvals.shape[-1] == 1 else tvals
         if G.is_rational:
             w = gh[..., -1]
             cart = gh[..., :-1] / w[..., None]
@@ -132,7 +145,8 @@ def bezier_grid(solution, model):
         for name in names:
             v = c["fields"].get(name)
             v = np.full(P.shape[:4], np.nan) if v is None else v
-            fields.setdefault(name, []).append(v.reshape(E, npc)[:, order].ravel())
+            flat_v = v.reshape(E, npc, -1)[:, order]
+            fields.setdefault(name, []).append(flat_v.reshape(-1) if flat_v.shape[-1] == 1 else flat_v.reshape(-1, 3))
         for key in ids:
             ids[key].append(np.full(E, c[key], np.int32))
         offset += E * npc

@@ -194,3 +194,41 @@ def test_free_rigid_motions_are_refused_naming_them():
         p.dirichlet("wmin", 0.0, components="z").solve()
     with pytest.raises(SingularProblemError, match="leave 6 rigid-body motions"):
         ElasticityProblem(pr.box(), youngs=1.0, poisson=0.3).traction("umax", [1, 0, 0]).solve()
+
+
+def test_vtu_of_an_elastic_solution_holds_displacement_stress_and_von_mises(tmp_path):
+    import meshio
+    import pyvista as pv
+
+    from iga import write_vtu
+
+    ms = tiling.regular(pr.box((2.0, 1.0, 1.0), degrees=(2, 2, 2)), L.cross(), (2, 1, 1))
+    s = ElasticityProblem(ms, youngs=1e9, poisson=0.25).dirichlet("umin", 0.0).traction("umax", [1e5, 0, 2e4]).solve()
+    path = write_vtu(tmp_path / "lattice.vtu", s, samples=2)
+    grid, mesh = pv.read(path), meshio.read(path)
+    for name in ("displacement", "stress", "von_mises", "youngs_modulus"):
+        assert np.allclose(grid.point_data[name], mesh.point_data[name])
+    pts = grid.points[::37]
+    assert np.abs(grid.point_data["displacement"][::37] - s.displacement(pts)).max() < 1e-9 * np.abs(s.u).max()
+    S = s.stress(pts)
+    voigt = np.stack([S[:, 0, 0], S[:, 1, 1], S[:, 2, 2], S[:, 0, 1], S[:, 0, 2], S[:, 1, 2]], 1)
+    inner = ~np.isin(np.arange(grid.n_points)[::37], np.flatnonzero(_welded(grid)))
+    assert np.abs(grid.point_data["stress"][::37][inner] - voigt[inner]).max() < 1e-6 * np.abs(voigt).max()
+    assert np.allclose(grid.point_data["von_mises"][::37][inner], s.von_mises(pts)[inner], rtol=1e-6, atol=1e-3)
+    bez = pv.read(write_vtu(tmp_path / "lattice_bezier.vtu", s, cells="bezier"))
+    corners = np.concatenate([bez.get_cell(i).point_ids[:8] for i in range(0, bez.n_cells, 7)])
+    got = bez.point_data["displacement"][corners]
+    assert np.abs(got - s.displacement(bez.points[corners])).max() < 1e-9 * np.abs(s.u).max()
+
+
+def _welded(grid):
+    """Points shared by cells of different patches (where written stress is the mean of both sides)."""
+    patch = grid.cell_data["patch"]
+    owner = np.full(grid.n_points, -1)
+    shared = np.zeros(grid.n_points, bool)
+    cells = grid.cells.reshape(-1, 9)[:, 1:]
+    for c, p in zip(cells, patch):
+        seen = owner[c]
+        shared[c[(seen >= 0) & (seen != p)]] = True
+        owner[c] = p
+    return shared
