@@ -80,14 +80,18 @@ def _build_tiling(cfg, D):
     return tiling.regular(D, tile, p["counts"], **seal)
 
 
-def render_temperature(vtu_path: Path, png_path: Path, title: str = "temperature (C)"):
-    """Offscreen render of a written .vtu coloured by temperature, with a scalar bar (atomic)."""
+def render_temperature(vtu_path: Path, png_path: Path, title: str = "temperature (C)", scalars: str = "temperature",
+                       warp: float | None = None, cmap: str = "inferno"):
+    """Offscreen render of a written .vtu coloured by ``scalars`` (a point array), with a scalar bar (atomic);
+    ``warp``: the surface moved by that factor times its ``displacement`` array (an elastic solution)."""
     import pyvista as pv
 
     mesh = pv.read(vtu_path).extract_surface(algorithm="dataset_surface")
+    if warp is not None:
+        mesh = mesh.warp_by_vector("displacement", factor=warp)
     pl = offscreen_plotter((1200, 850))
-    pl.add_mesh(mesh, scalars="temperature", cmap="inferno", smooth_shading=True, split_sharp_edges=True,
-                scalar_bar_args={"title": title, "vertical": True, "fmt": "%.2f", "position_x": 0.86,
+    pl.add_mesh(mesh, scalars=scalars, cmap=cmap, smooth_shading=True, split_sharp_edges=True,
+                scalar_bar_args={"title": title, "vertical": True, "fmt": "%.3g", "position_x": 0.86,
                                  "position_y": 0.12, "width": 0.08, "height": 0.7, "title_font_size": 18,
                                  "label_font_size": 16})
     save_screenshot(pl, png_path, ProblemError, "iso", 0.85)  # zoom out: room for the scalar bar beside the model

@@ -232,3 +232,22 @@ def _welded(grid):
         shared[c[(seen >= 0) & (seen != p)]] = True
         owner[c] = p
     return shared
+
+
+def test_elber_fig12_ring_of_cross_tiles_moved_at_the_top_outer_ring():
+    D = pr.annulus(1.0, 2.0, 1.0, angle=2 * np.pi)
+    ms = tiling.regular(D, L.cross(), (3, 2, 2))  # 48 cross tiles, 336 trivariates
+
+    def radial(pi):
+        P = ms.patches[pi]
+        return float((P.placement[:, :3] @ np.full(3, 0.5) + P.placement[:, 3])[1])
+
+    ms.tags["clamped"] = [f for f in ms.tags["wmin"] if radial(f[0]) < 0.5]
+    ms.tags["moved"] = [f for f in ms.tags["wmax"] if radial(f[0]) > 0.5]
+    assert ms.n_tiles == 48 and len(ms.patches) == 336 and len(ms.tags["clamped"]) == len(ms.tags["moved"]) == 12
+    s = ElasticityProblem(ms, youngs=1.0, poisson=0.3).dirichlet("clamped", 0.0).dirichlet("moved", [0, 0, 0.5]).solve()
+    top = np.concatenate([s.problem.faces([f])[0].x for f in ms.tags["moved"]])
+    assert np.abs(s.displacement(top) - [0, 0, 0.5]).max() < 1e-9
+    Rc, Rm = s.reaction("clamped"), s.reaction("moved")
+    assert Rm[2] > 0 and np.abs(Rc + Rm).max() < 1e-9 * Rm[2] and np.abs(Rm[:2]).max() < 1e-9 * Rm[2]
+    assert s.info["work"]["relative_error"] < 1e-9
