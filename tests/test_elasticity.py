@@ -251,3 +251,47 @@ def test_elber_fig12_ring_of_cross_tiles_moved_at_the_top_outer_ring():
     Rc, Rm = s.reaction("clamped"), s.reaction("moved")
     assert Rm[2] > 0 and np.abs(Rc + Rm).max() < 1e-9 * Rm[2] and np.abs(Rm[:2]).max() < 1e-9 * Rm[2]
     assert s.info["work"]["relative_error"] < 1e-9
+
+
+def test_a_cantilever_of_square_section_bends_as_timoshenko_beam_theory_says():
+    Lb, b, E, nu, P = 10.0, 1.0, 1e3, 0.3, 1e-2
+    I, G, A = b**4 / 12, E / (2 * (1 + nu)), b * b
+    kappa = 10 * (1 + nu) / (12 + 11 * nu)  # Cowper's shear coefficient of a rectangle
+    delta = P * Lb**3 / (3 * E * I) + P * Lb / (kappa * G * A)
+    s = (ElasticityProblem(pr.box((Lb, b, b), degrees=(3, 3, 3), elements=(20, 2, 2)), youngs=E, poisson=nu)
+         .dirichlet("umin", 0.0).traction("umax", [0.0, 0.0, -P / A]).solve())
+    tip = -s.displacement(np.array([[Lb, 0.5, 0.5]]))[0, 2]
+    assert abs(tip / delta - 1) < 0.01
+    assert np.allclose(s.reaction("umin"), [0.0, 0.0, P], rtol=1e-9, atol=1e-12)  # the clamp carries the load
+
+
+def test_amg_with_the_rigid_modes_keeps_its_iterations_flat_under_refinement():
+    its = []
+    for n in (4, 8, 16):
+        geo = pr.twisted(pr.box(degrees=(2, 2, 2), elements=(n, n, n)), 0.5, axis_point=(0.5, 0.5))
+        s = (ElasticityProblem(geo, youngs=1.0, poisson=0.3).dirichlet("umin", 0.0).traction("umax", [0, 0, 1e-3])
+             .solve(solver="amg-cg", tol=1e-8))
+        its.append(s.info["solver"]["iterations"])
+    assert max(its) <= 1.3 * min(its) and max(its) < 25, its  # measured 14, 16, 15 (44 with the constants only)
+
+
+def test_thermal_stress_of_the_graded_demo_sink_balances_and_is_symmetric():
+    from iga.pipeline import vertical_heat_sink_map
+    from tiling.materials import graded_channel
+
+    D = vertical_heat_sink_map()
+    for ch, near, far in (("k", 205.0, 54.0), ("E", 69e9, 193e9), ("nu", 0.33, 0.29), ("alpha", 23e-6, 17.3e-6)):
+        D = graded_channel(D, ch, near=near, far=far, face="wmin")
+    sink = tiling.hierarchical(D, L.heat_sink_t2(), (2, 2), levels=2, scale=0.5)
+    heat = HeatProblem(sink, conductivity="k").neumann("branch-in", 1515.8).robin("exterior", 5.0, 30.0).solve()
+    s = (ElasticityProblem(sink, youngs="E", poisson="nu").thermal(heat, "alpha", reference=20.0)
+         .dirichlet("branch-in", 0.0, components="z").dirichlet("umin", 0.0, components="x")
+         .dirichlet("vmin", 0.0, components="y").solve())
+    assert s.info["work"]["relative_error"] < 1e-9
+    x = _inside_points(s)
+    S = s.stress(x)
+    assert np.abs(S - np.transpose(S, (0, 2, 1))).max() < 1e-9 * np.abs(S).max()
+    assert np.abs(S).max() > 1e3  # graded expansion and a temperature gradient: stressed
+    # no external load: the rollers carry nothing (against the internal forces, stress x the base's area)
+    R = s.reaction("branch-in") + s.reaction("umin") + s.reaction("vmin")
+    assert np.abs(R).max() < 1e-6 * np.abs(S).max() * 0.06 * 0.06
