@@ -32,7 +32,7 @@ from .forms import boundary_load
 from .model import tag_faces
 from .rigid import free_modes, greville_points, rigid_modes
 from .system import solve_system
-from .vector_data import VectorField, component_field, merge_dirichlet
+from .vector_data import VectorField, component_field, merge_dirichlet, pin_dofs
 
 __all__ = ["ElasticityProblem"]
 
@@ -90,6 +90,7 @@ class ElasticityProblem:
         self.body = None
         self.thermal_strain = None
         self.constraint_stats: dict = {}
+        self.rigid_hold = False
 
     # ------------------------------------------------------------ conditions
     def _faces_of(self, tag: str, what: str) -> list:
@@ -137,6 +138,41 @@ class ElasticityProblem:
 
         self.thermal_strain = thermal_strain(self, temperature, expansion, reference)
         return self
+
+    def hold_rigid(self) -> "ElasticityProblem":
+        """Hold the body against rigid motion only (free to expand): the 3-2-1 rule at three patch corners (where
+        the spline interpolates its control point) far apart: all of A, two components of B across AB, one of
+        C across the plane ABC.  Statically determinate, so a free thermal expansion stays stress free."""
+        self.rigid_hold = True
+        return self
+
+    def _three_two_one(self, points: np.ndarray) -> list:
+        """Per component, the scalar DOFs the 3-2-1 rule prescribes (to zero)."""
+        corners = []
+        for pi, space in enumerate(self.spaces):
+            shape = space.shape
+            for i in (0, shape[0] - 1):
+                for j in (0, shape[1] - 1):
+                    for k in (0, shape[2] - 1):
+                        corners.append(int(self.offsets[pi] + (i * shape[1] + j) * shape[2] + k))
+        corners = np.unique(corners)
+        x = points[corners]
+        a = corners[np.argmin(x.sum(1))]
+        b = corners[np.argmax(np.linalg.norm(x - points[a], axis=1))]
+        ab = points[b] - points[a]
+        ab /= np.linalg.norm(ab)
+        off = np.linalg.norm(np.cross(x - points[a], ab), axis=1)
+        c = corners[np.argmax(off)]
+        normal = np.cross(ab, points[c] - points[a])
+        if not np.linalg.norm(normal) > 1e-9 * np.ptp(points, axis=0).max():
+            raise ProblemError("hold_rigid needs a body that is not flat along a line: no three patch corners span a "
+                               "plane")
+        across = np.argsort(np.abs(ab))[:2]  # the two axes least along AB
+        out = [[a], [a], [a]]
+        for comp in across:
+            out[comp].append(b)
+        out[int(np.argmax(np.abs(normal)))].append(c)
+        return [np.array(o, np.int64) for o in out]
 
     # ------------------------------------------------------------------ solve
     def _loads(self, f: np.ndarray) -> dict:
@@ -189,9 +225,14 @@ class ElasticityProblem:
         constraints = vector_constraints(scalar, self.ndof)
         dd = merge_dirichlet(self.faces, supports, self.ndof, scalar)
         points = greville_points(self.model, self.spaces, self.offsets)
+        held = [np.unique(np.concatenate([self.faces([k])[0].dofs for k in sup])) if sup else np.zeros(0, np.int64)
+                for sup in supports]
+        if self.rigid_hold:
+            pins = self._three_two_one(points)
+            dd = pin_dofs(dd, pins, self.ndof, scalar)
+            held = [np.union1d(h, p) for h, p in zip(held, pins)]
         pieces, labels = dof_labels(self, None if scalar is None else scalar.P)
-        free_modes(points, labels, [np.unique(np.concatenate([self.faces([k])[0].dofs for k in sup]))
-                                    if sup else np.zeros(0, np.int64) for sup in supports], pieces)
+        free_modes(points, labels, held, pieces)
         B = rigid_modes(points)
         if constraints is not None:
             owner = np.full(constraints.P.shape[1], -1)

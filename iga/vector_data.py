@@ -12,7 +12,7 @@ from .coefficients import is_number
 from .dirichlet import DirichletData, project_dirichlet
 from .errors import ProblemError
 
-__all__ = ["VectorField", "component_field", "merge_dirichlet"]
+__all__ = ["VectorField", "component_field", "merge_dirichlet", "pin_dofs"]
 
 
 class VectorField:
@@ -79,3 +79,16 @@ def merge_dirichlet(faces, supports: list, ndof: int, scalar) -> DirichletData:
     slave_rows = np.concatenate([p.slave_rows + a * ndof for a, p in enumerate(parts)]).astype(np.int64)
     slave_values = np.concatenate([p.slave_values for p in parts])
     return DirichletData(dofs, values, G, keys, slave_rows, slave_values)
+
+
+def pin_dofs(dd: DirichletData, pins: list, ndof: int, scalar) -> DirichletData:
+    """``dd`` with the scalar DOFs ``pins[a]`` of each component a held at zero (their reduced unknowns; a pin
+    that is a slave DOF, or already prescribed, is left as it is)."""
+    nred = ndof if scalar is None else scalar.P.shape[1]
+    extra = []
+    for a, dofs in enumerate(pins):
+        red = dofs if scalar is None else scalar.dof_master[dofs]
+        extra.append(red[red >= 0] + a * nred)
+    extra = np.setdiff1d(np.concatenate(extra), dd.dofs).astype(np.int64)
+    return DirichletData(np.concatenate([dd.dofs, extra]), np.concatenate([dd.values, np.zeros(len(extra))]), dd.G,
+                         dd.keys, dd.slave_rows, dd.slave_values)

@@ -161,6 +161,12 @@ def test_free_thermal_expansion_of_a_homogeneous_body_is_stress_free():
     x = _inside_points(s)
     assert np.abs(s.stress(x)).max() < 1e-9 * 69e9 * 23e-6 * 50
     assert s.info["work"]["thermal"]
+    # held against rigid motion only (3-2-1 at three patch corners): a curved body expands stress free too
+    twisted = pr.twisted(body, 0.3, axis_point=(0.5, 1.0))
+    r = ElasticityProblem(twisted, youngs=69e9, poisson=0.33).thermal(70.0, 23e-6, reference=20.0).hold_rigid().solve()
+    xt = _inside_points(r)
+    assert np.abs(r.stress(xt)).max() < 1e-9 * 69e9 * 23e-6 * 50
+    assert np.abs(r.displacement(xt)).max() > 1e-3  # it did expand (2 m x 23e-6 x 50 K = 2.3 mm)
     # a temperature field from the heat solution: a graded body stresses, and the stress tensor is symmetric
     g = (ElasticityProblem(body, youngs=69e9, poisson=0.33).thermal(heat, 23e-6, reference=20.0)
          .dirichlet("wmin", 0.0).solve())
