@@ -43,15 +43,22 @@ def _version() -> str:
 def _cmd_demo(args) -> int:
     from .pipeline import heat_sink_config, run_pipeline
 
-    cfg = heat_sink_config(args.variant, args.levels, args.refine, args.out)
+    cfg = heat_sink_config(args.variant, args.levels, args.refine, args.out, stress=args.stress)
     s = run_pipeline(cfg)
     print(f"{args.variant} heat sink: {_plural(s['tiles'], 'tile')} on {_plural(s['levels'], 'level')}, "
           f"{s['dofs']} DOFs ({s['unknowns']} unknowns)")
     t = s["temperature_C"]
     print(f"temperature {t['min']:.2f} .. {t['max']:.2f} C (volume mean {t['mean']:.2f}); inflow {s['inflow_W']:.4g} W, "
           f"outflow {s['outflow_W']:.4g} W, balance error {s['energy_balance_error']:.1e}")
+    if "elasticity" in s:
+        print(_elastic_line(s["elasticity"]))
     print(f"wrote {', '.join(s['files'].values())} and {Path(args.out) / 'summary.json'}")
     return 0
+
+
+def _elastic_line(e: dict) -> str:
+    return (f"elasticity: {e['dofs']} DOFs; largest displacement {e['max_displacement_m']:.3g} m, von Mises up to "
+            f"{e['max_von_mises_Pa']:.3g} Pa; work balance error {e['work']['relative_error']:.1e}")
 
 
 def _cmd_run(args) -> int:
@@ -71,14 +78,17 @@ def _cmd_run(args) -> int:
     except (OSError, UnicodeDecodeError) as exc:
         raise ProblemError(f"cannot read config file {path}: {exc}") from None
     s = run_pipeline(cfg, base_dir=path.parent)
-    t = s["temperature_C"]
     from .distributed import is_root
 
     if not is_root():  # under mpiexec rank 0 reports
         return 0
-    print(f"{_plural(s['tiles'], 'tile')}, {s['dofs']} DOFs; temperature {t['min']:.3f} .. {t['max']:.3f}; "
-          f"balance error {s['energy_balance_error']:.1e}; outputs and summary.json in "
-          f"{Path(next(iter(s['files'].values()), path)).parent}")
+    where = f"outputs and summary.json in {Path(next(iter(s['files'].values()), path)).parent}"
+    if "temperature_C" in s:
+        t = s["temperature_C"]
+        print(f"{_plural(s['tiles'], 'tile')}, {s['dofs']} DOFs; temperature {t['min']:.3f} .. {t['max']:.3f}; "
+              f"balance error {s['energy_balance_error']:.1e}; {where}")
+    if "elasticity" in s:
+        print(f"{_plural(s['tiles'], 'tile')}, {_elastic_line(s['elasticity'])}; {where}")
     return 0
 
 
@@ -147,6 +157,9 @@ def build_parser() -> argparse.ArgumentParser:
     hs.add_argument("--levels", type=int, default=None,
                     help="hierarchy levels (default: the paper's, 3 circular, 2 vertical)")
     hs.add_argument("--refine", type=int, default=0, help="uniform h-refinement rounds of every tile space")
+    hs.add_argument("--stress", action="store_true",
+                    help="add the thermal stress of the graded sink (aluminium to steel; free to expand): a stress "
+                         "VTU and a von Mises picture")
     hs.set_defaults(func=_cmd_demo)
     run = sub.add_parser(
         "run", help="run a pipeline described in a TOML file", formatter_class=_Formatter,

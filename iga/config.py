@@ -36,7 +36,7 @@ from geometry.errors import show
 
 __all__ = ["validate", "SECTIONS", "OUTPUT_DEFAULTS"]
 
-SECTIONS = ("map", "tile", "paving", "material", "bc", "solver", "output", "limits")
+SECTIONS = ("map", "tile", "paving", "material", "bc", "physics", "support", "load", "solver", "output", "limits")
 OUTPUT_DEFAULTS = {"dir": "out", "name": "result", "vtu": True, "bezier": False, "png": True, "samples": 3,
                    "probes": []}
 SOLVER_DEFAULTS = {"method": "auto", "tol": 1e-10, "maxiter": None, "refine": 0, "degree_elevation": 0}
@@ -212,15 +212,93 @@ def _map(m, base_dir) -> dict:
     else:
         name = _choice(m["primitive"], "map.primitive", MAPS)
         out = {"primitive": name, "args": _kwargs(m.get("args", {}), "map.args", MAPS[name])}
-    if "grading" in m:
-        g = _table(m["grading"], "map.grading", {"channel", "near", "far", "face", "mode"})
-        out["grading"] = {
-            "channel": _str(g.get("channel", "k"), "map.grading.channel"),
-            "near": _number(g.get("near", 205.0), "map.grading.near"),
-            "far": _number(g.get("far", 54.0), "map.grading.far"),
-            "face": _choice(g.get("face", "wmin"), "map.grading.face", FACE_NAMES),
-            "mode": _choice(g.get("mode", "parameter"), "map.grading.mode", ("parameter", "distance"))}
+    if "grading" in m:  # one table, or a list of them (one per graded channel: k, E, nu, alpha, ...)
+        many = isinstance(m["grading"], list)
+        items = m["grading"] if many else [m["grading"]]
+        out["grading"] = [_grading(g, f"map.grading[{i}]" if many else "map.grading") for i, g in enumerate(items)]
     return out
+
+
+def _grading(g, where) -> dict:
+    g = _table(g, where, {"channel", "near", "far", "face", "mode"})
+    return {"channel": _str(g.get("channel", "k"), f"{where}.channel"),
+            "near": _number(g.get("near", 205.0), f"{where}.near"),
+            "far": _number(g.get("far", 54.0), f"{where}.far"),
+            "face": _choice(g.get("face", "wmin"), f"{where}.face", FACE_NAMES),
+            "mode": _choice(g.get("mode", "parameter"), f"{where}.mode", ("parameter", "distance"))}
+
+
+PHYSICS = ("heat", "elasticity", "thermo-elastic")
+
+
+def _material_value(v, where, lo=None, hi=None):
+    """A number (checked against (lo, hi)) or a channel name."""
+    return _str(v, where) if isinstance(v, str) else _number(v, where, lo=lo, hi=hi)
+
+
+def _physics(config) -> dict:
+    """The checked [physics] section with its [[support]] and [[load]] tables (elastic kinds)."""
+    t = _table(config.get("physics", {}), "physics", {"kind", "youngs", "poisson", "expansion", "reference",
+                                                      "hold_rigid"})
+    kind = _choice(t.get("kind", "heat"), "physics.kind", PHYSICS)
+    out = {"kind": kind}
+    if kind == "heat":
+        for sec in ("support", "load"):
+            if sec in config:
+                raise ProblemError(f"config section {sec} applies to physics.kind = 'elasticity' or 'thermo-elastic'; "
+                                   "the heat problem takes [[bc]]")
+        extra = sorted(set(t) - {"kind"})
+        if extra:
+            _fail(f"physics.{extra[0]}", "applies to physics.kind = 'elasticity' or 'thermo-elastic'")
+        return out
+    for key in ("youngs", "poisson") + (("expansion",) if kind == "thermo-elastic" else ()):
+        if key not in t:
+            raise ProblemError(f"config section physics (kind {kind!r}) needs {key!r} (a number or a channel name)")
+    out["youngs"] = _material_value(t["youngs"], "physics.youngs", lo=0)
+    out["poisson"] = _material_value(t["poisson"], "physics.poisson", lo=-1, hi=0.5)
+    if kind == "thermo-elastic":
+        out["expansion"] = _material_value(t["expansion"], "physics.expansion")
+        out["reference"] = _number(t.get("reference", 20.0), "physics.reference")
+    elif "expansion" in t or "reference" in t:
+        _fail("physics.expansion", "applies to physics.kind = 'thermo-elastic'")
+    hold = t.get("hold_rigid", False)
+    if not isinstance(hold, bool):
+        _fail("physics.hold_rigid", f"must be true or false, got {show(hold)}")
+    out["hold_rigid"] = hold
+    sup = config.get("support", [])
+    sup = sup if isinstance(sup, list) else [sup]
+    out["support"] = [_support(s, f"support[{i}]") for i, s in enumerate(sup)]
+    loads = config.get("load", [])
+    loads = loads if isinstance(loads, list) else [loads]
+    out["load"] = [_load(x, f"load[{i}]") for i, x in enumerate(loads)]
+    if not out["support"] and not hold:
+        raise ProblemError("an elastic analysis needs [[support]] tables (tag, value, components) or "
+                           "physics.hold_rigid = true; without them the body is free to move")
+    return out
+
+
+def _vector(v, where, broadcast: bool):
+    if broadcast and not isinstance(v, list):
+        return _number(v, where)
+    if not (isinstance(v, list) and len(v) == 3):
+        _fail(where, f"must be {'a number or ' if broadcast else ''}a list of three numbers, got {show(v)}")
+    return [_number(x, f"{where}[{i}]") for i, x in enumerate(v)]
+
+
+def _support(v, where) -> dict:
+    t = _table(v, where, {"tag", "value", "components"}, ("tag",))
+    comps = t.get("components", "xyz")
+    if not (isinstance(comps, str) and comps and set(comps) <= set("xyz") and len(set(comps)) == len(comps)):
+        _fail(f"{where}.components", f"must be distinct letters of 'xyz' (e.g. 'z'), got {show(comps)}")
+    return {"tag": _str(t["tag"], f"{where}.tag"), "value": _vector(t.get("value", 0.0), f"{where}.value", True),
+            "components": comps}
+
+
+def _load(v, where) -> dict:
+    t = _table(v, where, {"kind", "tag", "value"}, ("kind", "tag", "value"))
+    kind = _choice(t["kind"], f"{where}.kind", ("traction", "pressure"))
+    value = _number(t["value"], f"{where}.value") if kind == "pressure" else _vector(t["value"], f"{where}.value", False)
+    return {"kind": kind, "tag": _str(t["tag"], f"{where}.tag"), "value": value}
 
 
 def _tile(t) -> dict:
@@ -264,15 +342,23 @@ def validate(config, base_dir=".") -> dict:
     unknown = sorted(set(config) - set(SECTIONS))
     if unknown:
         raise ProblemError(f"unknown config section {show(unknown[0])}; sections: {list(SECTIONS)}")
-    for sec in ("map", "tile", "paving", "bc"):
+    for sec in ("map", "tile", "paving"):
         if sec not in config:
             raise ProblemError(f"missing required config section {show(sec)}")
-    cfg: dict = {"map": _map(config["map"], base_dir), "tile": _tile(config["tile"]), "paving": _paving(config["paving"])}
+    physics = _physics(config)
+    if physics["kind"] != "elasticity" and "bc" not in config:
+        raise ProblemError("missing required config section 'bc' (the heat problem's conditions)")
+    if physics["kind"] == "elasticity" and "bc" in config:
+        raise ProblemError("config section bc holds heat conditions; physics.kind = 'elasticity' takes [[support]] "
+                           "and [[load]] (or use kind = 'thermo-elastic')")
+    cfg: dict = {"map": _map(config["map"], base_dir), "tile": _tile(config["tile"]), "paving": _paving(config["paving"]),
+                 "physics": physics}
     mat = _table(config.get("material", {}), "material", {"conductivity", "source"})
     cfg["material"] = {"conductivity": _conductivity(mat.get("conductivity", 1.0), "material.conductivity"),
                        "source": _number(mat.get("source", 0.0), "material.source")}
-    bcs = config["bc"] if isinstance(config["bc"], list) else [config["bc"]]
-    if not bcs:
+    bcs = config.get("bc", [])
+    bcs = bcs if isinstance(bcs, list) else [bcs]
+    if not bcs and physics["kind"] != "elasticity":
         raise ProblemError("config section bc is empty; give at least one [[bc]] table")
     cfg["bc"] = [_bc(b, f"bc[{i}]") for i, b in enumerate(bcs)]
     s = _table(config.get("solver", {}), "solver", set(SOLVER_DEFAULTS))

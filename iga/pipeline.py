@@ -38,20 +38,26 @@ __all__ = ["run_pipeline", "heat_sink_config", "circular_heat_sink_map", "vertic
 
 
 def heat_sink_config(variant: str = "circular", levels: int | None = None, refine: int = 0,
-                     out: str = "heat-sink-out") -> dict:
+                     out: str = "heat-sink-out", stress: bool = False) -> dict:
     """The heat-sink analysis of Massarwi et al. 2018 (Section 8, Figs. 11 and 18) as a pipeline configuration.
 
     Aluminium (205 W/(m K)) at the heated face graded to stainless steel
     (54 W/(m K)) away from it; inlet flux 1515.8 W/m^2 on the inner ring
     (circular) or the bottom face (vertical); convection h = 5 W/(m^2 K) to
-    air at 30 C on every other external face.
+    air at 30 C on every other external face.  ``stress``: the thermal stress too (thermo-elastic), with
+    E, nu and alpha graded like the conductivity: aluminium (69 GPa, 0.33, 23e-6 1/K) at the heated face to
+    stainless steel (193 GPa, 0.29, 17.3e-6 1/K) away from it; free to expand, held only against rigid
+    motion (:meth:`iga.ElasticityProblem.hold_rigid`), stress free at 20 C.
     """
     if variant not in ("circular", "vertical"):
         raise ProblemError(f"variant must be 'circular' or 'vertical', got {show(variant)}")
     circ = variant == "circular"
-    return {
-        "map": {"primitive": "circular_heat_sink" if circ else "vertical_heat_sink",
-                "grading": {"channel": "k", "near": 205.0, "far": 54.0, "face": "wmin"}},
+    grading = [{"channel": "k", "near": 205.0, "far": 54.0, "face": "wmin"}]
+    if stress:
+        grading += [{"channel": c, "near": a, "far": b, "face": "wmin"}
+                    for c, a, b in (("E", 69e9, 193e9), ("nu", 0.33, 0.29), ("alpha", 23e-6, 17.3e-6))]
+    cfg = {
+        "map": {"primitive": "circular_heat_sink" if circ else "vertical_heat_sink", "grading": grading},
         "tile": {"library": "heat_sink_t1" if circ else "heat_sink_t2"},
         "paving": {"scheme": "hierarchical", "counts": [4, 1] if circ else [4, 4],
                    "levels": levels if levels is not None else (3 if circ else 2), "scale": 0.5},
@@ -61,12 +67,15 @@ def heat_sink_config(variant: str = "circular", levels: int | None = None, refin
         "solver": {"method": "auto", "tol": 1e-10, "refine": refine},
         "output": {"dir": out, "name": "heat_sink", "vtu": True, "png": True},
     }
+    if stress:
+        cfg["physics"] = {"kind": "thermo-elastic", "youngs": "E", "poisson": "nu", "expansion": "alpha",
+                          "reference": 20.0, "hold_rigid": True}
+    return cfg
 
 
 def _build_map(cfg) -> BSpline:
     D = load(cfg["file"]) if "file" in cfg else MAPS[cfg["primitive"]](**cfg["args"])
-    if "grading" in cfg:
-        g = cfg["grading"]
+    for g in cfg.get("grading", []):
         D = graded_channel(D, g["channel"], g["near"], g["far"], g["face"], g["mode"])
     return D
 
@@ -204,10 +213,11 @@ def _summary(cfg, prob, sol, trange, mesh_volume, probes, files, analysis_peak) 
 
 
 def _run(cfg: dict, out: Path, root: bool = True) -> dict:
-    ocfg, scfg = cfg["output"], cfg["solver"]
+    ocfg, scfg, kind = cfg["output"], cfg["solver"], cfg["physics"]["kind"]
     if not root:  # another MPI rank: it assembles and solves its share, rank 0 writes
         ocfg = {**ocfg, "vtu": False, "bezier": False, "png": False}
-    stages = display.Stages(6)
+    heat, elastic = kind != "elasticity", kind != "heat"
+    stages = display.Stages(3 + 3 * heat + 2 * elastic)
     stages.start("deformation map")
     D = _build_map(cfg["map"])
     stages.done(f"(degrees {D.degrees}, channels {list(D.channels)})")
@@ -216,26 +226,77 @@ def _run(cfg: dict, out: Path, root: bool = True) -> dict:
     ms = _build_tiling(cfg, D)
     stages.done(f"({ms.n_tiles} tiles, {len(ms.interfaces)} interfaces)")
 
-    stages.start("assembly and solve")
-    prob = _heat_problem(cfg, ms)
-    probes = np.asarray(ocfg["probes"], float).reshape(-1, 3)
-    if len(probes):  # before the solve: a probe outside the model is a configuration error
-        Locator(prob.model)(probes, what="output.probes")
-    sol = prob.solve(solver=scfg["method"], tol=scfg["tol"], maxiter=scfg["maxiter"])
-    stages.done(f"({prob.ndof} DOFs, {sol.info['free_dofs']} unknowns)")
-    # high-water mark of the analysis alone (map, tiling, assembly, solve), before VTK is loaded for output
-    analysis_peak = resources.peak_memory_mib()
-
-    files, mesh_volume = _write_outputs(ocfg, out, sol, stages)
-
+    summary, sol, timings = {}, None, {}
+    if heat:
+        stages.start("assembly and solve")
+        prob = _heat_problem(cfg, ms)
+        probes = np.asarray(ocfg["probes"], float).reshape(-1, 3)
+        if len(probes):  # before the solve: a probe outside the model is a configuration error
+            Locator(prob.model)(probes, what="output.probes")
+        sol = prob.solve(solver=scfg["method"], tol=scfg["tol"], maxiter=scfg["maxiter"])
+        stages.done(f"({prob.ndof} DOFs, {sol.info['free_dofs']} unknowns)")
+        # high-water mark of the analysis alone (map, tiling, assembly, solve), before VTK is loaded for output
+        analysis_peak = resources.peak_memory_mib()
+        files, mesh_volume = _write_outputs(ocfg, out, sol, stages)
+        t0 = time.perf_counter()
+        tmin, tmax = sol.temperature_range(ocfg["samples"])
+        summary = _summary(cfg, prob, sol, (tmin, tmax), mesh_volume, probes, files, analysis_peak)
+        timings = {"statistics": time.perf_counter() - t0, **{f"iga.{k}": v for k, v in prob.timings.items()}}
+    else:
+        summary = {"tiles": ms.n_tiles, "patches": len(ms.patches), "levels": ms.levels,
+                   "tiles_per_level": ms.tiles_per_level(), "interfaces": len(ms.interfaces), "files": {},
+                   "peak_memory_MiB": None}
+    if elastic:
+        summary["elasticity"] = _elastic_stage(cfg, ms, sol, out, ocfg, stages)
+        summary["files"].update(summary["elasticity"].pop("files"))
+        summary["peak_memory_MiB"] = resources.peak_memory_mib()
     stages.start("summary")
-    t0 = time.perf_counter()
-    tmin, tmax = sol.temperature_range(ocfg["samples"])
-    summary = _summary(cfg, prob, sol, (tmin, tmax), mesh_volume, probes, files, analysis_peak)
-    summary["timings_s"] = {**stages.timings, "statistics": time.perf_counter() - t0,
-                            **{f"iga.{k}": v for k, v in prob.timings.items()}}
+    summary["timings_s"] = {**stages.timings, **timings}
     if root:
         atomic_write(out / "summary.json", lambda tmp: Path(tmp).write_text(json.dumps(summary, indent=2)),
                      ".json", ProblemError)
     stages.done()
     return summary
+
+
+def _elastic_stage(cfg, ms, heat_solution, out: Path, ocfg: dict, stages) -> dict:
+    """The elastic (or thermo-elastic, on the heat solution) analysis of the [physics] section, its stress VTU
+    and render; returns its summary (with its files)."""
+    from .elasticity import ElasticityProblem
+    from .vtu import sampled_grid, save_grid
+
+    ph, scfg = cfg["physics"], cfg["solver"]
+    stages.start("elastic analysis")
+    p = ElasticityProblem(ms, ph["youngs"], ph["poisson"], degree_elevation=scfg["degree_elevation"],
+                          refine=scfg["refine"])
+    for s in ph["support"]:
+        p.dirichlet(s["tag"], s["value"], s["components"])
+    for ld in ph["load"]:
+        (p.traction if ld["kind"] == "traction" else p.pressure)(ld["tag"], ld["value"])
+    if ph["hold_rigid"]:
+        p.hold_rigid()
+    if ph["kind"] == "thermo-elastic":
+        p.thermal(heat_solution, ph["expansion"], ph["reference"])
+    es = p.solve(solver=scfg["method"], tol=scfg["tol"], maxiter=scfg["maxiter"])
+    stages.done(f"({es.info['dofs']} DOFs, {es.info['free_dofs']} unknowns)")
+    stages.start("stress output")
+    grid = sampled_grid(ms, es, ocfg["samples"])
+    files = {}
+    if ocfg["vtu"]:
+        vtu = out / f"{ocfg['name']}_stress.vtu"
+        atomic_write(vtu, lambda tmp: save_grid(grid, tmp), ".vtu", ProblemError)
+        files["stress_vtu"] = str(vtu)
+        if ocfg["png"]:
+            umax = float(np.abs(grid.point_data["displacement"]).max())
+            size = float(np.ptp(grid.points, axis=0).max())
+            warp = 0.05 * size / umax if umax > 0 else None  # the deformation shown at 5% of the model's size
+            render_temperature(vtu, out / f"{ocfg['name']}_stress.png", "von Mises stress (Pa)", scalars="von_mises",
+                               warp=warp, cmap="viridis")
+            files["stress_png"] = str(out / f"{ocfg['name']}_stress.png")
+    stages.done()
+    return {"dofs": es.info["dofs"], "unknowns": es.info["free_dofs"], "solver": es.info["solver"],
+            "max_displacement_m": float(np.linalg.norm(grid.point_data["displacement"], axis=1).max()),
+            "max_von_mises_Pa": float(grid.point_data["von_mises"].max()),
+            "reactions_N": {s["tag"]: es.reaction(s["tag"]).tolist() for s in ph["support"]},
+            "applied_N": es.info["applied_N"], "work": es.info["work"],
+            "timings_s": {k: float(v) for k, v in es.info["timings"].items()}, "files": files}
