@@ -137,10 +137,19 @@ def _kwargs(v, where, fn) -> dict:
     return out
 
 
+def _tag(v, where):
+    """A tag, a tag expression ('exterior - vmin', 'umin | umax', 'rest') or a list of them (their union)."""
+    if isinstance(v, list):
+        if not v:
+            _fail(where, "an empty list names no face; give tags, e.g. [\"umin\", \"umax\"]")
+        return [_str(x, f"{where}[{i}]") for i, x in enumerate(v)]
+    return _str(v, where)
+
+
 def _bc(v, where) -> dict:
     t = _table(v, where, {"kind", "tag", "value", "h", "ambient"}, ("kind", "tag"))
     kind = _choice(t["kind"], f"{where}.kind", ("dirichlet", "neumann", "robin"))
-    out = {"kind": kind, "tag": _str(t["tag"], f"{where}.tag")}
+    out = {"kind": kind, "tag": _tag(t["tag"], f"{where}.tag")}
     if kind == "robin":
         for key in ("h", "ambient"):
             if key not in t:
@@ -290,7 +299,7 @@ def _support(v, where) -> dict:
     comps = t.get("components", "xyz")
     if not (isinstance(comps, str) and comps and set(comps) <= set("xyz") and len(set(comps)) == len(comps)):
         _fail(f"{where}.components", f"must be distinct letters of 'xyz' (e.g. 'z'), got {show(comps)}")
-    return {"tag": _str(t["tag"], f"{where}.tag"), "value": _vector(t.get("value", 0.0), f"{where}.value", True),
+    return {"tag": _tag(t["tag"], f"{where}.tag"), "value": _vector(t.get("value", 0.0), f"{where}.value", True),
             "components": comps}
 
 
@@ -298,7 +307,7 @@ def _load(v, where) -> dict:
     t = _table(v, where, {"kind", "tag", "value"}, ("kind", "tag", "value"))
     kind = _choice(t["kind"], f"{where}.kind", ("traction", "pressure"))
     value = _number(t["value"], f"{where}.value") if kind == "pressure" else _vector(t["value"], f"{where}.value", False)
-    return {"kind": kind, "tag": _str(t["tag"], f"{where}.tag"), "value": value}
+    return {"kind": kind, "tag": _tag(t["tag"], f"{where}.tag"), "value": value}
 
 
 def _tile(t) -> dict:

@@ -32,6 +32,7 @@ from .forms import boundary_load
 from .model import tag_faces
 from .rigid import free_modes, greville_points, rigid_modes
 from .system import solve_system
+from .tags import as_expression
 from .vector_data import VectorField, component_field, merge_dirichlet, pin_dofs
 
 __all__ = ["ElasticityProblem"]
@@ -94,7 +95,7 @@ class ElasticityProblem:
 
     # ------------------------------------------------------------ conditions
     def _faces_of(self, tag: str, what: str) -> list:
-        faces = tag_faces(self.model, tag) if isinstance(tag, str) else []
+        faces = tag_faces(self.model, tag)
         if not faces:
             raise ProblemError(f"{what}: tag {show(tag)} has no faces in this model (every face it named is glued to "
                                f"a neighbour or absent); choose another tag from {sorted(self.model.tags)[:20]}")
@@ -104,6 +105,7 @@ class ElasticityProblem:
         """Prescribed displacement (m) on ``tag``: a number (every component held to it), three numbers, or a
         callable ``u(x (N, 3)) -> (N, 3)``; only ``components`` (a string of x, y, z) are prescribed, the
         others stay free ("held vertically, free to slide" is ``components="z"``)."""
+        tag = as_expression(tag)
         self._faces_of(tag, "dirichlet")
         if not (isinstance(components, str) and components and set(components) <= set(_AXES)
                 and len(set(components)) == len(components)):
@@ -115,12 +117,14 @@ class ElasticityProblem:
 
     def traction(self, tag: str, t) -> "ElasticityProblem":
         """Surface traction (Pa) on ``tag``: three numbers or a callable ``t(x (N, 3)) -> (N, 3)``."""
+        tag = as_expression(tag)
         self._faces_of(tag, "traction")
         self.loads.append(_Load(tag, "traction", VectorField(t, f"traction on {show(tag)}")))
         return self
 
     def pressure(self, tag: str, p) -> "ElasticityProblem":
         """Pressure (Pa) on ``tag``, pushing along the inward normal (traction -p n): a number or callable."""
+        tag = as_expression(tag)
         self._faces_of(tag, "pressure")
         self.loads.append(_Load(tag, "pressure", ScalarField(p, f"pressure on {show(tag)}", channels=False)))
         return self

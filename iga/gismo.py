@@ -52,7 +52,6 @@ from geometry.faces import FACE_NAMES
 from geometry.gismo_xml import GismoCondition, number_text, read_gismo, write_gismo
 
 from .errors import ProblemError
-from .model import tag_faces
 from .problem import HeatProblem
 
 __all__ = ["export_gismo", "load_gismo", "problem_from_gismo", "GismoExtensionWarning"]
@@ -90,7 +89,7 @@ def export_gismo(problem, path, strict: bool = False) -> Path:
     sides = [f for f in model.tags.get("boundary", []) if f[1] in FACE_NAMES]
     conditions, slot_conditions = [], []
     for j, c in enumerate(problem.conditions):
-        faces = tag_faces(model, c.tag)
+        faces = problem.tag_faces(c.tag)
         expr = _expression(c.value, f"the {c.kind} value on {show(c.tag)}")
         coef = _expression(c.h, f"the film coefficient on {show(c.tag)}") if c.h is not None else None
         conditions.append(GismoCondition(_KINDS[c.kind], [f for f in faces if f[1] in FACE_NAMES], expr, coef))

@@ -25,6 +25,7 @@ from geometry.errors import SplineError
 from geometry.faces import is_face
 
 from .errors import ProblemError
+from .tags import resolve
 from geometry.errors import show
 
 __all__ = ["as_model", "tag_faces", "PlacedPatch"]
@@ -66,13 +67,11 @@ def as_model(obj) -> MultiPatch:
                       dict(getattr(obj, "face_regions", {})))
 
 
-def tag_faces(model, tag: str) -> list:
-    """The (patch, face) pairs of ``tag``; :class:`ProblemError` naming the known tags otherwise."""
-    if not isinstance(tag, str) or tag not in model.tags:
-        known = sorted(model.tags, key=lambda t: (t.startswith("patch"), t))
-        shown = known if len(known) <= 30 else known[:30] + ["..."]
-        raise ProblemError(f"unknown boundary tag {show(tag)}; this model has tags {shown}")
-    faces = model.tags[tag]
+def tag_faces(model, tag, rest: list | None = None) -> list:
+    """The (patch, face) pairs of ``tag``: a tag of the model, an expression of tags or a list of them
+    (:mod:`iga.tags`; ``rest``: the faces the tag ``rest`` stands for); :class:`ProblemError` naming the known
+    tags otherwise."""
+    faces = model.tags[tag] if isinstance(tag, str) and tag in model.tags else resolve(model, tag, rest)
     for pi, face in faces:
         if not (0 <= pi < len(model.patches)) or not is_face(face):
             raise ProblemError(f"tag {show(tag)} holds an invalid face ({pi}, {show(face)}); faces are (patch index, "

@@ -31,6 +31,7 @@ from .locate import Locator
 from .maps import MAPS, circular_heat_sink_map, vertical_heat_sink_map
 from . import distributed
 from .problem import HeatProblem
+from .tags import as_expression
 from .vtu import write_vtu
 from geometry.errors import show
 
@@ -202,7 +203,7 @@ def _summary(cfg, prob, sol, trange, mesh_volume, probes, files, analysis_peak) 
         "temperature_C": {"min": trange[0], "max": trange[1], "mean": sol.mean_temperature()},
         "inflow_W": bal["inflow_W"], "outflow_W": bal["outflow_W"], "energy_balance_error": bal["relative_error"],
         "connected_pieces": sol.info["components"]["count"],
-        "flux_W": {bc["tag"]: sol.flux(bc["tag"]) for bc in cfg["bc"]},
+        "flux_W": {as_expression(bc["tag"]): sol.flux(bc["tag"]) for bc in cfg["bc"]},
         "solver": sol.info["solver"],
         "volume_m3": _volumes(sol.volume(), mesh_volume),
         "analysis_peak_memory_MiB": analysis_peak,
@@ -297,6 +298,6 @@ def _elastic_stage(cfg, ms, heat_solution, out: Path, ocfg: dict, stages) -> dic
     return {"dofs": es.info["dofs"], "unknowns": es.info["free_dofs"], "solver": es.info["solver"],
             "max_displacement_m": float(np.linalg.norm(grid.point_data["displacement"], axis=1).max()),
             "max_von_mises_Pa": float(grid.point_data["von_mises"].max()),
-            "reactions_N": {s["tag"]: es.reaction(s["tag"]).tolist() for s in ph["support"]},
+            "reactions_N": {as_expression(s["tag"]): es.reaction(s["tag"]).tolist() for s in ph["support"]},
             "applied_N": es.info["applied_N"], "work": es.info["work"],
             "timings_s": {k: float(v) for k, v in es.info["timings"].items()}, "files": files}

@@ -30,6 +30,7 @@ from .errors import ProblemError, SingularProblemError
 from .faces import FaceData
 from .forms import boundary_load, boundary_mass
 from .model import tag_faces
+from .tags import as_expression, check_expression, mentions_rest
 from .solution import Solution
 from . import distributed
 from .multilevel import solver_options
@@ -102,7 +103,10 @@ class HeatProblem:
 
     # ------------------------------------------------------------ conditions
     def _condition(self, kind, tag, value, h=None) -> "HeatProblem":
-        if not tag_faces(self.model, tag):
+        tag = as_expression(tag)
+        if mentions_rest(self.model, tag):
+            check_expression(self.model, tag)  # its faces are known once every condition is
+        elif not tag_faces(self.model, tag):
             raise ProblemError(f"tag {show(tag)} has no faces in this model (every face it named is glued to a "
                                f"neighbour or absent); choose another tag from {sorted(self.model.tags)[:20]}")
         what = {"dirichlet": "Dirichlet value", "neumann": "Neumann flux", "robin": "ambient temperature"}[kind]
@@ -143,11 +147,24 @@ class HeatProblem:
         v = field.values(x, chans, where)
         return np.split(v, np.cumsum([len(fd.x) for fd in fds])[:-1])
 
+    def tag_faces(self, tag) -> list:
+        """The faces of a tag or tag expression of this problem; ``rest``: every free face that no condition
+        without ``rest`` covers (:mod:`iga.tags`)."""
+        if not mentions_rest(self.model, tag):
+            return tag_faces(self.model, tag)
+        covered = {f for c in self.conditions if not mentions_rest(self.model, c.tag)
+                   for f in tag_faces(self.model, c.tag)}
+        rest = [f for f in self.model.tags.get("boundary", []) if f not in covered]
+        return tag_faces(self.model, tag, rest)
+
     def _faces_by_kind(self):
         """{kind: {(patch, face): condition}}; one condition per face and kind, and Dirichlet faces alone."""
         out = {"dirichlet": {}, "neumann": {}, "robin": {}}
         for c in self.conditions:
-            for key in tag_faces(self.model, c.tag):
+            faces = self.tag_faces(c.tag)
+            if not faces:
+                raise ProblemError(f"tag {show(c.tag)} names no face here (the other conditions cover them all)")
+            for key in faces:
                 other = out[c.kind].get(key)
                 if other is not None:
                     raise ProblemError(
@@ -156,10 +173,14 @@ class HeatProblem:
                 out[c.kind][key] = c
         clash = set(out["dirichlet"]) & (set(out["neumann"]) | set(out["robin"]))
         if clash:
-            pi, face = sorted(clash)[0]
+            key = sorted(clash)[0]
+            d = out["dirichlet"][key]
+            o = out["neumann"].get(key) or out["robin"][key]
+            way = (f"e.g. {o.kind} on {show(f'{o.tag} - {d.tag}')} or on 'rest' (every free face no other condition "
+                   "covers)") if o.tag != d.tag else "one tag cannot carry both"
             raise ProblemError(
-                f"patch {pi} face {face} has a Dirichlet condition and a Neumann/Robin condition; give each face one kind"
-            )
+                f"patch {key[0]} face {key[1]} has a Dirichlet condition (tag {show(d.tag)}) and a {o.kind} condition "
+                f"(tag {show(o.tag)}); give each face one kind: {way}")
         return out
 
     def assemble(self, patches=None):

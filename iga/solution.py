@@ -12,7 +12,6 @@ from .faces import chunks
 from geometry.chain import gradient_and_det, patch_geometry_points, patches_geometry_derivs
 from geometry.sampling import sample_axes
 from .locate import Locator
-from .model import tag_faces
 from geometry.grouping import ObjectIndex
 from geometry.tolerances import SINGULAR
 
@@ -116,7 +115,7 @@ class Solution:
         faces the prescribed flux, Robin faces h (T - T_inf); insulated faces
         contribute nothing.
         """
-        faces = set(tag_faces(self.problem.model, tag))
+        faces = set(self.problem.tag_faces(tag))
         return float(sum(self.face_flows.get(f, 0.0) for f in faces))
 
     def balance(self) -> dict:

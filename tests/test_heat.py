@@ -197,7 +197,8 @@ def test_bad_input_raises_project_errors(tmp_path):
     if os.geteuid() != 0:  # root ignores permission bits
         with pytest.raises(ProblemError, match="not writable"):
             write_vtu(ro / "x.vtu", s)
-    with pytest.raises(ProblemError, match="Dirichlet condition and a Neumann"):
+    with pytest.raises(ProblemError, match=r"Dirichlet condition \(tag 'vmin'\) and a neumann condition \(tag 'vmin'\); "
+                                           "give each face one kind: one tag cannot carry both"):
         HeatProblem(a).dirichlet("vmin", 1.0).neumann("vmin", 2.0).solve()
     with pytest.raises(ProblemError, match="film coefficient"):
         HeatProblem(a).robin("vmin", -5.0, 1.0)
