@@ -241,7 +241,22 @@ def _a_minus_a():
                                - Primitive(pr.box(), L.cross(), (2, 2, 2), 1, "B"))
 
 
+def _two_boxes(**kw):
+    from tiling.vrep import Primitive, vrep_microstructure
+
+    return vrep_microstructure(Primitive(pr.box((2.0, 1.0, 1.0)), L.cross(), (4, 2, 2), 2, "A")
+                               | Primitive(pr.box((2.0, 1.0, 1.0)).translate([1.5, 0, 0]), L.cross(), (4, 2, 2), 1, "B"),
+                               **kw)
+
+
 TILING = [
+    case("two levels of surface tiles across branch faces", lambda t: __import__("tiling.levels").levels.compose_levels(
+        tiling.hierarchical(pr.box((2.0, 1.0, 1.5)), L.heat_sink_t2(), (1, 1), 2), L.hollow_cross(), (1, 1, 1),
+        seal="cap"), TilingError, r"has 4 branch interfaces .* the surface would be open inside the model"),
+    case("V-rep samples 2000", lambda t: _two_boxes(samples=2000), TilingError,
+         r"classifying the 16 tiles of primitive 'A' at 2000 samples per direction needs about"),
+    case("V-rep beta 5 without bridges", lambda t: _two_boxes(bridges=False, beta=5), TilingError,
+         r"the bend parameter beta must be in \(0, 1\), got 5"),
     case("V-rep primitive counts 1000^3", lambda t: __import__("tiling.vrep").vrep.Primitive(
         pr.box(), L.cross(), (1000, 1000, 1000), 1, "A"), TilingError,
          r"the paving of primitive 'A' \(1e\+09 tiles, 7e\+09 patches\) needs about"),

@@ -49,6 +49,12 @@ def compose_levels(first: Microstructure, tile: Tile, counts, degree: int | None
         raise TilingError(f"tile {show(tile.name)} is volumetric: a second level can be capped with surface tiles "
                           "only (plates squeeze the tiles, so they would miss the tiles across the first level's "
                           "interfaces); pass seal=None or a surface tile such as library.hollow_cross()")
+    if not tile.trivariates and any(i.kind == "branch" for i in first.interfaces):
+        n = sum(i.kind == "branch" for i in first.interfaces)
+        raise TilingError(f"{first.name or 'the first level'} has {n} branch interfaces (a parent face glued to "
+                          f"smaller child faces), and the openings of the surface tile {show(tile.name)} on a parent face "
+                          "cannot meet those on its children's faces: the surface would be open inside the model; use a "
+                          "first level without level changes (e.g. tiling.regular) or a volumetric tile")
     vols = [i for i, P in enumerate(first.patches) if P.spline.dim == 3]
     if len(vols) != len(first.patches):
         raise TilingError(f"{first.name or 'the first level'} has surface or curve patches; only trivariates can "

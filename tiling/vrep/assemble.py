@@ -69,7 +69,7 @@ def vrep_microstructure(model: VModel, samples: int = 4, margin: float = 0.0, na
     bifurcation bridges (:mod:`tiling.vrep.union`; ``d_maxdist`` the longest match in model units, default four
     face widths; ``phi`` in [0, 1] blends the end directions from the tiles' cross derivatives to the face
     normals; ``alpha`` in (0, pi/2) the angle between the bifurcation base's bottom and sides)."""
-    _check_arguments(model, samples, margin, d_maxdist, phi, alpha)
+    _check_arguments(model, samples, margin, d_maxdist, phi, alpha, beta)
     t0 = time.perf_counter()
     model.check()
     timings = {"checks": time.perf_counter() - t0}
@@ -98,7 +98,7 @@ class _Kept:
     spans: dict = field(default_factory=dict)
 
 
-def _check_arguments(model, samples, margin, d_maxdist, phi, alpha) -> None:
+def _check_arguments(model, samples, margin, d_maxdist, phi, alpha, beta) -> None:
     if not isinstance(model, VModel):
         raise TilingError(f"vrep_microstructure needs a V-model (primitives combined by |, -, &), got {show(model)}")
     if not (isinstance(samples, (int, np.integer)) and samples >= 2):
@@ -106,6 +106,9 @@ def _check_arguments(model, samples, margin, d_maxdist, phi, alpha) -> None:
     if not (isinstance(margin, (int, float)) and np.isfinite(margin) and margin >= 0):
         raise TilingError(f"margin must be a length >= 0 (model units), got {show(margin)}")
     _check_union_parameters(d_maxdist, phi, alpha)
+    if not (isinstance(beta, (int, float)) and not isinstance(beta, bool) and np.isfinite(beta) and 0 < beta < 1):
+        raise TilingError(f"the bend parameter beta must be in (0, 1), got {show(beta)} (checked with or without "
+                          "bridges, so that a later run with bridges does not fail)")
     names = [p.name for p in model.primitives()]
     if len(set(names)) != len(names):
         raise TilingError(f"primitive names must be distinct (they become tags), got {names}")

@@ -24,8 +24,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from geometry.resources import check_memory
+
 from geometry.faces import FACE_NAMES
 
+from ..errors import TilingError
 from ..paving import _cells
 from .model import Primitive, VModel
 
@@ -96,6 +99,11 @@ def _neighbours(shape) -> np.ndarray:
 
 def classify(model: VModel, prim: Primitive, samples: int = 4, margin: float = 0.0) -> Classification:
     """Classify every tile of ``prim`` in ``model`` (see the module notes)."""
+    n = int(np.prod(prim.counts)) * int(np.prod([len(prim.D.breakpoints(k)) - 1 for k in range(3)]))
+    # the samples of every tile (s + 2 per direction for the second look), their images and inversions:
+    # about 30 doubles per sample point alive at once
+    check_memory(n * (samples + 2) ** 3 * 30 * 8.0, f"classifying the {n:,} tiles of primitive {prim.name!r} at "
+                 f"{samples} samples per direction", TilingError, "lower samples (4 is the default) or the counts")
     shape, boxes = _cell_boxes(prim)
     state = _states(model, prim, boxes, samples)
     nb = _neighbours(shape)
