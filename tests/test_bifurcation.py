@@ -270,3 +270,27 @@ def test_user_bifurcation_tiles(duck):
         bifurcation(AFFINE, levels=[0, 1, 0, 0, 0], tile={"kind": "1-3", **own})
     with pytest.raises(TilingError, match="Tile of trivariates"):
         bifurcation(AFFINE, levels=[0, 1, 0, 0, 0], tile={"kind": "1-2", **own, "join": "x"})
+
+
+def test_face_classification_by_sweep_equals_all_pairs_on_an_adaptive_subdivision():
+    from geometry.faces import FACE_NAMES
+    from geometry.tolerances import ON_DOMAIN
+    from tiling.topo import classify_faces, topo_subdiv
+
+    from geometry import primitives as pr
+
+    D = pr.tapered(pr.box((1.0, 1.0, 2.0), degrees=(1, 1, 2)), 0.3)
+    boxes = topo_subdiv(D, 0.25).boxes
+    got = classify_faces(boxes, D.domain)
+    tol = ON_DOMAIN * float(np.abs(D.domain).max() + 1.0)
+    for k in range(3):  # brute force: every pair of cells whose faces lie on one plane and overlap with area
+        rest = [j for j in range(3) if j != k]
+        on_plane = np.abs(boxes[:, None, k, 1] - boxes[None, :, k, 0]) <= tol
+        lo = np.maximum(boxes[:, None, rest, 0], boxes[None, :, rest, 0])
+        hi = np.minimum(boxes[:, None, rest, 1], boxes[None, :, rest, 1])
+        touch = on_plane & np.all(hi - lo > tol, axis=-1)
+        for i in range(len(boxes)):
+            assert set(got[i][FACE_NAMES[2 * k + 1]][1]) == set(np.flatnonzero(touch[i]).tolist())
+            assert set(got[i][FACE_NAMES[2 * k]][1]) == set(np.flatnonzero(touch[:, i]).tolist())
+    kinds = {kind for cell in got for kind, _ in cell.values()}
+    assert {"boundary", "neighbour"} <= kinds and len(kinds) >= 3  # the subdivision is adaptive: partial faces

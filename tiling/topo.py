@@ -180,23 +180,46 @@ def classify_faces(boxes: np.ndarray, domain: np.ndarray) -> list:
         for plane, below in upper.items():
             above = np.array(lower.get(plane, []), dtype=np.int64)
             below = np.array(below, dtype=np.int64)
-            if len(above):
-                # overlap (positive area) of every pair across the plane: (B, A)
-                lo = np.maximum(boxes[below][:, None, rest, 0], boxes[above][None, :, rest, 0])
-                hi = np.minimum(boxes[below][:, None, rest, 1], boxes[above][None, :, rest, 1])
-                touch = np.all(hi - lo > tol, axis=-1)
-            else:
-                touch = np.zeros((len(below), 0), bool)
+            rb, ra = _overlapping(boxes[below][:, rest], boxes[above][:, rest], tol)  # pairs across the plane
+            by_b = np.split(above[ra], np.searchsorted(rb, np.arange(1, len(below))))
+            order = np.argsort(ra, kind="stable")
+            by_a = np.split(below[rb[order]], np.searchsorted(ra[order], np.arange(1, len(above))))
             for r, i in enumerate(below):
-                out[i][FACE_NAMES[2 * k + 1]] = _kind(boxes, i, above[touch[r]], rest, tol)
+                out[i][FACE_NAMES[2 * k + 1]] = _kind(boxes, i, by_b[r], rest, tol)
             for c, j in enumerate(above):
-                out[j][FACE_NAMES[2 * k]] = _kind(boxes, j, below[touch[:, c]], rest, tol)
+                out[j][FACE_NAMES[2 * k]] = _kind(boxes, j, by_a[c], rest, tol)
         for i in range(n):  # lower faces with nothing below them: D's boundary
             out[i].setdefault(FACE_NAMES[2 * k], ("boundary", ()))
             out[i].setdefault(FACE_NAMES[2 * k + 1], ("boundary", ()))
     for i in range(n):  # FACE_NAMES order
         out[i] = {f: out[i][f] for f in FACE_NAMES}
     return out
+
+
+def _overlapping(B: np.ndarray, A: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """Index pairs (b, a), sorted by b, of the rectangles B (nb, 2, 2) and A (na, 2, 2) that overlap with
+    positive area (more than ``tol`` along both axes).
+
+    A sweep along the first axis: A sorted by its lower end; the candidates of a rectangle b are the A whose
+    lower end lies in (b_lo - longest A, b_hi), one contiguous run of the sorted array, so the work is the
+    number of candidates, not nb x na (a thin slab at fine epsilon has 16k x 16k cells on a plane)."""
+    if not len(A) or not len(B):
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    order = np.argsort(A[:, 0, 0], kind="stable")
+    lo_sorted = A[order, 0, 0]
+    longest = float((A[:, 0, 1] - A[:, 0, 0]).max())
+    start = np.searchsorted(lo_sorted, B[:, 0, 0] - longest - tol, side="left")
+    stop = np.searchsorted(lo_sorted, B[:, 0, 1] - tol, side="left")
+    count = np.maximum(stop - start, 0)
+    rb = np.repeat(np.arange(len(B)), count)
+    pos = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count) + np.repeat(start, count)
+    ra = order[pos]
+    lo = np.maximum(B[rb, :, 0], A[ra, :, 0])
+    hi = np.minimum(B[rb, :, 1], A[ra, :, 1])
+    keep = np.all(hi - lo > tol, axis=-1)
+    rb, ra = rb[keep], ra[keep]
+    ranked = np.lexsort((ra, rb))
+    return rb[ranked], ra[ranked]
 
 
 def _kind(boxes, i, nbrs, rest, tol):
