@@ -41,13 +41,43 @@ _MAX_AXIS = 20_000  # sample points per direction and patch beyond which conform
 _SAME = SAME_SAMPLE  # normalised parameters closer than this are one sample (the weld is finer)
 
 
-def sample_axes(knots, samples: int) -> list[np.ndarray]:
-    """Per direction: every knot span subdivided ``samples`` times, span ends included once."""
+def sample_axes(knots, samples) -> list[np.ndarray]:
+    """Per direction: every knot span subdivided ``samples`` times (one count, or one per direction), span
+    ends included once."""
     out = []
-    for U in knots:
+    counts = [int(samples)] * len(knots) if np.ndim(samples) == 0 else [int(v) for v in samples]
+    for U, n in zip(knots, counts):
         b = np.unique(U)
-        t = np.linspace(0.0, 1.0, samples + 1)[:-1]
+        t = np.linspace(0.0, 1.0, n + 1)[:-1]
         out.append(np.append((b[:-1, None] + np.diff(b)[:, None] * t[None, :]).ravel(), b[-1]))
+    return out
+
+
+def chord_samples(model, knots_of, tolerance: float, max_samples: int = 32) -> list[tuple]:
+    """Per patch, the fewest subdivisions per element and direction (1, 2, 4, ...) for which the written
+    linear cells stay within ``tolerance`` (model units) of the exact geometry: the chord error at the middle
+    of every sample interval along that direction (the others sampled twice per element)."""
+    out = []
+    for pi, patch in enumerate(model.patches):
+        knots = knots_of(pi)
+        counts = []
+        for d in range(3):
+            s = 1
+            while True:
+                axes = sample_axes(knots, [s if k == d else 2 for k in range(3)])
+                mids = list(axes)
+                mids[d] = 0.5 * (axes[d][:-1] + axes[d][1:])
+                grid = [np.stack(np.meshgrid(*a, indexing="ij"), -1) for a in (axes, mids)]
+                ends = patch.image(grid[0].reshape(-1, 3))[:, :3].reshape(grid[0].shape)
+                exact = patch.image(grid[1].reshape(-1, 3))[:, :3]
+                chord = 0.5 * (np.take(ends, range(len(axes[d]) - 1), axis=d)
+                               + np.take(ends, range(1, len(axes[d])), axis=d)).reshape(-1, 3)
+                worst = float(np.linalg.norm(exact - chord, axis=1).max())
+                if worst <= tolerance or 2 * s > max_samples:
+                    break
+                s *= 2
+            counts.append(s)
+        out.append(tuple(counts))
     return out
 
 
@@ -64,14 +94,16 @@ def _face_dirs(face):
     return [d for d in range(3) if d != k]
 
 
-def conforming_axes(model, knots_of, samples: int) -> list[list[np.ndarray]]:
+def conforming_axes(model, knots_of, samples) -> list[list[np.ndarray]]:
     """Sample parameters per patch and direction, united across interfaces (see the module notes).
 
-    ``knots_of(pi)``: the knot vectors whose elements patch ``pi`` samples.
+    ``knots_of(pi)``: the knot vectors whose elements patch ``pi`` samples; ``samples``: subdivisions per
+    element, one count for all, or a list with one per patch (a count or one per direction).
     Parameters are handled normalised to [0, 1] per direction.
     """
+    per = samples if isinstance(samples, list) else [samples] * len(model.patches)
     doms = [np.array([[U[0], U[-1]] for U in knots_of(pi)]) for pi in range(len(model.patches))]
-    axes = [[(a - d[0]) / (d[1] - d[0]) for a, d in zip(sample_axes(knots_of(pi), samples), doms[pi])]
+    axes = [[(a - d[0]) / (d[1] - d[0]) for a, d in zip(sample_axes(knots_of(pi), per[pi]), doms[pi])]
             for pi in range(len(model.patches))]
     links = []  # (patch a, dir a, patch b, dir b, scale, offset, flip): t_b = flip(t_a * scale + offset) on a's range
     for itf in model.interfaces:

@@ -38,7 +38,7 @@ __all__ = ["validate", "SECTIONS", "OUTPUT_DEFAULTS"]
 
 SECTIONS = ("map", "tile", "paving", "material", "bc", "physics", "support", "load", "solver", "output", "limits")
 OUTPUT_DEFAULTS = {"dir": "out", "name": "result", "vtu": True, "bezier": False, "png": True, "samples": 3,
-                   "probes": []}
+                   "tolerance": None, "probes": []}
 SOLVER_DEFAULTS = {"method": "auto", "tol": 1e-10, "maxiter": None, "refine": 0, "degree_elevation": 0}
 
 
@@ -197,6 +197,10 @@ def _output(v, base: Path) -> dict:
             out[key] = _bool(t[key], f"output.{key}")
     if "samples" in t:
         out["samples"] = _int(t["samples"], "output.samples", 1)
+    if "tolerance" in t:
+        if "samples" in t:
+            _fail("output.tolerance", "choose the samples per element (samples) or a geometric tolerance, not both")
+        out["tolerance"] = _number(t["tolerance"], "output.tolerance", lo=0)
     if "probes" in t:
         p = t["probes"]
         if not isinstance(p, list) or not all(isinstance(q, list) and len(q) == 3 for q in p):

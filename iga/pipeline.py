@@ -178,7 +178,7 @@ def _write_outputs(ocfg: dict, out: Path, sol, stages) -> tuple[dict, float | No
     vtu = out / f"{name}.vtu"
     mesh_volume = None
     if ocfg["vtu"]:
-        write_vtu(vtu, sol, samples=ocfg["samples"])
+        write_vtu(vtu, sol, samples=ocfg["samples"], tolerance=ocfg["tolerance"])
         files["vtu"] = str(vtu)
         mesh_volume = _read_volume(vtu)  # what ParaView's Integrate Variables will show
     if ocfg["bezier"]:  # exact Bezier hexahedra (VTK 79) beside the sampled file
@@ -281,7 +281,7 @@ def _elastic_stage(cfg, ms, heat_solution, out: Path, ocfg: dict, stages) -> dic
     es = p.solve(solver=scfg["method"], tol=scfg["tol"], maxiter=scfg["maxiter"])
     stages.done(f"({es.info['dofs']} DOFs, {es.info['free_dofs']} unknowns)")
     stages.start("stress output")
-    grid = sampled_grid(ms, es, ocfg["samples"])
+    grid = sampled_grid(ms, es, ocfg["samples"], ocfg["tolerance"])
     files = {}
     if ocfg["vtu"]:
         vtu = out / f"{ocfg['name']}_stress.vtu"

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from geometry.io import atomic_write, check_folder
-from geometry.sampling import sampled_mesh
+from geometry.sampling import chord_samples, sampled_mesh
 
 from .errors import ProblemError
 from .model import as_model
@@ -52,7 +52,7 @@ def save_grid(grid, path) -> None:
         raise OSError(f"VTK could not write {path}")
 
 
-def write_vtu(path, solution_or_model, samples: int = 3, cells: str = "linear") -> Path:
+def write_vtu(path, solution_or_model, samples: int = 3, cells: str = "linear", tolerance: float | None = None) -> Path:
     """Write one ``.vtu`` file with every patch of a model or solution.
 
     Parameters
@@ -61,6 +61,9 @@ def write_vtu(path, solution_or_model, samples: int = 3, cells: str = "linear") 
     solution_or_model : :class:`iga.Solution`, :class:`iga.ElasticSolution`, or anything
         :func:`iga.model.as_model` accepts
     samples : subdivisions of every element per direction (>= 1), for ``cells="linear"``
+    tolerance : with ``cells="linear"``, the largest distance (model units) of the written cells from the exact
+        geometry: the samples per element are chosen per patch and direction to meet it (up to 32), instead of
+        ``samples``
     cells : ``"linear"`` (sampled linear hexahedra, with heat flux) or ``"bezier"``: one exact
         rational Bezier hexahedron (VTK type 79) per element, geometry and temperature exact
         (:mod:`iga.vtu_bezier`; composes every patch, so heavier for large models)
@@ -76,6 +79,9 @@ def write_vtu(path, solution_or_model, samples: int = 3, cells: str = "linear") 
     """
     if not isinstance(samples, (int, np.integer)) or isinstance(samples, bool) or samples < 1:
         raise ProblemError(f"samples must be a positive integer, got {show(samples)}")
+    if tolerance is not None and not (isinstance(tolerance, (int, float)) and not isinstance(tolerance, bool)
+                                      and np.isfinite(tolerance) and tolerance > 0):
+        raise ProblemError(f"tolerance must be a positive length (model units), got {show(tolerance)}")
     if cells not in ("linear", "bezier"):
         raise ProblemError(f"cells must be 'linear' or 'bezier', got {show(cells)}")
     path = Path(path)
@@ -87,15 +93,20 @@ def write_vtu(path, solution_or_model, samples: int = 3, cells: str = "linear") 
     if cells == "bezier":
         grid = bezier_grid(sol, model)
     else:
-        grid = sampled_grid(model, sol, samples)
+        grid = sampled_grid(model, sol, samples, tolerance)
     return atomic_write(path, lambda tmp: save_grid(grid, tmp), ".vtu", ProblemError)
 
 
-def sampled_grid(model, solution=None, samples: int = 3):
-    """The welded linear-hexahedron grid (a ``pyvista.UnstructuredGrid``) of a model or solution."""
+def sampled_grid(model, solution=None, samples: int = 3, tolerance: float | None = None):
+    """The welded linear-hexahedron grid (a ``pyvista.UnstructuredGrid``) of a model or solution; with
+    ``tolerance`` the samples per patch and direction that keep the cells within it of the exact geometry."""
     if solution is None:
+        if tolerance is not None:
+            samples = chord_samples(model, lambda pi: model.patches[pi].spline.knots, tolerance)
         return sampled_mesh(model, samples)
     prob = solution.problem
+    if tolerance is not None:
+        samples = chord_samples(model, lambda pi: [d.knots for d in prob.spaces[pi].dirs], tolerance)
     fields = displacement_fields(solution) if isinstance(solution, ElasticSolution) else temperature_fields(solution)
     return sampled_mesh(model, samples, knots_of=lambda pi: [d.knots for d in prob.spaces[pi].dirs],
                         spaces_key=lambda pi: prob.spaces[pi].key(), fields=fields)

@@ -346,3 +346,20 @@ def test_gismo_reader_names_the_file_element_and_attribute(text, match, tmp_path
     path.write_text(text)
     with pytest.raises(SplineError, match=match):
         read_gismo(path)
+
+
+def test_vtu_samples_chosen_from_a_geometric_tolerance_meet_it_per_direction(tmp_path):
+    import pyvista as pv
+
+    from geometry.sampling import chord_samples
+
+    ms = tiling.regular(pr.annulus(0.5, 1.0, 0.3, angle=np.pi), L.cross(), (2, 1, 1))  # curved along u only
+    sol = HeatProblem(ms).dirichlet("vmin", 1.0).dirichlet("vmax", 0.0).solve()
+    knots = lambda pi: [d.knots for d in sol.problem.spaces[pi].dirs]  # noqa: E731
+    loose, tight = chord_samples(ms, knots, 1e-2), chord_samples(ms, knots, 1e-4)
+    assert all(t[0] > lo[0] for t, lo in zip(tight, loose))  # finer along the curved direction ...
+    assert all(t[1:] == (1, 1) for t in tight)  # ... and one sample per element where the geometry is straight
+    exact = sol.volume()
+    err = [abs(pv.read(write_vtu(tmp_path / f"t{i}.vtu", sol, tolerance=tol)).volume / exact - 1)
+           for i, tol in enumerate((1e-2, 1e-4))]
+    assert err[1] < 0.05 * err[0] and err[1] < 1e-4
