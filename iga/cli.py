@@ -160,6 +160,8 @@ def build_parser() -> argparse.ArgumentParser:
     hs.add_argument("--stress", action="store_true",
                     help="add the thermal stress of the graded sink (aluminium to steel; free to expand): a stress "
                          "VTU and a von Mises picture")
+    hs.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,
+                    help="no progress display on stderr (as 'iga --quiet demo ...')")
     hs.set_defaults(func=_cmd_demo)
     run = sub.add_parser(
         "run", help="run a pipeline described in a TOML file", formatter_class=_Formatter,
@@ -168,6 +170,8 @@ def build_parser() -> argparse.ArgumentParser:
         "[output] dir (default 'out', relative to the config file).",
     )
     run.add_argument("config", help="path to the CONFIG.toml file")
+    run.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,
+                     help="no progress display on stderr (as 'iga --quiet run ...')")
     run.set_defaults(func=_cmd_run)
     info = sub.add_parser("info", help="describe the splines in a saved .npz or G+Smo .xml file",
                           description="Print degrees, sizes, channels, knot spans, domain, bounding box and "

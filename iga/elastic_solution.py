@@ -57,6 +57,11 @@ class ElasticSolution:
             "body_force_N": work["body"].tolist(),
         }
 
+    def __repr__(self) -> str:
+        return (f"ElasticSolution({self.info['patches']} patches, {self.info['dofs']} DOFs, {self.info['free_dofs']} "
+                f"unknowns, {self.info['solver']['method']}; strain energy {self.info['work']['strain_energy_J']:.4g} J, "
+                f"work balance error {self.info['work']['relative_error']:.1e})")
+
     # ---------------------------------------------------------------- fields
     def displacement_spline(self, pi: int) -> SplineFunction:
         """The displacement on patch ``pi`` as a 3-component spline over the patch parameters."""

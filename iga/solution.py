@@ -48,6 +48,12 @@ class Solution:
             "components": _components_info(problem),
         }
 
+    def __repr__(self) -> str:
+        b = self.info["balance"]
+        return (f"Solution({self.info['patches']} patches, {self.info['dofs']} DOFs, {self.info['free_dofs']} "
+                f"unknowns, {self.info['solver']['method']}; inflow {b['inflow_W']:.4g} W, balance error "
+                f"{b['relative_error']:.1e})")
+
     # ---------------------------------------------------------------- fields
     def temperature_spline(self, pi: int) -> SplineFunction:
         """The temperature on patch ``pi`` as a scalar spline over the patch parameters."""

@@ -139,7 +139,8 @@ def _direct(A, b, tol, maxiter, **options):
 def _krylov(A, b, M, tol, maxiter, name, t_setup, extra):
     """CG on ``A`` (a sparse matrix or a LinearOperator computing its product) preconditioned by ``M``."""
     it = [0]
-    bar = progress.bar(None, total=maxiter, desc=name, unit="it", min_items=0) if progress.active() else None
+    # no total: CG stops at the tolerance, long before maxiter, so a bar to maxiter would show a false ETA
+    bar = progress.bar(None, total=None, desc=name, unit="it", min_items=0) if progress.active() else None
 
     def count(_):
         it[0] += 1
