@@ -25,7 +25,7 @@ import numpy as np
 from .errors import ProblemError
 from .faces import cross
 
-__all__ = ["lame", "metric_rows", "block_terms", "divergence_terms"]
+__all__ = ["lame", "metric_rows", "block_terms", "symmetric_fields", "skew_terms", "divergence_terms"]
 
 
 def lame(E: np.ndarray, nu: np.ndarray, where: str) -> tuple[np.ndarray, np.ndarray]:
@@ -69,6 +69,26 @@ def block_terms(c, fac, lam, mu, a: int, b: int, shape) -> list:
                     F = 0.5 * F
             out.append(((fac * F).reshape(shape), _variants(r, s)))
     return out
+
+
+def symmetric_fields(c, fac, lam, mu, a: int, b: int) -> np.ndarray:
+    """The symmetric part (F_rs + F_sr) / 2 of block (a, b) as six fields (6, ...) in the pair order (0,0),
+    (1,1), (2,2), (0,1), (0,2), (1,2): what the scalar stiffness kernels take (compiled or not)."""
+    out = []
+    for r, s in ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)):
+        if a == b:
+            F = (lam + mu) * c[r][a] * c[s][a] + mu * (c[r][0] * c[s][0] + c[r][1] * c[s][1] + c[r][2] * c[s][2])
+        else:
+            F = 0.5 * (lam + mu) * (c[r][a] * c[s][b] + c[s][a] * c[r][b])
+        out.append(fac * F)
+    return np.stack(out)
+
+
+def skew_terms(c, fac, lam, mu, a: int, b: int, shape) -> list:
+    """The antisymmetric part of an off-diagonal block (a != b) as the three terms r < s of B with
+    block = sym + B - B^T: G_rs = (lambda - mu) / 2 (c_r[a] c_s[b] - c_s[a] c_r[b]) w / |det J|."""
+    return [((fac * 0.5 * (lam - mu) * (c[r][a] * c[s][b] - c[s][a] * c[r][b])).reshape(shape), _variants(r, s))
+            for r, s in ((0, 1), (0, 2), (1, 2))]
 
 
 def divergence_terms(c, weight, a: int, shape) -> list:

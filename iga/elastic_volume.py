@@ -17,10 +17,12 @@ import scipy.sparse as sp
 from geometry import progress
 from geometry.chain import patches_geometry_derivs_slabs
 
+from . import fast_assembly
 from .assembly import (banded_form, banded_to_csr_data, block_diagonal_csr, derivative_load_form, load_form,
-                       pattern)
+                       pattern, stiffness_data)
+from .coefficients import TENSOR_PAIRS
 from .constraints import Constraints
-from .elastic_forms import block_terms, divergence_terms, lame, metric_rows
+from .elastic_forms import divergence_terms, lame, metric_rows, skew_terms, symmetric_fields
 from .faces import chunks
 from .geometry_eval import checked_det
 
@@ -100,11 +102,20 @@ class ElasticVolume:
         c = [[grid([p[1][r][a] for p in parts]) for a in range(3)] for r in range(3)]
         fac, lam, mu = grid([p[2] for p in parts]), grid([p[3] for p in parts]), grid([p[4] for p in parts])
         pat = pattern(space)
+        compiled = fast_assembly.applies(space, P)
         data = {}
         for a in range(3):
             for b in range(a, 3):
-                H = banded_to_csr_data(space, banded_form(space, block_terms(c, fac, lam, mu, a, b, shape)), pat)
-                data[(a, b)] = H + H[:, pat.transpose] if a == b else H
+                # the symmetric part through the scalar stiffness kernel (compiled for large patches), the
+                # antisymmetric part of an off-diagonal block as B - B^T from three banded terms
+                S = symmetric_fields(c, fac, lam, mu, a, b)
+                if compiled:
+                    data[(a, b)] = fast_assembly.stiffness_csr(space, S)[1]
+                else:
+                    data[(a, b)] = stiffness_data(space, {rs: S[j] for j, rs in enumerate(TENSOR_PAIRS)}, pat)
+                if a != b:
+                    B = banded_to_csr_data(space, banded_form(space, skew_terms(c, fac, lam, mu, a, b, shape)), pat)
+                    data[(a, b)] += B - B[:, pat.transpose]
         loads, force = [None, None, None], np.zeros(3)
         if parts[0][5] is not None:
             for a in range(3):

@@ -301,3 +301,39 @@ def test_thermal_stress_of_the_graded_demo_sink_balances_and_is_symmetric():
     # no external load: the rollers carry nothing (against the internal forces, stress x the base's area)
     R = s.reaction("branch-in") + s.reaction("umin") + s.reaction("vmin")
     assert np.abs(R).max() < 1e-6 * np.abs(S).max() * 0.06 * 0.06
+
+
+@pytest.mark.parametrize("compiled", [False, True])
+def test_the_split_block_assembly_equals_the_nine_term_form(compiled, monkeypatch):
+    import scipy.sparse as sp
+
+    from iga import elastic_volume, fast_assembly
+
+    if compiled and not fast_assembly.AVAILABLE:
+        pytest.skip("numba is not installed")
+    monkeypatch.setattr(fast_assembly, "MIN_POINTS", 1000 if compiled else 10**12)  # which path the blocks take
+    n = 6
+    from iga.assembly import banded_form, banded_to_csr_data, pattern
+    from iga.elastic_forms import block_terms
+
+    geo = pr.twisted(pr.box(degrees=(2, 2, 2), elements=(n, n, n)), 0.5, axis_point=(0.5, 0.5))
+    p = ElasticityProblem(geo, youngs=lambda x: 1.0 + x[:, 0], poisson=0.3)
+    vol = elastic_volume.ElasticVolume(p.disc)
+    K = vol.assemble(p.youngs, p.poisson)[0]
+    # the reference: every block straight from its nine parametric terms, on the NumPy path
+    space = p.spaces[0]
+    assert fast_assembly.applies(space, 1) == compiled
+    shape = (1,) + space.qshape
+    parts = vol._fields([0], p.youngs, p.poisson, None, None)
+    grid = lambda vals: np.concatenate([v.reshape(1, -1) for v in vals], 1).reshape(shape)  # noqa: E731
+    c = [[grid([q[1][r][a] for q in parts]) for a in range(3)] for r in range(3)]
+    fac, lam, mu = (grid([q[i] for q in parts]) for i in (2, 3, 4))
+    pat = pattern(space)
+    blocks = {}
+    for a in range(3):
+        for b in range(a, 3):
+            H = banded_to_csr_data(space, banded_form(space, block_terms(c, fac, lam, mu, a, b, shape)), pat)[0]
+            blocks[(a, b)] = sp.csr_matrix((H + H[pat.transpose] if a == b else H, pat.indices, pat.indptr))
+    ref = sp.bmat([[blocks[(a, b)] if a <= b else blocks[(b, a)].T for b in range(3)] for a in range(3)]).tocsr()
+    assert abs(K - ref).max() <= 1e-12 * abs(ref).max()
+    assert abs(K - K.T).max() <= 1e-12 * abs(K).max()
