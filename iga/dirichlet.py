@@ -12,7 +12,7 @@ fix combinations of unknowns instead and are returned separately
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
@@ -20,6 +20,9 @@ import scipy.sparse.linalg as spla
 
 from .forms import boundary_load, boundary_load_columns, boundary_mass
 from geometry.grouping import ObjectIndex
+
+from .errors import ProblemError
+
 from geometry.tolerances import ROUNDOFF
 
 __all__ = ["DirichletData", "project_dirichlet"]
@@ -32,7 +35,8 @@ class DirichletData:
     ``dofs``, ``values``: prescribed (reduced) unknowns and their values;
     ``G`` sparse (unknowns x faces) whose column f holds int_f N_i dA, with
     ``keys`` its faces; ``slave_rows`` / ``slave_values``: Dirichlet DOFs
-    constrained by others, with their values.
+    constrained by others, with their values; ``slave_faces``: per slave row the conditions (their
+    descriptions) of the faces it lies inside of (not on their edges; empty where it is on edges only).
     """
 
     dofs: np.ndarray
@@ -41,6 +45,8 @@ class DirichletData:
     keys: list
     slave_rows: np.ndarray
     slave_values: np.ndarray
+    slave_faces: list = field(default_factory=list)
+    master_faces: dict = field(default_factory=dict)  # prescribed unknown -> conditions of faces it lies inside
 
 
 def _solve_mass(M: sp.csc_matrix, b: np.ndarray) -> np.ndarray:
@@ -90,13 +96,49 @@ def project_dirichlet(faces, dirichlet: dict, ndof: int, constraints=None) -> Di
     diag = M.diagonal()[cand]
     dofs = cand[diag > ROUNDOFF * max(diag.max(), 1e-300)]
     vals = _solve_mass(M[dofs][:, dofs].tocsc(), rhs[dofs])
-    slave_rows, slave_vals = empty, np.zeros(0)
+    slave_rows, slave_vals, slave_faces, master_faces = empty, np.zeros(0), [], {}
     if constraints is not None:
+        inside = _inside_of(fds, [dirichlet[k][1] for k in keys])
         owners = constraints.dof_master[dofs]
         keep = owners >= 0
         slave_rows, slave_vals = dofs[~keep], vals[~keep]
+        slave_faces = [inside.get(int(i), frozenset()) for i in slave_rows]
         red, inv = np.unique(owners[keep], return_inverse=True)
+        _refuse_overlaps(dofs[keep], vals[keep], inv, inside)
+        for i, o in zip(dofs[keep], owners[keep]):
+            if int(i) in inside:
+                master_faces[int(o)] = master_faces.get(int(o), frozenset()) | inside[int(i)]
         vals = np.bincount(inv, weights=vals[keep]) / np.bincount(inv)
         dofs = red
         G = (constraints.P.T @ G).tocsc()
-    return DirichletData(dofs, vals, G.tocsr(), keys, slave_rows, slave_vals)
+    return DirichletData(dofs, vals, G.tocsr(), keys, slave_rows, slave_vals, slave_faces, master_faces)
+
+
+def _inside_of(fds, names) -> dict:
+    """{DOF: frozenset of condition descriptions} for the DOFs inside a Dirichlet face (off its edges)."""
+    out: dict = {}
+    for fd, name in zip(fds, names):
+        grid = fd.dofs.reshape(fd.space.shape)
+        for i in grid[1:-1, 1:-1].ravel():
+            out.setdefault(int(i), set()).add(name)
+    return {k: frozenset(v) for k, v in out.items()}
+
+
+def _refuse_overlaps(dofs, vals, group, inside) -> None:
+    """Refuse two conditions that give one unknown different values where a face of one lies on a face of
+    the other (DOFs inside faces of two conditions tied to one unknown).  Where faces only share an edge the
+    unknown takes the mean of their values: the usual reading of data that jump along an edge."""
+    if not len(dofs):
+        return
+    scale = max(float(np.abs(vals).max()), 1e-300)
+    lo = np.full(group.max() + 1, np.inf)
+    hi = np.full(group.max() + 1, -np.inf)
+    np.minimum.at(lo, group, vals)
+    np.maximum.at(hi, group, vals)
+    for g in np.flatnonzero(hi - lo > 1e-8 * scale):
+        names = sorted(set().union(*[inside.get(int(i), frozenset()) for i in dofs[group == g]]))
+        if len(names) >= 2:
+            raise ProblemError(
+                f"two Dirichlet conditions give one unknown different values ({lo[g]:.6g} and {hi[g]:.6g}) where "
+                f"their faces lie on each other: {names[0]} and {names[1]}; give the overlap one condition "
+                "(the tag algebra helps: 'A - B')")

@@ -19,6 +19,7 @@ import solvers
 
 from . import fast_assembly
 from .constraints import induced_elimination
+from .errors import ProblemError
 
 __all__ = ["eliminate", "solve_system", "SystemSolution", "reduction"]
 
@@ -79,12 +80,38 @@ def reduction(constraints, dirichlet, ndof: int):
     if len(dirichlet.slave_rows):
         # slave DOFs on Dirichlet faces fix combinations of free unknowns: eliminate them
         Ps = P[dirichlet.slave_rows]
-        T, x0, touched = induced_elimination(Ps[:, free], dirichlet.slave_values - Ps[:, dofs] @ g)
+        rhs = dirichlet.slave_values - Ps[:, dofs] @ g
+        T, x0, touched = induced_elimination(Ps[:, free], rhs)
+        _refuse_conflicts(Ps[:, free] @ x0 - rhs, rhs, dirichlet, Ps, dofs)
         offset = offset + Pf @ x0
         Pf = (Pf @ T).tocsc()
         reaction_dofs = np.concatenate([dofs, free[touched]])
         induced = int(len(free) - T.shape[1])
     return Pf, offset, reaction_dofs, induced
+
+
+def _refuse_conflicts(residual: np.ndarray, rhs: np.ndarray, dirichlet, Ps, dofs) -> None:
+    """Slave Dirichlet rows that the constraints make contradictory (least squares would split the
+    difference) are refused when the contradiction lies inside faces of two different conditions (a slave's
+    own, and those of the prescribed unknowns it is tied to); along shared edges the least-squares mean is
+    kept (the reading of data that jump along an edge)."""
+    faces = dirichlet.slave_faces
+    if not len(residual) or not faces:
+        return
+    bad = np.flatnonzero(np.abs(residual) > 1e-8 * max(float(np.abs(rhs).max()), 1e-300))
+    Ps = sp.csr_matrix(Ps)
+    names: set = set()
+    for i in bad:
+        if faces[i]:  # a slave inside its face: its own condition and those of the unknowns it is tied to
+            names |= faces[i]
+            for j in Ps.indices[Ps.indptr[i]:Ps.indptr[i + 1]]:
+                names |= dirichlet.master_faces.get(int(j), frozenset())
+    names = sorted(names)
+    if len(names) >= 2:
+        raise ProblemError(f"two Dirichlet conditions prescribe values that the interface constraints cannot both "
+                           f"meet (off by up to {np.abs(residual[bad]).max():.3g}) where their faces lie on each "
+                           f"other: {names[0]} and {names[1]}; give the overlap one condition (the tag algebra "
+                           "helps: 'A - B')")
 
 
 def solve_system(K, f, constraints, dirichlet, solver="auto", tol=1e-10, maxiter=None,

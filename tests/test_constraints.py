@@ -93,3 +93,22 @@ def test_c0_pairs_couple_exactly_the_functions_that_meet_material():
             if any(not (e1 < 2 and e2 < 2) for e1 in ev for e2 in ew):
                 want.append((idx[2, j, k], idx[3, j, k]))
     assert sorted(zip(a.tolist(), b.tolist())) == sorted(want) and 0 < len(want) < 36
+
+
+def test_dirichlet_conditions_that_overlap_with_different_values_are_refused_naming_both():
+    # two boxes glued face to face; 'patchN.face' tags name a face glued or not, so both sides of the shared face
+    a, b = pr.box(degrees=(2, 2, 2)), pr.box(origin=(1, 0, 0), degrees=(2, 2, 2))
+    model = MultiPatch.from_splines([a, b])
+    p = HeatProblem(model).dirichlet("patch0.umax", 1.0).dirichlet("patch1.umin", 2.0).dirichlet("patch1.umax", 0.0)
+    with pytest.raises(ProblemError, match=r"give one unknown different values \(1 and 2\) where their faces lie on "
+                                           r"each other: the faces tagged 'patch0.umax' and the faces tagged 'patch1.umin'"):
+        p.solve()
+    # through a branch constraint: the child's face is tied to the parent's by the refinement matrix
+    q = (HeatProblem(_sideways_branch()).dirichlet("patch0.wmax", 1.0).dirichlet("patch1.wmin", 2.0)
+         .dirichlet("patch2.umax", 0.0))
+    with pytest.raises(ProblemError, match=r"cannot both meet .* the faces tagged 'patch0.wmax' and the faces tagged "
+                                           r"'patch1.wmin'"):
+        q.solve()
+    # faces that only share an edge, with values that jump along it, are fine (the edge takes the mean)
+    s = HeatProblem(model).dirichlet("umin", 1.0).dirichlet("vmin", 2.0).solve()
+    assert s.info["balance"]["relative_error"] < 1e-9
