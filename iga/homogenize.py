@@ -1,0 +1,143 @@
+"""Effective conductivity of a periodic tile: the three cell problems of first-order homogenisation.
+
+For a tile paving the unit cell Y = [0, 1]^3 periodically, the corrector
+chi_j (j = x, y, z) solves
+
+    -div(k (grad chi_j + e_j)) = 0 in the tile,  chi_j Y-periodic,  k (grad chi_j + e_j) . n = 0 on its walls,
+
+and K_ij = (1/|Y|) int k (delta_ij + d_i chi_j) dV.  In weak form, with
+a(u, v) = int k grad u . grad v and b_j(v) = int k d_j v, a(chi_j, v) = -b_j(v)
+for all periodic v, so K_ij = int k delta_ij + b_i(chi_j) = int k delta_ij -
+a(chi_i, chi_j): symmetric, and below the Voigt bound (int k) I by construction.
+
+Periodicity is a set of identity interfaces: every tile face on the wall
+x_k = 0 is glued to the face on x_k = 1 that it matches after the shift
+e_k (found by :func:`geometry.multipatch.detect_interfaces` on the tile and
+its shifted copy).  The cell problems then use the heat analysis's own
+machinery: the tile's basis, the exact regularity proof, the constraints
+(:func:`iga.constraints.prolongation`) and the sum-factorised assembly; chi
+is fixed by one pinned unknown (it is defined up to a constant).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from geometry.chain import patches_geometry_derivs_slabs
+from geometry.errors import SplineError, show
+from geometry.faces import FACE_AXIS
+from geometry.multipatch import Interface, MultiPatch, detect_interfaces
+
+from .assembly import derivative_load_form
+from .constraints import prolongation
+from .elastic_forms import divergence_terms, metric_rows
+from .errors import ProblemError
+from .problem import HeatProblem
+
+__all__ = ["Effective", "effective_conductivity", "periodic_cell"]
+
+
+@dataclass
+class Effective:
+    """An effective tensor with its diagnostics: ``tensor`` (3, 3) in the units of the conductivity,
+    ``volume_fraction`` (solid volume / cell volume), ``symmetry_error`` (max |K - K^T| / max |K|),
+    ``unknowns`` of each cell problem, ``periodic_faces`` glued across the cell."""
+
+    tensor: np.ndarray
+    volume_fraction: float
+    symmetry_error: float
+    unknowns: int
+    periodic_faces: int
+
+
+def periodic_cell(tile) -> MultiPatch:
+    """The tile's trivariate patches on the unit cell with its own interfaces and the periodic ones."""
+    patches = list(getattr(tile, "patches", []))
+    vols = [p for p in patches if getattr(p, "dim", 0) == 3]
+    if not vols:
+        raise ProblemError(f"tile {show(getattr(tile, 'name', tile))} has no trivariate patches: a surface tile has no "
+                           "volume to homogenise; use a volumetric tile")
+    try:
+        model = MultiPatch.from_splines(vols)
+    except SplineError as exc:
+        raise ProblemError(f"tile {show(getattr(tile, 'name', ''))}: {exc}") from None
+    n = len(vols)
+    periodic = []
+    for k in range(3):
+        shift = np.eye(3)[k]
+        both = MultiPatch.from_splines(vols + [v.translate(shift) for v in vols], couple=False).patches
+        found, _ = detect_interfaces(both)
+        pairs = [i for i in found if (i.a[0] < n) != (i.b[0] < n)]
+        for i in pairs:
+            (pa, fa), (pb, fb) = (i.a, i.b) if i.a[0] < n else (i.b, i.a)
+            periodic.append(Interface("identity", (pa, fa), (pb - n, fb), swap=i.swap, flip=i.flip))
+        _check_walls(vols, k, {(p, f) for i in pairs for p, f in (i.a, i.b)}, n)
+    model.interfaces += periodic
+    return model
+
+
+def _check_walls(vols, k: int, glued: set, n: int) -> None:
+    """Every face on the walls x_k = 0, 1 must have found its partner on the opposite wall."""
+    for pi, v in enumerate(vols):
+        for face in (("umin", "umax"), ("vmin", "vmax"), ("wmin", "wmax"))[k]:
+            axis, side = FACE_AXIS[face]
+            pts = np.take(v.points, -1 if side else 0, axis=axis).reshape(-1, 3)
+            for wall in (0.0, 1.0):
+                if np.all(np.abs(pts[:, k] - wall) < 1e-9):
+                    key = (pi, face) if wall == 1.0 else (pi + n, face)
+                    if key not in glued:
+                        raise ProblemError(f"the tile is not periodic along {'xyz'[k]}: face {face} of patch {pi} on the "
+                                           f"wall {'xyz'[k]} = {wall:g} has no matching face on the opposite wall; "
+                                           "homogenisation needs opposite walls that conform")
+
+
+def effective_conductivity(tile, conductivity=1.0, degree_elevation: int = 1, refine: int = 0) -> Effective:
+    """The effective conductivity tensor (3, 3) of ``tile`` paving the unit cell periodically (module notes).
+
+    ``conductivity``: W/(m K), a number, a channel name of the tile or a callable of the cell point x (N, 3)
+    (isotropic); ``degree_elevation``, ``refine``: the cell problems' spaces, as for :class:`iga.HeatProblem`.
+    """
+    model = periodic_cell(tile)
+    prob = HeatProblem(model, conductivity=conductivity, degree_elevation=degree_elevation, refine=refine)
+    K, _, _ = prob.assemble()
+    c = prolongation(prob.model, prob.spaces, prob.offsets)
+    P = c.P
+    B, total_k, volume = _loads(prob)  # (ndof, 3) of b_j(N_i) = int k d_j N_i; int k dV; int dV
+    A = (P.T @ K @ P).tocsc()
+    Br = P.T @ B
+    keep = np.arange(1, A.shape[0])  # chi up to a constant: pin the first reduced unknown
+    X = np.zeros_like(Br)
+    X[keep] = np.column_stack([sp.linalg.spsolve(A[keep][:, keep], -Br[keep, j]) for j in range(3)])
+    Keff = total_k * np.eye(3) + Br.T @ X  # K_ij = int k delta_ij + b_i(chi_j)  (the unit cell: |Y| = 1)
+    sym = float(np.abs(Keff - Keff.T).max() / max(np.abs(Keff).max(), 1e-300))
+    return Effective(0.5 * (Keff + Keff.T), volume, sym, int(A.shape[0]), sum(i.kind == "identity" for i in
+                                                                            model.interfaces))
+
+
+def _loads(prob):
+    """B (ndof, 3): int k d_j N_i dV per DOF and direction; int k dV; int dV (the solid's volume)."""
+    B = np.zeros((prob.ndof, 3))
+    total_k = volume = 0.0
+    for i, patch in enumerate(prob.model.patches):
+        space = prob.spaces[i]
+        w_rest = np.multiply.outer(space.dirs[1].qw, space.dirs[2].qw).ravel()
+        parts = []
+        for planes, x, D, chans in patches_geometry_derivs_slabs([patch], space.qaxes, 1 << 16,
+                                                                  rows_multiple=space.dirs[0].g):
+            flat = {ch: np.reshape(v, -1) for ch, v in chans.items()}
+            kval = prob.conductivity.values(x.reshape(-1, 3), flat, f"patch {i}")
+            cr, det = metric_rows(D)
+            w = np.multiply.outer(space.dirs[0].qw[planes], w_rest).ravel()
+            total_k += float(np.sum(kval * np.abs(det) * w))
+            volume += float(np.sum(np.abs(det) * w))
+            parts.append((cr, kval * np.sign(det) * w))
+        shape = (1,) + space.qshape
+        c = [[np.concatenate([p[0][r][a] for p in parts]) for a in range(3)] for r in range(3)]
+        weight = np.concatenate([p[1] for p in parts])
+        for j in range(3):
+            B[prob.offsets[i]:prob.offsets[i + 1], j] = derivative_load_form(
+                space, divergence_terms(c, weight, j, shape))[0].ravel()
+    return B, total_k, volume
