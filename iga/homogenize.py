@@ -37,7 +37,7 @@ from .elastic_forms import divergence_terms, metric_rows
 from .errors import ProblemError
 from .problem import HeatProblem
 
-__all__ = ["Effective", "effective_conductivity", "periodic_cell"]
+__all__ = ["Effective", "effective_conductivity", "effective_stiffness", "periodic_cell"]
 
 
 @dataclass
@@ -141,3 +141,83 @@ def _loads(prob):
             B[prob.offsets[i]:prob.offsets[i + 1], j] = derivative_load_form(
                 space, divergence_terms(c, weight, j, shape))[0].ravel()
     return B, total_k, volume
+
+
+def _unit_strains() -> list:
+    """The six unit macro strains in Voigt order xx, yy, zz, yz, xz, xy (engineering shears: gamma = 1)."""
+    out = []
+    for a, b in ((0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1)):
+        E = np.zeros((3, 3))
+        E[a, b] = E[b, a] = 1.0 if a == b else 0.5
+        out.append(E)
+    return out
+
+
+def effective_stiffness(tile, youngs, poisson, degree_elevation: int = 1, refine: int = 0) -> Effective:
+    """The effective elasticity tensor (6, 6) in Voigt notation (xx, yy, zz, yz, xz, xy; engineering shear
+    strains) of ``tile`` paving the unit cell periodically: the six cell problems
+    div C (eps(chi_m) + E_m) = 0 with chi_m periodic, C_mn = int E_m : C : (E_n + eps(chi_n)) dV.
+
+    ``youngs`` (Pa) and ``poisson``: numbers, channel names or callables of the cell point, as for
+    :class:`iga.ElasticityProblem`; the correctors are fixed against the three translations they are defined
+    up to by pinning one unknown of each component.
+    """
+    from .elastic_volume import ElasticVolume, vector_constraints
+    from .elasticity import ElasticityProblem
+
+    model = periodic_cell(tile)
+    prob = ElasticityProblem(model, youngs, poisson, degree_elevation=degree_elevation, refine=refine)
+    K = ElasticVolume(prob.disc).assemble(prob.youngs, prob.poisson)[0]
+    c = vector_constraints(prolongation(prob.model, prob.spaces, prob.offsets), prob.ndof)
+    B, mean, volume = _stiffness_loads(prob)  # (3 ndof, 6), int E_m : C : E_n dV (6, 6), solid volume
+    A = (c.P.T @ K @ c.P).tocsc()
+    Br = c.P.T @ B
+    nred = A.shape[0] // 3
+    keep = np.setdiff1d(np.arange(A.shape[0]), [0, nred, 2 * nred])  # one pinned unknown per component
+    X = np.zeros_like(Br)
+    lu = sp.linalg.splu(A[keep][:, keep])
+    X[keep] = lu.solve(-Br[keep])
+    C = mean + Br.T @ X
+    sym = float(np.abs(C - C.T).max() / max(np.abs(C).max(), 1e-300))
+    return Effective(0.5 * (C + C.T), volume, sym, int(A.shape[0]),
+                     sum(i.kind == "identity" for i in model.interfaces))
+
+
+def _stiffness_loads(prob):
+    """B (3 ndof, 6) of int sigma(E_m) : eps(N_i e_a) dV, the mean int E_m : C : E_n dV (6, 6) and int dV."""
+    from .elastic_forms import lame
+
+    strains = _unit_strains()
+    n = prob.ndof
+    B = np.zeros((3 * n, 6))
+    mean = np.zeros((6, 6))
+    volume = 0.0
+    for i, patch in enumerate(prob.model.patches):
+        space = prob.spaces[i]
+        w_rest = np.multiply.outer(space.dirs[1].qw, space.dirs[2].qw).ravel()
+        parts = []
+        for planes, x, D, chans in patches_geometry_derivs_slabs([patch], space.qaxes, 1 << 16,
+                                                                  rows_multiple=space.dirs[0].g):
+            flat = {ch: np.reshape(v, -1) for ch, v in chans.items()}
+            xs = x.reshape(-1, 3)
+            lam, mu = lame(prob.youngs.values(xs, flat, f"patch {i}"), prob.poisson.values(xs, flat, f"patch {i}"),
+                           f"patch {i}")
+            cr, det = metric_rows(D)
+            w = np.multiply.outer(space.dirs[0].qw[planes], w_rest).ravel()
+            dv = np.abs(det) * w
+            volume += float(dv.sum())
+            for m, Em in enumerate(strains):
+                for q, Eq in enumerate(strains):
+                    mean[m, q] += float(np.sum((lam * np.trace(Em) * np.trace(Eq) + 2 * mu * np.sum(Em * Eq)) * dv))
+            parts.append((cr, lam, mu, np.sign(det) * w))
+        shape = (1,) + space.qshape
+        c = [[np.concatenate([p[0][r][a] for p in parts]) for a in range(3)] for r in range(3)]
+        lam, mu, sw = (np.concatenate([p[k] for p in parts]) for k in (1, 2, 3))
+        for m, E in enumerate(strains):
+            S = lam[:, None, None] * np.trace(E) * np.eye(3) + 2 * mu[:, None, None] * E  # sigma(E_m) (M, 3, 3)
+            for a in range(3):
+                terms = [((sw * sum(S[:, a, d] * c[r][d] for d in range(3))).reshape(shape),
+                          tuple((int(k == r), None) for k in range(3))) for r in range(3)]
+                B[a * n + prob.offsets[i] : a * n + prob.offsets[i + 1], m] = \
+                    derivative_load_form(space, terms)[0].ravel()
+    return B, mean, volume

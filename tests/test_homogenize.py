@@ -53,3 +53,39 @@ def test_tiles_that_cannot_be_homogenised_are_refused_naming_why():
     lopsided = Tile([pr.box((1.0, 0.5, 1.0), degrees=(1, 1, 1))], name="half")  # the wall y = 1 is not reached
     with pytest.raises(ProblemError, match=r"not periodic along y"):
         effective_conductivity(lopsided)
+
+
+def _laminate_stiffness(E1, E2, nu):
+    """Exact effective stiffness of a 50/50 laminate of isotropic layers normal to x (Voigt, engineering)."""
+    lam = lambda E: E * nu / ((1 + nu) * (1 - 2 * nu))  # noqa: E731
+    mu = lambda E: E / (2 * (1 + nu))  # noqa: E731
+    avg = lambda f: 0.5 * (f(E1) + f(E2))  # noqa: E731
+    P = lambda E: lam(E) + 2 * mu(E)  # noqa: E731
+    inv = avg(lambda E: 1 / P(E))
+    r = avg(lambda E: lam(E) / P(E))
+    C = np.zeros((6, 6))
+    C[0, 0] = 1 / inv
+    C[0, 1] = C[0, 2] = C[1, 0] = C[2, 0] = r / inv
+    C[1, 1] = C[2, 2] = avg(lambda E: P(E) - lam(E) ** 2 / P(E)) + r * r / inv
+    C[1, 2] = C[2, 1] = avg(lambda E: lam(E) - lam(E) ** 2 / P(E)) + r * r / inv
+    C[3, 3] = avg(mu)  # shear in the layers' plane: strain continuous
+    C[4, 4] = C[5, 5] = 1 / avg(lambda E: 1 / mu(E))  # shear across the layers: stress continuous
+    return C
+
+
+def test_effective_stiffness_of_a_solid_a_laminate_and_the_cubic_cross():
+    from iga.homogenize import effective_stiffness
+
+    E, nu = 200.0, 0.3
+    lam, mu = E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))
+    solid = effective_stiffness(Tile([pr.box(degrees=(1, 1, 1))], name="solid"), E, nu).tensor
+    want = np.diag([lam + 2 * mu] * 3 + [mu] * 3)
+    want[:3, :3] += lam * (1 - np.eye(3))
+    assert np.abs(solid - want).max() < 1e-10 * E
+    layers = Tile([pr.box(degrees=(1, 1, 1), elements=(2, 1, 1))], name="laminate")
+    got = effective_stiffness(layers, lambda x: np.where(x[:, 0] < 0.5, 1.0, 10.0), 0.25, degree_elevation=0)
+    assert np.abs(got.tensor - _laminate_stiffness(1.0, 10.0, 0.25)).max() < 1e-10 * 10.0
+    C = effective_stiffness(L.cross(), 1.0, 0.3).tensor
+    assert np.allclose(np.diag(C)[:3], C[0, 0], rtol=1e-10) and np.allclose(np.diag(C)[3:], C[3, 3], rtol=1e-10)
+    assert np.allclose([C[0, 1], C[0, 2], C[1, 2]], C[0, 1], rtol=1e-10) and np.abs(C[:3, 3:]).max() < 1e-12
+    assert 0 < C[3, 3] < C[0, 0] < 0.216 * (lam + 2 * mu) / E  # below the Voigt bound of the solid fraction
