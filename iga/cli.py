@@ -97,7 +97,15 @@ def _cmd_info(args) -> int:
     from geometry.gismo_xml import read_gismo
     from geometry.io import load_all
 
+    from .describe import describe
+
     path = Path(args.file)
+    if not path.is_file():
+        raise ProblemError(f"{path} does not exist or is not a file")
+    lines = describe(path)  # meshes, IGES and summaries; None for spline files
+    if lines is not None:
+        print("\n".join(lines))
+        return 0
     if path.suffix.lower() == ".xml":
         g = read_gismo(path)
         splines = g.patches
@@ -173,10 +181,13 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,
                      help="no progress display on stderr (as 'iga --quiet run ...')")
     run.set_defaults(func=_cmd_run)
-    info = sub.add_parser("info", help="describe the splines in a saved .npz or G+Smo .xml file",
+    info = sub.add_parser("info", help="describe a file the toolkit wrote (splines, meshes, IGES, summary)",
                           description="Print degrees, sizes, channels, knot spans, domain, bounding box and "
-                          "regularity of saved splines; for G+Smo XML also the topology and conditions.")
-    info.add_argument("file", help="a .npz written by geometry.save / save_all, or a G+Smo .xml multipatch")
+                          "regularity of saved splines (for G+Smo XML also the topology and conditions); cells, "
+                          "arrays and their ranges of a VTU/VTP/STL/OBJ/PLY mesh; the entities of an IGES file; "
+                          "the key figures of a pipeline's summary.json.")
+    info.add_argument("file", help="a .npz (geometry.save), a G+Smo .xml, a .vtu/.vtp/.stl/.obj/.ply mesh, an "
+                                   ".igs file or a summary.json")
     info.set_defaults(func=_cmd_info)
     return parser
 

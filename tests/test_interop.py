@@ -221,4 +221,34 @@ def test_iga_info_reads_gismo_and_npz(tmp_path):
     assert out.returncode == 0 and "1 spline" in out.stdout
     (tmp_path / "x.stl").write_text("solid")
     out = subprocess.run([sys.executable, "-m", "iga", "info", str(tmp_path / "x.stl")], capture_output=True, text=True)
-    assert out.returncode == 1 and "not an .npz archive" in out.stderr and "Traceback" not in out.stderr
+    assert out.returncode == 1 and "cannot read x.stl as a mesh" in out.stderr and "Traceback" not in out.stderr
+
+
+def test_iga_info_describes_every_file_the_toolkit_writes(tmp_path):
+    import tiling
+    from geometry.iges import write_iges
+    from iga import HeatProblem, write_vtu
+    from tiling import library as L
+    from tiling.export import boundary_splines, write_surfaces
+
+    ms = tiling.regular(pr.box(), L.cross(), (1, 1, 1))
+    s = HeatProblem(ms).dirichlet("umin", 1.0).dirichlet("umax", 0.0).solve()
+    files = {"m.vtu": lambda p: write_vtu(p, s, samples=1), "s.stl": lambda p: write_surfaces(p, ms),
+             "b.igs": lambda p: write_iges(p, boundary_splines(ms))}
+    want = {"m.vtu": [r"hexahedra", r"point array temperature: 0 \.\. 1"], "s.stl": [r"triangles"],
+            "b.igs": [r"IGES, 30 entities \(30 B-spline surfaces\)"]}
+    import re
+
+    for name, write in files.items():
+        write(tmp_path / name)
+        out = subprocess.run([sys.executable, "-m", "iga", "info", str(tmp_path / name)], capture_output=True, text=True)
+        assert out.returncode == 0, out.stderr
+        for pattern in want[name]:
+            assert re.search(pattern, out.stdout), (name, out.stdout)
+    (tmp_path / "summary.json").write_text('{"tiles": 3, "levels": 1, "interfaces": 2, "files": {"vtu": "m.vtu"}}')
+    out = subprocess.run([sys.executable, "-m", "iga", "info", str(tmp_path / "summary.json")], capture_output=True,
+                         text=True)
+    assert out.returncode == 0 and "pipeline summary, 3 tiles on 1 levels" in out.stdout
+    (tmp_path / "bad.igs").write_text("not iges\n")
+    out = subprocess.run([sys.executable, "-m", "iga", "info", str(tmp_path / "bad.igs")], capture_output=True, text=True)
+    assert out.returncode == 1 and "is not an IGES file" in out.stderr and "Traceback" not in out.stderr
