@@ -192,3 +192,10 @@ def test_surface_to_a_tolerance():
         tiling.export.samples_for_tolerance(ms, 1e-14, max_samples=4)
     with pytest.raises(TilingError, match="tolerance"):
         ms.surface(tolerance=-1.0)
+
+
+def test_seal_plates_are_not_counted_as_tiles():
+    plain = tiling.hierarchical(SINK, L.heat_sink_t2(), (2, 2), levels=2)
+    lid = tiling.hierarchical(SINK, L.heat_sink_t2(), (2, 2), levels=2, seal="cap", seal_sides=("wmax",))
+    assert lid.tiles_per_level() == plain.tiles_per_level() == [4, 16] and lid.n_tiles == plain.n_tiles
+    assert len(lid.patches) > len(plain.patches)  # the plates are there, as patches

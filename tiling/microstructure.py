@@ -65,8 +65,13 @@ class Microstructure(MultiPatch):
 
     @property
     def n_tiles(self) -> int:
-        """Number of placed tiles."""
-        return len({p.tile for p in self.patches})
+        """Number of placed tiles (seal plates placed on their own are not tiles: they close the paving)."""
+        return len({p.tile for p in self.patches if not self._plates_only(p.tile)})
+
+    def _plates_only(self, t: int) -> bool:
+        tile = self.tiles[t] if 0 <= t < len(self.tiles) else None
+        plates = getattr(tile, "seal_patches", ())
+        return bool(plates) and len(plates) == len(tile.patches)
 
     @property
     def levels(self) -> int:
@@ -78,7 +83,7 @@ class Microstructure(MultiPatch):
         out = [0] * self.levels
         seen = set()
         for p in self.patches:
-            if p.tile not in seen:
+            if p.tile not in seen and not self._plates_only(p.tile):
                 seen.add(p.tile)
                 out[p.level] += 1
         return out

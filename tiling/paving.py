@@ -20,7 +20,7 @@ from geometry.sampling import sample_axes
 from .errors import TilingError
 from .microstructure import Microstructure, PlacedPatch
 from .caps import PlacedCap, capped_variant
-from .seal import seal_layout, sealed_variant
+from .seal import SealedTile, seal_layout, sealed_variant
 from .tile import Tile
 from geometry.faces import FACE_NAMES
 from geometry.errors import show
@@ -347,7 +347,9 @@ def hierarchical(D: BSpline, tile: Tile, counts, levels: int, scale: float | Non
             if sides:
                 if sides not in layouts:
                     lay = seal_layout(flat, sides, thickness, seal, tile.name)
-                    layouts[sides] = (lay, Tile(lay.plates, name=f"{tile.name} {seal} ({'+'.join(sorted(sides))})"))
+                    plates = SealedTile(lay.plates, name=f"{tile.name} {seal} ({'+'.join(sorted(sides))})")
+                    plates.seal_patches, plates.seal = tuple(range(len(lay.plates))), seal  # plates only: no tile
+                    layouts[sides] = (lay, plates)
                 squeeze = layouts[sides][0].squeeze()
             cell_first = len(out.placed)
             _place_hierarchy(out, D, tile, nodes, (cell @ squeeze @ Nrm), int(levels))
