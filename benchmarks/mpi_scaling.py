@@ -18,6 +18,7 @@ Writes benchmarks/out/mpi_scaling.json.
 from __future__ import annotations
 
 import json
+import shutil
 import resource
 import sys
 import time
@@ -119,7 +120,11 @@ def main():
         run_case(sys.argv[2], "--quick" in sys.argv)
         return
     if "--estimate-only" in sys.argv:  # from the last run's measurements
-        rows = json.loads((Path(__file__).parent / "out" / "mpi_scaling.json").read_text())["measured"]
+        last = Path(__file__).parent / "out" / "mpi_scaling.json"
+        if not last.is_file():
+            raise SystemExit(f"--estimate-only reads the measurements of a previous run ({last}), and there is none: "
+                             "run python benchmarks/mpi_scaling.py first")
+        rows = json.loads(last.read_text())["measured"]
         est = estimate(rows)
         print_table(est, [("case", "s"), ("unknowns", ".0e"), ("ranks", "d"), ("estimated s", ".0f"),
                           ("of which repeated on every rank s", ".0f"), ("memory per rank GiB", ".1f")])
@@ -129,7 +134,11 @@ def main():
     for i, a in enumerate(sys.argv):
         if a == "--ranks":
             ranks = [int(v) for v in sys.argv[i + 1].split(",")]
-    mpiexec = str(Path(sys.executable).parent / "mpiexec")
+    beside = Path(sys.executable).parent / "mpiexec"  # a virtual environment's own, else the one on PATH
+    mpiexec = str(beside) if beside.is_file() else shutil.which("mpiexec")
+    if mpiexec is None:
+        raise SystemExit("no mpiexec found (beside this Python or on PATH): install the [mpi] extra and an MPI "
+                         "(e.g. apt install openmpi-bin, or mpich)")
     quick = ["--quick"] if "--quick" in sys.argv else []
     jobs = [([mpiexec, "-n", str(R), sys.executable, __file__, "--case", case] + quick, f"{case} on {R} ranks")
             for case in ("sink", "lattice") for R in ranks]

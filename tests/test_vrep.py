@@ -268,3 +268,11 @@ def test_after_collision_handling_no_two_bridges_intersect():
         for y in kept[i + 1:]:
             d = np.linalg.norm(px[:, None] - axis_samples(y)[None], axis=2).min()
             assert d >= (x.radius + y.radius) * (1 - 1e-9)
+
+
+def test_v_models_and_primitives_print_as_their_expression():
+    from tiling.vrep import examples as ex
+
+    m = ex.winged_duck()
+    assert repr(m) == "VModel(((body | wingL) | wingR) - hole)"
+    assert repr(m.primitives()[0]).startswith("Primitive('body': tile 'cross' x (10, 10, 12), priority 1")

@@ -37,6 +37,10 @@ _INSIDE_TOL = COINCIDENT  # relative to the model size: inversion distances belo
 class Primitive:
     """A trivariate primitive: map ``D``, ``tile`` paved ``counts`` times per knot span, ``priority``, ``name``."""
 
+    def __repr__(self) -> str:
+        return (f"Primitive({self.name!r}: tile {getattr(self.tile, 'name', '?')!r} x {tuple(self.counts)}, priority "
+                f"{self.priority}, map of degrees {getattr(self.D, 'degrees', '?')})")
+
     D: BSpline
     tile: Tile
     counts: tuple
@@ -126,6 +130,15 @@ class VModel:
     __or__ = Primitive.__or__
     __sub__ = Primitive.__sub__
     __and__ = Primitive.__and__
+
+    def __repr__(self) -> str:
+        """The Boolean expression of primitive names, e.g. ``VModel((body | wing) - hole)``."""
+        return f"VModel({self._expression()})"
+
+    def _expression(self) -> str:
+        sign = {"union": "|", "subtract": "-", "intersect": "&"}.get(self.op, self.op)
+        terms = [c.name if isinstance(c, Primitive) else f"({c._expression()})" for c in self.children]
+        return f" {sign} ".join(terms)
 
     def primitives(self) -> list[Primitive]:
         """Every primitive of the tree, left to right, once."""
