@@ -309,7 +309,7 @@ def detect_interfaces(patches, strict: bool = False):
             swap, flip = ORIENTATIONS[o]
             out.append(Interface("identity", a, b, swap, flip))
         else:
-            bad.append((a, b, "their corners coincide but their surfaces do not"))
+            bad.append((a, b, "their surfaces part between the corners (the control points differ)"))
     if strict and bad:
         a, b, why = bad[0]
         raise SplineError(f"face {a[1]} of patch {a[0]} and face {b[1]} of patch {b[0]} touch but do not conform: "
@@ -392,7 +392,7 @@ class MultiPatch:
             interfaces, mismatched = detect_interfaces(patches, strict=not linked)
             for a, b, why in mismatched:
                 if frozenset([a, b]) not in linked:
-                    raise SplineError(f"faces patch {a[0]} {a[1]} and patch {b[0]} {b[1]} coincide but {why}")
+                    raise SplineError(f"faces patch {a[0]} {a[1]} and patch {b[0]} {b[1]} meet corner to corner, but {why}")
             interfaces = [i for i in interfaces if frozenset([i.a, i.b]) not in linked]
             for a, box, c in branches:
                 R = nested_refinement(face_knots(patches[a[0]].spline, a[1]), box, face_knots(patches[c[0]].spline, c[1]))

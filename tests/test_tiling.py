@@ -228,3 +228,9 @@ def test_surface_export_and_watertightness(tmp_path):
     assert pv.read(tmp_path / "s.stl").n_cells > 100
     with pytest.raises(TilingError, match="use a .vtu"):
         write_surfaces(tmp_path / "s.dxf", closed)
+
+
+def test_tiles_that_do_not_stack_are_told_why_in_one_clause():
+    with pytest.raises(TilingError, match=r"faces patch 0 wmax and patch 1 wmin meet corner to corner, but their "
+                                          r"surfaces part between the corners \(the control points differ\); use tiles"):
+        tiling.regular(pr.box(), L.skinned_branching(), (1, 1, 2))

@@ -110,7 +110,7 @@ class Microstructure(MultiPatch):
             raise TilingError(f"{exc}; overlapping tiles or patches") from None
         for a, b, why in mismatched:
             if frozenset([a, b]) not in linked:
-                raise TilingError(f"faces patch {a[0]} {a[1]} and patch {b[0]} {b[1]} coincide but {why}; "
+                raise TilingError(f"faces patch {a[0]} {a[1]} and patch {b[0]} {b[1]} meet corner to corner, but {why}; "
                                   "use tiles whose opposite faces have matching knot vectors and control points")
         # a branch-out face that coincides with the child's branch-in face is glued by the branch constraint
         interfaces = [itf for itf in found if frozenset([itf.a, itf.b]) not in linked]
