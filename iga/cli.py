@@ -2,9 +2,11 @@
 
 Subcommands
 -----------
-``iga demo heat-sink --out DIR``  the heat-sink analysis of Massarwi et al. 2018 (VTU, PNG, JSON summary)
+``iga demo heat-sink --out DIR``  the heat-sink analysis of Massarwi et al. 2018 (VTU, PNG, JSON summary;
+                                 ``--stress`` adds its thermal stress)
 ``iga run CONFIG.toml``           a pipeline described in a TOML file
-``iga info FILE``                describe the splines in a .npz or G+Smo .xml file
+``iga info FILE``                describe a file the toolkit wrote (splines, meshes, IGES, summary.json)
+``iga homogenize --tile NAME``   effective conductivity (and stiffness) of a library tile
 
 Global options: ``--version``, ``--quiet`` (no progress display),
 ``--max-memory GIB`` (the memory budget of the run).  Every error the command
@@ -89,6 +91,38 @@ def _cmd_run(args) -> int:
               f"balance error {s['energy_balance_error']:.1e}; {where}")
     if "elasticity" in s:
         print(f"{_plural(s['tiles'], 'tile')}, {_elastic_line(s['elasticity'])}; {where}")
+    return 0
+
+
+def _cmd_homogenize(args) -> int:
+    from tiling.library import TILES
+
+    from .homogenize import effective_conductivity, effective_stiffness
+
+    kwargs = {}
+    for item in args.arg or []:
+        key, sep, value = item.partition("=")
+        try:
+            kwargs[key] = float(value)
+        except ValueError:
+            raise ProblemError(f"--arg {item!r}: give name=number, e.g. --arg arm=0.3") from None
+        if not sep or not key:
+            raise ProblemError(f"--arg {item!r}: give name=number, e.g. --arg arm=0.3")
+    try:
+        tile = TILES[args.tile](**kwargs)
+    except TypeError as exc:
+        raise ProblemError(f"tile {args.tile!r} does not take {sorted(kwargs)}: {exc}") from None
+    k = effective_conductivity(tile, args.conductivity, refine=args.refine)
+    np.set_printoptions(precision=6, suppress=True)
+    print(f"{args.tile}{kwargs or ''}: volume fraction {k.volume_fraction:.6g}; effective conductivity "
+          f"(k = {args.conductivity:g}), symmetry error {k.symmetry_error:.1e}:")
+    print(k.tensor)
+    if args.youngs is not None:
+        c = effective_stiffness(tile, args.youngs, args.poisson, refine=args.refine)
+        scale = 10.0 ** np.floor(np.log10(max(np.abs(c.tensor).max(), 1e-300)))
+        print(f"effective stiffness (E = {args.youngs:g}, nu = {args.poisson:g}; Voigt xx yy zz yz xz xy, "
+              f"engineering shears) in units of {scale:g} Pa, symmetry error {c.symmetry_error:.1e}:")
+        print(np.round(c.tensor / scale, 6) + 0.0)
     return 0
 
 
@@ -181,6 +215,18 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,
                      help="no progress display on stderr (as 'iga --quiet run ...')")
     run.set_defaults(func=_cmd_run)
+    hom = sub.add_parser("homogenize", help="effective conductivity (and stiffness) of a library tile",
+                         formatter_class=_Formatter,
+                         description="Solve the periodic cell problems of a library tile in the unit cell and print "
+                         "its effective conductivity tensor, and with --youngs its effective stiffness (Voigt).")
+    hom.add_argument("--tile", required=True, choices=sorted(__import__("tiling.library").library.TILES),
+                     help="a library tile")
+    hom.add_argument("--arg", action="append", metavar="NAME=VALUE", help="a tile parameter, e.g. arm=0.3 (repeatable)")
+    hom.add_argument("--conductivity", type=float, default=1.0, help="the solid's conductivity (W/(m K))")
+    hom.add_argument("--youngs", type=float, default=None, help="Young's modulus (Pa): also the effective stiffness")
+    hom.add_argument("--poisson", type=float, default=0.3, help="Poisson's ratio (with --youngs)")
+    hom.add_argument("--refine", type=int, default=0, help="refinement rounds of the cell problems' spaces")
+    hom.set_defaults(func=_cmd_homogenize)
     info = sub.add_parser("info", help="describe a file the toolkit wrote (splines, meshes, IGES, summary)",
                           description="Print degrees, sizes, channels, knot spans, domain, bounding box and "
                           "regularity of saved splines (for G+Smo XML also the topology and conditions); cells, "

@@ -89,3 +89,17 @@ def test_effective_stiffness_of_a_solid_a_laminate_and_the_cubic_cross():
     assert np.allclose(np.diag(C)[:3], C[0, 0], rtol=1e-10) and np.allclose(np.diag(C)[3:], C[3, 3], rtol=1e-10)
     assert np.allclose([C[0, 1], C[0, 2], C[1, 2]], C[0, 1], rtol=1e-10) and np.abs(C[:3, 3:]).max() < 1e-12
     assert 0 < C[3, 3] < C[0, 0] < 0.216 * (lam + 2 * mu) / E  # below the Voigt bound of the solid fraction
+
+
+def test_the_homogenize_command_prints_the_tensors_and_names_bad_arguments():
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-m", "iga", "homogenize", "--tile", "cross", "--arg", "arm=0.4",
+                          "--youngs", "1e9"], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    k = effective_conductivity(L.cross(0.4)).tensor[0, 0]
+    assert "volume fraction 0.352" in out.stdout and f"{k:.6f}" in out.stdout and "effective stiffness" in out.stdout
+    bad = subprocess.run([sys.executable, "-m", "iga", "homogenize", "--tile", "cross", "--arg", "width=0.4"],
+                         capture_output=True, text=True)
+    assert bad.returncode == 1 and "does not take ['width']" in bad.stderr and "Traceback" not in bad.stderr
