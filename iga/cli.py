@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from geometry import progress, resources
+from tiling.library import TILES
 from geometry.errors import ToolkitError
 
 from .errors import ProblemError
@@ -95,8 +96,6 @@ def _cmd_run(args) -> int:
 
 
 def _cmd_homogenize(args) -> int:
-    from tiling.library import TILES
-
     from .homogenize import effective_conductivity, effective_stiffness
 
     kwargs = {}
@@ -171,6 +170,21 @@ class _Formatter(argparse.ArgumentDefaultsHelpFormatter):
         return action.help if action.default is None else super()._get_help_string(action)
 
 
+def _add_homogenize(sub) -> None:
+    hom = sub.add_parser("homogenize", help="effective conductivity (and stiffness) of a library tile",
+                         formatter_class=_Formatter,
+                         description="Solve the periodic cell problems of a library tile in the unit cell and print "
+                         "its effective conductivity tensor, and with --youngs its effective stiffness (Voigt).")
+    hom.add_argument("--tile", required=True, choices=sorted(TILES),
+                     help="a library tile")
+    hom.add_argument("--arg", action="append", metavar="NAME=VALUE", help="a tile parameter, e.g. arm=0.3 (repeatable)")
+    hom.add_argument("--conductivity", type=float, default=1.0, help="the solid's conductivity (W/(m K))")
+    hom.add_argument("--youngs", type=float, default=None, help="Young's modulus (Pa): also the effective stiffness")
+    hom.add_argument("--poisson", type=float, default=0.3, help="Poisson's ratio (with --youngs)")
+    hom.add_argument("--refine", type=int, default=0, help="refinement rounds of the cell problems' spaces")
+    hom.set_defaults(func=_cmd_homogenize)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``iga`` command (subcommands demo, run, info)."""
     parser = argparse.ArgumentParser(
@@ -215,18 +229,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,
                      help="no progress display on stderr (as 'iga --quiet run ...')")
     run.set_defaults(func=_cmd_run)
-    hom = sub.add_parser("homogenize", help="effective conductivity (and stiffness) of a library tile",
-                         formatter_class=_Formatter,
-                         description="Solve the periodic cell problems of a library tile in the unit cell and print "
-                         "its effective conductivity tensor, and with --youngs its effective stiffness (Voigt).")
-    hom.add_argument("--tile", required=True, choices=sorted(__import__("tiling.library").library.TILES),
-                     help="a library tile")
-    hom.add_argument("--arg", action="append", metavar="NAME=VALUE", help="a tile parameter, e.g. arm=0.3 (repeatable)")
-    hom.add_argument("--conductivity", type=float, default=1.0, help="the solid's conductivity (W/(m K))")
-    hom.add_argument("--youngs", type=float, default=None, help="Young's modulus (Pa): also the effective stiffness")
-    hom.add_argument("--poisson", type=float, default=0.3, help="Poisson's ratio (with --youngs)")
-    hom.add_argument("--refine", type=int, default=0, help="refinement rounds of the cell problems' spaces")
-    hom.set_defaults(func=_cmd_homogenize)
+    _add_homogenize(sub)
     info = sub.add_parser("info", help="describe a file the toolkit wrote (splines, meshes, IGES, summary)",
                           description="Print degrees, sizes, channels, knot spans, domain, bounding box and "
                           "regularity of saved splines (for G+Smo XML also the topology and conditions); cells, "
