@@ -28,6 +28,7 @@ from .discretisation import Discretisation, count
 from .elastic_solution import ElasticSolution
 from .elastic_volume import ElasticVolume, vector_constraints
 from .errors import ProblemError
+from .multilevel import owners_of
 from .forms import boundary_load
 from .model import tag_faces
 from .rigid import free_modes, greville_points, rigid_modes
@@ -229,20 +230,17 @@ class ElasticityProblem:
         constraints = vector_constraints(scalar, self.ndof)
         dd = merge_dirichlet(self.faces, supports, self.ndof, scalar)
         points = greville_points(self.model, self.spaces, self.offsets)
-        held = [np.unique(np.concatenate([self.faces([k])[0].dofs for k in sup])) if sup else np.zeros(0, np.int64)
-                for sup in supports]
+        held = [np.unique(np.concatenate([fd.dofs for fd in self.faces(list(sup))])) if sup
+                else np.zeros(0, np.int64) for sup in supports]
         if self.rigid_hold:
             pins = self._three_two_one(points)
             dd = pin_dofs(dd, pins, self.ndof, scalar)
             held = [np.union1d(h, p) for h, p in zip(held, pins)]
         pieces, labels = dof_labels(self, None if scalar is None else scalar.P)
         free_modes(points, labels, held, pieces)
-        B = rigid_modes(points)
+        B = rigid_modes(points)  # at the DOFs; a reduced unknown reads them at one DOF it owns
         if constraints is not None:
-            owner = np.full(constraints.P.shape[1], -1)
-            m = constraints.dof_master
-            owner[m[m >= 0][::-1]] = np.flatnonzero(m >= 0)[::-1]
-            B = B[owner]
+            B = B[owners_of(constraints.dof_master)]
         t2 = time.perf_counter()
         options = {"near_nullspace": B} if solver in ("auto", "amg-cg") else None  # rigid modes for AMG
         res = solve_system(K.copy(), f, constraints, dd, solver, tol, maxiter, options)

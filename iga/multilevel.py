@@ -156,7 +156,7 @@ def prolongations(problem, dirichlet_faces, free: np.ndarray, dof_master: np.nda
     if not levels:
         return None
     fine_spaces = [[(d.knots, d.degree) for d in s.dirs] for s in problem.spaces]
-    rows = _owners(np.arange(problem.ndof) if dof_master is None else dof_master)[free]
+    rows = owners_of(np.arange(problem.ndof) if dof_master is None else dof_master)[free]
     out = []
     for coarse in levels:
         Pc, master_c, free_c = _reduced(problem.model, *_level_spaces(coarse), dirichlet_faces)
@@ -170,13 +170,13 @@ def prolongations(problem, dirichlet_faces, free: np.ndarray, dof_master: np.nda
                 cache[key] = R
             blocks.append(cache[key])
         out.append((sp.block_diag(blocks, format="csr") @ Pc[:, free_c])[rows].tocsr())
-        fine_spaces, rows = coarse, _owners(master_c)[free_c]
+        fine_spaces, rows = coarse, owners_of(master_c)[free_c]
         if len(free_c) <= MIN_COARSE:
             break
     return out
 
 
-def _owners(master: np.ndarray) -> np.ndarray:
+def owners_of(master: np.ndarray) -> np.ndarray:
     """For each reduced unknown one DOF it owns (u_full = P u_red reads the unknown there)."""
     own = master >= 0
     out = np.full(int(master.max()) + 1, -1)
