@@ -8,11 +8,23 @@ import sys
 from pathlib import Path
 
 OUT = Path(__file__).parent / "out"
+DOCS = Path(__file__).resolve().parent.parent / "docs"
 
 
 def out_dir() -> Path:
     OUT.mkdir(exist_ok=True)
     return OUT
+
+
+def figures_dir() -> Path:
+    """Where a benchmark's pictures go: ``benchmarks/out/figures``, or the README's ``docs/`` when the
+    script runs with ``--figures`` (as ``benchmarks/make_figures.py`` runs it: the one command that
+    regenerates the tracked pictures), so that running a benchmark never changes the working tree."""
+    if "--figures" in sys.argv:
+        return DOCS
+    path = out_dir() / "figures"
+    path.mkdir(exist_ok=True)
+    return path
 
 
 def run_child(cmd: list, label: str) -> dict | None:
@@ -57,7 +69,9 @@ def run_cases(script: str, cases, run, renders: bool = False) -> list[dict] | No
             continue
         rows.append(row)
         if png:
-            subprocess.run([sys.executable, script, "--case", case, "--png"], check=True, capture_output=True)
+            figures = ["--figures"] if "--figures" in sys.argv else []
+            subprocess.run([sys.executable, script, "--case", case, "--png"] + figures, check=True,
+                           capture_output=True)
     return rows
 
 

@@ -20,11 +20,10 @@ from __future__ import annotations
 
 import resource
 import time
-from pathlib import Path
 
-from _common import print_table, run_cases, save_json
+from _common import figures_dir, print_table, run_cases, save_json
 
-DOCS = Path(__file__).resolve().parent.parent / "docs"
+DOCS = figures_dir()  # benchmarks/out/figures; docs/ with --figures
 CASES = ("fig2d", "fig2d duck", "fig12")
 
 

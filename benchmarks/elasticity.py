@@ -20,13 +20,12 @@ from __future__ import annotations
 
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
-from _common import out_dir, print_table, save_json
+from _common import figures_dir, out_dir, print_table, save_json
 
-DOCS = Path(__file__).resolve().parents[1] / "docs"
+DOCS = figures_dir()  # benchmarks/out/figures; docs/ with --figures
 
 
 def _models(quick: bool):

@@ -19,16 +19,15 @@ from __future__ import annotations
 
 import resource
 import time
-from pathlib import Path
 
-from _common import print_table, run_cases, save_json
+from _common import figures_dir, print_table, run_cases, save_json
 
 CASES = {
     "fig14": dict(continuity="C1", connectivity=2, cap=False),
     "fig14 capped": dict(continuity="C1", connectivity=2, cap=True),
     "fig14 C0": dict(continuity="C0", connectivity=2, cap=False),
 }
-DOCS = Path(__file__).resolve().parent.parent / "docs"
+DOCS = figures_dir()  # benchmarks/out/figures; docs/ with --figures
 
 
 def run(case: str, png: bool) -> dict:

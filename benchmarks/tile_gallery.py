@@ -7,7 +7,6 @@ Each tile is shown in its unit cell (identity map), coloured by patch.
 
 from __future__ import annotations
 
-from pathlib import Path
 
 
 from geometry import primitives as pr
@@ -15,7 +14,9 @@ import tiling
 from tiling import library as L
 from tiling.export import render_png
 
-OUT = Path(__file__).resolve().parents[1] / "docs" / "tiles"
+from _common import figures_dir
+
+OUT = figures_dir() / "tiles"  # benchmarks/out/figures/tiles; docs/tiles with --figures
 
 
 def main():

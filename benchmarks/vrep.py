@@ -26,13 +26,12 @@ from __future__ import annotations
 import dataclasses
 import resource
 import time
-from pathlib import Path
 
 import numpy as np
 
-from _common import print_table, run_cases, save_json
+from _common import figures_dir, print_table, run_cases, save_json
 
-DOCS = Path(__file__).resolve().parent.parent / "docs"
+DOCS = figures_dir()  # benchmarks/out/figures; docs/ with --figures
 CASES = ("box u cyl", "AuB", "(AuB)-C", "A-B-C", "AnBnC A>B>C", "AnBnC B>C>A", "AnBnC C>A>B", "winged duck")
 TABLE1 = {"box u cyl": (5992, 154, 18), "AuB": (1400, 28, 35), "(AuB)-C": (826, 98, 38), "A-B-C": (384, 48, 17),
           "AnBnC A>B>C": (208, 40, 18), "winged duck": (39070, 297, 536)}

@@ -15,11 +15,10 @@ from __future__ import annotations
 import argparse
 import resource
 import time
-from pathlib import Path
 
-from _common import print_table, save_json
+from _common import figures_dir, print_table, save_json
 
-DOCS = Path(__file__).resolve().parent.parent / "docs"
+DOCS = figures_dir()  # benchmarks/out/figures; docs/ with --figures
 H = 2.0  # film coefficient W/(m^2 K)
 
 
@@ -28,6 +27,7 @@ def main():
     ap.add_argument("--body", type=int, nargs=3, default=(10, 10, 12), help="body tiles per knot span")
     ap.add_argument("--wing", type=int, nargs=3, default=(10, 20, 1), help="wing tiles per knot span")
     ap.add_argument("--solver", default="auto", help="HeatProblem.solve backend (default auto)")
+    ap.add_argument("--figures", action="store_true", help="write the picture into docs/ (make_figures.py does)")
     ap.add_argument("--no-png", action="store_true", help="skip the render")
     args = ap.parse_args()
 

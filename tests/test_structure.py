@@ -158,3 +158,12 @@ def test_solvers_import_without_the_spline_stack():
     code = "import sys, solvers; print(sorted(m for m in sys.modules if m.split('.')[0] in ('geometry', 'tiling', 'iga')))"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, check=True)
     assert out.stdout.strip() == str(["geometry", "geometry.errors", "geometry.progress"]), out.stdout
+
+
+def test_benchmarks_write_tracked_pictures_only_through_make_figures():
+    """A benchmark's pictures go to benchmarks/out/figures unless it runs with --figures (make_figures.py)."""
+    for path in sorted((ROOT / "benchmarks").glob("*.py")):
+        if path.name in ("make_figures.py", "_common.py"):
+            continue
+        text = path.read_text()
+        assert '/ "docs"' not in text and "parent.parent / \"docs\"" not in text, f"{path.name} writes into docs/"
