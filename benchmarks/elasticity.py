@@ -97,7 +97,7 @@ def ring(png: bool) -> dict:
 
         vtu = write_vtu(out_dir() / "elastic_ring_fig12.vtu", s, samples=2)
         render_temperature(vtu, DOCS / "elastic_ring_fig12.png", "von Mises stress (E = 1)", scalars="von_mises",
-                           warp=1.0, cmap="viridis")
+                           warp=1.0, cmap="viridis", fmt="%.3g")
     return out
 
 

@@ -208,11 +208,12 @@ def load(path) -> BSpline:
 
 
 def offscreen_plotter(window=(1000, 800)):
-    """A ``pyvista.Plotter`` that renders off screen (EGL works without X; VTK's note about it is silenced)."""
+    """A ``pyvista.Plotter`` that renders off screen (EGL works without X; VTK's note about it is silenced), lit
+    from three sides so that no face of the model is left in shadow (colours read true on every side)."""
     import pyvista as pv
 
     pv.vtk_verbosity("off")
-    return pv.Plotter(off_screen=True, window_size=list(window))
+    return pv.Plotter(off_screen=True, window_size=list(window), lighting="three lights")
 
 
 def save_screenshot(pl, path, error=SplineError, camera="iso", zoom: float = 1.0) -> Path:

@@ -91,7 +91,7 @@ def _build_tiling(cfg, D):
 
 
 def render_temperature(vtu_path: Path, png_path: Path, title: str = "temperature (C)", scalars: str = "temperature",
-                       warp: float | None = None, cmap: str = "inferno"):
+                       warp: float | None = None, cmap: str = "inferno", fmt: str = "%.2f"):
     """Offscreen render of a written .vtu coloured by ``scalars`` (a point array), with a scalar bar (atomic);
     ``warp``: the surface moved by that factor times its ``displacement`` array (an elastic solution)."""
     import pyvista as pv
@@ -100,8 +100,8 @@ def render_temperature(vtu_path: Path, png_path: Path, title: str = "temperature
     if warp is not None:
         mesh = mesh.warp_by_vector("displacement", factor=warp)
     pl = offscreen_plotter((1200, 850))
-    pl.add_mesh(mesh, scalars=scalars, cmap=cmap, smooth_shading=True, split_sharp_edges=True,
-                scalar_bar_args={"title": title, "vertical": True, "fmt": "%.3g", "position_x": 0.86,
+    pl.add_mesh(mesh, scalars=scalars, cmap=cmap, smooth_shading=True, split_sharp_edges=True, ambient=0.3,
+                scalar_bar_args={"title": title, "vertical": True, "fmt": fmt, "position_x": 0.86,
                                  "position_y": 0.12, "width": 0.08, "height": 0.7, "title_font_size": 18,
                                  "label_font_size": 16})
     save_screenshot(pl, png_path, ProblemError, "iso", 0.85)  # zoom out: room for the scalar bar beside the model
@@ -292,7 +292,7 @@ def _elastic_stage(cfg, ms, heat_solution, out: Path, ocfg: dict, stages) -> dic
             size = float(np.ptp(grid.points, axis=0).max())
             warp = 0.05 * size / umax if umax > 0 else None  # the deformation shown at 5% of the model's size
             render_temperature(vtu, out / f"{ocfg['name']}_stress.png", "von Mises stress (Pa)", scalars="von_mises",
-                               warp=warp, cmap="viridis")
+                               warp=warp, cmap="viridis", fmt="%.3g")
             files["stress_png"] = str(out / f"{ocfg['name']}_stress.png")
     stages.done()
     return {"dofs": es.info["dofs"], "unknowns": es.info["free_dofs"], "solver": es.info["solver"],
