@@ -314,6 +314,31 @@ def _load(v, where) -> dict:
     return {"kind": kind, "tag": _tag(t["tag"], f"{where}.tag"), "value": value}
 
 
+def _bifurcation(p) -> dict:
+    """The bifurcation scheme (Massarwi et al. 2018, Section 5): ``epsilon`` (model units) or ``levels`` (one per
+    layer), ``kind`` ("1-2", "1-4a", "1-4b"), ``direction`` (0, 1, 2), ``margin``."""
+    for key in ("counts", "scale", "seal", "thickness", "seal_sides"):
+        if key in p:
+            _fail(f"paving.{key}", "does not apply to the bifurcation scheme (its layers follow epsilon or levels)")
+    if ("epsilon" in p) == ("levels" in p):
+        raise ProblemError("config section paving (scheme 'bifurcation') needs exactly one of 'epsilon' (the largest "
+                           "cell edge, model units) or 'levels' (one per layer)")
+    out = {"scheme": "bifurcation", "kind": _choice(p.get("kind", "1-2"), "paving.kind", ("1-2", "1-4a", "1-4b")),
+           "direction": _int(p.get("direction", 2), "paving.direction", 0),
+           "margin": _number(p.get("margin", 0.3), "paving.margin", lo=0, hi=0.5)}
+    if out["direction"] > 2:
+        _fail("paving.direction", f"must be 0, 1 or 2 (the growth direction), got {out['direction']}")
+    if "epsilon" in p:
+        out["epsilon"], out["levels"] = _number(p["epsilon"], "paving.epsilon", lo=0), None
+    else:
+        lv = p["levels"]
+        if not (isinstance(lv, list) and lv and all(isinstance(x, int) and not isinstance(x, bool) and x >= 0
+                                                    for x in lv)):
+            _fail("paving.levels", f"must be a list of levels >= 0, one per layer, got {show(lv)}")
+        out["epsilon"], out["levels"] = None, list(lv)
+    return out
+
+
 def _tile(t) -> dict:
     """The checked [tile] section."""
     t = _table(t, "tile", {"library", "args"}, ("library",))
@@ -323,9 +348,16 @@ def _tile(t) -> dict:
 
 def _paving(p) -> dict:
     """The checked [paving] section."""
-    p = _table(p, "paving", {"scheme", "counts", "levels", "scale", "seal", "thickness", "seal_sides"},
-               ("scheme", "counts"))
-    scheme = _choice(p["scheme"], "paving.scheme", ("hierarchical", "regular"))
+    p = _table(p, "paving", {"scheme", "counts", "levels", "scale", "seal", "thickness", "seal_sides", "epsilon",
+                             "kind", "direction", "margin"}, ("scheme",))
+    scheme = _choice(p["scheme"], "paving.scheme", ("hierarchical", "regular", "bifurcation"))
+    if scheme == "bifurcation":
+        return _bifurcation(p)
+    for key in ("epsilon", "kind", "direction", "margin"):
+        if key in p:
+            _fail(f"paving.{key}", "applies to the bifurcation scheme only")
+    if "counts" not in p:
+        raise ProblemError(f"config section paving (scheme {scheme!r}) needs 'counts'")
     pav = {"scheme": scheme, "counts": _ints(p["counts"], "paving.counts", 2 if scheme == "hierarchical" else 3)}
     if scheme == "hierarchical":
         pav["levels"] = _int(p.get("levels", 2), "paving.levels", 1)
@@ -355,17 +387,21 @@ def validate(config, base_dir=".") -> dict:
     unknown = sorted(set(config) - set(SECTIONS))
     if unknown:
         raise ProblemError(f"unknown config section {show(unknown[0])}; sections: {list(SECTIONS)}")
-    for sec in ("map", "tile", "paving"):
+    bifurcating = isinstance(config.get("paving"), dict) and config["paving"].get("scheme") == "bifurcation"
+    for sec in ("map", "paving") + (() if bifurcating else ("tile",)):
         if sec not in config:
             raise ProblemError(f"missing required config section {show(sec)}")
+    if bifurcating and "tile" in config:
+        raise ProblemError("config section tile does not apply to the bifurcation scheme: it builds its own tiles "
+                           "(paving.kind '1-2', '1-4a' or '1-4b')")
     physics = _physics(config)
     if physics["kind"] != "elasticity" and "bc" not in config:
         raise ProblemError("missing required config section 'bc' (the heat problem's conditions)")
     if physics["kind"] == "elasticity" and "bc" in config:
         raise ProblemError("config section bc holds heat conditions; physics.kind = 'elasticity' takes [[support]] "
                            "and [[load]] (or use kind = 'thermo-elastic')")
-    cfg: dict = {"map": _map(config["map"], base_dir), "tile": _tile(config["tile"]), "paving": _paving(config["paving"]),
-                 "physics": physics}
+    cfg: dict = {"map": _map(config["map"], base_dir), "tile": None if bifurcating else _tile(config["tile"]),
+                 "paving": _paving(config["paving"]), "physics": physics}
     mat = _table(config.get("material", {}), "material", {"conductivity", "source"})
     cfg["material"] = {"conductivity": _conductivity(mat.get("conductivity", 1.0), "material.conductivity"),
                        "source": _number(mat.get("source", 0.0), "material.source")}

@@ -10,6 +10,7 @@ from math import pi
 
 from geometry import BSpline
 from geometry import primitives as pr
+from geometry import shapes
 
 __all__ = ["MAPS", "circular_heat_sink_map", "vertical_heat_sink_map"]
 
@@ -26,4 +27,4 @@ def vertical_heat_sink_map(width=0.06, depth=0.06, height=0.03) -> BSpline:
 
 
 MAPS = {"circular_heat_sink": circular_heat_sink_map, "vertical_heat_sink": vertical_heat_sink_map,
-        "box": pr.box, "annulus": pr.annulus}
+        "box": pr.box, "annulus": pr.annulus, "duck": shapes.duck, "cylinder": shapes.cylinder}

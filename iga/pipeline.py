@@ -82,8 +82,11 @@ def _build_map(cfg) -> BSpline:
 
 
 def _build_tiling(cfg, D):
-    tile = TILES[cfg["tile"]["library"]](**cfg["tile"]["args"])
     p = cfg["paving"]
+    if p["scheme"] == "bifurcation":
+        return tiling.bifurcation(D, p["epsilon"], p["kind"], direction=p["direction"], levels=p["levels"],
+                                  margin=p["margin"])
+    tile = TILES[cfg["tile"]["library"]](**cfg["tile"]["args"])
     seal = {k: p[k] for k in ("seal", "thickness", "seal_sides") if k in p}
     if p["scheme"] == "hierarchical":
         return tiling.hierarchical(D, tile, p["counts"], p["levels"], p["scale"], **seal)

@@ -1,0 +1,54 @@
+"""More of the Python API from a pipeline (issue #32): the bifurcation scheme and the shape maps."""
+
+import pytest
+
+from iga.config import validate
+from iga.errors import ProblemError
+from iga.pipeline import run_pipeline
+
+
+def _bif(**paving):
+    return {"map": {"primitive": "duck"}, "paving": {"scheme": "bifurcation", **paving},
+            "material": {"conductivity": 20.0},
+            "bc": [{"kind": "dirichlet", "tag": "wmin", "value": 100.0},
+                   {"kind": "robin", "tag": "rest", "h": 10.0, "ambient": 20.0}],
+            "output": {"png": False, "vtu": False}}
+
+
+def test_a_bifurcation_tiling_of_the_duck_runs_from_a_pipeline(tmp_path):
+    cfg = _bif(epsilon=0.35, kind="1-2")
+    cfg["output"]["dir"] = str(tmp_path / "o")
+    s = run_pipeline(cfg, tmp_path)
+    assert s["levels"] >= 2 and s["tiles"] > 20 and s["connected_pieces"] == 1
+    assert s["energy_balance_error"] < 1e-9 and s["temperature_C"]["max"] <= 100.0 + 1e-6
+    cfg = _bif(levels=[0, 0, 1, 1, 0, 0], kind="1-4a")
+    cfg["map"] = {"primitive": "box", "args": {"size": [1.0, 1.0, 6.0]}}
+    cfg["output"]["dir"] = str(tmp_path / "p")
+    assert run_pipeline(cfg, tmp_path)["tiles"] == 12
+
+
+@pytest.mark.parametrize("change, match", [
+    (lambda c: c.update(tile={"library": "cross"}), r"config section tile does not apply to the bifurcation scheme"),
+    (lambda c: c["paving"].update(counts=[2, 2, 2]), r"paving\.counts: does not apply to the bifurcation scheme"),
+    (lambda c: c["paving"].update(levels=[0, 1]), r"needs exactly one of 'epsilon' .* or 'levels'"),
+    (lambda c: c["paving"].update(kind="1-3"), r"paving\.kind: must be one of"),
+    (lambda c: c["paving"].update(direction=3), r"paving\.direction: must be 0, 1 or 2"),
+    (lambda c: c["paving"].update(epsilon=-1.0), r"paving\.epsilon"),
+    (lambda c: c["map"].update(primitive="swan"), r"map\.primitive: must be one of .*'duck'"),
+])
+def test_bad_bifurcation_pipelines_are_refused_before_any_work(change, match, tmp_path):
+    cfg = _bif(epsilon=0.35)
+    change(cfg)
+    with pytest.raises(ProblemError, match=match):
+        validate(cfg, tmp_path)
+
+
+def test_regular_pavings_still_need_their_counts_and_refuse_bifurcation_keys():
+    cfg = _bif(epsilon=0.35)
+    cfg["paving"] = {"scheme": "regular", "epsilon": 0.3}
+    cfg["tile"] = {"library": "cross"}
+    with pytest.raises(ProblemError, match=r"paving\.epsilon: applies to the bifurcation scheme only"):
+        validate(cfg)
+    cfg["paving"] = {"scheme": "regular"}
+    with pytest.raises(ProblemError, match=r"paving \(scheme 'regular'\) needs 'counts'"):
+        validate(cfg)
