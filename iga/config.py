@@ -38,7 +38,8 @@ __all__ = ["validate", "SECTIONS", "OUTPUT_DEFAULTS"]
 
 SECTIONS = ("map", "tile", "paving", "material", "bc", "physics", "support", "load", "solver", "output", "limits")
 OUTPUT_DEFAULTS = {"dir": "out", "name": "result", "vtu": True, "bezier": False, "png": True, "samples": 3,
-                   "tolerance": None, "probes": []}
+                   "tolerance": None, "probes": [], "exports": []}
+EXPORTS = ("stl", "obj", "ply", "vtp", "iges", "gismo")
 SOLVER_DEFAULTS = {"method": "auto", "tol": 1e-10, "maxiter": None, "refine": 0, "degree_elevation": 0}
 
 
@@ -201,6 +202,11 @@ def _output(v, base: Path) -> dict:
         if "samples" in t:
             _fail("output.tolerance", "choose the samples per element (samples) or a geometric tolerance, not both")
         out["tolerance"] = _number(t["tolerance"], "output.tolerance", lo=0)
+    if "exports" in t:
+        ex = t["exports"]
+        if not isinstance(ex, list) or any(x not in EXPORTS for x in ex) or len(set(ex)) != len(ex):
+            _fail("output.exports", f"must be a list of distinct names from {list(EXPORTS)}, got {show(ex)}")
+        out["exports"] = list(ex)
     if "probes" in t:
         p = t["probes"]
         if not isinstance(p, list) or not all(isinstance(q, list) and len(q) == 3 for q in p):

@@ -21,12 +21,15 @@ import numpy as np
 import tiling
 from geometry import BSpline, load, resources
 from geometry import progress as display
+from geometry.iges import write_iges
 from geometry.io import atomic_write, offscreen_plotter, save_screenshot
+from tiling.export import boundary_splines, write_surfaces
 from tiling.library import TILES
 from tiling.materials import graded_channel
 
 from .config import validate
 from .errors import ProblemError
+from .gismo import export_gismo
 from .locate import Locator
 from .maps import MAPS, circular_heat_sink_map, vertical_heat_sink_map
 from . import distributed
@@ -197,6 +200,22 @@ def _write_outputs(ocfg: dict, out: Path, sol, stages) -> tuple[dict, float | No
     return files, mesh_volume
 
 
+def _exports(ocfg: dict, out: Path, ms, problem) -> dict:
+    """The exports named in ``[output] exports``: the boundary surface as STL/OBJ/PLY/VTP, the exact boundary as
+    IGES, the heat problem as G+Smo XML; {name: path}."""
+    files = {}
+    for kind in ocfg["exports"]:
+        path = out / f"{ocfg['name']}.{'igs' if kind == 'iges' else 'xml' if kind == 'gismo' else kind}"
+        if kind in ("stl", "obj", "ply", "vtp"):
+            write_surfaces(path, ms)
+        elif kind == "iges":
+            write_iges(path, boundary_splines(ms), name=ocfg["name"])
+        else:
+            export_gismo(problem, path)
+        files[kind] = str(path)
+    return files
+
+
 def _summary(cfg, prob, sol, trange, mesh_volume, probes, files, analysis_peak) -> dict:
     """The run's summary (``summary.json``), timings left to the caller."""
     ms, bal = prob.model, sol.info["balance"]
@@ -242,6 +261,7 @@ def _run(cfg: dict, out: Path, root: bool = True) -> dict:
         # high-water mark of the analysis alone (map, tiling, assembly, solve), before VTK is loaded for output
         analysis_peak = resources.peak_memory_mib()
         files, mesh_volume = _write_outputs(ocfg, out, sol, stages)
+        files.update(_exports(ocfg, out, ms, prob))
         t0 = time.perf_counter()
         tmin, tmax = sol.temperature_range(ocfg["samples"])
         summary = _summary(cfg, prob, sol, (tmin, tmax), mesh_volume, probes, files, analysis_peak)
