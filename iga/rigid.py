@@ -74,7 +74,8 @@ def free_modes(points: np.ndarray, labels: np.ndarray, prescribed: list, pieces:
         extra = 6 - rank - len(pure)
         if pure and extra > 0:
             named += f" and {extra} combined motion{'s' if extra > 1 else ''}"
-        where = f"piece {piece} of {pieces} (scalar DOF {int(np.flatnonzero(own)[0])} on)" if pieces > 1 else "the model"
+        where = (f"piece {piece} of {pieces} (the one holding scalar DOF {int(np.flatnonzero(own)[0])})" if pieces > 1
+                 else "the model")
         raise SingularProblemError(
             f"the displacement conditions leave {6 - rank} rigid-body motion{'s' if 6 - rank > 1 else ''} of "
             f"{where} free: {named}; hold more components (dirichlet(tag, value, components=...)) so that no "
