@@ -117,20 +117,27 @@ def effective_conductivity(tile, conductivity=1.0, degree_elevation: int = 1, re
                                                                             model.interfaces))
 
 
+def _gauss_slabs(prob, i: int):
+    """Per slab of patch ``i``'s Gauss grid: (points (m, 3), channels {name: (m,)}, metric rows c_r, det J (m,),
+    quadrature weights (m,)) for the cell-problem loads."""
+    space = prob.spaces[i]
+    w_rest = np.multiply.outer(space.dirs[1].qw, space.dirs[2].qw).ravel()
+    for planes, x, D, chans in patches_geometry_derivs_slabs([prob.model.patches[i]], space.qaxes, 1 << 16,
+                                                              rows_multiple=space.dirs[0].g):
+        cr, det = metric_rows(D)
+        yield (x.reshape(-1, 3), {ch: np.reshape(v, -1) for ch, v in chans.items()}, cr, det,
+               np.multiply.outer(space.dirs[0].qw[planes], w_rest).ravel())
+
+
 def _loads(prob):
     """B (ndof, 3): int k d_j N_i dV per DOF and direction; int k dV; int dV (the solid's volume)."""
     B = np.zeros((prob.ndof, 3))
     total_k = volume = 0.0
-    for i, patch in enumerate(prob.model.patches):
+    for i in range(len(prob.model.patches)):
         space = prob.spaces[i]
-        w_rest = np.multiply.outer(space.dirs[1].qw, space.dirs[2].qw).ravel()
         parts = []
-        for planes, x, D, chans in patches_geometry_derivs_slabs([patch], space.qaxes, 1 << 16,
-                                                                  rows_multiple=space.dirs[0].g):
-            flat = {ch: np.reshape(v, -1) for ch, v in chans.items()}
-            kval = prob.conductivity.values(x.reshape(-1, 3), flat, f"patch {i}")
-            cr, det = metric_rows(D)
-            w = np.multiply.outer(space.dirs[0].qw[planes], w_rest).ravel()
+        for xs, flat, cr, det, w in _gauss_slabs(prob, i):
+            kval = prob.conductivity.values(xs, flat, f"patch {i}")
             total_k += float(np.sum(kval * np.abs(det) * w))
             volume += float(np.sum(np.abs(det) * w))
             parts.append((cr, kval * np.sign(det) * w))
@@ -192,18 +199,12 @@ def _stiffness_loads(prob):
     B = np.zeros((3 * n, 6))
     mean = np.zeros((6, 6))
     volume = 0.0
-    for i, patch in enumerate(prob.model.patches):
+    for i in range(len(prob.model.patches)):
         space = prob.spaces[i]
-        w_rest = np.multiply.outer(space.dirs[1].qw, space.dirs[2].qw).ravel()
         parts = []
-        for planes, x, D, chans in patches_geometry_derivs_slabs([patch], space.qaxes, 1 << 16,
-                                                                  rows_multiple=space.dirs[0].g):
-            flat = {ch: np.reshape(v, -1) for ch, v in chans.items()}
-            xs = x.reshape(-1, 3)
+        for xs, flat, cr, det, w in _gauss_slabs(prob, i):
             lam, mu = lame(prob.youngs.values(xs, flat, f"patch {i}"), prob.poisson.values(xs, flat, f"patch {i}"),
                            f"patch {i}")
-            cr, det = metric_rows(D)
-            w = np.multiply.outer(space.dirs[0].qw[planes], w_rest).ravel()
             dv = np.abs(det) * w
             volume += float(dv.sum())
             for m, Em in enumerate(strains):
