@@ -92,6 +92,12 @@ def _cmd_run(args) -> int:
               f"balance error {s['energy_balance_error']:.1e}; {where}")
     if "elasticity" in s:
         print(f"{_plural(s['tiles'], 'tile')}, {_elastic_line(s['elasticity'])}; {where}")
+    if "temperature_C" not in s and "elasticity" not in s:  # a model without analysis (physics.kind = 'none')
+        extra = ""
+        if "surface" in s:
+            w = s["surface"]
+            extra = f"; surface of {w['triangles']:,} triangles, {'closed' if w['closed'] else 'open'}"
+        print(f"{_plural(s['tiles'], 'tile')} (no analysis){extra}; {where}")
     return 0
 
 

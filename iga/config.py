@@ -22,14 +22,15 @@ folder.  The schema (README, "Pipelines")::
 
 from __future__ import annotations
 
-import inspect
-from numbers import Real
 from pathlib import Path
 
 import solvers
 from geometry.faces import FACE_NAMES
 from tiling.library import TILES
 
+from .config_checks import (boolean as _bool, choice as _choice, fail as _fail, integer as _int, ints as _ints,
+                            kwargs as _kwargs, number as _number, string as _str, table as _table, tag as _tag)
+from .config_physics import physics as _physics
 from .errors import ProblemError
 from .maps import MAPS
 from geometry.errors import show
@@ -41,110 +42,6 @@ OUTPUT_DEFAULTS = {"dir": "out", "name": "result", "vtu": True, "bezier": False,
                    "tolerance": None, "probes": [], "exports": []}
 EXPORTS = ("stl", "obj", "ply", "vtp", "iges", "gismo")
 SOLVER_DEFAULTS = {"method": "auto", "tol": 1e-10, "maxiter": None, "refine": 0, "degree_elevation": 0}
-
-
-def _fail(where: str, message: str):
-    raise ProblemError(f"config key {where}: {message}")
-
-
-def _number(v, where, lo=None, hi=None, open_lo=True) -> float:
-    if not isinstance(v, Real) or isinstance(v, bool) or v != v or v in (float("inf"), float("-inf")):
-        _fail(where, f"must be a finite number, got {show(v)}")
-    if lo is not None and (v <= lo if open_lo else v < lo):
-        _fail(where, f"must be {'>' if open_lo else '>='} {lo}, got {show(v)}")
-    if hi is not None and v >= hi:
-        _fail(where, f"must be < {hi}, got {show(v)}")
-    return float(v)
-
-
-def _int(v, where, lo=0) -> int:
-    if not isinstance(v, int) or isinstance(v, bool):
-        _fail(where, f"must be an integer >= {lo}, got {show(v)}")
-    if v < lo:
-        _fail(where, f"must be an integer >= {lo}, got {show(v)}")
-    return int(v)
-
-
-def _bool(v, where) -> bool:
-    if not isinstance(v, bool):
-        _fail(where, f"must be true or false, got {show(v)}")
-    return v
-
-
-def _str(v, where) -> str:
-    if not isinstance(v, str) or not v:
-        _fail(where, f"must be a non-empty string, got {show(v)}")
-    return v
-
-
-def _choice(v, where, choices) -> str:
-    if not isinstance(v, str) or v not in choices:
-        _fail(where, f"must be one of {sorted(choices)}, got {show(v)}")
-    return v
-
-
-def _ints(v, where, n, lo=1) -> list[int]:
-    if not isinstance(v, list) or len(v) != n:
-        _fail(where, f"must be a list of {n} integers >= {lo}, got {show(v)}")
-    return [_int(x, f"{where}[{i}]", lo) for i, x in enumerate(v)]
-
-
-def _table(v, where, allowed, required=()) -> dict:
-    if not isinstance(v, dict):
-        _fail(where, f"must be a table, got {type(v).__name__} {show(v)}")
-    unknown = sorted(set(v) - set(allowed))
-    if unknown:
-        raise ProblemError(f"unknown config key {where}.{show(unknown[0])}; allowed keys: {sorted(allowed)}")
-    missing = [k for k in required if k not in v]
-    if missing:
-        raise ProblemError(f"missing required config key {where}.{show(missing[0])}")
-    return dict(v)
-
-
-def _kwargs(v, where, fn) -> dict:
-    """Keyword arguments for ``fn``, bound against its signature; values typed like the defaults."""
-    if not isinstance(v, dict):
-        _fail(where, f"must be a table of keyword arguments, got {show(v)}")
-    params = {n: p for n, p in inspect.signature(fn).parameters.items()
-              if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)}
-    out = {}
-    for key, value in v.items():
-        if key not in params:
-            _fail(f"{where}.{key}", f"is not an argument of {fn.__name__}; allowed: {sorted(params)}")
-        default = params[key].default
-        w = f"{where}.{key}"
-        if isinstance(default, bool):
-            out[key] = _bool(value, w)
-        elif isinstance(default, Real):
-            out[key] = _number(value, w)
-            if isinstance(default, int) and not float(value).is_integer():
-                _fail(w, f"must be an integer, got {show(value)}")
-            out[key] = int(value) if isinstance(default, int) else float(value)
-        elif isinstance(default, (tuple, list)):
-            if not isinstance(value, list) or len(value) != len(default):
-                _fail(w, f"must be a list of {len(default)} numbers, got {show(value)}")
-            out[key] = tuple(_number(x, f"{w}[{i}]", None) for i, x in enumerate(value))
-            if all(isinstance(d, int) for d in default):
-                if not all(float(x).is_integer() for x in out[key]):
-                    _fail(w, f"must be a list of {len(default)} integers, got {show(value)}")
-                out[key] = tuple(int(x) for x in out[key])
-        elif isinstance(default, str):
-            out[key] = _str(value, w)
-        elif default is None and key == "channels":
-            tbl = _table(value, w, set(value)) if isinstance(value, dict) else _fail(w, "must be a table {name = value}")
-            out[key] = {str(n): _number(x, f"{w}.{n}") for n, x in tbl.items()}
-        else:
-            out[key] = value
-    return out
-
-
-def _tag(v, where):
-    """A tag, a tag expression ('exterior - vmin', 'umin | umax', 'rest') or a list of them (their union)."""
-    if isinstance(v, list):
-        if not v:
-            _fail(where, "an empty list names no face; give tags, e.g. [\"umin\", \"umax\"]")
-        return [_str(x, f"{where}[{i}]") for i, x in enumerate(v)]
-    return _str(v, where)
 
 
 def _bc(v, where) -> dict:
@@ -247,77 +144,21 @@ def _grading(g, where) -> dict:
             "mode": _choice(g.get("mode", "parameter"), f"{where}.mode", ("parameter", "distance"))}
 
 
-PHYSICS = ("heat", "elasticity", "thermo-elastic")
-
-
-def _material_value(v, where, lo=None, hi=None):
-    """A number (checked against (lo, hi)) or a channel name."""
-    return _str(v, where) if isinstance(v, str) else _number(v, where, lo=lo, hi=hi)
-
-
-def _physics(config) -> dict:
-    """The checked [physics] section with its [[support]] and [[load]] tables (elastic kinds)."""
-    t = _table(config.get("physics", {}), "physics", {"kind", "youngs", "poisson", "expansion", "reference",
-                                                      "hold_rigid"})
-    kind = _choice(t.get("kind", "heat"), "physics.kind", PHYSICS)
-    out = {"kind": kind}
-    if kind == "heat":
-        for sec in ("support", "load"):
-            if sec in config:
-                raise ProblemError(f"config section {sec} applies to physics.kind = 'elasticity' or 'thermo-elastic'; "
-                                   "the heat problem takes [[bc]]")
-        extra = sorted(set(t) - {"kind"})
-        if extra:
-            _fail(f"physics.{extra[0]}", "applies to physics.kind = 'elasticity' or 'thermo-elastic'")
-        return out
-    for key in ("youngs", "poisson") + (("expansion",) if kind == "thermo-elastic" else ()):
-        if key not in t:
-            raise ProblemError(f"config section physics (kind {kind!r}) needs {key!r} (a number or a channel name)")
-    out["youngs"] = _material_value(t["youngs"], "physics.youngs", lo=0)
-    out["poisson"] = _material_value(t["poisson"], "physics.poisson", lo=-1, hi=0.5)
-    if kind == "thermo-elastic":
-        out["expansion"] = _material_value(t["expansion"], "physics.expansion")
-        out["reference"] = _number(t.get("reference", 20.0), "physics.reference")
-    elif "expansion" in t or "reference" in t:
-        _fail("physics.expansion", "applies to physics.kind = 'thermo-elastic'")
-    hold = t.get("hold_rigid", False)
-    if not isinstance(hold, bool):
-        _fail("physics.hold_rigid", f"must be true or false, got {show(hold)}")
-    out["hold_rigid"] = hold
-    sup = config.get("support", [])
-    sup = sup if isinstance(sup, list) else [sup]
-    out["support"] = [_support(s, f"support[{i}]") for i, s in enumerate(sup)]
-    loads = config.get("load", [])
-    loads = loads if isinstance(loads, list) else [loads]
-    out["load"] = [_load(x, f"load[{i}]") for i, x in enumerate(loads)]
-    if not out["support"] and not hold:
-        raise ProblemError("an elastic analysis needs [[support]] tables (tag, value, components) or "
-                           "physics.hold_rigid = true; without them the body is free to move")
-    return out
-
-
-def _vector(v, where, broadcast: bool):
-    if broadcast and not isinstance(v, list):
-        return _number(v, where)
-    if not (isinstance(v, list) and len(v) == 3):
-        _fail(where, f"must be {'a number or ' if broadcast else ''}a list of three numbers, got {show(v)}")
-    return [_number(x, f"{where}[{i}]") for i, x in enumerate(v)]
-
-
-def _support(v, where) -> dict:
-    t = _table(v, where, {"tag", "value", "components"}, ("tag",))
-    comps = t.get("components", "xyz")
-    if not (isinstance(comps, str) and comps and set(comps) <= set("xyz") and len(set(comps)) == len(comps)):
-        _fail(f"{where}.components", f"must be distinct letters of 'xyz' (e.g. 'z'), got {show(comps)}")
-    return {"tag": _tag(t["tag"], f"{where}.tag"), "value": _vector(t.get("value", 0.0), f"{where}.value", True),
-            "components": comps}
-
-
-def _load(v, where) -> dict:
-    t = _table(v, where, {"kind", "tag", "value"}, ("kind", "tag", "value"))
-    kind = _choice(t["kind"], f"{where}.kind", ("traction", "pressure"))
-    value = _number(t["value"], f"{where}.value") if kind == "pressure" else _vector(t["value"], f"{where}.value", False)
-    return {"kind": kind, "tag": _tag(t["tag"], f"{where}.tag"), "value": value}
+def _random_implicit(p) -> dict:
+    """The random implicit scheme (Massarwi et al. 2018, Section 4): a surface, exported by name."""
+    allowed = {"scheme", "counts", "alpha", "seed", "continuity", "connectivity", "cap", "resolution"}
+    extra = sorted(set(p) - allowed)
+    if extra:
+        _fail(f"paving.{extra[0]}", "does not apply to the random_implicit scheme")
+    if "counts" not in p:
+        raise ProblemError("config section paving (scheme 'random_implicit') needs 'counts' (cells per direction)")
+    return {"scheme": "random_implicit", "counts": _ints(p["counts"], "paving.counts", 3),
+            "alpha": _number(p.get("alpha", 0.5), "paving.alpha", lo=0, hi=1, open_lo=False),
+            "seed": _int(p.get("seed", 0), "paving.seed", 0),
+            "continuity": _choice(p.get("continuity", "C0"), "paving.continuity", ("C0", "C1")),
+            "connectivity": _int(p.get("connectivity", 1), "paving.connectivity", 1),
+            "cap": _bool(p.get("cap", False), "paving.cap"),
+            "resolution": _int(p.get("resolution", 12), "paving.resolution", 2)}
 
 
 def _bifurcation(p) -> dict:
@@ -355,10 +196,16 @@ def _tile(t) -> dict:
 def _paving(p) -> dict:
     """The checked [paving] section."""
     p = _table(p, "paving", {"scheme", "counts", "levels", "scale", "seal", "thickness", "seal_sides", "epsilon",
-                             "kind", "direction", "margin"}, ("scheme",))
-    scheme = _choice(p["scheme"], "paving.scheme", ("hierarchical", "regular", "bifurcation"))
+                             "kind", "direction", "margin", "alpha", "seed", "continuity", "connectivity", "cap",
+                             "resolution"}, ("scheme",))
+    scheme = _choice(p["scheme"], "paving.scheme", ("hierarchical", "regular", "bifurcation", "random_implicit"))
     if scheme == "bifurcation":
         return _bifurcation(p)
+    if scheme == "random_implicit":
+        return _random_implicit(p)
+    for key in ("alpha", "seed", "continuity", "connectivity", "cap", "resolution"):
+        if key in p:
+            _fail(f"paving.{key}", "applies to the random_implicit scheme only")
     for key in ("epsilon", "kind", "direction", "margin"):
         if key in p:
             _fail(f"paving.{key}", "applies to the bifurcation scheme only")
@@ -393,15 +240,17 @@ def validate(config, base_dir=".") -> dict:
     unknown = sorted(set(config) - set(SECTIONS))
     if unknown:
         raise ProblemError(f"unknown config section {show(unknown[0])}; sections: {list(SECTIONS)}")
-    bifurcating = isinstance(config.get("paving"), dict) and config["paving"].get("scheme") == "bifurcation"
+    bifurcating = isinstance(config.get("paving"), dict) and config["paving"].get("scheme") in ("bifurcation",
+                                                                                               "random_implicit")
     for sec in ("map", "paving") + (() if bifurcating else ("tile",)):
         if sec not in config:
             raise ProblemError(f"missing required config section {show(sec)}")
     if bifurcating and "tile" in config:
-        raise ProblemError("config section tile does not apply to the bifurcation scheme: it builds its own tiles "
-                           "(paving.kind '1-2', '1-4a' or '1-4b')")
+        raise ProblemError(f"config section tile does not apply to the {config['paving']['scheme']} scheme: it builds "
+                           "its own tiles (bifurcation: paving.kind '1-2', '1-4a' or '1-4b'; random implicit: "
+                           "random fields around the canonical tubes)")
     physics = _physics(config)
-    if physics["kind"] != "elasticity" and "bc" not in config:
+    if physics["kind"] in ("heat", "thermo-elastic") and "bc" not in config:
         raise ProblemError("missing required config section 'bc' (the heat problem's conditions)")
     if physics["kind"] == "elasticity" and "bc" in config:
         raise ProblemError("config section bc holds heat conditions; physics.kind = 'elasticity' takes [[support]] "
@@ -413,7 +262,7 @@ def validate(config, base_dir=".") -> dict:
                        "source": _number(mat.get("source", 0.0), "material.source")}
     bcs = config.get("bc", [])
     bcs = bcs if isinstance(bcs, list) else [bcs]
-    if not bcs and physics["kind"] != "elasticity":
+    if not bcs and physics["kind"] in ("heat", "thermo-elastic"):
         raise ProblemError("config section bc is empty; give at least one [[bc]] table")
     cfg["bc"] = [_bc(b, f"bc[{i}]") for i, b in enumerate(bcs)]
     s = _table(config.get("solver", {}), "solver", set(SOLVER_DEFAULTS))
@@ -424,6 +273,13 @@ def validate(config, base_dir=".") -> dict:
         "refine": _int(s.get("refine", 0), "solver.refine", 0),
         "degree_elevation": _int(s.get("degree_elevation", 0), "solver.degree_elevation", 0)}
     cfg["output"] = _output(config.get("output", {}), Path(base_dir))
+    if "gismo" in cfg["output"]["exports"] and physics["kind"] not in ("heat", "thermo-elastic"):
+        _fail("output.exports", "'gismo' writes the heat problem; it needs physics.kind = 'heat' or 'thermo-elastic'")
+    if cfg["paving"]["scheme"] == "random_implicit":
+        bad = sorted(set(cfg["output"]["exports"]) - {"stl", "obj", "ply", "vtp"})
+        if bad or cfg["output"]["bezier"]:
+            _fail("output.exports" if bad else "output.bezier", f"a random implicit structure is a triangulated surface "
+                  f"with no B-spline boundary: {bad or ['bezier']} cannot hold it; use stl, obj, ply or vtp")
     lim = _table(config.get("limits", {}), "limits", {"max_memory_gib"})
     cfg["limits"] = {"max_memory_gib": None if "max_memory_gib" not in lim
                      else _number(lim["max_memory_gib"], "limits.max_memory_gib", lo=0)}

@@ -77,3 +77,35 @@ def test_exports_by_name_are_written_and_read_back(tmp_path):
     cfg["output"]["exports"] = ["step"]
     with pytest.raises(ProblemError, match=r"output\.exports: must be a list of distinct names from"):
         validate(cfg, tmp_path)
+
+
+def test_a_random_implicit_structure_runs_to_its_surface_and_refuses_an_analysis(tmp_path):
+    import meshio
+
+    cfg = {"map": {"primitive": "box"}, "paving": {"scheme": "random_implicit", "counts": [2, 2, 2], "cap": True,
+                                                   "resolution": 6},
+           "output": {"dir": str(tmp_path / "o"), "png": False, "exports": ["stl"]}}
+    s = run_pipeline(cfg, tmp_path)
+    assert s["surface"]["closed"] and s["surface"]["components"] == 1 and set(s["files"]) == {"vtp", "stl"}
+    assert len(meshio.read(s["files"]["stl"]).cells_dict["triangle"]) == s["surface"]["triangles"]
+    heat = {**cfg, "bc": [{"kind": "dirichlet", "tag": "wmin", "value": 1.0}]}
+    with pytest.raises(ProblemError, match=r"is a surface .* not a volumetric B-spline model"):
+        validate(heat, tmp_path)
+    iges = {**cfg, "output": {**cfg["output"], "exports": ["iges"]}}
+    with pytest.raises(ProblemError, match=r"output\.exports: a random implicit structure is a triangulated surface"):
+        validate(iges, tmp_path)
+    with pytest.raises(ProblemError, match=r"paving\.alpha"):
+        validate({**cfg, "paving": {**cfg["paving"], "alpha": 2.0}}, tmp_path)
+
+
+def test_a_model_without_analysis_writes_its_geometry(tmp_path):
+    import pyvista as pv
+
+    cfg = {"map": {"primitive": "box"}, "tile": {"library": "cross"}, "paving": {"scheme": "regular", "counts": [2, 1, 1]},
+           "physics": {"kind": "none"}, "output": {"dir": str(tmp_path / "o"), "png": False, "exports": ["iges"]}}
+    s = run_pipeline(cfg, tmp_path)
+    assert set(s["files"]) == {"iges", "vtu"} and pv.read(s["files"]["vtu"]).n_cells > 0 and "temperature_C" not in s
+    with pytest.raises(ProblemError, match=r"config section bc needs an analysis"):
+        validate({**cfg, "bc": [{"kind": "dirichlet", "tag": "umin", "value": 1.0}]}, tmp_path)
+    with pytest.raises(ProblemError, match=r"'gismo' writes the heat problem"):
+        validate({**cfg, "output": {**cfg["output"], "exports": ["gismo"]}}, tmp_path)
