@@ -41,6 +41,7 @@ SECTIONS = ("map", "tile", "paving", "material", "bc", "physics", "support", "lo
 OUTPUT_DEFAULTS = {"dir": "out", "name": "result", "vtu": True, "bezier": False, "png": True, "samples": 3,
                    "tolerance": None, "probes": [], "exports": []}
 EXPORTS = ("stl", "obj", "ply", "vtp", "iges", "gismo")
+SURFACE_SCHEMES = ("random_implicit", "implicit_bifurcation")  # implicit structures: surfaces, no analysis
 SOLVER_DEFAULTS = {"method": "auto", "tol": 1e-10, "maxiter": None, "refine": 0, "degree_elevation": 0}
 
 
@@ -161,6 +162,22 @@ def _random_implicit(p) -> dict:
             "resolution": _int(p.get("resolution", 12), "paving.resolution", 2)}
 
 
+def _implicit_bifurcation(p) -> dict:
+    """The implicit bifurcation scheme (Massarwi et al. 2018, Section 5.2, Fig. 16): a surface over the adaptive
+    subdivision of ``epsilon``."""
+    extra = sorted(set(p) - {"scheme", "epsilon", "alpha", "seed", "cap", "resolution", "radius"})
+    if extra:
+        _fail(f"paving.{extra[0]}", "does not apply to the implicit_bifurcation scheme")
+    if "epsilon" not in p:
+        raise ProblemError("config section paving (scheme 'implicit_bifurcation') needs 'epsilon' (the largest cell "
+                           "edge, model units)")
+    return {"scheme": "implicit_bifurcation", "epsilon": _number(p["epsilon"], "paving.epsilon", lo=0),
+            "alpha": _number(p.get("alpha", 0.0), "paving.alpha", lo=0, hi=1, open_lo=False),
+            "seed": _int(p.get("seed", 0), "paving.seed", 0), "cap": _bool(p.get("cap", True), "paving.cap"),
+            "resolution": _int(p.get("resolution", 8), "paving.resolution", 2),
+            "radius": _number(p.get("radius", 0.35), "paving.radius", lo=0, hi=0.5)}
+
+
 def _bifurcation(p) -> dict:
     """The bifurcation scheme (Massarwi et al. 2018, Section 5): ``epsilon`` (model units) or ``levels`` (one per
     layer), ``kind`` ("1-2", "1-4a", "1-4b"), ``direction`` (0, 1, 2), ``margin``."""
@@ -197,13 +214,16 @@ def _paving(p) -> dict:
     """The checked [paving] section."""
     p = _table(p, "paving", {"scheme", "counts", "levels", "scale", "seal", "thickness", "seal_sides", "epsilon",
                              "kind", "direction", "margin", "alpha", "seed", "continuity", "connectivity", "cap",
-                             "resolution"}, ("scheme",))
-    scheme = _choice(p["scheme"], "paving.scheme", ("hierarchical", "regular", "bifurcation", "random_implicit"))
+                             "resolution", "radius"}, ("scheme",))
+    scheme = _choice(p["scheme"], "paving.scheme", ("hierarchical", "regular", "bifurcation", "random_implicit",
+                                                     "implicit_bifurcation"))
     if scheme == "bifurcation":
         return _bifurcation(p)
     if scheme == "random_implicit":
         return _random_implicit(p)
-    for key in ("alpha", "seed", "continuity", "connectivity", "cap", "resolution"):
+    if scheme == "implicit_bifurcation":
+        return _implicit_bifurcation(p)
+    for key in ("alpha", "seed", "continuity", "connectivity", "cap", "resolution", "radius"):
         if key in p:
             _fail(f"paving.{key}", "applies to the random_implicit scheme only")
     for key in ("epsilon", "kind", "direction", "margin"):
@@ -240,8 +260,8 @@ def validate(config, base_dir=".") -> dict:
     unknown = sorted(set(config) - set(SECTIONS))
     if unknown:
         raise ProblemError(f"unknown config section {show(unknown[0])}; sections: {list(SECTIONS)}")
-    bifurcating = isinstance(config.get("paving"), dict) and config["paving"].get("scheme") in ("bifurcation",
-                                                                                               "random_implicit")
+    bifurcating = isinstance(config.get("paving"), dict) and config["paving"].get("scheme") in (
+        "bifurcation", "random_implicit", "implicit_bifurcation")
     for sec in ("map", "paving") + (() if bifurcating else ("tile",)):
         if sec not in config:
             raise ProblemError(f"missing required config section {show(sec)}")
@@ -275,7 +295,7 @@ def validate(config, base_dir=".") -> dict:
     cfg["output"] = _output(config.get("output", {}), Path(base_dir))
     if "gismo" in cfg["output"]["exports"] and physics["kind"] not in ("heat", "thermo-elastic"):
         _fail("output.exports", "'gismo' writes the heat problem; it needs physics.kind = 'heat' or 'thermo-elastic'")
-    if cfg["paving"]["scheme"] == "random_implicit":
+    if cfg["paving"]["scheme"] in SURFACE_SCHEMES:
         bad = sorted(set(cfg["output"]["exports"]) - {"stl", "obj", "ply", "vtp"})
         if bad or cfg["output"]["bezier"]:
             _fail("output.exports" if bad else "output.bezier", f"a random implicit structure is a triangulated surface "

@@ -22,11 +22,13 @@ def physics(config) -> dict:
     """The checked [physics] section with its [[support]] and [[load]] tables (elastic kinds)."""
     t = _table(config.get("physics", {}), "physics", {"kind", "youngs", "poisson", "expansion", "reference",
                                                       "hold_rigid"})
-    implicit = isinstance(config.get("paving"), dict) and config["paving"].get("scheme") == "random_implicit"
+    implicit = isinstance(config.get("paving"), dict) and config["paving"].get("scheme") in ("random_implicit",
+                                                                                            "implicit_bifurcation")
     kind = _choice(t.get("kind", "none" if implicit and "bc" not in config else "heat"), "physics.kind", PHYSICS)
     out = {"kind": kind}
     if implicit and kind != "none":
-        raise ProblemError("the random implicit structure is a surface (the boundary of an implicit solid), not a "
+        raise ProblemError(f"the {config['paving']['scheme'].replace('_', ' ')} structure is a surface (the boundary "
+                           "of an implicit solid), not a "
                            "volumetric B-spline model: heat and elasticity need trivariate patches; drop [[bc]] and "
                            "[physics] (kind = \"none\"), and write the surface with [output] exports = [\"stl\"]")
     if kind == "none":

@@ -86,6 +86,9 @@ def _build_map(cfg) -> BSpline:
 
 def _build_tiling(cfg, D):
     p = cfg["paving"]
+    if p["scheme"] == "implicit_bifurcation":
+        return tiling.implicit_bifurcation(D, p["epsilon"], alpha=p["alpha"], seed=p["seed"], cap=p["cap"],
+                                           resolution=p["resolution"], radius=p["radius"])
     if p["scheme"] == "random_implicit":
         return tiling.random_implicit(D, p["counts"], alpha=p["alpha"], seed=p["seed"], continuity=p["continuity"],
                                       connectivity=p["connectivity"], cap=p["cap"], resolution=p["resolution"])
@@ -203,6 +206,11 @@ def _write_outputs(ocfg: dict, out: Path, sol, stages) -> tuple[dict, float | No
     return files, mesh_volume
 
 
+def _cells_of(s) -> int:
+    """Cells of an implicit structure: its grid (random implicit) or its adaptive subdivision (bifurcation)."""
+    return len(s.cells) if hasattr(s, "cells") else int(np.prod(s.counts))
+
+
 def _implicit_outputs(s, out: Path, ocfg: dict, stages, root: bool) -> dict:
     """A random implicit structure's outputs: its surface (``NAME.vtp`` with ``vtu``, the exports), a render,
     and the summary of the construction and of the surface's closedness."""
@@ -218,7 +226,7 @@ def _implicit_outputs(s, out: Path, ocfg: dict, stages, root: bool) -> dict:
             files["png"] = str(out / f"{ocfg['name']}.png")
     w = s.watertightness()
     stages.done()
-    return {"tiles": int(np.prod(s.counts)), "cells": list(s.counts), "levels": 1, "interfaces": 0,
+    return {"tiles": _cells_of(s), "levels": 1, "interfaces": 0,
             "surface": {k: bool(v) if isinstance(v, (bool, np.bool_)) else int(v) if isinstance(v, np.integer) else v
                         for k, v in w.items()},
             "construction": {k: v for k, v in getattr(s, "stats", {}).items() if isinstance(v, (int, float, str))},
@@ -267,7 +275,7 @@ def _run(cfg: dict, out: Path, root: bool = True) -> dict:
     if not root:  # another MPI rank: it assembles and solves its share, rank 0 writes
         ocfg = {**ocfg, "vtu": False, "bezier": False, "png": False}
     heat, elastic = kind in ("heat", "thermo-elastic"), kind in ("elasticity", "thermo-elastic")
-    implicit = cfg["paving"]["scheme"] == "random_implicit"
+    implicit = cfg["paving"]["scheme"] in ("random_implicit", "implicit_bifurcation")
     stages = display.Stages(4 if implicit else 3 + 3 * heat + 2 * elastic + (kind == "none"))
     stages.start("deformation map")
     D = _build_map(cfg["map"])
@@ -275,7 +283,7 @@ def _run(cfg: dict, out: Path, root: bool = True) -> dict:
 
     stages.start("tiling")
     ms = _build_tiling(cfg, D)
-    stages.done(f"({ms.counts} cells, random implicit)" if implicit else
+    stages.done(f"({_cells_of(ms)} cells, implicit)" if implicit else
                 f"({ms.n_tiles} tiles, {len(ms.interfaces)} interfaces)")
 
     summary, sol, timings = {}, None, {}

@@ -109,3 +109,14 @@ def test_a_model_without_analysis_writes_its_geometry(tmp_path):
         validate({**cfg, "bc": [{"kind": "dirichlet", "tag": "umin", "value": 1.0}]}, tmp_path)
     with pytest.raises(ProblemError, match=r"'gismo' writes the heat problem"):
         validate({**cfg, "output": {**cfg["output"], "exports": ["gismo"]}}, tmp_path)
+
+
+def test_an_implicit_bifurcation_of_the_duck_runs_to_a_closed_surface(tmp_path):
+    cfg = {"map": {"primitive": "duck"}, "paving": {"scheme": "implicit_bifurcation", "epsilon": 0.5},
+           "output": {"dir": str(tmp_path / "o"), "png": False, "vtu": False, "exports": ["ply"]}}
+    s = run_pipeline(cfg, tmp_path)
+    assert s["surface"]["closed"] and s["surface"]["components"] == 1 and s["tiles"] > 10 and set(s["files"]) == {"ply"}
+    with pytest.raises(ProblemError, match=r"the implicit bifurcation structure is a surface"):
+        validate({**cfg, "physics": {"kind": "heat"}, "bc": [{"kind": "dirichlet", "tag": "wmin", "value": 1.0}]})
+    with pytest.raises(ProblemError, match=r"needs 'epsilon'"):
+        validate({**cfg, "paving": {"scheme": "implicit_bifurcation"}})
