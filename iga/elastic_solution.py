@@ -12,7 +12,6 @@ from .elastic_forms import lame
 from .errors import ProblemError
 from .faces import chunks
 from .locate import Locator
-from .model import tag_faces
 from .solution import physical_gradient
 
 __all__ = ["ElasticSolution"]
@@ -129,7 +128,7 @@ class ElasticSolution:
     def reaction(self, tag: str) -> np.ndarray:
         """Force (3,) in N that the supports on the faces tagged ``tag`` exert on the body (the consistent
         residual of the prescribed unknowns, split among faces by their share of int N_i dA)."""
-        faces = set(tag_faces(self.problem.model, tag))
+        faces = set(self.problem.tag_faces(tag))
         if not faces:
             raise ProblemError(f"tag {tag!r} has no faces in this model")
         out = np.zeros(3)

@@ -33,7 +33,7 @@ from .forms import boundary_load
 from .model import tag_faces
 from .rigid import free_modes, greville_points, rigid_modes
 from .system import solve_system
-from .tags import as_expression
+from .tags import as_expression, check_expression, mentions_rest
 from .vector_data import VectorField, component_field, merge_dirichlet, pin_dofs
 
 __all__ = ["ElasticityProblem"]
@@ -95,7 +95,19 @@ class ElasticityProblem:
         self.rigid_hold = False
 
     # ------------------------------------------------------------ conditions
+    def tag_faces(self, tag) -> list:
+        """The faces of a tag or tag expression of this problem; ``rest``: every free face that no support or
+        load without ``rest`` covers (:mod:`iga.tags`)."""
+        if not mentions_rest(self.model, tag):
+            return tag_faces(self.model, tag)
+        covered = {f for c in self.supports + self.loads if not mentions_rest(self.model, c.tag)
+                   for f in tag_faces(self.model, c.tag)}
+        return tag_faces(self.model, tag, [f for f in self.model.tags.get("boundary", []) if f not in covered])
+
     def _faces_of(self, tag: str, what: str) -> list:
+        if mentions_rest(self.model, tag):
+            check_expression(self.model, tag)  # its faces are known once every condition is
+            return []
         faces = tag_faces(self.model, tag)
         if not faces:
             raise ProblemError(f"{what}: tag {show(tag)} has no faces in this model (every face it named is glued to "
@@ -184,7 +196,7 @@ class ElasticityProblem:
         """Add the traction and pressure loads to f; returns {tag: applied force (3,)}."""
         n, applied = self.ndof, {}
         for load in self.loads:
-            keys = tag_faces(self.model, load.tag)
+            keys = self.tag_faces(load.tag)
             fds = self.faces(keys)
             force = np.zeros(3)
             for fd in fds:
@@ -203,7 +215,7 @@ class ElasticityProblem:
         out = [{}, {}, {}]
         owner = [{}, {}, {}]
         for s in self.supports:
-            for key in tag_faces(self.model, s.tag):
+            for key in self.tag_faces(s.tag):
                 for a in s.components:
                     if key in out[a]:
                         raise ProblemError(f"patch {key[0]} face {key[1]}: displacement component {_AXES[a]} is "
