@@ -31,23 +31,17 @@ def physics(config) -> dict:
                            "of an implicit solid), not a "
                            "volumetric B-spline model: heat and elasticity need trivariate patches; drop [[bc]] and "
                            "[physics] (kind = \"none\"), and write the surface with [output] exports = [\"stl\"]")
-    if kind == "none":
-        for sec in ("bc", "support", "load"):
+    if kind in ("none", "heat"):  # no elastic keys; 'none' takes no conditions at all
+        sections = ("bc", "support", "load") if kind == "none" else ("support", "load")
+        why = ("needs an analysis; physics.kind = 'none' builds and exports the model only" if kind == "none" else
+               "applies to physics.kind = 'elasticity' or 'thermo-elastic'; the heat problem takes [[bc]]")
+        for sec in sections:
             if sec in config:
-                raise ProblemError(f"config section {sec} needs an analysis; physics.kind = 'none' builds and exports "
-                                   "the model only")
+                raise ProblemError(f"config section {sec} {why}")
         extra = sorted(set(t) - {"kind"})
         if extra:
-            _fail(f"physics.{extra[0]}", "applies to an analysis, not to physics.kind = 'none'")
-        return out
-    if kind == "heat":
-        for sec in ("support", "load"):
-            if sec in config:
-                raise ProblemError(f"config section {sec} applies to physics.kind = 'elasticity' or 'thermo-elastic'; "
-                                   "the heat problem takes [[bc]]")
-        extra = sorted(set(t) - {"kind"})
-        if extra:
-            _fail(f"physics.{extra[0]}", "applies to physics.kind = 'elasticity' or 'thermo-elastic'")
+            _fail(f"physics.{extra[0]}", "applies to an analysis, not to physics.kind = 'none'" if kind == "none"
+                  else "applies to physics.kind = 'elasticity' or 'thermo-elastic'")
         return out
     for key in ("youngs", "poisson") + (("expansion",) if kind == "thermo-elastic" else ()):
         if key not in t:
