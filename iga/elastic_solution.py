@@ -5,12 +5,11 @@ from __future__ import annotations
 import numpy as np
 
 from geometry import SplineFunction
-from geometry.chain import gradient_and_det, patch_geometry_points, patches_geometry_derivs
-from geometry.grouping import ObjectIndex
+from geometry.chain import patch_geometry_points
 
 from .elastic_forms import lame
 from .errors import ProblemError
-from .faces import chunks
+from .fields import integrate_fields
 from .locate import Locator
 from .solution import physical_gradient
 
@@ -140,32 +139,11 @@ class ElasticSolution:
     # ------------------------------------------------------------ integrals
     def integrate(self, fn) -> float:
         """Sum over the model of int fn(x, u, grad u) dV by the problem's Gauss rule; ``fn(x (N, 3), u (N, 3),
-        grad (N, 3, 3)) -> (N,)``."""
+        grad (N, 3, 3)) -> (N,)`` (:func:`iga.fields.integrate_fields`)."""
         prob = self.problem
-        same = ObjectIndex()
-        groups: dict = {}
-        for i, s in enumerate(prob.spaces):
-            groups.setdefault((s.key(), same(prob.model.patches[i].spline)), []).append(i)
-        total, n = 0.0, prob.ndof
-        for members in groups.values():
-            space = prob.spaces[members[0]]
-            B = [d.B[:, :, :-1] for d in space.dirs]
-            w = np.einsum("i,j,k->ijk", *[d.qw for d in space.dirs]).ravel()
-            for chunk in chunks(members, 3 * space.nq_total):
-                x, D, _ = patches_geometry_derivs([prob.model.patches[i] for i in chunk], space.qaxes)
-                vals, grads = [], []
-                for a in range(3):
-                    U = np.stack([self.u[a * n + prob.offsets[i] : a * n + prob.offsets[i + 1]].reshape(space.shape)
-                                  for i in chunk])
-                    vals.append(np.einsum("pabc,ai,bj,ck->pijk", U, B[0][0], B[1][0], B[2][0],
-                                          optimize=True).reshape(-1))
-                    dxi = np.stack([np.einsum("pabc,ai,bj,ck->pijk", U, *(B[d][int(d == k)] for d in range(3)),
-                                              optimize=True).reshape(-1) for k in range(3)], -1)
-                    g, det = gradient_and_det(D, dxi)
-                    grads.append(g)
-                wv = np.broadcast_to(w, (len(chunk), len(w))).reshape(-1)
-                total += float(np.sum(fn(x.reshape(-1, 3), np.stack(vals, 1), np.stack(grads, 1)) * np.abs(det) * wv))
-        return total
+        n, o = prob.ndof, prob.offsets
+        return integrate_fields(prob, lambda i: np.stack([self.u[a * n + o[i]:a * n + o[i + 1]].reshape(
+            prob.spaces[i].shape) for a in range(3)]), 3, fn)
 
     def strain_energy(self) -> float:
         """Elastic strain energy (J): 1/2 u^T K u (with a thermal strain, the energy of the total strain)."""

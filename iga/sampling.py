@@ -5,11 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from geometry.chain import gradient_and_det
 from geometry.sampling import piece_basis
 
 from .coefficients import tensor_matrix
 from .elastic_forms import lame
+from .fields import grid_fields
 
 __all__ = ["temperature_fields", "displacement_fields"]
 
@@ -31,12 +31,10 @@ def _temperature_fields(solution, members, pax, x, D, chans, out: dict) -> np.nd
     prob = solution.problem
     space = prob.spaces[members[0]]
     B = [piece_basis(d, a) for d, a in zip(space.dirs, pax)]  # per direction: (values, derivatives)
-    U = np.stack([solution.u[prob.offsets[i] : prob.offsets[i + 1]].reshape(space.shape) for i in members])
-    T = np.einsum("pabc,ia,jb,kc->pijk", U, B[0][0], B[1][0], B[2][0], optimize=True).reshape(len(members), -1)
-    dxi = np.stack([np.einsum("pabc,ia,jb,kc->pijk", U, *(B[d][int(d == k)] for d in range(3)), optimize=True)
-                    .reshape(len(members), -1) for k in range(3)], axis=-1)
-    P, N = T.shape
-    grad, det = gradient_and_det(D, dxi.reshape(-1, 3))
+    U = np.stack([solution.u[prob.offsets[i] : prob.offsets[i + 1]].reshape((1,) + space.shape) for i in members])
+    T, grad, det = grid_fields(U, B, D)
+    P, N = x.shape[:2]
+    T, grad = T[:, 0].reshape(P, N), grad[:, 0]
     grad[~np.all(np.isfinite(grad), axis=1)] = 0.0  # degenerate points (collapsed edges): no gradient
     flat = {c: np.reshape(v, -1) for c, v in chans.items()}
     K = prob.conductivity.values(x.reshape(-1, 3), flat, f"patches {members[0]}..{members[-1]}")
@@ -61,14 +59,10 @@ def _displacement_fields(solution, members, pax, x, D, chans, out: dict) -> np.n
     space, n = prob.spaces[members[0]], prob.ndof
     B = [piece_basis(d, a) for d, a in zip(space.dirs, pax)]
     P, N = x.shape[:2]
-    u, grad, det = np.empty((P * N, 3)), np.empty((P * N, 3, 3)), None
-    for a in range(3):
-        U = np.stack([solution.u[a * n + prob.offsets[i] : a * n + prob.offsets[i + 1]].reshape(space.shape)
-                      for i in members])
-        u[:, a] = np.einsum("pabc,ia,jb,kc->pijk", U, B[0][0], B[1][0], B[2][0], optimize=True).reshape(-1)
-        dxi = np.stack([np.einsum("pabc,ia,jb,kc->pijk", U, *(B[d][int(d == k)] for d in range(3)), optimize=True)
-                        .reshape(-1) for k in range(3)], axis=-1)
-        grad[:, a], det = gradient_and_det(D, dxi)
+    o = prob.offsets
+    U = np.stack([np.stack([solution.u[a * n + o[i] : a * n + o[i + 1]].reshape(space.shape) for a in range(3)])
+                  for i in members])
+    u, grad, det = grid_fields(U, B, D)
     grad[~np.all(np.isfinite(grad), axis=(1, 2))] = 0.0  # degenerate points: no gradient
     flat = {c: np.reshape(v, -1) for c, v in chans.items()}
     xs = x.reshape(-1, 3)

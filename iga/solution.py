@@ -8,11 +8,10 @@ from geometry import SplineFunction
 
 from .coefficients import tensor_matrix
 from .errors import ProblemError
-from .faces import chunks
-from geometry.chain import gradient_and_det, patch_geometry_points, patches_geometry_derivs
+from .fields import integrate_fields
+from geometry.chain import patch_geometry_points
 from geometry.sampling import sample_axes
 from .locate import Locator
-from geometry.grouping import ObjectIndex
 from geometry.tolerances import SINGULAR
 
 
@@ -164,31 +163,12 @@ class Solution:
         """Sum over the model of int fn(x, T, grad T) dV, by the problem's Gauss rule.
 
         ``fn(x (N, 3), T (N,), grad (N, 3)) -> (N,)``; patches sharing a tile
-        spline and a space are evaluated together.
+        spline and a space are evaluated together (:func:`iga.fields.integrate_fields`).
         """
-        same = ObjectIndex()  # patches share splines and maps: group by object
         prob = self.problem
-        groups: dict = {}
-        for i, s in enumerate(prob.spaces):
-            groups.setdefault((s.key(), same(prob.model.patches[i].spline)), []).append(i)
-        total = 0.0
-        for members in groups.values():
-            space = prob.spaces[members[0]]
-            for chunk in chunks(members, space.nq_total):
-                x, D, _ = patches_geometry_derivs([prob.model.patches[i] for i in chunk], space.qaxes)
-                B = [d.B[:, :, :-1] for d in space.dirs]  # (2, n, nq): values and derivatives
-                U = np.stack([self.u[prob.offsets[i] : prob.offsets[i + 1]].reshape(space.shape) for i in chunk])
-                T = np.einsum("pabc,ai,bj,ck->pijk", U, B[0][0], B[1][0], B[2][0], optimize=True).reshape(-1)
-                dxi = np.stack([np.einsum("pabc,ai,bj,ck->pijk", U, *(B[d][int(d == k)] for d in range(3)),
-                                          optimize=True).reshape(-1) for k in range(3)], -1)
-                grad, det = gradient_and_det(D, dxi)
-                if not np.all(np.isfinite(grad)):
-                    raise ProblemError(f"patches {chunk[0]}..{chunk[-1]}: the geometry Jacobian is singular at a Gauss "
-                                       "point; the model is degenerate there")
-                w = np.einsum("i,j,k->ijk", *[d.qw for d in space.dirs]).ravel()
-                wv = np.broadcast_to(w, (len(chunk), len(w))).reshape(-1)
-                total += float(np.sum(fn(x.reshape(-1, 3), T, grad) * np.abs(det) * wv))
-        return total
+        return integrate_fields(
+            prob, lambda i: self.u[prob.offsets[i]:prob.offsets[i + 1]].reshape((1,) + prob.spaces[i].shape), 1,
+            lambda x, v, g: fn(x, v[:, 0], g[:, 0]))
 
     def volume(self) -> float:
         """Volume of the model (m^3), by the problem's Gauss rule."""
