@@ -53,7 +53,9 @@ def _variants(r: int, s: int | None) -> tuple:
 
 
 def block_terms(c, fac, lam, mu, a: int, b: int, shape) -> list:
-    """The banded-form terms [(F (P,) + qshape, derivative orders)] of block (a, b); ``fac`` = w / |det J|.
+    """The banded-form terms [(F (P,) + qshape, derivative orders)] of block (a, b); ``fac`` = w / |det J|: the
+    plain nine-term form, the reference the split assembly (:func:`symmetric_fields`, :func:`skew_terms`) is
+    tested against.
 
     Off the diagonal all nine.  On a diagonal block F is symmetric, so only the half H = F_rr / 2 + F_rs
     (r < s) is returned, six terms, and the block is H + H^T (as :func:`iga.assembly.stiffness_data`)."""

@@ -3,10 +3,12 @@
 The displacement is numbered component-major: unknown ``a * ndof + i`` is
 component a (x, y, z) of scalar DOF i, so each of the nine blocks K^{ab} lives
 on the scalar sparsity pattern and the interface constraints of the scalar
-problem apply to every component (:func:`vector_constraints`).  Each block is
-one sum-factorised banded form (:func:`iga.assembly.banded_form`) of the
-terms of :mod:`iga.elastic_forms`, batched over patches sharing a space and a
-tile spline; the lower blocks are transposes (a gather of the CSR data).
+problem apply to every component (:func:`vector_constraints`).  Each block's
+symmetric part goes through the scalar stiffness kernel (compiled for large
+patches, :mod:`iga.fast_assembly`), an off-diagonal block's antisymmetric part
+through three sum-factorised banded terms (:func:`iga.assembly.banded_form`),
+batched over patches sharing a space and a tile spline; the lower blocks are
+transposes.
 """
 
 from __future__ import annotations
@@ -82,7 +84,7 @@ class ElasticVolume:
             fb = None if body is None else body.values(xs, where) * (adet * w)[:, None]
             th = None
             if thermal is not None:
-                params = _slab_params(space, planes, P)
+                params = _slab_params(space, planes)
                 strain = np.concatenate([thermal(i, x[j], params, {k: v[j] for k, v in chans.items()})
                                          for j, i in enumerate(members)])
                 th = (3 * lam + 2 * mu) * strain * np.sign(det) * w
@@ -130,7 +132,7 @@ class ElasticVolume:
         return pat, data, loads, force
 
 
-def _slab_params(space, planes, P: int) -> np.ndarray:
+def _slab_params(space, planes) -> np.ndarray:
     """Parameters (m, 3) of the Gauss points of a slab of first-axis planes (C order)."""
     ax = [space.qaxes[0][planes], space.qaxes[1], space.qaxes[2]]
     return np.stack(np.meshgrid(*ax, indexing="ij"), -1).reshape(-1, 3)
