@@ -14,6 +14,8 @@ from __future__ import annotations
 import numpy as np
 
 from geometry import knots as kn
+from geometry.chain import patches_geometry_derivs
+from geometry.grouping import ObjectIndex
 
 from .errors import SingularProblemError
 
@@ -24,12 +26,19 @@ MODE_NAMES = ("translation along x", "translation along y", "translation along z
 
 
 def greville_points(model, spaces, offsets) -> np.ndarray:
-    """Physical points (ndof, 3) of every scalar DOF: its patch's image of the Greville abscissae."""
+    """Physical points (ndof, 3) of every scalar DOF: its patch's image of the Greville abscissae (one batched
+    evaluation per group of patches sharing a tile spline and a space)."""
     out = np.empty((int(offsets[-1]), 3))
-    for pi, (patch, space) in enumerate(zip(model.patches, spaces)):
-        g = [kn.greville(d.knots, d.degree) for d in space.dirs]
-        params = np.stack(np.meshgrid(*g, indexing="ij"), -1).reshape(-1, 3)
-        out[offsets[pi] : offsets[pi + 1]] = patch.image(params)[:, :3]
+    same = ObjectIndex()
+    groups: dict = {}
+    for i, s in enumerate(spaces):
+        groups.setdefault((s.key(), same(model.patches[i].spline)), []).append(i)
+    for members in groups.values():
+        space = spaces[members[0]]
+        axes = [kn.greville(d.knots, d.degree) for d in space.dirs]
+        x, _, _ = patches_geometry_derivs([model.patches[i] for i in members], axes)
+        for j, i in enumerate(members):
+            out[offsets[i] : offsets[i + 1]] = x[j]
     return out
 
 
