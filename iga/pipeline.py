@@ -23,7 +23,7 @@ from geometry import BSpline, load, resources
 from geometry import progress as display
 from geometry.iges import write_iges
 from geometry.io import atomic_write, offscreen_plotter, save_screenshot
-from tiling.export import boundary_splines, write_surfaces
+from tiling.export import boundary_splines, mesh_watertightness, write_mesh, write_surfaces
 from tiling.library import TILES
 from tiling.materials import graded_channel
 
@@ -216,15 +216,15 @@ def _implicit_outputs(s, out: Path, ocfg: dict, stages, root: bool) -> dict:
     and the summary of the construction and of the surface's closedness."""
     stages.start("surface output")
     files = {}
+    mesh = s.surface()  # contoured once: every file and the report use this mesh
     if root:
-        if ocfg["vtu"]:
-            files["vtp"] = str(s.write(out / f"{ocfg['name']}.vtp"))
-        for kind in ocfg["exports"]:
-            files[kind] = str(s.write(out / f"{ocfg['name']}.{kind}"))
+        names = (["vtp"] if ocfg["vtu"] else []) + [k for k in ocfg["exports"] if k != "vtp" or not ocfg["vtu"]]
+        for kind in names:
+            files[kind] = str(write_mesh(out / f"{ocfg['name']}.{kind}", mesh))
         if ocfg["png"]:
             s.render_png(out / f"{ocfg['name']}.png", color_by="w")
             files["png"] = str(out / f"{ocfg['name']}.png")
-    w = s.watertightness()
+    w = mesh_watertightness(mesh)
     stages.done()
     return {"tiles": _cells_of(s), "levels": 1, "interfaces": 0,
             "surface": {k: bool(v) if isinstance(v, (bool, np.bool_)) else int(v) if isinstance(v, np.integer) else v
