@@ -1,7 +1,7 @@
 """Isogeometric analysis on micro-structures: spaces, assembly, heat problem, VTU export.
 
 Public names: :class:`HeatProblem`, :class:`Solution`, :class:`ElasticityProblem`, :class:`ElasticSolution`,
-:func:`write_vtu`,
+:func:`effective_conductivity`, :func:`effective_stiffness`, :func:`write_vtu`,
 :class:`ProblemError`.  Command line: ``iga --help``.
 """
 
@@ -9,8 +9,9 @@ from .errors import ProblemError, SingularProblemError
 from .problem import HeatProblem
 from .elasticity import ElasticityProblem
 from .elastic_solution import ElasticSolution
+from .homogenize import effective_conductivity, effective_stiffness
 from .solution import Solution
 from .vtu import write_vtu
 
 __all__ = ["ProblemError", "SingularProblemError", "HeatProblem", "Solution", "ElasticityProblem", "ElasticSolution",
-           "write_vtu"]
+           "effective_conductivity", "effective_stiffness", "write_vtu"]

@@ -117,13 +117,13 @@ def _cmd_homogenize(args) -> int:
         tile = TILES[args.tile](**kwargs)
     except TypeError as exc:
         raise ProblemError(f"tile {args.tile!r} does not take {sorted(kwargs)}: {exc}") from None
-    k = effective_conductivity(tile, args.conductivity, refine=args.refine)
+    k = effective_conductivity(tile, args.conductivity, refine=args.refine, diagnostics=True)
     np.set_printoptions(precision=6, suppress=True)
     print(f"{args.tile}{kwargs or ''}: volume fraction {k.volume_fraction:.6g}; effective conductivity "
           f"(k = {args.conductivity:g}), symmetry error {k.symmetry_error:.1e}:")
     print(k.tensor)
     if args.youngs is not None:
-        c = effective_stiffness(tile, args.youngs, args.poisson, refine=args.refine)
+        c = effective_stiffness(tile, args.youngs, args.poisson, refine=args.refine, diagnostics=True)
         scale = 10.0 ** np.floor(np.log10(max(np.abs(c.tensor).max(), 1e-300)))
         print(f"effective stiffness (E = {args.youngs:g}, nu = {args.poisson:g}; Voigt xx yy zz yz xz xy, "
               f"engineering shears) in units of {scale:g} Pa, symmetry error {c.symmetry_error:.1e}:")

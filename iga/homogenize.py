@@ -94,11 +94,14 @@ def _check_walls(vols, k: int, glued: set, n: int) -> None:
                                            "homogenisation needs opposite walls that conform")
 
 
-def effective_conductivity(tile, conductivity=1.0, degree_elevation: int = 1, refine: int = 0) -> Effective:
+def effective_conductivity(tile, conductivity=1.0, degree_elevation: int = 1, refine: int = 0,
+                           diagnostics: bool = False):
     """The effective conductivity tensor (3, 3) of ``tile`` paving the unit cell periodically (module notes).
 
     ``conductivity``: W/(m K), a number, a channel name of the tile or a callable of the cell point x (N, 3)
-    (isotropic); ``degree_elevation``, ``refine``: the cell problems' spaces, as for :class:`iga.HeatProblem`.
+    (isotropic); ``degree_elevation``, ``refine``: the cell problems' spaces, as for :class:`iga.HeatProblem`;
+    ``diagnostics``: return the :class:`Effective` (tensor, volume fraction, symmetry error, unknowns)
+    instead of the array alone.
     """
     model = periodic_cell(tile)
     prob = HeatProblem(model, conductivity=conductivity, degree_elevation=degree_elevation, refine=refine)
@@ -113,8 +116,9 @@ def effective_conductivity(tile, conductivity=1.0, degree_elevation: int = 1, re
     X[keep] = np.column_stack([sp.linalg.spsolve(A[keep][:, keep], -Br[keep, j]) for j in range(3)])
     Keff = total_k * np.eye(3) + Br.T @ X  # K_ij = int k delta_ij + b_i(chi_j)  (the unit cell: |Y| = 1)
     sym = float(np.abs(Keff - Keff.T).max() / max(np.abs(Keff).max(), 1e-300))
-    return Effective(0.5 * (Keff + Keff.T), volume, sym, int(A.shape[0]), sum(i.kind == "identity" for i in
-                                                                            model.interfaces))
+    out = Effective(0.5 * (Keff + Keff.T), volume, sym, int(A.shape[0]),
+                    sum(i.kind == "identity" for i in model.interfaces))
+    return out if diagnostics else out.tensor
 
 
 def _gauss_slabs(prob, i: int):
@@ -160,14 +164,15 @@ def _unit_strains() -> list:
     return out
 
 
-def effective_stiffness(tile, youngs, poisson, degree_elevation: int = 1, refine: int = 0) -> Effective:
+def effective_stiffness(tile, youngs, poisson, degree_elevation: int = 1, refine: int = 0,
+                        diagnostics: bool = False):
     """The effective elasticity tensor (6, 6) in Voigt notation (xx, yy, zz, yz, xz, xy; engineering shear
     strains) of ``tile`` paving the unit cell periodically: the six cell problems
     div C (eps(chi_m) + E_m) = 0 with chi_m periodic, C_mn = int E_m : C : (E_n + eps(chi_n)) dV.
 
     ``youngs`` (Pa) and ``poisson``: numbers, channel names or callables of the cell point, as for
     :class:`iga.ElasticityProblem`; the correctors are fixed against the three translations they are defined
-    up to by pinning one unknown of each component.
+    up to by pinning one unknown of each component; ``diagnostics`` as for :func:`effective_conductivity`.
     """
     from .elastic_volume import ElasticVolume, vector_constraints
     from .elasticity import ElasticityProblem
@@ -186,8 +191,8 @@ def effective_stiffness(tile, youngs, poisson, degree_elevation: int = 1, refine
     X[keep] = lu.solve(-Br[keep])
     C = mean + Br.T @ X
     sym = float(np.abs(C - C.T).max() / max(np.abs(C).max(), 1e-300))
-    return Effective(0.5 * (C + C.T), volume, sym, int(A.shape[0]),
-                     sum(i.kind == "identity" for i in model.interfaces))
+    out = Effective(0.5 * (C + C.T), volume, sym, int(A.shape[0]), sum(i.kind == "identity" for i in model.interfaces))
+    return out if diagnostics else out.tensor
 
 
 def _stiffness_loads(prob):
