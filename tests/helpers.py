@@ -78,3 +78,26 @@ def read_own_iges(path):
         assert int(values[0]) == etype
         out.append(values)
     return out
+
+
+def decode_appended_vtu(path) -> dict:
+    """Every DataArray of a VTU with raw appended, zlib-compressed data (UInt32 headers), by name."""
+    import xml.etree.ElementTree as ET
+    import zlib
+
+    raw = path.read_bytes()
+    start = raw.index(b"<AppendedData")
+    head = raw[:start].decode() + "</VTKFile>"
+    data = raw[raw.index(b"_", start) + 1:]
+    dtypes = {"Float64": "<f8", "Float32": "<f4", "Int32": "<i4", "Int64": "<i8", "UInt8": "u1"}
+    out = {}
+    for el in ET.fromstring(head).iter("DataArray"):
+        off = int(el.get("offset"))
+        nb = int(np.frombuffer(data[off:off + 4], "<u4")[0])
+        sizes = np.frombuffer(data[off + 12:off + 12 + 4 * nb], "<u4")
+        pos, chunks = off + 12 + 4 * nb, []
+        for s in sizes:
+            chunks.append(zlib.decompress(data[pos:pos + int(s)]))
+            pos += int(s)
+        out[el.get("Name")] = np.frombuffer(b"".join(chunks), dtypes[el.get("type")])
+    return out

@@ -74,6 +74,20 @@ def test_exports_by_name_are_written_and_read_back(tmp_path):
     assert len(meshio.read(s["files"]["stl"]).cells_dict["triangle"]) > 100
     assert "B-spline surfaces" in describe(__import__("pathlib").Path(s["files"]["iges"]))[0]
     assert len(read_gismo(s["files"]["gismo"]).patches) == 14
+    gmsh = pytest.importorskip("gmsh")  # the second readers: OpenCASCADE for the IGES, G+Smo for the XML
+    gmsh.initialize()
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.option.setNumber("Geometry.OCCImportLabels", 0)
+        gmsh.model.occ.importShapes(s["files"]["iges"])
+        gmsh.model.occ.synchronize()
+        n_iges = len(gmsh.model.getEntities(2))
+    finally:
+        gmsh.finalize()
+    assert n_iges == int(describe(__import__("pathlib").Path(s["files"]["iges"]))[0].split("IGES, ")[1].split()[0])
+    gs = pytest.importorskip("pygismo")
+    mp = gs.core.gsMultiPatch()
+    assert gs.io.gsFileData(s["files"]["gismo"]).getFirst(mp) and mp.nPatches() == 14
     cfg["output"]["exports"] = ["step"]
     with pytest.raises(ProblemError, match=r"output\.exports: must be a list of distinct names from"):
         validate(cfg, tmp_path)
@@ -116,6 +130,9 @@ def test_an_implicit_bifurcation_of_the_duck_runs_to_a_closed_surface(tmp_path):
            "output": {"dir": str(tmp_path / "o"), "png": False, "vtu": False, "exports": ["ply"]}}
     s = run_pipeline(cfg, tmp_path)
     assert s["surface"]["closed"] and s["surface"]["components"] == 1 and s["tiles"] > 10 and set(s["files"]) == {"ply"}
+    import meshio
+
+    assert len(meshio.read(s["files"]["ply"]).cells_dict["triangle"]) == s["surface"]["triangles"]
     with pytest.raises(ProblemError, match=r"the implicit bifurcation structure is a surface"):
         validate({**cfg, "physics": {"kind": "heat"}, "bc": [{"kind": "dirichlet", "tag": "wmin", "value": 1.0}]})
     with pytest.raises(ProblemError, match=r"needs 'epsilon'"):

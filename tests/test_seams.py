@@ -6,7 +6,7 @@ import pytest
 import tiling
 from geometry import primitives as pr
 from geometry.chain import patch_geometry_points, gradient_and_det
-from helpers import surface_gauss
+from helpers import decode_appended_vtu, surface_gauss
 from iga import HeatProblem, write_vtu
 from iga.config import validate
 from iga.pipeline import _build_map, _build_tiling, heat_sink_config
@@ -54,34 +54,11 @@ def test_bezier_vtu_arrays_decode_with_a_second_reader(tmp_path):
     sol = HeatProblem(ms).dirichlet("wmin", 1.0).robin("exterior", 1.0, 0.0).solve()
     path = write_vtu(tmp_path / "b.vtu", sol, cells="bezier")
     grid = pv.read(path)
-    arrays = _decode_appended_vtu(path)
+    arrays = decode_appended_vtu(path)
     assert np.array_equal(arrays["Points"].reshape(-1, 3), grid.points)
     assert np.array_equal(arrays["temperature"], grid.point_data["temperature"])
     assert np.array_equal(arrays["types"], grid.celltypes) and set(arrays["types"]) == {79}
     assert np.array_equal(arrays["HigherOrderDegrees"].reshape(-1, 3), grid.cell_data["HigherOrderDegrees"])
-
-
-def _decode_appended_vtu(path) -> dict:
-    """Every DataArray of a VTU with raw appended, zlib-compressed data (UInt32 headers), by name."""
-    import xml.etree.ElementTree as ET
-    import zlib
-
-    raw = path.read_bytes()
-    start = raw.index(b"<AppendedData")
-    head = raw[:start].decode() + "</VTKFile>"
-    data = raw[raw.index(b"_", start) + 1:]
-    dtypes = {"Float64": "<f8", "Float32": "<f4", "Int32": "<i4", "Int64": "<i8", "UInt8": "u1"}
-    out = {}
-    for el in ET.fromstring(head).iter("DataArray"):
-        off = int(el.get("offset"))
-        nb = int(np.frombuffer(data[off:off + 4], "<u4")[0])
-        sizes = np.frombuffer(data[off + 12:off + 12 + 4 * nb], "<u4")
-        pos, chunks = off + 12 + 4 * nb, []
-        for s in sizes:
-            chunks.append(zlib.decompress(data[pos:pos + int(s)]))
-            pos += int(s)
-        out[el.get("Name")] = np.frombuffer(b"".join(chunks), dtypes[el.get("type")])
-    return out
 
 
 def test_every_boundary_point_of_the_demo_sinks_can_be_probed(demo, tmp_path):
