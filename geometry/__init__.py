@@ -18,7 +18,7 @@ _LAZY = {
     "multiply": "products", "save": "io", "load": "io", "save_all": "io", "load_all": "io",
     "compose": "composition", "compose_many": "composition", "compose_placed": "composition",
     "map_points": "composition", "result_degrees": "composition", "TrimmedSurface": "trimmed",
-    "reduce_degree": "reduction", "reduce_model": "reduction", "check_regular": "regularity",
+    "reduce_degree": "reduction", "reduce_model": "reduction", "reduced_model": "reduction", "check_regular": "regularity",
     "RegularityResult": "regularity", "invert": "inversion", "Interface": "multipatch",
     "MultiPatch": "multipatch", "PlacedPatch": "multipatch", "detect_interfaces": "multipatch",
 }
@@ -41,7 +41,7 @@ def __dir__():
 
 
 __all__ = [
-    "compose_placed", "TrimmedSurface", "reduce_degree", "reduce_model","BSpline", "SplineFunction", "SplineError", "ToolkitError", "FACE_NAMES", "FACE_AXIS", "faces", "knots",
+    "compose_placed", "TrimmedSurface", "reduce_degree", "reduce_model", "reduced_model", "BSpline", "SplineFunction", "SplineError", "ToolkitError", "FACE_NAMES", "FACE_AXIS", "faces", "knots",
            "bernstein", "primitives", "multiply", "save", "load", "save_all", "load_all", "compose", "compose_many",
            "map_points", "result_degrees", "check_regular", "RegularityResult", "invert", "Interface", "MultiPatch",
            "PlacedPatch", "detect_interfaces"]

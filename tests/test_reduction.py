@@ -97,3 +97,47 @@ def test_reduction_bad_input():
     with pytest.raises(SplineError, match="check"):
         reduce_degree(pr.box(), 2, check=1)
     assert compose  # (imported for the module's users)
+
+
+def _t2_sink():
+    return tiling.hierarchical(pr.box((0.06, 0.06, 0.03), degrees=(2, 2, 2)), L.heat_sink_t2(), (2, 2), levels=2)
+
+
+def test_discontinuities_survive_the_reduction():
+    """The slots of a partial discontinuity (knots of full multiplicity) stay slots: each piece is fitted to its
+    own one-sided polynomial and the reduced patch keeps the knot of multiplicity q + 1."""
+    V = _t2_sink().patches[0].composed  # degree 12; u = 0.5 and v = 0.5 are C^-1, w = 0.4 is C0
+    rng = np.random.default_rng(3)
+    for q in (2, 3):
+        R, dev = reduce_degree(V, q)
+        for k, mult in ((0, q + 1), (1, q + 1), (2, q)):
+            vals, counts = np.unique(R.knots[k], return_counts=True)
+            assert counts[1:-1].tolist() == [mult] and vals[1] == pytest.approx(0.5 if k < 2 else 0.4)
+        assert dev < 1e-12  # the map is affine and the tile quadratic: the reduction is exact
+        for side in (-1, 1):  # both one-sided limits at the discontinuity, at random (v, w) above the base
+            x = np.column_stack([np.full(200, 0.5 + side * 1e-13), rng.random(200), 0.4 + 0.6 * rng.random(200)])
+            assert np.abs(V.evaluate(x)[:, :3] - R.evaluate(x)[:, :3]).max() < 1e-12
+
+
+def test_a_reduced_hierarchy_keeps_its_topology_and_tags_and_solves_as_the_original():
+    from geometry import reduced_model
+
+    ms = _t2_sink()
+    red, report = reduced_model(ms, 2)
+    assert [i.kind for i in red.interfaces] == [i.kind for i in ms.interfaces] and red.tags == ms.tags
+    assert red.face_regions == ms.face_regions and report["branch_gap"] < 1e-12
+    sols = [HeatProblem(m, 50.0).neumann("branch-in", 1000.0).robin("exterior", 5.0, 30.0).solve(tol=1e-12)
+            for m in (ms, red)]
+    # same geometry, same spaces (the tile's degree 2 on the same knots): the same temperatures
+    assert sols[1].mean_temperature() == pytest.approx(sols[0].mean_temperature(), rel=1e-10)
+    assert sols[1].flux("exterior") == pytest.approx(sols[0].flux("exterior"), rel=1e-9)
+    assert sols[1].info["components"]["count"] == 1 and sols[1].info["balance"]["relative_error"] < 1e-10
+    # a curved map: the reduction is an approximation; its branch sides are reported apart by what it moved
+    from iga.maps import circular_heat_sink_map
+
+    sink = tiling.hierarchical(circular_heat_sink_map(), L.heat_sink_t1(), (4, 1), levels=2)
+    red, report = reduced_model(sink, 3)
+    assert 0 < report["branch_gap"] <= 2 * report["deviation"] < 1e-5
+    t = [HeatProblem(m, 50.0).neumann("branch-in", 1000.0).robin("exterior", 5.0, 30.0).solve().mean_temperature()
+         for m in (sink, red)]
+    assert abs(t[1] - t[0]) < 1e-3 * abs(t[0])
