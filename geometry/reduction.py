@@ -177,17 +177,15 @@ def _fit_edges(C, at, q: int, t, B) -> None:
 def _fit_faces(C, at, q: int, t, B) -> None:
     """The inner (q-1)^2 control points of every face, by least squares on an s x s sample grid (in place)."""
     E, m = C.shape[0], C.shape[-1]
-    s = len(t)
     # faces: normal axis k at side c, inner (q-1)^2 points by least squares
     for k in range(3):
-        o = [j for j in range(3) if j != k]
         for c in (0, 1):
             axes = [t, t, t]
             axes[k] = [float(c)]
-            samples = at(axes)  # (E, s, s, m) with a unit axis k: the grid of axes o[0], o[1]
+            samples = at(axes)  # (E, s, s, m) with a unit axis k: the grid of the other two axes
             idx = [slice(None)] * 3
             idx[k] = c * q
-            face = C[(slice(None),) + tuple(idx)]  # (E, q+1, q+1, m), axes o[0], o[1]
+            face = C[(slice(None),) + tuple(idx)]  # (E, q+1, q+1, m), the other two axes in order
             inner = np.zeros((q + 1, q + 1), bool)
             inner[1:-1, 1:-1] = True
             flat = face.reshape(E, -1, m)
