@@ -6,6 +6,9 @@ ParaView's own reader and filters (Debian's ``paraview`` package; pvpython 5.11
 was used) read the file, extract its surface and count the boundary and
 non-manifold edges of that surface: a welded mesh without internal faces
 gives zero of both.  Exits with status 1 otherwise.
+
+On a machine without a display, run it under a virtual one: ``xvfb-run pvpython ...`` (Debian's ``xvfb``).
+Debian's pvpython 5.11 segfaults with ``--force-offscreen-rendering``, so do not use that flag there.
 """
 
 import sys

@@ -18,19 +18,19 @@ def _material_value(v, where, lo=None, hi=None):
     return _str(v, where) if isinstance(v, str) else _number(v, where, lo=lo, hi=hi)
 
 
-def physics(config) -> dict:
-    """The checked [physics] section with its [[support]] and [[load]] tables (elastic kinds)."""
+def physics(config, surface: str | None = None) -> dict:
+    """The checked [physics] section with its [[support]] and [[load]] tables (elastic kinds).
+
+    ``surface``: why the configured model has no volume (e.g. "the random implicit structure is a surface (the
+    boundary of an implicit solid)"), or None for a volumetric model; such a model takes no analysis."""
     t = _table(config.get("physics", {}), "physics", {"kind", "youngs", "poisson", "expansion", "reference",
                                                       "hold_rigid"})
-    implicit = isinstance(config.get("paving"), dict) and config["paving"].get("scheme") in ("random_implicit",
-                                                                                            "implicit_bifurcation")
-    kind = _choice(t.get("kind", "none" if implicit and "bc" not in config else "heat"), "physics.kind", PHYSICS)
+    kind = _choice(t.get("kind", "none" if surface and "bc" not in config else "heat"), "physics.kind", PHYSICS)
     out = {"kind": kind}
-    if implicit and kind != "none":
-        raise ProblemError(f"the {config['paving']['scheme'].replace('_', ' ')} structure is a surface (the boundary "
-                           "of an implicit solid), not a "
-                           "volumetric B-spline model: heat and elasticity need trivariate patches; drop [[bc]] and "
-                           "[physics] (kind = \"none\"), and write the surface with [output] exports = [\"stl\"]")
+    if surface and kind != "none":
+        raise ProblemError(f"{surface}, not a volumetric B-spline model: heat and elasticity need trivariate "
+                           "patches; drop [[bc]] and [physics] (kind = \"none\"), and write the surface with [output] "
+                           "exports = [\"stl\"]")
     if kind in ("none", "heat"):  # no elastic keys; 'none' takes no conditions at all
         sections = ("bc", "support", "load") if kind == "none" else ("support", "load")
         why = ("needs an analysis; physics.kind = 'none' builds and exports the model only" if kind == "none" else

@@ -18,16 +18,15 @@ from pathlib import Path
 
 import numpy as np
 
-import tiling
-from geometry import BSpline, load, resources
+from geometry import resources
 from geometry import progress as display
 from geometry.iges import write_iges
 from geometry.io import atomic_write, offscreen_plotter, save_screenshot
 from tiling.export import boundary_splines, mesh_watertightness, write_mesh, write_surfaces
-from tiling.library import TILES
-from tiling.materials import graded_channel
 
 from .config import validate
+from .config_model import surface_reason
+from .pipeline_build import build, build_maps
 from .errors import ProblemError
 from .gismo import export_gismo
 from .locate import Locator
@@ -75,31 +74,6 @@ def heat_sink_config(variant: str = "circular", levels: int | None = None, refin
         cfg["physics"] = {"kind": "thermo-elastic", "youngs": "E", "poisson": "nu", "expansion": "alpha",
                           "reference": 20.0, "hold_rigid": True}
     return cfg
-
-
-def _build_map(cfg) -> BSpline:
-    D = load(cfg["file"]) if "file" in cfg else MAPS[cfg["primitive"]](**cfg["args"])
-    for g in cfg.get("grading", []):
-        D = graded_channel(D, g["channel"], g["near"], g["far"], g["face"], g["mode"])
-    return D
-
-
-def _build_tiling(cfg, D):
-    p = cfg["paving"]
-    if p["scheme"] == "implicit_bifurcation":
-        return tiling.implicit_bifurcation(D, p["epsilon"], alpha=p["alpha"], seed=p["seed"], cap=p["cap"],
-                                           resolution=p["resolution"], radius=p["radius"])
-    if p["scheme"] == "random_implicit":
-        return tiling.random_implicit(D, p["counts"], alpha=p["alpha"], seed=p["seed"], continuity=p["continuity"],
-                                      connectivity=p["connectivity"], cap=p["cap"], resolution=p["resolution"])
-    if p["scheme"] == "bifurcation":
-        return tiling.bifurcation(D, p["epsilon"], p["kind"], direction=p["direction"], levels=p["levels"],
-                                  margin=p["margin"])
-    tile = TILES[cfg["tile"]["library"]](**cfg["tile"]["args"])
-    seal = {k: p[k] for k in ("seal", "thickness", "seal_sides") if k in p}
-    if p["scheme"] == "hierarchical":
-        return tiling.hierarchical(D, tile, p["counts"], p["levels"], p["scale"], **seal)
-    return tiling.regular(D, tile, p["counts"], **seal)
 
 
 def render_temperature(vtu_path: Path, png_path: Path, title: str = "temperature (C)", scalars: str = "temperature",
@@ -171,7 +145,8 @@ def _heat_problem(cfg: dict, ms) -> HeatProblem:
     """The configured heat problem on the model ``ms`` with its boundary conditions."""
     mat, scfg = cfg["material"], cfg["solver"]
     prob = HeatProblem(ms, conductivity=mat["conductivity"], source=mat["source"], refine=scfg["refine"],
-                       degree_elevation=scfg["degree_elevation"])
+                       degree_elevation=scfg["degree_elevation"], degree=scfg["degree"],
+                       quadrature_extra=scfg["quadrature_extra"])
     for bc in cfg["bc"]:
         if bc["kind"] == "dirichlet":
             prob.dirichlet(bc["tag"], bc["value"])
@@ -206,31 +181,46 @@ def _write_outputs(ocfg: dict, out: Path, sol, stages) -> tuple[dict, float | No
     return files, mesh_volume
 
 
-def _cells_of(s) -> int:
-    """Cells of an implicit structure: its grid (random implicit) or its adaptive subdivision (bifurcation)."""
-    return len(s.cells) if hasattr(s, "cells") else int(np.prod(s.counts))
+def render_mesh(mesh, png_path: Path, scalars: str | None = None, title: str | None = None):
+    """Offscreen render of a surface ``mesh`` (triangles and lines), plain or coloured by ``scalars`` (atomic)."""
+    pl = offscreen_plotter((1200, 850))
+    if scalars is None:
+        pl.add_mesh(mesh, color="#c9a66b", smooth_shading=True, line_width=2, ambient=0.3)
+    else:
+        pl.add_mesh(mesh, scalars=scalars, cmap="viridis", smooth_shading=True, line_width=2, ambient=0.3,
+                    scalar_bar_args={"title": title or scalars, "vertical": True, "position_x": 0.86})
+    save_screenshot(pl, png_path, ProblemError, "iso", 0.85)
 
 
-def _implicit_outputs(s, out: Path, ocfg: dict, stages, root: bool) -> dict:
-    """A random implicit structure's outputs: its surface (``NAME.vtp`` with ``vtu``, the exports), a render,
-    and the summary of the construction and of the surface's closedness."""
+def _surface_outputs(built, out: Path, ocfg: dict, stages, root: bool) -> dict:
+    """The outputs of a model without volume (an implicit structure, a polygon paving, a paving of surface or curve
+    tiles): its mesh as ``NAME.vtp`` (with ``vtu``) and the exports, a render, and the summary of the
+    construction and of the surface's closedness."""
     stages.start("surface output")
-    files = {}
-    mesh = s.surface()  # contoured once: every file and the report use this mesh
+    files, mesh, s = {}, built.mesh, built.structure
     if root:
-        names = (["vtp"] if ocfg["vtu"] else []) + [k for k in ocfg["exports"] if k != "vtp" or not ocfg["vtu"]]
+        names = (["vtp"] if ocfg["vtu"] else []) + [k for k in ocfg["exports"]
+                                                    if k not in ("iges",) and (k != "vtp" or not ocfg["vtu"])]
         for kind in names:
             files[kind] = str(write_mesh(out / f"{ocfg['name']}.{kind}", mesh))
+        if "iges" in ocfg["exports"]:  # surface and curve tiles: their exact B-spline geometry
+            files["iges"] = str(write_iges(out / f"{ocfg['name']}.igs", boundary_splines(s), name=ocfg["name"]))
         if ocfg["png"]:
-            s.render_png(out / f"{ocfg['name']}.png", color_by="w")
-            files["png"] = str(out / f"{ocfg['name']}.png")
-    w = mesh_watertightness(mesh)
+            png = out / f"{ocfg['name']}.png"
+            if hasattr(s, "render_png"):
+                s.render_png(png, color_by="w")
+            else:
+                render_mesh(mesh, png, "w" if "w" in mesh.point_data else None)
+            files["png"] = str(png)
+    w = mesh_watertightness(mesh) if mesh.faces.size else {"triangles": 0, "lines": int(mesh.n_lines)}
     stages.done()
-    return {"tiles": _cells_of(s), "levels": 1, "interfaces": 0,
+    n = len(s.cells) if hasattr(s, "cells") else int(np.prod(s.counts)) if hasattr(s, "counts") else \
+        getattr(s, "n_tiles", built.info.get("tiles", 0))
+    return {"tiles": n, "levels": getattr(s, "levels", 1), "interfaces": len(getattr(s, "interfaces", [])),
             "surface": {k: bool(v) if isinstance(v, (bool, np.bool_)) else int(v) if isinstance(v, np.integer) else v
                         for k, v in w.items()},
             "construction": {k: v for k, v in getattr(s, "stats", {}).items() if isinstance(v, (int, float, str))},
-            "files": files, "peak_memory_MiB": resources.peak_memory_mib()}
+            **built.info, "files": files, "peak_memory_MiB": resources.peak_memory_mib()}
 
 
 def _exports(ocfg: dict, out: Path, ms, problem) -> dict:
@@ -251,12 +241,17 @@ def _exports(ocfg: dict, out: Path, ms, problem) -> dict:
     return files
 
 
+def _counts(ms) -> dict:
+    """Tiles, patches, levels and interfaces of the micro-structure a model came from."""
+    return {"tiles": ms.n_tiles, "patches": len(ms.patches), "levels": ms.levels,
+            "tiles_per_level": ms.tiles_per_level(), "interfaces": len(ms.interfaces)}
+
+
 def _summary(cfg, prob, sol, trange, mesh_volume, probes, files, analysis_peak) -> dict:
-    """The run's summary (``summary.json``), timings left to the caller."""
-    ms, bal = prob.model, sol.info["balance"]
+    """The run's summary (``summary.json``) of the heat analysis, counts and timings left to the caller."""
+    bal = sol.info["balance"]
     return {
-        "dofs": prob.ndof, "unknowns": sol.info["free_dofs"], "tiles": ms.n_tiles, "patches": len(ms.patches),
-        "levels": ms.levels, "tiles_per_level": ms.tiles_per_level(), "interfaces": len(ms.interfaces),
+        "dofs": prob.ndof, "unknowns": sol.info["free_dofs"],
         "temperature_C": {"min": trange[0], "max": trange[1], "mean": sol.mean_temperature()},
         "inflow_W": bal["inflow_W"], "outflow_W": bal["outflow_W"], "energy_balance_error": bal["relative_error"],
         "connected_pieces": sol.info["components"]["count"],
@@ -270,53 +265,58 @@ def _summary(cfg, prob, sol, trange, mesh_volume, probes, files, analysis_peak) 
     }
 
 
+def _heat_stage(cfg, model, out: Path, ocfg: dict, stages):
+    """The heat analysis, its VTU files, picture and exports; returns (summary, solution, extra timings)."""
+    scfg = cfg["solver"]
+    stages.start("assembly and solve")
+    prob = _heat_problem(cfg, model)
+    probes = np.asarray(ocfg["probes"], float).reshape(-1, 3)
+    if len(probes):  # before the solve: a probe outside the model is a configuration error
+        Locator(prob.model)(probes, what="output.probes")
+    sol = prob.solve(solver=scfg["method"], tol=scfg["tol"], maxiter=scfg["maxiter"])
+    stages.done(f"({prob.ndof} DOFs, {sol.info['free_dofs']} unknowns)")
+    # high-water mark of the analysis alone (map, tiling, assembly, solve), before VTK is loaded for output
+    analysis_peak = resources.peak_memory_mib()
+    files, mesh_volume = _write_outputs(ocfg, out, sol, stages)
+    files.update(_exports(ocfg, out, model, prob))
+    t0 = time.perf_counter()
+    tmin, tmax = sol.temperature_range(ocfg["samples"])
+    summary = _summary(cfg, prob, sol, (tmin, tmax), mesh_volume, probes, files, analysis_peak)
+    return summary, sol, {"statistics": time.perf_counter() - t0, **{f"iga.{k}": v for k, v in prob.timings.items()}}
+
+
 def _run(cfg: dict, out: Path, root: bool = True) -> dict:
-    ocfg, scfg, kind = cfg["output"], cfg["solver"], cfg["physics"]["kind"]
+    ocfg, kind = cfg["output"], cfg["physics"]["kind"]
     if not root:  # another MPI rank: it assembles and solves its share, rank 0 writes
         ocfg = {**ocfg, "vtu": False, "bezier": False, "png": False}
     heat, elastic = kind in ("heat", "thermo-elastic"), kind in ("elasticity", "thermo-elastic")
-    implicit = cfg["paving"]["scheme"] in ("random_implicit", "implicit_bifurcation")
-    stages = display.Stages(4 if implicit else 3 + 3 * heat + 2 * elastic + (kind == "none"))
+    surface = surface_reason(cfg) is not None
+    stages = display.Stages(4 if surface else 3 + 3 * heat + 2 * elastic + (kind == "none"))
     stages.start("deformation map")
-    D = _build_map(cfg["map"])
-    stages.done(f"(degrees {D.degrees}, channels {list(D.channels)})")
-
+    maps = build_maps(cfg)
+    stages.done(f"({len(maps)} primitives)" if isinstance(maps, dict) else
+                f"(degrees {maps.degrees}, channels {list(maps.channels)})")
     stages.start("tiling")
-    ms = _build_tiling(cfg, D)
-    stages.done(f"({_cells_of(ms)} cells, implicit)" if implicit else
+    built = build(cfg, maps)
+    model, ms = built.model, built.structure
+    stages.done(f"({built.mesh.n_cells} cells, a surface)" if surface else
                 f"({ms.n_tiles} tiles, {len(ms.interfaces)} interfaces)")
-
     summary, sol, timings = {}, None, {}
-    if implicit:
-        summary = _implicit_outputs(ms, out, ocfg, stages, root)
+    if surface:
+        summary = _surface_outputs(built, out, ocfg, stages, root)
     elif heat:
-        stages.start("assembly and solve")
-        prob = _heat_problem(cfg, ms)
-        probes = np.asarray(ocfg["probes"], float).reshape(-1, 3)
-        if len(probes):  # before the solve: a probe outside the model is a configuration error
-            Locator(prob.model)(probes, what="output.probes")
-        sol = prob.solve(solver=scfg["method"], tol=scfg["tol"], maxiter=scfg["maxiter"])
-        stages.done(f"({prob.ndof} DOFs, {sol.info['free_dofs']} unknowns)")
-        # high-water mark of the analysis alone (map, tiling, assembly, solve), before VTK is loaded for output
-        analysis_peak = resources.peak_memory_mib()
-        files, mesh_volume = _write_outputs(ocfg, out, sol, stages)
-        files.update(_exports(ocfg, out, ms, prob))
-        t0 = time.perf_counter()
-        tmin, tmax = sol.temperature_range(ocfg["samples"])
-        summary = _summary(cfg, prob, sol, (tmin, tmax), mesh_volume, probes, files, analysis_peak)
-        timings = {"statistics": time.perf_counter() - t0, **{f"iga.{k}": v for k, v in prob.timings.items()}}
+        summary, sol, timings = _heat_stage(cfg, model, out, ocfg, stages)
+        summary = {**_counts(ms), **built.info, **summary}
     else:
-        summary = {"tiles": ms.n_tiles, "patches": len(ms.patches), "levels": ms.levels,
-                   "tiles_per_level": ms.tiles_per_level(), "interfaces": len(ms.interfaces),
-                   "files": _exports(ocfg, out, ms, None), "peak_memory_MiB": None}
+        summary = {**_counts(ms), **built.info, "files": _exports(ocfg, out, model, None), "peak_memory_MiB": None}
         if kind == "none" and ocfg["vtu"] and root:  # the model alone: its geometry and channels
             stages.start("VTU output")
             vtu = out / f"{ocfg['name']}.vtu"
-            write_vtu(vtu, ms, samples=ocfg["samples"], tolerance=ocfg["tolerance"])
+            write_vtu(vtu, model, samples=ocfg["samples"], tolerance=ocfg["tolerance"])
             summary["files"]["vtu"] = str(vtu)
             stages.done()
     if elastic:
-        summary["elasticity"] = _elastic_stage(cfg, ms, sol, out, ocfg, stages)
+        summary["elasticity"] = _elastic_stage(cfg, model, sol, out, ocfg, stages)
         summary["files"].update(summary["elasticity"].pop("files"))
         summary["peak_memory_MiB"] = resources.peak_memory_mib()
     stages.start("summary")
@@ -337,7 +337,7 @@ def _elastic_stage(cfg, ms, heat_solution, out: Path, ocfg: dict, stages) -> dic
     ph, scfg = cfg["physics"], cfg["solver"]
     stages.start("elastic analysis")
     p = ElasticityProblem(ms, ph["youngs"], ph["poisson"], degree_elevation=scfg["degree_elevation"],
-                          refine=scfg["refine"])
+                          refine=scfg["refine"], degree=scfg["degree"], quadrature_extra=scfg["quadrature_extra"])
     for s in ph["support"]:
         p.dirichlet(s["tag"], s["value"], s["components"])
     for ld in ph["load"]:

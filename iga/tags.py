@@ -18,7 +18,7 @@ from geometry.errors import show
 
 from .errors import ProblemError
 
-__all__ = ["REST", "resolve", "check_expression", "mentions_rest", "as_expression"]
+__all__ = ["REST", "resolve", "check_expression", "mentions_rest", "as_expression", "parse_expression"]
 
 REST = "rest"
 _TOKENS = re.compile(r"\s+-\s+|\||&|\(|\)")
@@ -38,18 +38,19 @@ def _tokens(expr: str) -> list[str]:
     return out
 
 
-def _parse(tokens: list[str], expr: str, leaf):
-    """Recursive descent over ``tokens``; ``leaf(name) -> set`` resolves the names."""
+def _parse(tokens: list[str], expr: str, leaf, what: str = "tag", example: str = "'exterior - vmin'"):
+    """Recursive descent over ``tokens``; ``leaf(name)`` resolves the names to values that combine with ``|``,
+    ``&`` and ``-`` (sets of faces; or the primitives of a V-model); ``what`` names them in messages."""
     pos = 0
 
     def fail(why: str):
-        raise ProblemError(f"tag expression {show(expr)}: {why}; combine tags with |, &, ' - ' and parentheses, "
-                           "e.g. 'exterior - vmin'")
+        raise ProblemError(f"{what} expression {show(expr)}: {why}; combine {what}s with |, &, ' - ' and "
+                           f"parentheses, e.g. {example}")
 
     def atom():
         nonlocal pos
         if pos >= len(tokens):
-            fail("it ends where a tag is expected")
+            fail(f"it ends where a {what} is expected")
         tok = tokens[pos]
         pos += 1
         if tok == "(":
@@ -59,7 +60,7 @@ def _parse(tokens: list[str], expr: str, leaf):
             pos += 1
             return val
         if tok in ("|", "&", "-", ")"):
-            fail(f"{tok!r} stands where a tag is expected")
+            fail(f"{tok!r} stands where a {what} is expected")
         return leaf(tok)
 
     def term():
@@ -83,6 +84,11 @@ def _parse(tokens: list[str], expr: str, leaf):
     if pos != len(tokens):
         fail(f"{tokens[pos]!r} is left over")
     return val
+
+
+def parse_expression(expr: str, leaf, what: str, example: str):
+    """``expr`` combined by |, & and ' - ' (module notes) over the values ``leaf(name)`` gives its names."""
+    return _parse(_tokens(expr), expr, leaf, what, example)
 
 
 def resolve(model, tag, rest: list | None = None, unknown=None) -> list:

@@ -47,7 +47,7 @@ def test_regular_pavings_still_need_their_counts_and_refuse_bifurcation_keys():
     cfg = _bif(epsilon=0.35)
     cfg["paving"] = {"scheme": "regular", "epsilon": 0.3}
     cfg["tile"] = {"library": "cross"}
-    with pytest.raises(ProblemError, match=r"paving\.epsilon: applies to the bifurcation scheme only"):
+    with pytest.raises(ProblemError, match=r"paving\.epsilon: applies to the bifurcation and implicit_bifurcation schemes only"):
         validate(cfg)
     cfg["paving"] = {"scheme": "regular"}
     with pytest.raises(ProblemError, match=r"paving \(scheme 'regular'\) needs 'counts'"):
