@@ -14,6 +14,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .multipatch import _SAMPLES, TOL, face_points, free_faces
+from .tolerances import model_size
 
 __all__ = ["unglued_contacts"]
 
@@ -31,7 +32,7 @@ def unglued_contacts(patches, interfaces, limit: int = 5) -> list[tuple[tuple, t
     if len(free) < 2:
         return []
     pts = face_points(patches, free, _SAMPLES)  # (F, n, 3)
-    scale = max(1.0, float(np.abs(pts).max()))
+    scale = model_size(pts)
     flat = pts.reshape(-1, 3)
     owner = np.repeat(np.arange(len(free)), pts.shape[1])
     pairs = cKDTree(flat).query_pairs(TOL * scale, output_type="ndarray")

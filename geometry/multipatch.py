@@ -34,7 +34,7 @@ from .errors import SplineError
 from .faces import FACE_AXIS, FACE_NAMES, face_knots, nested_refinement
 from .inversion import invert
 from .grouping import ObjectIndex
-from .tolerances import CONTACT, INTERFACE, same_space
+from .tolerances import CONTACT, INTERFACE, model_size, same_space
 
 __all__ = ["PlacedPatch", "Interface", "MultiPatch", "detect_interfaces", "free_faces", "face_points", "ORIENTATIONS"]
 
@@ -273,7 +273,7 @@ def detect_interfaces(patches, strict: bool = False):
     corners = _physical_corners(patches, pidx, fc).reshape(len(pidx) * 6, 4, 3)
     rec_patch = np.repeat(pidx, 6)
     rec_face = np.tile(np.arange(6), len(pidx))
-    scale = max(1.0, float(np.abs(corners).max()))
+    scale = model_size(corners)
     # candidate pairs: face centres within the tolerance (a KD-tree, so no rounding bucket can split a pair)
     found = cKDTree(corners.mean(axis=1)).query_pairs(TOL * scale, output_type="ndarray")
     found = found[np.lexsort(found.T[::-1])] if len(found) else np.zeros((0, 2), np.int64)  # a fixed order
@@ -419,8 +419,7 @@ def _refuse_nonconforming_contact(patches, interfaces) -> None:
     if not free:
         return
     pts = face_points(patches, free, _SAMPLES)  # (F, n, 3)
-    scale = max(1.0, float(np.abs(pts).max()))
-    tol = CONTACT * scale
+    tol = CONTACT * model_size(pts)
     boxes = [P.spline.bounding_box() for P in patches]
     for j, (pi, f) in enumerate(free):
         for qi, P in enumerate(patches):

@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["COINCIDENT", "INTERFACE", "CONTACT", "ON_DOMAIN", "SAME_KNOT", "SAME_SAMPLE", "SNAP", "ROUNDOFF",
-           "RANK", "CONSISTENT", "SINGULAR", "same_knots", "same_space"]
+           "RANK", "CONSISTENT", "SINGULAR", "same_knots", "same_space", "model_size"]
 
 # ---------------------------------------------------------------- geometric (x size)
 COINCIDENT = 1e-9
@@ -28,7 +28,7 @@ COINCIDENT = 1e-9
 and seal plates on a plane, a V-model's inside test, knots of a composed tube."""
 
 INTERFACE = 1e-8
-"""Face corners and centres of two patches closer than this (x the model's size, at least 1) are one
+"""Face corners and centres of two patches closer than this (x the model's size, :func:`model_size`) are one
 shared face: composing tiles into a map rounds each copy's corners differently, by up to ~1e-12 of the
 model, and a user may give faces that meet to ~1e-9."""
 
@@ -66,6 +66,17 @@ CONSISTENT = 1e-10
 SINGULAR = 1e-12
 """A 3 x 3 determinant below this (x the largest entry cubed) is zero: a placement or Jacobian that
 flattens its patch."""
+
+
+def model_size(points) -> float:
+    """The size geometric tolerances scale with: the extent of ``points`` (..., 3), its largest side, but not
+    below 1e-6 of their distance from the origin (where the round-off of the coordinates themselves lives).
+    A model a micrometre wide is measured in micrometres, not in metres."""
+    pts = np.asarray(points, float).reshape(-1, 3)
+    if not len(pts):
+        return 1.0
+    extent = float(np.ptp(pts, axis=0).max())
+    return max(extent, 1e-6 * float(np.abs(pts).max()), 1e-300)
 
 
 def same_knots(U, V) -> bool:

@@ -9,13 +9,14 @@ from geometry.chain import patch_geometry_points, gradient_and_det
 from helpers import decode_appended_vtu, surface_gauss
 from iga import HeatProblem, write_vtu
 from iga.config import validate
-from iga.pipeline import _build_map, _build_tiling, heat_sink_config
+from iga.pipeline import heat_sink_config
+from iga.pipeline_build import build, build_maps
 from tiling import library as L
 
 
 def _demo_problem(variant):
     cfg = validate(heat_sink_config(variant, out="unused"), ".")
-    ms = _build_tiling(cfg, _build_map(cfg["map"]))
+    ms = build(cfg, build_maps(cfg)).model
     return HeatProblem(ms, conductivity="k").neumann("branch-in", 1515.8).robin("exterior", 5.0, 30.0)
 
 

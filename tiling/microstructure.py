@@ -8,9 +8,11 @@ level and tile index, and its composed image ``D(A T + b)`` (exact, computed
 lazily and cached; :meth:`Microstructure.compose_all` batches it per tile
 patch with :func:`geometry.compose_many`).
 
-Interfaces: ``identity`` between faces that coincide in space (found by
-:func:`geometry.detect_interfaces`, through D, so periodic maps glue across
-their seam); ``branch`` between a child's branch-in face and a sub-rectangle
+Interfaces: ``identity`` between faces that coincide in space (known by
+construction in regular and hierarchical pavings, :mod:`tiling.topology`,
+periodic maps glued across their seam; found by
+:func:`geometry.detect_interfaces` through D for the other builders);
+``branch`` between a child's branch-in face and a sub-rectangle
 ``box`` of its parent's branch-out face, with ``R`` (sparse) such that child
 face coefficients = R @ parent face coefficients (Massarwi et al. 2018, Eqs. 11-12).
 
@@ -101,11 +103,13 @@ class Microstructure(MultiPatch):
 
     # ------------------------------------------------------------- assembly
     @classmethod
-    def build(cls, outer, placed: list, tiles: list, branch_links: list, name: str = "", root_faces=(), leaf_faces=()):
-        """Find identity interfaces, add branch interfaces, tag free faces."""
+    def build(cls, outer, placed: list, tiles: list, branch_links: list, name: str = "", root_faces=(), leaf_faces=(),
+              identity=None):
+        """Identity interfaces (``identity``: ``(interfaces, mismatched)`` known by construction,
+        :func:`tiling.topology.grid_interfaces`; else found in space), branch interfaces, tags of free faces."""
         linked = {frozenset([(p, pf), (c, cf)]) for p, pf, _, c, cf in branch_links}
         try:
-            found, mismatched = detect_interfaces(placed)
+            found, mismatched = detect_interfaces(placed) if identity is None else identity
         except SplineError as exc:
             raise TilingError(f"{exc}; overlapping tiles or patches") from None
         for a, b, why in mismatched:

@@ -22,6 +22,8 @@ from .microstructure import Microstructure, PlacedPatch
 from .caps import PlacedCap, capped_variant
 from .seal import SealedTile, seal_layout, sealed_variant
 from .tile import Tile
+from .topology import grid_interfaces, seams
+from geometry.errors import SplineError
 from geometry.faces import FACE_NAMES
 from geometry.errors import show
 from geometry.grouping import ObjectIndex
@@ -133,7 +135,14 @@ def regular(D: BSpline, tile: Tile, counts, variants: dict | None = None, name: 
     (16, 112, 4)
     """
     placed, tiles, links, caps, sealed = regular_placements(D, tile, counts, variants, seal, thickness, seal_sides)
-    ms = Microstructure.build(D, placed, tiles, links, name=name)
+    # the interfaces by construction: tiles are numbered in C order over the cell grid
+    shape = tuple(len(_cells(D, k, c)) for k, c in enumerate(_check_counts(counts, 3, "counts")))
+    same = ObjectIndex()
+    keys = np.array([same(t) for t in tiles]).reshape(shape)
+    first = np.cumsum([0] + [len(t.patches) for t in tiles])[:-1].reshape(shape)
+    layouts = {same(t): [(p, _IDENTITY) for p in t.patches] for t in tiles}
+    ms = Microstructure.build(D, placed, tiles, links, name=name,
+                              identity=_grid_interfaces(keys, first, layouts, seams(D)))
     ms.caps = caps
     if seal is not None:
         _tag_seal(ms, seal, [(t, i) for t in sealed.values() for i in t.seal_patches])
@@ -188,6 +197,17 @@ def regular_placements(D: BSpline, tile: Tile, counts, variants: dict | None = N
                          for c in getattr(t, "caps", ())]
     _check_spans(D, placed)
     return placed, tiles, links, caps, sealed
+
+
+_IDENTITY = np.hstack([np.eye(3), np.zeros((3, 1))])
+
+
+def _grid_interfaces(keys, first, layouts, periodic):
+    """:func:`tiling.topology.grid_interfaces`, with a tile whose own patches overlap refused as a tiling error."""
+    try:
+        return grid_interfaces(keys, first, layouts, periodic)
+    except SplineError as exc:
+        raise TilingError(f"{exc}; overlapping tiles or patches") from None
 
 
 def variant_for(tile: Tile, sides, thickness: float, seal: str) -> Tile:
@@ -334,6 +354,9 @@ def hierarchical(D: BSpline, tile: Tile, counts, levels: int, scale: float | Non
     dw = D.domain[2]
     out = _Paving()
     layouts: dict = {}  # seal plates per set of sealed sides, built once
+    keys = np.zeros((len(cu), len(cv), 1), dtype=object)  # the layout of every cell (its sealed sides) and its
+    first = np.zeros((len(cu), len(cv), 1), dtype=np.int64)  # first placed patch: interfaces by construction
+    cell_layouts: dict = {}
     flat = [p.affine(G[:3, :3], G[:3, 3]) for M, *_ in nodes for G in [Nrm @ M] for p in tile.patches] if seal else []
     for i in progress.bar(range(len(cu)), desc="hierarchical paving", unit="column"):
         for j in range(len(cv)):
@@ -353,6 +376,10 @@ def hierarchical(D: BSpline, tile: Tile, counts, levels: int, scale: float | Non
                 squeeze = layouts[sides][0].squeeze()
             cell_first = len(out.placed)
             _place_hierarchy(out, D, tile, nodes, (cell @ squeeze @ Nrm), int(levels))
+            keys[i, j, 0], first[i, j, 0] = sides, cell_first
+            if sides not in cell_layouts:  # the cell's patches in the unit cell: the hierarchy, then the plates
+                cell_layouts[sides] = [(p, (squeeze @ Nrm @ M)[:3]) for M, *_ in nodes for p in tile.patches]
+                cell_layouts[sides] += [(p, _IDENTITY) for p in (layouts[sides][1].patches if sides else ())]
             if sides:
                 lay, plates = layouts[sides]
                 tid, pfirst = len(out.tiles), len(out.placed)
@@ -361,7 +388,9 @@ def hierarchical(D: BSpline, tile: Tile, counts, levels: int, scale: float | Non
                 out.links += [(cell_first + a, f, box, pfirst + q, g) for a, f, box, q, g in lay.links]
     placed, tiles, links, roots, leaves = out.placed, out.tiles, out.links, out.roots, out.leaves
     _check_spans(D, placed)
-    ms = Microstructure.build(D, placed, tiles, links, name=name, root_faces=roots, leaf_faces=sorted(set(leaves)))
+    periodic = seams(D)[:2] + (False,)  # every cell spans D's w range: no neighbour along w
+    ms = Microstructure.build(D, placed, tiles, links, name=name, root_faces=roots, leaf_faces=sorted(set(leaves)),
+                              identity=_grid_interfaces(keys, first, cell_layouts, periodic))
     if layouts:
         _tag_seal(ms, seal, [(t, q) for _, t in layouts.values() for q in range(len(t.patches))])
     return ms
