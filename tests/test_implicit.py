@@ -63,6 +63,23 @@ def test_alpha_zero_gives_the_canonical_tiling(duck):
     assert np.array_equal(s.cell_coefficients((1, 0, 0)), user.coefficients[..., 0])
 
 
+@pytest.mark.parametrize("controls, cap, connectivity, continuity", [(6, False, 1, "C1"), (8, True, 2, "C1"),
+                                                                    (8, True, 1, "C0"), (6, False, 2, "C0")])
+def test_alpha_zero_does_not_depend_on_the_seed(duck, controls, cap, connectivity, continuity):
+    """Eq. 6 at alpha = 0 is f = f0: the seed draws the spanning trees, but faces that change sign already are
+    left as they are (with C1 the canonical tubes are made C1 across the faces, Eq. 8, the same for every
+    seed), so seeds 1..5 give one field, and no connectivity step does any work."""
+    runs = [random_implicit(duck, (4, 4, 3), alpha=0.0, seed=seed, controls=controls, cap=cap,
+                            connectivity=connectivity, continuity=continuity) for seed in range(1, 6)]
+    for s in runs[1:]:
+        assert np.array_equal(s.field.coefficients, runs[0].field.coefficients)
+    st = runs[0].stats
+    assert sum(st["face_iterations"].values()) == 0 and sum(st["cell_iterations"].values()) == 0
+    if continuity == "C0" and not cap:  # the canonical tile itself, in every cell
+        p0 = canonical_tubes(3, controls)
+        assert all(np.array_equal(runs[0].cell_coefficients(c), p0) for c in np.ndindex(4, 4, 3))
+
+
 def test_coefficients_follow_eq6_around_the_canonical_tile(duck):
     """p = (1 - alpha) p0 + alpha U(-1, 1): before any adjustment the deviation is bounded by 2 alpha."""
     p0 = canonical_tubes()

@@ -201,7 +201,9 @@ def connect_faces(B, cells, tree_edges, res, stats) -> int:
     supports of the least positive one are first lowered to -1/2.  Then the
     paper's iteration raises the rest of the face (even iterations: one more
     coefficient positive; odd: all raised) until some sample is positive.  A
-    face that already changes sign keeps its values.
+    face that already changes sign keeps its values: it is anchored only where
+    a usable sample is negative already (nothing is lowered), and a later step
+    that takes its sign change away brings it back here in the next round.
     """
     Bm = B.basis(res)
     rows = _anchor_rows(B, Bm)
@@ -212,7 +214,14 @@ def connect_faces(B, cells, tree_edges, res, stats) -> int:
         key = (int(e[0]), int(e[1]))
         G = B.G[idx]  # (N, N) view of the face's coefficients
         its = 0
-        v = (Bm @ G @ Bm.T)[np.ix_(rows, rows)]
+        full = Bm @ G @ Bm.T
+        v = full[np.ix_(rows, rows)]
+        if full.min() < 0 < full.max():  # the face changes sign already: its values stay as they are
+            if key not in B.anchored and v.min() < 0:  # hold its most negative usable sample against later raising
+                i, j = np.unravel_index(np.argmin(v), v.shape)
+                B.fixed[idx][np.ix_(np.flatnonzero(Bm[rows[i]]), np.flatnonzero(Bm[rows[j]]))] = True
+                B.anchored.add(key)
+            continue
         if key not in B.anchored or v.min() >= 0:  # (a C1 symmetrization may have moved an anchor's rim)
             i, j = np.unravel_index(np.argmin(v), v.shape)
             si, sj = np.flatnonzero(Bm[rows[i]]), np.flatnonzero(Bm[rows[j]])
