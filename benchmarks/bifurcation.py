@@ -14,8 +14,8 @@ Cases, each in a fresh subprocess (peak memory is per case, imports included):
     closedness, components.
 The paper reports under 4 s and 104 MB for its Fig. 16(b) duck with
 bifurcation (2018 hardware).  Writes benchmarks/out/bifurcation.json and,
-with renders, docs/bifurcation_duck_<kind>.png coloured by level and
-docs/implicit_bifurcation_duck*.png.
+with renders, bifurcation_duck_<kind>.png coloured by level and
+implicit_bifurcation_duck*.png in benchmarks/out/figures (docs/ with --figures).
 """
 
 from __future__ import annotations

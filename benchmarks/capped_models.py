@@ -13,7 +13,8 @@ Cases, each in a fresh subprocess (peak memory is per case, imports included):
     deformation map of 2 x 2 x 2 hollow tiles, capped on every side that is a boundary of the first level.
 Each: build time, surface time (welded triangles with the caps), triangles, closed / manifold, components,
 the Euler characteristic against the one of the tube graph (2 - 2 x cycle rank), and peak memory.
-Writes benchmarks/out/capped_models.json and, with renders, docs/capped_<case>.png.
+Writes benchmarks/out/capped_models.json and, with renders, capped_<case>.png in benchmarks/out/figures
+(docs/ with --figures).
 """
 
 from __future__ import annotations

@@ -12,7 +12,7 @@ Table 2: Fig. 11(b) / 12 of Elber 2017: 48 cross tiles (7 trivariates each, 336 
 annulus (curved, rational), the lower inner ring clamped, the top faces of the upper outer ring moved
 0.5 vertically and held horizontally, E = 1, nu = 0.3; the paper solved it "in less than two minutes"
 (igatools), the target here is under 5 s.  Reactions on both supports are reported (they balance).
-Renders docs/elastic_ring_fig12.png (von Mises, displacement shown at scale 1).
+Renders elastic_ring_fig12.png into benchmarks/out/figures (docs/ with --figures) (von Mises, displacement shown at scale 1).
 Writes benchmarks/out/elasticity.json.
 """
 

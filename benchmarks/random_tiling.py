@@ -11,8 +11,8 @@ thread).  Each variant runs in a fresh subprocess so that its peak memory
 on their own as "imports MiB") is its own.  Build = coefficients, trees and
 connectivity; surface = sampling, flying edges, snapping onto the exact zero
 set and mapping through D.  Writes benchmarks/out/random_tiling.json and, with
-renders, docs/random_duck.png (Fig. 14 analogue), docs/random_duck_trees.png
-(Fig. 5(c) analogue: L1 blue, L2 red) and docs/random_duck_capped.png.
+renders into benchmarks/out/figures (docs/ with --figures): random_duck.png (Fig. 14 analogue),
+random_duck_trees.png (Fig. 5(c) analogue: L1 blue, L2 red) and random_duck_capped.png.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Pictures of the built-in tiles for the docs: docs/tiles/<name>.png.
+"""Pictures of the built-in tiles: benchmarks/out/figures/tiles/<name>.png (docs/tiles/ with --figures).
 
     python benchmarks/tile_gallery.py
 

@@ -17,7 +17,7 @@ bridged to the trimming surfaces.  For each case: trivariates (tiles x 7 + bridg
 trivariates, union matches, collisions, time, peak memory, and Table 1's figures with the speed-up.  Each
 case runs in its own subprocess and is timed after two small warm-up unions in the same process (the
 one-off imports and JIT compilation are not the work measured); "time s" is the first build, "best s"
-the least of 3 (1 for the winged duck), as this VM's timings vary by up to 2x.  Renders go to docs/vrep_<case>.png (coloured by tile).  Writes benchmarks/out/vrep.json.
+the least of 3 (1 for the winged duck), as this VM's timings vary by up to 2x.  Renders go to vrep_<case>.png in benchmarks/out/figures (docs/ with --figures), coloured by tile.  Writes benchmarks/out/vrep.json.
 The heat solve on the winged duck is benchmarks/vrep_heat.py.
 """
 
