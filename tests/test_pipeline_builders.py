@@ -209,13 +209,13 @@ def test_vrep_subtractions_and_intersections_run_as_in_python(expression, tmp_pa
 
     cfg = _union(tmp_path)
     cfg["paving"]["expression"] = expression
-    cfg["bc"] = [{"kind": "dirichlet", "tag": "A:umin", "value": 100.0},
+    cfg["bc"] = [{"kind": "dirichlet", "tag": "A:vmin", "value": 100.0},
                  {"kind": "robin", "tag": "rest", "h": 10.0, "ambient": 20.0}]
     s = run_pipeline(cfg, tmp_path)
     prims = {"A": Primitive(box((2.0, 1.0, 1.0), channels={"k": 205.0}), L.cross(), (4, 2, 2), 2, "A"),
              "B": Primitive(box((2.0, 1.0, 1.0), origin=(1.5, 0.0, 0.0), channels={"k": 54.0}), L.cross(), (4, 2, 2),
                             1, "B")}
     ms = vrep_microstructure(parse_expression(expression, prims.__getitem__, "primitive", "")).microstructure
-    sol = HeatProblem(ms, "k").dirichlet("A:umin", 100.0).robin("rest", 10.0, 20.0).solve(tol=1e-10)
+    sol = HeatProblem(ms, "k").dirichlet("A:vmin", 100.0).robin("rest", 10.0, 20.0).solve(tol=1e-10)
     assert s["tiles"] == ms.n_tiles > 0 and s["connected_pieces"] == 1
     assert s["temperature_C"]["mean"] == pytest.approx(sol.mean_temperature(), rel=1e-8)
