@@ -148,51 +148,64 @@ def _angle_deg(a, b):
     return np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))
 
 
+def _face_params(P, face, st):
+    """Patch parameters of the face ``face`` of placed patch P at normalised face parameters st (n, 2)."""
+    from geometry.faces import FACE_AXIS
+
+    k, s = FACE_AXIS[face]
+    dom = P.spline.domain
+    rest = [d for d in range(3) if d != k]
+    x = np.zeros((len(st), 3))
+    x[:, k] = dom[k, s]
+    x[:, rest] = dom[rest, 0] + st * np.ptp(dom[rest], axis=1)
+    return x
+
+
+def _oriented(st, swap, flip):
+    """Face b's parameters of face a's st under an interface orientation (geometry.Interface's convention)."""
+    out = st[:, ::-1].copy() if swap else st.copy()
+    for d in (0, 1):
+        if flip[d]:
+            out[:, d] = 1.0 - out[:, d]
+    return out
+
+
 def test_bridges_start_g1_at_their_tiles_and_end_orthogonal_on_the_trimming_surface():
+    """Every bridge (in map parameters, or rebuilt in space where D's knot lines cut it) is glued to its tile by
+    an identity interface, its face equal to the tile's point by point and G1 across it, and ends on the
+    trimming surface, orthogonal to it."""
     from geometry.chain import patch_geometry_points
     from geometry.faces import FACE_AXIS, FACE_NAMES
     from geometry.inversion import invert
-    from tiling.vrep.bridges import axis_samples
 
     A, B, C = _cylinders()
     res = vrep_microstructure(A - B)
     ms = res.microstructure
     assert res.bridges.bridges == res.bridges.surface.anchoring_faces > 0
     first = min(p for p, _ in ms.tags["bridge"])
-    glued = {(i.a[0], i.b[0]) for i in ms.interfaces} | {(i.b[0], i.a[0]) for i in ms.interfaces}
     rng = np.random.default_rng(11)
-    bridges = list(range(first, len(ms.patches)))
-    for j in bridges:  # every bridge
-        bp = ms.patches[j]
-        # glued to its tile by an identity interface: the bridge's first face is the anchoring face
-        tile = [a for a, b in glued if b == j and a < first]
-        assert len(tile) == 1
-        tp = ms.patches[tile[0]]
-        face = next(f for f in FACE_NAMES if (tile[0], f) in {(i.a[0], i.a[1]) for i in ms.interfaces if i.b[0] == j}
-                    | {(i.b[0], i.b[1]) for i in ms.interfaces if i.a[0] == j})
-        k, s = FACE_AXIS[face]
-        st = rng.random((15, 2))
-        dom_t = tp.spline.domain
-        rest = [d for d in range(3) if d != k]
-        pt = np.zeros((15, 3))
-        pt[:, k] = dom_t[k, s]
-        pt[:, rest] = dom_t[rest, 0] + st * np.ptp(dom_t[rest], axis=1)
-        pb = np.zeros((15, 3))
-        pb[:, :2] = bp.spline.domain[:2, 0] + st * np.ptp(bp.spline.domain[:2], axis=1)
-        xt, Jt, _ = patch_geometry_points(tp, pt)
-        xb, Jb, _ = patch_geometry_points(bp, pb)
-        assert np.abs(xt - xb).max() < 1e-10  # the same face, point by point
-        assert _angle_deg(Jt[:, :, k], Jb[:, :, 2]).max() < 1e-6  # G1: cross derivatives parallel
-    # every bridge ends on the trimming surface (B's boundary), its axis orthogonal to it (within 1 degree)
     faces = [B.D.boundary(f) for f in FACE_NAMES]
-    for b in res.bridge_objects:  # every bridge
-        end, before = axis_samples(b, [1.0])[0], axis_samples(b, [1.0 - 1e-6])[0]
-        assert B.distance(end[None])[0] < 1e-6 and not B.contains(((end + before) / 2)[None])[0]
-        best = min((invert(G, end[None]) for G in faces), key=lambda r: r.distance[0])
-        G = faces[[invert(G, end[None]).distance[0] for G in faces].index(best.distance[0])]
+    for j in range(first, len(ms.patches)):  # every bridge
+        links = [(i.a, i.b, i.swap, i.flip) if i.a[0] < first else (i.b, i.a, i.swap, i.flip[::-1] if i.swap else i.flip)
+                 for i in ms.interfaces if j in (i.a[0], i.b[0])]
+        assert len(links) == 1 and links[0][0][0] < first  # glued to one tile face, nothing else
+        (tp, tface), (_, bface), swap, flip = links[0]
+        st = rng.random((15, 2))
+        xt, Jt, _ = patch_geometry_points(ms.patches[tp], _face_params(ms.patches[tp], tface, st))
+        xb, Jb, _ = patch_geometry_points(ms.patches[j], _face_params(ms.patches[j], bface, _oriented(st, swap, flip)))
+        assert np.abs(xt - xb).max() < 1e-10  # the same face, point by point
+        kt, kb = FACE_AXIS[tface][0], FACE_AXIS[bface][0]
+        assert _angle_deg(Jt[:, :, kt], Jb[:, :, kb]).max() < 1e-6  # G1: cross derivatives parallel
+        # the other end lies on the trimming surface (B's boundary), the bridge arriving along its normal
+        far = "wmax" if bface == "wmin" else "wmin"
+        xe, Je, _ = patch_geometry_points(ms.patches[j], _face_params(ms.patches[j], far, np.array([[0.5, 0.5]])))
+        best = min((invert(G, xe) for G in faces), key=lambda r: r.distance[0])
+        G = faces[[invert(G, xe).distance[0] for G in faces].index(best.distance[0])]
+        width = float(np.ptp(xt, axis=0).max())
+        assert best.distance[0] < 1e-2 * width  # control points on the surface; the face between them within 1%
         _, J = G.value_and_jacobian(best.params)
-        n = np.cross(J[0, :3, 0], J[0, :3, 1])
-        assert _angle_deg(end - before, n) < 1.0
+        assert _angle_deg(Je[0, :, 2], np.cross(J[0, :3, 0], J[0, :3, 1])) < 1.0
+    assert any(b.geometry is not None for b in res.bridge_objects)  # D's knot lines cut some: rebuilt in space
 
 
 def _bridge_objects(model):
@@ -276,3 +289,29 @@ def test_v_models_and_primitives_print_as_their_expression():
     m = ex.winged_duck()
     assert repr(m) == "VModel(((body | wingL) | wingR) - hole)"
     assert repr(m.primitives()[0]).startswith("Primitive('body': tile 'cross' x (10, 10, 12), priority 1")
+
+
+def test_a_v_model_with_bridges_across_knot_lines_composes_exactly_and_exports_to_iges(tmp_path):
+    """(A u B) - C: some bridges to C cross knot lines of their map; rebuilt in space, every patch composes into
+    one exact B-spline (compose_all), every bridge's composed spline equals its chain-rule evaluation at random
+    points, and the boundary goes to IGES."""
+    from geometry.chain import patch_geometry_points
+    from geometry.iges import write_iges
+    from tiling.export import boundary_splines
+    from tiling.vrep.spatial import crosses_knot_lines
+
+    A, B, C = _cylinders((1, 1, 12))  # Hong and Elber 2021, Figs. 13-14 (tiling.vrep.examples.cylinders)
+    res = vrep_microstructure((A | B) - C)
+    ms = res.microstructure
+    crossing = [b for b in res.bridge_objects if crosses_knot_lines(b)]
+    assert crossing and all(b.geometry is not None for b in crossing)
+    composed = ms.compose_all()
+    first = min(p for p, _ in ms.tags["bridge"])
+    rng = np.random.default_rng(5)
+    for j in range(first, len(ms.patches)):
+        P = ms.patches[j]
+        x = P.spline.domain[:, 0] + rng.random((30, 3)) * np.ptp(P.spline.domain, axis=1)
+        direct = patch_geometry_points(P, x)[0]
+        assert np.abs(composed[j].evaluate(x)[:, :3] - direct).max() <= 1e-12 * np.abs(direct).max()
+    path = write_iges(tmp_path / "model.igs", boundary_splines(ms))
+    assert path.stat().st_size > 0

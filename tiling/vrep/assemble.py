@@ -35,7 +35,8 @@ from .bridges import build_bridges, resolve_collisions
 from .classify import Classification, classify
 from .model import VModel
 from .report import BridgeReport
-from .tubes import is_regular
+from .spatial import crosses_knot_lines, in_space
+from .tubes import bridge_patch, is_regular
 from .union import boundary_faces, bridge_union, shared_faces, union_anchors
 from geometry.grouping import ObjectIndex
 from geometry.tolerances import COINCIDENT, ON_DOMAIN
@@ -174,6 +175,7 @@ def _surface_bridges(model, kept: _Kept, margin, beta, report: BridgeReport, tim
         report.add_surface(counts)
     survivors, report.collisions = resolve_collisions([b for _, b in made])
     valid = [b for b in survivors if _valid(b)]  # a heat model takes regular patches only
+    valid = [b for b in valid if _exact(b, kept.placed)]
     report.folded = len(survivors) - len(valid)
     report.surface_bridges = len(valid)
     same = ObjectIndex()
@@ -182,16 +184,35 @@ def _surface_bridges(model, kept: _Kept, margin, beta, report: BridgeReport, tim
     return [(n, b) for n, b in made if same(b) in alive], union
 
 
+def _exact(b, placed) -> bool:
+    """A bridge whose map's knot lines cut it is rebuilt in space (:mod:`tiling.vrep.spatial`), so the model
+    composes exactly; False (given up as folded) where that geometry folds."""
+    if not crosses_knot_lines(b):
+        return True
+    for bend in (b.beta,) + _BENDS:  # the bend it was built with, then the others a folded bridge tries
+        built = in_space(b, placed, bend)
+        if built is None:  # a rational tile face: the bridge stays in map parameters (analysed through the map)
+            return True
+        if is_regular(built[0]):
+            b.geometry, b.space = built
+            return True
+    return False
+
+
 def _place_surface_bridges(kept: _Kept, made: list) -> dict:
     """Append the surface bridges as patches (one tile entry stands for all: each is its own spline, in map
-    parameters); returns {patch index: owning primitive name}."""
+    parameters, or its own geometry in space); returns {patch index: owning primitive name}."""
     if made:
         bridge_tile = len(kept.tiles)
         kept.tiles.append(Tile([box()], name="one-to-one bridge"))
     owner = {}
     for pname, b in made:
         owner[len(kept.placed)] = pname
-        kept.placed.append(PlacedPatch(b.spline, np.hstack([np.eye(3), np.zeros((3, 1))]), b.D, bridge_tile, 0, 0))
+        if b.geometry is not None:
+            kept.placed.append(bridge_patch(b.geometry, b.space, bridge_tile))
+        else:
+            kept.placed.append(PlacedPatch(b.spline, np.hstack([np.eye(3), np.zeros((3, 1))]), b.D, bridge_tile, 0,
+                                           0))
     return owner
 
 

@@ -65,6 +65,10 @@ class Bridge:
     section: np.ndarray = field(repr=False, default=None)  # (ns, nt, 3) face offsets from C, parameters
     rows01: np.ndarray = field(repr=False, default=None)  # the first two control layers (fixed by the tile)
     target: list = field(repr=False, default=None)  # the trimming primitive's six boundary faces
+    beta: float = 0.5  # the bend parameter it was built with
+    #: where the bridge is rebuilt in space (:mod:`tiling.vrep.spatial`): its geometry and analysis space
+    geometry: BSpline = field(repr=False, default=None)
+    space: list = field(repr=False, default=None)
 
 
 def _bernstein3(r):
@@ -240,7 +244,8 @@ def build_bridges(model, prim, cls, placed, anchors, beta: float = 0.5) -> tuple
         spline = BSpline(fs.degrees + (3,), list(fs.knots) + [np.array([0, 0, 0, 0, 1, 1, 1, 1.0])],
                          np.zeros(F.shape[:2] + (4, 3)))
         lam = beta * L / max(float(np.linalg.norm((F - T1).mean((0, 1)))), 1e-300)
-        b = Bridge(spline, D, pi, face, axis, 0.0, F - C, np.stack([F, F + lam * (F - T1)]), owner[choice[i]])
+        b = Bridge(spline, D, pi, face, axis, 0.0, F - C, np.stack([F, F + lam * (F - T1)]), owner[choice[i]],
+                   float(beta))
         ring = D.evaluate(F.reshape(-1, 3))[:, :3]
         ring = ring - ring.mean(0)
         proj = ring @ np.linalg.svd(ring, full_matrices=False)[2][:2].T  # in the face's principal plane

@@ -45,7 +45,7 @@ from ..errors import TilingError
 from geometry.tolerances import COINCIDENT
 
 __all__ = ["is_regular", "Face", "face_of", "Tube", "hermite_tube", "carrier", "orient", "orientation_for", "corner_index",
-           "bridge_patch", "uniform_space", "direction_field", "face_space"]
+           "bridge_patch", "uniform_space", "direction_field", "face_space", "tube_space"]
 
 _TOL = COINCIDENT  # composed knots closer than this (x span) are one knot
 
@@ -355,6 +355,15 @@ def carrier(space: list) -> BSpline:
 def uniform_space(p: int, n: int):
     """(U, p): an open uniform knot vector on [0, 1] with ``n`` elements."""
     return np.r_[[0.0] * p, np.linspace(0.0, 1.0, n + 1), [1.0] * p], p
+
+
+def tube_space(t: Tube) -> list:
+    """A tube's analysis space: its start face's (the end face's, oriented, is the same or refused by the
+    interface search), and in w the larger face degree on elements about as long as the face is wide."""
+    p = max(d for _, d in t.a.space)
+    length = float(np.linalg.norm(t.b.centre - t.a.centre))
+    n = int(np.clip(round(length / max(2 * t.radius, 1e-300)), 1, 4))
+    return [t.a.space[0], t.a.space[1], uniform_space(p, n)]
 
 
 def bridge_patch(G: BSpline, space: list, tile: int) -> PlacedPatch:

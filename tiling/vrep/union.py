@@ -30,7 +30,7 @@ from .matching import unbalanced_match
 from .report import UnionCounts
 from .repulsion import Collisions, closest, repel
 from .fork import bifurcation_base
-from .tubes import bridge_patch, carrier, face_of, face_space, hermite_tube, is_regular as _regular, uniform_space
+from .tubes import bridge_patch, carrier, face_of, face_space, hermite_tube, is_regular as _regular, tube_space
 from geometry.grouping import ObjectIndex
 from geometry.tolerances import COINCIDENT, same_space
 
@@ -205,11 +205,11 @@ def bridge_union(model, q_prim, p_prim, placed, q_faces, p_faces, tile: int, d_m
     folded, reduced = _bridge_matches(res, placed, m, M[0], N[0], alpha, beta, phi)
     kept, collisions = resolve_tube_collisions(res)
     for t in kept["tubes"]:
-        res.patches.append(bridge_patch(t.geometry, _tube_space(t), tile))
+        res.patches.append(bridge_patch(t.geometry, tube_space(t), tile))
     for f in kept["forks"]:
         res.patches.append(bridge_patch(f.base, f.space, tile))
         for t in f.arms:
-            res.patches.append(bridge_patch(t.geometry, _tube_space(t), tile))
+            res.patches.append(bridge_patch(t.geometry, tube_space(t), tile))
     res.tubes, res.forks = kept["tubes"], kept["forks"]
     ends = {t.a.key for t in res.tubes} | {t.b.key for t in res.tubes}
     for f in res.forks:
@@ -336,15 +336,6 @@ def _base_face(G, side: str, space: list):
     n *= np.sign(np.dot(n, out.points.reshape(-1, 3).mean(0))) / np.linalg.norm(n)
     f.out = BSpline(out.degrees, out.knots, np.broadcast_to(n, out.points.shape).copy())
     return f
-
-
-def _tube_space(t) -> list:
-    """A tube's analysis space: its start face's (the end face's, oriented, is the same or refused by the
-    interface search), and in w the larger face degree on elements about as long as the face is wide."""
-    p = max(d for _, d in t.a.space)
-    length = float(np.linalg.norm(t.b.centre - t.a.centre))
-    n = int(np.clip(round(length / max(2 * t.radius, 1e-300)), 1, 4))
-    return [t.a.space[0], t.a.space[1], uniform_space(p, n)]
 
 
 def resolve_tube_collisions(res: UnionBridges, max_repel: int = 20) -> tuple[dict, Collisions]:
