@@ -147,11 +147,34 @@ def test_smooth_levels():
 
 
 def test_bifurcation_tiles_are_conforming_shears():
-    t = bifurcation_tiles("1-4a", margin=0.25)
-    assert len(t["split"].patches) == 4 and len(t["join"].patches) == 4 and len(t["straight"].patches) == 1
+    t = bifurcation_tiles("1-4a", margin=0.25)  # a trunk of 4 blocks and 4 arms
+    assert len(t["split"].patches) == 8 and len(t["join"].patches) == 8 and len(t["straight"].patches) == 1
     for p in t["split"].patches:  # each block is a parallelepiped: bottom and top rectangles of equal size
         cp = p.control_points[..., :3]
         assert np.allclose(cp[:, :, 1] - cp[:, :, 0], cp[0, 0, 1] - cp[0, 0, 0])
+    with pytest.raises(TilingError, match="trunk"):
+        bifurcation_tiles("1-2", trunk=1.0)
+
+
+@pytest.mark.parametrize("kind", ["1-2", "1-4a", "1-4b"])
+def test_every_volumetric_bifurcation_is_one_closed_manifold(kind, duck, tmp_path):
+    """Massarwi et al. 2018, Fig. 15 setting (the duck at epsilon 0.35) and a box: the boundary, exported to STL
+    and read back with its points merged, has no open and no non-manifold edge (the arms part on the trunk's
+    top, not at a boundary face), one component, and it is oriented (every edge used once each way)."""
+    import pyvista as pv
+
+    from geometry import primitives as pr
+
+    for D, kw in ((duck, dict(epsilon=0.35)), (pr.box((1.0, 1.0, 4.0)), dict(levels=[0, 1, 1, 0]))):
+        ms = bifurcation(D, tile=kind, **kw)
+        assert ms.levels >= 2
+        path = tiling.export.write_surfaces(tmp_path / "b.stl", ms)
+        mesh = pv.read(path).clean()
+        w = tiling.export.mesh_watertightness(mesh)
+        assert w["closed"] and w["manifold"] and w["components"] == 1, (kind, w)
+        tris = mesh.faces.reshape(-1, 4)[:, 1:]
+        directed = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])
+        assert len(np.unique(directed, axis=0)) == len(directed)  # no edge twice the same way: oriented
 
 
 def test_bifurcation_bad_input(duck):
@@ -245,7 +268,7 @@ def test_implicit_bifurcation_reproducible_and_bad_input(duck):
 def test_bicubic_surface_bifurcation_tiles(duck):
     t = bifurcation_tiles("1-4b", surfaces=True)
     assert all(p.dim == 2 and p.degrees == (3, 3) for k in t for p in t[k].patches)
-    assert len(t["split"].patches) == 16  # 4 side walls of 4 blocks
+    assert len(t["split"].patches) == 16 + 10  # 4 walls of 4 arms, the trunk's outer walls (4 x 2 + 2)
     ms = bifurcation(duck, 0.35, "1-4a", surfaces=True)
     assert all(p.spline.dim == 2 for p in ms.patches) and not ms.interfaces
     w = tiling.export.watertightness(ms)

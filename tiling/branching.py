@@ -13,9 +13,10 @@ the mirrored *join* tile.  Other cells hold the *straight* tile.
 
 Tiles (:func:`bifurcation_tiles`) are volumetric: a column of square
 cross-section ``[c, 1 - c]^2`` along the growth axis (straight); a split tile
-is 2 or 4 sheared blocks, each from one strip of the column's footprint at
-its bottom to the column footprint of one finer cell at its top (a
-parallelepiped: exact under an affine map).  Across a layer plane a block's
+is a trunk of 2 or 4 blocks (the footprint cut into strips) and as many
+sheared arms, each from one strip on the trunk's top to the column footprint
+of one finer cell at the tile's top (parallelepipeds: exact under an affine
+map), so the split is one closed 2-manifold.  Across a layer plane a block's
 strip face meets a whole column face: the smaller face is constrained to the
 larger one's restriction by refinement matrices (a ``branch`` interface,
 Massarwi et al. 2018, Eqs. 11-12), exactly as in the hierarchical tiling;
@@ -45,33 +46,43 @@ SPLITS = {"1-2": (2, 1), "1-4a": (2, 2), "1-4b": (4, 1)}
 _MAX_LEVEL = 12
 
 
-def _block(bottom, top) -> BSpline:
-    """Trilinear block from an axis-aligned bottom rectangle (z = 0) to a top one (z = 1): ((x0, x1), (y0, y1)) each."""
+def _block(bottom, top, z0: float = 0.0, z1: float = 1.0) -> BSpline:
+    """Trilinear block from an axis-aligned bottom rectangle (z = z0) to a top one (z = z1): ((x0, x1), (y0, y1))
+    each."""
     cp = np.zeros((2, 2, 2, 3))
     for k, (rx, ry) in enumerate((bottom, top)):
         for i in range(2):
             for j in range(2):
-                cp[i, j, k] = (rx[i], ry[j], float(k))
+                cp[i, j, k] = (rx[i], ry[j], (z0, z1)[k])
     U = kn.uniform_knots(1, 1)
     return BSpline((1, 1, 1), [U, U, U], cp)
 
 
-def bifurcation_tiles(kind: str = "1-2", margin: float = 0.3, surfaces: bool = False) -> dict:
+def bifurcation_tiles(kind: str = "1-2", margin: float = 0.3, surfaces: bool = False, trunk: float = 0.25) -> dict:
     """The straight, split and join tiles of one bifurcation kind (tile coordinates, growth along z).
 
-    ``margin``: the column's footprint is ``[margin, 1 - margin]^2``.
-    Returns {"straight": Tile, "split": Tile, "join": Tile}; the split tile's
-    patch i runs from strip i of the footprint (bottom) to the footprint of
-    finer cell i (top), cells ordered x fastest.  ``surfaces``: the tiles of
-    bicubic surfaces instead (as the paper's Fig. 8): the four side walls of
-    every block, degree raised to 3, an open branching tube for surface
-    micro-structures and printing (not a heat model).
+    ``margin``: the column's footprint is ``[margin, 1 - margin]^2``.  The
+    split tile is a trunk and its arms (Massarwi et al. 2018, Fig. 15: a
+    branching tube): the footprint cut into strips, one block per strip from
+    z = 0 to ``trunk`` (blocks glued to each other by their shared faces, so
+    the trunk is one solid), then one sheared block per strip from there to the
+    footprint of finer cell i at the top (cells ordered x fastest).  The arms
+    part along the trunk's top: between two arms the surface folds along a
+    line of the trunk's top face, one closed 2-manifold (arms that started at
+    z = 0 would meet the free bottom of a boundary layer in an edge of four
+    faces).  The join tile is the split tile upside down.  ``surfaces``: the
+    tiles of bicubic surfaces instead (as the paper's Fig. 8): the side walls
+    of every block that no other block of the tile shares, degree raised to 3,
+    an open branching tube for surface micro-structures and printing (not a
+    heat model).
     """
     if kind not in SPLITS:
         raise TilingError(f"tile must be one of {list(SPLITS)} (bifurcation kinds), got {show(kind)}")
     if not isinstance(margin, (int, float)) or not 0 < margin < 0.5:
         raise TilingError(f"margin must be in (0, 0.5) (the column's distance from the cell's sides), got "
                           f"{show(margin)}")
+    if not isinstance(trunk, (int, float)) or isinstance(trunk, bool) or not 0 < trunk < 1:
+        raise TilingError(f"trunk must be in (0, 1) (the height of the split tile's common part), got {show(trunk)}")
     sx, sy = SPLITS[kind]
     c0, c1 = margin, 1.0 - margin
     w = c1 - c0
@@ -81,13 +92,29 @@ def bifurcation_tiles(kind: str = "1-2", margin: float = 0.3, surfaces: bool = F
             strips.append(((c0 + i * w / sx, c0 + (i + 1) * w / sx), (c0 + j * w / sy, c0 + (j + 1) * w / sy)))
             tops.append((((i + c0) / sx, (i + c1) / sx), ((j + c0) / sy, (j + c1) / sy)))
     foot = ((c0, c1), (c0, c1))
-    blocks = {"straight": [_block(foot, foot)], "split": [_block(s, t) for s, t in zip(strips, tops)],
-              "join": [_block(t, s) for s, t in zip(strips, tops)]}
+    split = [_block(s, s, 0.0, trunk) for s in strips] + [_block(s, t, trunk, 1.0) for s, t in zip(strips, tops)]
+    join = [_block(t, s, 0.0, 1.0 - trunk) for s, t in zip(strips, tops)] + [_block(s, s, 1.0 - trunk, 1.0)
+                                                                           for s in strips]
+    blocks = {"straight": [_block(foot, foot)], "split": split, "join": join}
     if surfaces:
-        blocks = {k: [b.boundary(f).elevate_to((3, 3)) for b in v for f in ("umin", "umax", "vmin", "vmax")]
-                  for k, v in blocks.items()}
+        blocks = {k: [b.boundary(f).elevate_to((3, 3)) for b, f in _outer_walls(v)] for k, v in blocks.items()}
     names = {"straight": "column", "split": f"bifurcation {kind}", "join": f"bifurcation {kind} (join)"}
     return {k: Tile(v, name=names[k] + (" (surfaces)" if surfaces else "")) for k, v in blocks.items()}
+
+
+def _outer_walls(blocks) -> list:
+    """(block, face) of the side walls that no other block of the tile shares (the trunk's inner walls are
+    interior)."""
+    walls = []
+    for b in blocks:
+        for f in ("umin", "umax", "vmin", "vmax"):
+            walls.append((b, f, np.round(b.boundary(f).control_points[..., :3].reshape(-1, 3), 12)))
+    out = []
+    for b, f, pts in walls:
+        key = sorted(map(tuple, pts))
+        if sum(sorted(map(tuple, q)) == key for _, _, q in walls) == 1:
+            out.append((b, f))
+    return out
 
 
 def _user_tiles(given: dict) -> dict:
@@ -257,8 +284,10 @@ def _place_layers(D, tiles: dict, layers, lev, spans, cross, g: int, splits):
                     placed.append(PlacedPatch(patch, M, D, tid, int(v), pi))
                     if patch.dim != 3:
                         continue
-                    for face, z in (("wmin", 0), ("wmax", 1)):
-                        pts = patch.control_points[:, :, z, :3].reshape(-1, 3)
+                    for face, z in (("wmin", 0), ("wmax", 1)):  # the faces on the layer planes (not a trunk's)
+                        pts = patch.boundary(face).control_points[..., :3].reshape(-1, 3)
+                        if np.abs(pts[:, 2] - z).max() > SNAP:
+                            continue
                         rect = np.stack([pts.min(0)[:2], pts.max(0)[:2]], 1) * size[:2, None] + lo[:2, None]
                         faces.append((idx, face, float(lo[2] + z * size[2]), rect))
     return placed, tile_list, faces
