@@ -273,6 +273,19 @@ def test_bicubic_surface_bifurcation_tiles(duck):
     assert all(p.spline.dim == 2 for p in ms.patches) and not ms.interfaces
     w = tiling.export.watertightness(ms)
     assert w["manifold"] and w["components"] == 1 and w["open_edges"] > 0  # open tubes, one connected network
+    # open only at D's growth ends: the rims of neighbouring walls are sampled at each other's points, so the
+    # tubes weld across every level change (no T-junction inside)
+    from scipy.spatial import cKDTree
+
+    m = ms.surface(4).clean()
+    e = m.extract_feature_edges(boundary_edges=True, non_manifold_edges=False, feature_edges=False,
+                                manifold_edges=False)
+    g, dom = np.linspace(0.0, 1.0, 300), duck.domain
+    uu, vv = np.meshgrid(dom[0, 0] + g * np.ptp(dom[0]), dom[1, 0] + g * np.ptp(dom[1]), indexing="ij")
+    ends = np.concatenate([duck.evaluate(np.column_stack([uu.ravel(), vv.ravel(), np.full(uu.size, dom[2, s])]))[:, :3]
+                           for s in (0, 1)])
+    size = float(np.ptp(m.points, axis=0).max())
+    assert cKDTree(ends).query(e.points)[0].max() < 1e-3 * size
     # the walls pass through the exact composition: a wall's corner lands where D maps it
     P = ms.patches[0]
     corner = P.placement[:, :3] @ P.spline.control_points[0, 0, :3] + P.placement[:, 3]
