@@ -8,10 +8,9 @@ on their own grids and curve tiles as polylines, through the exact chain rule
 ``D(A T + b)``.  Everything is welded into one ``pyvista.PolyData`` of
 triangles (and lines) in physical space.
 
-:func:`watertightness` reports, with VTK's feature-edge filter and
-connectivity, the open edges (used by one triangle: a hole), the non-manifold
-edges (used by more than two: e.g. the pinch lines where two fins of a tile
-touch at their root), the connected components and the Euler characteristic.
+:func:`watertightness` (:mod:`tiling.watertight`, re-exported here) reports the
+open and non-manifold edges, the components and the Euler characteristic of
+that surface, and the pinch lines of a tile's own geometry.
 """
 
 from __future__ import annotations
@@ -30,13 +29,16 @@ from geometry.io import atomic_write, offscreen_plotter, save_screenshot
 from geometry.sampling import piece_boxes, sample_axes, sampled_mesh, weld
 
 from .errors import TilingError
+from .rims import conforming_axes
+from .watertight import mesh_watertightness, pinch_lines, pinched
 
 if TYPE_CHECKING:  # annotations only: the Microstructure's own surface() calls into this module
     from .microstructure import Microstructure
 from geometry.errors import show
 from geometry.grouping import ObjectIndex
 
-__all__ = ["surface", "watertightness", "pinch_lines", "mesh_watertightness", "write_surfaces", "write_mesh", "render_png",
+__all__ = ["surface", "watertightness", "pinch_lines", "mesh_watertightness", "write_surfaces", "write_mesh",
+           "render_png",
            "boundary_splines", "continuous_pieces", "slot_surfaces", "write_iges",
            "samples_for_tolerance"]
 
@@ -85,7 +87,7 @@ def surface(ms: Microstructure, samples: int = 4):
         parts_pid.append(np.asarray(tri)[surf.cell_data["patch"]])
     lines = []
     off = sum(len(p) for p in parts_pts)
-    axes = _conforming_axes(ms.patches, samples)
+    axes = conforming_axes(ms.patches, samples)
     for i, P in enumerate(ms.patches):
         s = P.spline
         if s.dim == 2:
@@ -121,78 +123,6 @@ def surface(ms: Microstructure, samples: int = 4):
         poly.cell_data["level"] = np.full(poly.n_cells, ms.patches[i].level, np.int32)
         mesh = mesh.merge(poly) if mesh.n_points else poly
     return mesh
-
-
-def _conforming_axes(patches, samples: int, rounds: int = 32) -> dict:
-    """Sample axes of the surface patches, made conforming where their edges meet: {patch: [axis 0, axis 1]}.
-
-    Surface tiles meet along their rims (the walls of a bifurcation's trunk and arms, a level change of
-    tubes), where one patch's edge may cover part of another's or hold other sample points.  Each patch's
-    per-element samples are extended by the parameters of every other patch's edge samples that lie on its
-    own edges (in D's parameter domain, where the placed tiles are exact: within 1e-10 of the edge's sample
-    polyline, parameter by linear interpolation, exact for straight edges), round after round until no patch
-    gains a sample, so the triangles of neighbouring patches share their edge points and weld.  Curved rims
-    that meet only partway keep their own samples.
-    """
-    from scipy.spatial import cKDTree
-
-    surf = [i for i, P in enumerate(patches) if P.spline.dim == 2]
-    axes = {i: sample_axes(patches[i].spline.knots, samples) for i in surf}
-    if len(surf) < 2:
-        return axes
-    for _ in range(rounds):
-        edges = [(i, d, side) + _placed_edge(patches[i], axes[i], d, side) for i in surf for d in (0, 1)
-                 for side in (0, 1)]
-        pts = np.concatenate([e[3] for e in edges])
-        owner = np.concatenate([np.full(len(e[3]), e[0]) for e in edges])
-        scale = max(1.0, float(np.ptp(pts, axis=0).max()))
-        tree = cKDTree(pts)
-        grew = False
-        for i, d, _side, y, t in edges:
-            seg_lo, seg_hi = y[:-1], y[1:]
-            mids = 0.5 * (seg_lo + seg_hi)
-            half = 0.5 * np.linalg.norm(seg_hi - seg_lo, axis=1) + 1e-10 * scale
-            cand = {j for m, r in zip(mids, half) for j in tree.query_ball_point(m, r)}
-            cand = np.array([j for j in cand if owner[j] != i], dtype=np.int64)
-            if not len(cand):
-                continue
-            new = _on_polyline(pts[cand], y, t, 1e-10 * scale)
-            have = axes[i][d]
-            new = new[np.abs(new[:, None] - have[None, :]).min(axis=1) > 1e-12 * max(1.0, np.ptp(have))]
-            if len(new):
-                axes[i][d] = np.unique(np.concatenate([have, new]))
-                grew = True
-        if not grew:
-            break
-    return axes
-
-
-def _placed_edge(P, ax, d: int, side: int):
-    """The edge of surface patch P along parameter direction d at the ``side`` end of the other direction: its
-    sample points in D's parameter domain (placed tile coordinates) and their parameters."""
-    o = 1 - d
-    t = np.asarray(ax[d], float)
-    prm = np.empty((len(t), 2))
-    prm[:, d] = t
-    prm[:, o] = ax[o][-1] if side else ax[o][0]
-    y = P.spline.evaluate(prm)[:, :3]
-    if P.placement is not None:
-        y = y @ P.placement[:, :3].T + P.placement[:, 3]
-    return y, t
-
-
-def _on_polyline(q: np.ndarray, y: np.ndarray, t: np.ndarray, tol: float) -> np.ndarray:
-    """Parameters of the points ``q`` (m, 3) that lie within ``tol`` of the polyline ``y`` (n, 3) sampled at
-    parameters ``t`` (n,), interpolated linearly along the segment they lie on."""
-    a, b = y[:-1], y[1:]
-    ab = b - a
-    L2 = np.maximum(np.sum(ab * ab, axis=1), 1e-300)
-    s = np.clip(np.einsum("mnk,nk->mn", q[:, None, :] - a[None], ab) / L2[None], 0.0, 1.0)  # (m, segments)
-    dist = np.linalg.norm(q[:, None, :] - (a[None] + s[..., None] * ab[None]), axis=2)
-    seg = np.argmin(dist, axis=1)
-    hit = dist[np.arange(len(q)), seg] <= tol
-    s = s[np.arange(len(q)), seg]
-    return (t[:-1][seg] + s * np.diff(t)[seg])[hit]
 
 
 def _edge_params(s, edge: str, samples: int) -> np.ndarray:
@@ -251,118 +181,6 @@ def samples_for_tolerance(ms: Microstructure, tolerance: float, max_samples: int
             raise TilingError(f"the boundary needs more than {max_samples} subdivisions per element for tolerance "
                               f"{show(tolerance)} (measured {worst:.3g} at {s}); raise the tolerance")
         s *= 2
-
-
-def watertightness(ms: Microstructure, samples: int = 4) -> dict:
-    """Closedness of the boundary surface of ``ms`` (triangles only; see the module notes).
-
-    Returns {"closed": no open edge, "manifold": no non-manifold edge,
-    "open_edges", "nonmanifold_edges", "components", "euler_characteristic",
-    "triangles"}, and the tile's own pinches: "pinch_lines" (:func:`pinch_lines`),
-    "pinched_edges" (the non-manifold edges on them) and "unexplained_nonmanifold_edges"
-    (the others: a defect).  A closed surface of one component has no holes; a
-    non-manifold edge is a line where more than two faces meet.
-    """
-    mesh = surface(ms, samples)
-    out = mesh_watertightness(mesh)
-    lines = pinch_lines(ms)
-    out["pinch_lines"] = lines
-    out["pinched_edges"] = _on_lines(mesh, lines) if out["nonmanifold_edges"] else 0
-    out["unexplained_nonmanifold_edges"] = out["nonmanifold_edges"] - out["pinched_edges"]
-    return out
-
-
-def pinch_lines(ms: Microstructure, n: int = 9) -> list[dict]:
-    """The lines where a tile's two slot walls touch on the model's boundary (true geometry, not a defect).
-
-    A partial discontinuity whose slot opens right from a free face of the
-    patch (Massarwi et al. 2018, Fig. 2: the skinned tile's fins start at its
-    base) has its two walls meet that face along a line: there four faces
-    meet (both walls, the face on either side), so the boundary is closed but
-    not a manifold along it.  For every free slot rectangle edge that lies on a
-    free face of its patch, the two sides of the discontinuity are evaluated
-    one-sidedly at ``n`` points along it; where they coincide the edge is a
-    pinch line.  Returns [{"patch", "slot", "face", "points" (n, 3) in space}].
-    """
-    free = {f for f in ms.tags.get("boundary", []) if f[1] in FACE_NAMES}
-    t = np.linspace(0.0, 1.0, n)
-    out = []
-    for (i, fid), rects in getattr(ms, "face_regions", {}).items():
-        d, v, side = parse_slot_face(fid)
-        if side > 0:  # one record per plane: the '-' side stands for both
-            continue
-        P = ms.patches[i]
-        dom = P.spline.domain
-        rest = [k for k in range(3) if k != d]
-        for rect in rects:
-            for m in (0, 1):
-                for end in (0, 1):
-                    at = rect[m][end]
-                    face = face_name(rest[m], end)
-                    if abs(at - dom[rest[m], end]) > 1e-12 * max(1.0, abs(at)) or (i, face) not in free:
-                        continue
-                    x = np.empty((n, 3))
-                    x[:, d], x[:, rest[m]] = v, at
-                    x[:, rest[1 - m]] = rect[1 - m][0] + t * (rect[1 - m][1] - rect[1 - m][0])
-                    sides = [_one_sided(P, d, v, s_, x) for s_ in (-1, 1)]
-                    size = max(float(np.ptp(sides[0], axis=0).max()), 1e-300)
-                    if np.abs(sides[0] - sides[1]).max() <= 1e-9 * size:
-                        out.append({"patch": int(i), "slot": fid[:-1], "face": face, "points": sides[0]})
-    return out
-
-
-def _one_sided(P, d: int, v: float, side: int, x: np.ndarray) -> np.ndarray:
-    """Physical points of placed patch P at parameters x on the discontinuity plane (direction d, value v),
-    evaluated on one side of it."""
-    box = P.spline.domain.copy()
-    box[d] = [box[d, 0], v] if side < 0 else [v, box[d, 1]]
-    y = P.spline.extract(box).evaluate(x)[:, :3]
-    return _place(P, y) if P.outer is not None else y
-
-
-def _on_lines(mesh, lines) -> int:
-    """How many non-manifold edges of the triangles of ``mesh`` lie on the sampled ``lines``."""
-    tris = mesh.extract_cells_by_type(5).extract_surface(algorithm="dataset_surface")
-    nm = tris.extract_feature_edges(boundary_edges=False, non_manifold_edges=True, feature_edges=False,
-                                    manifold_edges=False)
-    if not nm.n_cells or not lines:
-        return 0
-    from scipy.spatial import cKDTree
-
-    segs = nm.lines.reshape(-1, 3)[:, 1:]
-    mid = 0.5 * (nm.points[segs[:, 0]] + nm.points[segs[:, 1]])
-    dense = np.concatenate([_densify(ln["points"]) for ln in lines])
-    spacing = max(float(np.linalg.norm(np.diff(_densify(ln["points"]), axis=0), axis=1).max()) for ln in lines)
-    reach = np.linalg.norm(nm.points[segs[:, 0]] - nm.points[segs[:, 1]], axis=1)
-    dist, _ = cKDTree(dense).query(mid)
-    return int(np.sum(dist <= spacing + 0.05 * reach))
-
-
-def _densify(points: np.ndarray, per: int = 16) -> np.ndarray:
-    """The polyline ``points`` with ``per`` linear samples per segment."""
-    t = np.linspace(0.0, 1.0, per, endpoint=False)[None, :, None]
-    seg = points[:-1, None] + t * (points[1:, None] - points[:-1, None])
-    return np.concatenate([seg.reshape(-1, 3), points[-1:]])
-
-
-def mesh_watertightness(mesh) -> dict:
-    """:func:`watertightness` of any welded ``pyvista.PolyData`` (its triangles)."""
-    tris = mesh.extract_cells_by_type(5) if mesh.n_cells else mesh  # VTK_TRIANGLE
-    tris = tris.extract_surface(algorithm="dataset_surface") if tris.n_cells else tris
-    if not tris.n_cells:
-        return {"closed": False, "manifold": True, "open_edges": 0, "nonmanifold_edges": 0, "components": 0,
-                "euler_characteristic": 0, "triangles": 0}
-    fe = tris.extract_feature_edges(boundary_edges=True, non_manifold_edges=False, feature_edges=False,
-                                    manifold_edges=False)
-    nm = tris.extract_feature_edges(boundary_edges=False, non_manifold_edges=True, feature_edges=False,
-                                    manifold_edges=False)
-    faces = tris.faces.reshape(-1, 4)[:, 1:]
-    edges = np.unique(np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1), axis=0)
-    V = len(np.unique(faces))
-    components = int(tris.connectivity().cell_data["RegionId"].max()) + 1
-    return {"closed": fe.n_cells == 0, "manifold": nm.n_cells == 0, "open_edges": int(fe.n_cells),
-            "nonmanifold_edges": int(nm.n_cells), "components": components,
-            "euler_characteristic": int(V - len(edges) + len(faces)), "triangles": int(len(faces))}
 
 
 def write_surfaces(path, ms: Microstructure, samples: int = 4) -> Path:
@@ -533,3 +351,18 @@ def write_iges(path, ms: Microstructure, units: str = "m") -> Path:
         return _write_iges(path, splines, units=units, name=ms.name)
     except SplineError as exc:
         raise TilingError(str(exc)) from None
+
+
+
+def watertightness(ms: Microstructure, samples: int = 4) -> dict:
+    """Closedness of the boundary surface of ``ms`` (triangles only; :mod:`tiling.watertight`).
+
+    Returns {"closed": no open edge, "manifold": no non-manifold edge,
+    "open_edges", "nonmanifold_edges", "components", "euler_characteristic",
+    "triangles"}, and the tile's own pinches: "pinch_lines" (:func:`pinch_lines`),
+    "pinched_edges" (the non-manifold edges on them) and "unexplained_nonmanifold_edges"
+    (the others: a defect).  A closed surface of one component has no holes; a
+    non-manifold edge is a line where more than two faces meet.
+    """
+    mesh = surface(ms, samples)
+    return pinched(mesh, ms, mesh_watertightness(mesh))
