@@ -101,3 +101,17 @@ def decode_appended_vtu(path) -> dict:
             pos += int(s)
         out[el.get("Name")] = np.frombuffer(b"".join(chunks), dtypes[el.get("type")])
     return out
+
+
+def face_params(P, face, st):
+    """Parameters (N, 3) of placed patch P on its face ``face`` at normalised face parameters st (N, 2) in
+    [0, 1]^2 (the face's two remaining directions, in order)."""
+    from geometry.faces import FACE_AXIS
+
+    k, side = FACE_AXIS[face]
+    dom = P.spline.domain
+    rest = [d for d in range(3) if d != k]
+    x = np.empty((len(st), 3))
+    x[:, k] = dom[k, side]
+    x[:, rest] = dom[rest, 0] + np.asarray(st) * np.ptp(dom[rest], axis=1)
+    return x

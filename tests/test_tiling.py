@@ -7,8 +7,7 @@ import geometry
 from geometry import BSpline, SplineError, primitives as pr
 import tiling
 from tiling import BranchFace, Tile, TilingError, library as L
-from geometry.faces import FACE_AXIS
-from helpers import rel_err
+from helpers import face_params, rel_err
 
 
 def curved_map():
@@ -18,14 +17,7 @@ def curved_map():
 
 def face_eval(P, face, st):
     """Points of a placed patch face in D's parameter domain at face parameters st (N, 2) in [0, 1]^2."""
-    k, side = FACE_AXIS[face]
-    dom = P.spline.domain
-    rest = [d for d in range(3) if d != k]
-    x = np.empty((len(st), 3))
-    x[:, k] = dom[k, side]
-    for j, d in enumerate(rest):
-        x[:, d] = dom[d, 0] + st[:, j] * (dom[d, 1] - dom[d, 0])
-    return P.spline.evaluate(x)[:, :3] @ P.placement[:, :3].T + P.placement[:, 3]
+    return P.spline.evaluate(face_params(P, face, st))[:, :3] @ P.placement[:, :3].T + P.placement[:, 3]
 
 
 def assert_identity_coincides(D, ms, itf, st):

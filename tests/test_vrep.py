@@ -8,6 +8,7 @@ from geometry import primitives as pr
 from geometry.shapes import cylinder
 from tiling import TilingError
 from tiling import library as L
+from helpers import face_params
 from tiling.vrep import (INSIDE, INTERSECTING, MARGIN, OUTSIDE, TO_BE_BRIDGED, Primitive, classify,
                          vrep_microstructure)
 
@@ -148,19 +149,6 @@ def _angle_deg(a, b):
     return np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))
 
 
-def _face_params(P, face, st):
-    """Patch parameters of the face ``face`` of placed patch P at normalised face parameters st (n, 2)."""
-    from geometry.faces import FACE_AXIS
-
-    k, s = FACE_AXIS[face]
-    dom = P.spline.domain
-    rest = [d for d in range(3) if d != k]
-    x = np.zeros((len(st), 3))
-    x[:, k] = dom[k, s]
-    x[:, rest] = dom[rest, 0] + st * np.ptp(dom[rest], axis=1)
-    return x
-
-
 def _oriented(st, swap, flip):
     """Face b's parameters of face a's st under an interface orientation (geometry.Interface's convention)."""
     out = st[:, ::-1].copy() if swap else st.copy()
@@ -191,14 +179,14 @@ def test_bridges_start_g1_at_their_tiles_and_end_orthogonal_on_the_trimming_surf
         assert len(links) == 1 and links[0][0][0] < first  # glued to one tile face, nothing else
         (tp, tface), (_, bface), swap, flip = links[0]
         st = rng.random((15, 2))
-        xt, Jt, _ = patch_geometry_points(ms.patches[tp], _face_params(ms.patches[tp], tface, st))
-        xb, Jb, _ = patch_geometry_points(ms.patches[j], _face_params(ms.patches[j], bface, _oriented(st, swap, flip)))
+        xt, Jt, _ = patch_geometry_points(ms.patches[tp], face_params(ms.patches[tp], tface, st))
+        xb, Jb, _ = patch_geometry_points(ms.patches[j], face_params(ms.patches[j], bface, _oriented(st, swap, flip)))
         assert np.abs(xt - xb).max() < 1e-10  # the same face, point by point
         kt, kb = FACE_AXIS[tface][0], FACE_AXIS[bface][0]
         assert _angle_deg(Jt[:, :, kt], Jb[:, :, kb]).max() < 1e-6  # G1: cross derivatives parallel
         # the other end lies on the trimming surface (B's boundary), the bridge arriving along its normal
         far = "wmax" if bface == "wmin" else "wmin"
-        xe, Je, _ = patch_geometry_points(ms.patches[j], _face_params(ms.patches[j], far, np.array([[0.5, 0.5]])))
+        xe, Je, _ = patch_geometry_points(ms.patches[j], face_params(ms.patches[j], far, np.array([[0.5, 0.5]])))
         best = min((invert(G, xe) for G in faces), key=lambda r: r.distance[0])
         G = faces[[invert(G, xe).distance[0] for G in faces].index(best.distance[0])]
         width = float(np.ptp(xt, axis=0).max())
