@@ -1,7 +1,8 @@
 """Isogeometric analysis on micro-structures: spaces, assembly, heat problem, VTU export.
 
 Public names: :class:`HeatProblem`, :class:`Solution`, :class:`ElasticityProblem`, :class:`ElasticSolution`,
-:func:`effective_conductivity`, :func:`effective_stiffness`, :func:`write_vtu`,
+:func:`effective_conductivity`, :func:`effective_stiffness`, :func:`effective_table` and :func:`macro_map`
+(graded macro models), :func:`write_vtu`,
 :class:`ProblemError`.  Command line: ``iga --help``.
 """
 
@@ -10,8 +11,10 @@ from .problem import HeatProblem
 from .elasticity import ElasticityProblem
 from .elastic_solution import ElasticSolution
 from .homogenize import effective_conductivity, effective_stiffness
+from .macro import EffectiveTable, effective_table, macro_map
 from .solution import Solution
 from .vtu import write_vtu
 
 __all__ = ["ProblemError", "SingularProblemError", "HeatProblem", "Solution", "ElasticityProblem", "ElasticSolution",
-           "effective_conductivity", "effective_stiffness", "write_vtu"]
+           "effective_conductivity", "effective_stiffness", "EffectiveTable", "effective_table", "macro_map",
+           "write_vtu"]

@@ -4,7 +4,7 @@ Public names: :class:`Tile`, :class:`BranchFace`, :func:`regular`,
 :func:`hierarchical`, :class:`Microstructure`, :func:`random_implicit` (random
 implicit structures, :class:`ImplicitStructure`), :func:`topo_subdiv` (adaptive
 subdivision, :class:`CellComplex`), :func:`bifurcation` (layered bifurcation
-tilings), :func:`implicit_bifurcation`, :func:`compose_levels` (two-level structures),
+tilings), :func:`implicit_bifurcation`, :func:`compose_levels` (two-level structures), :func:`graded` (layers of a tile family),
 :class:`TilingError` and the
 ``library`` module of built-in tiles.
 """
@@ -19,10 +19,11 @@ from .branching import bifurcation, bifurcation_tiles
 from .implicit_branching import BifurcationStructure, implicit_bifurcation
 from .polygonal import PolygonTile, pave_polygons
 from .levels import compose_levels
+from .graded import graded
 from . import library
 
 __all__ = ["TilingError", "Tile", "BranchFace", "discontinuity_branches", "Microstructure", "PlacedPatch",
            "Interface", "regular", "hierarchical", "library",
            "random_implicit", "ImplicitStructure", "canonical_tubes", "topo_subdiv", "CellComplex", "bifurcation",
            "bifurcation_tiles", "implicit_bifurcation", "BifurcationStructure",
-           "PolygonTile", "pave_polygons", "compose_levels"]
+           "PolygonTile", "pave_polygons", "compose_levels", "graded"]

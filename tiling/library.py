@@ -161,6 +161,32 @@ def cross(arm: float = 0.3) -> Tile:
     return Tile(blocks, name="cross")
 
 
+def graded_cross(bottom: float = 0.2, top: float = 0.4) -> Tile:
+    """A cross whose vertical arm tapers from ``bottom`` (its width on the cell's bottom face) to ``top`` (on its
+    top face): centre and horizontal arms of the mean width, the two vertical arms frusta from the end widths to
+    the centre's.  Stacked along w with matching end widths (:func:`tiling.graded`), neighbouring layers meet
+    face to face, so a lattice can be graded (Massarwi et al. 2018, Section 6.1: heterogeneous structures)."""
+    for what, v in (("bottom", bottom), ("top", top)):
+        if not (isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool) and 0 < v < 1):
+            raise TilingError(f"graded_cross: the {what} arm width must be in (0, 1), got {show(v)}")
+    mid = 0.5 * (bottom + top)
+    a, b = 0.5 - mid / 2, 0.5 + mid / 2
+    blocks = [pr.box((mid,) * 3, (a,) * 3)]
+    for k in (0, 1):
+        for lo, hi in ((0.0, a), (b, 1.0)):
+            size, org = np.full(3, mid), np.full(3, a)
+            size[k], org[k] = hi - lo, lo
+            blocks.append(pr.box(tuple(size), tuple(org)))
+
+    def frustum(z0, w0, z1, w1):  # square sections of width w0 at z0 and w1 at z1, centred on the cell's axis
+        corners = {(i, j, k): (0.5 + (i - 0.5) * w, 0.5 + (j - 0.5) * w, z)
+                   for k, (z, w) in enumerate(((z0, w0), (z1, w1))) for i in (0, 1) for j in (0, 1)}
+        return _hexa(corners)
+
+    blocks += [frustum(0.0, bottom, a, mid), frustum(b, mid, 1.0, top)]
+    return Tile(blocks, name=f"graded_cross({bottom:g}, {top:g})")
+
+
 def hollow(tile: Tile) -> Tile:
     """The boundary of a volumetric tile as a surface tile: every face of its trivariates that no other of its
     trivariates shares and that does not lie on a cell wall (where neighbours continue it), oriented outwards.
@@ -228,4 +254,4 @@ def helix(turns: float = 2.0, radius: float = 0.3, n: int = 16) -> Tile:
 
 #: the built-in tiles by name (what ``[tile] library = ...`` of a pipeline may name)
 TILES = {f.__name__: f for f in (heat_sink_t1, heat_sink_t2, skinned_branching, fractal, hollow_box, cross, helix,
-                                 bent_cross, hollow_cross)}
+                                 bent_cross, hollow_cross, graded_cross)}
