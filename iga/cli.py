@@ -122,6 +122,12 @@ def _cmd_homogenize(args) -> int:
     print(f"{args.tile}{kwargs or ''}: volume fraction {k.volume_fraction:.6g}; effective conductivity "
           f"(k = {args.conductivity:g}), symmetry error {k.symmetry_error:.1e}:")
     print(k.tensor)
+    print(f"(cell problems: {k.unknowns} unknowns, condition number about {k.condition:.2g})")
+    if args.out is not None:
+        if not str(args.out).endswith(".vtu"):
+            raise ProblemError(f"--out {args.out!r}: the cell fields are written as a .vtu file; give a name ending "
+                               "in .vtu")
+        print(f"cell fields (corrector, cell_flux_x/y/z, conductivity): {k.write_vtu(args.out)}")
     if args.youngs is not None:
         c = effective_stiffness(tile, args.youngs, args.poisson, refine=args.refine, diagnostics=True)
         scale = 10.0 ** np.floor(np.log10(max(np.abs(c.tensor).max(), 1e-300)))
@@ -188,6 +194,8 @@ def _add_homogenize(sub) -> None:
     hom.add_argument("--youngs", type=float, default=None, help="Young's modulus (Pa): also the effective stiffness")
     hom.add_argument("--poisson", type=float, default=0.3, help="Poisson's ratio (with --youngs)")
     hom.add_argument("--refine", type=int, default=0, help="refinement rounds of the cell problems' spaces")
+    hom.add_argument("--out", default=None, metavar="FILE.vtu",
+                     help="also write the cell fields: the correctors and the cell's heat flux for unit gradients")
     hom.set_defaults(func=_cmd_homogenize)
 
 

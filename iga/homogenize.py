@@ -44,13 +44,37 @@ __all__ = ["Effective", "effective_conductivity", "effective_stiffness", "period
 class Effective:
     """An effective tensor with its diagnostics: ``tensor`` (3, 3) in the units of the conductivity,
     ``volume_fraction`` (solid volume / cell volume), ``symmetry_error`` (max |K - K^T| / max |K|),
-    ``unknowns`` of each cell problem, ``periodic_faces`` glued across the cell."""
+    ``unknowns`` of each cell problem, ``periodic_faces`` glued across the cell, ``condition`` (the 1-norm
+    condition number of the cell problems' matrix, estimated); for the conductivity also the cell problem
+    and its correctors (ndof, 3), which :meth:`write_vtu` writes."""
 
     tensor: np.ndarray
     volume_fraction: float
     symmetry_error: float
     unknowns: int
     periodic_faces: int
+    condition: float = float("nan")
+    problem: object = None
+    correctors: np.ndarray = None
+
+    def write_vtu(self, path, samples: int = 3):
+        """The cell fields as one ``.vtu`` (atomic): the correctors chi_x, chi_y, chi_z (``corrector``), the
+        cell's heat flux for a unit macroscopic gradient along x, y, z (``cell_flux_x`` ..) and the
+        conductivity, on the tile's patches sampled ``samples`` times per element (conductivity only)."""
+        from geometry.io import atomic_write
+        from geometry.sampling import sampled_mesh
+
+        from .sampling import corrector_fields
+        from .vtu import save_grid
+
+        if self.correctors is None:
+            raise ProblemError("this Effective holds no cell fields: write_vtu needs "
+                               "effective_conductivity(..., diagnostics=True)")
+        prob = self.problem
+        grid = sampled_mesh(prob.model, samples, knots_of=lambda pi: [d.knots for d in prob.spaces[pi].dirs],
+                            spaces_key=lambda pi: prob.spaces[pi].key(),
+                            fields=corrector_fields(prob, self.correctors))
+        return atomic_write(path, lambda tmp: save_grid(grid, tmp), ".vtu", ProblemError)
 
 
 def periodic_cell(tile) -> MultiPatch:
@@ -113,12 +137,22 @@ def effective_conductivity(tile, conductivity=1.0, degree_elevation: int = 1, re
     Br = P.T @ B
     keep = np.arange(1, A.shape[0])  # chi up to a constant: pin the first reduced unknown
     X = np.zeros_like(Br)
-    X[keep] = np.column_stack([sp.linalg.spsolve(A[keep][:, keep], -Br[keep, j]) for j in range(3)])
+    Ak = A[keep][:, keep].tocsc()
+    lu = sp.linalg.splu(Ak)
+    X[keep] = lu.solve(-np.ascontiguousarray(Br[keep]))
     Keff = total_k * np.eye(3) + Br.T @ X  # K_ij = int k delta_ij + b_i(chi_j)  (the unit cell: |Y| = 1)
     sym = float(np.abs(Keff - Keff.T).max() / max(np.abs(Keff).max(), 1e-300))
     out = Effective(0.5 * (Keff + Keff.T), volume, sym, int(A.shape[0]),
-                    sum(i.kind == "identity" for i in model.interfaces))
+                    sum(i.kind == "identity" for i in model.interfaces), _condition(Ak, lu) if diagnostics else
+                    float("nan"), prob, P @ X)
     return out if diagnostics else out.tensor
+
+
+def _condition(A, lu) -> float:
+    """The 1-norm condition number of A estimated from its factors (Hager-Higham, ``onenormest``)."""
+    inv = sp.linalg.LinearOperator(A.shape, matvec=lu.solve, rmatvec=lambda b: lu.solve(b, trans="T"),
+                                   dtype=float)
+    return float(sp.linalg.onenormest(A) * sp.linalg.onenormest(inv))
 
 
 def _gauss_slabs(prob, i: int):
@@ -187,11 +221,13 @@ def effective_stiffness(tile, youngs, poisson, degree_elevation: int = 1, refine
     nred = A.shape[0] // 3
     keep = np.setdiff1d(np.arange(A.shape[0]), [0, nred, 2 * nred])  # one pinned unknown per component
     X = np.zeros_like(Br)
-    lu = sp.linalg.splu(A[keep][:, keep])
+    Ak = A[keep][:, keep].tocsc()
+    lu = sp.linalg.splu(Ak)
     X[keep] = lu.solve(-Br[keep])
     C = mean + Br.T @ X
     sym = float(np.abs(C - C.T).max() / max(np.abs(C).max(), 1e-300))
-    out = Effective(0.5 * (C + C.T), volume, sym, int(A.shape[0]), sum(i.kind == "identity" for i in model.interfaces))
+    out = Effective(0.5 * (C + C.T), volume, sym, int(A.shape[0]), sum(i.kind == "identity" for i in model.interfaces),
+                    _condition(Ak, lu) if diagnostics else float("nan"))
     return out if diagnostics else out.tensor
 
 

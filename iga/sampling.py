@@ -11,7 +11,7 @@ from .coefficients import tensor_matrix
 from .elastic_forms import lame
 from .fields import grid_fields
 
-__all__ = ["temperature_fields", "displacement_fields"]
+__all__ = ["temperature_fields", "displacement_fields", "corrector_fields"]
 
 
 def temperature_fields(solution):
@@ -82,3 +82,27 @@ def _displacement_fields(solution, members, pax, x, D, chans, out: dict) -> np.n
                 "von_mises": np.sqrt(1.5 * np.sum(dev * dev, axis=(1, 2))).reshape(P, N),
                 "youngs_modulus": E.reshape(P, N), "poisson_ratio": nu.reshape(P, N)})
     return det
+
+
+def corrector_fields(prob, chi: np.ndarray):
+    """The ``fields`` hook of the periodic cell problems (:mod:`iga.homogenize`): the correctors ``chi`` (ndof,
+    3), one column per macroscopic gradient e_j (m), and the cell's heat flux for a unit gradient along x, y,
+    z: ``cell_flux_x`` = -k (grad chi_x + e_x) .. (W/m^2 per K/m), and the conductivity."""
+    def hook(members, pax, x, D, chans, out):
+        space = prob.spaces[members[0]]
+        B = [piece_basis(d, a) for d, a in zip(space.dirs, pax)]
+        o = prob.offsets
+        U = np.stack([np.stack([chi[o[i]:o[i + 1], j].reshape(space.shape) for j in range(3)]) for i in members])
+        val, grad, det = grid_fields(U, B, D)
+        grad[~np.all(np.isfinite(grad), axis=(1, 2))] = 0.0
+        P, N = x.shape[:2]
+        flat = {c: np.reshape(v, -1) for c, v in chans.items()}
+        K = prob.conductivity.values(x.reshape(-1, 3), flat, f"patches {members[0]}..{members[-1]}")
+        Km = K[:, None, None] * np.eye(3) if K.ndim == 1 else tensor_matrix(K)
+        out["corrector"] = val.reshape(P, N, 3)
+        for j, name in enumerate("xyz"):
+            out[f"cell_flux_{name}"] = -np.einsum("nij,nj->ni", Km, grad[:, j] + np.eye(3)[j]).reshape(P, N, 3)
+        out["conductivity"] = (K if K.ndim == 1 else K[:, 0]).reshape(P, N)
+        return det
+
+    return hook
