@@ -132,3 +132,17 @@ def test_the_cell_fields_are_written_and_average_to_the_effective_flux(tmp_path)
     bad = subprocess.run([sys.executable, "-m", "iga", "homogenize", "--tile", "cross", "--out",
                           str(tmp_path / "c.txt")], capture_output=True, text=True)
     assert bad.returncode == 1 and "ending in .vtu" in bad.stderr
+
+
+def test_a_tile_without_mirror_symmetry_shows_an_o_1_over_n_boundary_layer():
+    """Scale separation: the bent cross (bowed arms) between two plates conducts K_eff (1 + c / n): the
+    difference halves with every doubling of n (the mirror-symmetric cross has none: c = 0)."""
+    tile = L.bent_cross()
+    k = effective_conductivity(tile)[2, 2]
+    diff = []
+    for n in (1, 2, 4):
+        ms = tiling.regular(pr.box(), tile, (n, n, n))
+        q = HeatProblem(ms, 1.0, degree_elevation=1).dirichlet("wmin", 1.0).dirichlet("wmax", 0.0).solve()
+        diff.append(-q.flux("wmin") / k - 1)
+    assert diff[0] > 0 and diff[1] / diff[0] == pytest.approx(0.5, abs=0.02) and diff[2] / diff[1] == pytest.approx(
+        0.5, abs=0.02)
