@@ -23,6 +23,7 @@ import numpy as np
 
 from geometry import BSpline
 from geometry.errors import show
+from tiling.materials import interpolate_channel
 
 from .coefficients import TENSOR_PAIRS
 from .errors import ProblemError
@@ -90,8 +91,6 @@ def macro_map(D: BSpline, table: EffectiveTable, parameter: str, spans: int = 8,
     D is first refined (knot insertion, exact) to at least ``spans`` knot spans per direction, so that its
     spline space can carry the interpolated tensor (a quasi-interpolant at the Greville points).
     """
-    from tiling.materials import interpolate_channel
-
     if not isinstance(D, BSpline) or D.dim != 3:
         raise ProblemError(f"macro_map needs a trivariate geometry.BSpline map, got {show(D)}")
     if parameter not in D.channels:

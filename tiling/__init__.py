@@ -19,7 +19,7 @@ from .branching import bifurcation, bifurcation_tiles
 from .implicit_branching import BifurcationStructure, implicit_bifurcation
 from .polygonal import PolygonTile, pave_polygons
 from .levels import compose_levels
-from .graded import graded
+from .graded_layers import graded
 from . import library
 
 __all__ = ["TilingError", "Tile", "BranchFace", "discontinuity_branches", "Microstructure", "PlacedPatch",
