@@ -96,7 +96,8 @@ def _cmd_run(args) -> int:
         extra = ""
         if "surface" in s:
             w = s["surface"]
-            extra = f"; surface of {w['triangles']:,} triangles, {'closed' if w['closed'] else 'open'}"
+            extra = (f"; surface of {w['triangles']:,} triangles, {'closed' if w['closed'] else 'open'}"
+                     if w.get("triangles") else f"; {w.get('lines', 0):,} lines")
         print(f"{_plural(s['tiles'], 'tile')} (no analysis){extra}; {where}")
     return 0
 

@@ -221,7 +221,7 @@ def _surface_outputs(built, out: Path, ocfg: dict, stages, root: bool) -> dict:
             else:
                 render_mesh(mesh, png, "w" if "w" in mesh.point_data else None)
             files["png"] = str(png)
-    w = mesh_watertightness(mesh) if mesh.faces.size else {"triangles": 0, "lines": int(mesh.n_lines)}
+    w = {**mesh_watertightness(mesh), "lines": int(mesh.n_lines)}  # (no triangles: not closed, 0 components)
     stages.done()
     n = len(s.cells) if hasattr(s, "cells") else int(np.prod(s.counts)) if hasattr(s, "counts") else \
         getattr(s, "n_tiles", built.info.get("tiles", 0))

@@ -219,3 +219,19 @@ def test_vrep_subtractions_and_intersections_run_as_in_python(expression, tmp_pa
     sol = HeatProblem(ms, "k").dirichlet("A:vmin", 100.0).robin("rest", 10.0, 20.0).solve(tol=1e-10)
     assert s["tiles"] == ms.n_tiles > 0 and s["connected_pieces"] == 1
     assert s["temperature_C"]["mean"] == pytest.approx(sol.mean_temperature(), rel=1e-8)
+
+
+def test_iga_run_reports_a_surface_or_a_lattice_of_lines(tmp_path):
+    """From the command line: a polygon lattice (lines only) and a capped hollow lattice (triangles) run to their
+    surface and report it in one line (20 cell edges and 4 diagonals per cell: 28 lines)."""
+    import subprocess
+    import sys
+
+    (tmp_path / "lines.toml").write_text('[map]\nprimitive = "box"\n[tile]\nlibrary = "beam_lattice"\n'
+                                         '[paving]\nscheme = "polygons"\ncounts = [2, 1, 1]\n[output]\npng = false\n')
+    (tmp_path / "caps.toml").write_text('[map]\nprimitive = "box"\n[tile]\nlibrary = "hollow_cross"\n[paving]\n'
+                                        'scheme = "regular"\ncounts = [2, 1, 1]\nseal = "cap"\n[output]\npng = false\n'
+                                        'dir = "caps"\n')
+    for name, want in (("lines.toml", "2 tiles (no analysis); 28 lines"), ("caps.toml", "triangles, closed")):
+        out = subprocess.run([sys.executable, "-m", "iga", "run", str(tmp_path / name)], capture_output=True, text=True)
+        assert out.returncode == 0 and want in out.stdout, out.stderr
