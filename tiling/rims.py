@@ -11,9 +11,12 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from geometry.grouping import ObjectIndex
 from geometry.sampling import sample_axes
 
 __all__ = ["conforming_axes"]
+
+_IDENTITY = np.hstack([np.eye(3), np.zeros((3, 1))])
 
 
 def conforming_axes(patches, samples: int, rounds: int = 32) -> dict:
@@ -25,62 +28,81 @@ def conforming_axes(patches, samples: int, rounds: int = 32) -> dict:
     own edges (in D's parameter domain, where the placed tiles are exact: within 1e-10 of the edge's sample
     polyline, parameter by linear interpolation, exact for straight edges), round after round until no patch
     gains a sample, so the triangles of neighbouring patches share their edge points and weld.  Curved rims
-    that meet only partway keep their own samples.
+    that meet only partway keep their own samples.  Each round evaluates every edge once per tile spline
+    and axes (placements applied in a batch) and queries one KD-tree for all segments at once.
     """
     surf = [i for i, P in enumerate(patches) if P.spline.dim == 2]
     axes = {i: sample_axes(patches[i].spline.knots, samples) for i in surf}
-    if len(surf) < 2:
-        return axes
+    same = ObjectIndex()  # parameter domains of different maps (a two-level structure's) are not one space
+    by_map: dict = {}
+    for i in surf:
+        by_map.setdefault(same(patches[i].outer), []).append(i)
+    for members in by_map.values():
+        if len(members) > 1:
+            _conform(patches, members, axes, rounds)
+    return axes
+
+
+def _conform(patches, surf, axes, rounds) -> None:
+    """:func:`conforming_axes` among the surface patches ``surf`` of one map (updates ``axes``)."""
     for _ in range(rounds):
-        edges = [(i, d, side) + _placed_edge(patches[i], axes[i], d, side) for i in surf for d in (0, 1)
-                 for side in (0, 1)]
-        pts = np.concatenate([e[3] for e in edges])
-        owner = np.concatenate([np.full(len(e[3]), e[0]) for e in edges])
+        edges = _placed_edges(patches, surf, axes)  # [(patch, direction, points (n, 3), parameters (n,))]
+        pts = np.concatenate([e[2] for e in edges])
+        owner = np.concatenate([np.full(len(e[2]), e[0]) for e in edges])
         scale = max(1.0, float(np.ptp(pts, axis=0).max()))
-        tree = cKDTree(pts)
+        # every segment of every edge: its ends, parameters and edge
+        a = np.concatenate([e[2][:-1] for e in edges])
+        b = np.concatenate([e[2][1:] for e in edges])
+        t0 = np.concatenate([e[3][:-1] for e in edges])
+        t1 = np.concatenate([e[3][1:] for e in edges])
+        edge = np.concatenate([np.full(len(e[3]) - 1, k) for k, e in enumerate(edges)])
+        near = cKDTree(pts).query_ball_point(0.5 * (a + b), 0.5 * np.linalg.norm(b - a, axis=1) + 1e-10 * scale)
+        seg = np.repeat(np.arange(len(a)), [len(n) for n in near])
+        q = np.fromiter((j for n in near for j in n), np.int64, len(seg))
+        keep = owner[q] != np.array([e[0] for e in edges])[edge[seg]]
+        seg, q = seg[keep], q[keep]
+        ab = b[seg] - a[seg]
+        s_ = np.clip(np.sum((pts[q] - a[seg]) * ab, axis=1) / np.maximum(np.sum(ab * ab, axis=1), 1e-300), 0, 1)
+        on = np.linalg.norm(pts[q] - (a[seg] + s_[:, None] * ab), axis=1) <= 1e-10 * scale
+        seg, s_ = seg[on], s_[on]
+        param = t0[seg] + s_ * (t1[seg] - t0[seg])
+        # a parameter at a sample of its own edge's polyline adds nothing: keep those strictly inside a segment
+        inner = (s_ > 1e-9) & (s_ < 1 - 1e-9)
+        seg, param = seg[inner], param[inner]
+        order = np.argsort(edge[seg], kind="stable")
+        ks, starts = np.unique(edge[seg][order], return_index=True)
         grew = False
-        for i, d, _side, y, t in edges:
-            seg_lo, seg_hi = y[:-1], y[1:]
-            mids = 0.5 * (seg_lo + seg_hi)
-            half = 0.5 * np.linalg.norm(seg_hi - seg_lo, axis=1) + 1e-10 * scale
-            cand = {j for m, r in zip(mids, half) for j in tree.query_ball_point(m, r)}
-            cand = np.array([j for j in cand if owner[j] != i], dtype=np.int64)
-            if not len(cand):
-                continue
-            new = _on_polyline(pts[cand], y, t, 1e-10 * scale)
+        for k, part in zip(ks, np.split(param[order], starts[1:])):
+            i, d = edges[k][0], edges[k][1]
             have = axes[i][d]
-            new = new[np.abs(new[:, None] - have[None, :]).min(axis=1) > 1e-12 * max(1.0, np.ptp(have))]
+            new = part[np.abs(part[:, None] - have[None, :]).min(axis=1) > 1e-12 * max(1.0, np.ptp(have))]
             if len(new):
                 axes[i][d] = np.unique(np.concatenate([have, new]))
                 grew = True
         if not grew:
             break
-    return axes
 
 
-def _placed_edge(P, ax, d: int, side: int):
-    """The edge of surface patch P along parameter direction d at the ``side`` end of the other direction: its
-    sample points in D's parameter domain (placed tile coordinates) and their parameters."""
-    o = 1 - d
-    t = np.asarray(ax[d], float)
-    prm = np.empty((len(t), 2))
-    prm[:, d] = t
-    prm[:, o] = ax[o][-1] if side else ax[o][0]
-    y = P.spline.evaluate(prm)[:, :3]
-    if P.placement is not None:
-        y = y @ P.placement[:, :3].T + P.placement[:, 3]
-    return y, t
-
-
-def _on_polyline(q: np.ndarray, y: np.ndarray, t: np.ndarray, tol: float) -> np.ndarray:
-    """Parameters of the points ``q`` (m, 3) that lie within ``tol`` of the polyline ``y`` (n, 3) sampled at
-    parameters ``t`` (n,), interpolated linearly along the segment they lie on."""
-    a, b = y[:-1], y[1:]
-    ab = b - a
-    L2 = np.maximum(np.sum(ab * ab, axis=1), 1e-300)
-    s = np.clip(np.einsum("mnk,nk->mn", q[:, None, :] - a[None], ab) / L2[None], 0.0, 1.0)  # (m, segments)
-    dist = np.linalg.norm(q[:, None, :] - (a[None] + s[..., None] * ab[None]), axis=2)
-    seg = np.argmin(dist, axis=1)
-    hit = dist[np.arange(len(q)), seg] <= tol
-    s = s[np.arange(len(q)), seg]
-    return (t[:-1][seg] + s * np.diff(t)[seg])[hit]
+def _placed_edges(patches, surf, axes) -> list:
+    """The four edges of every surface patch in D's parameter domain (placed tile coordinates), with their
+    parameters: [(patch, direction along the edge, points (n, 3), parameters (n,))]; each edge is evaluated
+    once per tile spline and axes, and the placements of the patches that share them applied in one batch."""
+    same = ObjectIndex()  # patches share splines: group by object
+    groups: dict = {}
+    for i in surf:
+        key = (same(patches[i].spline), tuple(np.asarray(x).tobytes() for x in axes[i]))
+        groups.setdefault(key, []).append(i)
+    out = []
+    for members in groups.values():
+        S, ax = patches[members[0]].spline, axes[members[0]]
+        M = np.stack([_IDENTITY if patches[i].placement is None else patches[i].placement for i in members])
+        for d in (0, 1):
+            t = np.asarray(ax[d], float)
+            for side in (0, 1):
+                prm = np.empty((len(t), 2))
+                prm[:, d] = t
+                prm[:, 1 - d] = ax[1 - d][-1] if side else ax[1 - d][0]
+                y = S.evaluate(prm)[:, :3]
+                placed = np.einsum("pij,nj->pni", M[:, :, :3], y) + M[:, None, :, 3]
+                out += [(i, d, placed[j], t) for j, i in enumerate(members)]
+    return out
