@@ -85,8 +85,9 @@ def _polygons(cfg, D) -> Built:
     tile = POLYGON_TILES[t["library"]]() if "library" in t else PolygonTile(t["points"], t["polygons"], t["lines"],
                                                                             t["name"])
     mesh = tiling.pave_polygons(D, tile, cfg["paving"]["counts"])
+    facets = int(mesh.n_cells - mesh.n_lines - mesh.n_verts)
     info = {"tiles": int(np.prod(cfg["paving"]["counts"])), "polygon_tile": tile.name,
-            "mesh": {"points": int(mesh.n_points), "lines": int(mesh.n_lines), "facets": int(mesh.n_cells - mesh.n_lines - mesh.n_verts)}}
+            "mesh": {"points": int(mesh.n_points), "lines": int(mesh.n_lines), "facets": facets}}
     return Built(mesh, mesh, mesh, info)
 
 

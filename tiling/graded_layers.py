@@ -17,13 +17,11 @@ import numpy as np
 
 from geometry import BSpline
 from geometry.errors import show
-from geometry.grouping import ObjectIndex
 
 from .errors import TilingError
 from .microstructure import Microstructure, PlacedPatch
-from .paving import _IDENTITY, _cells, _check_budget, _check_counts, _check_map, _check_spans, _grid_interfaces
+from .paving import _cells, _check_budget, _check_counts, _check_map, _check_spans, grid_identity
 from .tile import Tile
-from .topology import seams
 
 __all__ = ["graded"]
 
@@ -87,11 +85,6 @@ def graded(D: BSpline, family, counts, values, name: str = "graded") -> Microstr
         tiles.append(layers[k])
         placed += [PlacedPatch(patch, M, D, len(tiles) - 1, 0, pi) for pi, patch in enumerate(layers[k].patches)]
     _check_spans(D, placed)
-    same = ObjectIndex()
-    keys = np.array([same(t) for t in tiles]).reshape(shape)
-    first = np.cumsum([0] + [len(t.patches) for t in tiles])[:-1].reshape(shape)
-    layouts = {same(t): [(q, _IDENTITY) for q in t.patches] for t in layers}
-    ms = Microstructure.build(D, placed, tiles, [], name=name,
-                              identity=_grid_interfaces(keys, first, layouts, seams(D)))
+    ms = Microstructure.build(D, placed, tiles, [], name=name, identity=grid_identity(D, tiles, shape))
     ms.info = {"parameter": [float(v) for v in p]}
     return ms

@@ -135,14 +135,8 @@ def regular(D: BSpline, tile: Tile, counts, variants: dict | None = None, name: 
     (16, 112, 4)
     """
     placed, tiles, links, caps, sealed = regular_placements(D, tile, counts, variants, seal, thickness, seal_sides)
-    # the interfaces by construction: tiles are numbered in C order over the cell grid
-    shape = tuple(len(_cells(D, k, c)) for k, c in enumerate(_check_counts(counts, 3, "counts")))
-    same = ObjectIndex()
-    keys = np.array([same(t) for t in tiles]).reshape(shape)
-    first = np.cumsum([0] + [len(t.patches) for t in tiles])[:-1].reshape(shape)
-    layouts = {same(t): [(p, _IDENTITY) for p in t.patches] for t in tiles}
-    ms = Microstructure.build(D, placed, tiles, links, name=name,
-                              identity=_grid_interfaces(keys, first, layouts, seams(D)))
+    shape = tuple(len(_cells(D, k, c)) for k, c in enumerate(counts))  # (counts checked by the placements)
+    ms = Microstructure.build(D, placed, tiles, links, name=name, identity=grid_identity(D, tiles, shape))
     ms.caps = caps
     if seal is not None:
         _tag_seal(ms, seal, [(t, i) for t in sealed.values() for i in t.seal_patches])
@@ -200,6 +194,19 @@ def regular_placements(D: BSpline, tile: Tile, counts, variants: dict | None = N
 
 
 _IDENTITY = np.hstack([np.eye(3), np.zeros((3, 1))])
+
+
+def grid_identity(D: BSpline, tiles: list, shape: tuple):
+    """The identity interfaces, by construction (:mod:`tiling.topology`), of a grid of cells of the shape
+    ``shape`` holding ``tiles`` in C order, each tile's patches placed in turn; (interfaces, mismatched)."""
+    same = ObjectIndex()
+    keys = np.array([same(t) for t in tiles]).reshape(shape)
+    first = np.cumsum([0] + [len(t.patches) for t in tiles])[:-1].reshape(shape)
+    layouts = {}
+    for t in tiles:
+        if same(t) not in layouts:
+            layouts[same(t)] = [(p, _IDENTITY) for p in t.patches]
+    return _grid_interfaces(keys, first, layouts, seams(D))
 
 
 def _grid_interfaces(keys, first, layouts, periodic):
