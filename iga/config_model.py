@@ -244,8 +244,12 @@ def primitives(config, base_dir, names_in: str) -> list:
             _fail(f"{w}.name", f"must be a new word of letters, digits and _ (the expression names it), got "
                                f"{show(name)}")
         seen.add(name)
-        out.append({"name": name, "map": map_section(t["map"], base_dir, f"{w}.map"),
-                    "tile": tile_section(t["tile"], f"{w}.tile"), "counts": _ints(t["counts"], f"{w}.counts", 3),
+        tile = tile_section(t["tile"], f"{w}.tile")
+        if 3 not in _dims(tile):
+            _fail(f"{w}.tile", f"{tile['library']!r} has no trivariates; a V-model's tiles are bridged by "
+                               "trivariates and analysed: use a volumetric tile such as cross")
+        out.append({"name": name, "map": map_section(t["map"], base_dir, f"{w}.map"), "tile": tile,
+                    "counts": _ints(t["counts"], f"{w}.counts", 3),
                     "priority": _int(t.get("priority", 0), f"{w}.priority", -10**9)})
     parse_expression(names_in, lambda name: {name}, "primitive", "\"(body | wing) - hole\"")  # its syntax
     used = set(re.findall(r"[A-Za-z_][A-Za-z0-9_]*", names_in))

@@ -56,6 +56,8 @@ def test_a_vrep_union_runs_from_a_pipeline_as_in_python(tmp_path):
     (lambda c: c["primitive"][1].update(name="A"), r"primitive\[1\]\.name: must be a new word"),
     (lambda c: c["primitive"][0].update(counts=[4, 2]), r"primitive\[0\]\.counts: must be a list of 3 integers"),
     (lambda c: c["primitive"][0]["tile"].update(library="nope"), r"primitive\[0\]\.tile\.library: must be one of"),
+    (lambda c: c["primitive"][0]["tile"].update(library="hollow_cross"), r"primitive\[0\]\.tile: 'hollow_cross' has no "
+                                                                         r"trivariates"),
     (lambda c: c.pop("primitive"), r"the vrep scheme needs \[\[primitive\]\] tables"),
     (lambda c: c["paving"].update(beta=2.0), r"paving\.beta: must be < 1"),
     (lambda c: c["paving"].update(counts=[1, 1, 1]), r"paving\.counts: does not apply to the vrep scheme"),
