@@ -188,6 +188,8 @@ def validate(config, base_dir=".") -> dict:
         raise ProblemError(f"unknown config section {show(unknown[0])}; sections: {list(SECTIONS)}")
     cfg = _model(config, base_dir)
     surface = surface_reason(cfg)
+    if surface and cfg["reduce"]:
+        raise ProblemError(f"config section reduce approximates trivariates; {surface}")
     physics = cfg["physics"] = _physics(config, surface)
     if physics["kind"] in ("heat", "thermo-elastic") and "bc" not in config:
         raise ProblemError("missing required config section 'bc' (the heat problem's conditions)")

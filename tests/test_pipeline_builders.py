@@ -164,6 +164,10 @@ def test_a_reduced_sink_keeps_its_tags_and_solves_as_the_exact_one(tmp_path):
     assert red["flux_W"]["rest"] == pytest.approx(exact["flux_W"]["rest"], rel=1e-9)
     with pytest.raises(ProblemError, match=r"reduce\.degree: must be 2 or 3"):
         validate({**cfg, "reduce": {"degree": 1}}, tmp_path)
+    with pytest.raises(ProblemError, match=r"config section reduce approximates trivariates; tile 'hollow_cross' is "
+                                           r"made of surfaces"):
+        validate({"map": {"primitive": "box"}, "tile": {"library": "hollow_cross"},
+                  "paving": {"scheme": "regular", "counts": [1, 1, 1]}, "reduce": {"degree": 2}}, tmp_path)
     with pytest.raises(ProblemError, match=r"config section reduce needs a model of trivariates"):
         validate({"map": {"primitive": "box"}, "paving": {"scheme": "random_implicit", "counts": [2, 2, 2]},
                   "reduce": {"degree": 2}}, tmp_path)
