@@ -21,7 +21,7 @@ is fixed by one pinned unknown (it is defined up to a constant).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
@@ -54,8 +54,8 @@ class Effective:
     unknowns: int
     periodic_faces: int
     condition: float = float("nan")
-    problem: object = None
-    correctors: np.ndarray = None
+    problem: object = field(default=None, repr=False)
+    correctors: np.ndarray = field(default=None, repr=False)
 
     def write_vtu(self, path, samples: int = 3):
         """The cell fields as one ``.vtu`` (atomic): the correctors chi_x, chi_y, chi_z (``corrector``), the
