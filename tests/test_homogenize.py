@@ -125,6 +125,10 @@ def test_the_cell_fields_are_written_and_average_to_the_effective_flux(tmp_path)
     cross = effective_conductivity(L.cross(0.3), diagnostics=True)
     g = pv.read(cross.write_vtu(tmp_path / "cross.vtu", samples=4))
     mean = g.integrate_data().point_data["cell_flux_x"][0]
+    import meshio  # a second reader: the same points and fields
+
+    m = meshio.read(tmp_path / "cross.vtu")
+    assert np.array_equal(m.points, g.points) and np.allclose(m.point_data["corrector"], g.point_data["corrector"])
     assert mean == pytest.approx(-cross.tensor[:, 0], abs=1e-2 * cross.tensor[0, 0])
     out = subprocess.run([sys.executable, "-m", "iga", "homogenize", "--tile", "cross", "--out",
                           str(tmp_path / "c.vtu")], capture_output=True, text=True)
