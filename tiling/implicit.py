@@ -29,9 +29,17 @@ coefficient array, repeated until none has work left:
   coefficients within ``shell`` of the boundary are set positive and the
   surface is closed by D's boundary where f > 0.
 
-The guarantees hold on the samples of the build ``resolution``.  A face or
-cell that already satisfies its condition is left unchanged, so ``alpha = 0``
-with a connected canonical tile reproduces the canonical tiling.
+These steps work on the samples of the build ``resolution``.  Once they
+hold, the certificate of :mod:`tiling.implicit_certify` checks the spline
+itself (Bernstein bounds of sub-boxes at least as fine as the samples): the
+inside and the outside (or a shell's voids) are each connected, every tree
+face has a pair of positive boxes across it, and no critical value of F lies
+within a margin of zero, so no neck, island or pocket hides between samples;
+where it fails, coefficients are raised or lowered as the steps do, and all
+steps run again.  ``stats["certificate"]`` says whether it holds
+(``certified``) and what it changed.  A face or cell that already satisfies
+its condition is left unchanged, so ``alpha = 0`` with a connected canonical
+tile reproduces the canonical tiling.
 Randomness comes from ``numpy.random.default_rng(seed)`` only.
 """
 
@@ -51,6 +59,8 @@ from .paving import _check_counts, _check_map
 from .implicit_surface import EdgeSplines, SurfaceOutputs, zero_surface
 from .implicit_connect import (Builder, cell_knots, connect_cells, connect_faces, grid_graph, open_cavities,
                                spanning_trees)
+from .implicit_boxes import box_grid
+from .implicit_certify import Certifier
 from geometry.tolerances import SAME_KNOT
 
 __all__ = ["random_implicit", "ImplicitStructure", "canonical_tubes"]
@@ -173,10 +183,10 @@ class ImplicitStructure(SurfaceOutputs):
         edges), every vertex moved along its grid edge onto the exact zero set
         of the spline (``snap``: |f| < 1e-12 max|p|) and mapped through D, so
         shared cell faces carry identical vertices and the mesh is one piece.
-        The connectivity guarantees (one component, closed when capped) are
-        proved on the samples of the build ``resolution``, the default here; a
-        finer sampling can reveal features smaller than that sampling step (a
-        thin neck, a tiny pocket).  ``close`` (default: when shelled) closes
+        The connectivity (one component, closed when capped) is certified on
+        the spline itself (``stats["certificate"]``), so a finer sampling
+        shows the same pieces; a coarser one than the build ``resolution``
+        (the default here) may miss thin parts.  ``close`` (default: when shelled) closes
         the surface with D's boundary where f > 0.  Point data: every channel
         of D and every material channel at the vertices, and the parameters
         (u, v, w).
@@ -278,8 +288,11 @@ def random_implicit(D: BSpline, counts, *, degree: int = 3, controls: int = 8, a
         raise TilingError(f"resolution must be an integer >= 2 (samples per cell and direction), got {show(resolution)}")
     counts = tuple(int(c) for c in counts)
     n_cells = int(np.prod(counts))
-    check_memory(n_cells * (controls ** 3 + (resolution + 1) ** 3) * 8 * 4, f"the random implicit structure "
-                 f"({n_cells} cells)", TilingError, "lower the counts or the resolution")
+    per_span = -(-resolution // (controls - degree))  # the certificate's sub-boxes: at least as fine as the samples
+    # samples and coefficients in a few copies; per certificate box its bounds, bits, labels and graph edges
+    check_memory(n_cells * ((controls ** 3 + (resolution + 1) ** 3) * 8 * 4 + (per_span * (controls - degree)) ** 3
+                            * 160), f"the random implicit structure ({n_cells} cells)", TilingError,
+                 "lower the counts or the resolution")
     rng = np.random.default_rng(seed)
     B = Builder(counts, degree, controls, continuity)
     cells = np.stack(np.unravel_index(np.arange(n_cells), counts), 1)
@@ -289,37 +302,48 @@ def random_implicit(D: BSpline, counts, *, degree: int = 3, controls: int = 8, a
     edges = grid_graph(counts)
     trees = spanning_trees(n_cells, edges, connectivity, rng)
     stats = {"trees": len(trees), "face_iterations": {}, "cell_iterations": {}, "cavities_opened": 0}
-    # boundary conditions of the structure: capping (negative) or shelling (positive) on D's boundary layers
-    if cap or shell is not None:
-        for k in range(3):
-            G = np.moveaxis(B.G, k, 0)
-            if shell is not None:
-                layers = max(1, int(np.ceil(shell * (controls - 1))))
-                G[:layers] = np.maximum(G[:layers], 1.0)
-                G[-layers:] = np.maximum(G[-layers:], 1.0)
-            else:
-                G[0] = G[-1] = _CAP
+    _boundary_layers(B, cap, shell)
     tree_edges = np.concatenate(trees) if trees else np.zeros((0, 2), np.int64)
     knots = [_global_knots(*D.domain[k], counts[k], degree, controls) for k in range(3)]
     out = ImplicitStructure(D, counts, degree, controls, continuity, None, trees, stats, bool(cap), shell,
                             int(resolution), *_materials(materials, B, cells, knots, D))
-    if cap:  # D's boundary layers stay at the cap value
-        for k in range(3):
-            np.moveaxis(B.fixed, k, 0)[[0, -1]] = True
     # The steps interact (C1 symmetry moves lines of a face, filling a pocket may start an island, a cell's
     # steps may fill a face): repeat them all until one round changes nothing.
-    for _ in range(50):
+    # The certificate on the spline (tiling.implicit_certify) runs once the sampled steps hold.
+    certifier = Certifier(box_grid([_global_knots(0.0, c, c, degree, controls) for c in counts], degree, counts,
+                                   per_span), B.G.shape)
+    for _ in range(100):
         work = connect_faces(B, cells, tree_edges, resolution, stats)
         work += connect_cells(B, cells, resolution, stats)
         out.field = SplineFunction((degree,) * 3, knots, B.G[..., None])
         if shell is None:  # (a shell encloses every void by design)
             work += open_cavities(out.sample_values, B, resolution, stats)
         if not work:
+            work = certifier.round(B, cells, tree_edges, shell, stats)
+            B.enforce_c1()
+            out.field = SplineFunction((degree,) * 3, knots, B.G[..., None])
+        if not work:
             break
     else:
-        raise TilingError("the connectivity steps did not settle in 50 rounds; lower alpha or use C0 continuity")
+        raise TilingError("the connectivity steps did not settle in 100 rounds; lower alpha or use C0 continuity")
     stats["rounds"] = _ + 1
     return out
+
+
+def _boundary_layers(B, cap, shell):
+    """Capping (D's boundary layers of coefficients at -1, held fixed) or shelling (layers within ``shell`` of a
+    boundary cell raised to at least 1)."""
+    if not cap and shell is None:
+        return
+    for k in range(3):
+        G = np.moveaxis(B.G, k, 0)
+        if shell is not None:
+            layers = max(1, int(np.ceil(shell * (B.N - 1))))
+            G[:layers] = np.maximum(G[:layers], 1.0)
+            G[-layers:] = np.maximum(G[-layers:], 1.0)
+        else:
+            G[0] = G[-1] = _CAP
+            np.moveaxis(B.fixed, k, 0)[[0, -1]] = True
 
 
 def _materials(materials, B, cells, knots, D):

@@ -1,0 +1,92 @@
+"""Compiled bounds and monotonicity of spline sub-boxes (numba; imported only when available).
+
+One pass per (box, child): the box's (d+1)^3 supporting coefficients are
+carried to Bernstein form direction by direction (sum factorisation, 3 (d+1)^4
+products), and the minimum, maximum and the signs of the differences along
+each direction are read off without storing the coefficients.  The NumPy path
+of :mod:`tiling.implicit_certify` computes the same from stored arrays.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+
+@njit(cache=True, parallel=True)
+def judge_boxes(G, boxes, f0, f1, f2, A0, A1, A2, band, low, high, mono):
+    """Bounds (least and greatest Bernstein coefficient) and monotonicity bits of every child of every box,
+    written into low, high, mono (L, s, s, s); the bits only where the bounds meet [-band, band] (else 0).
+
+    G (n0, n1, n2): global coefficients; boxes (L, 3): box indices; f_k
+    (nb_k,): first supporting coefficient; A_k (nb_k, s, d+1, d+1): supporting
+    coefficients -> Bernstein coefficients of child m of the box.  Bit 2k of
+    mono: strictly increasing along +x_k; bit 2k + 1: strictly decreasing.
+    """
+    L, s = boxes.shape[0], A0.shape[1]
+    d1 = A0.shape[2]
+    total = L * s * s * s
+    chunks = min(total, 1024)  # work buffers allocated once per chunk, not per child
+    for chunk in prange(chunks):
+        T1 = np.empty((d1, d1, d1))
+        T2 = np.empty((d1, d1, d1))
+        C = np.empty((d1, d1, d1))
+        for item in range(chunk * total // chunks, (chunk + 1) * total // chunks):
+            _judge_one(G, boxes, f0, f1, f2, A0, A1, A2, band, low, high, mono, item, s, d1, T1, T2, C)
+
+
+@njit(cache=True)
+def _judge_one(G, boxes, f0, f1, f2, A0, A1, A2, band, low, high, mono, item, s, d1, T1, T2, C):
+    """One child of one box (:func:`judge_boxes`), with work buffers T1, T2, C of shape (d+1,) * 3."""
+    l = item // (s * s * s)
+    rest = item - l * s * s * s
+    m0 = rest // (s * s)
+    m1 = (rest // s) % s
+    m2 = rest % s
+    a, b, c = boxes[l, 0], boxes[l, 1], boxes[l, 2]
+    for p in range(d1):
+        for q in range(d1):
+            for k in range(d1):
+                t = 0.0
+                for r in range(d1):
+                    t += A2[c, m2, k, r] * G[f0[a] + p, f1[b] + q, f2[c] + r]
+                T1[p, q, k] = t
+    for p in range(d1):
+        for j in range(d1):
+            for k in range(d1):
+                t = 0.0
+                for q in range(d1):
+                    t += A1[b, m1, j, q] * T1[p, q, k]
+                T2[p, j, k] = t
+    lo, hi = np.inf, -np.inf
+    for i in range(d1):
+        for j in range(d1):
+            for k in range(d1):
+                t = 0.0
+                for p in range(d1):
+                    t += A0[a, m0, i, p] * T2[p, j, k]
+                C[i, j, k] = t
+                lo = min(lo, t)
+                hi = max(hi, t)
+    low[l, m0, m1, m2] = lo
+    high[l, m0, m1, m2] = hi
+    mono[l, m0, m1, m2] = 0
+    if lo > band or hi < -band:
+        return
+    bits = 0
+    for axis in range(3):
+        inc = True
+        dec = True
+        for i in range(d1 - (axis == 0)):
+            for j in range(d1 - (axis == 1)):
+                for k in range(d1 - (axis == 2)):
+                    if axis == 0:
+                        w = C[i + 1, j, k] - C[i, j, k]
+                    elif axis == 1:
+                        w = C[i, j + 1, k] - C[i, j, k]
+                    else:
+                        w = C[i, j, k + 1] - C[i, j, k]
+                    inc &= w > 0
+                    dec &= w < 0
+        bits |= inc << (2 * axis) | dec << (2 * axis + 1)
+    mono[l, m0, m1, m2] = bits
