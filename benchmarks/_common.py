@@ -27,22 +27,22 @@ def figures_dir() -> Path:
     return path
 
 
-def run_child(cmd: list, label: str) -> dict | None:
-    """Run a benchmark child process ``cmd`` whose last stdout line is a JSON row; the row, or None after
-    printing ``label`` and the end of its stderr when it failed."""
-    out = subprocess.run(cmd, capture_output=True, text=True)
+def run_child(cmd: list, label: str, env: dict | None = None) -> dict | None:
+    """Run a benchmark child process ``cmd`` (environment ``env``, default this one's) whose last stdout line
+    is a JSON row; the row, or None after printing ``label`` and the end of its stderr when it failed."""
+    out = subprocess.run(cmd, capture_output=True, text=True, env=env)
     if out.returncode:
         print(f"{label} failed:\n{out.stderr[-2000:]}")
         return None
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def collect_rows(jobs, describe) -> list[dict]:
-    """Run each child ``(cmd, label)`` of ``jobs`` (:func:`run_child`) and keep the rows of those that succeed,
-    printing ``describe(row)`` for each as it arrives (long benchmarks show their progress)."""
+def collect_rows(jobs, describe, env: dict | None = None) -> list[dict]:
+    """Run each child ``(cmd, label)`` of ``jobs`` (:func:`run_child`, environment ``env``) and keep the rows of
+    those that succeed, printing ``describe(row)`` for each as it arrives (long benchmarks show their progress)."""
     rows = []
     for cmd, label in jobs:
-        row = run_child(cmd, label)
+        row = run_child(cmd, label, env)
         if row is not None:
             rows.append(row)
             print(describe(row), flush=True)

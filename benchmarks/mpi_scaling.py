@@ -18,7 +18,6 @@ Writes benchmarks/out/mpi_scaling.json.
 from __future__ import annotations
 
 import json
-import shutil
 import resource
 import sys
 import time
@@ -134,8 +133,9 @@ def main():
     for i, a in enumerate(sys.argv):
         if a == "--ranks":
             ranks = [int(v) for v in sys.argv[i + 1].split(",")]
-    beside = Path(sys.executable).parent / "mpiexec"  # a virtual environment's own, else the one on PATH
-    mpiexec = str(beside) if beside.is_file() else shutil.which("mpiexec")
+    from iga.distributed import launch_env, mpiexec as find_mpiexec
+
+    mpiexec = find_mpiexec()  # a virtual environment's own, else the one on PATH
     if mpiexec is None:
         raise SystemExit("no mpiexec found (beside this Python or on PATH): install the [mpi] extra and an MPI "
                          "(e.g. apt install openmpi-bin, or mpich)")
@@ -144,7 +144,7 @@ def main():
             for case in ("sink", "lattice") for R in ranks]
     rows = collect_rows(jobs, lambda r: f"{r['case']} R={r['ranks']}: {r['unknowns']:,} unknowns, total "
                         f"{r['total s']:.1f} s, CG {r['CG s']:.1f} s ({r['iterations']} it), peak "
-                        f"{r['peak MiB per rank']} MiB")
+                        f"{r['peak MiB per rank']} MiB", env=launch_env())
     print_table(rows, [("case", "s"), ("ranks", "d"), ("unknowns", "d"), ("iterations", "d"), ("model s", ".2f"),
                        ("assembly s", ".2f"), ("constraints s", ".2f"), ("reduction s", ".2f"),
                        ("matrix + setup s", ".2f"), ("CG s", ".2f"),

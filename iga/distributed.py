@@ -9,7 +9,8 @@ reverse Cuthill-McKee (SciPy), which keeps neighbouring tiles together, and
 cut into R consecutive parts of about equal unknowns.  Each rank reduces its
 part, ``A_r = Pf^T K_r Pf`` (``sum_r A_r`` is the serial reduced matrix), and
 PETSc assembles the MPIAIJ matrix from the ranks' COO triplets (off-rank
-rows are communicated by PETSc); the reduced unknowns are numbered so that
+rows are communicated by PETSc; before petsc4py 3.19, by one ``Alltoallv``
+to the rows' owners: :func:`_matrix`); the reduced unknowns are numbered so that
 each rank owns those its patches touch first.  CG with GAMG solves it; the
 solution is gathered on every rank, so post-processing and output follow
 the serial path (rank 0 writes).
@@ -30,7 +31,11 @@ from solvers.petsc_ksp import ksp_solve, petsc
 from .errors import ProblemError
 from .system import SystemSolution, reduction
 
-__all__ = ["world", "partition", "solve_system", "is_root"]
+__all__ = ["world", "partition", "solve_system", "is_root", "mpiexec", "launch_env"]
+
+# what an MPI launcher leaves in its children's environment: a process that inherits it (a test run, a script
+# that once initialised PETSc as a singleton) would start its own mpiexec as a rank of the old job
+_INHERITED = ("OMPI_", "PMIX_", "PMI_", "PRTE_", "HYDRA_", "MPIR_")
 
 
 def world():
@@ -66,6 +71,34 @@ def _share_cores(comm) -> None:
     numba.set_num_threads(max(1, min(numba.config.NUMBA_NUM_THREADS, usable_cores() // local)))
 
 
+def mpiexec() -> str | None:
+    """The ``mpiexec`` to start ranks with: the one beside this Python (a virtual environment's, e.g. MPICH
+    from pip), else the one on PATH (a distribution's Open MPI or MPICH), else None."""
+    import shutil
+    import sys
+    from pathlib import Path
+
+    beside = Path(sys.executable).parent / "mpiexec"
+    return str(beside) if beside.is_file() else shutil.which("mpiexec")
+
+
+def launch_env(base=None) -> dict:
+    """An environment for starting ``mpiexec`` from Python, for either MPI family.
+
+    The variables an MPI job left in ``base`` (default ``os.environ``) are
+    dropped (under Open MPI a child ``mpiexec`` would otherwise exit 1
+    without a word once this process had initialised MPI); Open MPI is
+    allowed to run as root (containers, CI) and to place more ranks than
+    cores (4 ranks on 2 cores).  MPICH ignores the Open MPI settings and
+    oversubscribes by itself.
+    """
+    import os
+
+    env = {k: v for k, v in (os.environ if base is None else base).items() if not k.startswith(_INHERITED)}
+    env.update(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", OMPI_MCA_rmaps_base_oversubscribe="1")
+    return env
+
+
 def is_root() -> bool:
     """Whether this process writes output and prints (rank 0, or a serial run)."""
     w = world()
@@ -89,6 +122,52 @@ def partition(problem, size: int) -> np.ndarray:
     part = np.empty(n, np.int64)
     part[order] = np.searchsorted(cuts, np.arange(n), side="right")
     return part
+
+
+def _matrix(PETSc, comm, rows, cols, vals, counts, nfree):
+    """The MPIAIJ matrix of every rank's triplets (rows, cols in the global numbering; each rank owns
+    ``counts[rank]`` consecutive rows), duplicates summed.
+
+    petsc4py from 3.19 on takes the triplets as they are (``setPreallocationCOO``, PETSc routes off-rank
+    rows).  Older ones (Debian's 3.18) get owner-computed rows: every triplet is sent to the rank owning its
+    row (one ``Alltoallv`` per array), summed there into CSR rows, which preallocate and fill the matrix
+    exactly (``createAIJ(csr=...)``).
+    """
+    from mpi4py import MPI
+
+    rank, size = comm.Get_rank(), comm.Get_size()
+    m = int(counts[rank])
+    M = PETSc.Mat().create(comm=comm)
+    if hasattr(M, "setPreallocationCOO"):
+        M.setSizes(((m, nfree), (m, nfree)))
+        M.setType("aij")
+        M.setPreallocationCOO(rows.astype(PETSc.IntType), cols.astype(PETSc.IntType))
+        M.setValuesCOO(vals, addv=PETSc.InsertMode.ADD_VALUES)
+        M.assemble()
+        return M
+    M.destroy()
+    starts = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    dest = np.searchsorted(starts, rows, side="right") - 1
+    order = np.argsort(dest, kind="stable")
+    send = np.bincount(dest, minlength=size).astype(np.int64)
+    recv = np.asarray(comm.alltoall(send.tolist()), np.int64)
+    sdisp, rdisp = np.concatenate([[0], np.cumsum(send)[:-1]]), np.concatenate([[0], np.cumsum(recv)[:-1]])
+
+    def route(a, mpi_type):
+        out = np.empty(int(recv.sum()), a.dtype)
+        comm.Alltoallv([np.ascontiguousarray(a[order]), (send, sdisp), mpi_type], [out, (recv, rdisp), mpi_type])
+        return out
+
+    r, c = route(rows.astype(np.int64), MPI.INT64_T), route(cols.astype(np.int64), MPI.INT64_T)
+    v = route(np.asarray(vals, np.float64), MPI.DOUBLE)
+    local = sp.csr_matrix((v, (r - starts[rank], c)), shape=(m, nfree))  # sums the duplicates
+    local.sum_duplicates()
+    local.sort_indices()
+    M = PETSc.Mat().createAIJ(size=((m, nfree), (m, nfree)), comm=comm,
+                              csr=(local.indptr.astype(PETSc.IntType), local.indices.astype(PETSc.IntType),
+                                   local.data))
+    M.assemble()
+    return M
 
 
 def solve_system(K, f, constraints, dirichlet, tol, maxiter, part, comm, offsets, pc: str = "gamg",
@@ -119,12 +198,7 @@ def solve_system(K, f, constraints, dirichlet, tol, maxiter, part, comm, offsets
     rhs = np.ascontiguousarray(Pf.T @ (f - K @ offset))
     comm.Allreduce(MPI.IN_PLACE, rhs, op=MPI.SUM)
     rhs = rhs[order]
-    M = PETSc.Mat().create(comm=comm)
-    M.setSizes(((int(counts[rank]), nfree), (int(counts[rank]), nfree)))
-    M.setType("aij")
-    M.setPreallocationCOO(new[A.row].astype(PETSc.IntType), new[A.col].astype(PETSc.IntType))
-    M.setValuesCOO(A.data, addv=PETSc.InsertMode.ADD_VALUES)
-    M.assemble()
+    M = _matrix(PETSc, comm, new[A.row], new[A.col], A.data, counts, nfree)
     b = PETSc.Vec().createMPI((int(counts[rank]), nfree), comm=comm)
     b.setArray(rhs[lo:lo + counts[rank]])
     x = b.duplicate()

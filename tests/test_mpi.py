@@ -5,7 +5,6 @@ solve to the solver tolerance.
 """
 
 import json
-import shutil
 import subprocess
 import sys
 import textwrap
@@ -19,14 +18,16 @@ import solvers
 import tiling
 from geometry import primitives as pr
 from iga import HeatProblem
+from iga.distributed import launch_env, mpiexec
 from tiling import library as L
 
 petsc4py = pytest.importorskip("petsc4py", reason="petsc4py is not installed (extra [mpi]); the PETSc backend and "
                                "the distributed runs are not checked")
 pytest.importorskip("mpi4py", reason="mpi4py is not installed (extra [mpi])")
-MPIEXEC = shutil.which("mpiexec") or str(Path(sys.executable).parent / "mpiexec")
-if not Path(MPIEXEC).exists():
-    pytest.skip("no mpiexec on PATH (pip install mpich)", allow_module_level=True)
+MPIEXEC = mpiexec()
+if MPIEXEC is None:
+    pytest.skip("no mpiexec beside this Python or on PATH (pip install mpich, or apt install openmpi-bin)",
+                allow_module_level=True)
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -60,7 +61,7 @@ def _mpi(tmp_path, ranks, *args):
     script = tmp_path / "run.py"
     script.write_text(SCRIPT)
     return subprocess.run([MPIEXEC, "-n", str(ranks), sys.executable, str(script), *map(str, args)],
-                          capture_output=True, text=True, cwd=ROOT, timeout=600)
+                          capture_output=True, text=True, cwd=ROOT, timeout=600, env=launch_env())
 
 
 def test_the_serial_petsc_backend_solves_like_the_direct_solver():
@@ -118,7 +119,8 @@ def test_mpiexec_iga_run_writes_one_result(tmp_path):
         png = false
     """))
     iga = str(Path(sys.executable).parent / "iga")
-    out = subprocess.run([MPIEXEC, "-n", "2", iga, "run", str(cfg)], capture_output=True, text=True, timeout=600)
+    out = subprocess.run([MPIEXEC, "-n", "2", iga, "run", str(cfg)], capture_output=True, text=True, timeout=600,
+                         env=launch_env())
     assert out.returncode == 0, out.stderr[-3000:]
     assert out.stdout.count("balance error") == 1  # rank 0 reports, once
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
