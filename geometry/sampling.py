@@ -176,7 +176,7 @@ def piece_basis(space1d, ax):
     return out
 
 
-def sample_model(model, samples: int = 3, knots_of=None, fields=None, spaces_key=None):
+def sample_model(model, samples: int = 3, knots_of=None, fields=None, spaces_key=None, patches=None):
     """Points, hexahedra, point data and cell data of the sampled model (before welding).
 
     ``knots_of(pi)``: the knot vectors whose elements patch ``pi`` samples
@@ -189,7 +189,10 @@ def sample_model(model, samples: int = 3, knots_of=None, fields=None, spaces_key
     point_data {name: (N,) or (N, c)}, cell_data {name: (M,)}, rim (N,))``:
     every channel of the tiles and the deformation map is point data (NaN
     where a patch lacks it); ``rim`` marks the points on the boundary of their
-    piece's grid (the only ones that can coincide with others).
+    piece's grid (the only ones that can coincide with others).  ``patches``:
+    the indices of the patches to sample (default all); the samples stay
+    those of the whole model (conforming across every interface), so the
+    meshes of disjoint subsets meet point for point.
     """
     if knots_of is None:
         def knots_of(pi):
@@ -198,7 +201,9 @@ def sample_model(model, samples: int = 3, knots_of=None, fields=None, spaces_key
     names = sorted({c for p in model.patches for c in p.channels})
     same = ObjectIndex()  # patches share splines: group by object
     groups: dict = {}
-    for pi, patch in enumerate(model.patches):
+    chosen = range(len(model.patches)) if patches is None else sorted({int(i) for i in patches})
+    for pi in chosen:
+        patch = model.patches[pi]
         key = (same(patch.spline), spaces_key(pi) if spaces_key else None, tuple(a.tobytes() for a in axes[pi]))
         groups.setdefault(key, []).append(pi)
     points, cells, rims, pdata, cdata = [], [], [], {}, {"patch": [], "tile": [], "level": []}

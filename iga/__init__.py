@@ -2,7 +2,7 @@
 
 Public names: :class:`HeatProblem`, :class:`Solution`, :class:`ElasticityProblem`, :class:`ElasticSolution`,
 :func:`effective_conductivity`, :func:`effective_stiffness`, :func:`effective_table` and :func:`macro_map`
-(graded macro models), :func:`write_vtu`,
+(graded macro models), :func:`write_vtu`, :func:`write_pieces` (one VTU piece per MPI rank and a ``.pvtu``),
 :class:`ProblemError`.  Command line: ``iga --help``.
 """
 
@@ -13,8 +13,8 @@ from .elastic_solution import ElasticSolution
 from .homogenize import effective_conductivity, effective_stiffness
 from .macro import EffectiveTable, effective_table, macro_map
 from .solution import Solution
-from .vtu import write_vtu
+from .vtu import write_pieces, write_vtu
 
 __all__ = ["ProblemError", "SingularProblemError", "HeatProblem", "Solution", "ElasticityProblem", "ElasticSolution",
            "effective_conductivity", "effective_stiffness", "EffectiveTable", "effective_table", "macro_map",
-           "write_vtu"]
+           "write_vtu", "write_pieces"]

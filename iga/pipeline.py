@@ -34,7 +34,7 @@ from .maps import MAPS, circular_heat_sink_map, vertical_heat_sink_map
 from . import distributed
 from .problem import HeatProblem
 from .tags import as_expression
-from .vtu import write_vtu
+from .vtu import write_pieces, write_vtu
 from geometry.errors import show
 
 __all__ = ["run_pipeline", "heat_sink_config", "circular_heat_sink_map", "vertical_heat_sink_map", "MAPS"]
@@ -173,7 +173,12 @@ def _write_outputs(ocfg: dict, out: Path, sol, stages) -> tuple[dict, float | No
     name = ocfg["name"]
     vtu = out / f"{name}.vtu"
     mesh_volume = None
-    if ocfg["vtu"]:
+    world = distributed.world() if getattr(sol.problem, "partition", None) is not None else None
+    if world and ocfg["pieces"]:  # a distributed solve: every rank writes its patches, rank 0 the .pvtu index
+        vtu = write_pieces(out / f"{name}.pvtu", sol, world[0], samples=ocfg["samples"], tolerance=ocfg["tolerance"])
+        files["vtu"] = str(vtu)
+        mesh_volume = _read_volume(vtu) if ocfg["vtu"] else None
+    elif ocfg["vtu"]:
         write_vtu(vtu, sol, samples=ocfg["samples"], tolerance=ocfg["tolerance"])
         files["vtu"] = str(vtu)
         mesh_volume = _read_volume(vtu)  # what ParaView's Integrate Variables will show
@@ -296,8 +301,9 @@ def _heat_stage(cfg, model, out: Path, ocfg: dict, stages):
 
 def _run(cfg: dict, out: Path, root: bool = True) -> dict:
     ocfg, kind = cfg["output"], cfg["physics"]["kind"]
-    if not root:  # another MPI rank: it assembles and solves its share, rank 0 writes
-        ocfg = {**ocfg, "vtu": False, "bezier": False, "png": False}
+    # another MPI rank assembles and solves its share and writes its VTU piece; rank 0 writes the rest
+    ocfg = {**ocfg, "pieces": ocfg["vtu"]} if root else {**ocfg, "pieces": ocfg["vtu"], "vtu": False, "bezier": False,
+                                                           "png": False}
     heat, elastic = kind in ("heat", "thermo-elastic"), kind in ("elasticity", "thermo-elastic")
     surface = surface_reason(cfg) is not None
     stages = display.Stages(4 if surface else 3 + 3 * heat + 2 * elastic + (kind == "none"))

@@ -99,6 +99,7 @@ class HeatProblem:
         self.conditions: list[_Condition] = []
         self.constraint_stats: dict = {}
         self.reduced_dofs = None
+        self.partition = None  # under mpiexec: the MPI rank of every patch in the last solve (iga.distributed)
         self.components, self.idle_components = [], []  # the coupled pieces of the last solve (iga.components)
 
     # ------------------------------------------------------------ conditions
@@ -240,7 +241,7 @@ class HeatProblem:
                 "constant (the system is singular); add problem.dirichlet(tag, T) or problem.robin(tag, h, T_inf)"
             )
         world = distributed.world() if solver == "petsc" else None  # (comm, rank, size) under mpiexec
-        part = distributed.partition(self, world[2]) if world else None
+        part = self.partition = distributed.partition(self, world[2]) if world else None  # rank of each patch
         K, f, book = self.assemble(None if part is None else set(np.flatnonzero(part == world[1]).tolist()))
         if world:  # each rank integrated the source over its own patches
             book["source"] = world[0].allreduce(book["source"])

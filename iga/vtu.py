@@ -35,7 +35,7 @@ from .solution import Solution
 from .vtu_bezier import bezier_grid
 from geometry.errors import show
 
-__all__ = ["write_vtu", "save_grid"]
+__all__ = ["write_vtu", "write_pieces", "save_grid"]
 
 
 def save_grid(grid, path) -> None:
@@ -97,16 +97,77 @@ def write_vtu(path, solution_or_model, samples: int = 3, cells: str = "linear", 
     return atomic_write(path, lambda tmp: save_grid(grid, tmp), ".vtu", ProblemError)
 
 
-def sampled_grid(model, solution=None, samples: int = 3, tolerance: float | None = None):
+def sampled_grid(model, solution=None, samples: int = 3, tolerance: float | None = None, patches=None):
     """The welded linear-hexahedron grid (a ``pyvista.UnstructuredGrid``) of a model or solution; with
-    ``tolerance`` the samples per patch and direction that keep the cells within it of the exact geometry."""
+    ``tolerance`` the samples per patch and direction that keep the cells within it of the exact geometry;
+    ``patches``: only those (their samples still conform with every neighbour's)."""
     if solution is None:
         if tolerance is not None:
             samples = chord_samples(model, lambda pi: model.patches[pi].spline.knots, tolerance)
-        return sampled_mesh(model, samples)
+        return sampled_mesh(model, samples, patches=patches)
     prob = solution.problem
     if tolerance is not None:
         samples = chord_samples(model, lambda pi: [d.knots for d in prob.spaces[pi].dirs], tolerance)
     fields = displacement_fields(solution) if isinstance(solution, ElasticSolution) else temperature_fields(solution)
     return sampled_mesh(model, samples, knots_of=lambda pi: [d.knots for d in prob.spaces[pi].dirs],
-                        spaces_key=lambda pi: prob.spaces[pi].key(), fields=fields)
+                        spaces_key=lambda pi: prob.spaces[pi].key(), fields=fields, patches=patches)
+
+
+_XML_TYPES = {"f": "Float", "i": "Int", "u": "UInt", "b": "UInt"}
+
+
+def write_pieces(path, solution, comm, samples: int = 3, tolerance: float | None = None) -> Path:
+    """Under ``mpiexec``: every rank writes the patches it solved as ``STEM_RANK.vtu``, rank 0 the ``.pvtu`` that
+    ParaView opens as one dataset; returns the ``.pvtu`` path (on every rank).
+
+    ``solution`` comes from a distributed solve (its problem's ``partition`` gives each patch's rank); the
+    pieces are sampled on the whole model's conforming grids, so points on a rank boundary appear in both
+    pieces at the same place (ParaView's Merge Blocks or Clean welds them into the serial file's points).
+    Continuous fields (temperature, channels) are equal there; fields the serial file averages over the
+    patches at a point (the heat flux, discontinuous across patches) are averaged by each piece over its
+    own patches, so at a rank boundary the two pieces hold each side's value.  Each piece is written by VTK's writer, atomically; the ``.pvtu`` (a short XML
+    index of the pieces and their arrays) is written once every piece is in place, by rank 0 only: VTK's
+    parallel writer lists the other ranks' pieces only when VTK itself is built with MPI, which pip's is not.
+    """
+    import xml.etree.ElementTree as ET
+
+    path = Path(path)
+    if path.suffix.lower() != ".pvtu":
+        raise ProblemError(f"cannot write {path.name}: parallel VTU files end in .pvtu")
+    check_folder(path, ProblemError)
+    part = getattr(solution.problem, "partition", None)
+    rank, size = comm.Get_rank(), comm.Get_size()
+    if part is None or len(part) != len(solution.problem.model.patches) or part.max() >= size:
+        raise ProblemError("write_pieces needs the solution of a distributed solve (solver='petsc' under mpiexec "
+                           f"with {size} ranks); use write_vtu for a serial one")
+    model = solution.problem.model
+    grid = sampled_grid(model, solution, samples, tolerance, patches=np.flatnonzero(part == rank))
+    piece = path.with_name(f"{path.stem}_{rank}.vtu")
+    atomic_write(piece, lambda tmp: save_grid(grid, tmp), ".vtu", ProblemError)
+    ok = comm.allreduce(1)  # every rank's piece is in place before the index names it
+    if rank == 0 and ok == size:
+        root = ET.Element("VTKFile", type="PUnstructuredGrid", version="0.1", byte_order="LittleEndian",
+                          header_type="UInt32", compressor="vtkZLibDataCompressor")
+        ugrid = ET.SubElement(root, "PUnstructuredGrid", GhostLevel="0")
+        for tag, data in (("PPointData", grid.point_data), ("PCellData", grid.cell_data)):
+            arrays = ET.SubElement(ugrid, tag)
+            for name in data.keys():
+                _array(arrays, name, np.asarray(data[name]))
+        _array(ET.SubElement(ugrid, "PPoints"), "Points", np.asarray(grid.points))
+        for r in range(size):
+            ET.SubElement(ugrid, "Piece", Source=f"{path.stem}_{r}.vtu")
+        atomic_write(path, lambda tmp: ET.ElementTree(root).write(tmp, xml_declaration=True, encoding="utf-8"),
+                     ".pvtu", ProblemError)
+    comm.Barrier()  # the index exists when any rank returns
+    return path
+
+
+def _array(parent, name: str, values: np.ndarray) -> None:
+    """A ``PDataArray`` entry: VTK's XML type name (Float64, Int64, UInt8, ...) and the components."""
+    import xml.etree.ElementTree as ET
+
+    kind = _XML_TYPES[values.dtype.kind]
+    attrs = {"type": f"{kind}{8 * values.dtype.itemsize}", "Name": name}
+    if values.ndim > 1:
+        attrs["NumberOfComponents"] = str(int(np.prod(values.shape[1:])))
+    ET.SubElement(parent, "PDataArray", **attrs)

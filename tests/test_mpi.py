@@ -126,7 +126,30 @@ def test_mpiexec_iga_run_writes_one_result(tmp_path):
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["solver"]["ranks"] == 2 and summary["energy_balance_error"] < 1e-9
     assert summary["connected_pieces"] == 1  # the paving is one coupled piece
-    assert (tmp_path / "out" / "heat_sink.vtu").exists() or any((tmp_path / "out").glob("*.vtu"))
+    # one VTU piece per rank and the .pvtu index, read as one dataset by VTK (pyvista) and piece by piece by
+    # meshio; welded, it has the serial file's points and temperatures
+    out_dir = tmp_path / "out"
+    name = Path(summary["files"]["vtu"]).stem
+    assert summary["files"]["vtu"].endswith(".pvtu") and sorted(p.name for p in out_dir.glob(f"{name}_*.vtu")) == [
+        f"{name}_0.vtu", f"{name}_1.vtu"]
+    import meshio
+    import pyvista as pv
+    pieces = [meshio.read(out_dir / f"{name}_{r}.vtu") for r in range(2)]
+    assert all(len(m.points) > 0 and "temperature" in m.point_data for m in pieces)
+    par = pv.read(out_dir / f"{name}.pvtu")
+    assert par.n_points == sum(len(m.points) for m in pieces)  # the rank boundary's points are in both pieces
+    cfg.write_text(cfg.read_text().replace('dir = "out"', 'dir = "serial"'))
+    ser = subprocess.run([iga, "run", str(cfg)], capture_output=True, text=True, timeout=600, env=launch_env())
+    assert ser.returncode == 0, ser.stderr[-3000:]
+    serial = pv.read(tmp_path / "serial" / f"{name}.vtu")
+    welded = par.clean(tolerance=1e-9 * serial.length)  # (an absolute tolerance for unstructured grids)
+    assert welded.n_points == serial.n_points and welded.n_cells == serial.n_cells
+    from scipy.spatial import cKDTree
+    dist, match = cKDTree(serial.points).query(welded.points)  # each welded point's serial twin
+    assert dist.max() < 1e-9 * serial.length and len(np.unique(match)) == serial.n_points
+    t, ts = welded.point_data["temperature"], serial.point_data["temperature"][match]
+    assert np.abs(t - ts).max() < 1e-8 * np.abs(ts).max()
+    assert set(serial.point_data.keys()) <= set(welded.point_data.keys())
 
 
 def test_more_ranks_than_patches_are_refused(tmp_path):
