@@ -14,35 +14,31 @@ from numba import njit, prange
 
 
 @njit(cache=True, parallel=True)
-def judge_boxes(G, boxes, f0, f1, f2, A0, A1, A2, band, low, high, mono):
-    """Bounds (least and greatest Bernstein coefficient) and monotonicity bits of every child of every box,
-    written into low, high, mono (L, s, s, s); the bits only where the bounds meet [-band, band] (else 0).
+def judge_rows(G, boxes, children, f0, f1, f2, A0, A1, A2, band, low, high, mono):
+    """Bounds (least and greatest Bernstein coefficient) and monotonicity bits of one child per row, written
+    into low, high, mono (L,); the bits only where the bounds meet [-band, band] (else 0).
 
-    G (n0, n1, n2): global coefficients; boxes (L, 3): box indices; f_k
-    (nb_k,): first supporting coefficient; A_k (nb_k, s, d+1, d+1): supporting
-    coefficients -> Bernstein coefficients of child m of the box.  Bit 2k of
-    mono: strictly increasing along +x_k; bit 2k + 1: strictly decreasing.
+    G (n0, n1, n2): global coefficients; boxes (L, 3): box indices; children
+    (L, 3): the child (m0, m1, m2) of each box; f_k (nb_k,): first supporting
+    coefficient; A_k (nb_k, s, d+1, d+1): supporting coefficients ->
+    Bernstein coefficients of child m of the box.  Bit 2k of mono: strictly
+    increasing along +x_k; bit 2k + 1: strictly decreasing.
     """
-    L, s = boxes.shape[0], A0.shape[1]
+    L = boxes.shape[0]
     d1 = A0.shape[2]
-    total = L * s * s * s
-    chunks = min(total, 1024)  # work buffers allocated once per chunk, not per child
+    chunks = min(L, 1024)  # work buffers allocated once per chunk, not per row
     for chunk in prange(chunks):
         T1 = np.empty((d1, d1, d1))
         T2 = np.empty((d1, d1, d1))
         C = np.empty((d1, d1, d1))
-        for item in range(chunk * total // chunks, (chunk + 1) * total // chunks):
-            _judge_one(G, boxes, f0, f1, f2, A0, A1, A2, band, low, high, mono, item, s, d1, T1, T2, C)
+        for l in range(chunk * L // chunks, (chunk + 1) * L // chunks):
+            _judge_one(G, boxes, children, f0, f1, f2, A0, A1, A2, band, low, high, mono, l, d1, T1, T2, C)
 
 
 @njit(cache=True)
-def _judge_one(G, boxes, f0, f1, f2, A0, A1, A2, band, low, high, mono, item, s, d1, T1, T2, C):
-    """One child of one box (:func:`judge_boxes`), with work buffers T1, T2, C of shape (d+1,) * 3."""
-    l = item // (s * s * s)
-    rest = item - l * s * s * s
-    m0 = rest // (s * s)
-    m1 = (rest // s) % s
-    m2 = rest % s
+def _judge_one(G, boxes, children, f0, f1, f2, A0, A1, A2, band, low, high, mono, l, d1, T1, T2, C):
+    """Row l (:func:`judge_rows`), with work buffers T1, T2, C of shape (d+1,) * 3."""
+    m0, m1, m2 = children[l, 0], children[l, 1], children[l, 2]
     a, b, c = boxes[l, 0], boxes[l, 1], boxes[l, 2]
     for p in range(d1):
         for q in range(d1):
@@ -68,9 +64,9 @@ def _judge_one(G, boxes, f0, f1, f2, A0, A1, A2, band, low, high, mono, item, s,
                 C[i, j, k] = t
                 lo = min(lo, t)
                 hi = max(hi, t)
-    low[l, m0, m1, m2] = lo
-    high[l, m0, m1, m2] = hi
-    mono[l, m0, m1, m2] = 0
+    low[l] = lo
+    high[l] = hi
+    mono[l] = 0
     if lo > band or hi < -band:
         return
     bits = 0
@@ -89,4 +85,4 @@ def _judge_one(G, boxes, f0, f1, f2, A0, A1, A2, band, low, high, mono, item, s,
                     inc &= w > 0
                     dec &= w < 0
         bits |= inc << (2 * axis) | dec << (2 * axis + 1)
-    mono[l, m0, m1, m2] = bits
+    mono[l] = bits

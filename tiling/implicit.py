@@ -184,9 +184,11 @@ class ImplicitStructure(SurfaceOutputs):
         of the spline (``snap``: |f| < 1e-12 max|p|) and mapped through D, so
         shared cell faces carry identical vertices and the mesh is one piece.
         The connectivity (one component, closed when capped) is certified on
-        the spline itself (``stats["certificate"]``), so a finer sampling
-        shows the same pieces; a coarser one than the build ``resolution``
-        (the default here) may miss thin parts.  ``close`` (default: when shelled) closes
+        the spline itself (``stats["certificate"]``), which rules out necks,
+        islands and pockets near critical values; a sheet thinner than the
+        sampling step can still split off a small piece (where an uncapped
+        zero set grazes D's boundary), and a sampling coarser than the build
+        ``resolution`` (the default here) may miss thin parts.  ``close`` (default: when shelled) closes
         the surface with D's boundary where f > 0.  Point data: every channel
         of D and every material channel at the vertices, and the parameters
         (u, v, w).

@@ -21,7 +21,7 @@ from scipy.special import comb
 from geometry import _fast
 from geometry import knots as kn
 
-__all__ = ["BoxGrid", "box_grid", "judge", "classify", "sign_at", "BAND"]
+__all__ = ["BoxGrid", "box_grid", "judge", "judge_children", "classify", "sign_at", "BAND"]
 
 _CHUNK = 4_000_000  # Bernstein coefficients per chunk of boxes (32 MB of float64), NumPy path
 BAND = 0.02  # monotonicity bits are computed only where the bounds meet [-BAND, BAND]
@@ -88,31 +88,44 @@ def sign_at(low, high, level=0.0) -> np.ndarray:
 
 
 def judge(G: np.ndarray, grid: BoxGrid, boxes: np.ndarray, split: int = 1):
-    """Bounds of F (least and greatest Bernstein coefficient) and monotonicity bits (uint8) of the children of
-    ``boxes`` (L, 3): (low, high, mono).
+    """Bounds of F (least and greatest Bernstein coefficient) and monotonicity bits (uint8) of all the
+    children of ``boxes`` (L, 3), each box split in ``split`` parts per direction: (low, high, mono), each
+    (L, s, s, s).  :func:`judge_children` for one child per row."""
+    m = np.stack(np.unravel_index(np.arange(split ** 3), (split,) * 3), 1)
+    L = len(boxes)
+    shape = (L,) + (split,) * 3
+    out = judge_children(G, grid, np.repeat(np.asarray(boxes, np.int64), split ** 3, axis=0), np.tile(m, (L, 1)),
+                         split)
+    return tuple(a.reshape(shape) for a in out)
 
-    Each box is split in ``split`` parts per direction: results (L, s, s, s).
+
+def judge_children(G: np.ndarray, grid: BoxGrid, boxes: np.ndarray, children: np.ndarray, split: int):
+    """Bounds of F and monotonicity bits of child ``children[l]`` (of ``split`` per direction) of box
+    ``boxes[l]``, row by row: (low, high, mono), each (L,).
+
     Bit 2k: F strictly increasing along +x_k on the child; bit 2k + 1:
     strictly decreasing; the bits are set only on children whose bounds meet
-    [-BAND, BAND] (the only ones whose monotonicity the certificate asks).  Compiled when numba is installed, else NumPy in
-    chunks of ``_CHUNK`` coefficients.
+    [-BAND, BAND] (the only ones whose monotonicity the certificate asks).
+    Compiled when numba is installed, else NumPy in chunks of ``_CHUNK``
+    coefficients.
     """
     sub = _subdivision(grid.degree, split)
     A = [np.ascontiguousarray(np.einsum("mij,bjp->bmip", sub, op)) for op in grid.ops]  # (nb_k, s, d+1, d+1)
     boxes = np.ascontiguousarray(boxes, dtype=np.int64)
-    shape = (len(boxes),) + (split,) * 3
-    low, high, mono = np.empty(shape), np.empty(shape), np.empty(shape, np.uint8)
+    children = np.ascontiguousarray(children, dtype=np.int64)
+    L = len(boxes)
+    low, high, mono = np.empty(L), np.empty(L), np.empty(L, np.uint8)
     if _fast.AVAILABLE:
-        from ._certify_kernels import judge_boxes
-        judge_boxes(np.ascontiguousarray(G, dtype=float), boxes, *grid.first, *A, BAND, low, high, mono)
+        from ._certify_kernels import judge_rows
+        judge_rows(np.ascontiguousarray(G, dtype=float), boxes, children, *grid.first, *A, BAND, low, high, mono)
         return low, high, mono
     d1 = grid.degree + 1
-    step = max(1, _CHUNK // (split ** 3 * d1 ** 3))
-    for i in range(0, len(boxes), step):
-        part = boxes[i:i + step]
-        win = [grid.first[k][part[:, k]][:, None] + np.arange(d1) for k in range(3)]
+    step = max(1, _CHUNK // d1 ** 3)
+    for i in range(0, L, step):
+        b, m = boxes[i:i + step], children[i:i + step]
+        win = [grid.first[k][b[:, k]][:, None] + np.arange(d1) for k in range(3)]
         local = G[win[0][:, :, None, None], win[1][:, None, :, None], win[2][:, None, None, :]]
-        C = np.einsum("lmip,lnjq,lokr,lpqr->lmnoijk", *(A[k][part[:, k]] for k in range(3)), local, optimize=True)
+        C = np.einsum("lip,ljq,lkr,lpqr->lijk", *(A[k][b[:, k], m[:, k]] for k in range(3)), local, optimize=True)
         low[i:i + step], high[i:i + step], mono[i:i + step] = _judge(C)
     mono[(low > BAND) | (high < -BAND)] = 0  # as the compiled path: bits only where they are used
     return low, high, mono

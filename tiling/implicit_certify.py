@@ -45,7 +45,7 @@ from scipy import ndimage
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import breadth_first_order, dijkstra
 
-from .implicit_boxes import BAND, BoxGrid, classify, judge, sign_at
+from .implicit_boxes import BAND, BoxGrid, classify, judge, judge_children, sign_at
 from .implicit_connect import BRIDGE, grid_graph
 
 __all__ = ["Certifier", "MARGIN"]
@@ -156,49 +156,53 @@ def _certified(G, grid, sign, mono, side, outside, connected, level):
     return ok
 
 
-def _allowed(boxes, shape, split, open_faces):
-    """Monotonicity bits that count for the children (L, s, s, s) of ``boxes`` (L, 3) of a grid of ``shape``.
+def _allowed(boxes, children, shape, split, open_faces):
+    """Monotonicity bits that count for child ``children[l]`` (of ``split``) of box ``boxes[l]`` (L,).
 
     On an open structure (``open_faces``: D's boundary is no wall of fixed
     sign) a child touching D's boundary face normal to x_k must be monotone
     along the face, not across it: the zero set meets the face, and the face
     is a stratum of its own (a dome that barely touches it is critical there).
     """
-    out = np.full((len(boxes),) + (split,) * 3, 0b111111, np.uint8)
+    out = np.full(len(boxes), 0b111111, np.uint8)
     if not open_faces:
         return out
-    m = np.arange(split)
     for k in range(3):
-        lo = (boxes[:, k] == 0)[:, None] & (m == 0)
-        hi = (boxes[:, k] == shape[k] - 1)[:, None] & (m == split - 1)
-        touch = (lo | hi).reshape((len(boxes),) + tuple(split if j == k else 1 for j in range(3)))
-        out = np.where(touch, out & ~np.uint8(0b11 << 2 * k), out)
+        touch = ((boxes[:, k] == 0) & (children[:, k] == 0)) | ((boxes[:, k] == shape[k] - 1)
+                                                                  & (children[:, k] == split - 1))
+        out[touch] &= ~np.uint8(0b11 << 2 * k)
     return out
 
 
 def _unstable(G, grid, low, high, mono, open_faces, known=None):
-    """Boxes (bool) where the zero set may be near-critical: F's range meets [-MARGIN, MARGIN] and no child of the
-    ``SPLITS`` passes is monotone in a direction that counts (:func:`_allowed`).
+    """Boxes (bool) where the zero set may be near-critical: F's range meets [-MARGIN, MARGIN] and some part of
+    the box stays, down to 8^3 children, neither away from that band nor monotone in a direction that counts
+    (:func:`_allowed`).
 
     Where every box passes, F has no critical point (of F, or of F on D's
     faces) with a value within MARGIN of zero, so the zero set keeps its
     topology when the level moves by MARGIN: no neck, pocket or dome thinner
-    than that change of F, which a sampling would split or miss.  Boxes
+    than that change of F, which a sampling would split or miss.  Only the
+    children that fail are split again (2, 4, 8 per direction).  Boxes
     ``known`` (bool) to pass already are not judged again.
     """
-    boxes = np.stack(np.unravel_index(np.arange(low.size), low.shape), 1)
     near = (low <= MARGIN) & (high >= -MARGIN)
     if known is not None:
         near &= ~known
-    bad = near & ((mono & _allowed(boxes, low.shape, 1, open_faces)[:, 0, 0, 0].reshape(low.shape)) == 0)
-    for split in sorted(set(SPLITS)):
-        doubt = np.argwhere(bad)
-        if len(doubt) == 0:
-            break
-        clow, chigh, cmono = judge(G, grid, doubt, split)
-        ok = (clow > MARGIN) | (chigh < -MARGIN) | ((cmono & _allowed(doubt, low.shape, split, open_faces)) != 0)
-        bad[tuple(doubt[np.all(ok, axis=(1, 2, 3))].T)] = False
-    return bad
+    boxes = np.argwhere(near)
+    zero = np.zeros((len(boxes), 3), np.int64)
+    bad = (mono[near] & _allowed(boxes, zero, low.shape, 1, open_faces)) == 0
+    rows, children, split = boxes[bad], zero[bad], 1
+    eight = np.stack(np.unravel_index(np.arange(8), (2, 2, 2)), 1)
+    while len(rows) and split < max(SPLITS):
+        rows, children, split = np.repeat(rows, 8, axis=0), (2 * children[:, None] + eight).reshape(-1, 3), 2 * split
+        clow, chigh, cmono = judge_children(G, grid, rows, children, split)
+        fail = ((clow <= MARGIN) & (chigh >= -MARGIN)
+                & ((cmono & _allowed(rows, children, low.shape, split, open_faces)) == 0))
+        rows, children = rows[fail], children[fail]
+    out = np.zeros(low.shape, bool)
+    out[tuple(rows.T)] = True
+    return out
 
 
 def _groups(label, ids):
@@ -347,6 +351,30 @@ class Certifier:
         record["certified"] = work == 0 and record.get("near-critical held", 0) == 0
         return work
 
+    def _push(self, B, low, high, mono, shell, record) -> int:
+        """Near-critical places: each group of boxes pushed away from zero, to the side its values lean to (the
+        other way after PUSHES pushes); returns the groups pushed.  A push moves the free supporting
+        coefficients only, to at least NUDGE from zero, so a critical value held by fixed coefficients may stay:
+        a place pushed PUSHES times each way and still near-critical (held by fixed coefficients, or by a
+        neighbouring place pushed the other way) is left, and reported (certified False)."""
+        unstable = _unstable(B.G, self.grid, low, high, mono, shell is None and not self.capped(B), self.stable)
+        self.stable |= ~unstable
+        held = unstable & (self.pushes >= 2 * PUSHES)
+        record["near-critical held"] = int(ndimage.label(held, structure=np.ones((3, 3, 3)))[1])
+        unstable &= ~held
+        label, n = ndimage.label(unstable, structure=np.ones((3, 3, 3)))
+        if not n:
+            return 0
+        self.pushes[unstable] += 1
+        record["near-critical"] += n
+        lean = ndimage.mean(low + high, label, np.arange(1, n + 1)) >= 0  # per group
+        lean ^= ndimage.maximum(self.pushes, label, np.arange(1, n + 1)) > PUSHES  # the other way after PUSHES
+        for side in (1, -1):
+            boxes = np.argwhere(unstable & np.isin(label, 1 + np.flatnonzero(lean == (side > 0))))
+            if len(boxes):
+                self.set_boxes(B, boxes, side, value=NUDGE)
+        return n
+
     def _repair(self, B, cells, tree_edges, shell, record) -> int:
         """The checks of one round in order, repairing the first that fails; returns its repairs (0: all hold)."""
         low, high, mono = self.classify(B.G)
@@ -358,27 +386,17 @@ class Certifier:
             self.set_boxes(B, pairs, +1)
             record["tree faces"] += len(pairs) // 2
             return len(pairs) // 2
-        # near-critical places first (they move the most): each group of boxes pushed away from zero, to the side
-        # its values lean to, as far as coefficients go (a push to +-BRIDGE may leave a critical value held by
-        # fixed coefficients near zero)
-        unstable = _unstable(B.G, self.grid, low, high, mono, shell is None and not self.capped(B), self.stable)
-        self.stable |= ~unstable
-        # a place pushed PUSHES times each way and still near-critical is held there by fixed coefficients or a
-        # neighbouring place pushed the other way: left, and reported (certified False)
-        held = unstable & (self.pushes >= 2 * PUSHES)
-        record["near-critical held"] = int(ndimage.label(held, structure=np.ones((3, 3, 3)))[1])
-        unstable &= ~held
-        label, n = ndimage.label(unstable, structure=np.ones((3, 3, 3)))
-        if n:
-            self.pushes[unstable] += 1
-            record["near-critical"] += n
-            lean = ndimage.mean(low + high, label, np.arange(1, n + 1)) >= 0  # per group
-            lean ^= ndimage.maximum(self.pushes, label, np.arange(1, n + 1)) > PUSHES  # the other way after PUSHES
-            for side in (1, -1):
-                boxes = np.argwhere(unstable & np.isin(label, 1 + np.flatnonzero(lean == (side > 0))))
-                if len(boxes):
-                    self.set_boxes(B, boxes, side, value=NUDGE)
-            return n
+        # near-critical places first (they move the most), pushed until none is left before the other checks
+        pushed = 0
+        for _ in range(2 * PUSHES + 1):
+            n = self._push(B, low, high, mono, shell, record)
+            if not n:
+                break
+            pushed += n
+            low, high, mono = self.classify(B.G)
+        if pushed:
+            return pushed
+        sign = sign_at(low, high)
         record["uncertified"] = 0
         # the inside joined through the shell if there is one; the outside (and a shell's voids) negative
         for side, outside, connected in ((1, shell is not None, True), (-1, shell is None, shell is None)):

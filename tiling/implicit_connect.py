@@ -103,11 +103,21 @@ class Builder:
         self.G = np.zeros(tuple(c * self.n + 1 for c in counts))
         self.fixed = np.zeros(self.G.shape, bool)
         self.anchored = set()  # tree faces (cell index pairs) whose anchor is fixed
+        self.passed = {}  # cell -> its coefficients when its inside samples were last found one component
         self.U = np.concatenate([np.zeros(degree + 1), cell_knots(degree, controls), np.ones(degree + 1)])
         self._basis = {}
 
     def cell_slices(self, cell):
         return tuple(slice(c * self.n, c * self.n + self.N) for c in cell)
+
+    def verify(self, cell):
+        """Record that ``cell``'s inside samples are one component with its present coefficients."""
+        self.passed[tuple(int(x) for x in cell)] = self.G[self.cell_slices(cell)].copy()
+
+    def verified(self, cell) -> bool:
+        """Whether ``cell`` passed with the coefficients it has now (its samples depend on nothing else)."""
+        old = self.passed.get(tuple(int(x) for x in cell))
+        return old is not None and np.array_equal(old, self.G[self.cell_slices(cell)])
 
     def basis(self, res):
         """Values (res + 1, N) of one cell's basis at its ``res + 1`` samples per direction (all cells alike)."""
@@ -278,17 +288,24 @@ def connect_cells(B, cells, res, stats) -> int:
     """
     its = np.zeros(len(cells), int)
     for _ in progress.bar(range(MAX_ITER), desc="intra-cell connectivity", unit="round", min_items=10**9):
-        inside = B.cell_values(cells, res) > 0
-        blocked = ~B.reachable(res, +1)
+        todo = [i for i, c in enumerate(cells) if not B.verified(c)]  # a cell that passed and kept its values passes
+        if not todo:
+            break
+        inside = B.cell_values(cells[todo], res) > 0
+        blocked = None
         work = 0
-        for i, c in enumerate(cells):
-            label, n = ndimage.label(inside[i])
+        for j, i in enumerate(todo):
+            c = cells[i]
+            label, n = ndimage.label(inside[j])
             if n <= 1:
+                B.verify(c)
                 continue
+            if blocked is None:
+                blocked = ~B.reachable(res, +1)
             main = 1 + int(np.argmax(np.bincount(label.ravel())[1:]))
             window = tuple(slice(x * res, x * res + res + 1) for x in c)
             paths = _paths(label == main, [label == lab for lab in range(1, n + 1) if lab != main],
-                           inside[i], blocked[window])
+                           inside[j], blocked[window])
             for path in paths:
                 if path is None:  # walled in: raise every free coefficient of the cell
                     block, free = B.G[B.cell_slices(c)], ~B.fixed[B.cell_slices(c)]
