@@ -18,24 +18,39 @@ direction; on each sub-box F is one polynomial with Bernstein coefficients
   the box's +x_k face with F still > 0, and goes on into the neighbour
   across it (and likewise for the other signs and directions).
 
-A mixed box is *certified* on the positive side when one of its increasing
-directions leads into a P box or a certified box (reachability along those
-edges, scipy.sparse.csgraph); then every positive point of it is joined to
-a P box.  If moreover the P boxes are one face-connected set, the region
-F > 0 is connected; the negative side alike with decreasing directions and
-N boxes, D's outside counting as negative unless the structure is
-shelled (and as positive when it is: the shell).  The closed surface of a
-region whose inside and outside are both connected has one component (each
-component of a closed surface in space separates it: Jordan-Brouwer), so
-the certificate holds for every sampling fine enough to resolve it.
+A box *joins* the main region on the positive side when the largest
+face-connected set of P boxes (the seeds; D's outside when shelled) is
+reached from it along these edges: a P box to any face neighbour that
+joins (their shared face is positive), a mixed box across a face towards
+which F rises (reachability by one breadth-first search,
+scipy.sparse.csgraph).  Then every positive point of the box is joined to
+the seeds.  Boxes left doubtful are split (2^3 up to 8^3 children) and
+their children judged the same way with the neighbours' verdicts.  When
+every P and mixed box joins, the region F > 0 is connected; the negative
+side alike with falling directions, D's outside counting as negative
+unless the structure is shelled (then each void need only reach a negative
+box).  The closed surface of a region whose inside and outside are both
+connected has one component (each component of a closed surface in space
+separates it: Jordan-Brouwer).
+
+A sampling resolves that topology only if nothing is thinner than its
+step.  The certificate also asks that no critical value of F, nor of F on
+an open face of D, lie within ``MARGIN`` of zero (every box whose bounds
+meet [-MARGIN, MARGIN] is, down to 8^3 children, monotone in a direction
+along the faces it touches): no neck, island, pocket or dome then appears
+or vanishes as the level moves by MARGIN.  It does not bound thickness: a
+sheet can be thinner than a step where F is steep.
 
 Where the certificate fails, coefficients are changed as the paper's steps
-do (Massarwi et al. 2018, Section 4.2): every uncertified mixed box and
-every other component of P is joined to the main component by a least-cost
-path of boxes whose supporting free coefficients are raised to at least
-+1/2 (lowered to -1/2 on the negative side), which makes the path's boxes P
-(N); a spanning-tree face without a pair of P boxes across it gets one.
-The caller repeats the steps until the certificate holds unchanged.
+do (Massarwi et al. 2018, Section 4.2): a near-critical place has its free
+supporting coefficients nudged to at least ``NUDGE`` from zero on the side
+its values lean to; every group of boxes that does not join is joined to
+the joined ones by a least-cost path of boxes whose supporting free
+coefficients are raised to at least +1/2 (lowered to -1/2 on the negative
+side), which makes the path's boxes P (N), or, walled in by fixed
+coefficients, is turned to the other sign; a spanning-tree face without a
+pair of P boxes across it gets one.  The caller repeats all steps until
+the certificate holds unchanged (:class:`Certifier`).
 """
 
 from __future__ import annotations
