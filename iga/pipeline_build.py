@@ -101,7 +101,9 @@ def _scheme(cfg, D):
     if p["scheme"] == "random_implicit":
         s = tiling.random_implicit(D, p["counts"], alpha=p["alpha"], seed=p["seed"], continuity=p["continuity"],
                                    connectivity=p["connectivity"], cap=p["cap"], resolution=p["resolution"])
-        return Built(s, s, s.surface())
+        # the summary says whether the connectivity is certified on the spline, and what the certificate changed
+        cert = {k: (list(v) if isinstance(v, tuple) else v) for k, v in s.stats["certificate"].items()}
+        return Built(s, s, s.surface(), {"certificate": cert})
     if p["scheme"] == "polygons":
         return _polygons(cfg, D)
     if p["scheme"] == "bifurcation":

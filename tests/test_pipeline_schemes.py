@@ -1,5 +1,7 @@
 """More of the Python API from a pipeline (issue #32): the bifurcation scheme and the shape maps."""
 
+import json
+
 import pytest
 
 from iga.config import validate
@@ -102,6 +104,8 @@ def test_a_random_implicit_structure_runs_to_its_surface_and_refuses_an_analysis
     s = run_pipeline(cfg, tmp_path)
     assert s["surface"]["closed"] and s["surface"]["components"] == 1 and set(s["files"]) == {"vtp", "stl"}
     assert len(meshio.read(s["files"]["stl"]).cells_dict["triangle"]) == s["surface"]["triangles"]
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert summary["certificate"]["certified"] is True and summary["certificate"]["boxes"] == 20 ** 3  # 2 boxes per span, 5 spans per cell
     heat = {**cfg, "bc": [{"kind": "dirichlet", "tag": "wmin", "value": 1.0}]}
     with pytest.raises(ProblemError, match=r"is a surface .* not a volumetric B-spline model"):
         validate(heat, tmp_path)
