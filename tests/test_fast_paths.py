@@ -281,11 +281,3 @@ def test_compiled_box_verdicts_equal_numpy_path(monkeypatch):
     np.testing.assert_allclose(compiled[1], plain[1], atol=1e-13)
     np.testing.assert_array_equal(compiled[2], plain[2])
     assert np.count_nonzero(compiled[2]) > 10  # the bits were compared where they are set
-    # whole boxes: the kernel that shares directions 2 and 1 gives the row kernel's verdicts
-    from tiling import _certify_kernels as K
-    A = [np.ascontiguousarray(op[:, None]) for op in grid.ops]
-    rows, whole = [[np.empty(len(boxes)), np.empty(len(boxes)), np.empty(len(boxes), np.uint8)] for _ in range(2)]
-    K.judge_rows(G, boxes, np.zeros_like(boxes), *grid.first, *A, ib.BAND, *rows)
-    K.judge_whole(G, boxes, *grid.first, *A, ib.BAND, *whole)
-    for a, b in zip(rows, whole):
-        np.testing.assert_allclose(a, b, atol=1e-13)

@@ -116,12 +116,8 @@ def judge_children(G: np.ndarray, grid: BoxGrid, boxes: np.ndarray, children: np
     L = len(boxes)
     low, high, mono = np.empty(L), np.empty(L), np.empty(L, np.uint8)
     if _fast.AVAILABLE:
-        from ._certify_kernels import judge_rows, judge_whole
-        G = np.ascontiguousarray(G, dtype=float)
-        if split == 1 and L > 8 * np.prod(G.shape[:2]) * grid.degree:  # many boxes: share directions 2 and 1
-            judge_whole(G, boxes, *grid.first, *A, BAND, low, high, mono)
-        else:
-            judge_rows(G, boxes, children, *grid.first, *A, BAND, low, high, mono)
+        from ._certify_kernels import judge_rows
+        judge_rows(np.ascontiguousarray(G, dtype=float), boxes, children, *grid.first, *A, BAND, low, high, mono)
         return low, high, mono
     d1 = grid.degree + 1
     step = max(1, _CHUNK // d1 ** 3)
