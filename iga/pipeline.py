@@ -174,7 +174,7 @@ def _write_outputs(ocfg: dict, out: Path, sol, stages) -> tuple[dict, float | No
     vtu = out / f"{name}.vtu"
     mesh_volume = None
     world = distributed.world() if getattr(sol.problem, "partition", None) is not None else None
-    if world and ocfg["pieces"]:  # a distributed solve: every rank writes its patches, rank 0 the .pvtu index
+    if world and ocfg.get("pieces"):  # a distributed solve: every rank writes its patches, rank 0 the .pvtu index
         vtu = write_pieces(out / f"{name}.pvtu", sol, world[0], samples=ocfg["samples"], tolerance=ocfg["tolerance"])
         files["vtu"] = str(vtu)
         mesh_volume = _read_volume(vtu) if ocfg["vtu"] else None

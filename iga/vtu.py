@@ -125,9 +125,12 @@ def write_pieces(path, solution, comm, samples: int = 3, tolerance: float | None
     pieces at the same place (ParaView's Merge Blocks or Clean welds them into the serial file's points).
     Continuous fields (temperature, channels) are equal there; fields the serial file averages over the
     patches at a point (the heat flux, discontinuous across patches) are averaged by each piece over its
-    own patches, so at a rank boundary the two pieces hold each side's value.  Each piece is written by VTK's writer, atomically; the ``.pvtu`` (a short XML
-    index of the pieces and their arrays) is written once every piece is in place, by rank 0 only: VTK's
-    parallel writer lists the other ranks' pieces only when VTK itself is built with MPI, which pip's is not.
+    own patches, so at a rank boundary the two pieces hold each side's value.
+
+    Each piece is written by VTK's writer, atomically; the ``.pvtu`` (a short XML index of the pieces and
+    their arrays) is written by rank 0 once every piece is in place: VTK's parallel writer lists the other
+    ranks' pieces only when VTK itself is built with MPI, which pip's is not.  If any rank cannot write its
+    piece, every rank removes its own, no index is written, and every rank raises :class:`ProblemError`.
     """
     import xml.etree.ElementTree as ET
 
@@ -143,9 +146,17 @@ def write_pieces(path, solution, comm, samples: int = 3, tolerance: float | None
     model = solution.problem.model
     grid = sampled_grid(model, solution, samples, tolerance, patches=np.flatnonzero(part == rank))
     piece = path.with_name(f"{path.stem}_{rank}.vtu")
-    atomic_write(piece, lambda tmp: save_grid(grid, tmp), ".vtu", ProblemError)
-    ok = comm.allreduce(1)  # every rank's piece is in place before the index names it
-    if rank == 0 and ok == size:
+    failure = None
+    try:
+        atomic_write(piece, lambda tmp: save_grid(grid, tmp), ".vtu", ProblemError)
+    except ProblemError as err:  # the other ranks must still reach the collective below, or they would wait forever
+        failure = err
+    written = comm.allreduce(0 if failure else 1)  # every rank's piece is in place before the index names it
+    if written != size:
+        piece.unlink(missing_ok=True)
+        raise failure or ProblemError(f"{size - written} of {size} ranks could not write their pieces of "
+                                      f"{path.name} (see their errors); no piece and no index is left")
+    if rank == 0:
         root = ET.Element("VTKFile", type="PUnstructuredGrid", version="0.1", byte_order="LittleEndian",
                           header_type="UInt32", compressor="vtkZLibDataCompressor")
         ugrid = ET.SubElement(root, "PUnstructuredGrid", GhostLevel="0")

@@ -80,3 +80,18 @@ def test_write_pieces_refuses_a_serial_solution_and_a_wrong_suffix(solved, tmp_p
     with pytest.raises(ProblemError, match=r"\.pvtu"):
         write_pieces(tmp_path / "a.vtu", solved, _Ranks(0, 2))
     assert not list(tmp_path.iterdir())  # nothing half-written
+
+
+def test_a_rank_that_cannot_write_leaves_no_piece_and_no_index(solved, tmp_path):
+    class _OtherRankFailed(_Ranks):
+        def allreduce(self, value):
+            return value * self.size - 1  # one other rank reports that its piece could not be written
+
+    n = len(solved.problem.model.patches)
+    solved.problem.partition = np.arange(n) * 2 // n
+    try:
+        with pytest.raises(ProblemError, match=r"1 of 2 ranks could not write their pieces of sink\.pvtu"):
+            write_pieces(tmp_path / "sink.pvtu", solved, _OtherRankFailed(0, 2), samples=1)
+    finally:
+        solved.problem.partition = None
+    assert not list(tmp_path.iterdir())  # this rank's piece removed, no index
