@@ -188,8 +188,9 @@ class ImplicitStructure(SurfaceOutputs):
         islands and pockets near critical values; a sheet thinner than the
         sampling step can still split off a small piece (where an uncapped
         zero set grazes D's boundary), and a sampling coarser than the build
-        ``resolution`` (the default here) may miss thin parts.  ``close`` (default: when shelled) closes
-        the surface with D's boundary where f > 0.  Point data: every channel
+        ``resolution`` (the default here) may miss thin parts.  ``close``
+        (default: when shelled) closes the surface with D's boundary where
+        f > 0.  Point data: every channel
         of D and every material channel at the vertices, and the parameters
         (u, v, w).
         """
