@@ -88,7 +88,7 @@ def test_certified_boxes_are_joined_on_a_fine_sampling():
     f, G, grid = _random_field(counts, seed=11)
     low, high, mono = ib.classify(G, grid)
     sign = ib.sign_at(low, high)
-    ok = ic._certified(G, grid, sign, mono, 1, False, True, 0.0)
+    ok = ic._certified(G, grid, sign, mono, 1, False, True)
     res = 80
     axes = [np.linspace(0, c, c * res + 1) for c in counts]
     F = f.evaluate_grid(axes)[..., 0]

@@ -31,7 +31,7 @@ BAND = 0.02  # monotonicity bits are computed only where the bounds meet [-BAND,
 class BoxGrid:
     """The sub-boxes of the global field, per direction k: ``first[k]`` (nb_k,) index of the first supporting
     coefficient, ``ops[k]`` (nb_k, d + 1, d + 1) supporting coefficients -> Bernstein coefficients,
-    ``cells[k]`` boxes per cell."""
+    ``per_cell[k]`` boxes per cell."""
 
     degree: int
     first: list

@@ -61,7 +61,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import breadth_first_order, dijkstra
 
 from .implicit_boxes import BAND, BoxGrid, classify, judge, judge_children, sign_at
-from .implicit_connect import BRIDGE, grid_graph
+from .implicit_connect import BRIDGE, grid_graph, trace
 
 __all__ = ["Certifier", "MARGIN"]
 
@@ -146,7 +146,7 @@ def _exits(ok, boxes, outside):
     return out
 
 
-def _certified(G, grid, sign, mono, side, outside, connected, level):
+def _certified(G, grid, sign, mono, side, outside, connected):
     """Boxes whose points of ``side``'s sign all join the main region: coarse reachability, then doubtful boxes
     split (``SPLITS``: 2^3 up to 8^3 children) and judged with their neighbours' verdicts, until none is left."""
     if connected and not outside:
@@ -160,7 +160,7 @@ def _certified(G, grid, sign, mono, side, outside, connected, level):
         if len(boxes) == 0:
             break
         clow, chigh, cmono = judge(G, grid, boxes, split)
-        csign = sign_at(clow, chigh, level)
+        csign = sign_at(clow, chigh)
         cok = _reach(_graph(csign, cmono, side, _exits(ok, boxes, outside)), csign.shape)
         settled = np.all((csign == -side) | cok, axis=(1, 2, 3))
         if not settled.any():
@@ -252,8 +252,7 @@ def _tree_face_pairs(grid, sign, blocked, cells, tree_edges):
         if not np.isfinite(score.max()):
             continue  # every pair is held negative by fixed coefficients: the sampled face step decides
         i, j = np.unravel_index(np.argmax(score), score.shape)
-        at = [w.start for w in window]
-        box = np.array([at[0], at[1], at[2]])
+        box = np.array([w.start for w in window])
         box[[m for m in range(3) if m != k]] += [i, j]
         box[k] = left[k]
         out.extend([box.copy(), box + np.eye(3, dtype=int)[k]])
@@ -335,10 +334,7 @@ class Certifier:
             if not np.isfinite(dist[j]):  # walled in by fixed coefficients of the other sign: remove the group instead
                 stuck.append(nodes)
                 continue
-            path = [j]
-            while pred[path[-1]] >= 0:
-                path.append(pred[path[-1]])
-            paths.append(np.array(path))
+            paths.append(trace(pred, j))
         if paths:
             self.set_boxes(B, np.stack(np.unravel_index(np.concatenate(paths), shape), 1), side)
         if stuck:
@@ -415,7 +411,7 @@ class Certifier:
         record["uncertified"] = 0
         # the inside joined through the shell if there is one; the outside (and a shell's voids) negative
         for side, outside, connected in ((1, shell is not None, True), (-1, shell is None, shell is None)):
-            ok = _certified(B.G, self.grid, sign, mono, side, outside, connected, 0.0)
+            ok = _certified(B.G, self.grid, sign, mono, side, outside, connected)
             bad = ((sign == side) | (sign == 0)) & ~ok
             record["uncertified"] += int(np.count_nonzero(bad))
             label, n = ndimage.label(bad, structure=np.ones((3, 3, 3)))

@@ -32,7 +32,7 @@ from geometry import progress
 from .errors import TilingError
 
 __all__ = ["Builder", "cell_knots", "grid_graph", "spanning_trees", "connect_faces", "connect_cells",
-           "open_cavities"]
+           "open_cavities", "trace"]
 
 STEP = 0.25  # raise per odd iteration of a face (coefficients live in [-1, 1])
 MAX_ITER = 400
@@ -376,8 +376,13 @@ def _paths(target, islands, good, blocked):
         if not np.isfinite(dist[j]):
             out.append(None)
             continue
-        path = [j]
-        while pred[path[-1]] >= 0:
-            path.append(pred[path[-1]])
-        out.append(np.stack(np.unravel_index(np.array(path), shape), 1))
+        out.append(np.stack(np.unravel_index(trace(pred, j), shape), 1))
     return out
+
+
+def trace(pred, j) -> np.ndarray:
+    """The nodes of the shortest path ending at ``j``, back to its source, from Dijkstra's predecessors."""
+    path = [j]
+    while pred[path[-1]] >= 0:  # a path of a few dozen nodes
+        path.append(pred[path[-1]])
+    return np.array(path)
