@@ -2,7 +2,7 @@
 
 Public names: :class:`BSpline`, :class:`SplineFunction`, :class:`SplineError`,
 ``compose``, ``compose_many``, ``map_points``, ``check_regular``,
-``multiply``, ``save``, ``load``, ``invert``, the multi-patch model
+``multiply``, ``save``, ``load``, ``invert``, ``scale_bounds``, the multi-patch model
 (:class:`MultiPatch`, :class:`PlacedPatch`, :class:`Interface`) and the
 ``primitives`` and ``faces`` modules.
 """
@@ -21,6 +21,7 @@ _LAZY = {
     "reduce_degree": "reduction", "reduce_model": "reduction", "reduced_model": "reduction", "check_regular": "regularity",
     "RegularityResult": "regularity", "invert": "inversion", "Interface": "multipatch",
     "MultiPatch": "multipatch", "PlacedPatch": "multipatch", "detect_interfaces": "multipatch",
+    "scale_bounds": "scale", "ScaleBounds": "scale",
 }
 _MODULES = {"faces", "knots", "bernstein", "primitives"}
 
@@ -44,4 +45,4 @@ __all__ = [
     "compose_placed", "TrimmedSurface", "reduce_degree", "reduce_model", "reduced_model", "BSpline", "SplineFunction", "SplineError", "ToolkitError", "FACE_NAMES", "FACE_AXIS", "faces", "knots",
            "bernstein", "primitives", "multiply", "save", "load", "save_all", "load_all", "compose", "compose_many",
            "map_points", "result_degrees", "check_regular", "RegularityResult", "invert", "Interface", "MultiPatch",
-           "PlacedPatch", "detect_interfaces"]
+           "PlacedPatch", "detect_interfaces", "scale_bounds", "ScaleBounds"]

@@ -141,6 +141,7 @@ def _cmd_homogenize(args) -> int:
 def _cmd_info(args) -> int:
     from geometry import check_regular
     from geometry.gismo_xml import read_gismo
+    from geometry.scale import scale_bounds
     from geometry.io import load_all
 
     from .describe import describe
@@ -172,6 +173,7 @@ def _cmd_info(args) -> int:
         if s.dim == 3:
             r = check_regular(s, max_depth=6)
             line += f"; regularity: {r.status}"
+            line += "".join(f"\n   {t}" for t in scale_bounds(s).summary())
         print(line)
     return 0
 

@@ -216,9 +216,12 @@ def test_iga_info_reads_gismo_and_npz(tmp_path):
     out = subprocess.run([sys.executable, "-m", "iga", "info", str(path)], capture_output=True, text=True)
     assert out.returncode == 0, out.stderr
     assert "2 patches, 1 interface" in out.stdout and "Dirichlet 20" in out.stdout and "regularity: regular" in out.stdout
-    npz = save_all(tmp_path / "s.npz", [pr.box()])
+    npz = save_all(tmp_path / "s.npz", [pr.box((2.0, 1.0, 0.5))])
     out = subprocess.run([sys.executable, "-m", "iga", "info", str(npz)], capture_output=True, text=True)
     assert out.returncode == 0 and "1 spline" in out.stdout
+    # the map's scale bounds (Elber 2017, Section 4): exact for a box of sides 2, 1, 0.5
+    assert "singular values of the Jacobian) within 0.5 .. 2 over 1 boxes" in out.stdout
+    assert "|dD/du| 2 .. 2, |dD/dv| 1 .. 1, |dD/dw| 0.5 .. 0.5" in out.stdout and "distortion bound 4" in out.stdout
     (tmp_path / "x.stl").write_text("solid")
     out = subprocess.run([sys.executable, "-m", "iga", "info", str(tmp_path / "x.stl")], capture_output=True, text=True)
     assert out.returncode == 1 and "cannot read x.stl as a mesh" in out.stderr and "Traceback" not in out.stderr

@@ -39,6 +39,7 @@ from . import export
 from .errors import TilingError
 from geometry.errors import show
 from geometry.grouping import ObjectIndex
+from geometry.scale import scale_bounds
 from geometry.tolerances import COINCIDENT
 
 __all__ = ["Microstructure", "PlacedPatch", "Interface", "branch_refinement"]
@@ -100,6 +101,40 @@ class Microstructure(MultiPatch):
         if tolerance is not None:
             samples = export.samples_for_tolerance(self, tolerance)
         return export.surface(self, samples)
+
+    def tile_boxes(self) -> tuple[np.ndarray, np.ndarray]:
+        """Each placed tile's box in the map's parameter domain: ``(tiles (K,), boxes (K, 3, 2))``.
+
+        The box holds the images of the tile's patches' control points (the patches lie in
+        their hull), so it is the cell the tile was paved into, or less for a tile that does
+        not fill its cell; seal plates placed on their own are left out.
+        """
+        keep = [p for p in self.patches if not self._plates_only(p.tile)]
+        ident = np.hstack([np.eye(3), np.zeros((3, 1))])
+        pts = [p.spline.points.reshape(-1, 3) @ A[:, :3].T + A[:, 3] for p in keep
+               for A in [ident if p.placement is None else p.placement]]
+        tiles, row = np.unique([p.tile for p in keep], return_inverse=True)
+        row = np.repeat(row, [len(x) for x in pts])
+        lo = np.full((len(tiles), 3), np.inf)
+        hi = np.full((len(tiles), 3), -np.inf)
+        x = np.concatenate(pts)
+        np.minimum.at(lo, row, x)
+        np.maximum.at(hi, row, x)
+        dom = self.outer.domain
+        return tiles, np.stack([np.maximum(lo, dom[:, 0]), np.minimum(hi, dom[:, 1])], -1)
+
+    def scale_bounds(self, subdivide: int = 2):
+        """Guaranteed bounds on how much the map stretches each placed tile
+        (:func:`geometry.scale.scale_bounds` over :meth:`tile_boxes`; ``.tiles`` names the tile of each row).
+
+        ``lower`` / ``upper``: the smallest and largest scale factor (singular value of
+        the map's Jacobian, model units per parameter unit) on each tile's box,
+        ``axis_lower`` / ``axis_upper``: the stretch of each parametric direction.
+        """
+        tiles, boxes = self.tile_boxes()
+        out = scale_bounds(self.outer, boxes, subdivide)
+        out.tiles = tiles
+        return out
 
     # ------------------------------------------------------------- assembly
     @classmethod
