@@ -5,6 +5,7 @@ Public names: :class:`Tile`, :class:`BranchFace`, :func:`regular`,
 implicit structures, :class:`ImplicitStructure`), :func:`topo_subdiv` (adaptive
 subdivision, :class:`CellComplex`), :func:`bifurcation` (layered bifurcation
 tilings), :func:`implicit_bifurcation`, :func:`compose_levels` (two-level structures), :func:`graded` (layers of a tile family),
+:func:`round_struts` (curve tiles swept with circular sections),
 :class:`TilingError` and the
 ``library`` module of built-in tiles.
 """
@@ -20,10 +21,11 @@ from .implicit_branching import BifurcationStructure, implicit_bifurcation
 from .polygonal import PolygonTile, pave_polygons
 from .levels import compose_levels
 from .graded_layers import graded
+from .struts import round_struts
 from . import library
 
 __all__ = ["TilingError", "Tile", "BranchFace", "discontinuity_branches", "Microstructure", "PlacedPatch",
            "Interface", "regular", "hierarchical", "library",
            "random_implicit", "ImplicitStructure", "canonical_tubes", "topo_subdiv", "CellComplex", "bifurcation",
            "bifurcation_tiles", "implicit_bifurcation", "BifurcationStructure",
-           "PolygonTile", "pave_polygons", "compose_levels", "graded"]
+           "PolygonTile", "pave_polygons", "compose_levels", "graded", "round_struts"]

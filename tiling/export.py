@@ -53,7 +53,10 @@ def _map(P, params):
 
 def _place(P, x):
     """Tile-space points (N, 3) of a placed patch in physical space: placement, then the map D."""
-    y = x @ P.placement[:, :3].T + P.placement[:, 3]
+    A = _IDENTITY if P.placement is None else P.placement
+    y = x @ A[:, :3].T + A[:, 3]
+    if P.outer is None:  # already in physical space (e.g. swept struts)
+        return y
     return P.outer.evaluate(np.clip(y, P.outer.domain[:, 0], P.outer.domain[:, 1]))[:, :3]
 
 
@@ -113,6 +116,9 @@ def surface(ms: Microstructure, samples: int = 4):
     tris = np.concatenate(parts_tri) if parts_tri else np.zeros((0, 3), int)
     pid = np.concatenate(parts_pid) if parts_pid else np.zeros(0, int)
     pts, tris, _, _ = weld(pts, tris, {})  # surface tiles meet each other (and volume faces) at their edges
+    # a collapsed edge (the pole of a sphere, the apex of a cone) welds into triangles with a repeated vertex
+    proper = (tris[:, 0] != tris[:, 1]) & (tris[:, 1] != tris[:, 2]) & (tris[:, 0] != tris[:, 2])
+    tris, pid = tris[proper], pid[proper]
     mesh = pv.PolyData(pts, np.column_stack([np.full(len(tris), 3), tris]).ravel()) if len(tris) else pv.PolyData()
     if len(tris):
         mesh.cell_data["patch"] = pid

@@ -15,6 +15,7 @@
 ``hollow_cross()``   24 bilinear surfaces: the walls of the cross's arms, open
                      where the arms meet the cell faces (a surface tile to cap)
 ``helix()``          a cubic curve winding around the cell's axis (Elber 2017, Fig. 10)
+``struts(kind)``     straight beam axes, body-centred (``bcc``) or ``cubic``, for round-strut lattices
 ``bent_cross()``     the cross at degrees (3, 3, 2) with bent insides (Massarwi et al. 2018, Fig. 10)
 ==================== =====================================================
 
@@ -252,6 +253,23 @@ def helix(turns: float = 2.0, radius: float = 0.3, n: int = 16) -> Tile:
     return Tile([BSpline((3,), [kn.uniform_knots(3, n - 3)], cp)], name="helix")
 
 
+def struts(kind: str = "bcc") -> Tile:
+    """Straight beam axes (degree-1 curves) for round-strut lattices (:func:`tiling.struts.round_struts`).
+
+    ``"bcc"``: the eight half-diagonals from the cell's centre to its corners (body-centred
+    cubic); ``"cubic"``: the six segments from the centre to the face centres, so that
+    neighbouring cells' struts continue each other in a straight line.
+    """
+    c = np.full(3, 0.5)
+    if kind == "bcc":
+        ends = np.array(np.meshgrid([0.0, 1.0], [0.0, 1.0], [0.0, 1.0], indexing="ij")).reshape(3, -1).T
+    elif kind == "cubic":
+        ends = c + 0.5 * np.vstack([np.eye(3), -np.eye(3)])
+    else:
+        raise TilingError(f"unknown strut lattice {show(kind)}; use 'bcc' or 'cubic'")
+    return Tile([BSpline((1,), [[0.0, 0.0, 1.0, 1.0]], np.array([c, e])) for e in ends], name=f"{kind} struts")
+
+
 #: the built-in tiles by name (what ``[tile] library = ...`` of a pipeline may name)
 TILES = {f.__name__: f for f in (heat_sink_t1, heat_sink_t2, skinned_branching, fractal, hollow_box, cross, helix,
-                                 bent_cross, hollow_cross, graded_cross)}
+                                 bent_cross, hollow_cross, graded_cross, struts)}
