@@ -22,9 +22,10 @@ from .tolerances import ON_DOMAIN
 __all__ = ["crossings", "compose_curve_split"]
 
 
-def crossings(curve: BSpline, k: int, value: float) -> np.ndarray:
-    """Curve parameters where coordinate ``k`` equals ``value`` (roots per Bezier segment)."""
-    patches, boxes = curve.bezier_patches(homogeneous=True)
+def crossings(curve: BSpline, k: int, value: float, bezier=None) -> np.ndarray:
+    """Curve parameters where coordinate ``k`` equals ``value`` (roots per Bezier segment); ``bezier``: the
+    curve's ``bezier_patches(homogeneous=True)`` when the caller has them (one extraction for many values)."""
+    patches, boxes = curve.bezier_patches(homogeneous=True) if bezier is None else bezier
     roots = []
     for e in range(patches.shape[0]):  # per curve segment (few), roots of a small polynomial
         a, t0, t1 = patches[e], boxes[e, 0, 0], boxes[e, 0, 1]
@@ -47,9 +48,12 @@ def compose_curve_split(outer: BSpline, curve: BSpline, compose_piece) -> BSplin
     whose image lies in one knot span (see the module notes)."""
     breaks = [outer.breakpoints(k) for k in range(outer.dim)]
     params = []
+    bezier = curve.bezier_patches(homogeneous=True)
     for k in range(outer.dim):
+        lo_k, hi_k = bezier[0][..., k].min(), bezier[0][..., k].max()  # (homogeneous: w = 1 for B-splines)
         for v in breaks[k][1:-1]:
-            params += list(crossings(curve, k, v))
+            if curve.is_rational or lo_k <= v <= hi_k:  # the curve lies in its control polygon's hull
+                params += list(crossings(curve, k, v, bezier))
     lo, hi = curve.domain[0]
     cuts = np.unique(np.round(np.asarray(params, float), 14))
     cuts = cuts[(cuts > lo) & (cuts < hi)]

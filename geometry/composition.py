@@ -23,6 +23,8 @@ denominator; the result degree is then ``(n_1 + ... + n_D + 1) * m``.
 
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 
 from . import knots as kn
@@ -165,10 +167,12 @@ def compose_many(outer: BSpline, inner: BSpline, placements, name: str = "inner"
     return _compose_located(outer, inner, A, b, placed, where)
 
 
-def _compose_located(outer, inner, A, b, placed, where) -> list[BSpline]:
-    """Compose placements whose knot spans ``where`` (P, D) are known."""
+def _compose_located(outer, inner, A, b, placed, where, patches=None) -> list[BSpline]:
+    """Compose placements whose knot spans ``where`` (P, D) are known; ``patches``: the outer map's homogeneous
+    Bezier pieces when the caller has them (many curve pieces into one map)."""
     Do = outer.dim
-    patches, _ = outer.bezier_patches(homogeneous=True)
+    if patches is None:
+        patches, _ = outer.bezier_patches(homogeneous=True)
     breaks = [outer.breakpoints(k) for k in range(Do)]
     shape = tuple(len(bp) - 1 for bp in breaks)
     results = [None] * len(A)
@@ -210,8 +214,9 @@ def _compose_located(outer, inner, A, b, placed, where) -> list[BSpline]:
 _IDENTITY = np.hstack([np.eye(3), np.zeros((3, 1))])[None]  # inner coordinates are the outer parameters
 
 
-def _compose_curve_piece(outer: BSpline, piece: BSpline) -> BSpline:
-    """Compose a curve piece whose image lies in one knot span (located from its midpoint, not its hull)."""
+def _compose_curve_piece(outer: BSpline, piece: BSpline, patches=None) -> BSpline:
+    """Compose a curve piece whose image lies in one knot span (located from its midpoint, not its hull);
+    ``patches``: the outer map's homogeneous Bezier pieces, extracted once for many pieces."""
     Do = outer.dim
     A, b = _IDENTITY[:, :Do, :3], _IDENTITY[:, :Do, 3]
     placed = piece.points[None, :, :Do]
@@ -219,7 +224,7 @@ def _compose_curve_piece(outer: BSpline, piece: BSpline) -> BSpline:
     breaks = [outer.breakpoints(k) for k in range(Do)]
     where = np.array([[int(np.clip(np.searchsorted(bp, mid[0, k], side="right") - 1, 0, len(bp) - 2))
                        for k, bp in enumerate(breaks)]])
-    return _compose_located(outer, piece, A, b, placed, where)[0]
+    return _compose_located(outer, piece, A, b, placed, where, patches)[0]
 
 
 def compose(outer: BSpline, inner: BSpline) -> BSpline:
@@ -238,7 +243,19 @@ def compose(outer: BSpline, inner: BSpline) -> BSpline:
     except KnotLineCrossing:
         if inner.dim != 1:
             raise
-    return compose_curve_split(outer, inner, _compose_curve_piece)
+    return compose_curve_split(outer, inner, partial(_compose_curve_piece,
+                                                     patches=outer.bezier_patches(homogeneous=True)[0]))
+
+
+def compose_curves(outer: BSpline, curves) -> list[BSpline]:
+    """``[compose(outer, c) for c in curves]`` with the outer map's Bezier pieces extracted once (curves that
+    cross its knot lines are split and joined as in :func:`compose`)."""
+    piece = partial(_compose_curve_piece, patches=outer.bezier_patches(homogeneous=True)[0])
+    out = []
+    for c in curves:  # per curve: its own crossings and pieces
+        _check_pair(outer, c)
+        out.append(compose_curve_split(outer, c, piece))
+    return out
 
 
 def compose_placed(patches) -> list[BSpline]:

@@ -28,6 +28,7 @@ import numpy as np
 
 from .bspline import BSpline
 from .errors import SplineError, show
+from .fitting import c0_joints, evaluate, interpolate, span_nodes
 from .primitives import arc
 
 __all__ = ["Sweep", "sweep", "circle", "frames", "section_error", "kinks"]
@@ -155,40 +156,13 @@ def kinks(axis: BSpline) -> np.ndarray:
 
 
 def _nodes(axis: BSpline, per_span: int) -> np.ndarray:
-    b = axis.breakpoints(0)
-    t = np.linspace(0.0, 1.0, per_span + 1)[:-1]
-    return np.r_[(b[:-1, None] + t[None, :] * np.diff(b)[:, None]).ravel(), b[-1]]
+    return span_nodes(axis.breakpoints(0), per_span)
 
 
 def _section_points(frame, sec: np.ndarray) -> np.ndarray:
     """Control curves' values C_i(v) at the frames: (n, m, 3) for section control points ``sec`` (m, 2)."""
     X, _, N1, N2 = frame
     return X[:, None, :] + sec[None, :, 0, None] * N1[:, None, :] + sec[None, :, 1, None] * N2[:, None, :]
-
-
-def _joints(axis: BSpline) -> np.ndarray:
-    """Interior knots of full multiplicity ``p`` (C0 in the parameter: the speed may jump there, e.g. where
-    curves were joined end to start), at which the interpolation restarts."""
-    U, p = axis.knots[0], axis.degrees[0]
-    b, counts = np.unique(U[p + 1:-(p + 1)], return_counts=True)
-    return b[counts >= p]
-
-
-def _interpolate(v, C, joints):
-    """Cubic B-spline interpolation of values C (n, m, 3) at nodes v, restarted at ``joints`` (C0 there):
-    (degree, knots, coefficients (n_c, m, 3))."""
-    from scipy.interpolate import make_interp_spline
-
-    cuts = np.r_[0, np.searchsorted(v, joints), len(v) - 1]
-    k = 3
-    knots, coefs = [], []
-    for a, b in zip(cuts[:-1], cuts[1:]):
-        f = make_interp_spline(v[a:b + 1], C[a:b + 1].reshape(b - a + 1, -1), k=k)  # >= 4 nodes per span
-        t, c = f.t, f.c
-        knots.append(t[:-1] if b < len(v) - 1 else t)  # C0 joint: the end knot once less
-        coefs.append(c if a == 0 else c[1:])
-    t = np.concatenate([knots[0]] + [kn_[k + 1:] for kn_ in knots[1:]])
-    return k, t, np.concatenate(coefs).reshape((-1,) + C.shape[1:])
 
 
 def section_error(surface: BSpline, axis: BSpline, radius: float, u, v) -> np.ndarray:
@@ -247,12 +221,12 @@ def sweep(axis: BSpline, radius: float | None = None, section: BSpline | None = 
         raise SplineError(f"the axis turns abruptly at v = {bends[0]:.6g} (tangent discontinuity); split it there "
                           "(BSpline.split) and sweep each piece")
     per = _START
-    joints = _joints(axis)
+    joints = c0_joints(axis.knots[0], axis.degrees[0])
     while True:
         v = _nodes(axis, per)
         fine = _nodes(axis, 8 * per)  # every node and 7 check points between consecutive nodes
         C = _section_points(frames(axis, fine), cp[:, :2])
-        k, t, coef = _interpolate(fine[::8], C[::8], joints)
+        k, t, coef = interpolate(fine[::8], C[::8], joints)
         err = _control_error(k, t, coef, fine, C)
         if err <= tol or len(v) * 2 > _MAX_NODES:
             break
@@ -266,10 +240,7 @@ def sweep(axis: BSpline, radius: float | None = None, section: BSpline | None = 
 
 def _control_error(k, t, coef, v, C) -> float:
     """The largest distance between the interpolated control curves and their exact values C (n, m, 3) at v."""
-    from scipy.interpolate import BSpline as _SciPy
-
-    got = _SciPy(t, coef.reshape(len(coef), -1), k)(v).reshape(C.shape)
-    return float(np.linalg.norm(got - C, axis=2).max())
+    return float(np.linalg.norm(evaluate(k, t, coef, v) - C, axis=2).max())
 
 
 def _surface(section: BSpline, k, t, coef) -> BSpline:

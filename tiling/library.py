@@ -15,6 +15,7 @@
 ``hollow_cross()``   24 bilinear surfaces: the walls of the cross's arms, open
                      where the arms meet the cell faces (a surface tile to cap)
 ``helix()``          a cubic curve winding around the cell's axis (Elber 2017, Fig. 10)
+``stitch()``         one sine period through the thickness: stitched fibres (Elber 2017, Fig. 8)
 ``struts(kind)``     straight beam axes, body-centred (``bcc``) or ``cubic``, for round-strut lattices
 ``bent_cross()``     the cross at degrees (3, 3, 2) with bent insides (Massarwi et al. 2018, Fig. 10)
 ==================== =====================================================
@@ -270,6 +271,14 @@ def struts(kind: str = "bcc") -> Tile:
     return Tile([BSpline((1,), [[0.0, 0.0, 1.0, 1.0]], np.array([c, e])) for e in ends], name=f"{kind} struts")
 
 
+def stitch(amplitude: float = 0.35, n: int = 12) -> Tile:
+    """One period of a sine along u through the cell's thickness w (a stitched fibre, Elber 2017, Fig. 8),
+    as a cubic curve whose end tangents agree, so that the stitches of neighbouring cells continue each other."""
+    t = np.linspace(0.0, 1.0, n)
+    cp = np.column_stack([t, np.full(n, 0.5), 0.5 + amplitude * np.sin(2 * np.pi * t)])
+    return Tile([BSpline((3,), [kn.uniform_knots(3, n - 3)], cp)], name="stitch")
+
+
 #: the built-in tiles by name (what ``[tile] library = ...`` of a pipeline may name)
 TILES = {f.__name__: f for f in (heat_sink_t1, heat_sink_t2, skinned_branching, fractal, hollow_box, cross, helix,
-                                 bent_cross, hollow_cross, graded_cross, struts)}
+                                 bent_cross, hollow_cross, graded_cross, struts, stitch)}
