@@ -57,8 +57,8 @@ def round_struts(ms: Microstructure, radius: float, tolerance: float | None = No
     >>> from tiling import library, regular
     >>> lattice = regular(primitives.box((2.0, 1.0, 1.0), degrees=(2, 2, 2)), library.struts("bcc"), (2, 1, 1))
     >>> round = round_struts(lattice, 0.05)
-    >>> len(round.patches), round.struts.error <= 5e-5   # 16 struts, each a tube and two caps
-    (48, True)
+    >>> len(round.struts.sweeps), len(round.patches), round.struts.error <= 5e-5   # 16 half-diagonals, joined
+    (8, 24, True)
     """
     if not isinstance(ms, Microstructure):
         raise TilingError(f"round_struts needs a Microstructure (a paving of a curve tile), got {show(ms)}")
