@@ -85,6 +85,9 @@ def test_round_strut_lattice_in_the_duck():
     # every strut's axis is the exact composition: its ends lie on D's images of the tile's nodes
     whole = watertightness(struts)
     assert whole["closed"] and whole["open_edges"] == 0  # a union of closed shells (they overlap at the nodes)
+    with pytest.raises(TilingError, match="ask the paving they were swept from"):
+        struts.scale_bounds()
+    assert len(lattice.scale_bounds().tiles) == 20
     for s in rep.sweeps[::16]:
         one = _capsule_report(s)
         assert one["closed"] and one["manifold"] and one["euler_characteristic"] == 2

@@ -109,7 +109,10 @@ class Microstructure(MultiPatch):
         their hull), so it is the cell the tile was paved into, or less for a tile that does
         not fill its cell; seal plates placed on their own are left out.
         """
-        keep = [p for p in self.patches if not self._plates_only(p.tile)]
+        keep = [p for p in self.patches if not self._plates_only(p.tile) and p.outer is not None]
+        if not keep:
+            raise TilingError(f"{self.name or 'this micro-structure'} has no patches placed in a map (e.g. swept "
+                              "struts, already in physical space); ask the paving they were swept from")
         ident = np.hstack([np.eye(3), np.zeros((3, 1))])
         pts = [p.spline.points.reshape(-1, 3) @ A[:, :3].T + A[:, 3] for p in keep
                for A in [ident if p.placement is None else p.placement]]
