@@ -243,8 +243,7 @@ def compose(outer: BSpline, inner: BSpline) -> BSpline:
     except KnotLineCrossing:
         if inner.dim != 1:
             raise
-    return compose_curve_split(outer, inner, partial(_compose_curve_piece,
-                                                     patches=outer.bezier_patches(homogeneous=True)[0]))
+    return compose_curves(outer, [inner])[0]
 
 
 def compose_curves(outer: BSpline, curves) -> list[BSpline]:

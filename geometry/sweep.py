@@ -31,7 +31,7 @@ from .errors import SplineError, show
 from .fitting import c0_joints, evaluate, interpolate, span_nodes
 from .primitives import arc
 
-__all__ = ["Sweep", "sweep", "circle", "frames", "section_error", "kinks"]
+__all__ = ["Sweep", "sweep", "circle", "frames", "section_error", "kinks", "points_and_tangents"]
 
 #: interpolation nodes per axis knot span to start from, and the most the refinement goes to
 _START, _MAX_NODES = 4, 1 << 14
@@ -68,12 +68,9 @@ class Sweep:
         if self.radius is None:
             raise SplineError("round caps close circular sweeps only; this sweep has a general section")
         s = self.surface
-        v0, v1 = self.axis.domain[0]
-        ends = self.axis.derivatives(np.array([[v0], [v1]]), 1)
-        tangent = ends[(1,)][:, :3] / np.linalg.norm(ends[(1,)][:, :3], axis=1)[:, None]
+        ends, tangent = points_and_tangents(self.axis, self.axis.domain[0])
         out = []
-        for rim, centre, t_out in ((s.points[:, 0], ends[(0,)][0, :3], -tangent[0]),
-                                   (s.points[:, -1], ends[(0,)][1, :3], tangent[1])):
+        for rim, centre, t_out in ((s.points[:, 0], ends[0], -tangent[0]), (s.points[:, -1], ends[1], tangent[1])):
             rho = np.array([1.0, 1.0, 0.0])  # the quarter meridian from the rim to the pole: (rho, h) control
             h = np.array([0.0, 1.0, 1.0]) * self.radius  # points (1, 0), (1, 1), (0, 1), weights 1, 1/sqrt 2, 1
             P = centre + rho[None, :, None] * (rim - centre)[:, None, :] + h[None, :, None] * t_out
@@ -99,13 +96,7 @@ def frames(axis: BSpline, v: np.ndarray):
     normals (N2 = T x N1) by the double-reflection method; N1 starts at the unit vector
     orthogonal to T(v_0) closest to the axis of T's smallest component.
     """
-    vals = axis.derivatives(v[:, None], 1)
-    X, dX = vals[(0,)][:, :3], vals[(1,)][:, :3]
-    speed = np.linalg.norm(dX, axis=1)
-    if np.any(speed <= 1e-14 * max(1.0, float(np.abs(X).max()))):
-        raise SplineError(f"the axis has zero speed at v = {float(v[np.argmin(speed)]):.6g}; a sweep needs a "
-                          "regular axis curve (no cusp, no repeated control points)")
-    T = dX / speed[:, None]
+    X, T = points_and_tangents(axis, v)
     e = np.zeros(3)
     e[np.argmin(np.abs(T[0]))] = 1.0
     r0 = e - (e @ T[0]) * T[0]
@@ -116,6 +107,18 @@ def frames(axis: BSpline, v: np.ndarray):
     N1 -= np.einsum("ni,ni->n", N1, T)[:, None] * T  # remove the rounding drift: exactly normal to T
     N1 /= np.linalg.norm(N1, axis=1)[:, None]
     return X, T, N1, np.cross(T, N1)
+
+
+def points_and_tangents(curve: BSpline, v) -> tuple[np.ndarray, np.ndarray]:
+    """Points (n, 3) and unit tangents (n, 3) of ``curve`` at parameters ``v`` (n,); refuses a point of zero
+    speed (a cusp, or repeated control points), where no tangent exists."""
+    vals = curve.derivatives(np.asarray(v, float).reshape(-1, 1), 1)
+    X, dX = vals[(0,)][:, :3], vals[(1,)][:, :3]
+    speed = np.linalg.norm(dX, axis=1)
+    if np.any(speed <= 1e-14 * max(1.0, float(np.abs(X).max()))):
+        raise SplineError(f"the axis has zero speed at v = {float(np.ravel(v)[np.argmin(speed)]):.6g}; a sweep "
+                          "needs a regular axis curve (no cusp, no repeated control points)")
+    return X, dX / speed[:, None]
 
 
 def _reflection(v):
@@ -168,9 +171,7 @@ def _section_points(frame, sec: np.ndarray) -> np.ndarray:
 def section_error(surface: BSpline, axis: BSpline, radius: float, u, v) -> np.ndarray:
     """Distance from ``surface(u, v)`` to the circle of ``radius`` about ``axis(v)`` in its normal plane (N,)."""
     S = surface.evaluate(np.column_stack([u, v]))[:, :3]
-    vals = axis.derivatives(np.asarray(v, float)[:, None], 1)
-    A, dA = vals[(0,)][:, :3], vals[(1,)][:, :3]
-    T = dA / np.linalg.norm(dA, axis=1)[:, None]
+    A, T = points_and_tangents(axis, v)
     d = S - A
     along = np.einsum("ni,ni->n", d, T)
     across = np.linalg.norm(d - along[:, None] * T, axis=1)
@@ -188,8 +189,8 @@ def sweep(axis: BSpline, radius: float | None = None, section: BSpline | None = 
         (model units; default 1e-4 of the section's size)
 
     The result's v direction is cubic, with knots refined until the control curves'
-    interpolation error, measured at 8 points between consecutive nodes, is within the
-    tolerance; ``Sweep.error`` reports it.  The axis must be tangent-continuous (a kink
+    interpolation error, measured at the nodes and 7 check points between consecutive
+    nodes, is within the tolerance; ``Sweep.error`` reports it.  The axis must be tangent-continuous (a kink
     would open the tube): split it at the kink and sweep the pieces.
 
     >>> from geometry import BSpline

@@ -16,14 +16,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from geometry import BSpline, check_regular, primitives
+from geometry.composition import compose_curves
 from geometry.errors import SplineError, show
+from geometry.multipatch import PlacedPatch
 from geometry.offset import Offset, offset
 
 from .errors import TilingError
 from .microstructure import Microstructure
 from .paving import _check_counts
-from geometry.composition import compose_curves
-from geometry.multipatch import PlacedPatch
 from .struts import round_struts
 from .tile import Tile
 

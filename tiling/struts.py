@@ -19,7 +19,7 @@ import numpy as np
 from geometry import BSpline
 from geometry.errors import SplineError, show
 from geometry.multipatch import PlacedPatch
-from geometry.sweep import kinks, sweep
+from geometry.sweep import kinks, points_and_tangents, sweep
 from geometry.trimmed import join_curves, reversed_curve
 
 from .errors import TilingError
@@ -88,14 +88,10 @@ def round_struts(ms: Microstructure, radius: float, tolerance: float | None = No
 
 def _ends(curves):
     """Endpoints (2n, 3) and outward unit tangents (2n, 3) of ``curves``: rows 2i (start) and 2i + 1 (end)."""
-    v = np.array([c.domain[0] for c in curves])  # (n, 2)
-    X = np.empty((2 * len(curves), 3))
-    T = np.empty_like(X)
-    for i, c in enumerate(curves):  # per curve (an object), both ends in one call
-        d = c.derivatives(v[i][:, None], 1)
-        X[2 * i:2 * i + 2] = d[(0,)][:, :3]
-        T[2 * i:2 * i + 2] = d[(1,)][:, :3] * np.array([[-1.0], [1.0]])
-    return X, T / np.linalg.norm(T, axis=1)[:, None]
+    ends = [points_and_tangents(c, c.domain[0]) for c in curves]  # per curve (an object): both ends at once
+    X = np.concatenate([x for x, _ in ends])
+    T = np.concatenate([t * np.array([[-1.0], [1.0]]) for _, t in ends])
+    return X, T
 
 
 def _chains(curves, radius: float) -> list[list[tuple[int, bool]]]:
