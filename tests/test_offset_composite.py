@@ -79,5 +79,8 @@ def test_bad_offsets_and_strips_are_refused():
         offset(S, 0.1, tolerance=-1.0)
     with pytest.raises(SplineError, match="BSpline surface"):
         offset(primitives.box(), 0.1)
+    for bad in ("0.02", float("nan"), 0.0):  # a string once reached abs() and crashed with a TypeError
+        with pytest.raises(TilingError, match="non-zero length"):
+            stitched_strip(DUCK_SKIN, STRIP, bad, library.stitch(), (2, 1, 1))
     with pytest.raises(TilingError, match="curve tiles"):
         stitched_strip(DUCK_SKIN, STRIP, 0.02, library.cross(), (2, 1, 1))
