@@ -2,7 +2,8 @@
 
 A curve is split at the parameters where one of its coordinates equals an
 interior breakpoint of the outer map (roots of the coordinate's Bernstein
-polynomial per curve segment).  Each piece's image then lies in one knot span
+polynomial per curve segment, its ends included: a joint of the curve can
+lie on the knot line).  Each piece's image then lies in one knot span
 of the outer map, which is located from the piece's midpoint: its control
 polygon may still straddle the knot line (the convex hull is not the curve),
 and the composition with the span's polynomial piece is exact regardless.
@@ -38,7 +39,10 @@ def crossings(curve: BSpline, k: int, value: float, bezier=None) -> np.ndarray:
                 pw[j] += num[i] * comb(p, i) * comb(p - i, j - i) * (-1) ** (j - i)
         r = np.roots(pw[::-1]) if np.any(pw[1:]) else np.array([])
         r = r[np.abs(r.imag) < 1e-9].real
-        r = r[(r > ON_DOMAIN) & (r < 1 - ON_DOMAIN)]
+        # a crossing at a segment's end (a joint of the curve on the knot line) is a cut too: the segments on
+        # either side lie in different spans (callers drop the curve's own ends)
+        r = r[(r > -ON_DOMAIN) & (r < 1 + ON_DOMAIN)]
+        r = np.where(r < ON_DOMAIN, 0.0, np.where(r > 1 - ON_DOMAIN, 1.0, r))  # a root at a joint is the joint
         roots += list(t0 + r * (t1 - t0))
     return np.array(roots)
 
@@ -55,8 +59,10 @@ def compose_curve_split(outer: BSpline, curve: BSpline, compose_piece) -> BSplin
             if curve.is_rational or lo_k <= v <= hi_k:  # the curve lies in its control polygon's hull
                 params += list(crossings(curve, k, v, bezier))
     lo, hi = curve.domain[0]
-    cuts = np.unique(np.round(np.asarray(params, float), 14))
-    cuts = cuts[(cuts > lo) & (cuts < hi)]
+    cuts = np.unique(np.asarray(params, float))
+    tol = ON_DOMAIN * (hi - lo)
+    cuts = cuts[np.r_[True, np.diff(cuts) > tol]]  # one cut where roots of neighbouring segments meet
+    cuts = cuts[(cuts > lo + tol) & (cuts < hi - tol)]
     edges = np.r_[lo, cuts, hi]
     pieces = [curve.extract([[a, b]]) for a, b in zip(edges[:-1], edges[1:])]
     composed = [compose_piece(outer, piece) for piece in pieces]

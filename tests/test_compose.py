@@ -322,3 +322,22 @@ def test_walls_on_knot_planes_flat_placements_and_split_curves_compose_exactly()
         r = compose(D3, c)
         t = np.linspace(0, 1, 97)[:, None]
         assert np.abs(r.evaluate(t)[:, :3] - D3.evaluate(c.evaluate(t)[:, :3])[:, :3]).max() < 1e-11
+
+
+@pytest.mark.parametrize("rational", [False, True])
+def test_a_curve_whose_joint_lies_on_a_knot_line_is_cut_there(rational):
+    """Regression: the crossing roots were taken strictly inside the curve's segments, so a C0 joint exactly on
+    the outer map's knot line was not a cut and the whole piece was composed with the wrong span's polynomial
+    (0.28 off on the trimming loops of the Fig. 7 tile)."""
+    p, U, P, w = pr.arc(0.25, 2 * np.pi)  # knots at 0.25, 0.5, 0.75 along s
+    cp = np.zeros((len(P), 2, 3))
+    cp[..., :2] = 0.5 + P[:, None, :2]
+    cp[..., 2] = [0.0, 1.0]
+    W = np.repeat(w.reshape(-1, 1), 2, axis=1) if rational else None
+    S = BSpline((p, 1), [U, np.array([0.0, 0.0, 1.0, 1.0])], cp, W)
+    # a polyline in S's parameters with its joints on s = 0.25 and s = 0.5 exactly
+    pts = np.array([[0.1, 0.2, 0], [0.25, 0.9, 0], [0.5, 0.3, 0], [0.7, 0.6, 0]])
+    curve = BSpline((1,), [np.r_[0.0, 0.0, 1.0, 2.0, 3.0, 3.0]], pts)
+    t = np.random.default_rng(12).uniform(0, 3, 500)[:, None]
+    direct = S.evaluate(curve.evaluate(t)[:, :2])[:, :3]
+    assert np.abs(compose(S, curve).evaluate(t)[:, :3] - direct).max() < 1e-12
