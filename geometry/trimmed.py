@@ -10,13 +10,14 @@ exact compositions ``S(loop)`` (:meth:`TrimmedSurface.boundary_curves`).
 
 Tessellation (:meth:`TrimmedSurface.tessellate`): every loop is sampled
 until the chord between consecutive samples deviates from the curve's image
-by less than the tolerance; the polygon with holes is triangulated in the
-parameter plane by mapbox-earcut (a constrained triangulation that keeps the
-loop edges; ISC licence, chosen over Shewchuk's ``triangle`` whose licence
-forbids commercial use without permission), then every triangle is split in
-four (edge midpoints shared, so the mesh stays conforming; a loop edge's
-midpoint is the loop's point at the mean parameter) until each edge's
-midpoint lies within the tolerance of the surface.
+by less than the tolerance and no two samples are more than h apart in the
+parameter plane; the polygon with holes is triangulated there by
+:func:`geometry.triangulate.fill_rings` (mapbox-earcut, a constrained
+triangulation that keeps the loop edges, ISC licence, chosen over
+Shewchuk's ``triangle`` whose licence forbids commercial use without
+permission; interior edges then split at their midpoints down to h, so no
+triangle folds over), and h shrinks until every edge's midpoint lies within
+the tolerance of the surface.
 """
 
 from __future__ import annotations
@@ -117,6 +118,12 @@ def _inside(poly: np.ndarray, pts: np.ndarray) -> np.ndarray:
     return np.sum(cond & (px < xc), axis=1) % 2 == 1
 
 
+# symmetric 6-point rule of degree 4 on a triangle (Dunavant 1985): barycentric points, weights summing to 1
+_A, _B = 0.445948490915965, 0.091576213509771
+_RULE_POINTS = np.array([[_A, _A, 1 - 2 * _A], [_A, 1 - 2 * _A, _A], [1 - 2 * _A, _A, _A],
+                         [_B, _B, 1 - 2 * _B], [_B, 1 - 2 * _B, _B], [1 - 2 * _B, _B, _B]])
+_RULE_WEIGHTS = np.array([0.223381589678011] * 3 + [0.109951743655322] * 3)
+
 #: public names of the dense loop sampling and the even-odd containment used by the loop checks
 loop_polyline, inside_polyline = _polyline, _inside
 
@@ -174,6 +181,19 @@ class TrimmedSurface:
                 raise SplineError(f"trimming loop {i} (a hole) lies outside loop 0 (the outer boundary)")
         self.loops = loops
 
+    @classmethod
+    def with_loops_of(cls, other: "TrimmedSurface", surface: BSpline) -> "TrimmedSurface":
+        """``surface`` trimmed by the loops of ``other``, already checked and oriented there (a composed or
+        placed copy of ``other``: same parameter domain), so the loop checks are not run again."""
+        if not isinstance(surface, BSpline) or surface.dim != 2:
+            raise SplineError(f"a trimmed surface needs a 2-variate BSpline, got {show(surface)}")
+        if np.abs(surface.domain - other.surface.domain).max() > ON_DOMAIN:
+            raise SplineError(f"the surface's parameter domain {surface.domain.tolist()} is not that of the loops' "
+                              f"surface {other.surface.domain.tolist()}")
+        out = cls.__new__(cls)
+        out.surface, out.loops = surface, list(other.loops)
+        return out
+
     def evaluate(self, params) -> np.ndarray:
         """The surface at parameter points (N, 2) (trimming does not change the map)."""
         return self.surface.evaluate(params)
@@ -188,16 +208,52 @@ class TrimmedSurface:
 
     def compose(self, outer: BSpline) -> "TrimmedSurface":
         """``outer(surface)`` exactly, the loops unchanged (Elber 2017, Fig. 7)."""
-        return TrimmedSurface(compose(outer, self.surface), list(self.loops))
+        return TrimmedSurface.with_loops_of(self, compose(outer, self.surface))
 
     def boundary_curves(self) -> list:
         """The loops' images in space, exact: the surface composed with each loop (3-D B-spline curves)."""
         return [compose(self.surface, c) for c in self.loops]
 
     def area(self, tolerance: float) -> float:
-        """Area of the kept region (model units squared), from :meth:`tessellate` at ``tolerance``."""
-        mesh = self.tessellate(tolerance)
-        return float(mesh.area)
+        """Area of the kept region (model units squared), to quadrature accuracy rather than ``tolerance``.
+
+        The surface's area element |S_u x S_v| is integrated over the parameter triangles of the tessellation
+        at ``tolerance`` (6-point degree-4 rule), plus, along every loop edge, over the thin strip between
+        the edge's chord and the loop itself (mapped from the unit square by the chord and the exact loop
+        curve; Gauss-Legendre 8 x 4, signed, so a loop bulging either way is counted right).  Only the
+        quadrature approximates: no chord error of the flat triangles enters.
+        """
+        uv, tris, _, rings = self._triangulation(tolerance)
+        tri = uv[tris]  # (T, 3, 2)
+        e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+        size = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+        total = float(np.sum(size[:, None] * self._area_element(np.einsum("qk,tkd->tqd", _RULE_POINTS, tri))
+                             * _RULE_WEIGHTS[None]))
+        xg, wx = np.polynomial.legendre.leggauss(8)
+        yg, wy = np.polynomial.legendre.leggauss(4)
+        xi, eta = np.meshgrid(0.5 * (xg + 1), 0.5 * (yg + 1), indexing="ij")
+        w = 0.25 * np.outer(wx, wy)
+        for c, t in zip(self.loops, rings):
+            ta, tb = t[:-1, None, None], t[1:, None, None]
+            ends = c.evaluate(t[:, None])[:, :2]
+            A, B = ends[:-1, None, None], ends[1:, None, None]
+            tq = ta + xi * (tb - ta)  # (E, 8, 4)
+            C = c.evaluate(tq.reshape(-1, 1))[:, :2].reshape(tq.shape + (2,))
+            dC = c.jacobian(tq.reshape(-1, 1))[:, :2, 0].reshape(tq.shape + (2,)) * (tb - ta)[..., None]
+            L = A + xi[..., None] * (B - A)
+            P_xi = (1 - eta[..., None]) * (B - A) + eta[..., None] * dC
+            P_eta = C - L
+            det = P_xi[..., 0] * P_eta[..., 1] - P_xi[..., 1] * P_eta[..., 0]
+            P = (1 - eta[..., None]) * L + eta[..., None] * C
+            # the region lies left of every loop (outer counter-clockwise, holes clockwise): a loop bulging to
+            # the right of its chord (negative det) adds area, to the left removes it
+            total -= float(np.sum(w * det * self._area_element(P)))
+        return total
+
+    def _area_element(self, params: np.ndarray) -> np.ndarray:
+        """|S_u x S_v| at parameters (..., 2), same leading shape."""
+        J = self.surface.jacobian(params.reshape(-1, 2))[:, :3, :]
+        return np.linalg.norm(np.cross(J[:, :, 0], J[:, :, 1]), axis=1).reshape(params.shape[:-1])
 
     # ------------------------------------------------------------------------------------------------
     def tessellate(self, tolerance: float, max_triangles: int = 2_000_000):
@@ -205,8 +261,17 @@ class TrimmedSurface:
 
         Point data ``u``, ``v``: the parameters of every vertex.
         """
-        import mapbox_earcut
         import pyvista as pv
+
+        uv, tris, X, _ = self._triangulation(tolerance, max_triangles)
+        mesh = pv.PolyData(X, np.hstack([np.full((len(tris), 1), 3), tris]).ravel())
+        mesh.point_data["u"], mesh.point_data["v"] = uv.T
+        return mesh
+
+    def _triangulation(self, tolerance: float, max_triangles: int = 2_000_000):
+        """(parameters (N, 2), triangles (T, 3), points in space (N, 3), per loop its sample parameters with
+        the end) of :meth:`tessellate`; the ring points come first, loop by loop."""
+        from .triangulate import fill_rings
 
         if not (isinstance(tolerance, (int, float)) and np.isfinite(tolerance) and tolerance > 0):
             raise SplineError(f"tolerance must be a positive length (model units), got {show(tolerance)}")
@@ -215,88 +280,46 @@ class TrimmedSurface:
         if tolerance < 1e-9 * size:  # below that the chord errors are rounding noise: the refinement never ends
             raise SplineError(f"tolerance {show(tolerance)} is below 1e-9 of the surface's size ({size:.3g}); "
                               f"floating point cannot meet it: use at least {1e-9 * size:.3g}")
-        rings = [self._sample_loop(c, tolerance, max_triangles) for c in self.loops]
-        uv = np.concatenate([r[0] for r in rings])
-        ends = np.cumsum([len(r[0]) for r in rings]).astype(np.uint32)
-        tris = mapbox_earcut.triangulate_float64(uv, ends).reshape(-1, 3).astype(np.int64)
-        # loop edges, as arrays: ends (va at parameter a, vb at b) of consecutive samples of loop k (the last
-        # sample closes onto the first, at the loop's end parameter)
-        va = np.arange(len(uv))
-        vb = np.concatenate([np.roll(np.arange(s0, s1), -1) for s0, s1 in zip(np.r_[0, ends[:-1]], ends)])
-        loop = np.concatenate([np.full(len(t), k) for k, (_, t) in enumerate(rings)])
-        ta = np.concatenate([t for _, t in rings])
-        tb = np.concatenate([np.append(t[1:], c.domain[0, 1]) for c, (_, t) in zip(self.loops, rings)])
-        X = S.evaluate(uv)[:, :3]
-        for _ in range(30):
-            check_memory(len(tris) * 4 * 200.0, f"the tessellation at tolerance {show(tolerance)}", SplineError,
-                         "raise the tolerance")
-            uniq, inv, mid_uv, rows, which, mid_t = self._midpoints(uv, tris, va, vb, loop, ta, tb)
-            mid_X = S.evaluate(mid_uv)[:, :3]
-            err = np.linalg.norm(mid_X - 0.5 * (X[uniq[:, 0]] + X[uniq[:, 1]]), axis=1)
-            if err.max() <= tolerance:
-                break
-            if 4 * len(tris) > max_triangles:
+        outer = _polyline(self.loops[0])
+        h = 0.25 * float(np.ptp(outer, axis=0).max())  # longest edge in the parameter plane
+        area = abs(_signed_area(outer))
+        for _ in range(40):
+            n_est = 4.0 * area / h ** 2  # triangles of edge ~h (right isosceles ones have area h^2 / 4)
+            if n_est > max_triangles:
                 raise SplineError(f"the tessellation needs more than {max_triangles:,} triangles for tolerance "
                                   f"{show(tolerance)}; raise the tolerance")
-            # split every triangle in four (uniform: the mesh stays conforming); each loop edge in two
-            base = len(uv)
-            uv, X = np.concatenate([uv, mid_uv]), np.concatenate([X, mid_X])
-            mid = base + rows
-            va, vb = np.concatenate([va[which], mid]), np.concatenate([mid, vb[which]])
-            loop = np.concatenate([loop[which], loop[which]])
-            ta, tb = np.concatenate([ta[which], mid_t]), np.concatenate([mid_t, tb[which]])
-            tris = _split_in_four(tris, inv, base)
-        P = uv
-        mesh = pv.PolyData(X, np.hstack([np.full((len(tris), 1), 3), tris]).ravel())
-        mesh.point_data["u"], mesh.point_data["v"] = P.T
-        return mesh
+            check_memory(n_est * 200.0, f"the tessellation at tolerance {show(tolerance)}", SplineError,
+                         "raise the tolerance")
+            samples = [self._sample_loop(c, tolerance, max_triangles, h) for c in self.loops]
+            uv, tris = fill_rings([c.evaluate(t[:-1, None])[:, :2] for c, t in zip(self.loops, samples)], h)
+            X = S.evaluate(uv)[:, :3]
+            edges = np.unique(np.sort(np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]]), 1), axis=0)
+            mid = S.evaluate(0.5 * (uv[edges[:, 0]] + uv[edges[:, 1]]))[:, :3]
+            err = float(np.linalg.norm(mid - 0.5 * (X[edges[:, 0]] + X[edges[:, 1]]), axis=1).max())
+            if err <= tolerance:
+                break
+            h *= float(np.clip(0.9 * np.sqrt(tolerance / err), 0.25, 0.8))  # the chord error falls as h^2
+        return uv, tris, X, samples
 
-    def _midpoints(self, uv, tris, va, vb, loop, ta, tb):
-        """Midpoints (in parameters) of the unique edges of ``tris``: (unique edges, edge of each side, midpoints,
-        rows of the loop edges among the unique ones, which loop edge each is, its mid parameter); a loop
-        edge's midpoint is the loop's point at the mean parameter, not the chord's."""
-        big = np.int64(1) << 32
-        edges = np.sort(np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]]), axis=1)
-        uniq, inv = np.unique(edges, axis=0, return_inverse=True)
-        mid_uv = 0.5 * (uv[uniq[:, 0]] + uv[uniq[:, 1]])
-        # the loop edges among them (their midpoints are the loop's points at the mean parameter)
-        codes = uniq[:, 0] * big + uniq[:, 1]
-        bcodes = np.minimum(va, vb) * big + np.maximum(va, vb)
-        order = np.argsort(bcodes)
-        pos = np.searchsorted(bcodes[order], codes)
-        on_loop = (pos < len(order)) & (bcodes[order][np.minimum(pos, len(order) - 1)] == codes)
-        rows, which = np.flatnonzero(on_loop), order[pos[on_loop]]
-        mid_t = 0.5 * (ta[which] + tb[which])
-        for k in np.unique(loop[which]):
-            sel = loop[which] == k
-            mid_uv[rows[sel]] = self.loops[k].evaluate(mid_t[sel][:, None])[:, :2]
-        return uniq, inv, mid_uv, rows, which, mid_t
-
-    def _sample_loop(self, c: BSpline, tol: float, limit: int = 2_000_000):
-        """Parameters along loop c (its end excluded: the ring closes itself) with chord error <= tol in space;
-        more than ``limit`` samples raise :class:`SplineError` (the tolerance is too fine for the loop)."""
+    def _sample_loop(self, c: BSpline, tol: float, limit: int = 2_000_000, step: float = np.inf):
+        """Increasing parameters of loop c, from its start to its end, whose points have chord error <= tol in
+        space and lie at most ``step`` apart in the parameter plane; more than ``limit`` samples raise
+        :class:`SplineError` (the tolerance is too fine for the loop)."""
         b = c.breakpoints(0)
         t = np.unique(np.concatenate([np.linspace(x, y, 5) for x, y in zip(b[:-1], b[1:])]))
-        for _ in range(40):
+        for _ in range(60):
             if len(t) > limit:
                 raise SplineError(f"a trimming loop needs more than {limit:,} samples for tolerance {show(tol)}; "
                                   "raise the tolerance (or max_triangles)")
-            pts = self.surface.evaluate(c.evaluate(t[:, None])[:, :2])[:, :3]
+            uv = c.evaluate(t[:, None])[:, :2]
+            pts = self.surface.evaluate(uv)[:, :3]
             mid = 0.5 * (t[:-1] + t[1:])
             mp = self.surface.evaluate(c.evaluate(mid[:, None])[:, :2])[:, :3]
-            bad = np.linalg.norm(mp - 0.5 * (pts[:-1] + pts[1:]), axis=1) > tol
+            bad = ((np.linalg.norm(mp - 0.5 * (pts[:-1] + pts[1:]), axis=1) > tol)
+                   | (np.linalg.norm(np.diff(uv, axis=0), axis=1) > step))
             if not bad.any():
                 break
             t = np.sort(np.concatenate([t, mid[bad]]))
-        return c.evaluate(t[:-1, None])[:, :2], t[:-1]
+        return t
 
 
-def _split_in_four(tris, inv, base: int):
-    """Every triangle split in four at its edge midpoints (``inv``: the unique edge of each side, numbered
-    from ``base``): uniform, so the mesh stays conforming."""
-    e = inv.reshape(3, -1).T + base  # midpoints of edges 01, 12, 20 per triangle
-    t0, t1, t2 = tris.T
-    m01, m12, m20 = e.T
-    tris = np.concatenate([np.stack([t0, m01, m20], 1), np.stack([m01, t1, m12], 1),
-                           np.stack([m20, m12, t2], 1), np.stack([m01, m12, m20], 1)])
-    return tris
