@@ -35,7 +35,7 @@ from geometry.errors import show
 from .errors import TilingError
 from .microstructure import Microstructure, PlacedPatch
 from .paving import _check_budget, _check_map, _check_spans
-from .tile import Tile
+from .tile import Tile, refuse_trimmed
 from .topo import _edge_lengths, topo_subdiv
 from geometry.tolerances import ON_DOMAIN, SNAP
 
@@ -126,6 +126,7 @@ def _user_tiles(given: dict) -> dict:
         t = given.get(name)
         if not isinstance(t, Tile) or not all(p.dim == 3 for p in t.patches):
             raise TilingError(f"tile[{name!r}] must be a tiling.Tile of trivariates, got {type(t).__name__}")
+        refuse_trimmed(t, "the bifurcation tiling")
         for z, face, what in ((0, "wmin", "branch-in"), (1, "wmax", "branch-out")):
             flat = [p for p in t.patches if np.allclose(p.boundary(face).control_points[..., 2], z, atol=ON_DOMAIN)]
             if not flat:

@@ -32,7 +32,7 @@ from .seal import SealedTile
 from .tile import Tile
 from geometry.tolerances import COINCIDENT
 
-__all__ = ["Cap", "PlacedCap", "surface_caps", "capped_variant"]
+__all__ = ["Cap", "PlacedCap", "surface_caps", "capped_variant", "wall_loops", "trimmed_regions"]
 
 EDGES = ("umin", "umax", "vmin", "vmax")  # the four boundary curves of a surface patch
 _TOL = COINCIDENT  # unit-cell tiles: plates on a plane, chained curve ends
@@ -42,7 +42,8 @@ _TOL = COINCIDENT  # unit-cell tiles: plates on a plane, chained curve ends
 class Cap:
     """A cap on the cell wall ``side``: ``trimmed`` is the wall plane (tile coordinates, parameters = the wall's
     two axes in order) with its loops; ``segments[i]`` lists, for loop i, the tile's boundary curves it joins
-    as (patch in tile, edge name, reversed), curve j running over the loop's parameters [j, j + 1]."""
+    as (patch in tile, edge name, reversed), curve j running over the loop's parameters [j, j + 1], or is
+    None for a loop that is no tile edge (a shell's cell rectangle, :mod:`tiling.shells`)."""
 
     side: str
     trimmed: TrimmedSurface
@@ -60,7 +61,7 @@ class PlacedCap:
 
     def composed(self) -> TrimmedSurface:
         """The cap in physical space, exact: the composed plane with the loops unaltered."""
-        return TrimmedSurface(self.placed.composed, list(self.cap.trimmed.loops))
+        return TrimmedSurface.with_loops_of(self.cap.trimmed, self.placed.composed)
 
 
 def _wall_plane(k: int, s: int) -> BSpline:
@@ -116,49 +117,79 @@ def surface_caps(tile: Tile, sides) -> list[Cap]:
 
     A wall that one of the tile's surfaces already covers (lies in) gets no cap.
     """
-    surfaces = [i for i, p in enumerate(tile.patches) if p.dim == 2]
-    if not surfaces:
-        raise TilingError(f"tile {show(tile.name)} has no surface patches to cap; trimmed caps close surface "
-                          "tiles (volumetric tiles are sealed by plates, curves cannot be capped)")
+    surfaces = _surfaces(tile, "cap")
     caps, touched = [], False
     for side in sorted(set(sides), key=FACE_NAMES.index):
         k, s = FACE_AXIS[side]
-        if any(np.abs(tile.patches[i].points.reshape(-1, 3)[:, k] - s).max() < _TOL for i in surfaces):
+        if _covered(tile, surfaces, k, s):
             touched = True
             continue  # a tile surface lies in this wall: it is closed there already
-        segs = []
-        for i in surfaces:
-            for e in EDGES:
-                c = tile.patches[i].boundary(e)
-                if np.abs(c.points.reshape(-1, 3)[:, k] - s).max() < _TOL:
-                    segs.append((i, e, c))
-        if not segs:
-            continue
-        touched = True
-        rest = [j for j in range(3) if j != k]
-        loops = _chain(segs, side, tile.name)
-        curves = [_loop_curve(segs, lp, rest) for lp in loops]
-        polys = [loop_polyline(c) for c in curves]
-        inside = [[j for j in range(len(polys)) if j != i and inside_polyline(polys[j], polys[i][:1])[0]]
-                  for i in range(len(polys))]
-        for i in range(len(polys)):
-            if len(inside[i]) % 2:
-                continue  # a hole
-            holes = [j for j in range(len(polys)) if i in inside[j] and len(inside[j]) == len(inside[i]) + 1]
-            order = [i] + holes
-            try:
-                ts = TrimmedSurface(_wall_plane(k, s), [curves[j] for j in order])
-            except SplineError as exc:
-                raise TilingError(f"tile {show(tile.name)}: the cap on wall {side}: {exc}") from None
-            segments = []
-            for j, lp in zip(order, (loops[j] for j in order)):
-                if ts.loops[len(segments)] is not curves[j]:  # the trimmed surface reversed this loop
-                    lp = [(q, not r) for q, r in reversed(lp)]
-                segments.append([(segs[q][0], segs[q][1], r) for q, r in lp])
-            caps.append(Cap(side, ts, segments))
+        curves, seglists = wall_loops(tile, surfaces, side)
+        touched |= bool(curves)
+        caps += trimmed_regions(tile, side, _wall_plane(k, s), curves, seglists)
     if not touched and sides:
         raise TilingError(f"tile {show(tile.name)} has no boundary curves on the walls {sorted(set(sides))}: there is "
                           "nothing to cap (a cap closes the openings of a tile's surfaces on the cell walls)")
+    return caps
+
+
+def _surfaces(tile: Tile, what: str) -> list[int]:
+    """Indices of the tile's surface patches; a tile without any cannot be given a ``what``."""
+    surfaces = [i for i, p in enumerate(tile.patches) if p.dim == 2]
+    if not surfaces:
+        raise TilingError(f"tile {show(tile.name)} has no surface patches to {what}; trimmed caps and shells close "
+                          "surface tiles (volumetric tiles are sealed by plates, curves cannot be capped)")
+    return surfaces
+
+
+def _covered(tile: Tile, surfaces: list, k: int, s: int) -> bool:
+    """Whether one of the tile's surfaces lies in the wall x_k = s."""
+    return any(np.abs(tile.patches[i].points.reshape(-1, 3)[:, k] - s).max() < _TOL for i in surfaces)
+
+
+def wall_loops(tile: Tile, surfaces: list, side: str):
+    """The boundary curves of the tile's ``surfaces`` on the wall ``side``, chained into closed loops:
+    (loops as curves (a(t), b(t), 0) in the wall's two coordinates, per loop its segments [(patch, edge,
+    reversed)]); empty lists where no curve lies on the wall."""
+    k, s = FACE_AXIS[side]
+    segs = []
+    for i in surfaces:
+        for e in EDGES:
+            c = tile.patches[i].boundary(e)
+            if np.abs(c.points.reshape(-1, 3)[:, k] - s).max() < _TOL:
+                segs.append((i, e, c))
+    if not segs:
+        return [], []
+    rest = [j for j in range(3) if j != k]
+    loops = _chain(segs, side, tile.name)
+    return ([_loop_curve(segs, lp, rest) for lp in loops],
+            [[(segs[q][0], segs[q][1], r) for q, r in lp] for lp in loops])
+
+
+def trimmed_regions(tile: Tile, side: str, plane: BSpline, curves: list, seglists: list) -> list[Cap]:
+    """The planar regions bounded by nested loops: every loop at even depth (inside an even number of the
+    others) with the loops directly inside it as holes, one :class:`Cap` on ``plane`` each.  A loop's
+    segments may be None (a loop that is not made of tile edges, such as a shell's cell rectangle)."""
+    polys = [loop_polyline(c) for c in curves]
+    inside = [[j for j in range(len(polys)) if j != i and inside_polyline(polys[j], polys[i][:1])[0]]
+              for i in range(len(polys))]
+    caps = []
+    for i in range(len(polys)):
+        if len(inside[i]) % 2:
+            continue  # a hole
+        holes = [j for j in range(len(polys)) if i in inside[j] and len(inside[j]) == len(inside[i]) + 1]
+        order = [i] + holes
+        try:
+            ts = TrimmedSurface(plane, [curves[j] for j in order])
+        except SplineError as exc:
+            raise TilingError(f"tile {show(tile.name)}: the trimmed plane on wall {side}: {exc}") from None
+        segments = []
+        for j in order:
+            lp = seglists[j]
+            if lp is not None and ts.loops[len(segments)] is not curves[j]:  # the trimmed surface reversed it
+                lp = [(q, e, not r) for q, e, r in reversed(lp)]
+            segments.append(lp)
+        caps.append(Cap(side, ts, segments))
     return caps
 
 

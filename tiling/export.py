@@ -30,6 +30,7 @@ from geometry.sampling import piece_boxes, sample_axes, sampled_mesh, weld
 
 from .errors import TilingError
 from .rims import conforming_axes
+from .trimmed_members import composed_trimmed
 from .watertight import mesh_watertightness, pinch_lines, pinched
 
 if TYPE_CHECKING:  # annotations only: the Microstructure's own surface() calls into this module
@@ -104,11 +105,10 @@ def surface(ms: Microstructure, samples: int = 4):
         elif s.dim == 1:
             lo, hi = s.domain[0]
             lines.append((i, _map(P, np.linspace(lo, hi, 8 * samples * len(s.breakpoints(0)))[:, None])))
-    for pc in getattr(ms, "caps", []):
-        pts, t = _cap_triangles(ms, pc, samples)
+    for pts, t, pid in _trimmed_parts(ms, samples):
         parts_pts.append(pts)
         parts_tri.append(t + off)
-        parts_pid.append(np.full(len(t), pc.first + pc.cap.segments[0][0][0]))  # drawn with its tile's patch
+        parts_pid.append(np.full(len(t), pid))
         off += len(pts)
     if not parts_pts and not lines:
         raise TilingError("the micro-structure has no patches to draw")
@@ -122,13 +122,53 @@ def surface(ms: Microstructure, samples: int = 4):
     mesh = pv.PolyData(pts, np.column_stack([np.full(len(tris), 3), tris]).ravel()) if len(tris) else pv.PolyData()
     if len(tris):
         mesh.cell_data["patch"] = pid
-        mesh.cell_data["level"] = np.array([ms.patches[i].level for i in pid], np.int32)
+        mesh.cell_data["level"] = np.array([P.level for P in _drawn(ms)], np.int32)[pid]
     for i, ln in lines:
         poly = pv.lines_from_points(ln)
         poly.cell_data["patch"] = np.full(poly.n_cells, i)
         poly.cell_data["level"] = np.full(poly.n_cells, ms.patches[i].level, np.int32)
         mesh = mesh.merge(poly) if mesh.n_points else poly
     return mesh
+
+
+def _drawn(ms) -> list:
+    """What the ``patch`` numbers of :func:`surface` stand for: the placed patches, then the placed surfaces of
+    the trimmed members (:class:`tiling.trimmed_members.PlacedTrimmed`)."""
+    return list(ms.patches) + [m.placed for m in getattr(ms, "trimmed", [])]
+
+
+def _trimmed_parts(ms, samples: int):
+    """(physical points, triangles, patch number) of every trimmed cap (drawn with its tile's patch) and
+    every trimmed member (numbered after the patches, :func:`_drawn`)."""
+    for pc in getattr(ms, "caps", []):
+        pts, t = _cap_triangles(ms, pc, samples)
+        owner = next((lp[0][0] for lp in pc.cap.segments if lp), 0)  # drawn with a tile patch it closes
+        yield pts, t, pc.first + owner
+    for j, (pts, t) in enumerate(_trimmed_triangles(ms, samples)):
+        yield pts, t, len(ms.patches) + j
+
+
+def _trimmed_triangles(ms, samples: int) -> list:
+    """(physical points, triangles) of every placed trimmed member: each member is tessellated once in tile
+    coordinates (chord tolerance 0.08 / samples^2 of the unit cell: a quarter circle of radius 0.25 gets about
+    ``samples`` chords, as a patch's element does) and its vertices mapped per placement.
+    Members are not welded to each other along shared trimming curves (each samples its own loops)."""
+    from geometry.grouping import ObjectIndex
+
+    same = ObjectIndex()
+    meshes: dict = {}
+    out = []
+    for m in getattr(ms, "trimmed", []):
+        key = same(m.trimmed)
+        if key not in meshes:
+            try:
+                tess = m.trimmed.tessellate(0.08 / samples ** 2)
+            except SplineError as exc:
+                raise TilingError(f"a trimmed member of tile {m.placed.tile}: {exc}") from None
+            meshes[key] = (np.asarray(tess.points), tess.faces.reshape(-1, 4)[:, 1:])
+        pts, tris = meshes[key]
+        out.append((_place(m.placed, pts), tris))
+    return out
 
 
 def _edge_params(s, edge: str, samples: int) -> np.ndarray:
@@ -143,10 +183,16 @@ def _cap_triangles(ms: Microstructure, pc, samples: int):
     """Physical points and triangles of a trimmed cap whose loop points are its tile's edge samples."""
     from geometry.triangulate import fill_rings
 
-    k, s = FACE_AXIS[pc.cap.side]
+    k, _ = FACE_AXIS[pc.cap.side]
     rest = [j for j in range(3) if j != k]
+    plane = pc.cap.trimmed.surface
+    level = float(plane.control_points[..., k].flat[0])  # the wall, or a shell's inner plane
     rings = []  # per ring: the tile points, exactly the tile patches' own edge samples
-    for loop in pc.cap.segments:
+    for loop, curve in zip(pc.cap.segments, pc.cap.trimmed.loops):
+        if loop is None:  # a cell rectangle (shells): 2 * samples points per side, as its neighbours take it
+            t = np.linspace(*curve.domain[0], 2 * samples * (len(curve.breakpoints(0)) - 1) + 1)[:-1]
+            rings.append(plane.evaluate(curve.evaluate(t[:, None])[:, :2])[:, :3])
+            continue
         pts = []
         for patch, edge, rev in loop:
             x = ms.patches[pc.first + patch].spline.evaluate(_edge_params(ms.patches[pc.first + patch].spline,
@@ -156,7 +202,7 @@ def _cap_triangles(ms: Microstructure, pc, samples: int):
     ring_len = max(float(np.linalg.norm(np.diff(np.vstack([r, r[:1]]), axis=0), axis=1).max()) for r in rings)
     uv, tris = fill_rings([r[:, rest] for r in rings], ring_len)
     X = np.zeros((len(uv), 3))
-    X[:, k], X[:, rest] = s, uv
+    X[:, k], X[:, rest] = level, uv
     n_ring = sum(len(r) for r in rings)
     X[:n_ring] = np.concatenate(rings)  # the ring points exactly as the tile's patches give them
     return _place(pc.placed, X), tris
@@ -219,8 +265,8 @@ def _save(mesh, tmp, suffix):
 def render_png(ms: Microstructure, path, samples: int = 6, color_by: str = "level", window=(1000, 800),
                camera: str = "iso") -> Path:
     """Offscreen pyvista render of the boundary, coloured by ``level``, ``tile`` or ``patch``."""
-    attr = {"level": [p.level for p in ms.patches], "tile": [p.tile for p in ms.patches],
-            "patch": list(range(len(ms.patches)))}
+    drawn = _drawn(ms)
+    attr = {"level": [p.level for p in drawn], "tile": [p.tile for p in drawn], "patch": list(range(len(drawn)))}
     if color_by not in attr:
         raise TilingError(f"color_by must be one of {sorted(attr)}, got {show(color_by)}")
     mesh = surface(ms, samples)
@@ -248,8 +294,8 @@ def boundary_splines(ms: Microstructure) -> list:
 
     Every free side of a trivariate patch, every slot face (the free
     rectangles of a discontinuity plane, each side from its own one-sided
-    sub-patch), every surface patch, every curve patch, and the trimmed caps
-    (``TrimmedSurface``).  A surface with a full-multiplicity (C^-1) knot is
+    sub-patch), every surface patch, every curve patch, the trimmed caps and
+    the tiles' trimmed members (``TrimmedSurface``, loops carried unaltered).  A surface with a full-multiplicity (C^-1) knot is
     two surfaces that happen to share a knot vector; readers such as
     OpenCASCADE take it as one continuous surface and misread it, so such
     surfaces are split at those knots into pieces that are each continuous.
@@ -281,7 +327,7 @@ def boundary_splines(ms: Microstructure) -> list:
     for i, P in enumerate(ms.patches):
         if P.spline.dim in (1, 2):
             out += [c for piece in continuous_pieces(P.spline) for c in _placed_surfaces(ms, [i], piece)]
-    return out + [pc.composed() for pc in getattr(ms, "caps", [])]
+    return out + [pc.composed() for pc in getattr(ms, "caps", [])] + composed_trimmed(getattr(ms, "trimmed", []))
 
 
 #: sign of S_s x S_t against the outward normal for each face of a right-handed trivariate (boundary(face)

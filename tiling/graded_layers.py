@@ -21,7 +21,7 @@ from geometry.errors import show
 from .errors import TilingError
 from .microstructure import Microstructure, PlacedPatch
 from .paving import _cells, _check_budget, _check_counts, _check_map, _check_spans, grid_identity
-from .tile import Tile
+from .tile import Tile, refuse_trimmed
 
 __all__ = ["graded"]
 
@@ -74,6 +74,7 @@ def graded(D: BSpline, family, counts, values, name: str = "graded") -> Microstr
             raise TilingError(f"graded: layer {k} (parameter {p[k]:g} to {p[k + 1]:g}): {exc}") from None
         if not isinstance(t, Tile):
             raise TilingError(f"graded: family must return a tiling.Tile, got {show(t)} for layer {k}")
+        refuse_trimmed(t, "the graded paving")
         layers.append(t)
     shape = tuple(len(c) for c in cells)
     _check_budget(float(np.prod(shape)), layers[0], "the graded paving")

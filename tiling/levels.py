@@ -25,6 +25,7 @@ from .errors import TilingError
 from .microstructure import Microstructure, PlacedPatch
 from .paving import _check_counts, regular
 from .tile import Tile
+from .trimmed_members import PlacedTrimmed
 
 __all__ = ["compose_levels"]
 
@@ -67,7 +68,7 @@ def compose_levels(first: Microstructure, tile: Tile, counts, degree: int | None
     for i, f in first.tags.get("boundary", []):
         if f in FACE_NAMES:
             free.setdefault(i, set()).add(f)
-    placed, tiles, caps, links, origin = [], [], [], [], []
+    placed, tiles, caps, links, origin, trimmed = [], [], [], [], [], []
     for i, D in enumerate(progress.bar(maps, desc="second level", unit="map")):
         sides = sorted(free.get(i, ()), key=FACE_NAMES.index)
         sealed = bool(sides and seal)
@@ -80,11 +81,15 @@ def compose_levels(first: Microstructure, tile: Tile, counts, degree: int | None
         tiles += sub.tiles
         caps += [PlacedCap(c.cap, PlacedPatch(c.placed.spline, c.placed.placement, c.placed.outer,
                                               c.placed.tile + t0, level, -1), c.first + p0) for c in sub.caps]
+        trimmed += [PlacedTrimmed(m.trimmed, PlacedPatch(m.placed.spline, m.placed.placement, m.placed.outer,
+                                                         m.placed.tile + t0, level, m.placed.patch_in_tile))
+                    for m in sub.trimmed]
         links += [(a + p0, fa, itf.box, b + p0, fb) for itf in sub.interfaces if itf.kind == "branch"
                   for (a, fa), (b, fb) in [(itf.a, itf.b)]]
         origin.append((p0, sub))
     ms = Microstructure.build(first.outer, placed, tiles, links, name=name)
     ms.caps = caps
+    ms.trimmed = trimmed
     _first_level_tags(ms, first, origin)
     return ms
 

@@ -18,6 +18,8 @@
 ``stitch()``         one sine period through the thickness: stitched fibres (Elber 2017, Fig. 8)
 ``struts(kind)``     straight beam axes, body-centred (``bcc``) or ``cubic``, for round-strut lattices
 ``bent_cross()``     the cross at degrees (3, 3, 2) with bent insides (Massarwi et al. 2018, Fig. 10)
+``through_cylinders()`` three concentric trimmed through-cylinders, six trimmed
+                     surfaces (Elber 2017, Fig. 7; :mod:`tiling.cylinders`)
 ==================== =====================================================
 
 Discontinuity tiles use a C0 knot at w = 0.4 below which both sides of every
@@ -35,6 +37,7 @@ import numpy as np
 from geometry import BSpline, knots as kn, primitives as pr
 
 from .errors import TilingError
+from .cylinders import through_cylinders
 from .tile import BranchFace, Tile, discontinuity_branches
 from geometry.errors import show
 from geometry.tolerances import ON_DOMAIN
@@ -281,4 +284,4 @@ def stitch(amplitude: float = 0.35, n: int = 12) -> Tile:
 
 #: the built-in tiles by name (what ``[tile] library = ...`` of a pipeline may name)
 TILES = {f.__name__: f for f in (heat_sink_t1, heat_sink_t2, skinned_branching, fractal, hollow_box, cross, helix,
-                                 bent_cross, hollow_cross, graded_cross, struts, stitch)}
+                                 bent_cross, hollow_cross, graded_cross, struts, stitch, through_cylinders)}

@@ -51,7 +51,8 @@ class Microstructure(MultiPatch):
     """Result of a paving: patches, interfaces, tags (see module docs), plus the map, tiles and a name.
 
     ``caps``: the trimmed planar caps of capped surface tiles (:class:`tiling.caps.PlacedCap`), part of the
-    boundary surface and of the IGES export.
+    boundary surface and of the IGES export.  ``trimmed``: the placed trimmed members of the tiles
+    (:class:`tiling.trimmed_members.PlacedTrimmed`), likewise.
     """
 
     def __init__(self, outer: BSpline, patches: list, interfaces: list, tags: dict, tiles: list, name: str = "",
@@ -61,6 +62,7 @@ class Microstructure(MultiPatch):
         self.tiles = tiles
         self.name = name
         self.caps: list = []  # set by pavings that cap surface tiles
+        self.trimmed: list = []  # set by pavings of tiles with trimmed members
 
     def __repr__(self):
         return (f"Microstructure({show(self.name)}: {len(self.patches)} patches, {self.n_tiles} tiles, "
@@ -69,7 +71,11 @@ class Microstructure(MultiPatch):
     @property
     def n_tiles(self) -> int:
         """Number of placed tiles (seal plates placed on their own are not tiles: they close the paving)."""
-        return len({p.tile for p in self.patches if not self._plates_only(p.tile)})
+        return len({p.tile for p in self._placed() if not self._plates_only(p.tile)})
+
+    def _placed(self) -> list:
+        """The placed patches and the placed surfaces of the trimmed members."""
+        return list(self.patches) + [m.placed for m in self.trimmed]
 
     def _plates_only(self, t: int) -> bool:
         tile = self.tiles[t] if 0 <= t < len(self.tiles) else None
@@ -79,13 +85,13 @@ class Microstructure(MultiPatch):
     @property
     def levels(self) -> int:
         """Number of hierarchy levels (1 for a regular paving)."""
-        return 1 + max((p.level for p in self.patches), default=0)
+        return 1 + max((p.level for p in self._placed()), default=0)
 
     def tiles_per_level(self) -> list[int]:
         """Tiles on each hierarchy level, from the base."""
         out = [0] * self.levels
         seen = set()
-        for p in self.patches:
+        for p in self._placed():
             if p.tile not in seen and not self._plates_only(p.tile):
                 seen.add(p.tile)
                 out[p.level] += 1
@@ -109,7 +115,7 @@ class Microstructure(MultiPatch):
         their hull), so it is the cell the tile was paved into, or less for a tile that does
         not fill its cell; seal plates placed on their own are left out.
         """
-        keep = [p for p in self.patches if not self._plates_only(p.tile) and p.outer is not None]
+        keep = [p for p in self._placed() if not self._plates_only(p.tile) and p.outer is not None]
         if not keep:
             raise TilingError(f"{self.name or 'this micro-structure'} has no patches placed in a map (e.g. swept "
                               "struts, already in physical space); ask the paving they were swept from")

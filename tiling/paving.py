@@ -20,8 +20,10 @@ from geometry.sampling import sample_axes
 from .errors import TilingError
 from .microstructure import Microstructure, PlacedPatch
 from .caps import PlacedCap, capped_variant
+from .shells import shelled_variant
+from .trimmed_members import place_trimmed
 from .seal import SealedTile, seal_layout, sealed_variant
-from .tile import Tile
+from .tile import Tile, refuse_trimmed
 from .topology import grid_interfaces, seams
 from geometry.errors import SplineError
 from geometry.faces import FACE_NAMES
@@ -134,10 +136,12 @@ def regular(D: BSpline, tile: Tile, counts, variants: dict | None = None, name: 
     >>> lattice.n_tiles, len(lattice.patches), len(lattice.tags["umin"])   # 7 blocks per tile; 4 arm ends at u = 0
     (16, 112, 4)
     """
-    placed, tiles, links, caps, sealed = regular_placements(D, tile, counts, variants, seal, thickness, seal_sides)
+    placed, tiles, links, caps, sealed, trimmed = regular_placements(D, tile, counts, variants, seal, thickness,
+                                                                     seal_sides)
     shape = tuple(len(_cells(D, k, c)) for k, c in enumerate(counts))  # (counts checked by the placements)
     ms = Microstructure.build(D, placed, tiles, links, name=name, identity=grid_identity(D, tiles, shape))
     ms.caps = caps
+    ms.trimmed = trimmed
     if seal is not None:
         _tag_seal(ms, seal, [(t, i) for t in sealed.values() for i in t.seal_patches])
     return ms
@@ -146,7 +150,7 @@ def regular(D: BSpline, tile: Tile, counts, variants: dict | None = None, name: 
 def regular_placements(D: BSpline, tile: Tile, counts, variants: dict | None = None, seal: str | None = None,
                        thickness: float = SEAL_THICKNESS, seal_sides=None):
     """The placements of :func:`regular` without the interface search: (placed patches, tiles, seal links, caps,
-    sealed variants by sides).  Tiles are numbered in C order over the cells; for callers that keep a subset
+    sealed variants by sides, placed trimmed members).  Tiles are numbered in C order over the cells; for callers that keep a subset
     of them and build one micro-structure from several pavings (:mod:`tiling.vrep`)."""
     _check_map(D)
     if not isinstance(tile, Tile):
@@ -163,7 +167,7 @@ def regular_placements(D: BSpline, tile: Tile, counts, variants: dict | None = N
     _check_budget(float(np.prod([c * s for c, s in zip(counts, spans)], dtype=float)), tile, "the regular paving")
     cells = [_cells(D, k, counts[k]) for k in range(3)]
     N = [len(c) for c in cells]
-    placed, tiles, links, caps = [], [], [], []
+    placed, tiles, links, caps, trimmed = [], [], [], [], []
     sealed: dict = {}  # sealed variants, built once per set of sides
     for i in range(N[0]):
         for j in range(N[1]):
@@ -189,8 +193,9 @@ def regular_placements(D: BSpline, tile: Tile, counts, variants: dict | None = N
                 links += [(first + a, f, box, first + b, g) for a, f, box, b, g in getattr(t, "seal_links", ())]
                 caps += [PlacedCap(c, PlacedPatch(c.trimmed.surface, M, D, tid, 0, -1), first)
                          for c in getattr(t, "caps", ())]
-    _check_spans(D, placed)
-    return placed, tiles, links, caps, sealed
+                trimmed += place_trimmed(t, M, D, tid)
+    _check_spans(D, placed + [m.placed for m in trimmed])
+    return placed, tiles, links, caps, sealed, trimmed
 
 
 _IDENTITY = np.hstack([np.eye(3), np.zeros((3, 1))])
@@ -219,11 +224,11 @@ def _grid_interfaces(keys, first, layouts, periodic):
 
 def variant_for(tile: Tile, sides, thickness: float, seal: str) -> Tile:
     """The sealed variant of ``tile`` on ``sides``: plates for volumetric tiles, trimmed caps for surface tiles."""
+    refuse_trimmed(tile, f"seal={seal!r} (caps and shells close the openings of a tile's patches)")
     if tile.trivariates:
         return sealed_variant(tile, sides, thickness, seal)
-    if seal != "cap":
-        raise TilingError(f"tile {show(tile.name)} is a surface tile: it can be capped (seal='cap', trimmed planes) "
-                          f"but not given a {seal} (a volumetric slab needs volumetric tiles)")
+    if seal == "shell":
+        return shelled_variant(tile, sides, thickness)
     return capped_variant(tile, sides)
 
 
@@ -271,6 +276,7 @@ def _hierarchical_arguments(D, tile, counts, levels, scale, seal, thickness, sea
     _check_map(D)
     if not isinstance(tile, Tile) or not tile.hierarchical:
         raise TilingError("hierarchical paving needs a Tile with a branch-in face and branch-out faces")
+    refuse_trimmed(tile, "the hierarchical paving")
     cx, cy = _check_counts(counts, 2, "counts")
     allowed = _seal_sides(seal, seal_sides, thickness)
     if not _is_int(levels) or levels < 1:

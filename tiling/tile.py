@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from geometry import BSpline
+from geometry import BSpline, TrimmedSurface
 from geometry.errors import SplineError, show
 from geometry.faces import FACE_AXIS, FACE_NAMES
 from geometry.tolerances import COINCIDENT
@@ -81,19 +81,39 @@ def _face_frame(tile: "Tile", bf: BranchFace, what: str):
     return c[0], e1, e2, n
 
 
+def _in_unit_cube(p: BSpline, what: str) -> None:
+    pts = p.points.reshape(-1, 3)
+    if pts.min() < -TOL or pts.max() > 1 + TOL:
+        raise TilingError(f"{what} leaves the unit cube (control points span {pts.min(0).round(6).tolist()}.."
+                          f"{pts.max(0).round(6).tolist()}); scale it into [0, 1]^3")
+
+
+def refuse_trimmed(tile: "Tile", builder: str) -> None:
+    """Raise :class:`TilingError` where ``tile`` has trimmed members and ``builder`` does not place them."""
+    if getattr(tile, "trimmed", None):
+        raise TilingError(f"tile {show(tile.name)} has {len(tile.trimmed)} trimmed surface members, which {builder} "
+                          "does not place; pave it with tiling.regular (or compose_levels), or leave the trimmed "
+                          "members out")
+
+
 @dataclass
 class Tile:
     """A tile: patches in [0, 1]^3 plus optional branch labels.
 
     Parameters
     ----------
-    patches : list of geometry.BSpline (curves, surfaces, trivariates)
+    patches : list of geometry.BSpline (curves, surfaces, trivariates) and
+        geometry.TrimmedSurface (trimmed surfaces, Elber 2017, Fig. 7); the
+        trimmed ones are moved to ``trimmed``
     branch_in : BranchFace or (patch, face) for hierarchical tiles
     branch_outs : list of BranchFace or (patch, face[, box])
     scale : height factor of a child relative to its parent along the
         growth direction (Massarwi et al. 2018, Section 3.1, Fig. 11: 0.5, 0.8); ``None`` keeps
         children similar (the in-face scale ratio)
     name : label used in messages and exports
+    trimmed : list of geometry.TrimmedSurface, tile members paved and
+        composed with the patches, their loops carried unaltered
+        (:class:`tiling.trimmed_members.PlacedTrimmed`)
     """
 
     patches: list
@@ -101,20 +121,24 @@ class Tile:
     branch_outs: list = field(default_factory=list)
     scale: float | None = None
     name: str = "tile"
+    trimmed: list = field(default_factory=list)
 
     def __post_init__(self):
-        self.patches = list(self.patches)
-        if not self.patches:
+        given = list(self.patches)
+        self.patches = [p for p in given if not isinstance(p, TrimmedSurface)]
+        self.trimmed = list(self.trimmed) + [p for p in given if isinstance(p, TrimmedSurface)]
+        if not self.patches and not self.trimmed:
             raise TilingError(f"tile {show(self.name)} has no patches")
         for i, p in enumerate(self.patches):
             if not isinstance(p, BSpline):
-                raise TilingError(f"tile {show(self.name)} patch {i} is a {type(p).__name__}, not a geometry.BSpline")
-            pts = p.points.reshape(-1, 3)
-            if pts.min() < -TOL or pts.max() > 1 + TOL:
-                raise TilingError(
-                    f"tile {show(self.name)} patch {i} leaves the unit cube (control points span "
-                    f"{pts.min(0).round(6).tolist()}..{pts.max(0).round(6).tolist()}); scale it into [0, 1]^3"
-                )
+                raise TilingError(f"tile {show(self.name)} patch {i} is a {type(p).__name__}, not a geometry.BSpline "
+                                  "or geometry.TrimmedSurface")
+            _in_unit_cube(p, f"tile {show(self.name)} patch {i}")
+        for i, t in enumerate(self.trimmed):
+            if not isinstance(t, TrimmedSurface):
+                raise TilingError(f"tile {show(self.name)} trimmed member {i} is a {type(t).__name__}, not a "
+                                  "geometry.TrimmedSurface")
+            _in_unit_cube(t.surface, f"tile {show(self.name)} trimmed member {i}")
         if self.scale is not None and not (np.isfinite(self.scale) and self.scale > 0):
             raise TilingError(f"tile {show(self.name)}: scale must be positive, got {show(self.scale)}")
         as_bf = lambda b: b if isinstance(b, BranchFace) else BranchFace(*b)  # noqa: E731

@@ -25,7 +25,7 @@ from geometry.inversion import invert
 
 from ..errors import TilingError
 from ..paving import _check_budget
-from ..tile import Tile
+from ..tile import Tile, refuse_trimmed
 from geometry.tolerances import COINCIDENT
 
 __all__ = ["Primitive", "VModel", "VCell"]
@@ -53,6 +53,7 @@ class Primitive:
                               f"got {show(self.D)}")
         if not isinstance(self.tile, Tile):
             raise TilingError(f"primitive {show(self.name)}: tile must be a tiling.Tile, got {show(self.tile)}")
+        refuse_trimmed(self.tile, "a V-rep primitive")
         c = self.counts
         if not (isinstance(c, (tuple, list)) and len(c) == 3
                 and all(isinstance(n, (int, np.integer)) and not isinstance(n, bool) and n >= 1 for n in c)):
