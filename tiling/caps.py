@@ -127,10 +127,10 @@ def surface_caps(tile: Tile, sides) -> list[Cap]:
         curves, seglists = wall_loops(tile, surfaces, side)
         touched |= bool(curves)
         caps += trimmed_regions(tile, side, _wall_plane(k, s), curves, seglists)
-    if not touched and sides:
+    if not touched and sides and not _on_a_wall(tile, surfaces):
         raise TilingError(f"tile {show(tile.name)} has no boundary curves on the walls {sorted(set(sides))}: there is "
                           "nothing to cap (a cap closes the openings of a tile's surfaces on the cell walls)")
-    return caps
+    return caps  # (none where the tile has no opening on these walls but has some on others: closed there)
 
 
 def _surfaces(tile: Tile, what: str) -> list[int]:
@@ -147,6 +147,16 @@ def _covered(tile: Tile, surfaces: list, k: int, s: int) -> bool:
     return any(np.abs(tile.patches[i].points.reshape(-1, 3)[:, k] - s).max() < _TOL for i in surfaces)
 
 
+def _on_a_wall(tile: Tile, surfaces: list) -> bool:
+    """Whether a boundary curve of one of the tile's surfaces lies on any wall of the cell."""
+    for i in surfaces:
+        for e in EDGES:
+            pts = tile.patches[i].boundary(e).points.reshape(-1, 3)
+            if np.any((np.abs(pts).max(axis=0) < _TOL) | (np.abs(pts - 1).max(axis=0) < _TOL)):
+                return True
+    return False
+
+
 def wall_loops(tile: Tile, surfaces: list, side: str):
     """The boundary curves of the tile's ``surfaces`` on the wall ``side``, chained into closed loops:
     (loops as curves (a(t), b(t), 0) in the wall's two coordinates, per loop its segments [(patch, edge,
@@ -156,7 +166,8 @@ def wall_loops(tile: Tile, surfaces: list, side: str):
     for i in surfaces:
         for e in EDGES:
             c = tile.patches[i].boundary(e)
-            if np.abs(c.points.reshape(-1, 3)[:, k] - s).max() < _TOL:
+            pts = c.points.reshape(-1, 3)
+            if np.abs(pts[:, k] - s).max() < _TOL and np.ptp(pts, axis=0).max() > _TOL:  # (not a collapsed edge)
                 segs.append((i, e, c))
     if not segs:
         return [], []

@@ -20,6 +20,8 @@
 ``bent_cross()``     the cross at degrees (3, 3, 2) with bent insides (Massarwi et al. 2018, Fig. 10)
 ``through_cylinders()`` three concentric trimmed through-cylinders, six trimmed
                      surfaces (Elber 2017, Fig. 7; :mod:`tiling.cylinders`)
+``oblique_tubes()``  square tubes along (1, 0, 1/2), cut by the cell's planes: walls
+                     that cross the cell boundary obliquely (:mod:`tiling.clipping`)
 ==================== =====================================================
 
 Discontinuity tiles use a C0 knot at w = 0.4 below which both sides of every
@@ -37,6 +39,7 @@ import numpy as np
 from geometry import BSpline, knots as kn, primitives as pr
 
 from .errors import TilingError
+from .clipping import clip_walls
 from .cylinders import through_cylinders
 from .tile import BranchFace, Tile, discontinuity_branches
 from geometry.errors import show
@@ -282,6 +285,30 @@ def stitch(amplitude: float = 0.35, n: int = 12) -> Tile:
     return Tile([BSpline((3,), [kn.uniform_knots(3, n - 3)], cp)], name="stitch")
 
 
+def oblique_tubes(width: float = 0.16) -> Tile:
+    """Square tubes of side ``width`` along (1, 0, 1/2), periodic in x and z (the lines z = 1/4 + x/2 + j/2
+    through the cell: three pieces of tube per cell), their planar walls cut by the cell's six planes
+    (:func:`tiling.clipping.clip_walls`): they cross the walls x = 0, x = 1, z = 0 and z = 1 obliquely, and
+    neighbouring cells' pieces meet edge to edge.  Sealed with ``seal="cap"``: the Boolean variant of
+    Elber 2017, Section 2 (cut by the planes, the cut capped), the tube walls' angles kept."""
+    if not (isinstance(width, (int, float)) and not isinstance(width, bool) and 0 < width < 0.3):
+        raise TilingError(f"oblique_tubes: width must be in (0, 0.3) of a cell, got {show(width)}")
+    d = np.array([1.0, 0.0, 0.5])
+    e1 = np.array([0.0, 1.0, 0.0])
+    e2 = np.array([-0.5, 0.0, 1.0]) / np.linalg.norm([-0.5, 0.0, 1.0])
+    a, reach = width / 2, 3.0  # half-side; tube half-length (the pieces reach well beyond the cell)
+    walls = []
+    for offset in (-0.5, 0.0, 0.5):
+        p = np.array([0.5, 0.5, 0.5 + offset])
+        for n, u in ((e1, e2), (-e1, e2), (e2, e1), (-e2, e1)):  # outward normal n, the other section axis u
+            v = d if np.dot(np.cross(u, d), n) > 0 else -d  # u x v along n: the wall faces out of the tube
+            c = p + a * n
+            cp = np.array([[c - a * u - reach * v, c - a * u + reach * v], [c + a * u - reach * v, c + a * u + reach * v]])
+            walls.append(BSpline((1, 1), [np.array([0.0, 0.0, 1.0, 1.0])] * 2, cp))
+    return clip_walls(walls, name=f"oblique_tubes({width:g})")
+
+
 #: the built-in tiles by name (what ``[tile] library = ...`` of a pipeline may name)
 TILES = {f.__name__: f for f in (heat_sink_t1, heat_sink_t2, skinned_branching, fractal, hollow_box, cross, helix,
-                                 bent_cross, hollow_cross, graded_cross, struts, stitch, through_cylinders)}
+                                 bent_cross, hollow_cross, graded_cross, struts, stitch, through_cylinders,
+                                 oblique_tubes)}
