@@ -88,22 +88,33 @@ def _signed_area(poly: np.ndarray) -> float:
 
 
 def _crossings(p: np.ndarray, q: np.ndarray, same: bool) -> bool:
-    """Whether closed polylines p and q (or p with itself) have two non-adjacent segments that cross or touch."""
+    """Whether closed polylines p and q (or p with itself) have two non-adjacent segments that cross or touch.
+
+    Only segment pairs whose midpoints lie within the two segments' half-lengths can meet; a KD-tree
+    finds those pairs, so long loops are not tested all against all."""
+    from scipy.spatial import cKDTree
+
     a0, a1 = p[:-1], p[1:]
     b0, b1 = q[:-1], q[1:]
+    ma, mb = 0.5 * (a0 + a1), 0.5 * (b0 + b1)
+    reach = 0.5 * (np.linalg.norm(a1 - a0, axis=1).max() + np.linalg.norm(b1 - b0, axis=1).max()) * (1 + 1e-9)
+    pairs = cKDTree(ma).query_ball_tree(cKDTree(mb), reach + 1e-300)
+    i = np.repeat(np.arange(len(pairs)), [len(x) for x in pairs])
+    j = np.fromiter((k for x in pairs for k in x), dtype=np.int64, count=len(i))
+    if same:  # neighbouring segments share an end; the first and last close the loop
+        n = len(a0)
+        keep = (np.abs(i - j) > 1) & ~((i == 0) & (j == n - 1)) & ~((j == 0) & (i == n - 1))
+        i, j = i[keep], j[keep]
+    if not len(i):
+        return False
 
     def orient(x, y, z):
         return np.sign((y[..., 0] - x[..., 0]) * (z[..., 1] - x[..., 1]) - (y[..., 1] - x[..., 1]) * (z[..., 0] - x[..., 0]))
 
-    A0, A1 = a0[:, None], a1[:, None]
-    B0, B1 = b0[None], b1[None]
+    A0, A1, B0, B1 = a0[i], a1[i], b0[j], b1[j]
     # crossing or touching (a loop through one of its own points is not simple); boxes rule out collinear misses
     boxes = np.all((np.minimum(A0, A1) <= np.maximum(B0, B1)) & (np.minimum(B0, B1) <= np.maximum(A0, A1)), axis=-1)
     hit = boxes & (orient(A0, A1, B0) * orient(A0, A1, B1) <= 0) & (orient(B0, B1, A0) * orient(B0, B1, A1) <= 0)
-    if same:  # neighbouring segments share an end; the first and last close the loop
-        n = len(a0)
-        i, j = np.indices(hit.shape)
-        hit &= (np.abs(i - j) > 1) & ~((i == 0) & (j == n - 1)) & ~((j == 0) & (i == n - 1))
     return bool(hit.any())
 
 

@@ -53,6 +53,7 @@ def test_an_affine_displacement_is_reproduced_on_every_kind_of_micro_structure(w
     assert glue["identity_pairs"] + glue["branch_rows"] > 0
 
 
+@pytest.mark.long
 def test_a_v_rep_union_with_forks_approaches_the_affine_field_as_its_bridges_spaces_grow():
     # the union bridges are not isoparametric (their analysis space is the anchoring face's, of lower degree
     # than their Hermite geometry), so an affine field is not in the space: the heat analysis's linear patch
@@ -127,6 +128,7 @@ def test_manufactured_solution_converges_at_the_optimal_rates_on_a_curved_patch(
     assert l2[-1] > p + 1 - 0.3 and h1[-1] > p - 0.3, (l2, h1)
 
 
+@pytest.mark.long
 def test_lames_thick_cylinder_under_internal_pressure():
     a, c, p, E, nu = 0.5, 1.0, 1e6, 200e9, 0.3
     shell = pr.annulus(a, c, 0.2)

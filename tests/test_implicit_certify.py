@@ -145,6 +145,7 @@ def test_uncapped_structures_are_certified_and_one_solid_at_the_build_sampling(d
     assert _components(s, 12, close=True, shipped=True) == 1
 
 
+@pytest.mark.long
 @pytest.mark.parametrize("seed", range(5))
 def test_fig14_duck_capped_is_one_surface_at_every_sampling(duck, seed):
     s = tiling.random_implicit(duck, (4, 4, 12), alpha=0.5, seed=seed, continuity="C1", connectivity=2, cap=True)

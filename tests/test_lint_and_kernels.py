@@ -17,6 +17,7 @@ def test_ruff_finds_nothing():
     assert out.returncode == 0, out.stdout + out.stderr
 
 
+@pytest.mark.long
 def test_compiled_kernels_as_plain_python():
     # numba compiles the kernels and privatises variables inside prange loops; run as plain Python
     # (NUMBA_DISABLE_JIT=1) the same kernels must give the same results, so that a loop variable that

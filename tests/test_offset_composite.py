@@ -50,6 +50,7 @@ def test_offset_of_a_cylinder_is_the_coaxial_cylinder():
         offset(side, 0.1, 1e-15)
 
 
+@pytest.mark.long
 def test_fig8_chain_strip_offset_ruled_volume_and_round_stitches():
     tol = 1e-5
     out = stitched_strip(DUCK_SKIN, STRIP, 0.02, library.stitch(), (20, 2, 1), radius=0.003, tolerance=tol)

@@ -255,6 +255,7 @@ def test_iges_strings_that_would_corrupt_the_records_are_refused(tmp_path):
 
 
 # ------------------------------------------------------------------ G+Smo XML
+@pytest.mark.long
 def test_gismo_round_trip_of_the_graded_sink_with_robin_on_exterior(tmp_path):
     """The README's T2 sink (conductivity graded as the channel k), Robin on every exterior face, slot walls
     included: read back, the same temperatures at the bases the exported problem used; G+Smo's own reader

@@ -13,6 +13,11 @@ from tiling.export import boundary_splines, write_iges
 R = 0.25
 
 
+@pytest.fixture(scope="module")
+def tile():
+    return through_cylinders(R)  # (built once: its loops are checked on construction)
+
+
 def _bent_map():
     D = primitives.box((4.0, 4.0, 2.0)).elevate_to((2, 2, 2))
     P = D.control_points.copy()
@@ -39,8 +44,7 @@ def _to_polyline(poly, tree, x):
     return out
 
 
-def test_the_fig7_tile_is_six_trimmed_surfaces_whose_loops_are_the_exact_intersection_curves():
-    tile = through_cylinders(R)
+def test_the_fig7_tile_is_six_trimmed_surfaces_whose_loops_are_the_exact_intersection_curves(tile):
     assert tile.patches == [] and len(tile.trimmed) == 6
     rng = np.random.default_rng(3)
     for T in tile.trimmed:
@@ -68,9 +72,8 @@ def test_the_fig7_tile_is_six_trimmed_surfaces_whose_loops_are_the_exact_interse
     assert sum(T.area(3e-3) for T in tile.trimmed) == pytest.approx(through_cylinders_area(R), rel=1e-9)
 
 
-def test_paved_4_4_2_in_a_bent_map_composes_every_member_exactly_with_its_loops_carried():
+def test_paved_4_4_2_in_a_bent_map_composes_every_member_exactly_with_its_loops_carried(tile):
     D = _bent_map()
-    tile = through_cylinders(R)
     ms = regular(D, tile, (4, 4, 2))
     assert ms.n_tiles == 32 and len(ms.trimmed) == 192 and ms.patches == []
     composed = boundary_splines(ms)
@@ -92,15 +95,15 @@ def test_paved_4_4_2_in_a_bent_map_composes_every_member_exactly_with_its_loops_
     assert np.all(lo >= box.min(0) - 0.5) and np.all(hi <= box.max(0) + 0.5)
 
 
-def test_the_fig7_paving_goes_to_iges_and_opencascade_reads_the_trimmed_faces(tmp_path):
+def test_the_fig7_paving_goes_to_iges_and_opencascade_reads_the_trimmed_faces(tmp_path, tile):
     """A second reader: gmsh's OpenCASCADE import gives 192 trimmed faces, each our composed surface point for
     point, bounded by our loops' images, with our areas (within OpenCASCADE's own area integration)."""
     gmsh = pytest.importorskip("gmsh")
     D = _bent_map()
-    ms = regular(D, through_cylinders(R), (4, 4, 2))
+    ms = regular(D, tile, (4, 4, 2))
     composed = boundary_splines(ms)
     path = write_iges(tmp_path / "fig7.igs", ms, units="mm")
-    flat = regular(primitives.box((4.0, 4.0, 2.0)), through_cylinders(R), (4, 4, 2))
+    flat = regular(primitives.box((2.0, 1.0, 1.0)), tile, (2, 1, 1))  # unit cells: the formula's area each
     flat_path = write_iges(tmp_path / "fig7_flat.igs", flat, units="mm")
     rng = np.random.default_rng(5)
     gmsh.initialize()
@@ -135,13 +138,12 @@ def test_the_fig7_paving_goes_to_iges_and_opencascade_reads_the_trimmed_faces(tm
         gmsh.model.occ.importShapes(str(flat_path))
         gmsh.model.occ.synchronize()
         total = sum(gmsh.model.occ.getMass(2, t) for _, t in gmsh.model.getEntities(2))
-        assert total == pytest.approx(32 * through_cylinders_area(R), rel=3e-3)
+        assert total == pytest.approx(2 * through_cylinders_area(R), rel=3e-3)
     finally:
         gmsh.finalize()
 
 
-def test_builders_that_do_not_place_trimmed_members_say_so():
-    tile = through_cylinders(R)
+def test_builders_that_do_not_place_trimmed_members_say_so(tile):
     D = primitives.box()
     with pytest.raises(TilingError, match="trimmed surface members, which seal='cap'"):
         regular(D, tile, (2, 2, 2), seal="cap")
@@ -154,17 +156,16 @@ def test_builders_that_do_not_place_trimmed_members_say_so():
         hierarchical(primitives.box(), mixed, (1, 1), 2)
 
 
-def test_two_level_compose_carries_the_trimmed_members():
+def test_two_level_compose_carries_the_trimmed_members(tile):
     first = regular(primitives.box((2.0, 1.0, 1.0)), library.cross(), (1, 1, 1))
-    ms = compose_levels(first, through_cylinders(R), (1, 1, 1), degree=None)
+    ms = compose_levels(first, tile, (1, 1, 1), degree=None)
     assert len(ms.trimmed) == 6 * len(first.patches) and ms.n_tiles == len(first.patches)
     assert len(boundary_splines(ms)) == len(ms.trimmed)
 
 
-def test_bad_trimmed_members_and_radii_are_refused():
-    T = through_cylinders(R).trimmed[0]
-    big = TrimmedSurface.with_loops_of(T, T.surface.scale(2.0) if hasattr(T.surface, "scale")
-                                       else T.surface.affine(2 * np.eye(3), np.zeros(3)))
+def test_bad_trimmed_members_and_radii_are_refused(tile):
+    T = tile.trimmed[0]
+    big = TrimmedSurface.with_loops_of(T, T.surface.affine(2 * np.eye(3), np.zeros(3)))  # twice the cell
     with pytest.raises(TilingError, match="trimmed member 0 leaves the unit cube"):
         Tile([big])
     with pytest.raises(TilingError, match="trimmed member 0 is a str"):

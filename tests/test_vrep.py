@@ -279,6 +279,7 @@ def test_v_models_and_primitives_print_as_their_expression():
     assert repr(m.primitives()[0]).startswith("Primitive('body': tile 'cross' x (10, 10, 12), priority 1")
 
 
+@pytest.mark.long
 def test_a_v_model_with_bridges_across_knot_lines_composes_exactly_and_exports_to_iges(tmp_path):
     """(A u B) - C: some bridges to C cross knot lines of their map; rebuilt in space, every patch composes into
     one exact B-spline (compose_all), every bridge's composed spline equals its chain-rule evaluation at random
