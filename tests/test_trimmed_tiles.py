@@ -175,3 +175,82 @@ def test_bad_trimmed_members_and_radii_are_refused(tile):
     for r in (0.0, 0.5, -1, float("nan"), "0.2", True):
         with pytest.raises(TilingError, match="radius must be a number in"):
             through_cylinders(r)
+
+
+def test_the_members_weld_along_their_shared_curves_into_one_network_open_only_on_d(tile):
+    """The cylinders' shared intersection curves are stitched (each side takes the other's samples), so the
+    triangle mesh is open only at the tubes' openings on D's boundary, one connected network."""
+    from tiling.export import watertightness
+
+    size = np.array([2.0, 2.0, 1.0])
+    ms = regular(primitives.box(tuple(size)), tile, (2, 2, 1))
+    w = watertightness(ms, samples=2)
+    assert w["nonmanifold_edges"] == 0 and w["components"] == 1
+    mesh = ms.surface(samples=2)
+    rim = mesh.extract_feature_edges(boundary_edges=True, feature_edges=False, manifold_edges=False,
+                                     non_manifold_edges=False)
+    x = np.asarray(rim.points)
+    assert rim.n_cells > 0 and np.min(np.minimum(np.abs(x), np.abs(x - size)), axis=1).max() < 1e-9
+    # 4 + 4 + 2 * 4 openings on the sides of D: 16 closed rims, polygons inscribed in circles of radius 1/4
+    assert rim.connectivity().point_data["RegionId"].max() + 1 == 16
+    length = rim.compute_cell_sizes()["Length"].sum()
+    assert 0.97 * 16 * 2 * np.pi * R < length < 16 * 2 * np.pi * R
+
+
+def test_stitching_closes_two_samplings_of_one_edge():
+    from geometry.stitch import stitch_boundaries
+    from geometry.sampling import weld
+
+    # two unit squares side by side, the shared edge x = 1 split in 3 on the left and in 4 on the right
+    def strip(x0, n):
+        y = np.linspace(0.0, 1.0, n + 1)
+        pts = np.concatenate([np.c_[np.full(n + 1, x0), y, np.zeros(n + 1)],
+                              np.c_[np.full(n + 1, x0 + 1), y, np.zeros(n + 1)]])
+        i = np.arange(n)
+        tris = np.concatenate([np.c_[i, i + n + 1, i + n + 2], np.c_[i, i + n + 2, i + 1]])
+        return pts, tris
+
+    (p1, t1), (p2, t2) = strip(0.0, 3), strip(1.0, 4)
+    pts = np.concatenate([p1, p2])
+    tris = np.concatenate([t1, t2 + len(p1)])
+    part = np.r_[np.zeros(len(p1), int), np.ones(len(p2), int)]
+    P, T, _ = stitch_boundaries(pts, tris, part, 1e-9)
+    P, T, _, _ = weld(P, T, {})
+    e = np.sort(np.concatenate([T[:, [0, 1]], T[:, [1, 2]], T[:, [2, 0]]]), axis=1)
+    _, uses = np.unique(e, axis=0, return_counts=True)
+    assert np.all(uses <= 2) and np.sum(uses == 1) == 3 + 4 + 2 + 2  # only the outer rectangle is open
+    d1, d2 = P[T[:, 1]] - P[T[:, 0]], P[T[:, 2]] - P[T[:, 0]]
+    area = 0.5 * np.cross(d1, d2)[:, 2]
+    assert np.all(area > 0) and area.sum() == pytest.approx(2.0, rel=1e-14)
+
+
+def test_members_sampling_a_shared_edge_differently_are_stitched():
+    """Two trimmed planes meeting along x = 0.8, z = 0.5 (an L), whose loops break that edge at different
+    points: their own samplings differ, and the stitched mesh is open only on the L's outer rim."""
+    from geometry.trimmed import join_curves
+    from tiling.export import surface
+
+    def plane(corners):  # a bilinear plane (corners in order) with a polygon loop in its parameters
+        c = np.asarray(corners, float)
+        return BSpline((1, 1), [np.array([0.0, 0.0, 1.0, 1.0])] * 2, np.array([[c[0], c[3]], [c[1], c[2]]]))
+
+    def polygon(uv):
+        uv = np.asarray(uv + [uv[0]], float)
+        return join_curves([BSpline((1,), [[0.0, 0.0, 1.0, 1.0]], np.c_[uv[i:i + 2], np.zeros(2)])
+                            for i in range(len(uv) - 1)])
+
+    floor = TrimmedSurface(plane([[0.2, 0.2, 0.5], [0.8, 0.2, 0.5], [0.8, 0.8, 0.5], [0.2, 0.8, 0.5]]),
+                           [polygon([(0, 0), (1, 0), (1, 1), (0, 1)])])
+    wall = TrimmedSurface(plane([[0.8, 0.2, 0.5], [0.8, 0.8, 0.5], [0.8, 0.8, 0.8], [0.8, 0.2, 0.8]]),
+                          [polygon([(0, 0), (0.25, 0), (1, 0), (1, 1), (0, 1)])])  # the shared edge broken at 1/4
+    ms = regular(primitives.box(), Tile([floor, wall], name="L"), (1, 1, 1))
+    mesh = surface(ms, samples=1)
+    rim = mesh.extract_feature_edges(boundary_edges=True, feature_edges=False, manifold_edges=False,
+                                     non_manifold_edges=False)
+    mid = np.asarray(rim.cell_centers().points)
+    on_fold = (np.abs(mid[:, 0] - 0.8) < 1e-12) & (np.abs(mid[:, 2] - 0.5) < 1e-12)
+    assert rim.n_cells > 0 and not on_fold.any()
+    from tiling.export import mesh_watertightness
+
+    w = mesh_watertightness(mesh)
+    assert w["components"] == 1 and w["nonmanifold_edges"] == 0

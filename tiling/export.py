@@ -144,30 +144,50 @@ def _trimmed_parts(ms, samples: int):
         pts, t = _cap_triangles(ms, pc, samples)
         owner = next((lp[0][0] for lp in pc.cap.segments if lp), 0)  # drawn with a tile patch it closes
         yield pts, t, pc.first + owner
-    for j, (pts, t) in enumerate(_trimmed_triangles(ms, samples)):
-        yield pts, t, len(ms.patches) + j
+    yield from _trimmed_triangles(ms, samples)
 
 
 def _trimmed_triangles(ms, samples: int) -> list:
-    """(physical points, triangles) of every placed trimmed member: each member is tessellated once in tile
-    coordinates (chord tolerance 0.08 / samples^2 of the unit cell: a quarter circle of radius 0.25 gets about
-    ``samples`` chords, as a patch's element does) and its vertices mapped per placement.
-    Members are not welded to each other along shared trimming curves (each samples its own loops)."""
-    from geometry.grouping import ObjectIndex
+    """(physical points, triangles, patch number per triangle) of the trimmed members of every placed tile.
 
+    A tile's members are tessellated once in tile coordinates (chord tolerance 0.08 / samples^2 of the unit
+    cell: a quarter circle of radius 0.25 gets about ``samples`` chords, as a patch's element does), their
+    shared trimming curves stitched (:func:`geometry.stitch.stitch_boundaries`: each side takes the other's
+    samples, so they weld), and the tile's mesh is mapped per placement; member j of the micro-structure's
+    ``trimmed`` is drawn as patch ``len(ms.patches) + j``."""
+    from geometry.grouping import ObjectIndex
+    from geometry.stitch import stitch_boundaries
+
+    tol = 0.08 / samples ** 2
     same = ObjectIndex()
     meshes: dict = {}
+    placed: dict = {}  # placed tile -> [(member index in its tile, member index in ms.trimmed)]
+    for j, m in enumerate(getattr(ms, "trimmed", [])):
+        placed.setdefault(m.placed.tile, []).append((-1 - m.placed.patch_in_tile, j))
     out = []
-    for m in getattr(ms, "trimmed", []):
-        key = same(m.trimmed)
+    for t, members in placed.items():
+        tile = ms.tiles[t]
+        key = same(tile)
         if key not in meshes:
-            try:
-                tess = m.trimmed.tessellate(0.08 / samples ** 2)
-            except SplineError as exc:
-                raise TilingError(f"a trimmed member of tile {m.placed.tile}: {exc}") from None
-            meshes[key] = (np.asarray(tess.points), tess.faces.reshape(-1, 4)[:, 1:])
-        pts, tris = meshes[key]
-        out.append((_place(m.placed, pts), tris))
+            pts, tris, part = [], [], []
+            for i, T in enumerate(tile.trimmed):
+                try:
+                    tess = T.tessellate(tol)
+                except SplineError as exc:
+                    raise TilingError(f"trimmed member {i} of tile {show(tile.name)}: {exc}") from None
+                tris.append(tess.faces.reshape(-1, 4)[:, 1:] + sum(len(x) for x in pts))
+                pts.append(np.asarray(tess.points))
+                part.append(np.full(tess.n_points, i))
+            P, T3, part = stitch_boundaries(np.concatenate(pts), np.concatenate(tris), np.concatenate(part),
+                                            1.01 * tol)
+            meshes[key] = (P, T3, part[T3[:, 0]])
+        P, T3, owner = meshes[key]
+        number = np.full(len(tile.trimmed), -1)
+        for i, j in members:
+            number[i] = len(ms.patches) + j
+        keep = number[owner] >= 0  # (every member of a placed tile is placed)
+        first = ms.trimmed[members[0][1]].placed
+        out.append((_place(first, P), T3[keep], number[owner[keep]]))
     return out
 
 
