@@ -17,6 +17,7 @@ import importlib.util
 import numpy as np
 
 from . import knots as kn
+from .compile_lock import locked
 
 #: below this many points the SciPy path is used (no compile, no thread start-up)
 MIN_POINTS = 20_000
@@ -78,7 +79,7 @@ def evaluate(knots, degrees, coefficients: np.ndarray, x: np.ndarray, derivs: bo
     out = np.empty((4 if derivs else 1, len(X), C.shape[-1]))
     bad = np.zeros(_CHUNKS, np.int64)
     U = [readonly(u) for u in knots]
-    _kernel()(X, U[0], int(degrees[0]), U[1], int(degrees[1]), U[2], int(degrees[2]), C, out, bad)
+    locked(_kernel())(X, U[0], int(degrees[0]), U[1], int(degrees[1]), U[2], int(degrees[2]), C, out, bad)
     if bad.any():
         return None
     return out if derivs else out[0]
@@ -106,5 +107,5 @@ def grid_derivs(hom: np.ndarray, rows: slice, tables) -> np.ndarray:
     (f0, B0), (f1, B1), (f2, B2) = tables
     m = hom.shape[-1]
     out = np.empty((4, rows.stop - rows.start, len(f1), len(f2), m))
-    _grid_kernel()(readonly(hom), rows.start, rows.stop, f0, B0, f1, B1, f2, B2, out)
+    locked(_grid_kernel())(readonly(hom), rows.start, rows.stop, f0, B0, f1, B1, f2, B2, out)
     return out.reshape(4, -1, m)

@@ -33,6 +33,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .errors import ProblemError
+from geometry.compile_lock import locked
 from geometry._fast import grid_tables, readonly
 
 from .assembly import _CACHE_NNZ, CSRPattern, _band_limits
@@ -104,7 +105,7 @@ def _structure(shape: tuple, degrees: tuple) -> CSRPattern:
     nnz = int(counts.sum())
     indptr = np.empty(n + 1, np.int64)
     indices = np.empty(nnz, np.int32 if n < 2**31 else np.int64)
-    _kernels().csr_structure3(*(readonly(a, np.int64) for a in (los[0], cs[0], los[1], cs[1], los[2], cs[2])),
+    locked(_kernels().csr_structure3)(*(readonly(a, np.int64) for a in (los[0], cs[0], los[1], cs[1], los[2], cs[2])),
                               *degrees, indptr, indices)
     return CSRPattern(indptr, indices, None, None, n)
 
@@ -142,7 +143,7 @@ def compact_rows_cols(K, keep: np.ndarray):
     n = K.shape[0]
     new = np.full(n, -1, indices.dtype)
     new[keep] = np.arange(len(keep), dtype=indices.dtype)
-    rows, nnz = _kernels().compact_rows_cols(indptr, indices, data, readonly(new, new.dtype))
+    rows, nnz = locked(_kernels().compact_rows_cols)(indptr, indices, data, readonly(new, new.dtype))
     return sp.csr_matrix((data[:nnz], indices[:nnz], indptr[: rows + 1]), shape=(rows, rows))
 
 
@@ -191,14 +192,14 @@ class StiffnessAccumulator:
             L = readonly(np.reshape(L, shape[1:]))
         self.next_element = planes.stop // g
         p3, g3 = t3["b"].shape[2] - 1, t3["b"].shape[3]
-        _kernels().stiffness3_for(p3, g3)(C, planes.start // g, t1["b"], t1["first"], t2["W"], t2["r"], t2["s"],
+        locked(_kernels().stiffness3_for(p3, g3))(C, planes.start // g, t1["b"], t1["first"], t2["W"], t2["r"], t2["s"],
                                           t3["b"], t3["first"], readonly(self.pattern.indptr, np.int64),
                                           t1["lo"], t1["c"],
                                           t2["lo"], t2["c"], t3["lo"], t3["c"], self.ring, self.Z, self.Y, self.data)
         if L is not None:
             if self.load is None:
                 self.load = np.zeros((self.data.shape[0],) + self.space.shape)
-            _kernels().load3(L, planes.start // g, t1["b"], t1["first"], t2["b"], t2["elo"], t2["ehi"], t2["first"],
+            locked(_kernels().load3)(L, planes.start // g, t1["b"], t1["first"], t2["b"], t2["elo"], t2["ehi"], t2["first"],
                              t3["b"], t3["first"], self.load)
 
     def result(self) -> tuple[CSRPattern, np.ndarray]:
@@ -239,7 +240,7 @@ def metric_fields(D, kval, fval, w):
     else:
         kiso, ktensor = readonly(np.broadcast_to(kval, (M,))), readonly(np.zeros((0, 6)))
     fval = readonly(np.broadcast_to(np.asarray(fval, float), (M,)))
-    _metric_kernels().metric_fields(readonly(Du), readonly(Dv), readonly(Dw), kiso, ktensor, fval,
+    locked(_metric_kernels().metric_fields)(readonly(Du), readonly(Dv), readonly(Dw), kiso, ktensor, fval,
                                     readonly(np.broadcast_to(np.asarray(w, float), (M,))), C, L, det)
     return C, L, det
 
@@ -272,6 +273,6 @@ def metric_slabs(spline, space: TensorSpace, points_per_slab: int, kval, fval: f
         b = min(a + rows, nq0)
         n = (b - a) * rest
         C, L, det = np.empty((6, n)), np.empty(n), np.empty(n)
-        _metric_kernels().geometry_metric3(hom, spline.is_rational, a, b, f0, B0, f1, B1, f2, B2, iso, K,
+        locked(_metric_kernels().geometry_metric3)(hom, spline.is_rational, a, b, f0, B0, f1, B1, f2, B2, iso, K,
                                              float(fval), *qw, C, L, det)
         yield slice(a, b), C, L, det

@@ -116,8 +116,12 @@ def judge_children(G: np.ndarray, grid: BoxGrid, boxes: np.ndarray, children: np
     L = len(boxes)
     low, high, mono = np.empty(L), np.empty(L), np.empty(L, np.uint8)
     if _fast.AVAILABLE:
+        from geometry.compile_lock import locked
+
         from ._certify_kernels import judge_rows
-        judge_rows(np.ascontiguousarray(G, dtype=float), boxes, children, *grid.first, *A, BAND, low, high, mono)
+
+        locked(judge_rows)(np.ascontiguousarray(G, dtype=float), boxes, children, *grid.first, *A, BAND, low, high,
+                           mono)
         return low, high, mono
     d1 = grid.degree + 1
     step = max(1, _CHUNK // d1 ** 3)
