@@ -1,6 +1,7 @@
 """Random spline factories shared by the tests."""
 
 import re
+from contextlib import contextmanager
 
 import numpy as np
 
@@ -115,3 +116,20 @@ def face_params(P, face, st):
     x[:, k] = dom[k, side]
     x[:, rest] = dom[rest, 0] + np.asarray(st) * np.ptp(dom[rest], axis=1)
     return x
+
+
+@contextmanager
+def opencascade(path):
+    """A second reader for IGES: gmsh's OpenCASCADE import of ``path``; yields ``(gmsh, face tags)`` and
+    finalises gmsh after (the test is skipped where gmsh is not installed)."""
+    import pytest
+
+    gmsh = pytest.importorskip("gmsh")
+    gmsh.initialize()
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.model.occ.importShapes(str(path))
+        gmsh.model.occ.synchronize()
+        yield gmsh, [t for _, t in gmsh.model.getEntities(2)]
+    finally:
+        gmsh.finalize()

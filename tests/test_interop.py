@@ -11,7 +11,7 @@ from geometry import BSpline, SplineError, primitives as pr
 from geometry.faces import FACE_AXIS
 from geometry.gismo_xml import GismoCondition, interface_maps, read_gismo, write_gismo
 from geometry.iges import write_iges
-from helpers import read_own_iges as _read_own_iges, random_spline
+from helpers import opencascade, read_own_iges as _read_own_iges, random_spline
 from iga import HeatProblem, ProblemError
 from iga.gismo import export_gismo, load_gismo, problem_from_gismo
 from tiling import library as L
@@ -172,23 +172,15 @@ def test_iges_writes_exact_surfaces_and_curves(tmp_path):
 
 def test_iges_opens_in_opencascade(tmp_path):
     """A second reader: gmsh's OpenCASCADE import (gmsh's pip wheel) gives the same surface points."""
-    gmsh = pytest.importorskip("gmsh")
     rng = np.random.default_rng(5)
     surfaces = [random_spline(rng, 2, rational=r, max_p=3) for r in (False, True, True)]
     path = write_iges(tmp_path / "x.igs", surfaces, units="mm")  # OpenCASCADE works in millimetres
-    gmsh.initialize()
-    try:
-        gmsh.option.setNumber("General.Terminal", 0)
-        gmsh.model.occ.importShapes(str(path))
-        gmsh.model.occ.synchronize()
-        tags = [t for _, t in gmsh.model.getEntities(2)]
+    with opencascade(path) as (gmsh, tags):
         assert len(tags) == 3
         for tag, s in zip(tags, surfaces):
             uv = rng.random((30, 2))
             got = np.array(gmsh.model.getValue(2, tag, uv.ravel())).reshape(-1, 3)
             assert np.abs(got - s.evaluate(uv)[:, :3]).max() < 1e-10
-    finally:
-        gmsh.finalize()
 
 
 def test_gismo_file_opens_in_pygismo(tmp_path):

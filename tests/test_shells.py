@@ -9,6 +9,7 @@ from geometry import primitives as pr
 from tiling import TilingError
 from tiling import library as L
 from tiling.export import boundary_splines, watertightness, write_iges
+from helpers import opencascade, surface_area
 
 TWISTED = pr.twisted(pr.box((2.0, 1.5, 1.0), degrees=(2, 2, 2)), 0.4, axis_point=(1.0, 0.75))
 
@@ -55,37 +56,14 @@ def test_the_layer_is_bounded_by_outward_walls_and_trimmed_inner_planes_of_the_e
 
 
 def test_the_shell_goes_to_iges_and_opencascade_reads_every_face_with_our_area(tmp_path):
-    gmsh = pytest.importorskip("gmsh")
     ms = tiling.regular(TWISTED, L.hollow_cross(), (2, 1, 1), seal="shell", thickness=0.15)
     ours = boundary_splines(ms)
     path = write_iges(tmp_path / "shell.igs", ms, units="mm")
-    x, w = np.polynomial.legendre.leggauss(10)
-
-    def area(S):
-        if hasattr(S, "loops"):
-            return S.area(2e-3)
-        total = 0.0
-        for a, b in zip(S.breakpoints(0)[:-1], S.breakpoints(0)[1:]):
-            for c, d in zip(S.breakpoints(1)[:-1], S.breakpoints(1)[1:]):
-                uv = np.stack(np.meshgrid((a + b) / 2 + (b - a) / 2 * x, (c + d) / 2 + (d - c) / 2 * x,
-                                          indexing="ij"), -1).reshape(-1, 2)
-                J = S.jacobian(uv)[:, :3, :]
-                da = np.linalg.norm(np.cross(J[:, :, 0], J[:, :, 1]), axis=1)
-                total += float(np.sum(np.outer(w, w).ravel() * da)) * (b - a) * (d - c) / 4
-        return total
-
-    gmsh.initialize()
-    try:
-        gmsh.option.setNumber("General.Terminal", 0)
-        gmsh.model.occ.importShapes(str(path))
-        gmsh.model.occ.synchronize()
-        tags = [t for _, t in gmsh.model.getEntities(2)]
+    with opencascade(path) as (gmsh, tags):
         assert len(tags) == len(ours)
         got = np.array([gmsh.model.occ.getMass(2, t) for t in tags])
-        want = np.array([area(S) for S in ours])
-        assert np.abs(got / want - 1).max() < 1e-4  # polynomial faces: OpenCASCADE integrates them closely
-    finally:
-        gmsh.finalize()
+    want = np.array([S.area(2e-3) if hasattr(S, "loops") else surface_area(S, 10) for S in ours])
+    assert np.abs(got / want - 1).max() < 1e-4  # polynomial faces: OpenCASCADE integrates them closely
 
 
 def test_shell_bad_input():

@@ -10,6 +10,7 @@ from geometry.sweep import circle, frames, section_error, sweep
 from tiling import Microstructure, TilingError, library, regular, round_struts
 from tiling.export import watertightness
 from geometry.multipatch import PlacedPatch
+from helpers import opencascade, surface_area
 
 ARC = BSpline((3,), [[0, 0, 0, 0, 0.5, 1, 1, 1, 1]],
               [[0, 0, 0], [1, 0.2, 1], [2, -0.3, 1.5], [3, 0.4, 0.5], [4, 0, 0]])
@@ -124,7 +125,6 @@ def test_bad_sweeps_are_refused_with_the_fix():
 def test_round_struts_go_to_iges_and_opencascade_reads_the_capsules(tmp_path):
     """A second reader: gmsh's OpenCASCADE import of the struts' IGES gives every surface and the exact capsule
     area 2 pi r L + 4 pi r^2 (straight struts of a box: the frame is constant, the tube exact)."""
-    gmsh = pytest.importorskip("gmsh")
     from tiling.export import write_iges
 
     box = primitives.box((2.0, 1.0, 1.0), degrees=(2, 2, 2))
@@ -133,12 +133,7 @@ def test_round_struts_go_to_iges_and_opencascade_reads_the_capsules(tmp_path):
                for s in struts.struts.sweeps]
     exact = sum(2 * np.pi * 0.05 * L + 4 * np.pi * 0.05 ** 2 for L in lengths)
     path = write_iges(tmp_path / "struts.igs", struts, units="mm")
-    gmsh.initialize()
-    try:
-        gmsh.option.setNumber("General.Terminal", 0)
-        gmsh.model.occ.importShapes(str(path))
-        gmsh.model.occ.synchronize()
-        tags = [t for _, t in gmsh.model.getEntities(2)]
+    with opencascade(path) as (gmsh, tags):
         assert len(tags) == len(struts.patches)
         rng = np.random.default_rng(7)
         for tag, P in zip(tags, struts.patches):  # the same surfaces, point for point, in their own parameters
@@ -148,18 +143,5 @@ def test_round_struts_go_to_iges_and_opencascade_reads_the_capsules(tmp_path):
             assert np.abs(got - P.spline.evaluate(uv)[:, :3]).max() < 1e-10
         # OpenCASCADE's own area integration (its tolerance: 7.6e-5 relative was measured on the poles' caps)
         assert sum(gmsh.model.occ.getMass(2, t) for t in tags) == pytest.approx(exact, rel=2e-4)
-    finally:
-        gmsh.finalize()
     # and our own Gauss quadrature of the same surfaces gives the exact area
-    x, w = np.polynomial.legendre.leggauss(12)
-    total = 0.0
-    for P in struts.patches:
-        S = P.spline
-        for (a, b) in zip(S.breakpoints(0)[:-1], S.breakpoints(0)[1:]):
-            for (c, d) in zip(S.breakpoints(1)[:-1], S.breakpoints(1)[1:]):
-                uv = np.stack(np.meshgrid((a + b) / 2 + (b - a) / 2 * x, (c + d) / 2 + (d - c) / 2 * x,
-                                          indexing="ij"), -1).reshape(-1, 2)
-                J = S.jacobian(uv)[:, :3, :]
-                total += np.outer(w, w).ravel() @ np.linalg.norm(np.cross(J[:, :, 0], J[:, :, 1]), axis=1) \
-                    * (b - a) * (d - c) / 4
-    assert total == pytest.approx(exact, rel=1e-9)
+    assert sum(surface_area(P.spline, 12) for P in struts.patches) == pytest.approx(exact, rel=1e-9)

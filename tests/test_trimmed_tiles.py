@@ -9,6 +9,7 @@ from geometry import BSpline, TrimmedSurface, primitives
 from tiling import Tile, TilingError, compose_levels, graded, hierarchical, library, regular
 from tiling.cylinders import through_cylinders, through_cylinders_area
 from tiling.export import boundary_splines, write_iges
+from helpers import opencascade
 
 R = 0.25
 
@@ -98,7 +99,6 @@ def test_paved_4_4_2_in_a_bent_map_composes_every_member_exactly_with_its_loops_
 def test_the_fig7_paving_goes_to_iges_and_opencascade_reads_the_trimmed_faces(tmp_path, tile):
     """A second reader: gmsh's OpenCASCADE import gives 192 trimmed faces, each our composed surface point for
     point, bounded by our loops' images, with our areas (within OpenCASCADE's own area integration)."""
-    gmsh = pytest.importorskip("gmsh")
     D = _bent_map()
     ms = regular(D, tile, (4, 4, 2))
     composed = boundary_splines(ms)
@@ -106,12 +106,7 @@ def test_the_fig7_paving_goes_to_iges_and_opencascade_reads_the_trimmed_faces(tm
     flat = regular(primitives.box((2.0, 1.0, 1.0)), tile, (2, 1, 1))  # unit cells: the formula's area each
     flat_path = write_iges(tmp_path / "fig7_flat.igs", flat, units="mm")
     rng = np.random.default_rng(5)
-    gmsh.initialize()
-    try:
-        gmsh.option.setNumber("General.Terminal", 0)
-        gmsh.model.occ.importShapes(str(path))
-        gmsh.model.occ.synchronize()
-        tags = [t for _, t in gmsh.model.getEntities(2)]
+    with opencascade(path) as (gmsh, tags):
         assert len(tags) == 192
         for j in rng.choice(192, 4, replace=False):
             tag, T = tags[j], composed[j]
@@ -134,13 +129,9 @@ def test_the_fig7_paving_goes_to_iges_and_opencascade_reads_the_trimmed_faces(tm
                 assert _to_polyline(dense, trees[1], x).max() < 1e-5
             # OpenCASCADE integrates rational faces to about 2e-3 (measured on an exact cylinder: +1.75e-3)
             assert gmsh.model.occ.getMass(2, tag) == pytest.approx(T.area(3e-3), rel=3e-3)
-        gmsh.model.remove()
-        gmsh.model.occ.importShapes(str(flat_path))
-        gmsh.model.occ.synchronize()
-        total = sum(gmsh.model.occ.getMass(2, t) for _, t in gmsh.model.getEntities(2))
-        assert total == pytest.approx(2 * through_cylinders_area(R), rel=3e-3)
-    finally:
-        gmsh.finalize()
+    with opencascade(flat_path) as (gmsh, tags):
+        total = sum(gmsh.model.occ.getMass(2, t) for t in tags)
+    assert total == pytest.approx(2 * through_cylinders_area(R), rel=3e-3)
 
 
 def test_builders_that_do_not_place_trimmed_members_say_so(tile):
