@@ -40,8 +40,6 @@ def fill_rings(rings, max_edge: float, max_passes: int = 40):
     edge: an edge from a ring vertex to a point near its ring edge cannot get shorter than that edge);
     ring edges are never split.  Triangles are counter-clockwise in the plane.
     """
-    import mapbox_earcut
-
     rings = [np.asarray(r, float).reshape(-1, 2) for r in rings]
     if not rings or any(len(r) < 3 for r in rings):
         raise SplineError("fill_rings needs rings of at least 3 points")
@@ -51,11 +49,13 @@ def fill_rings(rings, max_edge: float, max_passes: int = 40):
     ends = np.cumsum([len(r) for r in rings]).astype(np.uint32)
     tris = _constrained_delaunay(rings)
     if tris is None:  # VTK could not recover every ring edge: earcut (which drops collinear ring vertices)
+        import mapbox_earcut
+
         tris = mapbox_earcut.triangulate_float64(pts, ends).reshape(-1, 3).astype(np.int64)
         flip = _orient(pts, tris) < 0
         tris[flip] = tris[flip][:, ::-1]
     if not len(tris):
-        raise SplineError("the rings enclose no area (earcut found no triangle)")
+        raise SplineError("the rings enclose no area (no triangle fills them)")
     starts = np.r_[0, ends[:-1]].astype(np.int64)
     a = np.arange(len(pts))
     b = np.concatenate([np.roll(np.arange(s, e), -1) for s, e in zip(starts, ends.astype(np.int64))])
@@ -91,7 +91,8 @@ def fill_rings(rings, max_edge: float, max_passes: int = 40):
         out += [np.stack([t[:, 0], m[:, 0], m[:, 2]], 1), np.stack([m[:, 0], t[:, 1], m[:, 1]], 1),
                 np.stack([m[:, 2], m[:, 1], t[:, 2]], 1), np.stack([m[:, 0], m[:, 1], m[:, 2]], 1)]
         tris = np.concatenate(out)
-    return pts, delaunay_flips(pts, tris, fixed)  # valid and conforming; only edges fanning out of a ring vertex may still be longer
+    # valid and conforming; only edges fanning out of a ring vertex may still be longer
+    return pts, delaunay_flips(pts, tris, fixed)
 
 
 def _constrained_delaunay(rings):

@@ -315,7 +315,8 @@ def boundary_splines(ms: Microstructure) -> list:
     Every free side of a trivariate patch, every slot face (the free
     rectangles of a discontinuity plane, each side from its own one-sided
     sub-patch), every surface patch, every curve patch, the trimmed caps and
-    the tiles' trimmed members (``TrimmedSurface``, loops carried unaltered).  A surface with a full-multiplicity (C^-1) knot is
+    the tiles' trimmed members (``TrimmedSurface``, loops carried unaltered).
+    A surface with a full-multiplicity (C^-1) knot is
     two surfaces that happen to share a knot vector; readers such as
     OpenCASCADE take it as one continuous surface and misread it, so such
     surfaces are split at those knots into pieces that are each continuous.
