@@ -159,10 +159,14 @@ def paving_section(p) -> dict:
     if "seal" in p:
         pav["seal"] = _choice(p["seal"], "paving.seal", ("cap", "shell"))
         pav["thickness"] = _number(p.get("thickness", 0.1), "paving.thickness", lo=0, hi=0.5)
-        sides = p.get("seal_sides", list(FACE_NAMES))
-        if not isinstance(sides, list) or not sides or any(x not in FACE_NAMES for x in sides):
-            _fail("paving.seal_sides", f"must be a list of face names from {list(FACE_NAMES)}, got {show(sides)}")
-        pav["seal_sides"] = list(sides)
+        if pav["seal"] == "shell":  # (passing the six sides on made every shelled pipeline fail)
+            if "seal_sides" in p:
+                _fail("paving.seal_sides", "applies to seal = \"cap\" only: a shell seals every side")
+        else:
+            sides = p.get("seal_sides", list(FACE_NAMES))
+            if not isinstance(sides, list) or not sides or any(x not in FACE_NAMES for x in sides):
+                _fail("paving.seal_sides", f"must be a list of face names from {list(FACE_NAMES)}, got {show(sides)}")
+            pav["seal_sides"] = list(sides)
     else:
         for key in ("thickness", "seal_sides"):
             if key in p:

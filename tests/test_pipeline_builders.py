@@ -109,6 +109,18 @@ def test_surface_and_curve_tiles_run_to_their_exports_and_refuse_an_analysis(tmp
     assert set(s["files"]) == {"vtp", "stl", "iges"}
     with pytest.raises(ProblemError, match=r"tile 'hollow_cross' is made of surfaces.* not a volumetric"):
         validate({**capped, "bc": [{"kind": "dirichlet", "tag": "umin", "value": 1.0}]}, tmp_path)
+    # shelled (every side), Boolean-sealed oblique walls, trimmed members: each runs to its exports
+    for lib, paving, closed, components in (("hollow_cross", {"seal": "shell"}, True, 2),
+                                            ("oblique_tubes", {"seal": "cap"}, True, 3),
+                                            ("through_cylinders", {}, False, 1)):
+        cfg = {"map": {"primitive": "box"}, "tile": {"library": lib},
+               "paving": {"scheme": "regular", "counts": [1, 1, 1], **paving},
+               "output": _out(tmp_path, lib, exports=["stl", "iges"])}
+        s = run_pipeline(cfg, tmp_path)
+        assert (s["surface"]["closed"], s["surface"]["components"]) == (closed, components), lib
+        assert set(s["files"]) == {"vtp", "stl", "iges"}
+    with pytest.raises(ProblemError, match=r"paving\.seal_sides: applies to seal = \"cap\" only"):
+        validate({**capped, "paving": {**capped["paving"], "seal": "shell", "seal_sides": ["umin"]}}, tmp_path)
     helix = {"map": {"primitive": "box"}, "tile": {"library": "helix"}, "paving": {"scheme": "regular",
                                                                                  "counts": [2, 1, 1]},
              "output": _out(tmp_path, "h")}
