@@ -47,7 +47,12 @@ def fill_rings(rings, max_edge: float, max_passes: int = 40):
         raise SplineError(f"max_edge must be a positive length, got {max_edge!r}")
     pts = np.concatenate(rings)
     ends = np.cumsum([len(r) for r in rings]).astype(np.uint32)
-    tris = _constrained_delaunay(rings)
+    starts = np.r_[0, ends[:-1]].astype(np.int64)
+    a = np.arange(len(pts))
+    b = np.concatenate([np.roll(np.arange(s, e), -1) for s, e in zip(starts, ends.astype(np.int64))])
+    big = np.int64(1) << 32
+    fixed = np.sort(np.minimum(a, b) * big + np.maximum(a, b))  # the ring edges, as codes
+    tris = _constrained_delaunay(rings, fixed)
     if tris is None:  # VTK could not recover every ring edge: earcut (which drops collinear ring vertices)
         import mapbox_earcut
 
@@ -56,11 +61,6 @@ def fill_rings(rings, max_edge: float, max_passes: int = 40):
         tris[flip] = tris[flip][:, ::-1]
     if not len(tris):
         raise SplineError("the rings enclose no area (no triangle fills them)")
-    starts = np.r_[0, ends[:-1]].astype(np.int64)
-    a = np.arange(len(pts))
-    b = np.concatenate([np.roll(np.arange(s, e), -1) for s, e in zip(starts, ends.astype(np.int64))])
-    big = np.int64(1) << 32
-    fixed = np.sort(np.minimum(a, b) * big + np.maximum(a, b))
     for _ in range(max_passes):
         tris = delaunay_flips(pts, tris, fixed)
         e = np.sort(np.stack([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]], 1), axis=2)  # (T, 3, 2)
@@ -95,9 +95,10 @@ def fill_rings(rings, max_edge: float, max_passes: int = 40):
     return pts, delaunay_flips(pts, tris, fixed)
 
 
-def _constrained_delaunay(rings):
+def _constrained_delaunay(rings, fixed: np.ndarray):
     """VTK's constrained Delaunay triangulation of the region bounded by ``rings`` (outer first, then holes),
-    every ring vertex used and every ring edge kept; None where VTK did not recover them all.
+    every ring vertex used and every ring edge (``fixed``, codes as in :func:`delaunay_flips`) kept; None
+    where VTK did not recover them all.
 
     (mapbox-earcut, the first choice for speed, drops every ring vertex between collinear neighbours, a
     straight side's samples, so a neighbouring mesh that uses them would meet T-junctions there.)
@@ -121,9 +122,7 @@ def _constrained_delaunay(rings):
     big = np.int64(1) << 32
     e = np.sort(np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]]), axis=1)
     have = np.unique(e[:, 0] * big + e[:, 1])
-    ring_edges = np.concatenate([np.c_[o, np.roll(o, -1)] for o in oriented])
-    want = np.min(ring_edges, 1) * big + np.max(ring_edges, 1)
-    if len(np.unique(tris)) != len(pts) or not np.all(np.isin(want, have)):
+    if len(np.unique(tris)) != len(pts) or not np.all(np.isin(fixed, have)):
         return None
     flip = _orient(pts, tris) < 0  # VTK's triangles come in either orientation
     tris[flip] = tris[flip][:, ::-1]

@@ -12,12 +12,13 @@ Tessellation (:meth:`TrimmedSurface.tessellate`): every loop is sampled
 until the chord between consecutive samples deviates from the curve's image
 by less than the tolerance and no two samples are more than h apart in the
 parameter plane; the polygon with holes is triangulated there by
-:func:`geometry.triangulate.fill_rings` (mapbox-earcut, a constrained
-triangulation that keeps the loop edges, ISC licence, chosen over
-Shewchuk's ``triangle`` whose licence forbids commercial use without
-permission; interior edges then split at their midpoints down to h, so no
-triangle folds over), and h shrinks until every edge's midpoint lies within
-the tolerance of the surface.
+:func:`geometry.triangulate.fill_rings` (VTK's constrained Delaunay
+triangulation, which keeps the loop edges; Shewchuk's ``triangle`` was not
+taken, its licence forbids commercial use without permission; interior
+edges are then split at their midpoints down to h and flipped to Delaunay,
+so no triangle folds over or stands across the surface as a sliver), and h
+shrinks until every edge's midpoint lies within the tolerance of the
+surface (the loops' samples of one pass are refined in the next).
 """
 
 from __future__ import annotations
@@ -294,14 +295,16 @@ class TrimmedSurface:
         outer = _polyline(self.loops[0])
         h = 0.25 * float(np.ptp(outer, axis=0).max())  # longest edge in the parameter plane
         area = abs(_signed_area(outer))
-        for _ in range(40):
+        samples = []
+        for k in range(40):
             n_est = 4.0 * area / h ** 2  # triangles of edge ~h (right isosceles ones have area h^2 / 4)
             if n_est > max_triangles:
                 raise SplineError(f"the tessellation needs more than {max_triangles:,} triangles for tolerance "
                                   f"{show(tolerance)}; raise the tolerance")
             check_memory(n_est * 200.0, f"the tessellation at tolerance {show(tolerance)}", SplineError,
                          "raise the tolerance")
-            samples = [self._sample_loop(c, tolerance, max_triangles, h) for c in self.loops]
+            samples = [self._sample_loop(c, tolerance, max_triangles, h, None if k == 0 else samples[j])
+                       for j, c in enumerate(self.loops)]
             uv, tris = fill_rings([c.evaluate(t[:-1, None])[:, :2] for c, t in zip(self.loops, samples)], h)
             X = S.evaluate(uv)[:, :3]
             edges = np.unique(np.sort(np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]]), 1), axis=0)
@@ -312,12 +315,16 @@ class TrimmedSurface:
             h *= float(np.clip(0.9 * np.sqrt(tolerance / err), 0.25, 0.8))  # the chord error falls as h^2
         return uv, tris, X, samples
 
-    def _sample_loop(self, c: BSpline, tol: float, limit: int = 2_000_000, step: float = np.inf):
+    def _sample_loop(self, c: BSpline, tol: float, limit: int = 2_000_000, step: float = np.inf, start=None):
         """Increasing parameters of loop c, from its start to its end, whose points have chord error <= tol in
-        space and lie at most ``step`` apart in the parameter plane; more than ``limit`` samples raise
+        space and lie at most ``step`` apart in the parameter plane, refined from ``start`` (samples that
+        already meet the chord test) or from 4 intervals per knot span; more than ``limit`` samples raise
         :class:`SplineError` (the tolerance is too fine for the loop)."""
-        b = c.breakpoints(0)
-        t = np.unique(np.concatenate([np.linspace(x, y, 5) for x, y in zip(b[:-1], b[1:])]))
+        if start is None:
+            b = c.breakpoints(0)
+            t = np.unique(np.concatenate([np.linspace(x, y, 5) for x, y in zip(b[:-1], b[1:])]))
+        else:
+            t = start
         for _ in range(60):
             if len(t) > limit:
                 raise SplineError(f"a trimming loop needs more than {limit:,} samples for tolerance {show(tol)}; "

@@ -150,8 +150,8 @@ def regular(D: BSpline, tile: Tile, counts, variants: dict | None = None, name: 
 def regular_placements(D: BSpline, tile: Tile, counts, variants: dict | None = None, seal: str | None = None,
                        thickness: float = SEAL_THICKNESS, seal_sides=None):
     """The placements of :func:`regular` without the interface search: (placed patches, tiles, seal links, caps,
-    sealed variants by sides, placed trimmed members).  Tiles are numbered in C order over the cells; for callers that keep a subset
-    of them and build one micro-structure from several pavings (:mod:`tiling.vrep`)."""
+    sealed variants by sides, placed trimmed members).  Tiles are numbered in C order over the cells; for
+    callers that keep a subset of them and build one micro-structure from several pavings (:mod:`tiling.vrep`)."""
     _check_map(D)
     if not isinstance(tile, Tile):
         raise TilingError(f"tile must be a tiling.Tile, got {type(tile).__name__}")

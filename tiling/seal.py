@@ -44,7 +44,7 @@ from .errors import TilingError
 from .tile import Tile
 from geometry.tolerances import COINCIDENT, ON_DOMAIN, SAME_KNOT
 
-__all__ = ["sealed_variant", "seal_layout", "SealedTile", "SealLayout"]
+__all__ = ["sealed_variant", "seal_layout", "inner_box", "SealedTile", "SealLayout"]
 
 _TOL = COINCIDENT  # unit-cell tiles: plates on a plane
 
@@ -191,6 +191,15 @@ def _same_space(U, p, V, q) -> bool:
     return p == q and len(U) == len(V) and bool(np.abs(np.asarray(U) - np.asarray(V)).max() <= SAME_KNOT)
 
 
+def inner_box(sides, thickness: float, seal: str = "cap") -> np.ndarray:
+    """(3, 2) box the tile is squeezed into: the unit cell less a layer of ``thickness`` (a fraction of the
+    cell, 0 < t < 0.5) on each of ``sides``; :class:`TilingError` for another thickness."""
+    if not (isinstance(thickness, (int, float)) and not isinstance(thickness, bool) and 0 < thickness < 0.5):
+        raise TilingError(f"the {seal} thickness must be in (0, 0.5) of a cell, got {show(thickness)}")
+    return np.array([[thickness if FACE_NAMES[2 * a] in sides else 0.0,
+                      1.0 - thickness if FACE_NAMES[2 * a + 1] in sides else 1.0] for a in range(3)])
+
+
 def seal_layout(patches, sides, thickness: float = 0.1, seal: str = "cap", name: str = "tile") -> SealLayout:
     """Plates sealing ``patches`` (unit-cell coordinates) on ``sides`` (cell face names); see the module notes.
 
@@ -199,8 +208,7 @@ def seal_layout(patches, sides, thickness: float = 0.1, seal: str = "cap", name:
     sides = frozenset(sides)
     if not sides <= set(FACE_NAMES):
         raise TilingError(f"sides must be cell face names from {list(FACE_NAMES)}, got {sorted(sides)}")
-    if not (isinstance(thickness, (int, float)) and 0 < thickness < 0.5):
-        raise TilingError(f"the {seal} thickness must be in (0, 0.5) of a cell, got {show(thickness)}")
+    inner = inner_box(sides, thickness, seal)
     if not any(p.dim == 3 for p in patches):
         raise TilingError(f"tile {show(name)} has no trivariate patches to seal with plates: volumetric {seal}s "
                           "need a volumetric tile (surface tiles are capped by trimmed planes, seal='cap')")
@@ -214,8 +222,6 @@ def seal_layout(patches, sides, thickness: float = 0.1, seal: str = "cap", name:
             raise TilingError(f"tile {show(name)}: {where} lies on the cell wall {f} but is not an axis-aligned "
                               "rectangle parametrised affinely along the axes (e.g. a tapered fin); box plates "
                               f"cannot seal it: leave {f} out of seal_sides")
-    inner = np.array([[thickness if FACE_NAMES[2 * a] in sides else 0.0,
-                       1.0 - thickness if FACE_NAMES[2 * a + 1] in sides else 1.0] for a in range(3)])
     lines = _grid(pieces, inner)
     spaces = [[_interval_space(a, x0, x1, pieces, inner) for x0, x1 in zip(lines[a][:-1], lines[a][1:])]
               for a in range(3)]

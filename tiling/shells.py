@@ -36,7 +36,7 @@ from geometry.trimmed import join_curves
 
 from .caps import _covered, _surfaces, _wall_plane, trimmed_regions, wall_loops
 from .errors import TilingError
-from .seal import SealedTile
+from .seal import SealedTile, inner_box
 from .tile import Tile
 
 __all__ = ["shelled_variant"]
@@ -63,21 +63,14 @@ def shelled_variant(tile: Tile, sides, thickness: float) -> SealedTile:
     module notes): its patches squeezed, then one outer wall patch per side; ``caps`` the trimmed inner
     planes; ``seal`` is ``"shell"``."""
     surfaces = _surfaces(tile, "shell")
-    if not (isinstance(thickness, (int, float)) and not isinstance(thickness, bool) and 0 < thickness < 0.5):
-        raise TilingError(f"the shell thickness must be in (0, 0.5) of a cell, got {show(thickness)}")
     sides = sorted(set(sides), key=FACE_NAMES.index)
-    lo, hi = np.zeros(3), np.ones(3)
+    inner = inner_box(sides, thickness, "shell")
     for side in sides:
-        k, s = FACE_AXIS[side]
-        if _covered(tile, surfaces, k, s):
+        if _covered(tile, surfaces, *FACE_AXIS[side]):
             raise TilingError(f"tile {show(tile.name)}: one of its surfaces lies in the wall {side}, so a shell there "
                               "would double it; shell a tile whose surfaces open onto the cell walls (e.g. "
                               "library.hollow_cross())")
-        if s:
-            hi[k] = 1.0 - thickness
-        else:
-            lo[k] = thickness
-    A, b = np.diag(hi - lo), lo
+    A, b = np.diag(inner[:, 1] - inner[:, 0]), inner[:, 0]
     patches = [p.affine(A, b) for p in tile.patches]
     walls = [_outward_wall(*FACE_AXIS[side]) for side in sides]
     caps = []

@@ -17,13 +17,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from geometry import TrimmedSurface, compose_many
-from geometry.grouping import ObjectIndex
+from geometry import TrimmedSurface, compose_placed
 from geometry.multipatch import PlacedPatch
 
 __all__ = ["PlacedTrimmed", "place_trimmed", "composed_trimmed"]
-
-_IDENTITY = np.hstack([np.eye(3), np.zeros((3, 1))])
 
 
 @dataclass
@@ -47,22 +44,8 @@ def place_trimmed(tile, placement: np.ndarray, outer, tile_index: int, level: in
 
 
 def composed_trimmed(members: list) -> list[TrimmedSurface]:
-    """Every placed member composed (:meth:`PlacedTrimmed.composed`), one batch of
-    :func:`geometry.compose_many` per member surface and map; the order of ``members`` is kept."""
-    same = ObjectIndex()
-    groups: dict = {}
-    for i, m in enumerate(members):
-        groups.setdefault((same(m.trimmed), same(m.placed.outer)), []).append(i)
-    out = [None] * len(members)
-    for rows in groups.values():
-        first = members[rows[0]].placed
-        A = np.stack([_IDENTITY if members[i].placed.placement is None else members[i].placed.placement
-                      for i in rows])
-        if first.outer is None:
-            surfaces = [first.spline.affine(a[:, :3], a[:, 3]) for a in A]
-        else:
-            surfaces = compose_many(first.outer, first.spline, A)
-        for i, s in zip(rows, surfaces):
-            members[i].placed.set_composed(s)
-            out[i] = members[i].composed()
-    return out
+    """Every placed member composed (:meth:`PlacedTrimmed.composed`), in the batches of
+    :func:`geometry.compose_placed` (one per member surface and map, kept on the placed surfaces);
+    the order of ``members`` is kept."""
+    compose_placed([m.placed for m in members])
+    return [m.composed() for m in members]
