@@ -3,7 +3,8 @@
     python benchmarks/elasticity.py [--quick] [--no-png]
 
 Table 1: the same model and spaces solved for temperature (HeatProblem) and for displacement
-(ElasticityProblem, three unknowns per basis function), both AMG-CG to 1e-8: assembly and solve times,
+(ElasticityProblem, three unknowns per basis function), both AMG-CG to 1e-8, twice (assembly times are
+the better run's: the first loads the compiled kernels): assembly and solve times,
 iterations, and the ratios against the targets (assembly at most 6x heat's for 3x the unknowns, AMG
 iterations within 2x of heat's).  Models: a p = 2 cube (clamped on one side, pulled on the other) and
 a 4 x 4 x 4 cross lattice in a twisted map.
@@ -33,32 +34,39 @@ def _models(quick: bool):
     from geometry import primitives as pr
     from tiling import library as L
 
-    sizes = (8, 12) if quick else (8, 12, 16)
+    # 8^3 .. 16^3 take the NumPy assembly; 24^3 (373k Gauss points) the compiled kernels of both problems
+    sizes = (8, 12) if quick else (8, 12, 16, 24)
     out = [(f"cube p=2 {n}^3", pr.box(degrees=(2, 2, 2), elements=(n, n, n)), 0) for n in sizes]
     twisted = pr.twisted(pr.box((1.0, 1.0, 1.0), degrees=(2, 2, 2)), 0.3, axis_point=(0.5, 0.5))
     out.append(("cross lattice 4^3", tiling.regular(twisted, L.cross(), (4, 4, 4)), 1))
     return out
 
 
-def compare(quick: bool) -> list[dict]:
+def compare(quick: bool, repeats: int = 2) -> list[dict]:
+    """Each model solved ``repeats`` times for both physics; assembly times are the best run's (the first
+    loads the compiled kernels), iterations and the work balance the last run's."""
     from iga import ElasticityProblem, HeatProblem
 
     rows = []
     for name, model, elevate in _models(quick):
-        t0 = time.perf_counter()
-        h = HeatProblem(model, degree_elevation=elevate).dirichlet("umin", 0.0).neumann("umax", 1.0)
-        hs = h.solve(solver="amg-cg", tol=1e-8)
-        th = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        e = ElasticityProblem(model, youngs=1.0, poisson=0.3, degree_elevation=elevate)
-        es = e.dirichlet("umin", 0.0).traction("umax", [0.0, 0.0, 1e-3]).solve(solver="amg-cg", tol=1e-8)
-        te = time.perf_counter() - t0
-        ha, ea = h.timings["assembly_volume"] + h.timings["assembly_faces"], e.timings["assembly"]
+        ha, ea, th, te = [], [], [], []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            h = HeatProblem(model, degree_elevation=elevate).dirichlet("umin", 0.0).neumann("umax", 1.0)
+            hs = h.solve(solver="amg-cg", tol=1e-8)
+            th.append(time.perf_counter() - t0)
+            t0 = time.perf_counter()
+            e = ElasticityProblem(model, youngs=1.0, poisson=0.3, degree_elevation=elevate)
+            es = e.dirichlet("umin", 0.0).traction("umax", [0.0, 0.0, 1e-3]).solve(solver="amg-cg", tol=1e-8)
+            te.append(time.perf_counter() - t0)
+            ha.append(h.timings["assembly_volume"] + h.timings["assembly_faces"])
+            ea.append(e.timings["assembly"])
         rows.append({"model": name, "heat DOFs": h.ndof, "elastic DOFs": 3 * e.ndof,
-                     "heat asm s": ha, "elastic asm s": ea, "asm ratio": ea / ha, "asm target": 6.0,
+                     "heat asm s": min(ha), "elastic asm s": min(ea), "asm ratio": min(ea) / min(ha),
+                     "asm target": 6.0,
                      "heat its": hs.info["solver"]["iterations"], "elastic its": es.info["solver"]["iterations"],
                      "its ratio": es.info["solver"]["iterations"] / max(hs.info["solver"]["iterations"], 1),
-                     "its target": 2.0, "heat s": th, "elastic s": te,
+                     "its target": 2.0, "heat s": min(th), "elastic s": min(te),
                      "work error": es.info["work"]["relative_error"]})
     return rows
 
@@ -105,8 +113,8 @@ def main() -> int:
     quick = "--quick" in sys.argv
     rows = compare(quick)
     print("Table 1: heat and elasticity on the same spaces (AMG-CG, tol 1e-8)")
-    print_table(rows, [("model", "s"), ("heat DOFs", "d"), ("elastic DOFs", "d"), ("heat asm s", ".2f"),
-                       ("elastic asm s", ".2f"), ("asm ratio", ".1f"), ("asm target", ".0f"), ("heat its", "d"),
+    print_table(rows, [("model", "s"), ("heat DOFs", "d"), ("elastic DOFs", "d"), ("heat asm s", ".3f"),
+                       ("elastic asm s", ".3f"), ("asm ratio", ".1f"), ("asm target", ".0f"), ("heat its", "d"),
                        ("elastic its", "d"), ("its ratio", ".1f"), ("its target", ".0f"), ("work error", ".1e")])
     r = ring("--no-png" not in sys.argv)
     print("\nTable 2: Elber 2017 Fig. 12 ring (paper: under two minutes; target here: under 5 s)")

@@ -54,6 +54,57 @@ def _weights1(b1, e1, l1, m1, t):
     return u1 * b1[1, e1, m1, t], u1 * b1[0, e1, m1, t], u0 * b1[1, e1, m1, t], u0 * b1[0, e1, m1, t]
 
 
+@njit(inline="always")
+def _rows_of_element(ring, Yr, b1, pi, e1, f0, i2, p1, g1, K2):
+    """Stage 1 of a kernel for direction-2 row i2: add the four direction-1 variant groups Yr (g1, 4, n2, K2)
+    of element e1 into the ring rows of its p1 + 1 basis functions (first f0), slot i1 % (p1 + 1)."""
+    R1 = p1 + 1
+    for l1 in range(R1):
+        slot = (f0 + l1) % R1
+        m1 = 0
+        while m1 < R1:
+            nb = min(4, R1 - m1)
+            da = ring[pi, slot, m1 - l1 + p1, i2]
+            db = ring[pi, slot, min(m1 + 1, p1) - l1 + p1, i2]  # unused (nb < 2) rows are valid views
+            dc = ring[pi, slot, min(m1 + 2, p1) - l1 + p1, i2]
+            dd = ring[pi, slot, min(m1 + 3, p1) - l1 + p1, i2]
+            for t in range(g1):
+                Y0, Y1, Y2, Y3 = Yr[t, 0, i2], Yr[t, 1, i2], Yr[t, 2, i2], Yr[t, 3, i2]
+                a0, a1, a2, a3 = _weights1(b1, e1, l1, m1, t)
+                # weights of the other destinations (zero past nb: those rows are never written)
+                x0, x1, x2, x3 = _weights1(b1, e1, l1, min(m1 + 1, p1), t)
+                y0, y1, y2, y3 = _weights1(b1, e1, l1, min(m1 + 2, p1), t)
+                z0, z1, z2, z3 = _weights1(b1, e1, l1, min(m1 + 3, p1), t)
+                # nb is fixed for the sweep: LLVM unswitches the branches out of the k loop
+                for k in range(K2):
+                    v0, v1, v2, v3 = Y0[k], Y1[k], Y2[k], Y3[k]
+                    da[k] += a0 * v0 + a1 * v1 + a2 * v2 + a3 * v3
+                    if nb > 1:
+                        db[k] += x0 * v0 + x1 * v1 + x2 * v2 + x3 * v3
+                    if nb > 2:
+                        dc[k] += y0 * v0 + y1 * v1 + y2 * v2 + y3 * v3
+                    if nb > 3:
+                        dd[k] += z0 * v0 + z1 * v1 + z2 * v2 + z3 * v3
+            m1 += nb
+
+
+@njit(inline="always")
+def _flush_row(ring, data, indptr, pi, i1, i2, n2, n3, D3, lo1, c1, lo2, c2, lo3, c3):
+    """Copy the complete ring rows (i1, i2, :) into CSR order (one sequential write per entry), clear the slot."""
+    slot = i1 % ring.shape[1]
+    for i3 in range(n3):
+        pos = indptr[(i1 * n2 + i2) * n3 + i3]
+        for d1 in range(lo1[i1], lo1[i1] + c1[i1]):
+            for d2 in range(lo2[i2], lo2[i2] + c2[i2]):
+                k0 = (d2 * n3 + i3) * D3
+                for d3 in range(lo3[i3], lo3[i3] + c3[i3]):
+                    data[pi, pos] = ring[pi, slot, d1, i2, k0 + d3]
+                    pos += 1
+    for d1 in range(ring.shape[2]):
+        for k in range(ring.shape[4]):
+            ring[pi, slot, d1, i2, k] = 0.0
+
+
 @lru_cache(maxsize=64)  # one kernel per (p3, g3): a handful per process
 def stiffness3_for(p3: int, g3: int):
     """The stiffness kernel ``stiffness3`` for degree p3 and g3 Gauss points per element in direction 3.
@@ -95,7 +146,6 @@ def stiffness3_for(p3: int, g3: int):
         p2 = (D2 - 1) // 2
         n3, D3 = lo3.shape[0], 2 * P3 + 1
         E1, n1 = b1.shape[1], lo1.shape[0]
-        R1, D1 = p1 + 1, 2 * p1 + 1
         K2 = D2 * n3 * D3
         K3 = n3 * D3
         Zf = Z.reshape(g1, 7, nq2, K3)
@@ -206,50 +256,13 @@ def stiffness3_for(p3: int, g3: int):
                 # per i2 at p = 3) came from L2
                 f0 = first1[e1]
                 for i2 in prange(n2):
-                    for l1 in range(R1):
-                        slot = (f0 + l1) % R1
-                        m1 = 0
-                        while m1 < R1:
-                            nb = min(4, R1 - m1)
-                            da = ring[pi, slot, m1 - l1 + p1, i2]
-                            db = ring[pi, slot, min(m1 + 1, p1) - l1 + p1, i2]  # unused (nb < 2) rows are valid views
-                            dc = ring[pi, slot, min(m1 + 2, p1) - l1 + p1, i2]
-                            dd = ring[pi, slot, min(m1 + 3, p1) - l1 + p1, i2]
-                            for t in range(g1):
-                                Y0, Y1, Y2, Y3 = Yr[t, 0, i2], Yr[t, 1, i2], Yr[t, 2, i2], Yr[t, 3, i2]
-                                a0, a1, a2, a3 = _weights1(b1, e1, l1, m1, t)
-                                # weights of the other destinations (zero past nb: those rows are never written)
-                                x0, x1, x2, x3 = _weights1(b1, e1, l1, min(m1 + 1, p1), t)
-                                y0, y1, y2, y3 = _weights1(b1, e1, l1, min(m1 + 2, p1), t)
-                                z0, z1, z2, z3 = _weights1(b1, e1, l1, min(m1 + 3, p1), t)
-                                # nb is fixed for the sweep: LLVM unswitches the branches out of the k loop
-                                for k in range(K2):
-                                    v0, v1, v2, v3 = Y0[k], Y1[k], Y2[k], Y3[k]
-                                    da[k] += a0 * v0 + a1 * v1 + a2 * v2 + a3 * v3
-                                    if nb > 1:
-                                        db[k] += x0 * v0 + x1 * v1 + x2 * v2 + x3 * v3
-                                    if nb > 2:
-                                        dc[k] += y0 * v0 + y1 * v1 + y2 * v2 + y3 * v3
-                                    if nb > 3:
-                                        dd[k] += z0 * v0 + z1 * v1 + z2 * v2 + z3 * v3
-                            m1 += nb
+                    _rows_of_element(ring, Yr, b1, pi, e1, f0, i2, p1, g1, K2)
                 # rows that no later element touches are complete: copy them into CSR order (one
                 # sequential write per entry) and clear their slots
                 stop = first1[e1 + 1] if e1 + 1 < E1 else n1
                 for i1 in range(f0, stop):
-                    slot = i1 % R1
                     for i2 in prange(n2):
-                        for i3 in range(n3):
-                            pos = indptr[(i1 * n2 + i2) * n3 + i3]
-                            for d1 in range(lo1[i1], lo1[i1] + c1[i1]):
-                                for d2 in range(lo2[i2], lo2[i2] + c2[i2]):
-                                    k0 = (d2 * n3 + i3) * D3
-                                    for d3 in range(lo3[i3], lo3[i3] + c3[i3]):
-                                        data[pi, pos] = ring[pi, slot, d1, i2, k0 + d3]
-                                        pos += 1
-                        for d1 in range(D1):
-                            for k in range(K2):
-                                ring[pi, slot, d1, i2, k] = 0.0
+                        _flush_row(ring, data, indptr, pi, i1, i2, n2, n3, D3, lo1, c1, lo2, c2, lo3, c3)
 
     return stiffness3
 

@@ -3,12 +3,13 @@
 The displacement is numbered component-major: unknown ``a * ndof + i`` is
 component a (x, y, z) of scalar DOF i, so each of the nine blocks K^{ab} lives
 on the scalar sparsity pattern and the interface constraints of the scalar
-problem apply to every component (:func:`vector_constraints`).  Each block's
-symmetric part goes through the scalar stiffness kernel (compiled for large
-patches, :mod:`iga.fast_assembly`), an off-diagonal block's antisymmetric part
-through three sum-factorised banded terms (:func:`iga.assembly.banded_form`),
-batched over patches sharing a space and a tile spline; the lower blocks are
-transposes.
+problem apply to every component (:func:`vector_constraints`).  Patches
+sharing a space and a tile spline are batched.  Large batches go through one
+compiled kernel per block (:func:`iga.fast_assembly.elastic_blocks`, the
+block's nine parametric coefficients formed on the fly); small ones through
+NumPy: each block's symmetric part through the scalar stiffness form, an
+off-diagonal block's antisymmetric part through three sum-factorised banded
+terms (:func:`iga.assembly.banded_form`), the lower blocks as transposes.
 """
 
 from __future__ import annotations
@@ -54,8 +55,6 @@ class ElasticVolume:
             total += force
             for (a, b), dat in data.items():
                 blocks[(a, b)] += [(int(d.offsets[i]), pat, dat[j]) for j, i in enumerate(members)]
-                if a != b:  # the lower block: the transpose, on the same (symmetric) pattern
-                    blocks[(b, a)] += [(int(d.offsets[i]), pat, dat[j][pat.transpose]) for j, i in enumerate(members)]
             for a in range(3):
                 if loads[a] is not None:
                     for j, i in enumerate(members):
@@ -93,7 +92,7 @@ class ElasticVolume:
         return parts
 
     def _group(self, members, youngs, poisson, body, thermal):
-        """Pattern, {(a, b): data (P, nnz)} for a <= b, loads [(P,) + shape or None] * 3, int f dV (3,)."""
+        """Pattern, {(a, b): data (P, nnz)} of the nine blocks, loads [(P,) + shape or None] * 3, int f dV (3,)."""
         space = self.disc.spaces[members[0]]
         P = len(members)
         shape = (P,) + space.qshape
@@ -104,21 +103,22 @@ class ElasticVolume:
 
         c = [[grid([p[1][r][a] for p in parts]) for a in range(3)] for r in range(3)]
         fac, lam, mu = grid([p[2] for p in parts]), grid([p[3] for p in parts]), grid([p[4] for p in parts])
-        pat = pattern(space)
-        compiled = fast_assembly.applies(space, P)
-        data = {}
-        for a in range(3):
-            for b in range(a, 3):
-                # the symmetric part through the scalar stiffness kernel (compiled for large patches), the
-                # antisymmetric part of an off-diagonal block as B - B^T from three banded terms
-                S = symmetric_fields(c, fac, lam, mu, a, b)
-                if compiled:
-                    data[(a, b)] = fast_assembly.stiffness_csr(space, S)[1]
-                else:
+        if fast_assembly.applies(space, P):  # all six blocks in the compiled kernel, fields formed on the fly
+            pat, data = fast_assembly.elastic_blocks(space, np.stack([c[r][a] for r in range(3) for a in range(3)]),
+                                                     np.stack([fac * lam, fac * mu]))
+        else:
+            pat, data = pattern(space), {}
+            for a in range(3):
+                for b in range(a, 3):
+                    # the symmetric part through the scalar stiffness form, the antisymmetric part of an
+                    # off-diagonal block as B - B^T from three banded terms
+                    S = symmetric_fields(c, fac, lam, mu, a, b)
                     data[(a, b)] = stiffness_data(space, {rs: S[j] for j, rs in enumerate(TENSOR_PAIRS)}, pat)
-                if a != b:
-                    B = banded_to_csr_data(space, banded_form(space, skew_terms(c, fac, lam, mu, a, b, shape)), pat)
-                    data[(a, b)] += B - B[:, pat.transpose]
+                    if a != b:
+                        B = banded_to_csr_data(space, banded_form(space, skew_terms(c, fac, lam, mu, a, b, shape)),
+                                               pat)
+                        data[(a, b)] += B - B[:, pat.transpose]
+                        data[(b, a)] = data[(a, b)][:, pat.transpose]  # the lower block: the transpose
         loads, force = [None, None, None], np.zeros(3)
         if parts[0][5] is not None:
             for a in range(3):
@@ -136,12 +136,16 @@ class ElasticVolume:
 def component_major_csr(M: dict, n: int) -> sp.csr_matrix:
     """The (3 n, 3 n) CSR of nine (n, n) blocks ``M[(a, b)]`` that share one pattern with sorted indices.
 
+    Compiled for large patterns (:func:`iga.fast_assembly.component_major_csr`, 10x faster), else:
+
     Row a n + i holds row i of blocks (a, 0), (a, 1), (a, 2) one after the
     other, their columns shifted by 0, n, 2 n: index arithmetic on the shared
     pattern, without the COO round trip of ``scipy.sparse.bmat`` (5x faster,
     a third of the memory).
     """
     P = M[(0, 0)]
+    if fast_assembly.AVAILABLE and len(P.indices) >= fast_assembly.MIN_POINTS:
+        return fast_assembly.component_major_csr(M, n)
     indptr, indices = P.indptr.astype(np.int64), P.indices.astype(np.int64)
     nnz = len(indices)
     length = np.diff(indptr)

@@ -28,7 +28,7 @@ from .discretisation import Discretisation, count
 from .elastic_solution import ElasticSolution
 from .elastic_volume import ElasticVolume, vector_constraints
 from .errors import ProblemError
-from .multilevel import owners_of
+from .multilevel import elastic_kronecker_sums, owners_of
 from .forms import boundary_load
 from .model import tag_faces
 from .rigid import free_modes, greville_points, rigid_modes
@@ -225,6 +225,21 @@ class ElasticityProblem:
                     owner[a][key] = s.tag
         return out
 
+    def _solver_options(self, solver: str, constraints, dd, B) -> dict:
+        """The rigid modes for AMG (its near-nullspace); for one unconstrained patch with a Dirichlet side per
+        component, one Kronecker sum per component (block fast diagonalization: ``fd-cg``, and ``auto``)."""
+        options = {"near_nullspace": B} if solver in ("auto", "amg-cg") else {}
+        if solver in ("auto", "fd-cg"):
+            ks = None if constraints is not None else \
+                elastic_kronecker_sums(self, np.setdiff1d(np.arange(3 * self.ndof), dd.dofs))
+            if ks is None and solver == "fd-cg":
+                raise ProblemError("solver 'fd-cg' (block fast diagonalization) needs one unconstrained trivariate "
+                                   "patch with Dirichlet conditions on whole sides, at least one for every "
+                                   "displacement component; use 'amg-cg' for this problem")
+            if ks is not None:
+                options["kronecker"] = ks
+        return options
+
     def solve(self, solver: str = "auto", tol: float = 1e-10, maxiter: int | None = None) -> ElasticSolution:
         """Assemble, apply the conditions, refuse free rigid motions, solve; returns an :class:`ElasticSolution`."""
         if not (is_number(tol) and 0 < tol < 1):
@@ -254,7 +269,7 @@ class ElasticityProblem:
         if constraints is not None:
             B = B[owners_of(constraints.dof_master)]
         t2 = time.perf_counter()
-        options = {"near_nullspace": B} if solver in ("auto", "amg-cg") else None  # rigid modes for AMG
+        options = self._solver_options(solver, constraints, dd, B)
         # the work balance reads K after the solve: a single patch's elimination consumes K (a copy goes in), the
         # constrained system is reduced into a new matrix and leaves K as it is (no copy: half the memory)
         res = solve_system(K if constraints is not None else K.copy(), f, constraints, dd, solver, tol, maxiter,

@@ -223,6 +223,54 @@ def stiffness_csr(space: TensorSpace, C: np.ndarray) -> tuple[CSRPattern, np.nda
     return acc.result()
 
 
+def _elastic_kernels():
+    from . import _elastic_kernels
+
+    return _elastic_kernels
+
+
+def elastic_blocks(space: TensorSpace, G: np.ndarray, LM: np.ndarray) -> tuple[CSRPattern, dict]:
+    """CSR pattern and the data {(a, b): (P, nnz)} of the nine elastic stiffness blocks (one call, whole grid).
+
+    ``G`` (9, P) + qshape: the metric rows, ``G[3 r + k] = c_r[k]`` (:func:`iga.elastic_forms.metric_rows`);
+    ``LM`` (2, P) + qshape: lambda w / |det J| and mu w / |det J| (Pa).  Block (a, b) couples component a of
+    the test functions (rows) with component b of the trial functions.  The lower blocks, transposes of the
+    upper ones, are computed as well: the compiled pattern has no transpose index to gather them with, and
+    scattering them from the upper blocks' rows measured no faster.
+    Compiled (:mod:`iga._elastic_kernels`); the NumPy reference is :func:`iga.elastic_forms.block_terms`.
+    """
+    t1, t2, t3 = (_tables(s) for s in space.dirs)
+    pat = structure(space)
+    P = G.shape[1]
+    (_, n2, n3), (p1, p2, p3) = space.shape, [d.degree for d in space.dirs]
+    g1, nq2, g3 = space.dirs[0].g, space.dirs[1].nq, space.dirs[2].g
+    ring = np.zeros((P, p1 + 1, 2 * p1 + 1, n2, (2 * p2 + 1) * n3 * (2 * p3 + 1)))  # cleared again by each pass
+    Z = np.empty((g1, 9, nq2, n3, 2 * p3 + 1))
+    Y = np.empty((g1, 4, n2, 2 * p2 + 1, n3, 2 * p3 + 1))
+    G, LM = readonly(G), readonly(LM)
+    kernel = locked(_elastic_kernels().elastic3_for(p3, g3))
+    indptr = readonly(pat.indptr, np.int64)
+    out = {}
+    for a in range(3):
+        for b in range(3):
+            out[(a, b)] = np.empty((P, len(pat.indices)))  # every entry is written once
+            kernel(G, LM, a, b, 0, t1["b"], t1["first"], t2["W"], t2["r"], t2["s"], t3["b"], t3["first"], indptr,
+                   t1["lo"], t1["c"], t2["lo"], t2["c"], t3["lo"], t3["c"], ring, Z, Y, out[(a, b)])
+    return pat, out
+
+
+def component_major_csr(M: dict, n: int) -> sp.csr_matrix:
+    """:func:`iga.elastic_volume.component_major_csr` (the NumPy reference) in one compiled pass over the rows."""
+    P = M[(0, 0)]
+    nnz = len(P.indices)
+    itype = np.int64 if 3 * n > np.iinfo(np.int32).max else np.int32
+    indptr, indices, data = np.empty(3 * n + 1, np.int64), np.empty(9 * nnz, itype), np.empty(9 * nnz)
+    locked(_elastic_kernels().component_major)(readonly(P.indptr, np.int64), readonly(P.indices, itype),
+                                               tuple(readonly(M[(a, b)].data) for a in range(3) for b in range(3)),
+                                               indptr, indices, data)
+    return sp.csr_matrix((data, indices, indptr), shape=(3 * n, 3 * n))
+
+
 def metric_fields(D, kval, fval, w):
     """Compiled stiffness coefficients C (6, M), source load L (M,) and det J (M,).
 

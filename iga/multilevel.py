@@ -33,7 +33,7 @@ from .errors import ProblemError
 from .space import Space1D, TensorSpace, make_space
 from geometry.tolerances import ON_DOMAIN
 
-__all__ = ["kronecker_sum", "prolongations", "coarsen_knots", "solver_options"]
+__all__ = ["kronecker_sum", "elastic_kronecker_sums", "prolongations", "coarsen_knots", "solver_options"]
 
 MIN_COARSE = 1_000  # stop coarsening below this many unknowns
 
@@ -55,30 +55,68 @@ def _single_patch(problem) -> bool:
 
 def kronecker_sum(problem, free: np.ndarray):
     """A :class:`solvers.kronecker.KroneckerSum` for the free unknowns of ``problem``, or None (see the notes)."""
-    from solvers.kronecker import KroneckerSum
-
     if not _single_patch(problem):
         return None
-    space = problem.spaces[0]
+    return _kronecker(problem.spaces[0], free, _metric_coefficients(problem))
+
+
+def elastic_kronecker_sums(problem, free: np.ndarray) -> list | None:
+    """For an :class:`iga.ElasticityProblem` on one unconstrained patch: one Kronecker sum per displacement
+    component, for the block fast diagonalization of its diagonal blocks K^aa, or None.
+
+    ``free``: the free unknowns in the component-major numbering; each component's must form a tensor grid
+    with a Dirichlet side.  The coefficients are the averages of w |det J| (mu (J^-1 J^-T)_kk + (lambda + mu)
+    (J^-1)_ka^2), the parametric diagonal of block aa (:mod:`iga.elastic_forms`).
+    """
+    if not _single_patch(problem):
+        return None
+    n = problem.ndof
+    x, Jinv, adet, chans = _metric_samples(problem)
+    from .elastic_forms import lame
+
+    lam, mu = lame(problem.youngs.values(x, chans, "the preconditioner's sample points"),
+                   problem.poisson.values(x, chans, "the preconditioner's sample points"),
+                   "the preconditioner's sample points")
+    G = np.einsum("nki,nki->nk", Jinv, Jinv)
+    out = []
+    for a in range(3):
+        c = np.mean(adet[:, None] * (mu[:, None] * G + (lam + mu)[:, None] * Jinv[:, :, a] ** 2), axis=0)
+        ks = _kronecker(problem.spaces[0], free[(free >= a * n) & (free < (a + 1) * n)] - a * n,
+                        np.maximum(c, ON_DOMAIN * c.max()))
+        if ks is None:
+            return None
+        out.append(ks)
+    return out
+
+
+def _kronecker(space, free: np.ndarray, coefficients: np.ndarray):
+    """The Kronecker sum of ``space``'s 1-D matrices on the free tensor grid, or None (no tensor grid, or no
+    Dirichlet side at all: the sum would be singular)."""
+    from solvers.kronecker import KroneckerSum
+
     masks = _tensor_masks(space, free)
     if masks is None or all(m.all() for m in masks):
-        return None  # not a tensor grid, or no Dirichlet side at all (the Kronecker sum would be singular)
+        return None
     K1, M1 = [], []
     for s, m in zip(space.dirs, masks):
         B0, B1 = s.B[0][:, : s.nq], s.B[1][:, : s.nq]
         K1.append(((B1 * s.qw) @ B1.T)[np.ix_(m, m)])
         M1.append(((B0 * s.qw) @ B0.T)[np.ix_(m, m)])
-    return KroneckerSum(K1, M1, _metric_coefficients(problem))
+    return KroneckerSum(K1, M1, coefficients)
 
 
-def _metric_coefficients(problem, per_dir: int = 6) -> np.ndarray:
-    """c_k = mean of k det J (J^-1 K J^-T)_kk over a grid of parameters (K the conductivity tensor)."""
+def _metric_samples(problem, per_dir: int = 6):
+    """x (N, 3), J^-1 (N, 3, 3), |det J| (N,) and channels on a grid of parameters of the single patch."""
     P = problem.model.patches[0]
     dom = P.spline.domain
     axes = [lo + (np.arange(per_dir) + 0.5) / per_dir * (hi - lo) for lo, hi in dom]
     x, J, chans = patch_geometry_grid(P, axes)
-    det = np.linalg.det(J)
-    Jinv = np.linalg.inv(J)
+    return x, np.linalg.inv(J), np.abs(np.linalg.det(J)), chans
+
+
+def _metric_coefficients(problem) -> np.ndarray:
+    """c_k = mean of k det J (J^-1 K J^-T)_kk over a grid of parameters (K the conductivity tensor)."""
+    x, Jinv, adet, chans = _metric_samples(problem)
     k = problem.conductivity.values(x, chans, "the preconditioner's sample points")
     if np.ndim(k) == 1:
         G = k[:, None, None] * np.einsum("nki,nli->nkl", Jinv, Jinv)
@@ -86,7 +124,7 @@ def _metric_coefficients(problem, per_dir: int = 6) -> np.ndarray:
         xx, yy, zz, xy, xz, yz = np.moveaxis(np.asarray(k), -1, 0)
         Kt = np.stack([np.stack([xx, xy, xz], -1), np.stack([xy, yy, yz], -1), np.stack([xz, yz, zz], -1)], -2)
         G = np.einsum("nki,nij,nlj->nkl", Jinv, Kt, Jinv)
-    c = np.mean(np.abs(det)[:, None] * np.diagonal(G, axis1=1, axis2=2), axis=0)
+    c = np.mean(adet[:, None] * np.diagonal(G, axis1=1, axis2=2), axis=0)
     return np.maximum(c, ON_DOMAIN * c.max())
 
 

@@ -19,7 +19,8 @@ Built-in backends
              the V-cycle of :mod:`solvers.amg`).
 ``cg``       conjugate gradients with a Jacobi preconditioner (for comparison).
 ``fd-cg``    conjugate gradients preconditioned by fast diagonalization (:mod:`solvers.kronecker`); needs
-             the option ``kronecker`` (a :class:`solvers.kronecker.KroneckerSum` close to A).
+             the option ``kronecker`` (a :class:`solvers.kronecker.KroneckerSum` close to A, or a list
+             of them, one per diagonal block of A: block fast diagonalization).
 ``gmg-cg``   conjugate gradients preconditioned by a geometric multigrid V-cycle (:mod:`solvers.multigrid`);
              needs the option ``prolongations`` (sparse matrices, finest level first).
 ``petsc``    PETSc's CG with GAMG (or hypre) when petsc4py is installed (extra ``[mpi]``); under
@@ -185,14 +186,16 @@ def _amg_cg(A, b, tol, maxiter, **options):
 
 @register("fd-cg", options=("kronecker",))
 def _fd_cg(A, b, tol, maxiter, **options):
-    from .kronecker import FastDiagonalization, KroneckerSum
+    from .kronecker import BlockFastDiagonalization, FastDiagonalization, KroneckerSum
 
     ks = options.get("kronecker")
-    if not isinstance(ks, KroneckerSum):
+    blocks = isinstance(ks, (list, tuple)) and len(ks) > 0 and all(isinstance(k, KroneckerSum) for k in ks)
+    if not (isinstance(ks, KroneckerSum) or blocks):
         raise SolverError("the 'fd-cg' solver needs the option kronecker=solvers.kronecker.KroneckerSum(...) (the "
-                          "tensor-product structure of A); iga.HeatProblem.solve supplies it for single patches")
+                          "tensor-product structure of A), or a list of them for the diagonal blocks of A; "
+                          "iga.HeatProblem.solve and iga.ElasticityProblem.solve supply it for single patches")
     t0 = time.perf_counter()
-    M = FastDiagonalization(ks, A)
+    M = BlockFastDiagonalization(ks, A) if blocks else FastDiagonalization(ks, A)
     return _krylov(A, b, M.operator(), tol, maxiter, "fd-cg", time.perf_counter() - t0, {})
 
 

@@ -23,7 +23,7 @@ import scipy.sparse.linalg as spla
 
 from .errors import SolverError
 
-__all__ = ["KroneckerSum", "FastDiagonalization"]
+__all__ = ["KroneckerSum", "FastDiagonalization", "BlockFastDiagonalization"]
 
 
 class KroneckerSum:
@@ -77,10 +77,11 @@ def _modes(X: np.ndarray, mats) -> np.ndarray:
 class FastDiagonalization:
     """M^-1 = D^1/2 A_FD^-1 D^1/2 for a matrix ``A`` close to the Kronecker sum ``ks`` (see the module notes).
 
-    ``A``: the sparse matrix to precondition (only its diagonal is read; None: no scaling).
+    ``A``: the sparse matrix to precondition (only its diagonal is read; None: no scaling); ``diagonal``:
+    that diagonal (n,) instead of A.
     """
 
-    def __init__(self, ks: KroneckerSum, A=None):
+    def __init__(self, ks: KroneckerSum, A=None, diagonal=None):
         self.ks = ks
         self.U, lam = [], []
         for k, (K, M) in enumerate(zip(ks.K, ks.M)):
@@ -101,11 +102,13 @@ class FastDiagonalization:
                               "Dirichlet ends has a zero eigenvalue); it needs a Dirichlet side")
         self.inv = 1.0 / denom
         self.scale = None
-        if A is not None:
-            if A.shape != (ks.n, ks.n):
+        if A is not None or diagonal is not None:
+            if A is not None and A.shape != (ks.n, ks.n):
                 raise SolverError(f"fast diagonalization: the matrix is {A.shape}, the Kronecker sum {ks.n}")
-            d = A.diagonal()
-            if np.any(d <= 0):
+            d = A.diagonal() if diagonal is None else np.asarray(diagonal, float)
+            if d.shape != (ks.n,):
+                raise SolverError(f"fast diagonalization: the diagonal has shape {d.shape}, the Kronecker sum {ks.n}")
+            if not np.all(d > 0):
                 raise SolverError("fast diagonalization needs a positive diagonal; the matrix is not positive "
                                   "definite")
             self.scale = np.sqrt(ks.diagonal() / d)
@@ -122,3 +125,29 @@ class FastDiagonalization:
     def operator(self) -> spla.LinearOperator:
         """M as a SciPy LinearOperator."""
         return spla.LinearOperator((self.ks.n, self.ks.n), matvec=self, dtype=float)
+
+
+class BlockFastDiagonalization:
+    """Block-diagonal M^-1 = diag(M_1^-1, ..., M_m^-1), one :class:`FastDiagonalization` per diagonal block of
+    ``A``: the blocks ``blocks`` (Kronecker sums) take consecutive unknowns, in order (the displacement
+    components of one elastic patch, each close to a Kronecker sum of its own coefficients).
+    """
+
+    def __init__(self, blocks, A):
+        sizes = [ks.n for ks in blocks]
+        if sum(sizes) != A.shape[0]:
+            raise SolverError(f"block fast diagonalization: the blocks hold {sum(sizes)} unknowns, the matrix "
+                              f"{A.shape[0]}")
+        self.bounds = np.concatenate([[0], np.cumsum(sizes)])
+        d = A.diagonal()
+        self.parts = [FastDiagonalization(ks, diagonal=d[lo:hi]) for ks, lo, hi in
+                      zip(blocks, self.bounds[:-1], self.bounds[1:])]
+
+    def __call__(self, r: np.ndarray) -> np.ndarray:
+        r = np.ravel(r)
+        return np.concatenate([fd(r[lo:hi]) for fd, lo, hi in zip(self.parts, self.bounds[:-1], self.bounds[1:])])
+
+    def operator(self) -> spla.LinearOperator:
+        """M as a SciPy LinearOperator."""
+        n = int(self.bounds[-1])
+        return spla.LinearOperator((n, n), matvec=self, dtype=float)

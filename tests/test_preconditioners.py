@@ -12,7 +12,7 @@ from iga import HeatProblem, ProblemError
 from iga.multilevel import coarsen_knots, kronecker_sum, prolongations
 from iga.system import eliminate
 from solvers import SolverError
-from solvers.kronecker import FastDiagonalization, KroneckerSum
+from solvers.kronecker import BlockFastDiagonalization, FastDiagonalization, KroneckerSum
 from solvers.multigrid import Multigrid
 from tiling import library as L
 
@@ -39,6 +39,25 @@ def test_the_kronecker_inverse_is_exact_on_random_factors():
     assert np.abs(FastDiagonalization(ks)(ks.matvec(x)) - x).max() < 1e-12 * np.abs(x).max()
     assert np.allclose(ks.diagonal(), [ks.matvec(e)[i] for i, e in enumerate(np.eye(ks.n)[:20])][:20] +
                        list(ks.diagonal()[20:]))
+
+
+def test_block_fast_diagonalization_inverts_a_block_diagonal_of_kronecker_sums():
+    rng = np.random.default_rng(5)
+
+    def spd(n):
+        B = rng.standard_normal((n, n))
+        return B @ B.T + n * np.eye(n)
+
+    blocks = [KroneckerSum([spd(3), spd(4), spd(2)], [spd(3), spd(4), spd(2)], rng.uniform(0.5, 2.0, 3))
+              for _ in range(3)]
+    dense = [np.stack([ks.matvec(e) for e in np.eye(ks.n)], 1) for ks in blocks]
+    A = sp.block_diag(dense, format="csr")
+    x = rng.standard_normal(A.shape[0])
+    M = BlockFastDiagonalization(blocks, A)
+    assert np.abs(M(A @ x) - x).max() < 1e-10 * np.abs(x).max()
+    assert solvers.solve(A, A @ x, method="fd-cg", kronecker=blocks, tol=1e-12)[1].iterations == 1
+    with pytest.raises(SolverError, match="blocks hold 72 unknowns, the matrix 50"):
+        BlockFastDiagonalization(blocks, sp.identity(50, format="csr"))
 
 
 @pytest.mark.parametrize("p", [2, 3])

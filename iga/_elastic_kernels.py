@@ -1,0 +1,170 @@
+"""Compiled kernel of the elastic stiffness blocks (imported only when numba is installed and first needed).
+
+The same slab-wise sum factorisation as :func:`iga._assembly_kernels.stiffness3`
+(direction 3, then 2, then 1 into a banded ring buffer, rows written into the
+CSR data once complete; stage 1 and the copy-out are shared), for the
+non-symmetric parametric tensor of one block (a, b) of linear elasticity
+(:mod:`iga.elastic_forms`):
+
+    F^{ab}_rs = lf c_r[a] c_s[b] + mf c_r[b] c_s[a] + delta_ab mf c_r . c_s,
+
+formed on the fly from the metric rows ``c`` (nine fields) and the weighted
+Lame fields lf = lambda w / |det J|, mf = mu w / |det J|: no per-block
+coefficient field is ever stored.  Nine (r, s) terms instead of the six of a
+symmetric tensor, and no mirroring, since the block is not symmetric.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+from numba import njit, prange
+
+from ._assembly_kernels import _flush_row, _rows_of_element
+
+
+@lru_cache(maxsize=16)  # one kernel per (p3, g3), as stiffness3_for
+def elastic3_for(p3: int, g3: int):
+    """The block kernel ``elastic3`` for degree p3 and g3 Gauss points per element in direction 3."""
+    P3, G3 = int(p3), int(g3)
+
+    @njit(cache=True, parallel=True, fastmath=True)
+    def elastic3(G, LM, a, b, e0, b1, first1, W2, r2, s2, b3, first3, indptr, lo1, c1, lo2, c2, lo3, c3,
+                 ring, Z, Y, data):
+        """Add block (a, b) of the elastic stiffness over a slab of direction-1 elements to CSR data (P, nnz).
+
+        G (9, P, m g1, nq2, nq3): the metric rows, ``G[3 r + k] = c_r[k]``;
+        LM (2, P, m g1, nq2, nq3): lf and mf (module notes); the other
+        arguments as :func:`iga._assembly_kernels.stiffness3`, except the
+        scratch Z (g1, 9, nq2, n3, D3), one slot per (r, s) = 3 r + s.
+        Row i is the test function (component a), column j the trial (b).
+        """
+        P = G.shape[1]
+        nq2 = G.shape[3]
+        g1 = b1.shape[3]
+        n_el = G.shape[2] // g1
+        p1 = b1.shape[2] - 1
+        n2, D2 = W2.shape[1], W2.shape[2]
+        E3 = b3.shape[1]
+        n3, D3 = lo3.shape[0], 2 * P3 + 1
+        E1, n1 = b1.shape[1], lo1.shape[0]
+        K2 = D2 * n3 * D3
+        K3 = n3 * D3
+        diag = 1.0 if a == b else 0.0
+        Zf = Z.reshape(g1, 9, nq2, K3)
+        Yf = Y.reshape(g1, 4, n2, D2, K3)
+        Yr = Y.reshape(g1, 4, n2, K2)
+        for pi in range(P):
+            for e1 in range(e0, e0 + n_el):
+                # stage 3: Z[t, rs, q2, i3, d3] = sum_q3 W3[v(r, s)](i3, d3, q3) F_rs(q1, q2, q3); the direction-3
+                # variant of (r, s) is (r == 2, s == 2)
+                for item in prange(g1 * nq2):
+                    t = item // nq2
+                    q2 = item - t * nq2
+                    q1 = (e1 - e0) * g1 + t
+                    F = np.empty((9, G3))
+                    for c9 in range(9):
+                        for i3 in range(n3):
+                            for d3 in range(D3):
+                                Z[t, c9, q2, i3, d3] = 0.0
+                    for e3 in range(E3):
+                        f = first3[e3]
+                        for t3 in range(G3):
+                            q3 = e3 * G3 + t3
+                            lf, mf = LM[0, pi, q1, q2, q3], LM[1, pi, q1, q2, q3]
+                            for r in range(3):
+                                ra, rb = G[3 * r + a, pi, q1, q2, q3], G[3 * r + b, pi, q1, q2, q3]
+                                for s in range(3):
+                                    sa, sb = G[3 * s + a, pi, q1, q2, q3], G[3 * s + b, pi, q1, q2, q3]
+                                    dot = (G[3 * r, pi, q1, q2, q3] * G[3 * s, pi, q1, q2, q3]
+                                           + G[3 * r + 1, pi, q1, q2, q3] * G[3 * s + 1, pi, q1, q2, q3]
+                                           + G[3 * r + 2, pi, q1, q2, q3] * G[3 * s + 2, pi, q1, q2, q3])
+                                    F[3 * r + s, t3] = lf * ra * sb + mf * (rb * sa + diag * dot)
+                        for l3 in range(P3 + 1):
+                            i3 = f + l3
+                            for m3 in range(P3 + 1):
+                                d3 = m3 - l3 + P3
+                                z00 = z01 = z02 = z10 = z11 = z12 = z20 = z21 = z22 = 0.0  # z_rs
+                                for t3 in range(G3):
+                                    u0 = b3[0, e3, l3, t3]
+                                    u1 = b3[1, e3, l3, t3]
+                                    v0 = b3[0, e3, m3, t3]
+                                    v1 = b3[1, e3, m3, t3]
+                                    w00 = u0 * v0  # direction-3 variants (0,0), (0,1), (1,0), (1,1)
+                                    w01 = u0 * v1
+                                    w10 = u1 * v0
+                                    z00 += w00 * F[0, t3]
+                                    z01 += w00 * F[1, t3]
+                                    z02 += w01 * F[2, t3]
+                                    z10 += w00 * F[3, t3]
+                                    z11 += w00 * F[4, t3]
+                                    z12 += w01 * F[5, t3]
+                                    z20 += w10 * F[6, t3]
+                                    z21 += w10 * F[7, t3]
+                                    z22 += u1 * v1 * F[8, t3]
+                                Z[t, 0, q2, i3, d3] += z00
+                                Z[t, 1, q2, i3, d3] += z01
+                                Z[t, 2, q2, i3, d3] += z02
+                                Z[t, 3, q2, i3, d3] += z10
+                                Z[t, 4, q2, i3, d3] += z11
+                                Z[t, 5, q2, i3, d3] += z12
+                                Z[t, 6, q2, i3, d3] += z20
+                                Z[t, 7, q2, i3, d3] += z21
+                                Z[t, 8, q2, i3, d3] += z22
+                # stage 2: groups by the direction-1 variant; (r, s) has direction-2 variant (r == 1, s == 1):
+                # Y0 (1,1) = F00; Y1 (1,0) = F01, F02; Y2 (0,1) = F10, F20; Y3 (0,0) = F11, F12, F21, F22
+                for item in prange(g1 * n2):
+                    t = item // n2
+                    i2 = item - t * n2
+                    for d2 in range(D2):
+                        y0, y1, y2, y3 = Yf[t, 0, i2, d2], Yf[t, 1, i2, d2], Yf[t, 2, i2, d2], Yf[t, 3, i2, d2]
+                        for k in range(K3):
+                            y0[k] = 0.0
+                            y1[k] = 0.0
+                            y2[k] = 0.0
+                            y3[k] = 0.0
+                        for l in range(r2[i2, d2, 0], r2[i2, d2, 1]):
+                            q2 = s2[i2] + l
+                            w00 = W2[0, i2, d2, l]
+                            w01 = W2[1, i2, d2, l]
+                            w10 = W2[2, i2, d2, l]
+                            w11 = W2[3, i2, d2, l]
+                            f00, f01, f02 = Zf[t, 0, q2], Zf[t, 1, q2], Zf[t, 2, q2]
+                            f10, f11, f12 = Zf[t, 3, q2], Zf[t, 4, q2], Zf[t, 5, q2]
+                            f20, f21, f22 = Zf[t, 6, q2], Zf[t, 7, q2], Zf[t, 8, q2]
+                            for k in range(K3):
+                                y0[k] += w00 * f00[k]
+                                y1[k] += w01 * f01[k] + w00 * f02[k]
+                                y2[k] += w10 * f10[k] + w00 * f20[k]
+                                y3[k] += w11 * f11[k] + w10 * f12[k] + w01 * f21[k] + w00 * f22[k]
+                # stage 1 and the copy-out of complete rows: as the scalar kernel
+                f0 = first1[e1]
+                for i2 in prange(n2):
+                    _rows_of_element(ring, Yr, b1, pi, e1, f0, i2, p1, g1, K2)
+                stop = first1[e1 + 1] if e1 + 1 < E1 else n1
+                for i1 in range(f0, stop):
+                    for i2 in prange(n2):
+                        _flush_row(ring, data, indptr, pi, i1, i2, n2, n3, D3, lo1, c1, lo2, c2, lo3, c3)
+
+    return elastic3
+
+
+@njit(cache=True, parallel=True)
+def component_major(indptr, indices, blocks, out_indptr, out_indices, out_data):
+    """The component-major CSR of nine blocks on one pattern (``blocks[3 a + b]`` the data of block (a, b)):
+    row a n + i is row i of blocks (a, 0), (a, 1), (a, 2) one after the other, columns shifted by b n."""
+    n = indptr.shape[0] - 1
+    nnz = indices.shape[0]
+    for i in prange(n):
+        s, length = indptr[i], indptr[i + 1] - indptr[i]
+        for a in range(3):
+            base = a * 3 * nnz + 3 * s
+            out_indptr[a * n + i] = base
+            for b in range(3):
+                d = blocks[3 * a + b]
+                o = base + b * length
+                for k in range(length):
+                    out_indices[o + k] = indices[s + k] + b * n
+                    out_data[o + k] = d[s + k]
+    out_indptr[3 * n] = 9 * nnz
