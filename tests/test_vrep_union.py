@@ -288,3 +288,22 @@ def test_subtraction_v_models_are_heat_models(which):
     # the coupled pieces: B cuts the cylinders' A in two halves; the duck minus a hole stays one piece
     assert s.info["components"]["count"] == (2 if which == "cylinders" else 1) and not s.info["components"]["idle"]
     assert abs(s.flux("bridge")) > 0.01 * s.info["balance"]["inflow_W"]  # the heat does reach the bridges
+
+
+def test_a_linear_temperature_is_reproduced_on_every_patch_of_a_box_minus_a_box():
+    # the trimming-surface bridges are composed through the affine map like the tiles, in their own (cubic
+    # along) spaces: the linear patch test holds on the bridges as on the tiles (the union bridges:
+    # tests/test_elasticity.py)
+    A = Primitive(box((2.0, 1.0, 1.0), elements=(2, 2, 2)), L.cross(), (4, 2, 2), 1, "A")
+    B = Primitive(box((0.6, 0.6, 2.0)).translate([0.72, 0.23, -0.5]), L.cross(), (1, 1, 1), 2, "B")
+    res = vrep_microstructure(A - B)
+    assert res.bridges.surface_bridges > 0
+    ms = res.microstructure
+    g = np.array([3.0, -1.0, 2.0])
+    h = HeatProblem(ms).dirichlet("boundary", lambda y: 10.0 + y @ g).solve()
+    rng = np.random.default_rng(0)
+    for i in range(len(ms.patches)):
+        dirs = h.problem.spaces[i].dirs
+        lo, hi = np.array([d.knots[0] for d in dirs]), np.array([d.knots[-1] for d in dirs])
+        T, grad, y, _ = h.evaluate(i, lo + rng.uniform(0.02, 0.98, (2, 3)) * (hi - lo))
+        assert np.abs(T - 10.0 - y @ g).max() < 1e-9 * 20 and np.abs(grad - g).max() < 1e-7 * 3, i

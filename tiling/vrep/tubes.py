@@ -18,11 +18,13 @@ B-spline surfaces, :attr:`PlacedPatch.composed`), so both of its end faces
 
 Analysis: a bridge is a :class:`PlacedPatch` whose ``outer`` map is its
 geometry G on [0, 1]^3 and whose ``spline`` is the identity of [0, 1]^3 in
-the *analysis* space (:func:`carrier`): the end faces' spaces (those of the
-tiles' faces), so every end of a bridge meets its tile face by an identity
-interface in the constraint machinery (found by
+the *analysis* space (:func:`carrier`): across, the end faces' spaces (those
+of the tiles' faces), so every end of a bridge meets its tile face by an
+identity interface in the constraint machinery (found by
 :func:`geometry.detect_interfaces`, with the orientation), while G keeps the
-exact geometry of both faces.
+exact geometry of both faces; along, G's own degree (:func:`tube_space`), so
+the analysis is isoparametric along the bridge and an affine field (on affine
+maps) is reproduced across it to round-off.
 """
 
 from __future__ import annotations
@@ -359,8 +361,10 @@ def uniform_space(p: int, n: int):
 
 def tube_space(t: Tube) -> list:
     """A tube's analysis space: its start face's (the end face's, oriented, is the same or refused by the
-    interface search), and in w the larger face degree on elements about as long as the face is wide."""
-    p = max(d for _, d in t.a.space)
+    interface search), and in w the geometry's own degree (cubic, quintic once displaced; at least the faces'),
+    on elements about as long as the face is wide: the tube's Bezier geometry in w lies in that space, so
+    along the tube the analysis is isoparametric and an affine field is reproduced."""
+    p = max(max(d for _, d in t.a.space), t.geometry.degrees[2])
     length = float(np.linalg.norm(t.b.centre - t.a.centre))
     n = int(np.clip(round(length / max(2 * t.radius, 1e-300)), 1, 4))
     return [t.a.space[0], t.a.space[1], uniform_space(p, n)]
