@@ -11,6 +11,7 @@ import numpy as np
 
 from . import _fast
 from . import knots as kn
+from .cache import BoundedCache
 from .errors import SplineError
 from .grouping import ObjectIndex
 
@@ -23,14 +24,29 @@ def _dehomogenise(spline, H, dH):
     return x, [(dh[:, :-1] - x * dh[:, -1:]) / w for dh in dH]
 
 
+#: (values, first derivatives) basis matrices per (knots, degree, axis): the placed copies of one tile patch
+#: and the composed patches of one tile share knot vectors, so a model's grids need few distinct ones
+_BASES = BoundedCache(512)
+
+
+def _bases(U, p, ax):
+    def make():
+        mats = tuple(kn.basis_matrices(U, p, ax, 1))
+        for m in mats:  # shared between calls: read-only
+            for a in (m.data, m.indices, m.indptr):
+                a.setflags(write=False)
+        return mats
+
+    return _BASES.get((np.asarray(U, float).tobytes(), int(p), np.asarray(ax, float).tobytes()), make)
+
+
 def _prepare(spline, axes, order):
     """Basis matrices per direction and the contraction prefixes shared by value and derivatives."""
     d = spline.dim
     B = []
     for k, ax in enumerate(axes):
         U, p = spline.knots[k], spline.degrees[k]
-        ax = np.clip(ax, U[0], U[-1])
-        B.append((kn.basis_matrix(U, p, ax, 0), kn.basis_matrix(U, p, ax, 1)))
+        B.append(_bases(U, p, np.clip(ax, U[0], U[-1])))
     outputs = [tuple(0 for _ in range(d))] + [tuple(int(i == k) for i in range(d)) for k in range(d)]
     keys = [tuple(o[k] for k in order) for o in outputs]
     return B, keys

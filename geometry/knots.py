@@ -200,12 +200,20 @@ def basis_functions(knots: np.ndarray, degree: int, x: np.ndarray, nder: int = 0
 
 def basis_matrix(knots: np.ndarray, degree: int, x: np.ndarray, nder: int = 0, side: str = "right") -> sp.csr_array:
     """Sparse matrix ``B[i, j] = d^nder N_j(x_i)`` of shape ``(len(x), n)`` (``side``: :func:`find_spans`)."""
+    return basis_matrices(knots, degree, x, nder, side)[nder]
+
+
+def basis_matrices(knots: np.ndarray, degree: int, x: np.ndarray, nder: int = 0,
+                   side: str = "right") -> list[sp.csr_array]:
+    """``[B_0, ..., B_nder]``, ``B_k[i, j] = d^k N_j(x_i)`` (each ``(len(x), n)``), from one evaluation of the
+    non-zero basis functions (:func:`basis_functions` computes every order up to ``nder`` at once)."""
     x = np.asarray(x, float)
     spans, ders = basis_functions(knots, degree, x, nder, side)
     n = len(knots) - degree - 1
-    cols = spans[:, None] - degree + np.arange(degree + 1)
-    rows = np.repeat(np.arange(len(x)), degree + 1)
-    return sp.csr_array((ders[:, nder, :].ravel(), (rows, cols.ravel())), shape=(len(x), n))
+    # CSR directly: p + 1 entries per row, columns increasing from span - p
+    cols = (spans[:, None] - degree + np.arange(degree + 1)).ravel()
+    indptr = np.arange(0, (degree + 1) * len(x) + 1, degree + 1)
+    return [sp.csr_array((ders[:, k, :].ravel(), cols, indptr), shape=(len(x), n)) for k in range(nder + 1)]
 
 
 def greville(knots: np.ndarray, degree: int) -> np.ndarray:

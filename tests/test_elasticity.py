@@ -411,3 +411,19 @@ def test_the_component_major_matrix_is_the_block_matrix(compiled, monkeypatch):
     ref.sort_indices()
     assert K.has_sorted_indices and np.array_equal(K.indptr, ref.indptr) and np.array_equal(K.indices, ref.indices)
     assert np.array_equal(K.data, ref.data)
+
+
+def test_the_compiled_elastic_blocks_equal_the_numpy_ones_on_batches_of_patches(monkeypatch):
+    from iga import elastic_volume, fast_assembly
+
+    if not fast_assembly.AVAILABLE:
+        pytest.skip("numba is not installed")
+    twisted = pr.twisted(pr.box((1.0, 1.0, 1.0), degrees=(2, 2, 2)), 0.3, axis_point=(0.5, 0.5))
+    ms = tiling.regular(twisted, L.cross(), (2, 2, 2))  # each of the tile's patches: a batch of 8 placements
+    p = ElasticityProblem(ms, youngs=lambda x: 1.0 + x[:, 0], poisson=0.3, degree_elevation=1)
+    assert max(len(g) for g in p.disc.volume.groups.values()) == 8
+    monkeypatch.setattr(fast_assembly, "MIN_POINTS", 10**12)
+    ref = elastic_volume.ElasticVolume(p.disc).assemble(p.youngs, p.poisson)[0]
+    monkeypatch.setattr(fast_assembly, "MIN_POINTS", 100)  # every batch compiled
+    K = elastic_volume.ElasticVolume(p.disc).assemble(p.youngs, p.poisson)[0]
+    assert K.nnz == ref.nnz and abs(K - ref).max() <= 1e-12 * abs(ref).max()
