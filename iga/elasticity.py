@@ -226,9 +226,14 @@ class ElasticityProblem:
         return out
 
     def _solver_options(self, solver: str, constraints, dd, B) -> dict:
-        """The rigid modes for AMG (its near-nullspace); for one unconstrained patch with a Dirichlet side per
-        component, one Kronecker sum per component (block fast diagonalization: ``fd-cg``, and ``auto``)."""
-        options = {"near_nullspace": B} if solver in ("auto", "amg-cg") else {}
+        """The rigid modes for AMG (its near-nullspace) and each unknown's place in its node (3 node +
+        component, for aggregation by node); for one unconstrained patch with a Dirichlet side per component,
+        one Kronecker sum per component (block fast diagonalization: ``fd-cg``, and ``auto``)."""
+        options = {}
+        if solver in ("auto", "amg-cg"):  # rigid modes, and node-major 3 x 3 blocks aggregated by node
+            nred = B.shape[0] // 3
+            unknowns = np.arange(3 * nred)
+            options = {"near_nullspace": B, "node_slots": 3 * (unknowns % nred) + unknowns // nred}
         if solver in ("auto", "fd-cg"):
             ks = None if constraints is not None else \
                 elastic_kronecker_sums(self, np.setdiff1d(np.arange(3 * self.ndof), dd.dofs))

@@ -136,9 +136,10 @@ def solve_system(K, f, constraints, dirichlet, solver="auto", tol=1e-10, maxiter
         A = (Pf.T @ K @ Pf).tocsr()
         rhs = Pf.T @ (f - K @ offset)
     options = dict(options or {})
-    B = options.pop("near_nullspace", None)  # (nred, k) in the reduced unknowns: restricted to the free ones
-    if B is not None and A.shape[0] == len(free):
-        options["near_nullspace"] = np.asarray(B)[free]
+    for key in ("near_nullspace", "node_slots"):  # per reduced unknown (nred, ...): restricted to the free ones
+        value = options.pop(key, None)
+        if value is not None and A.shape[0] == len(free):
+            options[key] = np.asarray(value)[free]
     x, info = solvers.solve(A, rhs, method=solver, tol=tol, maxiter=maxiter, overwrite_a=True,  # A is ours
                             **options)
     reduced = int(A.shape[0])

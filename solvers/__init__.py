@@ -171,7 +171,7 @@ def _krylov(A, b, M, tol, maxiter, name, t_setup, extra):
     return x, SolveInfo(name, it[0], res, t_setup, t2 - t1, extra)
 
 
-@register("amg-cg", options=("near_nullspace",))
+@register("amg-cg", options=("near_nullspace", "node_slots"))
 def _amg_cg(A, b, tol, maxiter, **options):
     if importlib.util.find_spec("pyamg") is None:
         raise SolverError("the 'amg-cg' solver needs pyamg: pip install pyamg")
@@ -179,7 +179,7 @@ def _amg_cg(A, b, tol, maxiter, **options):
 
     t0 = time.perf_counter()
     M = AMGPreconditioner(A, overwrite=bool(options.get("overwrite_a", False)),
-                          near_nullspace=options.get("near_nullspace"))
+                          near_nullspace=options.get("near_nullspace"), node_slots=options.get("node_slots"))
     setup = time.perf_counter() - t0
     return _krylov(M.system_operator(), b, M.operator(), tol, maxiter, "amg-cg", setup, M.info)
 
@@ -276,7 +276,7 @@ def solve(A, b, method: str = "auto", tol: float = 1e-10, maxiter: int | None = 
         method = "direct" if n <= AUTO_DIRECT_LIMIT else ("fd-cg" if options.get("kronecker") is not None
                                                           else "amg-cg")
         # the spline structure is offered to auto; the method it picks takes what it uses
-        options = {k: v for k, v in options.items() if k in _OPTIONS[method] or k not in ("kronecker", "prolongations", "near_nullspace")}
+        options = {k: v for k, v in options.items() if k in _OPTIONS[method] or k not in ("kronecker", "prolongations", "near_nullspace", "node_slots")}
     if not isinstance(options.get("overwrite_a", False), (bool, np.bool_)):
         raise SolverError(f"overwrite_a must be True or False, got {show(options['overwrite_a'])} (a string or "
                           "number would be read as true and let the solver modify your matrix)")
