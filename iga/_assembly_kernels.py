@@ -55,6 +55,18 @@ def _weights1(b1, e1, l1, m1, t):
 
 
 @njit(inline="always")
+def _slab_sizes(C, b1, W2, b3, lo1, lo3, P3):
+    """Sizes a slab kernel reads off its arguments: patches P, Gauss points nq2, g1 and elements n_el of the
+    slab in direction 1, p1, n2 and band D2, elements E3, n3 and band D3, E1, n1, and the flat row lengths K2
+    (direction 2 and 3 band) and K3 (direction 3 band)."""
+    g1 = b1.shape[3]
+    n2, D2 = W2.shape[1], W2.shape[2]
+    n3, D3 = lo3.shape[0], 2 * P3 + 1
+    return (C.shape[1], C.shape[3], g1, C.shape[2] // g1, b1.shape[2] - 1, n2, D2, b3.shape[1], n3, D3,
+            b1.shape[1], lo1.shape[0], D2 * n3 * D3, n3 * D3)
+
+
+@njit(inline="always")
 def _rows_of_element(ring, Yr, b1, pi, e1, f0, i2, p1, g1, K2):
     """Stage 1 of a kernel for direction-2 row i2: add the four direction-1 variant groups Yr (g1, 4, n2, K2)
     of element e1 into the ring rows of its p1 + 1 basis functions (first f0), slot i1 % (p1 + 1)."""
@@ -136,18 +148,8 @@ def stiffness3_for(p3: int, g3: int):
         functions of e1.  Slabs run in order (rows of neighbouring slabs overlap);
         inside a slab the work is split over planes and rows.
         """
-        P = C.shape[1]
-        nq2 = C.shape[3]
-        g1 = b1.shape[3]
-        n_el = C.shape[2] // g1  # direction-1 elements in the slab
-        p1 = b1.shape[2] - 1
-        n2, D2 = W2.shape[1], W2.shape[2]
-        E3 = b3.shape[1]
+        P, nq2, g1, n_el, p1, n2, D2, E3, n3, D3, E1, n1, K2, K3 = _slab_sizes(C, b1, W2, b3, lo1, lo3, P3)
         p2 = (D2 - 1) // 2
-        n3, D3 = lo3.shape[0], 2 * P3 + 1
-        E1, n1 = b1.shape[1], lo1.shape[0]
-        K2 = D2 * n3 * D3
-        K3 = n3 * D3
         Zf = Z.reshape(g1, 7, nq2, K3)
         Yf = Y.reshape(g1, 4, n2, D2, K3)
         Yr = Y.reshape(g1, 4, n2, K2)
@@ -162,10 +164,7 @@ def stiffness3_for(p3: int, g3: int):
                     q2 = item - t * nq2
                     q1 = (e1 - e0) * g1 + t
                     cl = np.empty((6, G3))
-                    for c7 in range(7):
-                        for i3 in range(n3):
-                            for d3 in range(D3):
-                                Z[t, c7, q2, i3, d3] = 0.0
+                    Zf[t, :, q2] = 0.0
                     for e3 in range(E3):
                         f = first3[e3]
                         for t3 in range(G3):

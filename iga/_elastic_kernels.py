@@ -21,7 +21,7 @@ from functools import lru_cache
 import numpy as np
 from numba import njit, prange
 
-from ._assembly_kernels import _flush_row, _rows_of_element
+from ._assembly_kernels import _flush_row, _rows_of_element, _slab_sizes
 
 
 @lru_cache(maxsize=16)  # one kernel per (p3, g3), as stiffness3_for
@@ -40,17 +40,7 @@ def elastic3_for(p3: int, g3: int):
         scratch Z (g1, 9, nq2, n3, D3), one slot per (r, s) = 3 r + s.
         Row i is the test function (component a), column j the trial (b).
         """
-        P = G.shape[1]
-        nq2 = G.shape[3]
-        g1 = b1.shape[3]
-        n_el = G.shape[2] // g1
-        p1 = b1.shape[2] - 1
-        n2, D2 = W2.shape[1], W2.shape[2]
-        E3 = b3.shape[1]
-        n3, D3 = lo3.shape[0], 2 * P3 + 1
-        E1, n1 = b1.shape[1], lo1.shape[0]
-        K2 = D2 * n3 * D3
-        K3 = n3 * D3
+        P, nq2, g1, n_el, p1, n2, D2, E3, n3, D3, E1, n1, K2, K3 = _slab_sizes(G, b1, W2, b3, lo1, lo3, P3)
         diag = 1.0 if a == b else 0.0
         Zf = Z.reshape(g1, 9, nq2, K3)
         Yf = Y.reshape(g1, 4, n2, D2, K3)
@@ -64,10 +54,7 @@ def elastic3_for(p3: int, g3: int):
                     q2 = item - t * nq2
                     q1 = (e1 - e0) * g1 + t
                     F = np.empty((9, G3))
-                    for c9 in range(9):
-                        for i3 in range(n3):
-                            for d3 in range(D3):
-                                Z[t, c9, q2, i3, d3] = 0.0
+                    Zf[t, :, q2] = 0.0
                     for e3 in range(E3):
                         f = first3[e3]
                         for t3 in range(G3):

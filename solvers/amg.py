@@ -30,8 +30,11 @@ Choices (the measurements behind them are in docs/performance.md):
   (``node_slots``) are solved node-major as a 3 x 3 block (BSR) matrix, the
   missing components of partly prescribed nodes as decoupled unit rows, and
   aggregated by node with pyamg's symmetric strength at ``theta = 0.1`` on the
-  blocks' norms: on a cross lattice 17 iterations instead of 25, and faster
-  (theta 0.2 and above coarsen too slowly: 61 and more); on a cube the same 15.
+  blocks' norms: on cross lattices 17-19 iterations instead of 25-29, flat
+  under refinement, and faster (theta 0.2 and above coarsen too slowly: 61 and
+  more).  On a plain p = 2 cube it costs iterations (22 instead of 14 at 24^3;
+  theta 0 keeps 14 there but not the lattices' gain); single patches are
+  solved by block fast diagonalization anyway (``iga.ElasticityProblem``).
 """
 
 from __future__ import annotations
@@ -101,7 +104,9 @@ class AMGPreconditioner:
     S A S; :meth:`system_operator` still applies the original A) instead of
     scaling a copy of the values (8 bytes per non-zero).  ``near_nullspace``
     (n, k): the vectors A nearly annihilates (the rigid-body modes of
-    elasticity); default the constants (diffusion).
+    elasticity); default the constants (diffusion).  ``node_slots`` (n,):
+    each unknown's place 3 node + component, for vector problems aggregated by
+    node (module notes); A is then copied, node-major, whatever ``overwrite``.
     """
 
     def __init__(self, A, max_coarse: int = 500, degree: int = 3, overwrite: bool = False, near_nullspace=None,
