@@ -155,3 +155,24 @@ def component_major(indptr, indices, blocks, out_indptr, out_indices, out_data):
                     out_indices[o + k] = indices[s + k] + b * n
                     out_data[o + k] = d[s + k]
     out_indptr[3 * n] = 9 * nnz
+
+
+@njit(cache=True, parallel=True)
+def transpose_positions(indptr, lo1, c1, lo2, c2, lo3, c3, p1, p2, p3, out):
+    """``out[e]``: the CSR position of entry (j, i) for entry e = (i, j) of the banded tensor pattern (rows C
+    order, offsets d1, d2, d3 nested): its band offsets are the mirrored ones, d_k -> 2 p_k - d_k, so the
+    transpose of data on this symmetric pattern is ``data[out]``."""
+    n1, n2, n3 = lo1.shape[0], lo2.shape[0], lo3.shape[0]
+    for i1 in prange(n1):
+        for i2 in range(n2):
+            for i3 in range(n3):
+                pos = indptr[(i1 * n2 + i2) * n3 + i3]
+                for d1 in range(lo1[i1], lo1[i1] + c1[i1]):
+                    j1 = i1 + d1 - p1
+                    for d2 in range(lo2[i2], lo2[i2] + c2[i2]):
+                        j2 = i2 + d2 - p2
+                        head = (2 * p1 - d1 - lo1[j1]) * c2[j2] + 2 * p2 - d2 - lo2[j2]
+                        for d3 in range(lo3[i3], lo3[i3] + c3[i3]):
+                            j3 = i3 + d3 - p3
+                            out[pos] = indptr[(j1 * n2 + j2) * n3 + j3] + head * c3[j3] + 2 * p3 - d3 - lo3[j3]
+                            pos += 1

@@ -245,6 +245,17 @@ class ElasticityProblem:
                 options["kronecker"] = ks
         return options
 
+    def assemble(self):
+        """(K, f, book): the stiffness (3 ndof x 3 ndof CSR, component-major: unknown a ndof + i is component a
+        of DOF i; N/m), the load vector (N: body force, thermal strain, tractions and pressures) and
+        {"work": {"body": int f dV (N, (3,))}, "applied": {tag: resultant (N, (3,))}}; sets
+        ``timings["assembly"]`` (s).  :meth:`solve` calls it."""
+        t0 = time.perf_counter()
+        K, f, work = ElasticVolume(self.disc).assemble(self.youngs, self.poisson, self.body, self.thermal_strain)
+        applied = self._loads(f)
+        self.timings["assembly"] = time.perf_counter() - t0
+        return K, f, {"work": work, "applied": applied}
+
     def solve(self, solver: str = "auto", tol: float = 1e-10, maxiter: int | None = None) -> ElasticSolution:
         """Assemble, apply the conditions, refuse free rigid motions, solve; returns an :class:`ElasticSolution`."""
         if not (is_number(tol) and 0 < tol < 1):
@@ -252,9 +263,8 @@ class ElasticityProblem:
         if maxiter is not None:
             count("maxiter", maxiter, 1)
         supports = self._support_faces()
-        t0 = time.perf_counter()
-        K, f, work = ElasticVolume(self.disc).assemble(self.youngs, self.poisson, self.body, self.thermal_strain)
-        applied = self._loads(f)
+        K, f, book = self.assemble()
+        work, applied = book["work"], book["applied"]
         t1 = time.perf_counter()
         scalar = prolongation(self.model, self.spaces, self.offsets) if needs_constraints(self.model, self.spaces) \
             else None
@@ -279,7 +289,7 @@ class ElasticityProblem:
         # constrained system is reduced into a new matrix and leaves K as it is (no copy: half the memory)
         res = solve_system(K if constraints is not None else K.copy(), f, constraints, dd, solver, tol, maxiter,
                            options)
-        self.timings.update({"assembly": t1 - t0, "constraints": t2 - t1,
+        self.timings.update({"constraints": t2 - t1,
                              "solve": res.info.setup_s + res.info.solve_s})
         self.reduced_dofs = res.reduced
         return ElasticSolution(self, res, K, f, dd, work, applied)

@@ -234,9 +234,8 @@ def elastic_blocks(space: TensorSpace, G: np.ndarray, LM: np.ndarray) -> tuple[C
 
     ``G`` (9, P) + qshape: the metric rows, ``G[3 r + k] = c_r[k]`` (:func:`iga.elastic_forms.metric_rows`);
     ``LM`` (2, P) + qshape: lambda w / |det J| and mu w / |det J| (Pa).  Block (a, b) couples component a of
-    the test functions (rows) with component b of the trial functions.  The lower blocks, transposes of the
-    upper ones, are computed as well: the compiled pattern has no transpose index to gather them with, and
-    scattering them from the upper blocks' rows measured no faster.
+    the test functions (rows) with component b of the trial functions; the lower blocks are the upper ones'
+    transposes, gathered through the pattern's mirrored band offsets (a third of the kernel time saved).
     Compiled (:mod:`iga._elastic_kernels`); the NumPy reference is :func:`iga.elastic_forms.block_terms`.
     """
     t1, t2, t3 = (_tables(s) for s in space.dirs)
@@ -252,10 +251,15 @@ def elastic_blocks(space: TensorSpace, G: np.ndarray, LM: np.ndarray) -> tuple[C
     indptr = readonly(pat.indptr, np.int64)
     out = {}
     for a in range(3):
-        for b in range(3):
+        for b in range(a, 3):
             out[(a, b)] = np.empty((P, len(pat.indices)))  # every entry is written once
             kernel(G, LM, a, b, 0, t1["b"], t1["first"], t2["W"], t2["r"], t2["s"], t3["b"], t3["first"], indptr,
                    t1["lo"], t1["c"], t2["lo"], t2["c"], t3["lo"], t3["c"], ring, Z, Y, out[(a, b)])
+    transpose = np.empty(len(pat.indices), np.int64)
+    locked(_elastic_kernels().transpose_positions)(indptr, t1["lo"], t1["c"], t2["lo"], t2["c"], t3["lo"], t3["c"],
+                                                   p1, p2, p3, transpose)
+    for a, b in ((1, 0), (2, 0), (2, 1)):
+        out[(a, b)] = out[(b, a)][:, transpose]
     return pat, out
 
 
