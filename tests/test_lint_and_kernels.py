@@ -25,7 +25,8 @@ def test_compiled_kernels_as_plain_python():
     pytest.importorskip("numba", reason="the compiled paths need numba (test extra)")
     env = {**os.environ, "NUMBA_DISABLE_JIT": "1"}
     out = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "tests/test_fast_paths.py",
-                          "-k", "compiled or in_place or fold or mirrored"], cwd=ROOT, env=env, capture_output=True,
-                         text=True, timeout=600)
+                          "tests/test_elasticity.py",  # the elastic block, transpose and component-major kernels
+                          "-k", "compiled or in_place or fold or mirrored or component_major_matrix"], cwd=ROOT,
+                         env=env, capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stdout[-4000:] + out.stderr[-2000:]
     assert " passed" in out.stdout and "skipped" not in out.stdout.splitlines()[-1], out.stdout[-500:]
