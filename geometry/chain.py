@@ -25,11 +25,16 @@ def _dehomogenise(spline, H, dH):
 
 
 #: (values, first derivatives) basis matrices per (knots, degree, axis): the placed copies of one tile patch
-#: and the composed patches of one tile share knot vectors, so a model's grids need few distinct ones
-_BASES = BoundedCache(512)
+#: and the composed patches of one tile share knot vectors, so a model's grids need few distinct ones.  Axes of
+#: at most _CACHED_AXIS points only (Gauss points of a patch): at most about 10 MB at degree 12
+_BASES = BoundedCache(256)
+_CACHED_AXIS = 128
 
 
 def _bases(U, p, ax):
+    if len(ax) > _CACHED_AXIS:
+        return tuple(kn.basis_matrices(U, p, ax, 1))
+
     def make():
         mats = tuple(kn.basis_matrices(U, p, ax, 1))
         for m in mats:  # shared between calls: read-only

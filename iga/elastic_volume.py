@@ -59,7 +59,8 @@ class ElasticVolume:
                 if loads[a] is not None:
                     for j, i in enumerate(members):
                         f[a * n + d.offsets[i] : a * n + d.offsets[i + 1]] += loads[a][j].ravel()
-        return component_major_csr({ab: block_diagonal_csr(bl, n) for ab, bl in blocks.items()}, n), f, \
+        compiled = any(fast_assembly.applies(d.spaces[g[0]], len(g)) for g in d.volume.groups.values())
+        return component_major_csr({ab: block_diagonal_csr(bl, n) for ab, bl in blocks.items()}, n, compiled), f, \
             {"body": total}
 
     def _fields(self, members, youngs, poisson, body, thermal):
@@ -133,10 +134,12 @@ class ElasticVolume:
         return pat, data, loads, force
 
 
-def component_major_csr(M: dict, n: int) -> sp.csr_matrix:
+def component_major_csr(M: dict, n: int, compiled: bool = False) -> sp.csr_matrix:
     """The (3 n, 3 n) CSR of nine (n, n) blocks ``M[(a, b)]`` that share one pattern with sorted indices.
 
-    Compiled for large patterns (:func:`iga.fast_assembly.component_major_csr`, 10x faster), else:
+    ``compiled`` (the assembly loaded the compiled kernels anyway): in one compiled pass
+    (:func:`iga.fast_assembly.component_major_csr`, 10x faster); otherwise, so that small analyses never
+    import numba:
 
     Row a n + i holds row i of blocks (a, 0), (a, 1), (a, 2) one after the
     other, their columns shifted by 0, n, 2 n: index arithmetic on the shared
@@ -144,7 +147,7 @@ def component_major_csr(M: dict, n: int) -> sp.csr_matrix:
     a third of the memory).
     """
     P = M[(0, 0)]
-    if fast_assembly.AVAILABLE and len(P.indices) >= fast_assembly.MIN_POINTS:
+    if compiled and fast_assembly.AVAILABLE:
         return fast_assembly.component_major_csr(M, n)
     indptr, indices = P.indptr.astype(np.int64), P.indices.astype(np.int64)
     nnz = len(indices)
