@@ -200,7 +200,9 @@ def basis_functions(knots: np.ndarray, degree: int, x: np.ndarray, nder: int = 0
 
 def basis_matrix(knots: np.ndarray, degree: int, x: np.ndarray, nder: int = 0, side: str = "right") -> sp.csr_array:
     """Sparse matrix ``B[i, j] = d^nder N_j(x_i)`` of shape ``(len(x), n)`` (``side``: :func:`find_spans`)."""
-    return basis_matrices(knots, degree, x, nder, side)[nder]
+    x = np.asarray(x, float)
+    spans, ders = basis_functions(knots, degree, x, nder, side)
+    return _basis_csr(knots, degree, spans, ders[:, nder, :])
 
 
 def basis_matrices(knots: np.ndarray, degree: int, x: np.ndarray, nder: int = 0,
@@ -209,11 +211,14 @@ def basis_matrices(knots: np.ndarray, degree: int, x: np.ndarray, nder: int = 0,
     non-zero basis functions (:func:`basis_functions` computes every order up to ``nder`` at once)."""
     x = np.asarray(x, float)
     spans, ders = basis_functions(knots, degree, x, nder, side)
-    n = len(knots) - degree - 1
-    # CSR directly: p + 1 entries per row, columns increasing from span - p
+    return [_basis_csr(knots, degree, spans, ders[:, k, :]) for k in range(nder + 1)]
+
+
+def _basis_csr(knots, degree: int, spans: np.ndarray, values: np.ndarray) -> sp.csr_array:
+    """CSR of the non-zero values (N, p + 1) at their spans: p + 1 entries per row, columns from span - p up."""
     cols = (spans[:, None] - degree + np.arange(degree + 1)).ravel()
-    indptr = np.arange(0, (degree + 1) * len(x) + 1, degree + 1)
-    return [sp.csr_array((ders[:, k, :].ravel(), cols, indptr), shape=(len(x), n)) for k in range(nder + 1)]
+    indptr = np.arange(0, (degree + 1) * len(spans) + 1, degree + 1)
+    return sp.csr_array((values.ravel(), cols, indptr), shape=(len(spans), len(knots) - degree - 1))
 
 
 def greville(knots: np.ndarray, degree: int) -> np.ndarray:

@@ -59,9 +59,8 @@ class ElasticVolume:
                 if loads[a] is not None:
                     for j, i in enumerate(members):
                         f[a * n + d.offsets[i] : a * n + d.offsets[i + 1]] += loads[a][j].ravel()
-        compiled = any(fast_assembly.applies(d.spaces[g[0]], len(g)) for g in d.volume.groups.values())
-        return component_major_csr({ab: block_diagonal_csr(bl, n) for ab, bl in blocks.items()}, n, compiled), f, \
-            {"body": total}
+        return component_major_csr({ab: block_diagonal_csr(bl, n) for ab, bl in blocks.items()}, n,
+                                   d.volume.compiled), f, {"body": total}
 
     def _fields(self, members, youngs, poisson, body, thermal):
         """Metric rows c (3 rows x (3, M)), w/|det| (M,), lambda, mu (M,), body force (M, 3) or None and

@@ -147,6 +147,17 @@ def compact_rows_cols(K, keep: np.ndarray):
     return sp.csr_matrix((data[:nnz], indices[:nnz], indptr[: rows + 1]), shape=(rows, rows))
 
 
+def _scratch(space: TensorSpace, n_patches: int, terms: int):
+    """A slab kernel's scratch: the ring of banded rows of the p1 + 1 direction-1 indices a slab touches
+    (zero; each kernel pass leaves it zero again), and its partial contractions Z (``terms`` coefficient and
+    variant combinations) and Y, allocated once: fresh memory per slab is page-faulted in again."""
+    (_, n2, n3), (p1, p2, p3) = space.shape, [d.degree for d in space.dirs]
+    g1, nq2 = space.dirs[0].g, space.dirs[1].nq
+    ring = np.zeros((n_patches, p1 + 1, 2 * p1 + 1, n2, (2 * p2 + 1) * n3 * (2 * p3 + 1)))
+    return (ring, np.empty((g1, terms, nq2, n3, 2 * p3 + 1)),
+            np.empty((g1, 4, n2, 2 * p2 + 1, n3, 2 * p3 + 1)))
+
+
 class StiffnessAccumulator:
     """CSR stiffness of P patches sharing ``space``, added slab by slab of direction-1 elements.
 
@@ -166,13 +177,7 @@ class StiffnessAccumulator:
         self.pattern = structure(space)
         # every entry is written exactly once, when its row is complete: no zero-filling needed
         self.data = np.empty((n_patches, len(self.pattern.indices)))
-        # banded rows of the p1 + 1 direction-1 indices a slab touches (see the kernel)
-        (_, n2, n3), (p1, p2, p3) = space.shape, [d.degree for d in space.dirs]
-        self.ring = np.zeros((n_patches, p1 + 1, 2 * p1 + 1, n2, (2 * p2 + 1) * n3 * (2 * p3 + 1)))
-        # the kernel's partial contractions, allocated once: fresh memory per slab is page-faulted in again
-        g1, nq2 = space.dirs[0].g, space.dirs[1].nq
-        self.Z = np.empty((g1, 7, nq2, n3, 2 * p3 + 1))
-        self.Y = np.empty((g1, 4, n2, 2 * p2 + 1, n3, 2 * p3 + 1))
+        self.ring, self.Z, self.Y = _scratch(space, n_patches, 7)
         self.next_element = 0
         #: load vectors (P,) + space.shape, once a slab with a source field was added (else None)
         self.load = None
@@ -241,11 +246,9 @@ def elastic_blocks(space: TensorSpace, G: np.ndarray, LM: np.ndarray) -> tuple[C
     t1, t2, t3 = (_tables(s) for s in space.dirs)
     pat = structure(space)
     P = G.shape[1]
-    (_, n2, n3), (p1, p2, p3) = space.shape, [d.degree for d in space.dirs]
-    g1, nq2, g3 = space.dirs[0].g, space.dirs[1].nq, space.dirs[2].g
-    ring = np.zeros((P, p1 + 1, 2 * p1 + 1, n2, (2 * p2 + 1) * n3 * (2 * p3 + 1)))  # cleared again by each pass
-    Z = np.empty((g1, 9, nq2, n3, 2 * p3 + 1))
-    Y = np.empty((g1, 4, n2, 2 * p2 + 1, n3, 2 * p3 + 1))
+    p1, p2, p3 = [d.degree for d in space.dirs]
+    ring, Z, Y = _scratch(space, P, 9)  # the ring is left zero by each pass, so the six share it
+    g3 = space.dirs[2].g
     G, LM = readonly(G), readonly(LM)
     kernel = locked(_elastic_kernels().elastic3_for(p3, g3))
     indptr = readonly(pat.indptr, np.int64)

@@ -29,6 +29,7 @@ from geometry import knots as kn
 from geometry.chain import patch_geometry_grid
 
 from .constraints import needs_constraints, prolongation
+from .elastic_forms import lame
 from .errors import ProblemError
 from .space import Space1D, TensorSpace, make_space
 from geometry.tolerances import ON_DOMAIN
@@ -72,8 +73,6 @@ def elastic_kronecker_sums(problem, free: np.ndarray) -> list | None:
         return None
     n = problem.ndof
     x, Jinv, adet, chans = _metric_samples(problem)
-    from .elastic_forms import lame
-
     lam, mu = lame(problem.youngs.values(x, chans, "the preconditioner's sample points"),
                    problem.poisson.values(x, chans, "the preconditioner's sample points"),
                    "the preconditioner's sample points")

@@ -46,14 +46,19 @@ import scipy.sparse.linalg as spla
 from .errors import SolverError
 
 
+def _near_nullspace(near_nullspace, n: int) -> np.ndarray:
+    """``near_nullspace`` as a finite (n, k) array, or the project's error naming it."""
+    B = np.asarray(near_nullspace, float)
+    if B.ndim != 2 or B.shape[0] != n or not np.all(np.isfinite(B)):
+        raise SolverError(f"near_nullspace must be a finite ({n}, k) array, got shape {B.shape}")
+    return B
+
+
 def _candidates(near_nullspace, s: np.ndarray) -> np.ndarray:
     """The near-nullspace of the scaled matrix S A S: S^-1 B (B the constants by default)."""
     if near_nullspace is None:
         return (1.0 / s)[:, None]
-    B = np.asarray(near_nullspace, float)
-    if B.ndim != 2 or B.shape[0] != len(s) or not np.all(np.isfinite(B)):
-        raise SolverError(f"near_nullspace must be a finite ({len(s)}, k) array, got shape {B.shape}")
-    return B / s[:, None]
+    return _near_nullspace(near_nullspace, len(s)) / s[:, None]
 
 
 class _Scaled(sp.csr_matrix):
@@ -170,9 +175,7 @@ class AMGPreconditioner:
                            shape=(size, size))
         Bp = None
         if B is not None:
-            B = np.asarray(B, float)
-            if B.ndim != 2 or B.shape[0] != n:
-                raise SolverError(f"near_nullspace must be a finite ({n}, k) array, got shape {B.shape}")
+            B = _near_nullspace(B, n)
             Bp = np.zeros((size, B.shape[1]))
             Bp[slots] = B
         self.slots, self.size = slots, size
