@@ -55,18 +55,6 @@ def _weights1(b1, e1, l1, m1, t):
 
 
 @njit(inline="always")
-def _slab_sizes(C, b1, W2, b3, lo1, lo3, P3):
-    """Sizes a slab kernel reads off its arguments: patches P, Gauss points nq2, g1 and elements n_el of the
-    slab in direction 1, p1, n2 and band D2, elements E3, n3 and band D3, E1, n1, and the flat row lengths K2
-    (direction 2 and 3 band) and K3 (direction 3 band)."""
-    g1 = b1.shape[3]
-    n2, D2 = W2.shape[1], W2.shape[2]
-    n3, D3 = lo3.shape[0], 2 * P3 + 1
-    return (C.shape[1], C.shape[3], g1, C.shape[2] // g1, b1.shape[2] - 1, n2, D2, b3.shape[1], n3, D3,
-            b1.shape[1], lo1.shape[0], D2 * n3 * D3, n3 * D3)
-
-
-@njit(inline="always")
 def _rows_of_element(ring, Yr, b1, pi, e1, f0, i2, p1, g1, K2):
     """Stage 1 of a kernel for direction-2 row i2: add the four direction-1 variant groups Yr (g1, 4, n2, K2)
     of element e1 into the ring rows of its p1 + 1 basis functions (first f0), slot i1 % (p1 + 1)."""
@@ -117,14 +105,109 @@ def _flush_row(ring, data, indptr, pi, i1, i2, n2, n3, D3, lo1, c1, lo2, c2, lo3
             ring[pi, slot, d1, i2, k] = 0.0
 
 
+@njit(cache=True, parallel=True, fastmath=True)
+def heat_stage2(Z, Y, W2, r2, s2):
+    """Stage 2 of :func:`stiffness3` for the g1 Gauss planes of one direction-1 element: Z (g1, 7, nq2, n3, D3)
+    contracted along direction 2 into Y (g1, 4, n2, D2, n3, D3), the mirrored groups and halves included.
+
+    Compiled once for every degree (the degree-specialised stage 3 calls it), so that a new degree costs
+    only the compilation of its stage 3.
+    """
+    g1, nq2, n3, D3 = Z.shape[0], Z.shape[2], Z.shape[3], Z.shape[4]
+    n2, D2 = Y.shape[2], Y.shape[3]
+    K3 = n3 * D3
+    p2, P3 = (D2 - 1) // 2, (D3 - 1) // 2  # P3 read off the shapes: a constant argument would be typed as a
+    Zf = Z.reshape(g1, 7, nq2, K3)  # literal and compile this function once per degree
+    Yf = Y.reshape(g1, 4, n2, D2, K3)
+    # stage 2: groups by the direction-1 variant (a1, b1):
+    # Y0 (1,1) = C00; Y1 (1,0) = C01 d_v N_j + C02 d_w N_j; Y3 (0,0) = the four C_rs, r, s in {1, 2}.
+    # Y0 and Y3 are symmetric under (i2, d2, i3, d3) -> (j2, 2 p2 - d2, j3, 2 p3 - d3): summed for
+    # d2 >= p2 only and mirrored with Y2 below
+    # (sweeps run over the flattened (i3, d3) index: contiguous, so they vectorise)
+    for item in prange(g1 * n2):
+        t = item // n2
+        i2 = item - t * n2
+        for d2 in range(D2):
+            upper = d2 >= p2
+            y0, y1, y3 = Yf[t, 0, i2, d2], Yf[t, 1, i2, d2], Yf[t, 3, i2, d2]
+            for k in range(K3):
+                y1[k] = 0.0
+            if upper:
+                for k in range(K3):
+                    y0[k] = 0.0
+                    y3[k] = 0.0
+            for l in range(r2[i2, d2, 0], r2[i2, d2, 1]):
+                q2 = s2[i2] + l
+                w00 = W2[0, i2, d2, l]
+                w01 = W2[1, i2, d2, l]
+                w10 = W2[2, i2, d2, l]
+                w11 = W2[3, i2, d2, l]
+                z0, z1, z2, z3 = Zf[t, 0, q2], Zf[t, 1, q2], Zf[t, 2, q2], Zf[t, 3, q2]
+                z4, z5, z6 = Zf[t, 4, q2], Zf[t, 5, q2], Zf[t, 6, q2]
+                if upper:
+                    for k in range(K3):
+                        y0[k] += w00 * z0[k]
+                        y1[k] += w01 * z1[k] + w00 * z2[k]
+                        y3[k] += w11 * z3[k] + w00 * z4[k] + w10 * z5[k] + w01 * z6[k]
+                else:
+                    for k in range(K3):
+                        y1[k] += w01 * z1[k] + w00 * z2[k]
+    # mirrors: group (0,1) is group (1,0) transposed; Y0 and Y3 below the diagonal band
+    for item in prange(g1 * n2):
+        t = item // n2
+        i2 = item - t * n2
+        for d2 in range(D2):
+            j2 = i2 + d2 - p2
+            for i3 in range(n3):
+                for d3 in range(D3):
+                    j3 = i3 + d3 - P3
+                    if 0 <= j2 < n2 and 0 <= j3 < n3:
+                        Y[t, 2, i2, d2, i3, d3] = Y[t, 1, j2, 2 * p2 - d2, j3, 2 * P3 - d3]
+                        if d2 < p2:
+                            Y[t, 0, i2, d2, i3, d3] = Y[t, 0, j2, 2 * p2 - d2, j3, 2 * P3 - d3]
+                            Y[t, 3, i2, d2, i3, d3] = Y[t, 3, j2, 2 * p2 - d2, j3, 2 * P3 - d3]
+                    else:
+                        Y[t, 2, i2, d2, i3, d3] = 0.0
+                        if d2 < p2:
+                            Y[t, 0, i2, d2, i3, d3] = 0.0
+                            Y[t, 3, i2, d2, i3, d3] = 0.0
+
+
+@njit(cache=True, parallel=True, fastmath=True)
+def stage1_flush(ring, Y, b1, first1, pi, e1, data, indptr, lo1, c1, lo2, c2, lo3, c3):
+    """Stage 1 of the slab kernels for direction-1 element e1 of patch pi: the four direction-1 variant groups
+    Y (g1, 4, n2, D2, n3, D3) into the ring rows of its basis functions, then the rows no later element
+    touches copied into the CSR data (P, nnz).  Compiled once, shared by the scalar and the elastic kernels."""
+    g1, n2, D2, n3, D3 = Y.shape[0], Y.shape[2], Y.shape[3], Y.shape[4], Y.shape[5]
+    p1, E1, n1 = b1.shape[2] - 1, b1.shape[1], lo1.shape[0]
+    K2 = D2 * n3 * D3
+    Yr = Y.reshape(g1, 4, n2, K2)
+    # stage 1: rows i1 = first1[e1] + l1, columns j1 = first1[e1] + m1, accumulated in the
+    # banded ring buffer (row i1 in slot i1 % (p1 + 1)): contiguous, vectorisable sweeps.  Each
+    # sweep reads the four Y rows of one Gauss plane once and adds them to up to four
+    # destinations (m1 .. m1 + 3): with one destination per sweep, the re-reads of Y (300 KB
+    # per i2 at p = 3) came from L2
+    f0 = first1[e1]
+    for i2 in prange(n2):
+        _rows_of_element(ring, Yr, b1, pi, e1, f0, i2, p1, g1, K2)
+    # rows that no later element touches are complete: copy them into CSR order (one
+    # sequential write per entry) and clear their slots
+    stop = first1[e1 + 1] if e1 + 1 < E1 else n1
+    for i1 in range(f0, stop):
+        for i2 in prange(n2):
+            _flush_row(ring, data, indptr, pi, i1, i2, n2, n3, D3, lo1, c1, lo2, c2, lo3, c3)
+
+
 @lru_cache(maxsize=64)  # one kernel per (p3, g3): a handful per process
 def stiffness3_for(p3: int, g3: int):
     """The stiffness kernel ``stiffness3`` for degree p3 and g3 Gauss points per element in direction 3.
 
-    Both are compile-time constants of the kernel, so that LLVM unrolls the
-    Gauss loop of stage 3 and keeps its seven accumulators in registers
-    (docs/performance.md).  Each (p3, g3) compiles once (a few seconds) and is
-    cached on disk like the other kernels (numba keys closures by their constants).
+    Both are compile-time constants of stage 3, so that LLVM unrolls its Gauss
+    loop and keeps its seven accumulators in registers (docs/performance.md).
+    Stages 2 and 1 (:func:`heat_stage2`, :func:`stage1_flush`) are compiled
+    once for all degrees: a new (p3, g3) compiles stage 3 only (about 3 s
+    instead of 14), cached on disk like the other kernels (numba keys closures
+    by their constants).
     """
     P3, G3 = int(p3), int(g3)
 
@@ -148,11 +231,9 @@ def stiffness3_for(p3: int, g3: int):
         functions of e1.  Slabs run in order (rows of neighbouring slabs overlap);
         inside a slab the work is split over planes and rows.
         """
-        P, nq2, g1, n_el, p1, n2, D2, E3, n3, D3, E1, n1, K2, K3 = _slab_sizes(C, b1, W2, b3, lo1, lo3, P3)
-        p2 = (D2 - 1) // 2
+        P, nq2, g1, E3, K3 = C.shape[1], C.shape[3], b1.shape[3], b3.shape[1], Z.shape[3] * Z.shape[4]
+        n_el = C.shape[2] // g1
         Zf = Z.reshape(g1, 7, nq2, K3)
-        Yf = Y.reshape(g1, 4, n2, D2, K3)
-        Yr = Y.reshape(g1, 4, n2, K2)
         for pi in range(P):
             for e1 in range(e0, e0 + n_el):
                 # stage 3: Z[t, m, q2, i3, d3] = sum_q3 W3[v_m](i3, d3, q3) C[f_m](q1, q2, q3), element by
@@ -196,72 +277,8 @@ def stiffness3_for(p3: int, g3: int):
                                 Z[t, 4, q2, i3, d3] += z4
                                 Z[t, 5, q2, i3, d3] += z5
                                 Z[t, 6, q2, i3, d3] += z6
-                # stage 2: groups by the direction-1 variant (a1, b1):
-                # Y0 (1,1) = C00; Y1 (1,0) = C01 d_v N_j + C02 d_w N_j; Y3 (0,0) = the four C_rs, r, s in {1, 2}.
-                # Y0 and Y3 are symmetric under (i2, d2, i3, d3) -> (j2, 2 p2 - d2, j3, 2 p3 - d3): summed for
-                # d2 >= p2 only and mirrored with Y2 below
-                # (sweeps run over the flattened (i3, d3) index: contiguous, so they vectorise)
-                for item in prange(g1 * n2):
-                    t = item // n2
-                    i2 = item - t * n2
-                    for d2 in range(D2):
-                        upper = d2 >= p2
-                        y0, y1, y3 = Yf[t, 0, i2, d2], Yf[t, 1, i2, d2], Yf[t, 3, i2, d2]
-                        for k in range(K3):
-                            y1[k] = 0.0
-                        if upper:
-                            for k in range(K3):
-                                y0[k] = 0.0
-                                y3[k] = 0.0
-                        for l in range(r2[i2, d2, 0], r2[i2, d2, 1]):
-                            q2 = s2[i2] + l
-                            w00 = W2[0, i2, d2, l]
-                            w01 = W2[1, i2, d2, l]
-                            w10 = W2[2, i2, d2, l]
-                            w11 = W2[3, i2, d2, l]
-                            z0, z1, z2, z3 = Zf[t, 0, q2], Zf[t, 1, q2], Zf[t, 2, q2], Zf[t, 3, q2]
-                            z4, z5, z6 = Zf[t, 4, q2], Zf[t, 5, q2], Zf[t, 6, q2]
-                            if upper:
-                                for k in range(K3):
-                                    y0[k] += w00 * z0[k]
-                                    y1[k] += w01 * z1[k] + w00 * z2[k]
-                                    y3[k] += w11 * z3[k] + w00 * z4[k] + w10 * z5[k] + w01 * z6[k]
-                            else:
-                                for k in range(K3):
-                                    y1[k] += w01 * z1[k] + w00 * z2[k]
-                # mirrors: group (0,1) is group (1,0) transposed; Y0 and Y3 below the diagonal band
-                for item in prange(g1 * n2):
-                    t = item // n2
-                    i2 = item - t * n2
-                    for d2 in range(D2):
-                        j2 = i2 + d2 - p2
-                        for i3 in range(n3):
-                            for d3 in range(D3):
-                                j3 = i3 + d3 - P3
-                                if 0 <= j2 < n2 and 0 <= j3 < n3:
-                                    Y[t, 2, i2, d2, i3, d3] = Y[t, 1, j2, 2 * p2 - d2, j3, 2 * P3 - d3]
-                                    if d2 < p2:
-                                        Y[t, 0, i2, d2, i3, d3] = Y[t, 0, j2, 2 * p2 - d2, j3, 2 * P3 - d3]
-                                        Y[t, 3, i2, d2, i3, d3] = Y[t, 3, j2, 2 * p2 - d2, j3, 2 * P3 - d3]
-                                else:
-                                    Y[t, 2, i2, d2, i3, d3] = 0.0
-                                    if d2 < p2:
-                                        Y[t, 0, i2, d2, i3, d3] = 0.0
-                                        Y[t, 3, i2, d2, i3, d3] = 0.0
-                # stage 1: rows i1 = first1[e1] + l1, columns j1 = first1[e1] + m1, accumulated in the
-                # banded ring buffer (row i1 in slot i1 % (p1 + 1)): contiguous, vectorisable sweeps.  Each
-                # sweep reads the four Y rows of one Gauss plane once and adds them to up to four
-                # destinations (m1 .. m1 + 3): with one destination per sweep, the re-reads of Y (300 KB
-                # per i2 at p = 3) came from L2
-                f0 = first1[e1]
-                for i2 in prange(n2):
-                    _rows_of_element(ring, Yr, b1, pi, e1, f0, i2, p1, g1, K2)
-                # rows that no later element touches are complete: copy them into CSR order (one
-                # sequential write per entry) and clear their slots
-                stop = first1[e1 + 1] if e1 + 1 < E1 else n1
-                for i1 in range(f0, stop):
-                    for i2 in prange(n2):
-                        _flush_row(ring, data, indptr, pi, i1, i2, n2, n3, D3, lo1, c1, lo2, c2, lo3, c3)
+                heat_stage2(Z, Y, W2, r2, s2)
+                stage1_flush(ring, Y, b1, first1, pi, e1, data, indptr, lo1, c1, lo2, c2, lo3, c3)
 
     return stiffness3
 

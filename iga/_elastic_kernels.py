@@ -2,7 +2,8 @@
 
 The same slab-wise sum factorisation as :func:`iga._assembly_kernels.stiffness3`
 (direction 3, then 2, then 1 into a banded ring buffer, rows written into the
-CSR data once complete; stage 1 and the copy-out are shared), for the
+CSR data once complete; stage 1 and the copy-out are shared, and like stage 2
+compiled once for all degrees), for the
 non-symmetric parametric tensor of one block (a, b) of linear elasticity
 (:mod:`iga.elastic_forms`):
 
@@ -21,7 +22,45 @@ from functools import lru_cache
 import numpy as np
 from numba import njit, prange
 
-from ._assembly_kernels import _flush_row, _rows_of_element, _slab_sizes
+from ._assembly_kernels import stage1_flush
+
+
+@njit(cache=True, parallel=True, fastmath=True)
+def elastic_stage2(Z, Y, W2, r2, s2):
+    """Stage 2 of :func:`elastic3` for the g1 Gauss planes of one direction-1 element: Z (g1, 9, nq2, n3, D3)
+    contracted along direction 2 into the four direction-1 variant groups Y (g1, 4, n2, D2, n3, D3).
+    Compiled once for every degree, as :func:`iga._assembly_kernels.heat_stage2`."""
+    g1, nq2, n3, D3 = Z.shape[0], Z.shape[2], Z.shape[3], Z.shape[4]
+    n2, D2 = Y.shape[2], Y.shape[3]
+    K3 = n3 * D3
+    Zf = Z.reshape(g1, 9, nq2, K3)
+    Yf = Y.reshape(g1, 4, n2, D2, K3)
+    # stage 2: groups by the direction-1 variant; (r, s) has direction-2 variant (r == 1, s == 1):
+    # Y0 (1,1) = F00; Y1 (1,0) = F01, F02; Y2 (0,1) = F10, F20; Y3 (0,0) = F11, F12, F21, F22
+    for item in prange(g1 * n2):
+        t = item // n2
+        i2 = item - t * n2
+        for d2 in range(D2):
+            y0, y1, y2, y3 = Yf[t, 0, i2, d2], Yf[t, 1, i2, d2], Yf[t, 2, i2, d2], Yf[t, 3, i2, d2]
+            for k in range(K3):
+                y0[k] = 0.0
+                y1[k] = 0.0
+                y2[k] = 0.0
+                y3[k] = 0.0
+            for l in range(r2[i2, d2, 0], r2[i2, d2, 1]):
+                q2 = s2[i2] + l
+                w00 = W2[0, i2, d2, l]
+                w01 = W2[1, i2, d2, l]
+                w10 = W2[2, i2, d2, l]
+                w11 = W2[3, i2, d2, l]
+                f00, f01, f02 = Zf[t, 0, q2], Zf[t, 1, q2], Zf[t, 2, q2]
+                f10, f11, f12 = Zf[t, 3, q2], Zf[t, 4, q2], Zf[t, 5, q2]
+                f20, f21, f22 = Zf[t, 6, q2], Zf[t, 7, q2], Zf[t, 8, q2]
+                for k in range(K3):
+                    y0[k] += w00 * f00[k]
+                    y1[k] += w01 * f01[k] + w00 * f02[k]
+                    y2[k] += w10 * f10[k] + w00 * f20[k]
+                    y3[k] += w11 * f11[k] + w10 * f12[k] + w01 * f21[k] + w00 * f22[k]
 
 
 @lru_cache(maxsize=16)  # one kernel per (p3, g3), as stiffness3_for
@@ -40,11 +79,10 @@ def elastic3_for(p3: int, g3: int):
         scratch Z (g1, 9, nq2, n3, D3), one slot per (r, s) = 3 r + s.
         Row i is the test function (component a), column j the trial (b).
         """
-        P, nq2, g1, n_el, p1, n2, D2, E3, n3, D3, E1, n1, K2, K3 = _slab_sizes(G, b1, W2, b3, lo1, lo3, P3)
+        P, nq2, g1, E3, K3 = G.shape[1], G.shape[3], b1.shape[3], b3.shape[1], Z.shape[3] * Z.shape[4]
+        n_el = G.shape[2] // g1
         diag = 1.0 if a == b else 0.0
         Zf = Z.reshape(g1, 9, nq2, K3)
-        Yf = Y.reshape(g1, 4, n2, D2, K3)
-        Yr = Y.reshape(g1, 4, n2, K2)
         for pi in range(P):
             for e1 in range(e0, e0 + n_el):
                 # stage 3: Z[t, rs, q2, i3, d3] = sum_q3 W3[v(r, s)](i3, d3, q3) F_rs(q1, q2, q3); the direction-3
@@ -99,40 +137,8 @@ def elastic3_for(p3: int, g3: int):
                                 Z[t, 6, q2, i3, d3] += z20
                                 Z[t, 7, q2, i3, d3] += z21
                                 Z[t, 8, q2, i3, d3] += z22
-                # stage 2: groups by the direction-1 variant; (r, s) has direction-2 variant (r == 1, s == 1):
-                # Y0 (1,1) = F00; Y1 (1,0) = F01, F02; Y2 (0,1) = F10, F20; Y3 (0,0) = F11, F12, F21, F22
-                for item in prange(g1 * n2):
-                    t = item // n2
-                    i2 = item - t * n2
-                    for d2 in range(D2):
-                        y0, y1, y2, y3 = Yf[t, 0, i2, d2], Yf[t, 1, i2, d2], Yf[t, 2, i2, d2], Yf[t, 3, i2, d2]
-                        for k in range(K3):
-                            y0[k] = 0.0
-                            y1[k] = 0.0
-                            y2[k] = 0.0
-                            y3[k] = 0.0
-                        for l in range(r2[i2, d2, 0], r2[i2, d2, 1]):
-                            q2 = s2[i2] + l
-                            w00 = W2[0, i2, d2, l]
-                            w01 = W2[1, i2, d2, l]
-                            w10 = W2[2, i2, d2, l]
-                            w11 = W2[3, i2, d2, l]
-                            f00, f01, f02 = Zf[t, 0, q2], Zf[t, 1, q2], Zf[t, 2, q2]
-                            f10, f11, f12 = Zf[t, 3, q2], Zf[t, 4, q2], Zf[t, 5, q2]
-                            f20, f21, f22 = Zf[t, 6, q2], Zf[t, 7, q2], Zf[t, 8, q2]
-                            for k in range(K3):
-                                y0[k] += w00 * f00[k]
-                                y1[k] += w01 * f01[k] + w00 * f02[k]
-                                y2[k] += w10 * f10[k] + w00 * f20[k]
-                                y3[k] += w11 * f11[k] + w10 * f12[k] + w01 * f21[k] + w00 * f22[k]
-                # stage 1 and the copy-out of complete rows: as the scalar kernel
-                f0 = first1[e1]
-                for i2 in prange(n2):
-                    _rows_of_element(ring, Yr, b1, pi, e1, f0, i2, p1, g1, K2)
-                stop = first1[e1 + 1] if e1 + 1 < E1 else n1
-                for i1 in range(f0, stop):
-                    for i2 in prange(n2):
-                        _flush_row(ring, data, indptr, pi, i1, i2, n2, n3, D3, lo1, c1, lo2, c2, lo3, c3)
+                elastic_stage2(Z, Y, W2, r2, s2)
+                stage1_flush(ring, Y, b1, first1, pi, e1, data, indptr, lo1, c1, lo2, c2, lo3, c3)
 
     return elastic3
 
