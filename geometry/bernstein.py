@@ -22,7 +22,13 @@ from math import comb
 
 import numpy as np
 
+from . import _fast
+from .compile_lock import locked
 from .knots import bernstein_elevation
+
+#: multiplications from which a product runs in the compiled kernel (where numba is installed): below, the
+#: NumPy path costs less than the kernel's call and the numba import
+COMPILED_MACS = 1 << 16
 
 __all__ = ["binomials", "multiply", "power", "elevate", "derivative", "split_matrices", "evaluate"]
 
@@ -47,13 +53,15 @@ def _scale(a: np.ndarray, ndim: int, inverse: bool = False) -> np.ndarray:
     return out
 
 
-def multiply(a: np.ndarray, b: np.ndarray, ndim: int) -> np.ndarray:
+def multiply(a: np.ndarray, b: np.ndarray, ndim: int, compiled: bool | None = None) -> np.ndarray:
     """Exact product of Bernstein polynomials (batched, broadcasting batch axes).
 
     ``a``: (..., p_1+1, ..., p_d+1), ``b``: (..., q_1+1, ..., q_d+1) ->
     (..., p_1+q_1+1, ..., p_d+q_d+1).
 
-    The convolution of binomially scaled coefficients is computed as one
+    ``compiled``: in the direct loops of :func:`geometry._bernstein_kernels.product3` (numba, d <= 3); by
+    default when numba is installed and the product takes at least :data:`COMPILED_MACS` multiplications
+    (so that small analyses never import numba).  Otherwise in NumPy: the convolution of binomially scaled coefficients is computed as one
     batched matrix product with a banded Toeplitz matrix of the smaller factor
     along the last axis (BLAS), then block shift-adds over the other axes.
     Batch axes along which only the larger factor varies (e.g. coordinate
@@ -74,10 +82,16 @@ def multiply(a: np.ndarray, b: np.ndarray, ndim: int) -> np.ndarray:
     shared, rows = batch[:n_shared], batch[n_shared:]
     B = int(np.prod(shared, dtype=int))
     C = int(np.prod(rows, dtype=int))
+    r = tuple(x + y - 1 for x, y in zip(pa, pb))
+    if compiled is None:
+        compiled = ndim <= 3 and B * C * int(np.prod(pa)) * int(np.prod(pb)) >= COMPILED_MACS and _fast.AVAILABLE
+    if compiled:
+        sa = np.broadcast_to(a.reshape(ba + pa), shared + (1,) * len(rows) + pa).reshape((B, 1) + pa)
+        sb = np.broadcast_to(b, batch + pb).reshape((B, C) + pb)
+        return _product_compiled(sa, sb).reshape(batch + r)
     sa = np.broadcast_to(_scale(a, ndim).reshape(ba + pa), shared + (1,) * len(rows) + pa).reshape((B, 1) + pa)
     sb = np.broadcast_to(_scale(b, ndim), batch + pb).reshape((B, C) + pb)
-    out = _convolve(sa, sb)
-    out = out.reshape(batch + tuple(x + y - 1 for x, y in zip(pa, pb)))
+    out = _convolve(sa, sb).reshape(batch + r)
     return _scale(out, ndim, inverse=True)
 
 
@@ -130,6 +144,34 @@ def _convolve(a: np.ndarray, b: np.ndarray, max_bytes: int = 64 << 20) -> np.nda
                 blk[sl] += src
     out = out.reshape((B, Ct * Co) + r) if not swap else np.swapaxes(out, 1, 2).reshape((B, Ct * Co) + r)
     return out
+
+
+@lru_cache(maxsize=256)
+def _weights(shape: tuple, inverse: bool) -> np.ndarray:
+    """The binomial scaling (or its inverse) of a Bernstein array of ``shape`` (read-only, as a tensor)."""
+    w = np.ones(shape)
+    for k, n in enumerate(shape):
+        b = binomials(n - 1)
+        w = w * (1.0 / b if inverse else b).reshape((1,) * k + (-1,) + (1,) * (len(shape) - k - 1))
+    w.setflags(write=False)
+    return w
+
+
+def _product_compiled(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Bernstein products a (B, Ca, pa...) x b (B, Cb, pb...) -> (B, Ca, Cb, r...) in the compiled kernel."""
+    from ._bernstein_kernels import product3
+
+    swap = a.shape[-1] > b.shape[-1]  # the longer last axis innermost: the loop the compiler vectorises
+    if swap:
+        a, b = b, a
+    B, Ca, Cb = a.shape[0], a.shape[1], b.shape[1]
+    pad = (1,) * (5 - a.ndim)
+    pa, pb = pad + a.shape[2:], pad + b.shape[2:]
+    r = tuple(x + y - 1 for x, y in zip(pa, pb))
+    out = np.zeros((B, Ca, Cb) + r)
+    locked(product3)(_fast.readonly(np.reshape(a, (B, Ca) + pa)), _fast.readonly(np.reshape(b, (B, Cb) + pb)),
+                     _weights(pa, False), _weights(pb, False), _weights(r, True), out)
+    return np.swapaxes(out, 1, 2) if swap else out
 
 
 def power(a: np.ndarray, k: int, ndim: int, cache: dict | None = None) -> np.ndarray:

@@ -48,9 +48,10 @@ def _bernstein_factors(X, W, n, ndim):
 
 
 def _compose_pieces(Q, S, W, ndim):
-    """Compose one outer Bezier piece with a batch of inner Bernstein pieces.
+    """Compose outer Bezier pieces with a batch of inner Bernstein pieces.
 
-    Q: (n_1+1, ..., n_D+1, Co) homogeneous outer coefficients (weights last if rational).
+    Q: (G, n_1+1, ..., n_D+1, Co) homogeneous outer coefficients (weights last if rational), one piece per
+       group of B / G consecutive batch rows (a placement's inner elements share its outer piece).
     S: list of D arrays (B, m_1+1, ...): homogeneous numerators X_k of the
        normalised inner coordinates.
     W: (B, m_1+1, ...) inner weight (ones for a polynomial inner).
@@ -60,22 +61,27 @@ def _compose_pieces(Q, S, W, ndim):
     The products ``H_I`` of the factors of all but the last outer direction
     are formed once and shared by every component (coordinates, channels,
     weight); the last direction costs one product per index, with all
-    components as matrix rows.  (A de Casteljau pyramid with polynomial
+    components as matrix rows.  The factors do not depend on the outer piece,
+    so placements in different pieces share every product (only the
+    contraction with Q is per piece).  (A de Casteljau pyramid with polynomial
     arithmetic needs fewer flops but measured slower: its products are
     memory-bound.)
     """
-    D = Q.ndim - 1
-    degs = Q.shape[:D]
+    D = Q.ndim - 2
+    degs = Q.shape[1 : D + 1]
+    G = Q.shape[0]
     factors = [_bernstein_factors(S[k], W, degs[k] - 1, ndim) for k in range(D)]
     H = factors[0]
     for k in range(1, D - 1):
         H = [bz.multiply(h, f, ndim) for h in H for f in factors[k]]
     H = np.stack(H, axis=1)  # (B, prod(n_1+1 .. n_{D-1}+1), bern...)
-    Qr = Q.reshape(-1, degs[-1], Q.shape[-1])  # (I, n_D + 1, Co)
+    bern = H.shape[2:]
+    H = H.reshape(G, -1, H.shape[1], int(np.prod(bern)))  # (G, B / G, I, bern flat)
+    Qt = np.moveaxis(Q.reshape(G, -1, degs[-1], Q.shape[-1]), 1, -1)  # (G, n_D + 1, Co, I)
     out = None
     for k, fk in enumerate(factors[-1]):
-        M = np.einsum("ic,bi...->bc...", Qr[:, k, :], H)  # (B, Co, bern...)
-        term = bz.multiply(M, fk[:, None], ndim)
+        M = np.matmul(Qt[:, None, k], H)  # (G, B / G, Co, bern flat): the contraction with the piece
+        term = bz.multiply(M.reshape((-1, M.shape[2]) + bern), fk[:, None], ndim)
         out = term if out is None else out + term
     return out
 
@@ -103,12 +109,12 @@ def _result_knots(inner: BSpline, degrees):
 
 
 def compose_batch(outer_piece_hom, outer_rational, lo, hi, inner: BSpline, A, b, inner_bezier):
-    """Compose ``inner`` placed by ``p -> A p + b`` into one outer Bezier piece.
+    """Compose ``inner`` placed by ``p -> A p + b`` into the outer Bezier piece of each placement.
 
-    ``A``: (B, D, 3), ``b``: (B, D) placements already restricted to the
-    outer's D parameter directions; ``inner_bezier`` = :func:`inner_bezier`
-    of ``inner``.  Returns (degrees, knots, list of B homogeneous coefficient
-    arrays, rational).
+    ``outer_piece_hom``: (B, n_1+1, ..., n_D+1, Co) the homogeneous outer piece of each placement, ``lo``,
+    ``hi`` (B, D) its parameter box; ``A``: (B, D, 3), ``b``: (B, D) placements already restricted to the
+    outer's D parameter directions; ``inner_bezier`` = :func:`inner_bezier` of ``inner``.  Returns
+    (degrees, knots, list of B homogeneous coefficient arrays, rational).
     """
     d = inner.dim
     E, ne = inner_bezier  # (E, m+1..., Ch)
@@ -122,14 +128,14 @@ def compose_batch(outer_piece_hom, outer_rational, lo, hi, inner: BSpline, A, b,
         Ci = E[..., 3:]
     h = hi - lo
     # normalised homogeneous coordinates per (placement, element): (B, E, m+1...)
-    Ascaled = A / h[None, :, None]
-    bscaled = (b - lo[None, :]) / h[None, :]
+    Ascaled = A / h[:, :, None]
+    bscaled = (b - lo) / h
     S = np.einsum("bkj,e...j->bke...", Ascaled, Xh) + bscaled[:, :, None].reshape(bscaled.shape + (1,) * (d + 1)) * Wi[None, None]
     Bn = S.shape[0]
     flatS = [S[:, k].reshape((Bn * S.shape[2],) + S.shape[3:]) for k in range(S.shape[1])]
     Wb = np.broadcast_to(Wi[None], (Bn,) + Wi.shape).reshape((-1,) + Wi.shape[1:])
     res = _compose_pieces(outer_piece_hom, flatS, Wb, d)  # (B*E, Co, P+1...)
-    ntot = sum(s - 1 for s in outer_piece_hom.shape[:-1])  # >= 2: outer degrees are >= 1
+    ntot = sum(s - 1 for s in outer_piece_hom.shape[1:-1])  # >= 2: outer degrees are >= 1
     comps = [res]  # a rational outer map's weight is already res's last component
     if rin and not outer_rational:
         comps.append(bz.power(Wb, ntot, d, {})[:, None])  # denominator W^ntot
@@ -161,9 +167,13 @@ def compose_batch(outer_piece_hom, outer_rational, lo, hi, inner: BSpline, A, b,
     hom = np.moveaxis(hom, 1, -1).reshape((Bn,) + tuple(ne) + bern_shape + (hom.shape[1],))
     degrees = tuple(s - 1 for s in hom.shape[1 + d : 1 + 2 * d])
     knots = _result_knots(inner, degrees)
-    coefs = [from_bezier_elements(hom[i], knots, degrees) for i in range(Bn)] if np.prod(ne) > 1 else [
-        hom[i].reshape(hom.shape[1 + d :]) for i in range(Bn)
-    ]
+    if np.prod(ne) > 1:  # all placements at once: their coefficients side by side as extra components
+        C = hom.shape[-1]
+        side = np.moveaxis(hom, 0, -2).reshape(hom.shape[1:-1] + (Bn * C,))
+        arr = from_bezier_elements(side, knots, degrees)
+        coefs = list(np.moveaxis(arr.reshape(arr.shape[:-1] + (Bn, C)), -2, 0))
+    else:
+        coefs = [hom[i].reshape(hom.shape[1 + d :]) for i in range(Bn)]
     return degrees, knots, coefs, rational
 
 

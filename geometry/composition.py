@@ -199,15 +199,17 @@ def _compose_located(outer, inner, A, b, placed, where, patches=None) -> list[BS
     # memory-bound and run faster on cache-sized chunks than in one batch (docs/performance.md)
     size = np.prod([sum(outer.degrees) * m + 1 for m in inner.degrees]) * bez[0].shape[0]
     chunk = int(np.clip((1 << 20) // (8 * outer.homogeneous.shape[-1] * size), 1, 256))
-    for key in np.unique(keys[todo]):  # one batch per occupied outer Bezier piece
-        sel_all = todo[keys[todo] == key]
-        e, elo, ehi = piece(key)
-        for c0 in range(0, len(sel_all), chunk):
-            sel = sel_all[c0 : c0 + chunk]
-            degrees, knots, coefs, rational = compose_batch(patches[e], outer.is_rational, elo, ehi, inner, A[sel],
-                                                            b[sel], bez)
-            for j, i in enumerate(sel):
-                results[i] = finish(outer, inner, degrees, knots, coefs[j], rational)
+    # placements in different outer pieces share one batch (the factor products do not depend on the
+    # piece), in order of their piece
+    todo = todo[np.argsort(keys[todo], kind="stable")]
+    for c0 in range(0, len(todo), chunk):
+        sel = todo[c0 : c0 + chunk]
+        es = [piece(key) for key in keys[sel]]
+        Q = np.stack([patches[e] for e, _, _ in es])
+        elo, ehi = np.stack([lo for _, lo, _ in es]), np.stack([hi for _, _, hi in es])
+        degrees, knots, coefs, rational = compose_batch(Q, outer.is_rational, elo, ehi, inner, A[sel], b[sel], bez)
+        for j, i in enumerate(sel):
+            results[i] = finish(outer, inner, degrees, knots, coefs[j], rational)
     return results
 
 

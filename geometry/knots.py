@@ -332,12 +332,21 @@ def bezier_to_bspline(knots: np.ndarray, degree: int) -> np.ndarray:
     the space, ``coefficients = L @ stacked_bernstein_coefficients``.  Used to
     bring products, elevated and composed pieces back to B-spline form; exact
     whenever the stacked data do lie in the space (they do by construction).
+    Read-only: the composed pieces of a tile share their knot vectors, so the
+    matrix (a pseudo-inverse) is kept for the last 128 (knots, degree) pairs.
     """
-    p = degree
-    _, R, rows, _ = bezier_refinement(knots, p)
+    U = np.ascontiguousarray(knots, float)
+    return _bezier_to_bspline(U.tobytes(), len(U), int(degree))
+
+
+@lru_cache(maxsize=128)  # at most 128 matrices (n, ne (p + 1)): 0.2 MB each at degree 27 and 6 elements
+def _bezier_to_bspline(key: bytes, n_knots: int, p: int) -> np.ndarray:
+    _, R, rows, _ = bezier_refinement(np.frombuffer(key, float, n_knots), p)
     Rd = R.toarray()
     stacked = Rd[(rows[:, None] + np.arange(p + 1)).ravel()]
-    return np.linalg.pinv(stacked, rcond=1e-13)
+    L = np.linalg.pinv(stacked, rcond=1e-13)
+    L.setflags(write=False)
+    return L
 
 
 def elevation_matrix(knots: np.ndarray, degree: int, times: int) -> tuple[np.ndarray, np.ndarray]:
