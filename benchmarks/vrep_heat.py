@@ -63,7 +63,7 @@ def main():
                "winged duck V-model micro-structure"], "set-up s": st.timings["spaces, regularity proof"],
            "solve s": solve_s, "peak MiB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
            "balance": bal["relative_error"], "heat W": bal["inflow_W"], "T min": lo, "T max": hi,
-           "solver info": s.info["solver"]}
+           "solver info": s.info["solver"], "timings": s.info["timings"]}
     print_table([row], [("trivariates", "d"), ("bridging TVs", "d"), ("DOFs", "d"), ("free", "d"), ("solver", "s"),
                         ("iterations", "d"), ("build s", ".1f"), ("set-up s", ".1f"), ("solve s", ".1f"),
                         ("peak MiB", ".0f"), ("balance", ".1e"), ("heat W", ".1f"), ("T min", ".2f"),
