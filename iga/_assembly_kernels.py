@@ -55,6 +55,12 @@ def _weights1(b1, e1, l1, m1, t):
 
 
 @njit(inline="always")
+def _band_weights(W2, i2, d2, l):
+    """Direction-2 weights of the variants (0,0), (0,1), (1,0), (1,1) at window point l of band entry (i2, d2)."""
+    return W2[0, i2, d2, l], W2[1, i2, d2, l], W2[2, i2, d2, l], W2[3, i2, d2, l]
+
+
+@njit(inline="always")
 def _rows_of_element(ring, Yr, b1, pi, e1, f0, i2, p1, g1, K2):
     """Stage 1 of a kernel for direction-2 row i2: add the four direction-1 variant groups Yr (g1, 4, n2, K2)
     of element e1 into the ring rows of its p1 + 1 basis functions (first f0), slot i1 % (p1 + 1)."""
@@ -138,10 +144,7 @@ def heat_stage2(Z, Y, W2, r2, s2):
                     y3[k] = 0.0
             for l in range(r2[i2, d2, 0], r2[i2, d2, 1]):
                 q2 = s2[i2] + l
-                w00 = W2[0, i2, d2, l]
-                w01 = W2[1, i2, d2, l]
-                w10 = W2[2, i2, d2, l]
-                w11 = W2[3, i2, d2, l]
+                w00, w01, w10, w11 = _band_weights(W2, i2, d2, l)
                 z0, z1, z2, z3 = Zf[t, 0, q2], Zf[t, 1, q2], Zf[t, 2, q2], Zf[t, 3, q2]
                 z4, z5, z6 = Zf[t, 4, q2], Zf[t, 5, q2], Zf[t, 6, q2]
                 if upper:

@@ -22,7 +22,7 @@ from functools import lru_cache
 import numpy as np
 from numba import njit, prange
 
-from ._assembly_kernels import stage1_flush
+from ._assembly_kernels import _band_weights, stage1_flush
 
 
 @njit(cache=True, parallel=True, fastmath=True)
@@ -49,10 +49,7 @@ def elastic_stage2(Z, Y, W2, r2, s2):
                 y3[k] = 0.0
             for l in range(r2[i2, d2, 0], r2[i2, d2, 1]):
                 q2 = s2[i2] + l
-                w00 = W2[0, i2, d2, l]
-                w01 = W2[1, i2, d2, l]
-                w10 = W2[2, i2, d2, l]
-                w11 = W2[3, i2, d2, l]
+                w00, w01, w10, w11 = _band_weights(W2, i2, d2, l)
                 f00, f01, f02 = Zf[t, 0, q2], Zf[t, 1, q2], Zf[t, 2, q2]
                 f10, f11, f12 = Zf[t, 3, q2], Zf[t, 4, q2], Zf[t, 5, q2]
                 f20, f21, f22 = Zf[t, 6, q2], Zf[t, 7, q2], Zf[t, 8, q2]
