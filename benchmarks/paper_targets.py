@@ -9,8 +9,9 @@ benchmarks behind the rows and prints one table of measured figures beside the t
   solve against assembly time (target: the solve no longer than the assembly);
 * ``fig4``: Elber 2017 Fig. 4(c) (``fig4_knot.py``): 47 helical tiles composed, first in a fresh process
   and warm, against the paper's 20 s (target 10x);
-* ``bifurcation``: Massarwi et al. 2018 Figs. 15-16 ducks (``bifurcation.py``) against "under 4 s"
-  (target 20x);
+* ``bifurcation``: Massarwi et al. 2018 Figs. 15-16 ducks (``bifurcation.py``): the construction (build
+  and surface of the implicit ducks, build of the parametric tilings; their heat solve is reported
+  beside) against the paper's "under 4 s" for its Fig. 16(b) duck (target 20x);
 * ``table1``: Hong and Elber 2021 Table 1 (``vrep.py``), every row with a paper time (target 20x);
 * ``splinepy``: exact composition of a triquadratic tile in a tricubic map against splinepy
   (``composition.py``; target 30x; needs the ``[bench]`` extra);
@@ -90,9 +91,11 @@ def fig4() -> list[dict]:
 def bifurcation() -> list[dict]:
     rows = _script("bifurcation", "--no-png") or []
     out = []
-    for row in rows:
-        t = row.get("total s", row.get("build s", 0.0) + row.get("heat s", 0.0))
-        what = "total" if "total s" in row else "build + heat"
+    for row in rows:  # the paper's 4 s is the construction: implicit build + surface; parametric build
+        if "total s" in row:
+            t, what = row["total s"], "build + surface"
+        else:
+            t, what = row["build s"], f"build (then heat {row['heat s']:.2f} s)"
         out.append(_row(f"Massarwi bifurcation: {row['case']}", 4.0 / t, "x paper", ">= 20", 4.0 / t >= 20,
                         f"{what} {t:.2f} s against 4 s"))
     return out
