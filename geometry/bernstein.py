@@ -59,11 +59,13 @@ def multiply(a: np.ndarray, b: np.ndarray, ndim: int, compiled: bool | None = No
     ``a``: (..., p_1+1, ..., p_d+1), ``b``: (..., q_1+1, ..., q_d+1) ->
     (..., p_1+q_1+1, ..., p_d+q_d+1).
 
-    ``compiled``: in the direct loops of :func:`geometry._bernstein_kernels.product3` (numba, d <= 3); by
-    default when numba is installed and the product takes at least :data:`COMPILED_MACS` multiplications
-    (so that small analyses never import numba).  Otherwise in NumPy: the convolution of binomially scaled coefficients is computed as one
-    batched matrix product with a banded Toeplitz matrix of the smaller factor
-    along the last axis (BLAS), then block shift-adds over the other axes.
+    ``compiled``: in the direct loops of :func:`geometry._bernstein_kernels.product3`
+    (numba, d <= 3); by default when numba is installed and the product takes
+    at least :data:`COMPILED_MACS` multiplications (so that small analyses
+    never import numba).  Otherwise in NumPy: the convolution of binomially
+    scaled coefficients is computed as one batched matrix product with a
+    banded Toeplitz matrix of the smaller factor along the last axis (BLAS),
+    then block shift-adds over the other axes.
     Batch axes along which only the larger factor varies (e.g. coordinate
     components multiplied by one scalar factor) become matrix rows, so the
     scalar factor is never copied per component.

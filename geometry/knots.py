@@ -333,15 +333,24 @@ def bezier_to_bspline(knots: np.ndarray, degree: int) -> np.ndarray:
     bring products, elevated and composed pieces back to B-spline form; exact
     whenever the stacked data do lie in the space (they do by construction).
     Read-only: the composed pieces of a tile share their knot vectors, so the
-    matrix (a pseudo-inverse) is kept for the last 128 (knots, degree) pairs.
+    matrix (a pseudo-inverse) is kept for the last 128 (knots, degree) pairs
+    whose matrix has at most 2^16 entries (0.5 MB; at degree 27 and 6
+    elements it has 26,000), 64 MB at most.
     """
     U = np.ascontiguousarray(knots, float)
-    return _bezier_to_bspline(U.tobytes(), len(U), int(degree))
+    n, elements = len(U) - degree - 1, len(np.unique(U)) - 1
+    if n * elements * (degree + 1) <= 1 << 16:  # the matrix's entries
+        return _bezier_to_bspline_cached(U.tobytes(), len(U), int(degree))
+    return _bezier_to_bspline(U, int(degree))
 
 
-@lru_cache(maxsize=128)  # at most 128 matrices (n, ne (p + 1)): 0.2 MB each at degree 27 and 6 elements
-def _bezier_to_bspline(key: bytes, n_knots: int, p: int) -> np.ndarray:
-    _, R, rows, _ = bezier_refinement(np.frombuffer(key, float, n_knots), p)
+@lru_cache(maxsize=128)
+def _bezier_to_bspline_cached(key: bytes, n_knots: int, p: int) -> np.ndarray:
+    return _bezier_to_bspline(np.frombuffer(key, float, n_knots), p)
+
+
+def _bezier_to_bspline(U: np.ndarray, p: int) -> np.ndarray:
+    _, R, rows, _ = bezier_refinement(U, p)
     Rd = R.toarray()
     stacked = Rd[(rows[:, None] + np.arange(p + 1)).ravel()]
     L = np.linalg.pinv(stacked, rcond=1e-13)
