@@ -122,6 +122,8 @@ class TensorSpace:
         self.qshape = tuple(s.nq for s in self.dirs)
         self.ndof = int(np.prod(self.shape))
         self.nq_total = int(np.prod(self.qshape))
+        # formed once: models with 10^5 faces group their face data by it (it hashes the knot bytes)
+        self._key = tuple((s.degree, s.g, s.knots.tobytes()) for s in self.dirs)
 
     @property
     def dim(self) -> int:
@@ -135,7 +137,7 @@ class TensorSpace:
 
     def key(self) -> tuple:
         """Hashable identity: spaces with equal keys share all quadrature data (batching)."""
-        return tuple((s.degree, s.g, s.knots.tobytes()) for s in self.dirs)
+        return self._key
 
     def face_dofs(self, face: str) -> np.ndarray:
         """Indices (C-order) of the DOFs on a boundary face, ordered as the face space numbers them."""
