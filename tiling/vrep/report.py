@@ -23,7 +23,7 @@ class SurfaceCounts:
 class UnionCounts:
     """What the bridging of one union did (Sections 3.4-3.6): union anchors of the lower-priority primitive,
     faces of the other on the shared surface, matches (one-to-one, two-to-one, unmatched faces), bridges
-    given up because every shape tried folds, forks reduced to one tube (no room for a base), collision
+    given up because every shape tried folds (or the collision repulsion folded them), forks reduced to one tube (no room for a base), collision
     handling, the tubes and forks kept, and the anchors left open."""
 
     anchors: int = 0

@@ -203,7 +203,7 @@ def bridge_union(model, q_prim, p_prim, placed, q_faces, p_faces, tile: int, d_m
     used = {i for i, _ in m.one_to_one} | {i for arms in m.two_to_one.values() for i in arms}
     _compose(placed, [M[0][i] for i in used] + [N[0][j] for j in {j for _, j in m.one_to_one} | set(m.two_to_one)])
     folded, reduced = _bridge_matches(res, placed, m, M[0], N[0], alpha, beta, phi)
-    kept, collisions = resolve_tube_collisions(res)
+    kept, collisions, refolded = resolve_tube_collisions(res)
     for t in kept["tubes"]:
         res.patches.append(bridge_patch(t.geometry, tube_space(t), tile))
     for f in kept["forks"]:
@@ -216,7 +216,7 @@ def bridge_union(model, q_prim, p_prim, placed, q_faces, p_faces, tile: int, d_m
         ends |= {f.inlet.key} | {t.b.key for t in f.arms}
     res.counts = UnionCounts(anchors=len(q_faces), partner_faces=len(p_faces), one_to_one=len(m.one_to_one),
                              two_to_one=len(m.two_to_one), unmatched=len(m.unmatched_m) + len(m.unmatched_n),
-                             folded=folded, forks_reduced=reduced, collisions=collisions, tubes=len(res.tubes),
+                             folded=folded + refolded, forks_reduced=reduced, collisions=collisions, tubes=len(res.tubes),
                              forks=len(res.forks), open_anchors=len(set(q_faces) - ends))
     return res
 
@@ -338,15 +338,18 @@ def _base_face(G, side: str, space: list):
     return f
 
 
-def resolve_tube_collisions(res: UnionBridges, max_repel: int = 20) -> tuple[dict, Collisions]:
+def resolve_tube_collisions(res: UnionBridges, max_repel: int = 20) -> tuple[dict, Collisions, int]:
     """Collisions between tubes (one-to-one tubes and arms): sampled axes closer than the sum of the inscribed
     radii.  Both tubes of a colliding pair are raised to quintics and their inner layers repelled along
     T1 x T2 (Section 3.6, :func:`tiling.vrep.repulsion.repel`); a pair still colliding after ``max_repel``
-    steps loses its later bridge."""
+    steps loses its later bridge.  Returns (kept tubes and forks, counts, bridges given up because the
+    repulsion folded them: a heat model takes regular patches only, so a displaced tube is proved regular
+    again, and a fork goes with a folded arm)."""
     items = [("tube", i, t) for i, t in enumerate(res.tubes)]
     items += [("fork", i, arm) for i, f in enumerate(res.forks) for arm in f.arms]
     counts = Collisions()
     dead = {"tube": set(), "fork": set()}
+    moved: set = set()
     if len(items) >= 2:
         axes = [t.axis() for _, _, t in items]
         mids = np.array([a[len(a) // 2] for a in axes])
@@ -365,6 +368,7 @@ def resolve_tube_collisions(res: UnionBridges, max_repel: int = 20) -> tuple[dic
                 a.displace(s * v)
                 b.displace(-s * v)
 
+            moved |= {i, j}
             dist, _ = repel(a.axis, b.axis, move, need, max_repel)
             axes[i], axes[j] = a.axis(), b.axis()
             if dist >= need:
@@ -372,6 +376,12 @@ def resolve_tube_collisions(res: UnionBridges, max_repel: int = 20) -> tuple[dic
             else:
                 dead[kj].add(jj)
                 counts.eliminated += 1
+    folded = 0
+    for i in sorted(moved):
+        k, ii, t = items[i]
+        if ii not in dead[k] and not _regular(t.geometry):
+            dead[k].add(ii)
+            folded += 1
     kept = {"tubes": [t for i, t in enumerate(res.tubes) if i not in dead["tube"]],
             "forks": [f for i, f in enumerate(res.forks) if i not in dead["fork"]]}
-    return kept, counts
+    return kept, counts, folded
