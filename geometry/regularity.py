@@ -29,7 +29,7 @@ from . import knots as kn
 from .errors import SplineError
 from .spline import SplineFunction
 
-__all__ = ["check_regular", "RegularityResult", "jacobian_bezier"]
+__all__ = ["check_regular", "prove_one_signed", "RegularityResult", "jacobian_bezier"]
 
 
 @dataclass
@@ -330,3 +330,15 @@ def check_regular(spline: SplineFunction, max_depth: int = 9, allow_zeros: bool 
         cur, cur_boxes = _halves(cur[todo], cur_boxes[todo], depth % d)  # along direction depth % d
         depth += 1
     return _verdict(pos_boxes, neg_boxes, zero_boxes, undecided, (lo_all, hi_all), scale, depth, d)
+
+
+def prove_one_signed(spline: SplineFunction, depth: int = 8, deeper: int = 14) -> RegularityResult:
+    """:func:`check_regular` with zeros allowed (what analysis needs: no sign change of the Jacobian), at
+    ``depth`` subdivision rounds, then at ``deeper`` where that is undecided.
+
+    Small folds need the extra rounds: a tube of the winged duck folded by the V-rep collision repulsion
+    (det J from -5e-6 to 4e-5) is undecided at depth 8 and a proven fold at 9, in 3 ms; only the
+    undecided boxes are split further, so a decided proof costs nothing more.
+    """
+    r = check_regular(spline, depth, allow_zeros=True)
+    return check_regular(spline, deeper, allow_zeros=True) if r.status == "undecided" else r

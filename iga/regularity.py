@@ -25,7 +25,7 @@ import weakref
 
 import numpy as np
 
-from geometry import check_regular
+from geometry.regularity import prove_one_signed
 
 from .errors import ProblemError
 from geometry.grouping import ObjectIndex
@@ -33,20 +33,14 @@ from geometry.tolerances import SINGULAR
 
 __all__ = ["prove_regular"]
 
-_DEPTH = 8  # subdivision rounds of each proof
-# an undecided proof is tried again this deep before it is left to the Gauss-point check: a fork arm of the
-# winged duck folded by the collision repulsion (det J from -5e-6 to 4e-5) is undecided at depth 8 and a
-# proven fold at 9, in 3 ms (tests/data/folded_fork_arm.npz); only the undecided boxes are split further
-_DEEPER = 14
+_DEPTH, _DEEPER = 8, 14  # subdivision rounds of each proof, and of a second try where it is undecided
 # proofs of whole splines, kept while the spline lives: splines are immutable (read-only arrays), so a tile
 # or map proven once needs no second proof in the next problem built on it
 _PROVEN: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 
 
 def _decide(spline):
-    """check_regular with zeros allowed, at depth 8, then 14 where that is undecided."""
-    r = check_regular(spline, _DEPTH, allow_zeros=True)
-    return check_regular(spline, _DEEPER, allow_zeros=True) if r.status == "undecided" else r
+    return prove_one_signed(spline, _DEPTH, _DEEPER)
 
 
 def _proof(spline):

@@ -40,7 +40,7 @@ from geometry import knots as kn
 from geometry.spline import SplineFunction
 from geometry.faces import FACE_AXIS
 from geometry.multipatch import ORIENTATIONS, PlacedPatch
-from geometry.regularity import check_regular
+from geometry.regularity import prove_one_signed
 from geometry.cache import BoundedCache
 
 from ..errors import TilingError
@@ -327,17 +327,18 @@ _GRID = np.stack(np.meshgrid(*([np.linspace(0.0, 1.0, 6)] * 2 + [np.linspace(0.0
 
 
 def is_regular(G) -> bool:
-    """Whether the trivariate G's Jacobian keeps one sign: a 6 x 6 x 9 sample screen (ends included); where the
-    samples come within a factor 10 of zero (a fold could hide between them), the exact Bernstein proof of
-    :func:`geometry.check_regular` decides (undecided counts as regular, as in
-    :func:`iga.regularity.prove_regular`, which the heat analysis runs on every patch before it assembles)."""
+    """Whether the trivariate G's Jacobian keeps one sign: a 6 x 6 x 9 sample screen (ends included) rejects
+    samples of both signs at once; otherwise the exact Bernstein proof decides, the one
+    :func:`iga.regularity.prove_regular` runs on every patch before the analysis assembles
+    (:func:`geometry.regularity.prove_one_signed`; undecided counts as regular there and here).  The screen
+    alone is not a proof: a trimming-surface bridge of the duck minus a hole had all its samples of one sign
+    (within a factor 10 of each other) and a fold near one face."""
     dom = G.domain
     _, J = G.value_and_jacobian(dom[:, 0] + _GRID * (dom[:, 1] - dom[:, 0]))
     det = np.linalg.det(J[:, :3, :])
     if not (np.all(det > 0) or np.all(det < 0)):
         return False
-    a = np.abs(det)
-    return bool(a.min() > 0.1 * a.max()) or check_regular(G).status != "singular"
+    return prove_one_signed(G).status != "singular"
 
 
 _CARRIERS = BoundedCache(64)
