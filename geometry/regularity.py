@@ -19,6 +19,8 @@ rounds, batched over all boxes.
 
 from __future__ import annotations
 
+import weakref
+
 from dataclasses import dataclass, field
 from functools import lru_cache
 
@@ -332,13 +334,25 @@ def check_regular(spline: SplineFunction, max_depth: int = 9, allow_zeros: bool 
     return _verdict(pos_boxes, neg_boxes, zero_boxes, undecided, (lo_all, hi_all), scale, depth, d)
 
 
+# proofs of prove_one_signed, kept while their spline lives: splines are immutable (read-only arrays), so a
+# bridge the V-rep builder proved needs no second proof in the analysis that takes its model
+_ONE_SIGNED: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
 def prove_one_signed(spline: SplineFunction, depth: int = 8, deeper: int = 14) -> RegularityResult:
     """:func:`check_regular` with zeros allowed (what analysis needs: no sign change of the Jacobian), at
-    ``depth`` subdivision rounds, then at ``deeper`` where that is undecided.
+    ``depth`` subdivision rounds, then at ``deeper`` where that is undecided (kept per spline object while it
+    lives).
 
     Small folds need the extra rounds: a tube of the winged duck folded by the V-rep collision repulsion
     (det J from -5e-6 to 4e-5) is undecided at depth 8 and a proven fold at 9, in 3 ms; only the
     undecided boxes are split further, so a decided proof costs nothing more.
     """
+    known = _ONE_SIGNED.get(spline)
+    if known is not None and (depth, deeper) in known:
+        return known[(depth, deeper)]
     r = check_regular(spline, depth, allow_zeros=True)
-    return check_regular(spline, deeper, allow_zeros=True) if r.status == "undecided" else r
+    if r.status == "undecided":
+        r = check_regular(spline, deeper, allow_zeros=True)
+    _ONE_SIGNED.setdefault(spline, {})[(depth, deeper)] = r
+    return r

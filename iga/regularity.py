@@ -21,8 +21,6 @@ Gauss-point check of the assembly.
 
 from __future__ import annotations
 
-import weakref
-
 import numpy as np
 
 from geometry.regularity import prove_one_signed
@@ -34,20 +32,12 @@ from geometry.tolerances import SINGULAR
 __all__ = ["prove_regular"]
 
 _DEPTH, _DEEPER = 8, 14  # subdivision rounds of each proof, and of a second try where it is undecided
-# proofs of whole splines, kept while the spline lives: splines are immutable (read-only arrays), so a tile
-# or map proven once needs no second proof in the next problem built on it
-_PROVEN: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
-
-
-def _decide(spline):
-    return prove_one_signed(spline, _DEPTH, _DEEPER)
 
 
 def _proof(spline):
-    r = _PROVEN.get(spline)
-    if r is None:
-        r = _PROVEN[spline] = _decide(spline)
-    return r
+    """The proof of a whole spline (kept by geometry.regularity while the spline lives: a tile or map proven
+    once, or a bridge the V-rep builder proved, needs no second proof)."""
+    return prove_one_signed(spline, _DEPTH, _DEEPER)
 
 
 def _boxes(result) -> str:
@@ -92,7 +82,7 @@ def prove_regular(model) -> dict:
         box = np.stack([np.clip(pts.min(0), dom[:, 0], dom[:, 1]), np.clip(pts.max(0), dom[:, 0], dom[:, 1])], 1)
         if np.any(box[:, 1] <= box[:, 0]):
             continue  # a flat placement: D's one-signed determinant is not needed on a zero-volume box
-        r = _decide(D.extract(box))
+        r = prove_one_signed(D.extract(box), _DEPTH, _DEEPER)
         stats["boxes_proven"] += 1
         _judge(r, stats, f"patch {pi}", "lies where the deformation map folds or degenerates", "map parameters",
                "fix the map's control net there")
