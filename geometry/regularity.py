@@ -20,7 +20,6 @@ rounds, batched over all boxes.
 from __future__ import annotations
 
 import weakref
-
 from dataclasses import dataclass, field
 from functools import lru_cache
 
