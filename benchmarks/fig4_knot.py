@@ -140,10 +140,24 @@ def render(path) -> None:
     plot.close()
 
 
-def main() -> int:
-    args = sys.argv[1:]
-    repeat = int(args[args.index("--repeat") + 1]) if "--repeat" in args else 3
-    if "--case" in args:
+def _arguments(argv):
+    import argparse
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=3, help="warm runs after the first (at least 1; default 3)")
+    ap.add_argument("--no-png", action="store_true", help="skip the render")
+    ap.add_argument("--figures", action="store_true", help="write the render into docs/ (make_figures.py does)")
+    ap.add_argument("--case", action="store_true", help=argparse.SUPPRESS)  # the child process that measures
+    args = ap.parse_args(argv)
+    if args.repeat < 1:
+        ap.error(f"--repeat must be at least 1, got {args.repeat}")
+    return args
+
+
+def main(argv=None) -> int:
+    args = _arguments(argv)
+    repeat = args.repeat
+    if args.case:
         import json
 
         print(json.dumps(case(repeat)))
@@ -165,7 +179,7 @@ def main() -> int:
                        ("speed-up", ".1f"), ("target", ".0f")])
     print(f"  (imports before the first run: {row['import s']:.2f} s, not counted)")
     save_json("fig4_knot.json", {"case": row, "rows": rows})
-    if "--no-png" not in args:
+    if not args.no_png:
         path = figures_dir() / "fig4_knot.png"
         render(path)
         print(f"render: {path}")

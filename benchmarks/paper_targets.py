@@ -148,12 +148,16 @@ CASES = {"duck": duck, "fig4": fig4, "bifurcation": bifurcation, "table1": table
          "million": million, "first": first}
 
 
-def main() -> int:
-    skip = set(sys.argv[sys.argv.index("--skip") + 1].split(",")) if "--skip" in sys.argv else set()
+def main(argv=None) -> int:
+    import argparse
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--skip", default="", help=f"comma-separated cases to leave out, of {', '.join(CASES)}")
+    args = ap.parse_args(argv)
+    skip = {name for name in args.skip.split(",") if name}
     unknown = skip - set(CASES)
     if unknown:
-        print(f"unknown --skip names {sorted(unknown)}; choose from {sorted(CASES)}")
-        return 2
+        ap.error(f"unknown --skip names {sorted(unknown)}; choose from {sorted(CASES)}")
     rows = []
     for name, case in CASES.items():
         if name not in skip:

@@ -208,7 +208,7 @@ def stiffness3_for(p3: int, g3: int):
     Both are compile-time constants of stage 3, so that LLVM unrolls its Gauss
     loop and keeps its seven accumulators in registers (docs/performance.md).
     Stages 2 and 1 (:func:`heat_stage2`, :func:`stage1_flush`) are compiled
-    once for all degrees: a new (p3, g3) compiles stage 3 only (about 3 s
+    once for all degrees: a new (p3, g3) compiles stage 3 only (about 4 s
     instead of 14), cached on disk like the other kernels (numba keys closures
     by their constants).
     """
