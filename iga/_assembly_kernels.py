@@ -95,20 +95,70 @@ def _rows_of_element(ring, Yr, b1, pi, e1, f0, i2, p1, g1, K2):
 
 
 @njit(inline="always")
-def _flush_row(ring, data, indptr, pi, i1, i2, n2, n3, D3, lo1, c1, lo2, c2, lo3, c3):
-    """Copy the complete ring rows (i1, i2, :) into CSR order (one sequential write per entry), clear the slot."""
+def _flush_row(ring, out, cols, dest, indptr, pi, i1, i2, n2, n3, D3, lo1, c1, lo2, c2, lo3, c3):
+    """Copy the complete ring rows (i1, i2, :) into CSR order (one sequential write per entry), clear the slot.
+
+    ``dest[pi] = (base, scale, shift, column shift)``: entry k of row i goes to ``out[base + scale indptr[i] +
+    shift (indptr[i + 1] - indptr[i]) + k]``; (pi nnz, 1, 0, -1) for data (P, nnz) flattened, (base, 3, b,
+    b n + offset) for block b in the rows of a component-major vector operator (:mod:`iga._elastic_kernels`).
+    A column shift s >= 0 also writes the entry's column j + s to ``cols`` at the same position."""
     slot = i1 % ring.shape[1]
+    base, scale, shift, col_shift = dest[pi, 0], dest[pi, 1], dest[pi, 2], dest[pi, 3]
+    p1, p3 = (ring.shape[2] - 1) // 2, (D3 - 1) // 2
+    p2 = (ring.shape[4] // (n3 * D3) - 1) // 2
     for i3 in range(n3):
-        pos = indptr[(i1 * n2 + i2) * n3 + i3]
+        row = (i1 * n2 + i2) * n3 + i3
+        pos = base + scale * indptr[row] + shift * (indptr[row + 1] - indptr[row])
         for d1 in range(lo1[i1], lo1[i1] + c1[i1]):
             for d2 in range(lo2[i2], lo2[i2] + c2[i2]):
                 k0 = (d2 * n3 + i3) * D3
-                for d3 in range(lo3[i3], lo3[i3] + c3[i3]):
-                    data[pi, pos] = ring[pi, slot, d1, i2, k0 + d3]
-                    pos += 1
+                if col_shift >= 0:
+                    j0 = ((i1 + d1 - p1) * n2 + i2 + d2 - p2) * n3 + i3 - p3 + col_shift
+                    for d3 in range(lo3[i3], lo3[i3] + c3[i3]):
+                        cols[pos] = j0 + d3
+                        out[pos] = ring[pi, slot, d1, i2, k0 + d3]
+                        pos += 1
+                else:
+                    for d3 in range(lo3[i3], lo3[i3] + c3[i3]):
+                        out[pos] = ring[pi, slot, d1, i2, k0 + d3]
+                        pos += 1
     for d1 in range(ring.shape[2]):
         for k in range(ring.shape[4]):
             ring[pi, slot, d1, i2, k] = 0.0
+
+
+@njit(inline="always")
+def symmetric_stage3(cl, b3, e3, f, Z, t, q2, P3, G3):
+    """Stage 3 of :func:`stiffness3` on direction-3 element e3 (first function f) of Gauss row (t, q2): add the
+    seven coefficient/variant combinations of the element's coefficients ``cl`` (6, G3) (pair order of the
+    module notes) to Z[t, :, q2].  Inlined, so the callers' constant P3 and G3 fix the trip counts, which LLVM
+    unrolls; shared with the diagonal blocks of :mod:`iga._elastic_kernels`."""
+    for l3 in range(P3 + 1):
+        i3 = f + l3
+        for m3 in range(P3 + 1):
+            d3 = m3 - l3 + P3
+            z0 = z1 = z2 = z3 = z4 = z5 = z6 = 0.0
+            for t3 in range(G3):
+                u0 = b3[0, e3, l3, t3]
+                u1 = b3[1, e3, l3, t3]
+                v0 = b3[0, e3, m3, t3]
+                v1 = b3[1, e3, m3, t3]
+                w00 = u0 * v0
+                w01 = u0 * v1
+                z0 += w00 * cl[0, t3]  # C00 (0,0)
+                z1 += w00 * cl[3, t3]  # C01 (0,0)
+                z2 += w01 * cl[4, t3]  # C02 (0,1)
+                z3 += w00 * cl[1, t3]  # C11 (0,0)
+                z4 += u1 * v1 * cl[2, t3]  # C22 (1,1)
+                z5 += w01 * cl[5, t3]  # C12 (0,1)
+                z6 += u1 * v0 * cl[5, t3]  # C12 (1,0)
+            Z[t, 0, q2, i3, d3] += z0
+            Z[t, 1, q2, i3, d3] += z1
+            Z[t, 2, q2, i3, d3] += z2
+            Z[t, 3, q2, i3, d3] += z3
+            Z[t, 4, q2, i3, d3] += z4
+            Z[t, 5, q2, i3, d3] += z5
+            Z[t, 6, q2, i3, d3] += z6
 
 
 @njit(cache=True, parallel=True, fastmath=True)
@@ -177,10 +227,12 @@ def heat_stage2(Z, Y, W2, r2, s2):
 
 
 @njit(cache=True, parallel=True, fastmath=True)
-def stage1_flush(ring, Y, b1, first1, pi, e1, data, indptr, lo1, c1, lo2, c2, lo3, c3):
+def stage1_flush(ring, Y, b1, first1, pi, e1, out, cols, dest, indptr, lo1, c1, lo2, c2, lo3, c3):
     """Stage 1 of the slab kernels for direction-1 element e1 of patch pi: the four direction-1 variant groups
     Y (g1, 4, n2, D2, n3, D3) into the ring rows of its basis functions, then the rows no later element
-    touches copied into the CSR data (P, nnz).  Compiled once, shared by the scalar and the elastic kernels."""
+    touches copied into ``out`` (and their columns into ``cols``) at the positions ``dest`` gives
+    (:func:`_flush_row`).  Compiled once, shared by the
+    scalar and the elastic kernels."""
     g1, n2, D2, n3, D3 = Y.shape[0], Y.shape[2], Y.shape[3], Y.shape[4], Y.shape[5]
     p1, E1, n1 = b1.shape[2] - 1, b1.shape[1], lo1.shape[0]
     K2 = D2 * n3 * D3
@@ -198,7 +250,7 @@ def stage1_flush(ring, Y, b1, first1, pi, e1, data, indptr, lo1, c1, lo2, c2, lo
     stop = first1[e1 + 1] if e1 + 1 < E1 else n1
     for i1 in range(f0, stop):
         for i2 in prange(n2):
-            _flush_row(ring, data, indptr, pi, i1, i2, n2, n3, D3, lo1, c1, lo2, c2, lo3, c3)
+            _flush_row(ring, out, cols, dest, indptr, pi, i1, i2, n2, n3, D3, lo1, c1, lo2, c2, lo3, c3)
 
 
 @lru_cache(maxsize=64)  # one kernel per (p3, g3): a handful per process
@@ -215,8 +267,9 @@ def stiffness3_for(p3: int, g3: int):
     P3, G3 = int(p3), int(g3)
 
     @njit(cache=True, parallel=True, fastmath=True)
-    def stiffness3(C, e0, b1, first1, W2, r2, s2, b3, first3, indptr, lo1, c1, lo2, c2, lo3, c3, ring, Z, Y, data):
-        """Add sum_rs int C_rs d_r N_i d_s N_j over a slab of direction-1 elements to CSR data (P, nnz).
+    def stiffness3(C, e0, b1, first1, W2, r2, s2, b3, first3, indptr, lo1, c1, lo2, c2, lo3, c3, ring, Z, Y, out,
+                   cols, dest):
+        """Write sum_rs int C_rs d_r N_i d_s N_j over a slab of direction-1 elements into the CSR data ``out``.
 
         C (6, P, m g1, nq2, nq3): the Gauss planes of the m elements e0 .. e0 + m - 1
         of direction 1, for P patches sharing one space; b1 (2, E1, p1 + 1, g1)
@@ -225,7 +278,9 @@ def stiffness3_for(p3: int, g3: int):
         for direction 3); W2, r2, s2 the band tables of direction 2 (module notes).
         Scratch, kept by the caller across slabs: ``ring`` (P, p1 + 1, 2 p1 + 1,
         n2, D2 n3 D3), zero on the first call; Z (g1, 7, nq2, n3, D3) and
-        Y (g1, 4, n2, D2, n3, D3).
+        Y (g1, 4, n2, D2, n3, D3).  ``out``, ``cols`` and ``dest``: the flat
+        CSR data, its columns (written where asked) and where each patch's rows
+        go in them (:func:`_flush_row`).
 
         Sum factorisation by slabs of direction-1 elements: for the g1 Gauss
         planes of element e1, contract direction 3 (Z, seven coefficient/variant
@@ -254,34 +309,9 @@ def stiffness3_for(p3: int, g3: int):
                         for t3 in range(G3):
                             for c in range(6):
                                 cl[c, t3] = C[c, pi, q1, q2, e3 * G3 + t3]
-                        for l3 in range(P3 + 1):
-                            i3 = f + l3
-                            for m3 in range(P3 + 1):
-                                d3 = m3 - l3 + P3
-                                z0 = z1 = z2 = z3 = z4 = z5 = z6 = 0.0
-                                for t3 in range(G3):
-                                    u0 = b3[0, e3, l3, t3]
-                                    u1 = b3[1, e3, l3, t3]
-                                    v0 = b3[0, e3, m3, t3]
-                                    v1 = b3[1, e3, m3, t3]
-                                    w00 = u0 * v0
-                                    w01 = u0 * v1
-                                    z0 += w00 * cl[0, t3]  # C00 (0,0)
-                                    z1 += w00 * cl[3, t3]  # C01 (0,0)
-                                    z2 += w01 * cl[4, t3]  # C02 (0,1)
-                                    z3 += w00 * cl[1, t3]  # C11 (0,0)
-                                    z4 += u1 * v1 * cl[2, t3]  # C22 (1,1)
-                                    z5 += w01 * cl[5, t3]  # C12 (0,1)
-                                    z6 += u1 * v0 * cl[5, t3]  # C12 (1,0)
-                                Z[t, 0, q2, i3, d3] += z0
-                                Z[t, 1, q2, i3, d3] += z1
-                                Z[t, 2, q2, i3, d3] += z2
-                                Z[t, 3, q2, i3, d3] += z3
-                                Z[t, 4, q2, i3, d3] += z4
-                                Z[t, 5, q2, i3, d3] += z5
-                                Z[t, 6, q2, i3, d3] += z6
+                        symmetric_stage3(cl, b3, e3, f, Z, t, q2, P3, G3)
                 heat_stage2(Z, Y, W2, r2, s2)
-                stage1_flush(ring, Y, b1, first1, pi, e1, data, indptr, lo1, c1, lo2, c2, lo3, c3)
+                stage1_flush(ring, Y, b1, first1, pi, e1, out, cols, dest, indptr, lo1, c1, lo2, c2, lo3, c3)
 
     return stiffness3
 

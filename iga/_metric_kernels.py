@@ -122,3 +122,35 @@ def geometry_metric3(hom, rational, a, b, f0, B0, f1, B1, f2, B2, iso, K, fval, 
                 w0, w1, w2 = (w0 - x0 * dw) * iw, (w1 - x1 * dw) * iw, (w2 - x2 * dw) * iw
             _metric_point(u0, u1, u2, v0, v1, v2, w0, w1, w2, iso, k00, k11, k22, k01, k02, k12, fval,
                           w01 * qw2[q2], base + q2, C, L, det)
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def elastic_metric(Du, Dv, Dw, lam, mu, w, start, G, LM, det):
+    """The elastic kernels' fields at the M = P n points of a slab of P patches (n points each, C order).
+
+    Du, Dv, Dw (M, 3): dx/du, dx/dv, dx/dw; lam, mu (M,): the Lame parameters
+    (Pa); w (M,) the quadrature weights.  Point j of patch p gives, at grid
+    position start + j of the fields (9, P, N) and (2, P, N):
+    ``G[3 r + k, p] = c_r[k]`` (c_1 = x_v x x_w, c_2 = x_w x x_u, c_3 = x_u x x_v,
+    the rows of det J * J^-1) and ``LM[:, p] = (lambda, mu) w / |det J|``;
+    det (M,) gets det J (a zero determinant gives non-finite LM, which the
+    caller reports via ``det``).
+    """
+    n = Du.shape[0] // G.shape[1]
+    for k in prange(Du.shape[0]):
+        p = k // n
+        j = start + k - p * n
+        u0, u1, u2 = Du[k, 0], Du[k, 1], Du[k, 2]
+        v0, v1, v2 = Dv[k, 0], Dv[k, 1], Dv[k, 2]
+        w0, w1, w2 = Dw[k, 0], Dw[k, 1], Dw[k, 2]
+        a0, a1, a2 = v1 * w2 - v2 * w1, v2 * w0 - v0 * w2, v0 * w1 - v1 * w0
+        b0, b1, b2 = w1 * u2 - w2 * u1, w2 * u0 - w0 * u2, w0 * u1 - w1 * u0
+        e0, e1, e2 = u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0
+        dt = u0 * a0 + u1 * a1 + u2 * a2
+        det[k] = dt
+        fac = w[k] / abs(dt)
+        G[0, p, j], G[1, p, j], G[2, p, j] = a0, a1, a2
+        G[3, p, j], G[4, p, j], G[5, p, j] = b0, b1, b2
+        G[6, p, j], G[7, p, j], G[8, p, j] = e0, e1, e2
+        LM[0, p, j] = lam[k] * fac
+        LM[1, p, j] = mu[k] * fac

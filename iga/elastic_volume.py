@@ -4,9 +4,11 @@ The displacement is numbered component-major: unknown ``a * ndof + i`` is
 component a (x, y, z) of scalar DOF i, so each of the nine blocks K^{ab} lives
 on the scalar sparsity pattern and the interface constraints of the scalar
 problem apply to every component (:func:`vector_constraints`).  Patches
-sharing a space and a tile spline are batched.  Large batches go through one
-compiled kernel per block (:func:`iga.fast_assembly.elastic_blocks`, the
-block's nine parametric coefficients formed on the fly); small ones through
+sharing a space and a tile spline are batched, and every batch writes its
+rows straight into the operator's final arrays (:class:`iga.vector_csr.VectorCSR`).
+Large batches go through one compiled kernel per upper block
+(:func:`iga.fast_assembly.elastic_into`, the block's parametric coefficients
+formed on the fly, the lower blocks copied as transposes); small ones through
 NumPy: each block's symmetric part through the scalar stiffness form, an
 off-diagonal block's antisymmetric part through three sum-factorised banded
 terms (:func:`iga.assembly.banded_form`), the lower blocks as transposes.
@@ -21,17 +23,20 @@ from geometry import progress
 from geometry.chain import patches_geometry_derivs_slabs
 
 from . import fast_assembly
-from .assembly import (banded_form, banded_to_csr_data, block_diagonal_csr, derivative_load_form, load_form,
-                       pattern, stiffness_data)
+from .assembly import banded_form, banded_to_csr_data, derivative_load_form, load_form, pattern, stiffness_data
 from .coefficients import TENSOR_PAIRS
 from .constraints import Constraints
 from .elastic_forms import divergence_terms, lame, metric_rows, skew_terms, symmetric_fields
 from .faces import chunks
 from .geometry_eval import checked_det
+from .vector_csr import VectorCSR, pattern_nnz
 
-__all__ = ["ElasticVolume", "vector_constraints", "component_major_csr"]
+__all__ = ["ElasticVolume", "vector_constraints"]
 
 _SLAB_POINTS = 1 << 16
+#: parametric coefficient terms per Gauss point of the six computed blocks (3 x 6 symmetric + 3 x 9): the
+#: work measure of :func:`iga.fast_assembly.applies`
+ELASTIC_TERMS = 45
 
 
 class ElasticVolume:
@@ -46,124 +51,96 @@ class ElasticVolume:
         of alpha (T - T_ref) or None.  ``work``: {"body": int f dV (N, (3,))}."""
         d = self.disc
         n = d.ndof
-        blocks = {(a, b): [] for a in range(3) for b in range(3)}  # [(offset, pattern, data)] per block
+        K = VectorCSR(d.offsets, [pattern_nnz(s) for s in d.spaces])
         f = np.zeros(3 * n)
         total = np.zeros(3)
         work = [m for g in d.volume.groups.values() for m in chunks(g, 3 * d.spaces[g[0]].nq_total)]
         for members in progress.bar(work, desc="elastic assembly", unit="batch"):
-            pat, data, loads, force = self._group(members, youngs, poisson, body, thermal)
+            loads, force = self._group(members, youngs, poisson, body, thermal, K)
             total += force
-            for (a, b), dat in data.items():
-                blocks[(a, b)] += [(int(d.offsets[i]), pat, dat[j]) for j, i in enumerate(members)]
             for a in range(3):
                 if loads[a] is not None:
                     for j, i in enumerate(members):
                         f[a * n + d.offsets[i] : a * n + d.offsets[i + 1]] += loads[a][j].ravel()
-        return component_major_csr({ab: block_diagonal_csr(bl, n) for ab, bl in blocks.items()}, n,
-                                   d.volume.compiled), f, {"body": total}
+        return K.matrix(), f, {"body": total}
 
-    def _fields(self, members, youngs, poisson, body, thermal):
-        """Metric rows c (3 rows x (3, M)), w/|det| (M,), lambda, mu (M,), body force (M, 3) or None and
-        thermal divergence weight (M,) or None, on the Gauss grid of ``members`` (C order per patch)."""
+    def _fields(self, members, youngs, poisson, body, thermal, compiled=False):
+        """The fields of the assembly on the Gauss grid of ``members``, each (..., P) + qshape: G (9, ...) the
+        metric rows (``G[3 r + k] = c_r[k]``, :func:`iga.elastic_forms.metric_rows`), LM (2, ...) lambda w /
+        |det J| and mu w / |det J| (Pa), the weighted body force (3, ...) (N) or None and the thermal
+        divergence weight (...) or None.  ``compiled``: geometry and metric in the numba kernels; the slabs
+        write straight into the fields."""
         d = self.disc
         space = d.spaces[members[0]]
         patches = [d.model.patches[i] for i in members]
-        where = f"patch {members[0]}" if len(members) == 1 else f"patches {members[0]}..{members[-1]}"
+        P, N = len(members), space.nq_total
+        where = f"patch {members[0]}" if P == 1 else f"patches {members[0]}..{members[-1]}"
         w_rest = np.multiply.outer(space.dirs[1].qw, space.dirs[2].qw).ravel()
-        parts = []
+        rest = len(w_rest)
+        G, LM = np.empty((9, P, N)), np.empty((2, P, N))
+        fb = None if body is None else np.empty((3, P, N))
+        th = None if thermal is None else np.empty((P, N))
+        lo, hi = np.inf, -np.inf  # det range over all slabs: a sign change between slabs is a fold too
         for planes, x, D, chans in patches_geometry_derivs_slabs(patches, space.qaxes, _SLAB_POINTS,
-                                                                  rows_multiple=space.dirs[0].g):
-            P, m = x.shape[:2]
+                                                                  rows_multiple=space.dirs[0].g, compiled=compiled):
+            m, at = x.shape[1], slice(planes.start * rest, planes.stop * rest)
             xs = x.reshape(-1, 3)
             flat = {ch: np.reshape(v, -1) for ch, v in chans.items()}
-            c, det = metric_rows(D)
-            checked_det(det, where)
             w = np.broadcast_to(np.multiply.outer(space.dirs[0].qw[planes], w_rest).ravel(), (P, m)).reshape(-1)
             lam, mu = lame(youngs.values(xs, flat, where), poisson.values(xs, flat, where), where)
-            adet = np.abs(det)
-            fb = None if body is None else body.values(xs, where) * (adet * w)[:, None]
-            th = None
-            if thermal is not None:
+            if compiled:
+                det = fast_assembly.elastic_metric(D, lam, mu, w, at.start, G, LM)
+            else:
+                c, det = metric_rows(D)
+                G[:, :, at] = np.reshape(c, (9, P, m))
+                LM[:, :, at] = (np.stack([lam, mu]) * (w / np.abs(det))).reshape(2, P, m)
+            a, b = checked_det(det, where)
+            lo, hi = min(lo, a), max(hi, b)
+            if fb is not None:
+                fb[:, :, at] = (body.values(xs, where) * (np.abs(det) * w)[:, None]).T.reshape(3, P, m)
+            if th is not None:
                 params = _slab_params(space, planes)
                 strain = np.concatenate([thermal(i, x[j], params, {k: v[j] for k, v in chans.items()})
                                          for j, i in enumerate(members)])
-                th = (3 * lam + 2 * mu) * strain * np.sign(det) * w
-            parts.append((planes, c, w / adet, lam, mu, fb, th))
-        return parts
-
-    def _group(self, members, youngs, poisson, body, thermal):
-        """Pattern, {(a, b): data (P, nnz)} of the nine blocks, loads [(P,) + shape or None] * 3, int f dV (3,)."""
-        space = self.disc.spaces[members[0]]
-        P = len(members)
+                th[:, at] = ((3 * lam + 2 * mu) * strain * np.sign(det) * w).reshape(P, m)
+        checked_det(np.array([lo, hi]), where)
         shape = (P,) + space.qshape
-        parts = self._fields(members, youngs, poisson, body, thermal)
+        return (G.reshape((9,) + shape), LM.reshape((2,) + shape), None if fb is None else fb.reshape((3,) + shape),
+                None if th is None else th.reshape(shape))
 
-        def grid(values):  # slabs (P * m,) each -> (P,) + qshape
-            return np.concatenate([v.reshape(P, -1) for v in values], axis=1).reshape(shape)
-
-        c = [[grid([p[1][r][a] for p in parts]) for a in range(3)] for r in range(3)]
-        fac, lam, mu = grid([p[2] for p in parts]), grid([p[3] for p in parts]), grid([p[4] for p in parts])
-        if fast_assembly.applies(space, P):  # all six blocks in the compiled kernel, fields formed on the fly
-            pat, data = fast_assembly.elastic_blocks(space, np.stack([c[r][a] for r in range(3) for a in range(3)]),
-                                                     np.stack([fac * lam, fac * mu]))
+    def _group(self, members, youngs, poisson, body, thermal, K: VectorCSR):
+        """Write the stiffness of ``members`` into K; returns loads [(P,) + shape or None] * 3 and int f dV (3,)."""
+        space = self.disc.spaces[members[0]]
+        shape = (len(members),) + space.qshape
+        compiled = fast_assembly.applies(space, len(members), terms=ELASTIC_TERMS)
+        G, LM, fb, th = self._fields(members, youngs, poisson, body, thermal, compiled)
+        c = [[G[3 * r + a] for a in range(3)] for r in range(3)]
+        if compiled:  # the compiled kernel, coefficients formed on the fly
+            fast_assembly.elastic_into(space, members, G, LM, K)
         else:
             pat, data = pattern(space), {}
             for a in range(3):
                 for b in range(a, 3):
                     # the symmetric part through the scalar stiffness form, the antisymmetric part of an
-                    # off-diagonal block as B - B^T from three banded terms
-                    S = symmetric_fields(c, fac, lam, mu, a, b)
+                    # off-diagonal block as B - B^T from three banded terms (the weights are in LM: fac 1)
+                    S = symmetric_fields(c, 1.0, LM[0], LM[1], a, b)
                     data[(a, b)] = stiffness_data(space, {rs: S[j] for j, rs in enumerate(TENSOR_PAIRS)}, pat)
                     if a != b:
-                        B = banded_to_csr_data(space, banded_form(space, skew_terms(c, fac, lam, mu, a, b, shape)),
-                                               pat)
+                        B = banded_to_csr_data(space, banded_form(space, skew_terms(c, 1.0, LM[0], LM[1], a, b,
+                                                                                    shape)), pat)
                         data[(a, b)] += B - B[:, pat.transpose]
                         data[(b, a)] = data[(a, b)][:, pat.transpose]  # the lower block: the transpose
+            K.put(members, pat, data)
         loads, force = [None, None, None], np.zeros(3)
-        if parts[0][5] is not None:
+        if fb is not None:
             for a in range(3):
-                F = grid([p[5][:, a] for p in parts])
-                loads[a] = load_form(space, F)
-                force[a] = float(F.sum())
-        if parts[0][6] is not None:
-            beta = grid([p[6] for p in parts])
+                loads[a] = load_form(space, fb[a])
+                force[a] = float(fb[a].sum())
+        if th is not None:
             for a in range(3):
-                L = derivative_load_form(space, divergence_terms(c, beta, a, shape))
+                L = derivative_load_form(space, divergence_terms(c, th, a, shape))
                 loads[a] = L if loads[a] is None else loads[a] + L
-        return pat, data, loads, force
-
-
-def component_major_csr(M: dict, n: int, compiled: bool = False) -> sp.csr_matrix:
-    """The (3 n, 3 n) CSR of nine (n, n) blocks ``M[(a, b)]`` that share one pattern with sorted indices.
-
-    ``compiled`` (the assembly loaded the compiled kernels anyway): in one compiled pass
-    (:func:`iga.fast_assembly.component_major_csr`, 10x faster); otherwise, so that small analyses never
-    import numba:
-
-    Row a n + i holds row i of blocks (a, 0), (a, 1), (a, 2) one after the
-    other, their columns shifted by 0, n, 2 n: index arithmetic on the shared
-    pattern, without the COO round trip of ``scipy.sparse.bmat`` (5x faster,
-    a third of the memory).
-    """
-    P = M[(0, 0)]
-    if compiled and fast_assembly.AVAILABLE:
-        return fast_assembly.component_major_csr(M, n)
-    indptr, indices = P.indptr.astype(np.int64), P.indices.astype(np.int64)
-    nnz = len(indices)
-    length = np.diff(indptr)
-    row = np.repeat(np.arange(n), length)
-    k = np.arange(nnz)
-    start = 3 * indptr[:-1][row]  # where scalar row i begins in its vector row, and entry k's offset in it
-    offset = k - indptr[:-1][row]
-    out_indices = np.empty(9 * nnz, np.int64 if 3 * n > np.iinfo(np.int32).max else np.int32)
-    out_data = np.empty(9 * nnz)
-    for a in range(3):
-        for b in range(3):
-            pos = a * 3 * nnz + start + b * length[row] + offset
-            out_indices[pos] = indices + b * n
-            out_data[pos] = M[(a, b)].data
-    out_indptr = np.concatenate([a * 3 * nnz + 3 * indptr[:-1] for a in range(3)] + [[9 * nnz]])
-    return sp.csr_matrix((out_data, out_indices, out_indptr), shape=(3 * n, 3 * n))
+        return loads, force
 
 
 def _slab_params(space, planes) -> np.ndarray:

@@ -39,7 +39,9 @@ from geometry._fast import grid_tables, readonly
 from .assembly import _CACHE_NNZ, CSRPattern, _band_limits
 from .space import Space1D, TensorSpace
 
-#: quadrature points (over all patches of a group) from which the compiled kernel is used
+#: quadrature points (over all patches of a group) from which the compiled kernels assemble the scalar form
+#: (six coefficient terms per point); a form of more terms per point takes them from proportionally fewer
+#: points (:func:`applies`)
 MIN_POINTS = 200_000
 
 # imported on first use, as geometry._fast: importing numba costs memory and time that small analyses should not pay
@@ -48,9 +50,12 @@ AVAILABLE = importlib.util.find_spec("numba") is not None
 _VARIANTS = ((0, 0), (0, 1), (1, 0), (1, 1))
 
 
-def applies(space: TensorSpace, n_patches: int) -> bool:
-    """Whether :func:`stiffness_csr` runs for ``n_patches`` patches on ``space``."""
-    return AVAILABLE and space.dim == 3 and n_patches * space.nq_total >= MIN_POINTS
+def applies(space: TensorSpace, n_patches: int, terms: int = 6) -> bool:
+    """Whether the compiled kernels assemble ``n_patches`` patches on ``space``, for a form of ``terms``
+    parametric coefficient terms per Gauss point (6: the scalar stiffness, :func:`stiffness_csr`; 45: the
+    six computed blocks of elasticity, :func:`elastic_into`).  The threshold is on work, points times
+    terms: what :data:`MIN_POINTS` points of the scalar form take."""
+    return AVAILABLE and space.dim == 3 and n_patches * space.nq_total * terms >= MIN_POINTS * 6
 
 
 def _kernels():
@@ -158,6 +163,16 @@ def _scratch(space: TensorSpace, n_patches: int, terms: int):
             np.empty((g1, 4, n2, 2 * p2 + 1, n3, 2 * p3 + 1)))
 
 
+def scalar_destinations(n_patches: int, nnz: int) -> np.ndarray:
+    """The slab kernels' ``dest`` (P, 4) for data (P, nnz) flattened: patch pi's row i from pi nnz + indptr[i],
+    no columns written (the pattern has them; :func:`iga._assembly_kernels._flush_row`)."""
+    dest = np.zeros((n_patches, 4), np.int64)
+    dest[:, 0] = np.arange(n_patches) * nnz
+    dest[:, 1] = 1
+    dest[:, 3] = -1
+    return readonly(dest, np.int64)
+
+
 class StiffnessAccumulator:
     """CSR stiffness of P patches sharing ``space``, added slab by slab of direction-1 elements.
 
@@ -178,6 +193,7 @@ class StiffnessAccumulator:
         # every entry is written exactly once, when its row is complete: no zero-filling needed
         self.data = np.empty((n_patches, len(self.pattern.indices)))
         self.ring, self.Z, self.Y = _scratch(space, n_patches, 7)
+        self.dest = scalar_destinations(n_patches, self.data.shape[1])
         self.next_element = 0
         #: load vectors (P,) + space.shape, once a slab with a source field was added (else None)
         self.load = None
@@ -200,7 +216,8 @@ class StiffnessAccumulator:
         locked(_kernels().stiffness3_for(p3, g3))(C, planes.start // g, t1["b"], t1["first"], t2["W"], t2["r"], t2["s"],
                                           t3["b"], t3["first"], readonly(self.pattern.indptr, np.int64),
                                           t1["lo"], t1["c"],
-                                          t2["lo"], t2["c"], t3["lo"], t3["c"], self.ring, self.Z, self.Y, self.data)
+                                          t2["lo"], t2["c"], t3["lo"], t3["c"], self.ring, self.Z, self.Y,
+                                          self.data.reshape(-1), np.empty(0, np.int32), self.dest)
         if L is not None:
             if self.load is None:
                 self.load = np.zeros((self.data.shape[0],) + self.space.shape)
@@ -234,48 +251,44 @@ def _elastic_kernels():
     return _elastic_kernels
 
 
-def elastic_blocks(space: TensorSpace, G: np.ndarray, LM: np.ndarray) -> tuple[CSRPattern, dict]:
-    """CSR pattern and the data {(a, b): (P, nnz)} of the nine elastic stiffness blocks (one call, whole grid).
+def elastic_into(space: TensorSpace, members, G: np.ndarray, LM: np.ndarray, out) -> None:
+    """Write the elastic stiffness of the patches ``members`` (sharing ``space``) into the component-major
+    operator ``out`` (:class:`iga.vector_csr.VectorCSR`), every entry once, where it belongs.
 
     ``G`` (9, P) + qshape: the metric rows, ``G[3 r + k] = c_r[k]`` (:func:`iga.elastic_forms.metric_rows`);
     ``LM`` (2, P) + qshape: lambda w / |det J| and mu w / |det J| (Pa).  Block (a, b) couples component a of
-    the test functions (rows) with component b of the trial functions; the lower blocks are the upper ones'
-    transposes, gathered through the pattern's mirrored band offsets (a third of the kernel time saved).
-    Compiled (:mod:`iga._elastic_kernels`); the NumPy reference is :func:`iga.elastic_forms.block_terms`.
+    the test functions (rows) with component b of the trial functions.  The kernel computes the six upper
+    blocks, the diagonal ones through the scalar kernel's symmetric stages, writing data and columns as rows
+    complete; the lower blocks are copied from the upper ones' transposes (the pattern's mirrored band
+    offsets) by one parallel pass.  Compiled (:mod:`iga._elastic_kernels`); the NumPy reference is
+    :func:`iga.elastic_forms.block_terms`.
     """
     t1, t2, t3 = (_tables(s) for s in space.dirs)
     pat = structure(space)
     P = G.shape[1]
     p1, p2, p3 = [d.degree for d in space.dirs]
-    ring, Z, Y = _scratch(space, P, 9)  # the ring is left zero by each pass, so the six share it
-    g3 = space.dirs[2].g
+    ring, Z9, Y = _scratch(space, P, 9)  # the ring is left zero by each pass, so the six share it
+    Z7 = np.empty(Z9.shape[:1] + (7,) + Z9.shape[2:])
     G, LM = readonly(G), readonly(LM)
-    kernel = locked(_elastic_kernels().elastic3_for(p3, g3))
+    kernels = _elastic_kernels()
+    kernel = locked(kernels.elastic3_for(p3, space.dirs[2].g))
     indptr = readonly(pat.indptr, np.int64)
-    out = {}
+    members = np.asarray(members)
+    before, offsets = readonly(out.before[members], np.int64), readonly(out.offsets[members], np.int64)
     for a in range(3):
+        rows = a * out.n + offsets[:, None] + np.arange(pat.n)
+        out.indptr[rows] = out.bases(members, a)[:, None] + 3 * indptr[:-1]
         for b in range(a, 3):
-            out[(a, b)] = np.empty((P, len(pat.indices)))  # every entry is written once
+            dest = np.stack([out.bases(members, a), np.full(P, 3), np.full(P, b), b * out.n + offsets], axis=1)
             kernel(G, LM, a, b, 0, t1["b"], t1["first"], t2["W"], t2["r"], t2["s"], t3["b"], t3["first"], indptr,
-                   t1["lo"], t1["c"], t2["lo"], t2["c"], t3["lo"], t3["c"], ring, Z, Y, out[(a, b)])
+                   t1["lo"], t1["c"], t2["lo"], t2["c"], t3["lo"], t3["c"], ring, Z7, Z9, Y, out.data, out.indices,
+                   readonly(dest, np.int64))
     transpose = np.empty(len(pat.indices), np.int64)
-    locked(_elastic_kernels().transpose_positions)(indptr, t1["lo"], t1["c"], t2["lo"], t2["c"], t3["lo"], t3["c"],
-                                                   p1, p2, p3, transpose)
-    for a, b in ((1, 0), (2, 0), (2, 1)):
-        out[(a, b)] = out[(b, a)][:, transpose]
-    return pat, out
-
-
-def component_major_csr(M: dict, n: int) -> sp.csr_matrix:
-    """:func:`iga.elastic_volume.component_major_csr` (the NumPy reference) in one compiled pass over the rows."""
-    P = M[(0, 0)]
-    nnz = len(P.indices)
-    itype = np.int64 if 3 * n > np.iinfo(np.int32).max else np.int32
-    indptr, indices, data = np.empty(3 * n + 1, np.int64), np.empty(9 * nnz, itype), np.empty(9 * nnz)
-    locked(_elastic_kernels().component_major)(readonly(P.indptr, np.int64), readonly(P.indices, itype),
-                                               tuple(readonly(M[(a, b)].data) for a in range(3) for b in range(3)),
-                                               indptr, indices, data)
-    return sp.csr_matrix((data, indices, indptr), shape=(3 * n, 3 * n))
+    locked(kernels.transpose_positions)(indptr, t1["lo"], t1["c"], t2["lo"], t2["c"], t3["lo"], t3["c"],
+                                        p1, p2, p3, transpose)
+    locked(kernels.mirror_lower)(indptr, readonly(pat.indices, pat.indices.dtype), readonly(transpose, np.int64),
+                                 before, offsets, out.n, out.nnz, out.data, out.indices)
+    out.mark(members)
 
 
 def metric_fields(D, kval, fval, w):
@@ -298,6 +311,18 @@ def metric_fields(D, kval, fval, w):
     locked(_metric_kernels().metric_fields)(readonly(Du), readonly(Dv), readonly(Dw), kiso, ktensor, fval,
                                     readonly(np.broadcast_to(np.asarray(w, float), (M,))), C, L, det)
     return C, L, det
+
+
+def elastic_metric(D, lam, mu, w, start: int, G: np.ndarray, LM: np.ndarray) -> np.ndarray:
+    """Write the elastic kernels' fields of one slab into G (9, P, N) and LM (2, P, N) from grid position
+    ``start`` on, compiled: D [dx/du, dx/dv, dx/dw] each (P, n, 3); lam, mu (P n,) Pa; w (P n,) quadrature
+    weights.  Returns det J (P n,).  Formulas in :func:`iga._metric_kernels.elastic_metric`."""
+    Du, Dv, Dw = (readonly(np.reshape(d, (-1, 3))) for d in D)
+    M = len(Du)
+    det = np.empty(M)
+    locked(_metric_kernels().elastic_metric)(Du, Dv, Dw, *(readonly(np.broadcast_to(np.asarray(v, float), (M,)))
+                                                           for v in (lam, mu, w)), int(start), G, LM, det)
+    return det
 
 
 def metric_slabs(spline, space: TensorSpace, points_per_slab: int, kval, fval: float):

@@ -402,10 +402,16 @@ def test_the_split_block_assembly_equals_the_nine_term_form(compiled, monkeypatc
     space = p.spaces[0]
     assert fast_assembly.applies(space, 1) == compiled
     shape = (1,) + space.qshape
-    parts = vol._fields([0], p.youngs, p.poisson, None, None)
-    grid = lambda vals: np.concatenate([v.reshape(1, -1) for v in vals], 1).reshape(shape)  # noqa: E731
-    c = [[grid([q[1][r][a] for q in parts]) for a in range(3)] for r in range(3)]
-    fac, lam, mu = (grid([q[i] for q in parts]) for i in (2, 3, 4))
+    # its fields straight from the geometry on the whole Gauss grid (no slabs, no compiled metric)
+    from geometry.chain import patch_geometry_derivs
+    from iga.elastic_forms import lame, metric_rows
+
+    x, D, _ = patch_geometry_derivs(p.model.patches[0], space.qaxes)
+    c_rows, det = metric_rows(D)
+    c = [[c_rows[r][a].reshape(shape) for a in range(3)] for r in range(3)]
+    w = np.einsum("i,j,k->ijk", *(d.qw for d in space.dirs)).reshape(shape)
+    fac = w / np.abs(det).reshape(shape)
+    lam, mu = (v.reshape(shape) for v in lame(1.0 + x[:, 0], np.full(len(x), 0.3), "test"))
     pat = pattern(space)
     blocks = {}
     for a in range(3):
@@ -417,24 +423,39 @@ def test_the_split_block_assembly_equals_the_nine_term_form(compiled, monkeypatc
     assert abs(K - K.T).max() <= 1e-12 * abs(K).max()
 
 
-@pytest.mark.parametrize("compiled", [False, True])
-def test_the_component_major_matrix_is_the_block_matrix(compiled):
+def test_the_component_major_operator_is_the_block_matrix_of_its_patches():
     import scipy.sparse as sp
 
-    from iga import elastic_volume, fast_assembly
+    from iga.assembly import CSRPattern
+    from iga.errors import ProblemError
+    from iga.vector_csr import VectorCSR
 
-    if compiled and not fast_assembly.AVAILABLE:
-        pytest.skip("numba is not installed")
     rng = np.random.default_rng(3)
-    n = 300
-    A = sp.random(n, n, density=0.05, random_state=4, format="csr") + sp.eye(n, format="csr")
-    A.sort_indices()
-    M = {(a, b): sp.csr_matrix((rng.standard_normal(A.nnz), A.indices, A.indptr), shape=A.shape)
-         for a in range(3) for b in range(3)}
-    K = elastic_volume.component_major_csr(M, n, compiled)
-    ref = sp.bmat([[M[(a, b)] for b in range(3)] for a in range(3)]).tocsr()
+    sizes = (300, 120, 300)  # three patches, two patterns; the first and the last written together
+    pats = []
+    for seed, n in enumerate(sizes[:2]):
+        A = sp.random(n, n, density=0.05, random_state=4 + seed, format="csr") + sp.eye(n, format="csr")
+        A.sort_indices()
+        pats.append(CSRPattern(A.indptr.astype(np.int64), A.indices, None, None, n))
+    pats.append(pats[0])
+    offsets = np.concatenate([[0], np.cumsum(sizes)])
+    out = VectorCSR(offsets, [len(p.indices) for p in pats])
+    blocks = [{(a, b): rng.standard_normal(len(p.indices)) for a in range(3) for b in range(3)} for p in pats]
+    out.put([1], pats[1], {ab: v[None] for ab, v in blocks[1].items()})
+    with pytest.raises(ProblemError, match=r"patches \[0, 2\] were not assembled"):
+        out.matrix()
+    out.put([0, 2], pats[0], {ab: np.stack([blocks[0][ab], blocks[2][ab]]) for ab in blocks[0]})
+    K = out.matrix()
+    n = offsets[-1]
+
+    def block(a, b):  # the (n, n) block-diagonal matrix of block (a, b) over the three patches
+        return sp.block_diag([sp.csr_matrix((blocks[m][(a, b)], p.indices, p.indptr), shape=(p.n, p.n))
+                              for m, p in enumerate(pats)], format="csr")
+
+    ref = sp.bmat([[block(a, b) for b in range(3)] for a in range(3)]).tocsr()
     ref.sort_indices()
-    assert K.has_sorted_indices and np.array_equal(K.indptr, ref.indptr) and np.array_equal(K.indices, ref.indices)
+    assert K.shape == (3 * n, 3 * n) and K.has_sorted_indices
+    assert np.array_equal(K.indptr, ref.indptr) and np.array_equal(K.indices, ref.indices)
     assert np.array_equal(K.data, ref.data)
 
 
