@@ -211,6 +211,29 @@ def test_implicit_bifurcation_is_closed_connected_and_exact(implicit_duck, duck)
     assert min(s.stats["cell_halvings"].values()) == 0 and min(s.stats["face_halvings"].values()) == 0
 
 
+def test_the_cells_edge_restrictions_equal_their_fields_along_the_edges(implicit_duck):
+    # the restrictions of all cells, computed together in the cells' unit cubes, against each cell's own field
+    from tiling.implicit_surface import EdgeSplines
+
+    s, rng = implicit_duck, np.random.default_rng(5)
+    boxes = s.cells.boxes
+    cell = rng.integers(0, len(boxes), 3000)
+    axis = rng.integers(0, 3, 3000)
+    a = rng.uniform(boxes[cell, :, 0], boxes[cell, :, 1])
+    b = a.copy()
+    rows = np.arange(3000)
+    a[rows, axis] = boxes[cell, axis, 0] + rng.uniform(0, 0.5, 3000) * (boxes[cell, axis, 1] - boxes[cell, axis, 0])
+    b[rows, axis] = boxes[cell, axis, 1]
+    assert len({f.coefficients.shape for f in s.fields}) > 1  # several kinds of cell spline
+    E = EdgeSplines.of_cells(s.fields, cell, a, b, axis)
+    t = rng.uniform(0, 1, 3000)
+    x = a.copy()
+    x[rows, axis] = a[rows, axis] + t * (b[rows, axis] - a[rows, axis])
+    direct = np.array([s.fields[c].evaluate(x[j : j + 1])[0, 0] for j, c in enumerate(cell)])
+    scale = max(np.abs(f.coefficients).max() for f in s.fields)
+    assert np.abs(E(rows, x[rows, axis]) - direct).max() < 1e-12 * scale
+
+
 def test_implicit_bifurcation_is_c0_across_every_face_including_complex_ones(implicit_duck):
     s, c = implicit_duck, implicit_duck.cells
     rng = np.random.default_rng(1)

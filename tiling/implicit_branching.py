@@ -132,12 +132,7 @@ class BifurcationStructure(SurfaceOutputs):
     def edge_splines(self, a, b, axis) -> EdgeSplines:
         """The field restricted to the grid edges from a (n, 3) to b along ``axis``: each by its cell's spline."""
         cell = self.locate(0.5 * (a + b))  # an edge lies in one cell (cell boundaries are sample lines)
-        parts, where = [], []
-        for i in np.unique(cell):
-            rows = np.flatnonzero(cell == i)
-            parts.append(EdgeSplines.of(self.fields[i], a[rows], b[rows], axis[rows]))
-            where.append(rows)
-        return EdgeSplines.stack(parts, where, len(a))
+        return EdgeSplines.of_cells(self.fields, cell, a, b, axis)
 
 
 def _sample(boxes, fields, axes) -> np.ndarray:

@@ -206,36 +206,65 @@ class EdgeSplines:
     @classmethod
     def of(cls, spline, a, b, axis) -> "EdgeSplines":
         """The restrictions of the scalar ``spline`` to the edges from a (n, 3) to b along ``axis`` (n,)."""
-        n = len(a)
-        if len(set(spline.degrees)) != 1:
-            raise TilingError(f"edge restrictions need equal degrees in all directions, got {spline.degrees}")
-        G = spline.coefficients[..., 0]
-        parts, where = [], []
-        chunk = 16384  # rows per gather: (rows, W, p + 1, p + 1) coefficients, about 10 MB
-        for k in range(3):
-            for rows in np.array_split(np.flatnonzero(axis == k), max(1, -(-int(np.sum(axis == k)) // chunk))):
-                if len(rows):
-                    parts.append(cls._restrict(spline, G, a[rows], b[rows], k))
-                    where.append(rows)
-        return cls.stack(parts, where, n)
+        return cls.of_cells([spline], np.zeros(len(a), int), a, b, axis)
 
     @classmethod
-    def _restrict(cls, spline, G, a, b, k) -> "EdgeSplines":
-        """Edges along direction k from a to b (rows of one chunk)."""
+    def of_cells(cls, splines, cell, a, b, axis) -> "EdgeSplines":
+        """The restrictions of the scalar ``splines[cell[e]]`` to the edges e from a (n, 3) to b along ``axis``.
+
+        Splines with the same degrees, coefficient shape and knots up to an
+        affine map of each direction (the cells of a structure) are restricted
+        together, in their unit cube: one gather per direction and kind
+        instead of one per cell; the knots are mapped back.
+        """
+        groups = {}
+        for i in np.unique(cell):
+            sp = splines[i]
+            if len(set(sp.degrees)) != 1:
+                raise TilingError(f"edge restrictions need equal degrees in all directions, got {sp.degrees}")
+            unit = tuple(np.round((U - U[0]) / (U[-1] - U[0]), 12).tobytes() for U in sp.knots)
+            groups.setdefault((sp.degrees, sp.coefficients.shape, unit), []).append(i)
+        parts, where = [], []
+        slot = np.full(len(splines), -1)
+        for members in groups.values():
+            ref = splines[members[0]]
+            unit = [(U - U[0]) / (U[-1] - U[0]) for U in ref.knots]
+            G = np.stack([splines[i].coefficients[..., 0] for i in members])
+            slot[members] = np.arange(len(members))
+            ends = np.array([[[U[0], U[-1]] for U in splines[i].knots] for i in members])  # (m, 3, 2)
+            mine = np.flatnonzero(np.isin(cell, members))
+            ci = slot[cell[mine]]
+            lo, size = ends[ci, :, 0], ends[ci, :, 1] - ends[ci, :, 0]
+            an, bn = (a[mine] - lo) / size, (b[mine] - lo) / size
+            chunk = 16384  # rows per gather: (rows, W, p + 1, p + 1) coefficients, about 10 MB
+            for k in range(3):
+                along = np.flatnonzero(axis[mine] == k)
+                for rows in np.array_split(along, max(1, -(-len(along) // chunk))):
+                    if len(rows):
+                        e = cls._restrict(unit, ref.degrees, G, ci[rows], an[rows], bn[rows], k)
+                        e.knots = lo[rows, k, None] + size[rows, k, None] * e.knots
+                        parts.append(e)
+                        where.append(mine[rows])
+        return cls.stack(parts, where, len(a))
+
+    @classmethod
+    def _restrict(cls, knots, degrees, G, ci, a, b, k) -> "EdgeSplines":
+        """Edges along direction k from a to b (rows of one chunk) of the splines G[ci] (knots, degrees)."""
         o = [j for j in range(3) if j != k]
-        p = spline.degrees[k]
-        Uk = spline.knots[k]
+        p = degrees[k]
+        Uk = knots[k]
         sa = kn.find_spans(Uk, p, a[:, k])
         sb = np.maximum(kn.find_spans(Uk, p, b[:, k], side="left"), sa)
         W = int((sb - sa).max()) + p + 1
-        ik = np.clip(sa[:, None] - p + np.arange(W), 0, G.shape[k] - 1)
-        (s1, v1), (s2, v2) = [kn.basis_functions(spline.knots[j], spline.degrees[j], a[:, j]) for j in o]
-        i1 = s1[:, None] - spline.degrees[o[0]] + np.arange(spline.degrees[o[0]] + 1)
-        i2 = s2[:, None] - spline.degrees[o[1]] + np.arange(spline.degrees[o[1]] + 1)
-        sub = np.moveaxis(G, k, 0)[ik[:, :, None, None], i1[:, None, :, None], i2[:, None, None, :]]
+        ik = np.clip(sa[:, None] - p + np.arange(W), 0, G.shape[k + 1] - 1)
+        (s1, v1), (s2, v2) = [kn.basis_functions(knots[j], degrees[j], a[:, j]) for j in o]
+        i1 = s1[:, None] - degrees[o[0]] + np.arange(degrees[o[0]] + 1)
+        i2 = s2[:, None] - degrees[o[1]] + np.arange(degrees[o[1]] + 1)
+        sub = np.moveaxis(G, k + 1, 1)[ci[:, None, None, None], ik[:, :, None, None], i1[:, None, :, None],
+                                       i2[:, None, None, :]]
         coefs = np.einsum("nwij,ni,nj->nw", sub, v1[:, 0], v2[:, 0])
-        knots = Uk[np.clip(sa[:, None] - p + np.arange(W + p + 1), 0, len(Uk) - 1)]
-        return cls(knots, coefs, sb - sa + p + 1, p)
+        window = Uk[np.clip(sa[:, None] - p + np.arange(W + p + 1), 0, len(Uk) - 1)]
+        return cls(window, coefs, sb - sa + p + 1, p)
 
     @classmethod
     def stack(cls, parts, where, n) -> "EdgeSplines":
