@@ -467,9 +467,13 @@ def test_the_compiled_elastic_blocks_equal_the_numpy_ones_on_batches_of_patches(
     twisted = pr.twisted(pr.box((1.0, 1.0, 1.0), degrees=(2, 2, 2)), 0.3, axis_point=(0.5, 0.5))
     ms = tiling.regular(twisted, L.cross(), (2, 2, 2))  # each of the tile's patches: a batch of 8 placements
     p = ElasticityProblem(ms, youngs=lambda x: 1.0 + x[:, 0], poisson=0.3, degree_elevation=1)
+    p.body_force(lambda x: np.c_[x[:, 1], -x[:, 0], np.ones(len(x))]).thermal(lambda x: 1.0 + x[:, 2] ** 2, 1e-3)
     assert max(len(g) for g in p.disc.volume.groups.values()) == 8
     monkeypatch.setattr(fast_assembly, "MIN_POINTS", 10**12)
-    ref = elastic_volume.ElasticVolume(p.disc).assemble(p.youngs, p.poisson)[0]
+    ref, f_ref, w_ref = elastic_volume.ElasticVolume(p.disc).assemble(p.youngs, p.poisson, p.body, p.thermal_strain)
     monkeypatch.setattr(fast_assembly, "MIN_POINTS", 100)  # every batch compiled
-    K = elastic_volume.ElasticVolume(p.disc).assemble(p.youngs, p.poisson)[0]
+    K, f, w = elastic_volume.ElasticVolume(p.disc).assemble(p.youngs, p.poisson, p.body, p.thermal_strain)
     assert K.nnz == ref.nnz and abs(K - ref).max() <= 1e-12 * abs(ref).max()
+    # the body and thermal loads from the compiled metric fields equal the NumPy ones
+    assert np.abs(f - f_ref).max() <= 1e-12 * np.abs(f_ref).max() and np.abs(f_ref).max() > 0
+    assert np.allclose(w["body"], w_ref["body"], rtol=1e-12, atol=0)
