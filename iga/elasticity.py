@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from geometry.errors import show
+from solvers.indexing import complement
 
 from .coefficients import ScalarField, is_number
 from .components import dof_labels
@@ -236,7 +237,7 @@ class ElasticityProblem:
             options = {"near_nullspace": B, "node_slots": 3 * (unknowns % nred) + unknowns // nred}
         if solver in ("auto", "fd-cg"):
             ks = None if constraints is not None else \
-                elastic_kronecker_sums(self, np.setdiff1d(np.arange(3 * self.ndof), dd.dofs))
+                elastic_kronecker_sums(self, complement(3 * self.ndof, dd.dofs))
             if ks is None and solver == "fd-cg":
                 raise ProblemError("solver 'fd-cg' (block fast diagonalization) needs one unconstrained trivariate "
                                    "patch with Dirichlet conditions on whole sides, at least one for every "

@@ -27,6 +27,7 @@ import scipy.sparse as sp
 
 from geometry import knots as kn
 from geometry.chain import patch_geometry_grid
+from solvers.indexing import complement
 
 from .constraints import needs_constraints, prolongation
 from .elastic_forms import lame
@@ -183,7 +184,7 @@ def _reduced(model, spaces, offsets, dirichlet_faces):
         c = prolongation(model, spaces, offsets)
         P, master = c.P, c.dof_master
     fixed = [np.unique(P[spaces[pi].face_dofs(face) + offsets[pi]].indices) for pi, face in dirichlet_faces]
-    free = np.setdiff1d(np.arange(P.shape[1]), np.concatenate(fixed) if fixed else [])
+    free = complement(P.shape[1], np.concatenate(fixed) if fixed else [])
     return P, master, free
 
 
@@ -243,7 +244,7 @@ def solver_options(problem, solver: str, constraints, dd, book) -> dict:
     if solver not in ("fd-cg", "gmg-cg", "auto"):
         return {}
     nred = problem.ndof if constraints is None else constraints.P.shape[1]
-    free = np.setdiff1d(np.arange(nred), dd.dofs)
+    free = complement(nred, dd.dofs)
     if solver in ("fd-cg", "auto"):
         ks = kronecker_sum(problem, free) if constraints is None else None
         if ks is None and solver == "fd-cg":

@@ -16,6 +16,7 @@ import numpy as np
 import scipy.sparse as sp
 
 import solvers
+from solvers.indexing import complement
 
 from . import fast_assembly
 from .constraints import induced_elimination
@@ -73,7 +74,7 @@ def reduction(constraints, dirichlet, ndof: int):
     P = sp.identity(ndof, format="csr") if constraints is None else constraints.P
     nred = P.shape[1]
     dofs, g = dirichlet.dofs, dirichlet.values
-    free = np.setdiff1d(np.arange(nred), dofs)
+    free = complement(nred, dofs)
     Pf, Pd = P[:, free].tocsc(), P[:, dofs].tocsc()
     offset = Pd @ g
     reaction_dofs, induced = dofs, 0
@@ -124,7 +125,7 @@ def solve_system(K, f, constraints, dirichlet, solver="auto", tol=1e-10, maxiter
     """
     nred = K.shape[0] if constraints is None else constraints.P.shape[1]
     dofs, g = dirichlet.dofs, dirichlet.values
-    free = np.setdiff1d(np.arange(nred), dofs)
+    free = complement(nred, dofs)
     reaction_dofs = dofs
     induced = 0
     if constraints is None:  # one unconstrained patch: eliminate by row and column selection

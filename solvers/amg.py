@@ -44,6 +44,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from .errors import SolverError
+from .indexing import complement
 
 
 def _near_nullspace(near_nullspace, n: int) -> np.ndarray:
@@ -168,7 +169,7 @@ class AMGPreconditioner:
             raise SolverError(f"node_slots must be {n} distinct non-negative integers (each unknown's place "
                               "3 node + component)")
         size = 3 * (int(slots.max()) // 3 + 1)
-        free = np.setdiff1d(np.arange(size), slots)
+        free = complement(size, slots)
         C = sp.coo_matrix(A)
         Ap = sp.csr_matrix((np.concatenate([C.data, np.ones(len(free))]),
                             (np.concatenate([slots[C.row], free]), np.concatenate([slots[C.col], free]))),
