@@ -111,8 +111,10 @@ class SplineEvaluation:
         """Values (N, m) and the matrix of first derivatives (N, m, d) at ``params`` (N, d)."""
         return self._value_jacobian(params, values=True)
 
-    def _value_jacobian(self, params, values: bool):
-        x = self._check_params(params)
+    def _value_jacobian(self, params, values: bool, checked: bool = False):
+        """``checked``: ``params`` is already a float (N, d) array inside the domain (an inner loop that clips
+        its own iterates, :func:`geometry.inversion.invert`): the 35 us of checks per call are skipped."""
+        x = params if checked else self._check_params(params)
         # compiled kernel for many points: values and first derivatives in one pass (3x SciPy's four passes)
         out = _fast.evaluate(self.knots, self.degrees, self._hom, x, derivs=True)
         if out is not None:

@@ -10,6 +10,7 @@ iteration for all of them.
 
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -68,6 +69,23 @@ def newton_inverse(fn, domain: np.ndarray, start: np.ndarray, targets: np.ndarra
     return t
 
 
+# the sampled start grid of each spline, kept while the spline lives: splines are immutable, and the V-rep
+# builder inverts a few points at a time on the same maps and trimming surfaces about a thousand times
+_STARTS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
+def _starts(spline):
+    """(grid parameters (n, d), KD-tree of their images, the model's size for ``inside``) of ``spline``."""
+    known = _STARTS.get(spline)
+    if known is None:
+        d, dom = spline.dim, spline.domain
+        axes = start_grid(dom, [spline.breakpoints(k) for k in range(d)])
+        grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, d)
+        xs = spline.evaluate(grid)[:, :3]
+        known = _STARTS[spline] = (grid, cKDTree(xs), max(1.0, float(np.abs(xs).max())))
+    return known
+
+
 def invert(spline, points, tol: float = 1e-10) -> Inversion:
     """Parameters of ``points`` (N, 3) on ``spline`` (curve, surface or trivariate), nearest in the image.
 
@@ -81,16 +99,13 @@ def invert(spline, points, tol: float = 1e-10) -> Inversion:
         raise SplineError(f"points to invert must be a finite array of shape (N, 3), got shape {np.shape(points)}")
     d = spline.dim
     dom = spline.domain
-    axes = start_grid(dom, [spline.breakpoints(k) for k in range(d)])
-    grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, d)
-    xs = spline.evaluate(grid)[:, :3]
-    scale = max(1.0, float(np.abs(xs).max()))
+    grid, tree, scale = _starts(spline)
     if not len(pts):
         return Inversion(np.zeros((0, d)), np.zeros(0), np.zeros(0, bool))
-    _, nearest = cKDTree(xs).query(pts)
+    _, nearest = tree.query(pts)
 
-    def fn(t):
-        v, J = spline.value_and_jacobian(t)
+    def fn(t):  # the iterates are clipped to the domain: no parameter checks
+        v, J = spline._value_jacobian(t, values=True, checked=True)
         return v[:, :3], J[:, :3, :]
 
     span = float((dom[:, 1] - dom[:, 0]).max())

@@ -153,3 +153,28 @@ def test_cli_help_and_info(tmp_path):
     assert out.returncode == 0 and "channels=['k']" in out.stdout
     out = subprocess.run([sys.executable, "-m", "iga", "info", str(tmp_path / "none.npz")], capture_output=True, text=True)
     assert out.returncode == 1 and "does not exist" in out.stderr and "Traceback" not in out.stderr
+
+
+def test_point_inversion_recovers_parameters_and_reuses_its_start_grid_while_the_spline_lives():
+    import gc
+
+    from geometry import inversion
+
+    rng = np.random.default_rng(7)
+    D = pr.twisted(pr.box((1.0, 2.0, 1.0), degrees=(2, 2, 2), elements=(3, 2, 2)), 0.6, axis_point=(0.5, 1.0))
+    t = rng.uniform(D.domain[:, 0], D.domain[:, 1], (50, 3))
+    x = D.evaluate(t)[:, :3]
+    first = inversion.invert(D, x)
+    assert first.inside.all() and np.abs(first.params - t).max() < 1e-9  # a regular map: the parameters
+    assert D in inversion._STARTS
+    again = inversion.invert(D, x[::-1])  # the kept start grid gives the same answers
+    assert np.array_equal(again.params, first.params[::-1])
+    # a point off a surface: the nearest point, its distance, and not "inside"
+    S = D.boundary("wmax")
+    off = S.evaluate(np.array([[0.3, 0.4]]))[:, :3] + np.array([[0.0, 0.0, 0.25]])
+    r = inversion.invert(S, off)
+    assert not r.inside[0] and 0 < r.distance[0] <= 0.25 + 1e-12
+    n_before = len(inversion._STARTS)
+    del D, S, first, again, r
+    gc.collect()
+    assert len(inversion._STARTS) <= n_before - 2  # entries die with their splines
