@@ -57,22 +57,24 @@ def _grid_kernel():
     return grid_derivs3
 
 
-def applies(dim: int, n_points: int) -> bool:
+def applies(dim: int, n_points: int, min_points: int = MIN_POINTS) -> bool:
     """Whether :func:`evaluate` would run the compiled kernel for this many points."""
-    return AVAILABLE and dim == 3 and n_points >= MIN_POINTS
+    return AVAILABLE and dim == 3 and n_points >= min_points
 
 
-def evaluate(knots, degrees, coefficients: np.ndarray, x: np.ndarray, derivs: bool = False) -> np.ndarray | None:
+def evaluate(knots, degrees, coefficients: np.ndarray, x: np.ndarray, derivs: bool = False,
+             min_points: int = MIN_POINTS) -> np.ndarray | None:
     """Values (N, m) of the spline with ``coefficients`` (n_1, ..., n_d, m) at ``x`` (N, d).
 
     ``derivs``: values and first derivatives instead, (4, N, m) (value,
     d/dx_0, d/dx_1, d/dx_2; at a knot the right-hand derivative, as SciPy's).
     Returns None when the kernel does not apply (numba missing, d != 3, or
-    fewer than :data:`MIN_POINTS` points) or when some point lies outside the
-    domain or is not finite: the caller then checks the points (and raises,
-    naming them) and uses SciPy.
+    fewer than ``min_points`` points, :data:`MIN_POINTS` unless a caller that
+    runs compiled kernels anyway asks for fewer) or when some point lies
+    outside the domain or is not finite: the caller then checks the points
+    (and raises, naming them) and uses SciPy.
     """
-    if not applies(len(degrees), len(x)) or np.ndim(x) != 2 or np.shape(x)[1] != 3:
+    if not applies(len(degrees), len(x), min_points) or np.ndim(x) != 2 or np.shape(x)[1] != 3:
         return None
     C = readonly(coefficients)
     X = readonly(x)

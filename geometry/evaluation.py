@@ -111,12 +111,15 @@ class SplineEvaluation:
         """Values (N, m) and the matrix of first derivatives (N, m, d) at ``params`` (N, d)."""
         return self._value_jacobian(params, values=True)
 
-    def _value_jacobian(self, params, values: bool, checked: bool = False):
+    def _value_jacobian(self, params, values: bool, checked: bool = False, compiled: bool | None = None):
         """``checked``: ``params`` is already a float (N, d) array inside the domain (an inner loop that clips
-        its own iterates, :func:`geometry.inversion.invert`): the 35 us of checks per call are skipped."""
+        its own iterates, :func:`geometry.inversion.invert`): the 35 us of checks per call are skipped.
+        ``compiled``: None takes the compiled kernel for many points; True for any number (a caller that runs
+        compiled kernels anyway, so the import is paid); False never."""
         x = params if checked else self._check_params(params)
         # compiled kernel for many points: values and first derivatives in one pass (3x SciPy's four passes)
-        out = _fast.evaluate(self.knots, self.degrees, self._hom, x, derivs=True)
+        out = None if compiled is False else _fast.evaluate(self.knots, self.degrees, self._hom, x, derivs=True,
+                                                            min_points=1 if compiled else _fast.MIN_POINTS)
         if out is not None:
             H, dH = out[0], out[1:]
             if not self.is_rational:

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from . import _fast
 from .errors import SplineError
 from .tolerances import ROUNDOFF
 
@@ -86,13 +87,16 @@ def _starts(spline):
     return known
 
 
-def invert(spline, points, tol: float = 1e-10) -> Inversion:
+def invert(spline, points, tol: float = 1e-10, compiled: bool | None = None) -> Inversion:
     """Parameters of ``points`` (N, 3) on ``spline`` (curve, surface or trivariate), nearest in the image.
 
     ``distance`` is the remaining distance to the image; ``inside`` marks
     points whose distance is below ``tol`` times the model size (for a
     trivariate: points inside the volume).  Raises :class:`SplineError` for
-    non-finite or badly shaped points.
+    non-finite or badly shaped points.  ``compiled``: whether the Newton iterations of a trivariate evaluate
+    by the compiled kernel (:mod:`geometry._fast`): None from :data:`geometry._fast.MIN_POINTS` / 10 points
+    (the iterations evaluate them about ten times, so the kernel's import pays as it does for one
+    evaluation of MIN_POINTS), True for any number, False never.
     """
     pts = np.asarray(points, float)
     if pts.ndim != 2 or pts.shape[1] != 3 or not np.all(np.isfinite(pts)):
@@ -104,8 +108,11 @@ def invert(spline, points, tol: float = 1e-10) -> Inversion:
         return Inversion(np.zeros((0, d)), np.zeros(0), np.zeros(0, bool))
     _, nearest = tree.query(pts)
 
+    if compiled is None and 10 * len(pts) >= _fast.MIN_POINTS:
+        compiled = True
+
     def fn(t):  # the iterates are clipped to the domain: no parameter checks
-        v, J = spline._value_jacobian(t, values=True, checked=True)
+        v, J = spline._value_jacobian(t, values=True, checked=True, compiled=compiled)
         return v[:, :3], J[:, :3, :]
 
     span = float((dom[:, 1] - dom[:, 0]).max())

@@ -22,6 +22,7 @@ from math import comb
 import numpy as np
 import scipy.sparse as sp
 
+from .cache import BoundedCache
 from .errors import SplineError
 from .errors import show
 
@@ -301,17 +302,27 @@ def extraction_operators(knots: np.ndarray, degree: int):
     Returns ``(C, first)``: ``C`` of shape ``(ne, p + 1, p + 1)`` and
     ``first[e]``, the index of the first B-spline function supported on element
     ``e``, such that the Bernstein coefficients on element ``e`` are
-    ``C[e] @ coefficients[first[e] : first[e] + p + 1]``.
+    ``C[e] @ coefficients[first[e] : first[e] + p + 1]``.  Both read-only: they
+    are kept per knot vector and degree (bounded), as the tubes of a V-model,
+    the composed tiles of a paving and the regularity proofs repeat a few spaces.
     """
     U = np.asarray(knots, float)
-    p = degree
+    return _EXTRACTION.get((U.tobytes(), int(degree)), lambda: _extraction(U, int(degree)))
+
+
+def _extraction(U: np.ndarray, p: int):
     _, R, rows, elements = bezier_refinement(U, p)
     first = find_spans(U, p, elements[:, 0]) - p
     Rd = R.toarray()
     ridx = rows[:, None] + np.arange(p + 1)
     cidx = first[:, None] + np.arange(p + 1)
     C = Rd[ridx[:, :, None], cidx[:, None, :]]
+    C.setflags(write=False)
+    first.setflags(write=False)
     return C, first
+
+
+_EXTRACTION = BoundedCache(256)
 
 
 @lru_cache(maxsize=256)

@@ -169,6 +169,11 @@ def test_point_inversion_recovers_parameters_and_reuses_its_start_grid_while_the
     assert D in inversion._STARTS
     again = inversion.invert(D, x[::-1])  # the kept start grid gives the same answers
     assert np.array_equal(again.params, first.params[::-1])
+    # the compiled Newton evaluations (numba, where installed) find the same parameters as SciPy's
+    many = rng.uniform(D.domain[:, 0], D.domain[:, 1], (3000, 3))
+    xm = D.evaluate(many)[:, :3]
+    fast, slow = inversion.invert(D, xm, compiled=True), inversion.invert(D, xm, compiled=False)
+    assert np.abs(fast.params - slow.params).max() < 1e-12 and np.abs(fast.params - many).max() < 1e-9
     # a point off a surface: the nearest point, its distance, and not "inside"
     S = D.boundary("wmax")
     off = S.evaluate(np.array([[0.3, 0.4]]))[:, :3] + np.array([[0.0, 0.0, 0.25]])
