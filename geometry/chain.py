@@ -153,13 +153,15 @@ def grid_values_derivs_slabs(spline, axes, points_per_slab: int = 1 << 15, rows_
         yield (sl, *_dehomogenise(spline, out[0], out[1:]))
 
 
-def _outer_map(patches, xT, DT):
+def _outer_map(patches, xT, DT, compiled: bool = False):
     """Placements and deformation map applied to shared tile values (N, m) and derivatives [(N, m)] * 3.
 
     ``patches`` share the tile spline that produced ``xT``.  Returns x (P, N, 3),
     the physical derivatives [(P, N, 3)] * 3 (chain rule) and all channels
     {name: (P, N)}: the tile's (broadcast) and the map's; one evaluation of each
-    deformation map serves all its patches.
+    deformation map serves all its patches.  ``compiled``: the caller runs
+    compiled kernels anyway, so the map is evaluated in the compiled kernel
+    however few the points (a V-model's face batches: a few hundred each).
     """
     same = ObjectIndex()  # patches share splines and maps: group by object
     P, N = len(patches), len(xT)
@@ -187,7 +189,7 @@ def _outer_map(patches, xT, DT):
             raise SplineError("patches that share a tile must all have a deformation map or none")
         dom = D.domain
         yy = np.clip(y[members].reshape(-1, 3), dom[:, 0], dom[:, 1])
-        vals, JD = D.value_and_jacobian(yy)
+        vals, JD = D._value_jacobian(yy, values=True, compiled=True if compiled else None)
         JD = JD[:, :3, :]
         x[members] = vals[:, :3].reshape(len(members), N, 3)
         for k in range(len(Dy)):
@@ -206,7 +208,7 @@ def patches_geometry_derivs(patches, axes, compiled: bool = False):
     (tile channels broadcast, map channels per patch); the tile is evaluated
     once.  ``compiled``: see :func:`grid_values_derivs`.
     """
-    return _outer_map(patches, *grid_values_derivs(patches[0].spline, axes, compiled))
+    return _outer_map(patches, *grid_values_derivs(patches[0].spline, axes, compiled), compiled=compiled)
 
 
 def patches_geometry_derivs_slabs(patches, axes, points_per_slab: int = 1 << 15, rows_multiple: int = 1,
@@ -220,7 +222,7 @@ def patches_geometry_derivs_slabs(patches, axes, points_per_slab: int = 1 << 15,
     """
     per_patch = max(1, points_per_slab // len(patches))
     for rows, xT, DT in grid_values_derivs_slabs(patches[0].spline, axes, per_patch, rows_multiple, compiled):
-        yield (rows, *_outer_map(patches, xT, DT))
+        yield (rows, *_outer_map(patches, xT, DT, compiled))
 
 
 def patch_geometry_derivs(patch, axes):
