@@ -30,7 +30,8 @@ from . import knots as kn
 from .errors import SplineError
 from .spline import SplineFunction
 
-__all__ = ["check_regular", "prove_one_signed", "RegularityResult", "jacobian_bezier"]
+__all__ = ["check_regular", "check_regular_many", "prove_one_signed", "prove_one_signed_many", "RegularityResult",
+           "jacobian_bezier"]
 
 
 @dataclass
@@ -286,27 +287,76 @@ def check_regular(spline: SplineFunction, max_depth: int = 9, allow_zeros: bool 
     proven fold (values of both signs) or a box where the Jacobian vanishes
     identically.
     """
-    d = spline.dim
-    if d not in (2, 3):
-        raise SplineError(f"check_regular needs a planar surface or a trivariate, got a {d}-variate spline")
-    pos_boxes, neg_boxes, zero_boxes = [], [], []
-    if spline.is_rational:
-        hom, boxes = _elements(spline)
-    else:  # nearly affine elements are decided from the control net; the others take the Bernstein form
-        sel = np.stack(np.meshgrid(*[np.arange(n) for n in spline.n_elements], indexing="ij"), -1).reshape(-1, d)
-        sign = _nearly_affine(spline).reshape(-1)
-        wins = _element_windows(spline)
-        all_boxes = np.stack([wins[k][0][sel[:, k]] for k in range(d)], axis=1)
-        pos_boxes.append(all_boxes[sign > 0])
-        neg_boxes.append(all_boxes[sign < 0])
-        hom, boxes = _bezier_subset(spline, sel[sign == 0])
-    J = _bernstein_jacobian(hom, d, spline.is_rational) if len(hom) else np.zeros((0,) + (1,) * d)
-    lo_all, hi_all = (float(J.min()), float(J.max())) if J.size else (0.0, 0.0)
-    scale = max(abs(lo_all), abs(hi_all), 1e-300)
-    depth = 0
-    cur, cur_boxes = J, boxes
-    undecided = np.zeros((0, d, 2))
+    return check_regular_many([spline], max_depth, allow_zeros)[0]
+
+
+def check_regular_many(splines, max_depth: int = 9, allow_zeros: bool = False) -> list[RegularityResult]:
+    """:func:`check_regular` of each of ``splines``, those of one kind (dimension, degrees, rational or not)
+    proven together: one Bernstein form of the Jacobian and one subdivision for all their elements (the
+    tubes of a V-model: a hundred small proofs whose NumPy overhead dominated).  Each result is the one
+    :func:`check_regular` gives for its spline alone."""
+    out = [None] * len(splines)
+    kinds: dict = {}
+    for i, s in enumerate(splines):
+        if s.dim not in (2, 3):
+            raise SplineError(f"check_regular needs a planar surface or a trivariate, got a {s.dim}-variate spline")
+        kinds.setdefault((s.dim, tuple(s.degrees), s.is_rational), []).append(i)
+    for (d, _, rational), members in kinds.items():
+        for i, r in zip(members, _prove_kind([splines[i] for i in members], d, rational, max_depth, allow_zeros)):
+            out[i] = r
+    return out
+
+
+def _prove_kind(splines, d: int, rational: bool, max_depth: int, allow_zeros: bool) -> list[RegularityResult]:
+    """The proofs of splines of one kind: elements decided from the control net first (polynomial maps), the
+    others through the Bernstein form of their Jacobian, subdivided together; boxes carry their owner."""
+    S = len(splines)
+    decided = [[], [], []]  # (boxes, owners) of proven positive, negative and crossing boxes
+    homs, boxes, owners = [], [], []
+    for o, spline in enumerate(splines):
+        if rational:
+            hom, bx = _elements(spline)
+        else:  # nearly affine elements are decided from the control net; the others take the Bernstein form
+            sel = np.stack(np.meshgrid(*[np.arange(n) for n in spline.n_elements], indexing="ij"), -1).reshape(-1, d)
+            sign = _nearly_affine(spline).reshape(-1)
+            wins = _element_windows(spline)
+            all_boxes = np.stack([wins[k][0][sel[:, k]] for k in range(d)], axis=1)
+            for kind, mask in ((0, sign > 0), (1, sign < 0)):
+                decided[kind].append((all_boxes[mask], np.full(int(mask.sum()), o)))
+            hom, bx = _bezier_subset(spline, sel[sign == 0])
+        homs.append(hom[..., list(range(d)) + ([-1] if rational else [])])  # coordinates (and weight): no channels
+        boxes.append(bx)
+        owners.append(np.full(len(hom), o))
+    hom = np.concatenate(homs)
+    owner = np.concatenate(owners)
+    J = _bernstein_jacobian(hom, d, rational) if len(hom) else np.zeros((0,) + (1,) * d)
+    lo = np.full(S, np.inf)
+    hi = np.full(S, -np.inf)
+    if len(J):
+        flat = J.reshape(len(J), -1)
+        np.minimum.at(lo, owner, flat.min(axis=1))
+        np.maximum.at(hi, owner, flat.max(axis=1))
+    lo, hi = np.where(np.isfinite(lo), lo, 0.0), np.where(np.isfinite(hi), hi, 0.0)
+    undecided, depth = _subdivide(J, np.concatenate(boxes), owner, decided, d, max_depth, allow_zeros, S)
+    results = []
+    for o in range(S):
+        def mine(kind, o=o):
+            return [b[w == o] for b, w in decided[kind]]
+
+        scale = max(abs(lo[o]), abs(hi[o]), 1e-300)
+        results.append(_verdict(mine(0), mine(1), mine(2), undecided[0][undecided[1] == o],
+                                (float(lo[o]), float(hi[o])), scale, int(depth[o]), d))
+    return results
+
+
+def _subdivide(J, boxes, owner, decided, d: int, max_depth: int, allow_zeros: bool, S: int):
+    """Split inconclusive boxes (to decide them) and crossing ones (to localise the zero set) round by round,
+    appending proven boxes to ``decided``; returns the undecided (boxes, owners) and each owner's last round."""
+    depth = np.zeros(S, int)
+    cur, cur_boxes, cur_owner, rnd = J, boxes, owner, 0
+    undecided = (np.zeros((0, d, 2)), np.zeros(0, int))
     while len(cur):
+        depth[np.unique(cur_owner)] = rnd
         flat = cur.reshape(cur.shape[0], -1)
         corners = _corners(cur, d)
         mixed = (corners.max(axis=1) > 0) & (corners.min(axis=1) < 0)
@@ -318,19 +368,23 @@ def check_regular(spline: SplineFunction, max_depth: int = 9, allow_zeros: bool 
             pos = np.all(flat > 0, axis=1)
             neg = np.all(flat < 0, axis=1)
             zero_corner = np.any(corners == 0, axis=1)
-        pos_boxes.append(cur_boxes[pos])
-        neg_boxes.append(cur_boxes[neg])
+        decided[0].append((cur_boxes[pos], cur_owner[pos]))
+        decided[1].append((cur_boxes[neg], cur_owner[neg]))
         crossing = (mixed | zero_corner) & ~pos & ~neg  # a zero is proven inside
         todo = ~(pos | neg | mixed | zero_corner)
-        if depth >= max_depth or not (todo | crossing).any():
-            zero_boxes.append(cur_boxes[crossing])
-            undecided = cur_boxes[todo]
+        # an owner whose boxes are all decided stops here (as it would alone); the others go on splitting
+        going = np.zeros(S, bool)
+        going[cur_owner[todo | crossing]] = True
+        if rnd >= max_depth or not going.any():
+            decided[2].append((cur_boxes[crossing], cur_owner[crossing]))
+            undecided = (cur_boxes[todo], cur_owner[todo])
             break
         # keep splitting inconclusive boxes (to decide) and crossing boxes (to localise the zero set)
-        todo = todo | crossing
-        cur, cur_boxes = _halves(cur[todo], cur_boxes[todo], depth % d)  # along direction depth % d
-        depth += 1
-    return _verdict(pos_boxes, neg_boxes, zero_boxes, undecided, (lo_all, hi_all), scale, depth, d)
+        split = todo | crossing
+        cur, cur_boxes = _halves(cur[split], cur_boxes[split], rnd % d)  # along direction rnd % d
+        cur_owner = np.concatenate([cur_owner[split], cur_owner[split]])
+        rnd += 1
+    return undecided, depth
 
 
 # proofs of prove_one_signed, kept while their spline lives: splines are immutable (read-only arrays), so a
@@ -347,11 +401,26 @@ def prove_one_signed(spline: SplineFunction, depth: int = 8, deeper: int = 14) -
     (det J from -5e-6 to 4e-5) is undecided at depth 8 and a proven fold at 9, in 3 ms; only the
     undecided boxes are split further, so a decided proof costs nothing more.
     """
-    known = _ONE_SIGNED.get(spline)
-    if known is not None and (depth, deeper) in known:
-        return known[(depth, deeper)]
-    r = check_regular(spline, depth, allow_zeros=True)
-    if r.status == "undecided":
-        r = check_regular(spline, deeper, allow_zeros=True)
-    _ONE_SIGNED.setdefault(spline, {})[(depth, deeper)] = r
-    return r
+    return prove_one_signed_many([spline], depth, deeper)[0]
+
+
+def prove_one_signed_many(splines, depth: int = 8, deeper: int = 14) -> list[RegularityResult]:
+    """:func:`prove_one_signed` of each of ``splines``, the ones not proven before proven together
+    (:func:`check_regular_many`)."""
+    out = [None] * len(splines)
+    todo = []
+    for i, s in enumerate(splines):
+        known = _ONE_SIGNED.get(s)
+        if known is not None and (depth, deeper) in known:
+            out[i] = known[(depth, deeper)]
+        else:
+            todo.append(i)
+    for rounds in (depth, deeper):  # only the undecided go deeper
+        for i, r in zip(todo, check_regular_many([splines[i] for i in todo], rounds, allow_zeros=True)):
+            out[i] = r
+        todo = [i for i in todo if out[i].status == "undecided"]
+        if not todo:
+            break
+    for s, r in zip(splines, out):
+        _ONE_SIGNED.setdefault(s, {})[(depth, deeper)] = r
+    return out

@@ -183,3 +183,23 @@ def test_point_inversion_recovers_parameters_and_reuses_its_start_grid_while_the
     del D, S, first, again, r
     gc.collect()
     assert len(inversion._STARTS) <= n_before - 2  # entries die with their splines
+
+
+@pytest.mark.parametrize("allow_zeros,depth", [(False, 9), (True, 6)])
+def test_regularity_proofs_together_equal_the_proofs_alone(allow_zeros, depth):
+    from geometry.regularity import check_regular, check_regular_many
+    from helpers import random_spline as rs
+
+    rng = np.random.default_rng(11)
+    box = pr.box(degrees=(2, 2, 2), elements=(2, 3, 2))
+    splines = [pr.twisted(box, a, axis_point=(0.5, 0.5)) for a in (0.2, 1.1, 2.9)]  # regular, then strongly twisted
+    splines += [rs(rng, 3, degrees=(2, 2, 2), channels=("k",) * (i % 2)) for i in range(6)]  # folds, some channels
+    splines += [pr.annulus(1.0, 2.0, 1.0), rs(rng, 3, degrees=(2, 1, 3), rational=True), splines[0]]
+    alone = [check_regular(s, depth, allow_zeros) for s in splines]
+    together = check_regular_many(splines, depth, allow_zeros)
+    assert {r.status for r in alone} >= {"regular", "singular"}  # both verdicts occur in the set
+    for a, b in zip(alone, together):
+        assert (a.status, a.orientation, a.depth, a.message) == (b.status, b.orientation, b.depth, b.message)
+        assert np.allclose(a.jacobian_bounds, b.jacobian_bounds, rtol=1e-12, atol=0)  # (products batched: rounding)
+        order = lambda B: B[np.lexsort(B.reshape(len(B), B.shape[1] * B.shape[2]).T)]  # noqa: E731
+        assert np.array_equal(order(a.boxes), order(b.boxes))

@@ -40,13 +40,13 @@ from geometry import knots as kn
 from geometry.spline import SplineFunction
 from geometry.faces import FACE_AXIS
 from geometry.multipatch import ORIENTATIONS, PlacedPatch
-from geometry.regularity import prove_one_signed
+from geometry.regularity import prove_one_signed_many
 from geometry.cache import BoundedCache
 
 from ..errors import TilingError
 from geometry.tolerances import COINCIDENT
 
-__all__ = ["is_regular", "Face", "face_of", "Tube", "hermite_tube", "carrier", "orient", "orientation_for", "corner_index",
+__all__ = ["is_regular", "are_regular", "Face", "face_of", "Tube", "hermite_tube", "carrier", "orient", "orientation_for", "corner_index",
            "bridge_patch", "uniform_space", "direction_field", "face_space", "tube_space"]
 
 _TOL = COINCIDENT  # composed knots closer than this (x span) are one knot
@@ -333,12 +333,20 @@ def is_regular(G) -> bool:
     (:func:`geometry.regularity.prove_one_signed`; undecided counts as regular there and here).  The screen
     alone is not a proof: a trimming-surface bridge of the duck minus a hole had all its samples of one sign
     (within a factor 10 of each other) and a fold near one face."""
-    dom = G.domain
-    _, J = G.value_and_jacobian(dom[:, 0] + _GRID * (dom[:, 1] - dom[:, 0]))
-    det = np.linalg.det(J[:, :3, :])
-    if not (np.all(det > 0) or np.all(det < 0)):
-        return False
-    return prove_one_signed(G).status != "singular"
+    return are_regular([G])[0]
+
+
+def are_regular(Gs) -> list[bool]:
+    """:func:`is_regular` of each of the trivariates ``Gs``, the exact proofs of those the screen passes run
+    together (:func:`geometry.regularity.prove_one_signed_many`: the tubes of a union share their degrees)."""
+    screened = []
+    for G in Gs:
+        dom = G.domain
+        _, J = G.value_and_jacobian(dom[:, 0] + _GRID * (dom[:, 1] - dom[:, 0]))
+        det = np.linalg.det(J[:, :3, :])
+        screened.append(bool(np.all(det > 0) or np.all(det < 0)))
+    proofs = iter(prove_one_signed_many([G for G, ok in zip(Gs, screened) if ok]))
+    return [next(proofs).status != "singular" if ok else False for ok in screened]
 
 
 _CARRIERS = BoundedCache(64)

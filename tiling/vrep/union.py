@@ -30,7 +30,8 @@ from .matching import unbalanced_match
 from .report import UnionCounts
 from .repulsion import Collisions, closest, repel
 from .fork import bifurcation_base
-from .tubes import bridge_patch, carrier, face_of, face_space, hermite_tube, is_regular as _regular, tube_space
+from .tubes import (are_regular, bridge_patch, carrier, face_of, face_space, hermite_tube, is_regular as _regular,
+                    tube_space)
 from geometry.grouping import ObjectIndex
 from geometry.tolerances import COINCIDENT, same_space
 
@@ -232,8 +233,11 @@ def _bridge_matches(res: UnionBridges, placed, m, m_faces, n_faces, alpha, beta,
         return faces[key]
 
     folded = reduced = 0
-    for i, j in m.one_to_one:
-        t = _regular_tube(face(m_faces[i]), face(n_faces[j]), beta, phi)
+    # every match's first tube proven at once (one Bernstein form for all); a folded one tries the others
+    ends = [(face(m_faces[i]), face(n_faces[j])) for i, j in m.one_to_one]
+    first = [hermite_tube(a, b, min(beta * _BETAS[0], 0.95), phi) for a, b in ends]
+    for (a, b), t, ok in zip(ends, first, are_regular([t.geometry for t in first])):
+        t = t if ok else _regular_tube(a, b, beta, phi, _BETAS[1:])
         if t is None:
             folded += 1
         else:
@@ -260,9 +264,9 @@ _BETAS = (1.0, 0.7, 1.4, 0.4)  # tangent-length factors tried before a folded br
 _SHAPES = ((0.0, 0.5), (np.pi / 12, 0.5), (-np.pi / 12, 0.5), (0.0, 0.25), (np.pi / 6, 0.25), (0.0, 0.8))
 
 
-def _regular_tube(a, b, beta, phi):
+def _regular_tube(a, b, beta, phi, factors=_BETAS):
     """The first one-to-one tube from a to b that does not fold, over a few tangent lengths; None if all do."""
-    for f in _BETAS:
+    for f in factors:
         t = hermite_tube(a, b, min(beta * f, 0.95), phi)
         if _regular(t.geometry):
             return t
@@ -377,9 +381,9 @@ def resolve_tube_collisions(res: UnionBridges, max_repel: int = 20) -> tuple[dic
                 dead[kj].add(jj)
                 counts.eliminated += 1
     folded = 0
-    for i in sorted(moved):
-        k, ii, t = items[i]
-        if ii not in dead[k] and not _regular(t.geometry):
+    shifted = [items[i] for i in sorted(moved) if items[i][1] not in dead[items[i][0]]]
+    for (k, ii, _), ok in zip(shifted, are_regular([t.geometry for _, _, t in shifted])):  # proven together
+        if not ok:
             dead[k].add(ii)
             folded += 1
     kept = {"tubes": [t for i, t in enumerate(res.tubes) if i not in dead["tube"]],
