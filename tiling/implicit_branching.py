@@ -309,17 +309,16 @@ def _with_tubes(f, targets, radius) -> SplineFunction:
     cell's discs on two faces); the tubes make the canonical cell one piece.
     """
     C = f.coefficients[..., 0].copy()
+    if not targets:
+        return SplineFunction(f.degrees, f.knots, C[..., None])
     g = [kn.greville(U, d) for U, d in zip(f.knots, f.degrees)]
     g = [(x - x[0]) / (x[-1] - x[0]) for x in g]
-    X = np.stack(np.meshgrid(*g, indexing="ij"), -1)
-    centre = np.full(3, 0.5)
-    tube = np.full(C.shape, -np.inf)
-    for p, size in targets:
-        d = p - centre
-        t = np.clip(((X - centre) @ d) / (d @ d), 0.0, 1.0)
-        dist = np.linalg.norm(X - centre - t[..., None] * d, axis=-1)
-        r = radius * size
-        tube = np.maximum(tube, np.clip((r - dist) / r, -1.0, 1.0))
+    Y = np.stack(np.meshgrid(*g, indexing="ij"), -1).reshape(-1, 3) - 0.5  # control points from the centre
+    D = np.array([p for p, _ in targets]) - 0.5  # (T, 3): the axes to the face discs, all targets at once
+    r = radius * np.array([size for _, size in targets])
+    t = np.clip((Y @ D.T) / np.einsum("ij,ij->i", D, D), 0.0, 1.0)  # (N, T): nearest point on each axis
+    dist = np.linalg.norm(Y[:, None, :] - t[..., None] * D[None], axis=-1)
+    tube = np.clip((r - dist) / r, -1.0, 1.0).max(axis=1).reshape(C.shape)
     inner = (slice(1, -1),) * 3
     C[inner] = np.maximum(C[inner], tube[inner])
     return SplineFunction(f.degrees, f.knots, C[..., None])
