@@ -141,12 +141,18 @@ class HeatProblem:
         """A scalar field evaluated on several faces at once -> one (N_f,) array per face."""
         if not fds:
             return []
-        x = np.concatenate([fd.x for fd in fds])
-        common = [c for c in fds[0].chans if all(c in fd.chans for fd in fds)]
-        chans = {c: np.concatenate([fd.chans[c] for fd in fds]) for c in common}
-        where = f"the faces tagged {show(tag)} (e.g. patch {fds[0].patch} face {fds[0].face})"
-        v = field.values(x, chans, where)
-        return np.split(v, np.cumsum([len(fd.x) for fd in fds])[:-1])
+        ends = np.cumsum([len(fd.x) for fd in fds])
+        constant = field.constant
+        if constant is not None and np.ndim(constant) == 0:  # a number (checked when given): nothing to gather
+            v = np.full(int(ends[-1]), float(constant))
+        else:
+            x = np.concatenate([fd.x for fd in fds])
+            common = [c for c in fds[0].chans if all(c in fd.chans for fd in fds)]
+            chans = {c: np.concatenate([fd.chans[c] for fd in fds]) for c in common}
+            where = f"the faces tagged {show(tag)} (e.g. patch {fds[0].patch} face {fds[0].face})"
+            v = field.values(x, chans, where)
+        # views by slicing: np.split pays a swapaxes per piece (0.2 s for the winged duck's 136k faces)
+        return [v[a:b] for a, b in zip(np.concatenate([[0], ends[:-1]]).tolist(), ends.tolist())]
 
     def tag_faces(self, tag) -> list:
         """The faces of a tag or tag expression of this problem; ``rest``: every free face that no condition
