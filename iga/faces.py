@@ -17,6 +17,7 @@ import numpy as np
 from geometry.faces import FACE_AXIS, face_name, parse_slot_face
 from geometry.multipatch import PlacedPatch
 
+from . import fast_assembly
 from .errors import ProblemError
 from geometry.chain import patches_geometry_derivs
 from geometry.errors import show
@@ -89,13 +90,17 @@ class FaceQuadrature:
                 raise ProblemError(f"unknown face {show(face)}; use umin .. wmax or a slot face id such as 'u=0.5-'")
             gk = (same(self.model.patches[pi].spline), self.spaces[pi].key(), face)
             groups.setdefault(gk, []).append(pi)
+        # compiled evaluation where this call's face points together reach the compiled assembly's threshold
+        # (a V-model's 136k Robin faces come in 800 small batches; the demo's faces stay below it)
+        points = sum(len(m) * (self.spaces[m[0]].nq_total // min(self.spaces[m[0]].qshape)) for m in groups.values())
+        compiled = self.compiled or (fast_assembly.AVAILABLE and points >= fast_assembly.MIN_POINTS)
         for (_, _, face), members in groups.items():
             space = self.spaces[members[0]]
             for chunk in chunks(members, space.nq_total // min(space.qshape)):
-                self._group(chunk, face)
+                self._group(chunk, face, compiled)
         return [self.cache[(pi, face)] for pi, face in keys]
 
-    def _group(self, members, face):
+    def _group(self, members, face, compiled: bool = False):
         """Fill the cache for ``face`` of patches ``members`` (same tile spline and space)."""
         patch0, space = self.model.patches[members[0]], self.spaces[members[0]]
         slot = parse_slot_face(face)
@@ -118,7 +123,7 @@ class FaceQuadrature:
             dofs = np.take(np.arange(space.ndof).reshape(space.shape), layer, axis=k).ravel()
         axes = [d.qpts for d in space.dirs]
         axes[k] = np.array([at])
-        x, Dx, chans = patches_geometry_derivs(geos, axes, compiled=self.compiled)
+        x, Dx, chans = patches_geometry_derivs(geos, axes, compiled=compiled)
         a, b = [i for i in range(3) if i != k]
         cr = cross(Dx[a], Dx[b])
         dA = np.linalg.norm(cr, axis=-1)
