@@ -285,8 +285,12 @@ class EdgeSplines:
         (s1, v1), (s2, v2) = [kn.basis_functions(knots[j], degrees[j], a[:, j]) for j in o]
         i1 = s1[:, None] - degrees[o[0]] + np.arange(degrees[o[0]] + 1)
         i2 = s2[:, None] - degrees[o[1]] + np.arange(degrees[o[1]] + 1)
-        sub = np.moveaxis(G, k + 1, 1)[ci[:, None, None, None], ik[:, :, None, None], i1[:, None, :, None],
-                                       i2[:, None, None, :]]
+        Gk = np.ascontiguousarray(np.moveaxis(G, k + 1, 1))  # (C, n_k, n_o1, n_o2)
+        n1, n2 = Gk.shape[2], Gk.shape[3]
+        # one flat take instead of four broadcast index arrays (NumPy's multi-index gather is 3-5x slower)
+        row = (ci[:, None] * Gk.shape[1] + ik) * n1  # (n, W)
+        flat = ((row[:, :, None] + i1[:, None, :])[:, :, :, None] * n2 + i2[:, None, None, :])
+        sub = np.take(Gk.reshape(-1), flat)
         coefs = np.einsum("nwij,ni,nj->nw", sub, v1[:, 0], v2[:, 0])
         window = Uk[np.clip(sa[:, None] - p + np.arange(W + p + 1), 0, len(Uk) - 1)]
         return cls(window, coefs, sb - sa + p + 1, p)
