@@ -71,11 +71,15 @@ def _index(i: int, j: int) -> int:
 
 
 def _by_space(fds) -> dict:
-    """Indices of face data grouped by face space."""
-    out: dict = {}
+    """Indices of face data grouped by face space (by space object first: a batch of faces shares one, so
+    the key is computed once per object, not per face)."""
+    by_object: dict = {}
     for i, fd in enumerate(fds):
-        out.setdefault(fd.space.key(), []).append(i)
-    return out
+        by_object.setdefault(id(fd.space), (fd.space, []))[1].append(i)
+    out: dict = {}
+    for space, idx in by_object.values():
+        out.setdefault(space.key(), []).extend(idx)
+    return {k: sorted(v) for k, v in out.items()}
 
 
 def _kept(fds, values, patches):
