@@ -147,6 +147,9 @@ class FaceQuadrature:
                 for (a1, b1), (a2, b2) in rects:
                     mask |= (q1 > a1) & (q1 < b1) & (q2 > a2) & (q2 < b2)
                 dAw[j] *= mask.ravel()
-        for j, pi in enumerate(members):
-            self.cache[(pi, face)] = FaceData(pi, face, fs, dofs + self.offsets[pi], x[j],
-                                              {c: v[j] for c, v in chans.items()}, dAw[j], normal[j])
+        # one face object per patch (the forms take them one by one): rows of batch arrays, built at once
+        names = list(chans)
+        rows = zip(*(chans[c] for c in names)) if names else ((),) * len(members)
+        global_dofs = dofs[None, :] + np.asarray(self.offsets)[np.asarray(members)][:, None]
+        for pi, d, xj, ch, a, nj in zip(members, global_dofs, x, rows, dAw, normal):
+            self.cache[(pi, face)] = FaceData(pi, face, fs, d, xj, dict(zip(names, ch)), a, nj)
