@@ -338,15 +338,20 @@ def _prove_kind(splines, d: int, rational: bool, max_depth: int, allow_zeros: bo
         np.maximum.at(hi, owner, flat.max(axis=1))
     lo, hi = np.where(np.isfinite(lo), lo, 0.0), np.where(np.isfinite(hi), hi, 0.0)
     undecided, depth = _subdivide(J, np.concatenate(boxes), owner, decided, d, max_depth, allow_zeros, S)
-    results = []
-    for o in range(S):
-        def mine(kind, o=o):
-            return [b[w == o] for b, w in decided[kind]]
+    pos, neg, zero = (_by_owner(decided[k], S, d) for k in range(3))
+    und = _by_owner([undecided], S, d)
+    return [_verdict([pos[o]], [neg[o]], [zero[o]], und[o], (float(lo[o]), float(hi[o])),
+                     max(abs(lo[o]), abs(hi[o]), 1e-300), int(depth[o]), d) for o in range(S)]
 
-        scale = max(abs(lo[o]), abs(hi[o]), 1e-300)
-        results.append(_verdict(mine(0), mine(1), mine(2), undecided[0][undecided[1] == o],
-                                (float(lo[o]), float(hi[o])), scale, int(depth[o]), d))
-    return results
+
+def _by_owner(pairs, S: int, d: int) -> list[np.ndarray]:
+    """Boxes [(boxes (n, d, 2), owners (n,))] split by owner (S lists' worth), each owner's in their order."""
+    B = np.concatenate([b for b, _ in pairs] + [np.zeros((0, d, 2))])
+    W = np.concatenate([w for _, w in pairs] + [np.zeros(0, int)])
+    order = np.argsort(W, kind="stable")
+    B, W = B[order], W[order]
+    cuts = np.searchsorted(W, np.arange(S + 1))
+    return [B[cuts[o] : cuts[o + 1]] for o in range(S)]
 
 
 def _subdivide(J, boxes, owner, decided, d: int, max_depth: int, allow_zeros: bool, S: int):
