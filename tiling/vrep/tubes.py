@@ -46,8 +46,9 @@ from geometry.cache import BoundedCache
 from ..errors import TilingError
 from geometry.tolerances import COINCIDENT
 
-__all__ = ["is_regular", "are_regular", "Face", "face_of", "Tube", "hermite_tube", "carrier", "orient", "orientation_for", "corner_index",
-           "bridge_patch", "uniform_space", "direction_field", "face_space", "tube_space"]
+__all__ = ["is_regular", "are_regular", "Face", "face_of", "Tube", "hermite_tube", "carrier", "orient",
+           "orientation_for", "corner_index", "bridge_patch", "uniform_space", "direction_field", "face_space",
+           "tube_space"]
 
 _TOL = COINCIDENT  # composed knots closer than this (x span) are one knot
 
