@@ -275,9 +275,8 @@ def elastic_into(space: TensorSpace, members, G: np.ndarray, LM: np.ndarray, out
     indptr = readonly(pat.indptr, np.int64)
     members = np.asarray(members)
     before, offsets = readonly(out.before[members], np.int64), readonly(out.offsets[members], np.int64)
+    out.put_rows(members, indptr)
     for a in range(3):
-        rows = a * out.n + offsets[:, None] + np.arange(pat.n)
-        out.indptr[rows] = out.bases(members, a)[:, None] + 3 * indptr[:-1]
         for b in range(a, 3):
             dest = np.stack([out.bases(members, a), np.full(P, 3), np.full(P, b), b * out.n + offsets], axis=1)
             kernel(G, LM, a, b, 0, t1["b"], t1["first"], t2["W"], t2["r"], t2["s"], t3["b"], t3["first"], indptr,

@@ -58,6 +58,15 @@ class VectorCSR:
         """Where the rows of component a of each of ``members`` start: a 3 nnz + 3 before_m (len(members),)."""
         return a * 3 * self.nnz + 3 * self.before[np.asarray(members)]
 
+    def put_rows(self, members, indptr: np.ndarray) -> None:
+        """Write where the rows of ``members`` (patches sharing the scalar row pointers ``indptr``) start, for
+        all three components: row a n + offset_m + i at a 3 nnz + 3 (before_m + indptr[i])."""
+        members = np.asarray(members)
+        indptr = np.asarray(indptr, np.int64)
+        local = self.offsets[members][:, None] + np.arange(len(indptr) - 1)
+        for a in range(3):
+            self.indptr[a * self.n + local] = self.bases(members, a)[:, None] + 3 * indptr[:-1]
+
     def mark(self, members) -> None:
         """Record that the rows of ``members`` were written (by the compiled assembly)."""
         self._written[np.asarray(members)] = True
@@ -74,9 +83,9 @@ class VectorCSR:
         shift = length[row]
         offsets = self.offsets[members]
         cols = np.asarray(pat.indices, np.int64)[None, :] + offsets[:, None]
+        self.put_rows(members, indptr)
         for a in range(3):
             base = self.bases(members, a)
-            self.indptr[a * self.n + offsets[:, None] + np.arange(pat.n)] = base[:, None] + 3 * indptr[:-1]
             for b in range(3):
                 pos = base[:, None] + (rel + b * shift)[None, :]
                 if a == 0:
