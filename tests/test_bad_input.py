@@ -491,7 +491,17 @@ def _spd(n=5):
     return sp.diags([2.0] * n) + sp.diags([-1.0] * (n - 1), 1) + sp.diags([-1.0] * (n - 1), -1)
 
 
+def _complement(indices):
+    from solvers.indexing import complement
+
+    return complement(5, indices)
+
+
 SOLVERS = [
+    case("free unknowns: a negative index", lambda t: _complement([1, -1]), SolverError,
+         r"unknown numbers must lie in \[0, 5\), got -1 \.\. 1"),
+    case("free unknowns: an index past the end", lambda t: _complement([0, 5]), SolverError,
+         r"unknown numbers must lie in \[0, 5\), got 0 \.\. 5"),
     case("overwrite_a string", lambda t: solvers.solve(_spd(), np.ones(5), overwrite_a="no"), SolverError,
          r"overwrite_a must be True or False, got 'no'"),
     case("prolongations string", lambda t: solvers.solve(_spd(), np.ones(5), method="gmg-cg", prolongations="abc"),
