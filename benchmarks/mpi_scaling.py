@@ -1,17 +1,20 @@
 """Strong scaling of the distributed assembly and solve on PETSc (issue #21), on this machine's ranks.
 
-    python benchmarks/mpi_scaling.py [--ranks 1,2] [--quick] [--estimate-only]
+    python benchmarks/mpi_scaling.py [--ranks 1,2,4] [--quick] [--estimate-only]
 
 Needs the extra ``[mpi]`` (petsc4py, mpi4py and an ``mpiexec``).  Cases:
-  * ``sink``: the circular heat sink of ``iga demo heat-sink`` at ``--refine 2`` (its pipeline, solver petsc);
+  * ``sink``: the circular heat sink of ``iga demo heat-sink`` at ``--refine 3`` (its pipeline, solver petsc;
+    ``--quick``: ``--refine 1``);
   * ``lattice``: a 21 x 21 x 21 cross lattice in a twisted map at degree 2 (about 1M unknowns;
     ``--quick``: 6 x 6 x 6).
 For each rank count the case runs under ``mpiexec -n R`` with ``solver="petsc"`` (CG + GAMG, tolerance
-1e-8; R = 1 is PETSc on one process): time per stage (model, spaces and regularity, assembly of the
+1e-8; R = 1 takes the same distributed path on one process): time per stage (model, spaces and regularity, assembly of the
 rank's patches, constraints and Dirichlet data, matrix build + GAMG set-up, CG), iterations, and peak
-memory per rank (max over ranks).  From these runs, an estimate for 10^7 and 10^8 unknowns on 16 and 128
-ranks (:func:`estimate`: the replicated stages scale with the unknowns, the distributed work with the
-unknowns per rank; memory split into a replicated and a shared-out part): a model, not a measurement.
+memory per rank (max over ranks) against the import floor (the libraries, MPI and PETSc initialised,
+before any model) and against 1/R of the single rank's memory above that floor.  From these runs, an
+estimate for 10^7 and 10^8 unknowns on 16 and 128 ranks (:func:`estimate`: the replicated stages scale
+with the unknowns, the distributed work with the unknowns per rank; memory ``a + b / R`` fitted to the two
+largest rank counts, ``a`` the replicated part): a model, not a measurement.
 Writes benchmarks/out/mpi_scaling.json.
 """
 
@@ -26,8 +29,9 @@ from pathlib import Path
 from _common import collect_rows, print_table, save_json
 
 
-def run_case(case: str, quick: bool) -> None:
-    """One case on the ranks of the current ``mpiexec`` (rank 0 prints the JSON row)."""
+def run_case(case: str, size: str) -> None:
+    """One case on the ranks of the current ``mpiexec`` (rank 0 prints the JSON row); ``size``: "full",
+    "quick" or "floor" (the smallest model: the program's fixed memory, libraries and compiled kernels)."""
     t0 = time.perf_counter()
     import tempfile
 
@@ -38,14 +42,17 @@ def run_case(case: str, quick: bool) -> None:
     from iga.pipeline import heat_sink_config, run_pipeline
     from tiling import library as L
 
+    from solvers.petsc_ksp import petsc
+
     w = world()
-    comm, rank, size = w if w else (None, 0, 1)
+    comm, rank, ranks = w if w else (None, 0, 1)
+    petsc()  # PETSc initialised: part of the floor every rank pays
     t_import = time.perf_counter() - t0
-    base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # the interpreter and libraries
+    base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # the interpreter, libraries, MPI, PETSc
     t0 = time.perf_counter()
-    if case == "sink":  # the demo's pipeline, refined twice, on PETSc
+    if case == "sink":  # the demo's pipeline, refined three times, on PETSc
         with tempfile.TemporaryDirectory() as tmp:
-            cfg = heat_sink_config("circular", None, 2, tmp)
+            cfg = heat_sink_config("circular", None, {"full": 3, "quick": 1, "floor": 0}[size], tmp)
             cfg["solver"].update(method="petsc", tol=1e-8)
             cfg["output"].update(vtu=False, png=False)
             s = run_pipeline(cfg, tmp)
@@ -53,7 +60,7 @@ def run_case(case: str, quick: bool) -> None:
         info, dofs, unknowns, t_all = s["solver"], s["dofs"], s["unknowns"], time.perf_counter() - t0
         t_model = s["timings_s"].get("deformation map", 0.0) + s["timings_s"].get("tiling", 0.0)
     else:
-        n = 6 if quick else 21
+        n = {"full": 21, "quick": 6, "floor": 2}[size]
         D = pr.twisted(pr.box((1.0, 1.0, 1.0), degrees=(2, 2, 2)), 0.3, axis_point=(0.5, 0.5))
         prob = (HeatProblem(tiling.regular(D, L.cross(), (n, n, n)), conductivity=20.0, degree_elevation=1)
                 .dirichlet("umin", 80.0).robin("umax", 50.0, 20.0))
@@ -61,7 +68,7 @@ def run_case(case: str, quick: bool) -> None:
         s = prob.solve(solver="petsc", tol=1e-8)
         t_all = time.perf_counter() - t0
         tm, info, dofs, unknowns = prob.timings, s.info["solver"], prob.ndof, int(prob.reduced_dofs)
-    row = {"case": case, "ranks": size, "dofs": dofs, "unknowns": unknowns,
+    row = {"case": case, "floor": size == "floor", "ranks": ranks, "dofs": dofs, "unknowns": unknowns,
            "iterations": info["iterations"], "model s": t_model,
            "assembly s": tm["assembly_volume"] + tm["assembly_faces"], "constraints s": tm["constraints"],
            "matrix + setup s": info["setup_s"], "CG s": info["solve_s"], "total s": t_all,
@@ -79,10 +86,38 @@ def run_case(case: str, quick: bool) -> None:
     print(json.dumps(row), flush=True)
 
 
-def _fit(by: dict, q: str) -> tuple[float, float]:
-    """(a, b) of q(R) = a + b / R through the runs on 1 and 2 ranks (b >= 0)."""
-    b = max(2.0 * (by[1][q] - by[2][q]), 0.0)
-    return by[1][q] - b, b
+def _fit(by: dict) -> tuple[float, float]:
+    """(a, b) of the peak memory per rank q(R) = a + b / R (b >= 0) through the two largest rank counts
+    measured (the replicated part shows best where the shared-out part is small)."""
+    lo, hi = sorted(by)[-2:]
+    b = max((by[lo]["peak MiB"] - by[hi]["peak MiB"]) / (1.0 / lo - 1.0 / hi), 0.0)
+    return by[hi]["peak MiB"] - b / hi, b
+
+
+def _floors(rows, case: str) -> dict:
+    """Per rank count: (memory after the imports and PETSc's initialisation, peak of the same program on the
+    smallest model) in MiB; the second is the program's fixed memory (libraries, compiled kernels, MPI)."""
+    imports = {r["ranks"]: r["imports MiB"] for r in rows if r["case"] == case}
+    small = {r["ranks"]: r["peak MiB"] for r in rows if r["case"] == case and r.get("floor")}
+    return {R: (imports[R], small.get(R, imports[R])) for R in imports}
+
+
+def per_rank_check(rows) -> list[dict]:
+    """Peak memory per rank above a fixed floor against 1/R of the single rank's (issue #36: within 20%),
+    above either floor of :func:`_floors`."""
+    out = []
+    for case in sorted({r["case"] for r in rows}):
+        by = {r["ranks"]: r for r in rows if r["case"] == case and not r.get("floor")}
+        floors = _floors(rows, case)
+        if 1 not in by:
+            continue
+        for which, k in (("imports", 0), ("smallest model", 1)):
+            one = by[1]["peak MiB"] - floors[1][k]
+            for R, r in sorted(by.items()):
+                above = r["peak MiB"] - floors[R][k]
+                out.append({"case": case, "floor": which, "ranks": R, "floor MiB": floors[R][k],
+                            "above floor MiB": above, "1/R of one rank MiB": one / R, "ratio": above / (one / R)})
+    return out
 
 
 def estimate(rows) -> list[dict]:
@@ -91,32 +126,36 @@ def estimate(rows) -> list[dict]:
     Time, from the run on 2 ranks (one core each): the stages every rank repeats (the model, the
     constraints, the replicated reduction) scale with the unknowns N; the distributed work (assembly, the
     rank's reduced matrix, GAMG set-up, CG; 2 x the slower rank's time) with N / R; CG iterations are taken
-    as constant (GAMG).  Memory: q(R) = a + b / R fitted to the runs on 1 and 2 ranks (a: replicated, b:
-    shared out), both scaled with N except the libraries' memory (measured after the imports).  A model,
-    not a measurement.
+    as constant (GAMG).  Memory: q(R) = a + b / R (:func:`_fit`); above the program's fixed memory (its peak
+    on the smallest model, :func:`_floors`) both scale with N.  A model, not a measurement.
     """
     out = []
     for case in sorted({r["case"] for r in rows}):
-        by = {r["ranks"]: r for r in rows if r["case"] == case}
-        if 1 not in by or 2 not in by:
+        by = {r["ranks"]: r for r in rows if r["case"] == case and not r.get("floor")}
+        if 2 not in by or len(by) < 2:
             continue
         two = by[2]
         rep = two["model s"] + two["constraints s"] + two["reduction s"]
         work = 2 * (two["assembly s"] + two["matrix + setup s"] - two["reduction s"] + two["CG s"])
-        a, b = _fit(by, "peak MiB")
-        base = max(r["imports MiB"] for r in by.values())  # the libraries do not grow with the model
+        a, b = _fit(by)
+        base = max(f[1] for f in _floors(rows, case).values())  # the program's fixed memory does not grow
         for N in (1e7, 1e8):
             for R in (16, 128):
                 s = N / two["unknowns"]
                 out.append({"case": case, "unknowns": N, "ranks": R, "estimated s": rep * s + work * s / R,
                             "of which repeated on every rank s": rep * s,
-                            "memory per rank GiB": (base + (a - base) * s + b * s / R) / 1024})
+                            "replicated GiB": max(a - base, 0.0) * s / 1024,
+                            "memory per rank GiB": (base + max(a - base, 0.0) * s + b * s / R) / 1024})
     return out
+
+
+EST_COLUMNS = [("case", "s"), ("unknowns", ".0e"), ("ranks", "d"), ("estimated s", ".0f"),
+               ("of which repeated on every rank s", ".0f"), ("replicated GiB", ".1f"), ("memory per rank GiB", ".1f")]
 
 
 def main():
     if len(sys.argv) > 2 and sys.argv[1] == "--case":
-        run_case(sys.argv[2], "--quick" in sys.argv)
+        run_case(sys.argv[2], "floor" if "--floor" in sys.argv else "quick" if "--quick" in sys.argv else "full")
         return
     if "--estimate-only" in sys.argv:  # from the last run's measurements
         last = Path(__file__).parent / "out" / "mpi_scaling.json"
@@ -125,11 +164,10 @@ def main():
                              "run python benchmarks/mpi_scaling.py first")
         rows = json.loads(last.read_text())["measured"]
         est = estimate(rows)
-        print_table(est, [("case", "s"), ("unknowns", ".0e"), ("ranks", "d"), ("estimated s", ".0f"),
-                          ("of which repeated on every rank s", ".0f"), ("memory per rank GiB", ".1f")])
+        print_table(est, EST_COLUMNS)
         save_json("mpi_scaling.json", {"measured": rows, "estimate": est})
         return
-    ranks = [1, 2]
+    ranks = [1, 2, 4]
     for i, a in enumerate(sys.argv):
         if a == "--ranks":
             ranks = [int(v) for v in sys.argv[i + 1].split(",")]
@@ -140,20 +178,24 @@ def main():
         raise SystemExit("no mpiexec found (beside this Python or on PATH): install the [mpi] extra and an MPI "
                          "(e.g. apt install openmpi-bin, or mpich)")
     quick = ["--quick"] if "--quick" in sys.argv else []
-    jobs = [([mpiexec, "-n", str(R), sys.executable, __file__, "--case", case] + quick, f"{case} on {R} ranks")
-            for case in ("sink", "lattice") for R in ranks]
+    jobs = [([mpiexec, "-n", str(R), sys.executable, __file__, "--case", case] + extra,
+             f"{case}{' (smallest model)' if extra == ['--floor'] else ''} on {R} ranks")
+            for case in ("sink", "lattice") for R in ranks for extra in (["--floor"], quick)]
     rows = collect_rows(jobs, lambda r: f"{r['case']} R={r['ranks']}: {r['unknowns']:,} unknowns, total "
                         f"{r['total s']:.1f} s, CG {r['CG s']:.1f} s ({r['iterations']} it), peak "
                         f"{r['peak MiB per rank']} MiB", env=launch_env())
-    print_table(rows, [("case", "s"), ("ranks", "d"), ("unknowns", "d"), ("iterations", "d"), ("model s", ".2f"),
+    print_table(rows, [("case", "s"), ("floor", ""), ("ranks", "d"), ("unknowns", "d"), ("iterations", "d"), ("model s", ".2f"),
                        ("assembly s", ".2f"), ("constraints s", ".2f"), ("reduction s", ".2f"),
                        ("matrix + setup s", ".2f"), ("CG s", ".2f"),
                        ("total s", ".2f"), ("peak MiB", ".0f")])
+    check = per_rank_check(rows)
+    print("\nPeak memory per rank above a fixed floor, against 1/R of one rank's (target: within 20%):")
+    print_table(check, [("case", "s"), ("floor", "s"), ("ranks", "d"), ("floor MiB", ".0f"), ("above floor MiB", ".0f"),
+                        ("1/R of one rank MiB", ".0f"), ("ratio", ".2f")])
     est = estimate(rows)
     print("\nEstimate (a model from the per-rank figures above, not a measurement):")
-    print_table(est, [("case", "s"), ("unknowns", ".0e"), ("ranks", "d"), ("estimated s", ".0f"),
-                      ("of which repeated on every rank s", ".0f"), ("memory per rank GiB", ".1f")])
-    save_json("mpi_scaling.json", {"measured": rows, "estimate": est})
+    print_table(est, EST_COLUMNS)
+    save_json("mpi_scaling.json", {"measured": rows, "memory per rank": check, "estimate": est})
 
 
 if __name__ == "__main__":

@@ -1,17 +1,17 @@
 """Distributed assembly and solve on PETSc (petsc4py, MPI): ``mpiexec -n R iga run CONFIG.toml``.
 
-With ``solver="petsc"`` under ``mpiexec`` with R > 1 ranks, every rank
+With ``solver="petsc"`` under ``mpiexec -n R``, every rank
 builds the model, its spaces, the constraint prolongation and the Dirichlet
 data (replicated: they are small beside the matrix), and assembles the
 volume and boundary terms of its own patches only.  Patches are partitioned
 by :func:`partition`: the patch graph (an edge per interface) is ordered by
 reverse Cuthill-McKee (SciPy), which keeps neighbouring tiles together, and
 cut into R consecutive parts of about equal unknowns.  Each rank reduces its
-part, ``A_r = Pf^T K_r Pf`` (``sum_r A_r`` is the serial reduced matrix), and
-PETSc assembles the MPIAIJ matrix from the ranks' COO triplets (off-rank
-rows are communicated by PETSc; before petsc4py 3.19, by one ``Alltoallv``
-to the rows' owners: :func:`_matrix`); the reduced unknowns are numbered so that
-each rank owns those its patches touch first.  CG with GAMG solves it; the
+part, ``A_r = Pf^T K_r Pf`` (``sum_r A_r`` is the serial reduced matrix), in a numbering of the reduced
+unknowns in which each rank owns, as consecutive rows, those its patches touch first.  The rows of
+``A_r`` that other ranks own are sent to them (one ``Alltoallv`` per array of their CSR rows:
+:func:`_route_rows`), summed there, and the owned rows preallocate and fill the MPIAIJ matrix exactly
+(``createAIJ(csr=...)``, the same in every petsc4py from 3.18 on; no triplets).  CG with GAMG solves it; the
 solution is gathered on every rank, so post-processing and output follow
 the serial path (rank 0 writes).
 """
@@ -39,8 +39,9 @@ _INHERITED = ("OMPI_", "PMIX_", "PMI_", "PRTE_", "HYDRA_", "MPIR_")
 
 
 def world():
-    """(communicator, rank, size) of the MPI world when it has more than one rank and petsc4py is installed;
-    None otherwise (serial runs never import MPI)."""
+    """(communicator, rank, size) of the MPI world under an MPI launcher (``mpiexec -n 1`` too: one rank runs
+    the same distributed path, so that its memory and time compare with more ranks) when mpi4py is
+    installed; None otherwise (serial runs never import MPI)."""
     import os
 
     if not any(k in os.environ for k in ("PMI_RANK", "PMI_SIZE", "OMPI_COMM_WORLD_SIZE", "PMIX_RANK")):
@@ -50,8 +51,6 @@ def world():
     except ImportError:
         return None
     comm = MPI.COMM_WORLD
-    if comm.Get_size() == 1:
-        return None
     _share_cores(comm)
     return comm, comm.Get_rank(), comm.Get_size()
 
@@ -124,45 +123,59 @@ def partition(problem, size: int) -> np.ndarray:
     return part
 
 
-def _matrix(PETSc, comm, rows, cols, vals, counts, nfree):
-    """The MPIAIJ matrix of every rank's triplets (rows, cols in the global numbering; each rank owns
-    ``counts[rank]`` consecutive rows), duplicates summed.
+def _route_rows(comm, A, b, starts):
+    """This rank's rows of the reduced system (``starts``: first global row of every rank) as a CSR matrix
+    (``m x nfree``) and right-hand side, summed over the contributions of every rank.
 
-    petsc4py from 3.19 on takes the triplets as they are (``setPreallocationCOO``, PETSc routes off-rank
-    rows).  Older ones (Debian's 3.18) get owner-computed rows: every triplet is sent to the rank owning its
-    row (one ``Alltoallv`` per array), summed there into CSR rows, which preallocate and fill the matrix
-    exactly (``createAIJ(csr=...)``).
+    ``A`` (CSR, ``nfree x nfree``) and ``b`` (``nfree``) hold this rank's part of ``Pf^T K Pf`` and of the
+    load in the global numbering, in which every rank owns consecutive rows; the rows of each other rank form
+    one contiguous range of ``A``'s entries, sent as it is (only the rows this rank touched, with their
+    lengths: one ``Alltoallv`` per array).  No triplet arrays and no copy of the whole reduced matrix are
+    made: the 21^3 cross lattice built its matrix at 2.9 GiB per rank on 2 ranks by triplets.
     """
     from mpi4py import MPI
 
     rank, size = comm.Get_rank(), comm.Get_size()
-    m = int(counts[rank])
-    M = PETSc.Mat().create(comm=comm)
-    if hasattr(M, "setPreallocationCOO"):
-        M.setSizes(((m, nfree), (m, nfree)))
-        M.setType("aij")
-        M.setPreallocationCOO(rows.astype(PETSc.IntType), cols.astype(PETSc.IntType))
-        M.setValuesCOO(vals, addv=PETSc.InsertMode.ADD_VALUES)
-        M.assemble()
-        return M
-    M.destroy()
-    starts = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-    dest = np.searchsorted(starts, rows, side="right") - 1
-    order = np.argsort(dest, kind="stable")
-    send = np.bincount(dest, minlength=size).astype(np.int64)
-    recv = np.asarray(comm.alltoall(send.tolist()), np.int64)
-    sdisp, rdisp = np.concatenate([[0], np.cumsum(send)[:-1]]), np.concatenate([[0], np.cumsum(recv)[:-1]])
+    lengths = np.diff(A.indptr)
+    touched = np.flatnonzero((lengths > 0) | (b != 0))
+    cut = np.searchsorted(touched, starts)  # touched rows of each rank: touched[cut[q]:cut[q + 1]]
+    cut_nnz = A.indptr[starts]  # entries of each rank's rows: A.data[cut_nnz[q]:cut_nnz[q + 1]]
+    mine = np.zeros(size, bool)
+    mine[rank] = True
 
-    def route(a, mpi_type):
+    def exchange(a, counts, mpi_type):
+        """Every rank's part of ``a`` except this rank's own (counts per destination), to its owner."""
+        send = np.where(mine, 0, counts).astype(np.int64)
+        recv = np.asarray(comm.alltoall(send.tolist()), np.int64)
+        sdisp = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+        rdisp = np.concatenate([[0], np.cumsum(recv)[:-1]]).astype(np.int64)
         out = np.empty(int(recv.sum()), a.dtype)
-        comm.Alltoallv([np.ascontiguousarray(a[order]), (send, sdisp), mpi_type], [out, (recv, rdisp), mpi_type])
+        comm.Alltoallv([np.ascontiguousarray(a), (send, sdisp), mpi_type], [out, (recv, rdisp), mpi_type])
         return out
 
-    r, c = route(rows.astype(np.int64), MPI.INT64_T), route(cols.astype(np.int64), MPI.INT64_T)
-    v = route(np.asarray(vals, np.float64), MPI.DOUBLE)
-    local = sp.csr_matrix((v, (r - starts[rank], c)), shape=(m, nfree))  # sums the duplicates
+    rows_per = np.diff(cut)
+    nnz_per = np.diff(cut_nnz)
+    rows = exchange(touched.astype(np.int64), rows_per, MPI.INT64_T)
+    lens = exchange(lengths[touched].astype(np.int64), rows_per, MPI.INT64_T)
+    rhs = exchange(np.asarray(b[touched], np.float64), rows_per, MPI.DOUBLE)
+    cols = exchange(A.indices.astype(np.int64, copy=False), nnz_per, MPI.INT64_T)
+    vals = exchange(np.asarray(A.data, np.float64), nnz_per, MPI.DOUBLE)
+    lo, hi = int(starts[rank]), int(starts[rank + 1])
+    s, e = int(A.indptr[lo]), int(A.indptr[hi])
+    local = sp.csr_matrix((A.data[s:e], A.indices[s:e], A.indptr[lo:hi + 1] - s), shape=(hi - lo, A.shape[1]))
+    if len(vals):  # views of A's own rows (no copy) plus the rows the other ranks sent
+        local = local + sp.csr_matrix((vals, (np.repeat(rows - lo, lens), cols)), shape=local.shape)
+    local = sp.csr_matrix(local)
     local.sum_duplicates()
     local.sort_indices()
+    own_b = np.asarray(b[lo:hi], np.float64) + np.bincount(rows - lo, rhs, minlength=hi - lo)
+    return local, own_b
+
+
+def _matrix(PETSc, comm, local, nfree):
+    """The MPIAIJ matrix whose rows on this rank are ``local`` (CSR, summed): preallocated exactly from the
+    rows (``createAIJ(csr=...)``, in every petsc4py from 3.18 on)."""
+    m = local.shape[0]
     M = PETSc.Mat().createAIJ(size=((m, nfree), (m, nfree)), comm=comm,
                               csr=(local.indptr.astype(PETSc.IntType), local.indices.astype(PETSc.IntType),
                                    local.data))
@@ -193,14 +206,20 @@ def solve_system(K, f, constraints, dirichlet, tol, maxiter, part, comm, offsets
     new = np.empty(nfree, np.int64)
     new[order] = np.arange(nfree)
     counts = np.bincount(owner, minlength=size)
-    lo = int(counts[:rank].sum())
-    A = (Pf.T @ K @ Pf).tocoo()
-    rhs = np.ascontiguousarray(Pf.T @ (f - K @ offset))
-    comm.Allreduce(MPI.IN_PLACE, rhs, op=MPI.SUM)
-    rhs = rhs[order]
-    M = _matrix(PETSc, comm, new[A.row], new[A.col], A.data, counts, nfree)
+    starts = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    Pn = sp.csr_matrix(Pf)  # columns relabelled to the owners' numbering (a permutation of the unknowns)
+    Pn = sp.csr_matrix((Pn.data, new[Pn.indices], Pn.indptr), shape=Pn.shape)
+    # K is symmetric, so (K Pn)^T Pn = A, and its CSC arrays are A's CSR arrays: no transposed copies
+    C = (K @ Pn).T @ Pn
+    A = sp.csr_matrix((C.data, C.indices, C.indptr), shape=C.shape)
+    load = Pn.T @ (f - K @ offset)
+    del C, Pn
+    local, rhs = _route_rows(comm, A, load, starts)
+    del A, load
+    M = _matrix(PETSc, comm, local, nfree)
+    del local
     b = PETSc.Vec().createMPI((int(counts[rank]), nfree), comm=comm)
-    b.setArray(rhs[lo:lo + counts[rank]])
+    b.setArray(rhs)
     x = b.duplicate()
     t_build = time.perf_counter() - t0
     its, reason, setup, solve_s = ksp_solve(M, b, x, tol, maxiter if maxiter else 1000, pc, petsc_options)
