@@ -195,13 +195,17 @@ class HeatProblem:
         return out
 
     def assemble(self, patches=None):
-        """Assemble ``a(T, v) = l(v)``: (K, f, bookkeeping dict); only ``patches`` (a set: one MPI rank's share;
-        the bookkeeping covers every face) when given."""
+        """Assemble ``a(T, v) = l(v)``: (K, f, bookkeeping dict); only ``patches`` (a set: one MPI rank's share)
+        when given: their volumes and their Neumann and Robin faces (the bookkeeping holds those faces; the
+        Dirichlet faces are all kept, as every rank projects the Dirichlet data)."""
         by_kind = self._faces_by_kind()
+        if patches is not None:  # a rank's faces only: their Gauss-point data is not replicated
+            for kind in ("neumann", "robin"):
+                by_kind[kind] = {key: c for key, c in by_kind[kind].items() if key[0] in patches}
         t0 = time.perf_counter()
         K, f, source_total = self.volume.assemble(self.conductivity, self.source, patches)
         t1 = time.perf_counter()
-        self.faces([key for faces in by_kind.values() for key in faces])
+        self.faces([key for faces in by_kind.values() for key in faces])  # all at once: grouped by space
         neumann, robin = {}, {}
         for key, c in by_kind["neumann"].items():
             neumann.setdefault(c.tag, []).append(key)

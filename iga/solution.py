@@ -105,6 +105,10 @@ class Solution:
         for key, (h, Tinf) in book["robin"].items():
             fd = prob.face_data(*key)
             flows[key] = flows.get(key, 0.0) + float(np.sum(h * (fd.trace(self.u) - Tinf) * fd.dAw))
+        comm = self._comm()
+        if comm is not None:  # each rank holds its own Neumann and Robin faces (disjoint): every rank gets all
+            for part in comm.allgather(flows):
+                flows.update(part)
         if self._dirichlet_integrals:
             # split each prescribed unknown's reaction among the faces by their share of int N_i dA
             total = sum(self._dirichlet_integrals.values())
@@ -112,6 +116,15 @@ class Solution:
             for key, integ in self._dirichlet_integrals.items():
                 flows[key] = flows.get(key, 0.0) - float(np.sum(self._reaction * integ / safe))
         return flows
+
+    def _comm(self):
+        """The MPI communicator of a distributed solve (:mod:`iga.distributed`), None for a serial one."""
+        if getattr(self.problem, "partition", None) is None:
+            return None
+        from .distributed import world
+
+        w = world()
+        return None if w is None else w[0]
 
     def flux(self, tag: str) -> float:
         """Heat flow through the faces tagged ``tag`` in W, outward positive.
@@ -144,19 +157,28 @@ class Solution:
         """
         prob = self.problem
         keys = [k for kind in ("neumann", "robin", "dirichlet") for k in self._book[kind]]
-        if not keys or not len(self.u):
-            return 0.0
-        fds = prob.faces(keys)
-        x = np.concatenate([fd.x for fd in fds])
-        try:
-            k = np.concatenate(prob._field_on(prob.conductivity, fds, "any condition"))
-        except ProblemError:  # a channel that only some faces carry: no scale from the conductivity
-            return 0.0
-        k_ref = float(np.abs(k).max()) if k.size else 0.0
-        area = float(sum(fd.dAw.sum() for fd in fds))
-        size = float(np.ptp(x, axis=0).max()) if len(x) > 1 else 0.0
-        dT = float(np.ptp(self.u))
-        return k_ref * area * dT / size if size > 0 else 0.0
+        comm = self._comm()
+        if comm is not None:  # the faces of this rank's patches; the figures are combined over the ranks
+            mine = set(np.flatnonzero(prob.partition == comm.Get_rank()).tolist())
+            keys = [k for k in dict.fromkeys(keys) if k[0] in mine]
+        k_ref, area, lo, hi, ok = 0.0, 0.0, np.full(3, np.inf), np.full(3, -np.inf), True
+        if keys and len(self.u):
+            fds = prob.faces(keys)
+            x = np.concatenate([fd.x for fd in fds])
+            try:
+                k = np.concatenate(prob._field_on(prob.conductivity, fds, "any condition"))
+                k_ref = float(np.abs(k).max()) if k.size else 0.0
+            except ProblemError:  # a channel that only some faces carry: no scale from the conductivity
+                ok = False
+            area = float(sum(fd.dAw.sum() for fd in fds))
+            lo, hi = x.min(axis=0), x.max(axis=0)
+        if comm is not None:
+            parts = comm.allgather((k_ref, area, lo, hi, ok))
+            k_ref, area, ok = max(p[0] for p in parts), sum(p[1] for p in parts), all(p[4] for p in parts)
+            lo, hi = np.min([p[2] for p in parts], axis=0), np.max([p[3] for p in parts], axis=0)
+        size = float((hi - lo).max()) if np.all(np.isfinite(lo)) else 0.0
+        dT = float(np.ptp(self.u)) if len(self.u) else 0.0
+        return k_ref * area * dT / size if ok and size > 0 else 0.0
 
     # ------------------------------------------------------------ integrals
     def integrate(self, fn) -> float:
