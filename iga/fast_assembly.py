@@ -118,6 +118,14 @@ def _structure(shape: tuple, degrees: tuple) -> CSRPattern:
 _cached_structure = lru_cache(maxsize=8)(_structure)
 
 
+def row_pointers(space: TensorSpace) -> np.ndarray:
+    """The CSR row pointers (ndof + 1,) of ``space``'s banded operators alone (:func:`structure` without its
+    columns: for kernels that write the columns themselves)."""
+    cs = [(hi - lo + 1).astype(np.int64) for lo, hi in (_band_limits(d.n, d.degree) for d in space.dirs)]
+    counts = np.multiply.outer(np.multiply.outer(cs[0], cs[1]), cs[2]).reshape(-1)
+    return np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+
+
 def structure(space: TensorSpace) -> CSRPattern:
     """CSR row pointers and columns of ``space``'s banded operators (same order as :func:`iga.assembly.pattern`).
 
@@ -186,14 +194,26 @@ class StiffnessAccumulator:
     indices a slab touches and written to ``data`` once, when complete.
     """
 
-    def __init__(self, space: TensorSpace, n_patches: int):
+    def __init__(self, space: TensorSpace, n_patches: int, into=None):
         self.space = space
         self.tables = [_tables(s) for s in space.dirs]
-        self.pattern = structure(space)
+        self.n_patches = n_patches
+        # the kernel writes the columns itself when it writes into a global CSR: only the row pointers needed
+        self.pattern = structure(space) if into is None else CSRPattern(row_pointers(space), None, None, None,
+                                                                        space.ndof)
         # every entry is written exactly once, when its row is complete: no zero-filling needed
-        self.data = np.empty((n_patches, len(self.pattern.indices)))
+        if into is None:
+            self.data = np.empty((n_patches, len(self.pattern.indices)))
+            self.out, self.cols = self.data.reshape(-1), np.empty(0, np.int32)
+            self.dest = scalar_destinations(n_patches, self.data.shape[1])
+        else:  # straight into the global CSR (a one-component VectorCSR): values and columns, rows written now
+            csr, members = into
+            self.data, self.out, self.cols, self.into = None, csr.data, csr.indices, into
+            csr.put_rows(members, self.pattern.indptr)
+            self.dest = readonly(np.stack([csr.bases(members, 0), np.ones(n_patches, np.int64),
+                                           np.zeros(n_patches, np.int64), csr.offsets[np.asarray(members)]],
+                                          axis=1), np.int64)
         self.ring, self.Z, self.Y = _scratch(space, n_patches, 7)
-        self.dest = scalar_destinations(n_patches, self.data.shape[1])
         self.next_element = 0
         #: load vectors (P,) + space.shape, once a slab with a source field was added (else None)
         self.load = None
@@ -207,7 +227,7 @@ class StiffnessAccumulator:
             raise ProblemError(f"slabs must come in order: expected Gauss plane {self.next_element * g}, "
                                f"got {planes.start}")
         t1, t2, t3 = self.tables
-        shape = (6, self.data.shape[0], planes.stop - planes.start) + self.space.qshape[1:]
+        shape = (6, self.n_patches, planes.stop - planes.start) + self.space.qshape[1:]
         C = readonly(np.reshape(C, shape))
         if L is not None:  # shaped before anything is added, so that a bad slab changes nothing
             L = readonly(np.reshape(L, shape[1:]))
@@ -217,19 +237,22 @@ class StiffnessAccumulator:
                                           t3["b"], t3["first"], readonly(self.pattern.indptr, np.int64),
                                           t1["lo"], t1["c"],
                                           t2["lo"], t2["c"], t3["lo"], t3["c"], self.ring, self.Z, self.Y,
-                                          self.data.reshape(-1), np.empty(0, np.int32), self.dest)
+                                          self.out, self.cols, self.dest)
         if L is not None:
             if self.load is None:
-                self.load = np.zeros((self.data.shape[0],) + self.space.shape)
+                self.load = np.zeros((self.n_patches,) + self.space.shape)
             locked(_kernels().load3)(L, planes.start // g, t1["b"], t1["first"], t2["b"], t2["elo"], t2["ehi"], t2["first"],
                              t3["b"], t3["first"], self.load)
 
-    def result(self) -> tuple[CSRPattern, np.ndarray]:
-        """``(pattern, data (P, nnz))`` once every element has been added."""
+    def result(self) -> tuple[CSRPattern, np.ndarray | None]:
+        """``(pattern, data (P, nnz))`` once every element has been added; data None when written ``into`` a
+        global CSR (whose patches are then marked written)."""
         E1 = self.space.dirs[0].E
         if self.next_element != E1:
             raise ProblemError(f"stiffness incomplete: elements {self.next_element}..{E1 - 1} of direction 1 "
                                "were not added")
+        if self.data is None:
+            self.into[0].mark(self.into[1])
         return self.pattern, self.data
 
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import fast_assembly
-from .assembly import block_diagonal_csr, load_form, pattern, stiffness_data
+from .assembly import load_form, pattern, stiffness_data
 from .coefficients import TENSOR_PAIRS
 from .faces import chunks
 from .forms import diffusion
@@ -27,6 +27,7 @@ from geometry import progress
 from geometry.chain import patches_geometry_derivs_slabs
 
 from .geometry_eval import checked_det
+from .vector_csr import VectorCSR, pattern_nnz
 from geometry.grouping import ObjectIndex
 
 __all__ = ["VolumeAssembler"]
@@ -51,6 +52,9 @@ class VolumeAssembler:
         self.groups: dict = {}
         for i, s in enumerate(spaces):
             self.groups.setdefault((s.key(), same(model.patches[i].spline)), []).append(i)
+        self.nnz = np.zeros(len(spaces), np.int64)  # each patch's pattern size, one count per group
+        for g in self.groups.values():
+            self.nnz[g] = pattern_nnz(spaces[g[0]])
 
     @property
     def compiled(self) -> bool:
@@ -63,26 +67,32 @@ class VolumeAssembler:
 
         ``patches``: assemble only these patch indices (a set; the other blocks stay zero), default all.
         """
-        blocks, f = [], np.zeros(self.ndof)
+        f = np.zeros(self.ndof)
         source_total = 0.0
-        groups = [[i for i in g if patches is None or i in patches] for g in self.groups.values()]
-        work = [members for group in groups if group for members in chunks(group, self.spaces[group[0]].nq_total)]
+        n = len(self.spaces)
+        chosen = np.ones(n, bool) if patches is None else np.isin(np.arange(n), np.fromiter(patches, np.int64))
+        nnz = self.nnz * chosen
+        K = VectorCSR(self.offsets, nnz, components=1)  # each entry written once, where it belongs
+        K.skip(np.flatnonzero(~chosen))
+        groups = [[i for i in g if chosen[i]] for g in self.groups.values()]
+        work = [members for group in groups if group
+                for members in chunks(group, _weight(self.spaces[group[0]], len(group)))]
         for members in progress.bar(work, desc="assembly", unit="batch"):
-            pat, data, loads, total = self._group(members, self.spaces[members[0]], conductivity, source)
+            pat, data, loads, total = self._group(members, self.spaces[members[0]], conductivity, source, K)
             source_total += total
-            for j, i in enumerate(members):
-                blocks.append((int(self.offsets[i]), pat, data[j]))
+            if data is not None:
+                K.put(members, pat, {(0, 0): data})
             if loads is not None:
-                for j, i in enumerate(members):
-                    f[self.offsets[i] : self.offsets[i + 1]] += loads[j].ravel()
-        return block_diagonal_csr(blocks, self.ndof, partial=patches is not None), f, source_total
+                f[_rows(self.offsets, members)] += loads.reshape(-1)
+        return K.matrix(), f, source_total
 
-    def _group(self, members, space, conductivity, source):
-        """Pattern, data (P, nnz), loads (P,) + shape or None, and int f dV of patches sharing a space and spline."""
+    def _group(self, members, space, conductivity, source, into):
+        """Pattern, data (P, nnz) or None (the compiled kernel wrote it ``into`` the global CSR), loads (P,) +
+        shape or None, and int f dV of patches sharing a space and spline."""
         P, N = len(members), space.nq_total
         total = 0.0
-        if fast_assembly.applies(space, P):  # compiled: each slab goes straight into the CSR data and loads
-            acc = fast_assembly.StiffnessAccumulator(space, P)
+        if fast_assembly.applies(space, P):  # compiled: each slab goes straight into the global CSR and loads
+            acc = fast_assembly.StiffnessAccumulator(space, P, into=(into, members))
             for planes, Cs, Ls in self._slabs(members, space, conductivity, source, compiled=True):
                 total += float(Ls.sum())
                 acc.add(planes, Cs, Ls if np.any(Ls) else None)
@@ -148,3 +158,25 @@ class VolumeAssembler:
             yield planes, C.reshape(6, P, n), L.reshape(P, n)
         checked_det(np.array([lo, hi]), where)
 
+
+
+def _rows(offsets: np.ndarray, members) -> np.ndarray:
+    """The global DOFs of ``members`` (patches of one space), patch after patch."""
+    members = np.asarray(members)
+    size = int(offsets[members[0] + 1] - offsets[members[0]])
+    return (np.asarray(offsets)[members][:, None] + np.arange(size)).reshape(-1)
+
+
+#: banded entries that weigh as much as one Gauss point in a batch (:func:`_weight`)
+BANDED_PER_POINT = 16
+
+
+def _weight(space, n_patches: int) -> int:
+    """A patch's weight in Gauss points for batching (:func:`iga.faces.chunks`) a group of ``n_patches``: its
+    points; on the NumPy path, its banded operator's entries / :data:`BANDED_PER_POINT` where those are more
+    (patches of one element, whose banded work per point is largest: 4,096 such patches in one batch took
+    372 MB of transient memory).  The compiled path keeps whole batches of points (its memory is the ring)."""
+    if fast_assembly.applies(space, n_patches):
+        return int(space.nq_total)
+    band = int(np.prod([2 * d.degree + 1 for d in space.dirs]))
+    return max(int(space.nq_total), space.ndof * band // BANDED_PER_POINT)

@@ -281,3 +281,67 @@ def test_compiled_box_verdicts_equal_numpy_path(monkeypatch):
     np.testing.assert_allclose(compiled[1], plain[1], atol=1e-13)
     np.testing.assert_array_equal(compiled[2], plain[2])
     assert np.count_nonzero(compiled[2]) > 10  # the bits were compared where they are set
+
+
+def test_one_component_layout_is_the_block_diagonal_of_its_patches_strided_or_indexed():
+    from iga.assembly import CSRPattern
+    from iga.vector_csr import VectorCSR
+
+    rng = np.random.default_rng(5)
+    sizes = (40, 25, 40, 40, 25, 40)
+    pats = {}
+    for n in set(sizes):
+        A = sp.random(n, n, density=0.2, random_state=n, format="csr") + sp.eye(n, format="csr")
+        A.sort_indices()
+        pats[n] = CSRPattern(A.indptr.astype(np.int64), A.indices, None, None, n)
+    offsets = np.concatenate([[0], np.cumsum(sizes)])
+    nnz = np.array([len(pats[n].indices) for n in sizes])
+    nnz[4] = 0  # another rank's patch: empty rows
+    out = VectorCSR(offsets, nnz, components=1)
+    data = {m: rng.standard_normal(len(pats[sizes[m]].indices)) for m in (0, 1, 2, 3, 5)}
+    out.put([1], pats[25], {(0, 0): data[1][None]})
+    out.put([0, 2, 3], pats[40], {(0, 0): np.stack([data[m] for m in (0, 2, 3)])})  # strides differ: indexed
+    out.put([5], pats[40], {(0, 0): data[5][None]})  # one member: strided
+    with pytest.raises(ProblemError, match=r"patches \[4\] were not assembled"):
+        out.matrix()
+    with pytest.raises(ProblemError, match="only patches given no non-zeros"):
+        out.skip([3])
+    out.skip([4])
+    K = out.matrix()
+    ref = sp.block_diag([sp.csr_matrix((data[m], pats[n].indices, pats[n].indptr)) if m in data
+                         else sp.csr_matrix((n, n)) for m, n in enumerate(sizes)], format="csr")
+    ref.sort_indices()
+    assert K.has_sorted_indices
+    assert np.array_equal(K.indptr, ref.indptr) and np.array_equal(K.indices, ref.indices)
+    assert np.array_equal(K.data, ref.data)
+    # equal strides (the same tile patch in every cell): written through strided views, the same arrays
+    again = VectorCSR(offsets[:4], [len(pats[n].indices) for n in sizes[:3]], components=1)
+    again.put([0, 2], pats[40], {(0, 0): np.stack([data[0], data[2]])})
+    again.put([1], pats[25], {(0, 0): data[1][None]})
+    assert np.array_equal(again.matrix().toarray(), ref[:105, :105].toarray())
+
+
+@pytest.mark.parametrize("compiled", [False, True])
+def test_the_stiffness_of_some_patches_is_their_rows_of_the_whole(compiled, monkeypatch):
+    # one MPI rank's share: its patches' rows exactly as in the whole operator, every other row empty
+    import tiling
+    from tiling import library
+
+    D = pr.twisted(pr.box((1.0, 1.0, 1.0), degrees=(2, 2, 2)), 0.3, axis_point=(0.5, 0.5))
+    prob = HeatProblem(tiling.regular(D, library.cross(), (3, 2, 2)), conductivity=lambda x: 1.0 + x[:, 0],
+                       source=1.0, degree_elevation=1)
+    if compiled:
+        monkeypatch.setattr(fast_assembly, "MIN_POINTS", 0)
+    K, f, _ = prob.volume.assemble(prob.conductivity, prob.source)
+    n = len(prob.spaces)
+    mine = set(np.random.default_rng(2).choice(n, n // 2, replace=False).tolist())
+    rest = set(range(n)) - mine
+    Km, fm, _ = prob.volume.assemble(prob.conductivity, prob.source, mine)
+    Kr, fr, _ = prob.volume.assemble(prob.conductivity, prob.source, rest)
+    rows = np.concatenate([np.arange(prob.offsets[i], prob.offsets[i + 1]) for i in sorted(mine)])
+    other = np.setdiff1d(np.arange(prob.ndof), rows)
+    assert abs(Km[rows] - K[rows]).max() == 0 and Km[other].nnz == 0 and np.all(fm[other] == 0)
+    assert abs(Km + Kr - K).max() == 0 and np.array_equal(fm + fr, f)
+    blocks = sp.block_diag([K[prob.offsets[i]:prob.offsets[i + 1], prob.offsets[i]:prob.offsets[i + 1]]
+                            for i in range(n)], format="csr")
+    assert abs(blocks - K).max() == 0 and K.has_sorted_indices  # block-diagonal: patches are not yet glued
