@@ -354,3 +354,33 @@ def stiffness_data(space: TensorSpace, C: dict, pat: CSRPattern | None = None) -
     H = banded_to_csr_data(space, banded_form(space, terms), pat)
     H += H[:, pat.transpose]
     return H
+
+
+def add_within(K: sp.csr_matrix, M: sp.spmatrix) -> sp.csr_matrix:
+    """``K + M`` written into K's values where M's non-zeros lie in K's pattern (a boundary mass inside the
+    volume pattern of its patches: no second copy of K at the peak of the assembly), else a new matrix.
+
+    Only the rows M touches are searched (one sorted search over their keys).  Returns K (modified) or the sum.
+    """
+    M = sp.csr_matrix(M)
+    M.sum_duplicates()
+    if M.nnz == 0:
+        return K
+    if not (K.has_sorted_indices and K.shape == M.shape):
+        return (K + M).tocsr()
+    rows = np.flatnonzero(np.diff(M.indptr))
+    starts, ends = K.indptr[rows].astype(np.int64), K.indptr[rows + 1].astype(np.int64)
+    lengths = ends - starts
+    n = np.int64(K.shape[1])
+    local = np.arange(int(lengths.sum())) - np.repeat(np.cumsum(lengths) - lengths, lengths)
+    where = np.repeat(starts, lengths) + local  # the positions of those rows' entries in K
+    keys = np.repeat(np.arange(len(rows), dtype=np.int64), lengths) * n + K.indices[where]
+    m_rows = np.repeat(np.arange(len(rows), dtype=np.int64), np.diff(M.indptr)[rows])
+    wanted = m_rows * n + M.indices
+    pos = np.searchsorted(keys, wanted)
+    found = pos < len(keys)
+    found[found] = keys[pos[found]] == wanted[found]
+    if not found.all():
+        return (K + M).tocsr()
+    K.data[where[pos]] += M.data
+    return K

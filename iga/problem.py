@@ -28,6 +28,7 @@ from .dirichlet import project_dirichlet
 from .discretisation import Discretisation, count
 from .errors import ProblemError, SingularProblemError
 from .faces import FaceData
+from .assembly import add_within
 from .forms import boundary_load, boundary_mass
 from .model import tag_faces
 from .tags import as_expression, check_expression, mentions_rest
@@ -230,7 +231,7 @@ class HeatProblem:
             f += boundary_load(fds, _per_face(hA * T, fds), self.ndof, patches)
             book["robin"].update(zip(keys, zip(_per_face(h, fds), _per_face(T, fds))))
         if robin_fds:
-            K = (K + boundary_mass(robin_fds, robin_h, self.ndof, patches)).tocsr()
+            K = add_within(K, boundary_mass(robin_fds, robin_h, self.ndof, patches))  # in place: no copy of K
         self.timings["assembly_volume"] = t1 - t0
         self.timings["assembly_faces"] = time.perf_counter() - t1
         return K, f, book

@@ -345,3 +345,21 @@ def test_the_stiffness_of_some_patches_is_their_rows_of_the_whole(compiled, monk
     blocks = sp.block_diag([K[prob.offsets[i]:prob.offsets[i + 1], prob.offsets[i]:prob.offsets[i + 1]]
                             for i in range(n)], format="csr")
     assert abs(blocks - K).max() == 0 and K.has_sorted_indices  # block-diagonal: patches are not yet glued
+
+
+def test_a_boundary_mass_inside_the_pattern_is_added_in_place_and_one_outside_is_not_lost():
+    from iga.assembly import add_within
+
+    rng = np.random.default_rng(11)
+    K = (sp.random(60, 60, density=0.15, random_state=1, format="csr") + sp.eye(60, format="csr")).tocsr()
+    K.sort_indices()
+    ref = K.copy()
+    r, c = K.nonzero()
+    pick = rng.choice(len(r), 40, replace=False)
+    M = sp.coo_matrix((rng.standard_normal(80), (np.r_[r[pick], r[pick]], np.r_[c[pick], c[pick]])), shape=K.shape)
+    out = add_within(K, M)  # duplicates summed, every entry inside K's pattern: K's own arrays
+    assert out is K and abs(out - (ref + M)).max() < 1e-15 and out.nnz == ref.nnz
+    K2 = ref.copy()
+    outside = sp.coo_matrix(([1.5], ([3], [int(np.setdiff1d(np.arange(60), K2[3].indices)[0])])), shape=K2.shape)
+    out2 = add_within(K2, M + outside)
+    assert abs(out2 - (ref + M + outside)).max() < 1e-15 and out2.nnz == ref.nnz + 1
