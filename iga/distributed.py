@@ -209,11 +209,12 @@ def solve_system(K, f, constraints, dirichlet, tol, maxiter, part, comm, offsets
     starts = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
     Pn = sp.csr_matrix(Pf)  # columns relabelled to the owners' numbering (a permutation of the unknowns)
     Pn = sp.csr_matrix((Pn.data, new[Pn.indices], Pn.indptr), shape=Pn.shape)
+    del Pf, Pc, dof_rank  # one copy of the prolongation is kept through the solve: Pn
     # K is symmetric, so (K Pn)^T Pn = A, and its CSC arrays are A's CSR arrays: no transposed copies
     C = (K @ Pn).T @ Pn
     A = sp.csr_matrix((C.data, C.indices, C.indptr), shape=C.shape)
     load = Pn.T @ (f - K @ offset)
-    del C, Pn
+    del C
     local, rhs = _route_rows(comm, A, load, starts)
     del A, load
     M = _matrix(PETSc, comm, local, nfree)
@@ -228,13 +229,13 @@ def solve_system(K, f, constraints, dirichlet, tol, maxiter, part, comm, offsets
     r.axpy(-1.0, b)
     nb = b.norm()
     res = float(r.norm() / (nb if nb > 0 else 1.0))
-    xs = np.concatenate(comm.allgather(x.getArray().copy()))[new]
+    xs = np.concatenate(comm.allgather(x.getArray().copy()))  # in the owners' numbering, as Pn's columns
     for obj in (M, b, x, r):
         obj.destroy()
     if reason < 0 or res > 10 * tol or not np.all(np.isfinite(xs)):
         raise ProblemError(f"PETSc CG on {size} ranks did not converge (reason {reason}): relative residual "
                            f"{res:.2e} after {its} iterations")
-    u = Pf @ xs + offset
+    u = Pn @ xs + offset
     P = sp.identity(ndof, format="csr") if constraints is None else constraints.P
     reaction = np.ascontiguousarray((P.T @ (K @ u - f))[reaction_dofs])
     comm.Allreduce(MPI.IN_PLACE, reaction, op=MPI.SUM)
