@@ -1,6 +1,6 @@
 """Strong scaling of the distributed assembly and solve on PETSc (issue #21), on this machine's ranks.
 
-    python benchmarks/mpi_scaling.py [--ranks 1,2,4] [--quick] [--estimate-only]
+    python benchmarks/mpi_scaling.py [--ranks 1,2,4] [--repeat N] [--quick] [--estimate-only]
 
 Needs the extra ``[mpi]`` (petsc4py, mpi4py and an ``mpiexec``).  Cases:
   * ``sink``: the circular heat sink of ``iga demo heat-sink`` at ``--refine 3`` (its pipeline, solver petsc;
@@ -15,7 +15,8 @@ before any model) and against 1/R of the single rank's memory above that floor. 
 estimate for 10^7 and 10^8 unknowns on 16 and 128 ranks (:func:`estimate`: the replicated stages scale
 with the unknowns, the distributed work with the unknowns per rank; memory ``a + b / R`` fitted to the two
 largest rank counts, ``a`` the replicated part): a model, not a measurement.
-Writes benchmarks/out/mpi_scaling.json.
+``--repeat N`` runs every configuration N times and keeps the smallest time and peak of each column
+(:func:`best_of`).  Writes benchmarks/out/mpi_scaling.json.
 """
 
 from __future__ import annotations
@@ -149,6 +150,25 @@ def estimate(rows) -> list[dict]:
     return out
 
 
+def best_of(rows) -> list[dict]:
+    """One row per (case, floor, ranks): the repeated runs' smallest time and peak memory in each column
+    (``--repeat N``: peaks move by about 10% between identical runs, mostly in GAMG's set-up)."""
+    out: dict = {}
+    for r in rows:
+        key = (r["case"], r.get("floor"), r["ranks"])
+        if key not in out:
+            out[key] = dict(r, repeats=1)
+            continue
+        best = out[key]
+        best["repeats"] += 1
+        for k, v in r.items():
+            if isinstance(v, float):
+                best[k] = min(best[k], v)
+        if r["peak MiB"] <= best["peak MiB"]:
+            best["peak MiB per rank"] = r["peak MiB per rank"]
+    return list(out.values())
+
+
 EST_COLUMNS = [("case", "s"), ("unknowns", ".0e"), ("ranks", "d"), ("estimated s", ".0f"),
                ("of which repeated on every rank s", ".0f"), ("replicated GiB", ".1f"), ("memory per rank GiB", ".1f")]
 
@@ -168,9 +188,12 @@ def main():
         save_json("mpi_scaling.json", {"measured": rows, "estimate": est})
         return
     ranks = [1, 2, 4]
+    repeat = 1
     for i, a in enumerate(sys.argv):
         if a == "--ranks":
             ranks = [int(v) for v in sys.argv[i + 1].split(",")]
+        if a == "--repeat":
+            repeat = int(sys.argv[i + 1])
     from iga.distributed import launch_env, mpiexec as find_mpiexec
 
     mpiexec = find_mpiexec()  # a virtual environment's own, else the one on PATH
@@ -180,10 +203,11 @@ def main():
     quick = ["--quick"] if "--quick" in sys.argv else []
     jobs = [([mpiexec, "-n", str(R), sys.executable, __file__, "--case", case] + extra,
              f"{case}{' (smallest model)' if extra == ['--floor'] else ''} on {R} ranks")
-            for case in ("sink", "lattice") for R in ranks for extra in (["--floor"], quick)]
+            for case in ("sink", "lattice") for R in ranks for extra in (["--floor"], quick) for _ in range(repeat)]
     rows = collect_rows(jobs, lambda r: f"{r['case']} R={r['ranks']}: {r['unknowns']:,} unknowns, total "
                         f"{r['total s']:.1f} s, CG {r['CG s']:.1f} s ({r['iterations']} it), peak "
                         f"{r['peak MiB per rank']} MiB", env=launch_env())
+    rows = best_of(rows)
     print_table(rows, [("case", "s"), ("floor", ""), ("ranks", "d"), ("unknowns", "d"), ("iterations", "d"), ("model s", ".2f"),
                        ("assembly s", ".2f"), ("constraints s", ".2f"), ("reduction s", ".2f"),
                        ("matrix + setup s", ".2f"), ("CG s", ".2f"),
