@@ -37,7 +37,7 @@ class VectorCSR:
     """The (c n, c n) component-major CSR arrays of patches with DOF ranges ``offsets`` (n_patches + 1,) and
     scalar pattern sizes ``nnz`` (n_patches,), allocated once and written in place (module notes).
 
-    ``indptr`` (c n + 1,) int64, ``indices`` (c^2 nnz,) int32 (int64 from 2^31 columns or entries) and
+    ``indptr`` (c n + 1,) int64, ``indices`` (c^2 nnz,) int32 (int64 from 2^31 columns) and
     ``data`` (c^2 nnz,) float are left uninitialised: each patch's rows are written by :meth:`put` (NumPy)
     or by the compiled assembly (:func:`iga.fast_assembly.elastic_into`, the heat stiffness accumulator),
     patches left out on purpose (another MPI rank's) get empty rows by :meth:`skip`, and :meth:`matrix`
@@ -53,8 +53,7 @@ class VectorCSR:
         self.nnz = int(nnz.sum())
         self.indptr = np.empty(c * self.n + 1, np.int64)
         self.indptr[-1] = c * c * self.nnz
-        big = max(c * self.n, c * c * self.nnz) > np.iinfo(np.int32).max
-        self.indices = np.empty(c * c * self.nnz, np.int64 if big else np.int32)
+        self.indices = np.empty(c * c * self.nnz, np.int64 if c * self.n > np.iinfo(np.int32).max else np.int32)
         self.data = np.empty(c * c * self.nnz)
         self._written = np.zeros(len(nnz), bool)
 
@@ -123,10 +122,11 @@ class VectorCSR:
         written) otherwise."""
         first = self.before[members]
         step = np.diff(first)
-        if len(members) > 1 and not np.all(step == step[0]):
+        size = len(pat.indices)
+        # equal, increasing strides no shorter than a block: the strided windows are disjoint and in bounds
+        if not len(members) or (len(members) > 1 and not (np.all(step == step[0]) and step[0] >= size)):
             return False
         stride = int(step[0]) if len(members) > 1 else 0
-        size = len(pat.indices)
         self.put_rows(members, pat.indptr)
         for target, values in ((self.data, data), (self.indices, None)):
             view = np.lib.stride_tricks.as_strided(target[int(first[0]):], shape=(len(members), size),
