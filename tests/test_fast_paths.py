@@ -319,6 +319,10 @@ def test_one_component_layout_is_the_block_diagonal_of_its_patches_strided_or_in
     again.put([0, 2], pats[40], {(0, 0): np.stack([data[0], data[2]])})
     again.put([1], pats[25], {(0, 0): data[1][None]})
     assert np.array_equal(again.matrix().toarray(), ref[:105, :105].toarray())
+    backwards = VectorCSR(offsets[:4], [len(pats[n].indices) for n in sizes[:3]], components=1)
+    backwards.put([2, 0], pats[40], {(0, 0): np.stack([data[2], data[0]])})  # decreasing: not strided
+    backwards.put([1], pats[25], {(0, 0): data[1][None]})
+    assert np.array_equal(backwards.matrix().toarray(), ref[:105, :105].toarray())
 
 
 @pytest.mark.parametrize("compiled", [False, True])
