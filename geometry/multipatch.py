@@ -43,7 +43,7 @@ TOL = INTERFACE  # coinciding corners and faces, relative to the model's size (a
 _IDENTITY = np.hstack([np.eye(3), np.zeros((3, 1))])
 
 
-@dataclass(eq=False)
+@dataclass(eq=False, slots=True)
 class PlacedPatch:
     """One patch of a model: ``spline`` placed by ``placement`` (3, 4) into the domain of ``outer``."""
 
@@ -97,7 +97,7 @@ def _finish_image(P: PlacedPatch, y: np.ndarray) -> np.ndarray:
     return y
 
 
-@dataclass(eq=False)
+@dataclass(eq=False, slots=True)
 class Interface:
     """Two glued faces: ``a`` = (patch, face), ``b`` = (patch, face); see the module notes."""
 

@@ -219,8 +219,9 @@ def _tags(outer, placed, interfaces, root_faces, leaf_faces=()) -> dict:
         for fi, f in enumerate(FACE_NAMES):
             if (i, f) in glued:
                 continue
-            tags[names[where[t, fi]]].append((i, f))
-            tags["boundary"].append((i, f))
+            key = (i, f)  # one tuple in both lists (a million free faces on large lattices)
+            tags[names[where[t, fi]]].append(key)
+            tags["boundary"].append(key)
     # root and leaf faces a seal plate covers are glued, not free
     tags["branch-in"] = [f for f in root_faces if f not in glued]
     tags["branch-out"] = [f for f in leaf_faces if f not in glued]  # free branch-out faces of the last level
