@@ -10,8 +10,9 @@ Needs the extra ``[mpi]`` (petsc4py, mpi4py and an ``mpiexec``).  Cases:
 For each rank count the case runs under ``mpiexec -n R`` with ``solver="petsc"`` (CG + GAMG, tolerance
 1e-8; R = 1 takes the same distributed path on one process): time per stage (model, spaces and regularity, assembly of the
 rank's patches, constraints and Dirichlet data, matrix build + GAMG set-up, CG), iterations, and peak
-memory per rank (max over ranks) against the import floor (the libraries, MPI and PETSc initialised,
-before any model) and against 1/R of the single rank's memory above that floor.  From these runs, an
+memory per rank (max over ranks), and above a fixed floor against 1/R of the single rank's memory above
+it; two floors: the memory after the imports with MPI and PETSc initialised, and the same program's peak
+on the smallest model (``--floor``: its libraries, compiled kernels and MPI buffers, run beside each case).  From these runs, an
 estimate for 10^7 and 10^8 unknowns on 16 and 128 ranks (:func:`estimate`: the replicated stages scale
 with the unknowns, the distributed work with the unknowns per rank; memory ``a + b / R`` fitted to the two
 largest rank counts, ``a`` the replicated part): a model, not a measurement.
