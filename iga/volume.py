@@ -6,12 +6,15 @@ deformation-map evaluation per batch).  Each group is assembled
 
 * by the compiled kernels of :mod:`iga.fast_assembly` (numba) when it has at
   least :data:`iga.fast_assembly.MIN_POINTS` Gauss points: geometry, metric
-  and stiffness slab by slab, straight into the CSR data;
+  and stiffness slab by slab, straight into the final CSR;
 * otherwise by the NumPy sum factorisation of :mod:`iga.assembly`.
 
 Both evaluate the same coefficient fields (:func:`iga.forms.diffusion` or its
 compiled twin) and agree to rounding.  The Jacobian determinant is checked on
-every slab and across slabs (a sign change anywhere is a fold).
+every slab and across slabs (a sign change anywhere is a fold).  Every entry
+is written once into the final block-diagonal CSR (a one-component
+:class:`iga.vector_csr.VectorCSR`): the compiled kernels write values and
+columns in place, the NumPy path copies each batch in.
 """
 
 from __future__ import annotations
@@ -65,7 +68,7 @@ class VolumeAssembler:
         """(K, f, source_total): the stiffness of ``conductivity`` (a :class:`iga.coefficients.Conductivity`)
         and the load of ``source`` (a :class:`iga.coefficients.ScalarField`); ``source_total`` is int f dV (W).
 
-        ``patches``: assemble only these patch indices (a set; the other blocks stay zero), default all.
+        ``patches``: assemble only these patch indices (a set; the other patches' rows stay empty), default all.
         """
         f = np.zeros(self.ndof)
         source_total = 0.0
