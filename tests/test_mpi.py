@@ -162,3 +162,23 @@ def test_the_petsc_solver_on_one_process_matches_amg():
     a = HeatProblem(ms, degree_elevation=1).dirichlet("umin", 0.0).neumann("umax", 1.0).solve(solver="amg-cg", tol=1e-12)
     p = HeatProblem(ms, degree_elevation=1).dirichlet("umin", 0.0).neumann("umax", 1.0).solve(solver="petsc", tol=1e-12)
     assert np.abs(a.u - p.u).max() < 1e-9 * np.abs(a.u).max()
+
+
+def test_our_gamg_default_lasts_one_solve_and_the_users_option_wins():
+    from solvers.petsc_ksp import _gamg_defaults, petsc
+
+    PETSc = petsc()
+    opts = PETSc.Options()
+    newer = PETSc.Sys.getVersion() >= (3, 19, 0)
+    assert _gamg_defaults(PETSc, opts, "gamg") == (["pc_gamg_aggressive_coarsening"] if newer else [])
+    assert _gamg_defaults(PETSc, opts, "hypre") == []
+    if newer:
+        opts.delValue("pc_gamg_aggressive_coarsening")
+    A = (sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(300, 300)) + 1e-3 * sp.identity(300)).tocsr()
+    x, info = solvers.solve(A, np.ones(300), method="petsc", tol=1e-10)
+    assert info.iterations > 0 and not opts.hasName("pc_gamg_aggressive_coarsening")  # removed after the solve
+    opts["pc_gamg_aggressive_coarsening"] = "1"  # as a user's PETSC_OPTIONS would set it
+    try:
+        assert _gamg_defaults(PETSc, opts, "gamg") == [] and opts.getInt("pc_gamg_aggressive_coarsening") == 1
+    finally:
+        opts.delValue("pc_gamg_aggressive_coarsening")
