@@ -32,7 +32,7 @@ from solvers.petsc_ksp import ksp_solve, petsc
 from .errors import ProblemError
 from .system import SystemSolution, reduction
 
-__all__ = ["world", "partition", "solve_system", "is_root", "mpiexec", "launch_env"]
+__all__ = ["world", "solve_world", "partition", "solve_system", "is_root", "mpiexec", "launch_env"]
 
 # what an MPI launcher leaves in its children's environment: a process that inherits it (a test run, a script
 # that once initialised PETSc as a singleton) would start its own mpiexec as a rank of the old job
@@ -99,6 +99,12 @@ def launch_env(base=None) -> dict:
     return env
 
 
+def solve_world(problem):
+    """(communicator, rank, size) of the distributed solve that gave ``problem`` its last solution (one
+    partitioned by :func:`partition`), None after a serial solve."""
+    return world() if getattr(problem, "partition", None) is not None else None
+
+
 def is_root() -> bool:
     """Whether this process writes output and prints (rank 0, or a serial run)."""
     w = world()
@@ -159,7 +165,8 @@ def _route_rows(comm, A, b, starts):
     rows = exchange(touched.astype(np.int64), rows_per, MPI.INT64_T)
     lens = exchange(lengths[touched].astype(np.int64), rows_per, MPI.INT64_T)
     rhs = exchange(np.asarray(b[touched], np.float64), rows_per, MPI.DOUBLE)
-    cols = exchange(A.indices.astype(np.int64, copy=False), nnz_per, MPI.INT64_T)
+    # the columns in their own width (int32 below 2^31 unknowns): no widened copy of every local entry
+    cols = exchange(A.indices, nnz_per, MPI.INT32_T if A.indices.dtype == np.int32 else MPI.INT64_T)
     vals = exchange(np.asarray(A.data, np.float64), nnz_per, MPI.DOUBLE)
     lo, hi = int(starts[rank]), int(starts[rank + 1])
     s, e = int(A.indptr[lo]), int(A.indptr[hi])

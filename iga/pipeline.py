@@ -173,7 +173,7 @@ def _write_outputs(ocfg: dict, out: Path, sol, stages) -> tuple[dict, float | No
     name = ocfg["name"]
     vtu = out / f"{name}.vtu"
     mesh_volume = None
-    world = distributed.world() if getattr(sol.problem, "partition", None) is not None else None
+    world = distributed.solve_world(sol.problem)
     if world and ocfg.get("pieces"):  # a distributed solve: every rank writes its patches, rank 0 the .pvtu index
         vtu = write_pieces(out / f"{name}.pvtu", sol, world[0], samples=ocfg["samples"], tolerance=ocfg["tolerance"])
         files["vtu"] = str(vtu)

@@ -121,11 +121,9 @@ class Solution:
 
     def _comm(self):
         """The MPI communicator of a distributed solve (:mod:`iga.distributed`), None for a serial one."""
-        if getattr(self.problem, "partition", None) is None:
-            return None
-        from .distributed import world
+        from .distributed import solve_world
 
-        w = world()
+        w = solve_world(self.problem)
         return None if w is None else w[0]
 
     def flux(self, tag: str) -> float:
