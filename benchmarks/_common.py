@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -29,12 +30,16 @@ def figures_dir() -> Path:
 
 def run_child(cmd: list, label: str, env: dict | None = None) -> dict | None:
     """Run a benchmark child process ``cmd`` (environment ``env``, default this one's) whose last stdout line
-    is a JSON row; the row, or None after printing ``label`` and the end of its stderr when it failed."""
+    is a JSON row (the last line that opens with ``{``: a library may leave terminal codes after it, as
+    VTK's output window does at exit under Open MPI); the row, or None after printing ``label`` and the end
+    of its stderr when it failed."""
     out = subprocess.run(cmd, capture_output=True, text=True, env=env)
-    if out.returncode:
-        print(f"{label} failed:\n{out.stderr[-2000:]}")
+    text = re.sub(r"\x1b\[[0-9;]*[A-Za-z]", "", out.stdout)
+    rows = [line for line in text.splitlines() if line.lstrip().startswith("{")]
+    if out.returncode or not rows:
+        print(f"{label} failed:\n{out.stderr[-2000:]}{out.stdout[-500:] if not rows else ''}")
         return None
-    return json.loads(out.stdout.strip().splitlines()[-1])
+    return json.loads(rows[-1].strip())
 
 
 def collect_rows(jobs, describe, env: dict | None = None) -> list[dict]:

@@ -79,10 +79,15 @@ def dof_labels(problem, P: sp.spmatrix | None) -> tuple[int, np.ndarray]:
     unknown one of its DOFs depends on (the pattern of ``P``).  Its size is
     that of ``P``, not of the stiffness matrix.
     """
+    return _labels(problem.spaces, P)
+
+
+def _labels(spaces, P) -> tuple[int, np.ndarray]:
+    """:func:`dof_labels` of the patches with ``spaces`` (P's rows: their DOFs one patch after the other)."""
     same = ObjectIndex()  # patches share splines and maps: group by object
     piece, count = [], 0
     known: dict = {}  # patches share space objects: one labelling per distinct space, for this call only
-    for s in problem.spaces:
+    for s in spaces:
         if same(s) not in known:
             lab = _piece_of_dofs(s)
             known[same(s)] = (lab, int(lab.max()) + 1)

@@ -1,20 +1,22 @@
 """Distributed assembly and solve on PETSc (petsc4py, MPI): ``mpiexec -n R iga run CONFIG.toml``.
 
-With ``solver="petsc"`` under ``mpiexec -n R``, every rank
-builds the model, its spaces, the constraint prolongation and the Dirichlet
-data (replicated: about 300 MiB per rank of the 1M-unknown cross lattice,
-the part of its memory that does not fall as 1/R; README), and assembles the
-volume terms and the Neumann and Robin faces of its own patches only.  Patches are partitioned
-by :func:`partition`: the patch graph (an edge per interface) is ordered by
-reverse Cuthill-McKee (SciPy), which keeps neighbouring tiles together, and
-cut into R consecutive parts of about equal unknowns.  Each rank reduces its
-part, ``A_r = Pf^T K_r Pf`` (``sum_r A_r`` is the serial reduced matrix), in a numbering of the reduced
-unknowns in which each rank owns, as consecutive rows, those its patches touch first.  The rows of
-``A_r`` that other ranks own are sent to them (one ``Alltoallv`` per array of their CSR rows:
+With ``solver="petsc"`` under ``mpiexec -n R``, every rank builds the model and its spaces (replicated:
+about 130 MiB per rank of the 1M-unknown cross lattice; README), and assembles the volume terms and the
+Neumann and Robin faces of its own patches only.  Patches are partitioned by :func:`partition`: the patch
+graph (an edge per interface) is ordered by reverse Cuthill-McKee (SciPy), which keeps neighbouring tiles
+together, and cut into R consecutive parts of about equal unknowns.  Each rank builds the constraints its
+own DOFs read on its patches and the few neighbours their classes reach, with the Dirichlet data of those
+patches' faces (:mod:`iga.rank_setup`, :mod:`iga.rank_constraints`); the reduced unknowns are numbered by
+owner, a class known on every rank by its smallest DOF and owned by the rank of that DOF's patch, so no
+rank forms the whole prolongation (where Dirichlet slot faces tie unknowns of the whole model together,
+every rank builds the whole model's constraints instead).  Each rank reduces its part,
+``A_r = Pl^T K_r Pl`` (``sum_r A_r`` is the serial reduced matrix) over the unknowns its rows read.  The
+rows of ``A_r`` that other ranks own are sent to them (one ``Alltoallv`` per array of their CSR rows:
 :func:`_route_rows`), summed there, and the owned rows preallocate and fill the MPIAIJ matrix exactly
-(``createAIJ(csr=...)``, the same in every petsc4py from 3.18 on; no triplets).  CG with GAMG solves it; the
-solution is gathered on every rank, so post-processing and output follow
-the serial path (rank 0 writes).
+(``createAIJ(csr=...)``, the same in every petsc4py from 3.18 on; no triplets).  CG with GAMG solves it;
+each rank asks the owners for the values of the unknowns it shares with them, expands its patches'
+coefficients, and the coefficients are gathered on every rank by patch, so post-processing follows the
+serial path (each rank writes its VTU piece, rank 0 the index and the summary).
 """
 
 from __future__ import annotations
@@ -29,7 +31,10 @@ from geometry.resources import usable_cores
 from solvers import SolveInfo
 from solvers.petsc_ksp import ksp_solve, petsc
 
+from solvers.indexing import complement
+
 from .errors import ProblemError
+from .rank_constraints import alltoallv, class_keys, local_prolongation, ranges
 from .system import SystemSolution, reduction
 
 __all__ = ["world", "solve_world", "partition", "solve_system", "is_root", "mpiexec", "launch_env"]
@@ -130,53 +135,42 @@ def partition(problem, size: int) -> np.ndarray:
     return part
 
 
-def _route_rows(comm, A, b, starts):
+def _route_rows(comm, A, b, gid, starts):
     """This rank's rows of the reduced system (``starts``: first global row of every rank) as a CSR matrix
     (``m x nfree``) and right-hand side, summed over the contributions of every rank.
 
-    ``A`` (CSR, ``nfree x nfree``) and ``b`` (``nfree``) hold this rank's part of ``Pf^T K Pf`` and of the
-    load in the global numbering, in which every rank owns consecutive rows; the rows of each other rank form
-    one contiguous range of ``A``'s entries, sent as it is (only the rows this rank touched, with their
-    lengths: one ``Alltoallv`` per array).  No triplet arrays and no copy of the whole reduced matrix are
-    made: the 21^3 cross lattice built its matrix at 2.9 GiB per rank on 2 ranks by triplets.
+    ``A`` (CSR, square) and ``b`` hold this rank's part of ``Pf^T K Pf`` and of the load over the reduced
+    unknowns its rows read, numbered ``gid`` (sorted global numbers), in which every rank owns consecutive
+    rows; the rows of each other rank form one contiguous range of ``A``'s entries, sent as it is (only the
+    rows this rank touched, with their lengths: one ``Alltoallv`` per array).  No triplet arrays and no copy
+    of the whole reduced matrix are made: the 21^3 cross lattice built its matrix at 2.9 GiB per rank on 2
+    ranks by triplets.
     """
-    from mpi4py import MPI
-
-    rank, size = comm.Get_rank(), comm.Get_size()
+    rank = comm.Get_rank()
+    nfree = int(starts[-1])
+    # the columns in their own width (int32 below 2^31 unknowns): no widened copy of every local entry
+    gidc = gid.astype(np.int32) if nfree < 2**31 else gid
     lengths = np.diff(A.indptr)
     touched = np.flatnonzero((lengths > 0) | (b != 0))
-    cut = np.searchsorted(touched, starts)  # touched rows of each rank: touched[cut[q]:cut[q + 1]]
-    cut_nnz = A.indptr[starts]  # entries of each rank's rows: A.data[cut_nnz[q]:cut_nnz[q + 1]]
-    mine = np.zeros(size, bool)
-    mine[rank] = True
-
-    def exchange(a, counts, mpi_type):
-        """Every rank's part of ``a`` except this rank's own (counts per destination), to its owner."""
-        send = np.where(mine, 0, counts).astype(np.int64)
-        recv = np.asarray(comm.alltoall(send.tolist()), np.int64)
-        sdisp = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
-        rdisp = np.concatenate([[0], np.cumsum(recv)[:-1]]).astype(np.int64)
-        out = np.empty(int(recv.sum()), a.dtype)
-        comm.Alltoallv([np.ascontiguousarray(a), (send, sdisp), mpi_type], [out, (recv, rdisp), mpi_type])
-        return out
-
-    rows_per = np.diff(cut)
-    nnz_per = np.diff(cut_nnz)
-    rows = exchange(touched.astype(np.int64), rows_per, MPI.INT64_T)
-    lens = exchange(lengths[touched].astype(np.int64), rows_per, MPI.INT64_T)
-    rhs = exchange(np.asarray(b[touched], np.float64), rows_per, MPI.DOUBLE)
-    # the columns in their own width (int32 below 2^31 unknowns): no widened copy of every local entry
-    cols = exchange(A.indices, nnz_per, MPI.INT32_T if A.indices.dtype == np.int32 else MPI.INT64_T)
-    vals = exchange(np.asarray(A.data, np.float64), nnz_per, MPI.DOUBLE)
+    cut = np.searchsorted(gid[touched], starts)  # touched rows of each rank: touched[cut[q]:cut[q + 1]]
+    row_cut = np.searchsorted(gid, starts)  # local rows of each rank
+    cut_nnz = A.indptr[row_cut]  # entries of each rank's rows: A.data[cut_nnz[q]:cut_nnz[q + 1]]
+    rows_per, nnz_per = np.diff(cut), np.diff(cut_nnz)
+    rows, _ = alltoallv(comm, gid[touched].astype(np.int64), rows_per, keep_own=False)
+    lens, _ = alltoallv(comm, lengths[touched].astype(np.int64), rows_per, keep_own=False)
+    rhs, _ = alltoallv(comm, np.asarray(b[touched], np.float64), rows_per, keep_own=False)
+    cols, _ = alltoallv(comm, gidc[A.indices], nnz_per, keep_own=False)
+    vals, _ = alltoallv(comm, np.asarray(A.data, np.float64), nnz_per, keep_own=False)
     lo, hi = int(starts[rank]), int(starts[rank + 1])
-    s, e = int(A.indptr[lo]), int(A.indptr[hi])
-    local = sp.csr_matrix((A.data[s:e], A.indices[s:e], A.indptr[lo:hi + 1] - s), shape=(hi - lo, A.shape[1]))
-    if len(vals):  # views of A's own rows (no copy) plus the rows the other ranks sent
+    a, e = int(row_cut[rank]), int(row_cut[rank + 1])  # this rank's own rows: local a..e = global lo..hi
+    s, t = int(A.indptr[a]), int(A.indptr[e])
+    local = sp.csr_matrix((A.data[s:t], gidc[A.indices[s:t]], A.indptr[a:e + 1] - s), shape=(hi - lo, nfree))
+    if len(vals):  # this rank's own rows plus the rows the other ranks sent
         local = local + sp.csr_matrix((vals, (np.repeat(rows - lo, lens), cols)), shape=local.shape)
     local = sp.csr_matrix(local)
     local.sum_duplicates()
     local.sort_indices()
-    own_b = np.asarray(b[lo:hi], np.float64) + np.bincount(rows - lo, rhs, minlength=hi - lo)
+    own_b = np.asarray(b[a:e], np.float64) + np.bincount(rows - lo, rhs, minlength=hi - lo)
     return local, own_b
 
 
@@ -191,39 +185,70 @@ def _matrix(PETSc, comm, local, nfree):
     return M
 
 
-def solve_system(K, f, constraints, dirichlet, tol, maxiter, part, comm, offsets, pc: str = "gamg",
-                 petsc_options=None) -> SystemSolution:
-    """The distributed twin of :func:`iga.system.solve_system`: K and f hold this rank's patches only
-    (``part``: the rank of every patch, ``offsets``: the patches' first DOFs)."""
+def _columns(comm, Pf, constraints, dirichlet, part, offsets, own):
+    """(``Pl``, :class:`iga.rank_constraints.GlobalColumns`): the prolongation of this rank's DOFs over the
+    reduced unknowns they read, numbered globally.  ``own`` given: ``constraints`` are this rank's
+    (:func:`iga.rank_constraints.rank_constraints`), a class is known by its smallest DOF and owned by the
+    rank of that DOF's patch; None: replicated, a column is known by its index and owned by the lowest rank
+    whose patches touch it."""
+    rank = comm.Get_rank()
+    if own is not None:
+        free = complement(constraints.P.shape[1], dirichlet.dofs)
+        keys = class_keys(constraints.dof_master, constraints.P.shape[1])[free]
+        owner = part[np.searchsorted(offsets, keys, side="right") - 1]  # the rank of the key's patch
+        return local_prolongation(comm, Pf, keys, owner, own)
+    dof_rank = np.repeat(part, np.diff(offsets))
+    Pc = sp.csc_matrix(Pf)
+    touched = np.diff(Pc.indptr) > 0
+    owner = np.zeros(Pf.shape[1], np.int64)
+    owner[touched] = np.minimum.reduceat(dof_rank[Pc.indices], Pc.indptr[:-1][touched])
+    del Pc
+    return local_prolongation(comm, Pf, np.arange(Pf.shape[1]), owner, np.flatnonzero(dof_rank == rank))
+
+
+def _allgather_patches(comm, u, part, offsets) -> np.ndarray:
+    """The whole coefficient vector from every rank's values on its own patches (one ``Allgatherv``)."""
+    idx = [ranges(offsets[p], offsets[p + 1]) for p in (np.flatnonzero(part == q) for q in range(comm.Get_size()))]
+    counts = [len(i) for i in idx]
+    buf = np.empty(int(sum(counts)))
+    comm.Allgatherv(np.ascontiguousarray(u[idx[comm.Get_rank()]]), [buf, counts])
+    out = np.empty(len(u))
+    out[np.concatenate(idx)] = buf
+    return out
+
+
+def solve_system(system: list, constraints, dirichlet, tol, maxiter, part, comm, offsets, pc: str = "gamg",
+                 petsc_options=None, own=None) -> SystemSolution:
+    """The distributed twin of :func:`iga.system.solve_system`: ``system`` = [K, f] holds this rank's patches
+    only (``part``: the rank of every patch, ``offsets``: the patches' first DOFs); the list is emptied and
+    K released once the reduced matrix is built (only its rows that the reactions read are kept), so that
+    GAMG's set-up does not stand on it.  ``own``: the DOFs of this rank's patches when ``constraints`` are
+    this rank's alone (:mod:`iga.rank_constraints`); None when they are the whole model's.  The reaction
+    returned is this rank's part (its rows of ``K u - f``): the sum over the ranks is the serial one."""
     PETSc = petsc()
-    from mpi4py import MPI
 
     rank, size = comm.Get_rank(), comm.Get_size()
+    K, f = system
+    system.clear()
     ndof = K.shape[0]
     t0 = time.perf_counter()
     Pf, offset, reaction_dofs, induced = reduction(constraints, dirichlet, ndof)
-    t_reduction = time.perf_counter() - t0  # replicated: every rank forms the whole prolongation
-    nfree = Pf.shape[1]
-    # owner of a reduced unknown: the lowest rank whose patches touch it; number unknowns by owner
-    dof_rank = np.repeat(part, np.diff(offsets))
-    Pc = Pf.tocsc()
-    touched = np.diff(Pc.indptr) > 0
-    owner = np.zeros(nfree, np.int64)
-    owner[touched] = np.minimum.reduceat(dof_rank[Pc.indices], Pc.indptr[:-1][touched])
-    order = np.argsort(owner, kind="stable")
-    new = np.empty(nfree, np.int64)
-    new[order] = np.arange(nfree)
-    counts = np.bincount(owner, minlength=size)
-    starts = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-    Pn = sp.csr_matrix(Pf)  # columns relabelled to the owners' numbering (a permutation of the unknowns)
-    Pn = sp.csr_matrix((Pn.data, new[Pn.indices], Pn.indptr), shape=Pn.shape)
-    del Pf, Pc, dof_rank  # one copy of the prolongation is kept through the solve: Pn
-    # K is symmetric, so (K Pn)^T Pn = A, and its CSC arrays are A's CSR arrays: no transposed copies
-    C = (K @ Pn).T @ Pn
+    Pl, cols = _columns(comm, Pf, constraints, dirichlet, part, offsets, own)
+    del Pf  # one copy of the prolongation is kept through the solve: this rank's rows, Pl
+    t_reduction = time.perf_counter() - t0
+    nfree = int(cols.starts[-1])
+    counts = np.diff(cols.starts)
+    # K is symmetric, so (K Pl)^T Pl = A, and its CSC arrays are A's CSR arrays: no transposed copies
+    C = (K @ Pl).T @ Pl
     A = sp.csr_matrix((C.data, C.indices, C.indptr), shape=C.shape)
-    load = Pn.T @ (f - K @ offset)
+    load = Pl.T @ (f - K @ offset)
     del C
-    local, rhs = _route_rows(comm, A, load, starts)
+    P = sp.identity(ndof, format="csr") if constraints is None else constraints.P
+    # the rows of the DOFs whose classes' reactions are reported: a surface's worth of K
+    read = np.flatnonzero(np.diff(sp.csr_matrix(P[:, reaction_dofs]).indptr))
+    Kd, Pd, fd = K[read], P[read], f[read]
+    del K, f
+    local, rhs = _route_rows(comm, A, load, cols.gid, cols.starts)
     del A, load
     M = _matrix(PETSc, comm, local, nfree)
     del local
@@ -237,18 +262,24 @@ def solve_system(K, f, constraints, dirichlet, tol, maxiter, part, comm, offsets
     r.axpy(-1.0, b)
     nb = b.norm()
     res = float(r.norm() / (nb if nb > 0 else 1.0))
-    xs = np.concatenate(comm.allgather(x.getArray().copy()))  # in the owners' numbering, as Pn's columns
+    x_owned = x.getArray().copy()
     for obj in (M, b, x, r):
         obj.destroy()
-    if reason < 0 or res > 10 * tol or not np.all(np.isfinite(xs)):
+    finite = comm.allreduce(bool(np.all(np.isfinite(x_owned))), op=_land())
+    if reason < 0 or res > 10 * tol or not finite:
         raise ProblemError(f"PETSc CG on {size} ranks did not converge (reason {reason}): relative residual "
                            f"{res:.2e} after {its} iterations")
-    u = Pn @ xs + offset
-    P = sp.identity(ndof, format="csr") if constraints is None else constraints.P
-    reaction = np.ascontiguousarray((P.T @ (K @ u - f))[reaction_dofs])
-    comm.Allreduce(MPI.IN_PLACE, reaction, op=MPI.SUM)
+    u = Pl @ cols.gather(comm, x_owned) + offset  # right on this rank's patches
+    reaction = np.ascontiguousarray((Pd.T @ (Kd @ u - fd))[reaction_dofs])  # this rank's rows: Solution sums
+    u = _allgather_patches(comm, u, part, offsets)
     info = SolveInfo(f"petsc ({pc}, {size} ranks)", its, res, setup + t_build, solve_s,
                      {"ranks": size, "owned_unknowns": counts.tolist(), "reduction_s": t_reduction,
-                      "matrix_s": t_build - t_reduction, "ksp_setup_s": setup})
+                      "matrix_s": t_build - t_reduction, "ksp_setup_s": setup,
+                      "constraints": "per rank" if own is not None else "replicated"})
     return SystemSolution(u, reaction_dofs, reaction, info, nfree, induced)
 
+
+def _land():
+    from mpi4py import MPI
+
+    return MPI.LAND

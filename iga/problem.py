@@ -31,6 +31,7 @@ from .faces import FaceData
 from .assembly import add_within
 from .forms import boundary_load, boundary_mass
 from .model import tag_faces
+from .rank_setup import rank_setup
 from .tags import as_expression, check_expression, mentions_rest
 from .solution import Solution
 from . import distributed
@@ -263,20 +264,30 @@ class HeatProblem:
         if world:  # each rank integrated the source over its own patches
             book["source"] = world[0].allreduce(book["source"])
         t0 = time.perf_counter()
-        constraints = prolongation(self.model, self.spaces, self.offsets) if self._needs_constraints() else None
-        self.constraint_stats = dict(constraints.stats) if constraints is not None else {}
-        self.components, self.idle_components = analyse_components(self, constraints, self._faces_by_kind(),
-                                                                    book["source"])
-        dd = project_dirichlet(self.faces, book["dirichlet"], self.ndof, constraints)
+        own = None
+        if world and self._needs_constraints():  # each rank builds the constraints its patches read
+            constraints, dd, own = rank_setup(self, world, part, book)
+        else:
+            constraints = prolongation(self.model, self.spaces, self.offsets) if self._needs_constraints() else None
+        if own is None:
+            self.constraint_stats = dict(constraints.stats) if constraints is not None else {}
+            self.components, self.idle_components = analyse_components(self, constraints, self._faces_by_kind(),
+                                                                        book["source"])
+            dd = project_dirichlet(self.faces, book["dirichlet"], self.ndof, constraints)
         self.timings["constraints"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         options = solver_options(self, solver, constraints, dd, book)
         self.timings["solver_structure"] = time.perf_counter() - t0  # Kronecker factors, multigrid levels
         if world:
-            res = distributed.solve_system(K, f, constraints, dd, tol, maxiter, part, world[0], self.offsets)
+            system = [K, f]  # handed over: the solve releases K once its reduced matrix is built
+            del K, f
+            res = distributed.solve_system(system, constraints, dd, tol, maxiter, part, world[0], self.offsets,
+                                           own=own)
         else:
             res = solve_system(K, f, constraints, dd, solver, tol, maxiter, options)
-        self.constraint_stats.update({"prescribed": int(len(dd.dofs)), "induced_rank": res.induced_rank})
+        if own is None:  # (a rank's own constraints counted the prescribed unknowns across the ranks)
+            self.constraint_stats["prescribed"] = int(len(dd.dofs))
+        self.constraint_stats["induced_rank"] = res.induced_rank
         self.timings["solve"] = res.info.setup_s + res.info.solve_s
         self.reduced_dofs = res.reduced
         Gd = dd.G[res.reaction_dofs].toarray() if dd.G is not None else np.zeros((len(res.reaction_dofs), 0))

@@ -107,16 +107,26 @@ class Solution:
         for key, (h, Tinf) in book["robin"].items():
             fd = prob.face_data(*key)
             flows[key] = flows.get(key, 0.0) + float(np.sum(h * (fd.trace(self.u) - Tinf) * fd.dAw))
-        comm = self._comm()
-        if comm is not None:  # each rank holds its own Neumann and Robin faces (disjoint): every rank gets all
-            for part in comm.allgather(flows):
-                flows.update(part)
+        dirichlet = {}
         if self._dirichlet_integrals:
             # split each prescribed unknown's reaction among the faces by their share of int N_i dA
             total = sum(self._dirichlet_integrals.values())
             safe = np.where(total != 0, total, 1.0)
             for key, integ in self._dirichlet_integrals.items():
-                flows[key] = flows.get(key, 0.0) - float(np.sum(self._reaction * integ / safe))
+                dirichlet[key] = -float(np.sum(self._reaction * integ / safe))
+        comm = self._comm()
+        if comm is not None:
+            # each rank holds its own Neumann and Robin faces (disjoint): every rank gets all; a rank's reaction
+            # is its rows' part, and the flows are linear in it: the ranks' Dirichlet flows add up per face
+            for part in comm.allgather(flows):
+                flows.update(part)
+            summed: dict = {}
+            for part in comm.allgather(dirichlet):
+                for key, v in part.items():
+                    summed[key] = summed.get(key, 0.0) + v
+            dirichlet = summed
+        for key, v in dirichlet.items():
+            flows[key] = flows.get(key, 0.0) + v
         return flows
 
     def _comm(self):

@@ -48,12 +48,24 @@ SCRIPT = textwrap.dedent("""
     elif kind == "sink":
         ms = tiling.hierarchical(pr.box((0.06, 0.06, 0.03)), L.heat_sink_t2(), (2, 2), levels=2)
         p = HeatProblem(ms, conductivity=200.0, source=1e5).dirichlet("branch-in", 60.0).robin("exterior", 40.0, 20.0)
+    elif kind == "slot":  # Dirichlet slot faces meet the parent's branch-out face inside an element
+        ms = tiling.hierarchical(pr.box(), L.skinned_branching(), (1, 1), 2)
+        ms.tags["rest"] = [f for f in ms.tags["boundary"] if f not in set(ms.tags["branch-in"])]
+        p = HeatProblem(ms, conductivity=3.0, source=2.0).dirichlet("branch-in", 10.0).dirichlet("rest", 0.0)
+    elif kind in ("apart", "apart-robin"):  # two crosses without the interface between them
+        ms = tiling.regular(pr.box((2.0, 1.0, 1.0)), L.cross(), (2, 1, 1))
+        ms.interfaces[:] = [i for i in ms.interfaces if ms.patches[i.a[0]].tile == ms.patches[i.b[0]].tile]
+        p = HeatProblem(ms).dirichlet("umin", 0.0)
+        p = p.neumann("umax", 1.0) if kind == "apart" else p.robin("umax", 1.0, 1.0)
     else:
         p = HeatProblem(pr.box(degrees=(2, 2, 2), elements=(4, 4, 4))).dirichlet("boundary", 0.0)
     s = p.solve(solver=sys.argv[3] if len(sys.argv) > 3 else "petsc", tol=1e-12)
     if is_root():
+        tag = {"lattice": "umin", "sink": "branch-in", "slot": "branch-in"}.get(kind, "umax")
         json.dump({"u": s.u.tolist(), "balance": s.info["balance"]["relative_error"], "method": s.info["solver"]["method"],
-                   "flux": s.flux("umin") if kind == "lattice" else s.flux("branch-in")}, open(out, "w"))
+                   "flux": s.flux(tag), "route": s.info["solver"].get("constraints"),
+                   "components": [s.info["components"][k] for k in ("count", "idle")],
+                   "free": s.info["free_dofs"], "prescribed": s.info["constraints"]["prescribed"]}, open(out, "w"))
 """)
 
 
@@ -74,18 +86,34 @@ def test_the_serial_petsc_backend_solves_like_the_direct_solver():
     assert np.abs(x - solvers.solve(A, b, method="direct")[0]).max() < 1e-9 * np.abs(x).max()
 
 
-@pytest.mark.parametrize("kind,ranks", [("lattice", 1), ("lattice", 2), ("sink", 2), ("lattice", 4)])
-def test_ranks_give_the_serial_temperatures(tmp_path, kind, ranks):
+@pytest.mark.parametrize("kind,ranks,route", [("lattice", 1, "per rank"), ("lattice", 2, "per rank"),
+                                              ("sink", 2, "per rank"), ("lattice", 4, "per rank"),
+                                              ("sink", 4, "per rank"), ("slot", 2, "replicated"),
+                                              ("apart-robin", 2, "per rank")])
+def test_ranks_give_the_serial_temperatures(tmp_path, kind, ranks, route):
+    """Each rank builds the constraints its patches read (iga.rank_constraints), except where Dirichlet slot
+    faces tie unknowns of the whole model together (the replicated route): temperatures, fluxes, the
+    unknowns counted and the components found equal the serial solve's."""
     out = _mpi(tmp_path, ranks, kind, tmp_path / "mpi.json")
     assert out.returncode == 0, out.stderr[-3000:]
     par = json.loads((tmp_path / "mpi.json").read_text())
     assert f"{ranks} ranks" in par["method"]  # one rank under mpiexec takes the same distributed path
+    assert par["route"] == route
     serial = _mpi(tmp_path, 1, kind, tmp_path / "serial.json", "direct")
     assert serial.returncode == 0, serial.stderr[-3000:]
     ser = json.loads((tmp_path / "serial.json").read_text())
     u, v = np.array(par["u"]), np.array(ser["u"])
     assert np.abs(u - v).max() < 1e-8 * np.abs(v).max()
-    assert par["balance"] < 1e-9 and par["flux"] == pytest.approx(ser["flux"], rel=1e-8)
+    assert par["balance"] < 1e-9 and par["flux"] == pytest.approx(ser["flux"], rel=1e-8, abs=1e-12)
+    assert par["free"] == ser["free"] and par["components"] == ser["components"]
+    assert par["prescribed"] == ser["prescribed"]
+
+
+def test_a_floating_piece_is_refused_on_every_rank(tmp_path):
+    out = _mpi(tmp_path, 2, "apart", tmp_path / "x.json")
+    assert out.returncode != 0 and not (tmp_path / "x.json").exists()
+    # every rank found the same two pieces from its own patches and refused the same one
+    assert out.stderr.count("falls apart into 2 connected pieces and 1 of them float") == 2
 
 
 def test_mpiexec_iga_run_writes_one_result(tmp_path):

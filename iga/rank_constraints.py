@@ -1,0 +1,240 @@
+"""One MPI rank's part of the interface constraints (:mod:`iga.distributed`): the classes its patches touch,
+built on those patches and the neighbours the classes reach, and numbered across the ranks by their
+smallest DOF; no rank forms the whole prolongation or a union-find over every DOF of the model.
+
+A rank's *closure* ``S`` starts as its own patches and grows until it is closed: no class that the rank's
+own DOFs read (a column of ``P`` in their rows: their identity class, or the masters of their branch rows)
+reaches a DOF on a face that leads out of ``S``; each round adds the patches across the faces where one
+does (a layer of neighbours only where a class leaks, so the closure of a hierarchy stays thin).  Equalities and branch rows only cross interfaces, so a closed ``S`` holds every member of those
+classes and every row that expresses them: :func:`iga.constraints.prolongation` on ``S`` alone gives the
+serial prolongation's rows of the own DOFs (up to the numbering of the columns), the Dirichlet projection on
+``S``'s faces gives the serial values of those classes, and a class's smallest DOF (its *key*) is the same
+on every rank that sees it.  The rank that owns the patch of a key owns the class's reduced unknown; the
+unknowns are numbered by owner (consecutive per rank, by key inside a rank), and a rank asks the owners for
+the numbers of the classes it shares with them (two ``Alltoallv``).  For a regular lattice ``S`` is the own
+patches and one layer; deeper hierarchies need more (a slave's masters lie on its parent's face).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+import scipy.sparse as sp
+
+from .constraints import Constraints, _face_grid, prolongation
+from .errors import ProblemError
+
+__all__ = ["RankConstraints", "rank_constraints", "ranges", "alltoallv", "GlobalColumns", "number_columns"]
+
+
+def ranges(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """The integers of the half-open ranges ``[lo[i], hi[i])`` one after the other (no Python loop)."""
+    lo, hi = np.asarray(lo, np.int64), np.asarray(hi, np.int64)
+    n = hi - lo
+    if not len(n):
+        return np.zeros(0, np.int64)
+    return np.repeat(lo - np.concatenate([[0], np.cumsum(n)[:-1]]), n) + np.arange(int(n.sum()))
+
+
+@dataclass
+class RankConstraints:
+    """A rank's constraints: ``patches`` (its closure ``S``, sorted global patch indices), ``constraints``
+    (``P`` with global DOF rows, empty outside ``S``, and a column per class of ``S``; ``dof_master`` -1
+    outside ``S``), ``own_patches`` and ``own`` (the rank's own patches and their global DOFs, sorted),
+    ``layers`` (the rounds of growth ``S`` needed), ``on_border`` (per column: a class on a face leading out
+    of ``S``, which rows outside ``S`` may read: a child's branch face outside reads its parent's)."""
+
+    patches: np.ndarray
+    constraints: Constraints
+    own_patches: np.ndarray
+    own: np.ndarray
+    layers: int
+    on_border: np.ndarray
+
+
+class _View:
+    """What :func:`iga.constraints.prolongation` reads of a model: some of its patches and the interfaces
+    among them, renumbered."""
+
+    __slots__ = ("patches", "interfaces")
+
+    def __init__(self, patches, interfaces):
+        self.patches, self.interfaces = patches, interfaces
+
+
+def _interface_pairs(model) -> np.ndarray:
+    return np.array([(i.a[0], i.b[0]) for i in model.interfaces], np.int64).reshape(-1, 2)
+
+
+def _border(model, spaces, sub_off, local, pairs) -> list:
+    """The faces on the closure's border: (closure rows of the inner face, patch outside, whether the inner
+    side is a branch parent) per interface with one side in the closure (a surface, not the volume)."""
+    sub_spaces = [spaces[i] for i in np.flatnonzero(local >= 0)]
+    out = []
+    for j in np.flatnonzero((local[pairs[:, 0]] >= 0) != (local[pairs[:, 1]] >= 0)):
+        itf = model.interfaces[j]
+        inner_is_a = local[itf.a[0]] >= 0
+        (pi, face), (other, _) = (itf.a, itf.b) if inner_is_a else (itf.b, itf.a)
+        out.append((_face_grid(sub_spaces, sub_off, int(local[pi]), face).ravel(), other,
+                    itf.kind == "branch" and inner_is_a))
+    return out
+
+
+def _leaks(border, P, read) -> np.ndarray:
+    """The patches outside the closure that a class the own rows read (``read``, per column) reaches."""
+    # a child outside reads its parent's classes but adds no member to them: no leak across its face
+    leaks = [other for rows, other, parent in border if not parent and read[P[rows].indices].any()]
+    return np.unique(np.asarray(leaks, np.int64))
+
+
+def rank_constraints(model, spaces, offsets, part: np.ndarray, rank: int) -> RankConstraints:
+    """The constraints of rank ``rank``'s patches (``part``: the rank of every patch), on its closure."""
+    n = len(model.patches)
+    offsets = np.asarray(offsets, np.int64)
+    pairs = _interface_pairs(model)
+    own = np.flatnonzero(part == rank)
+    S, layers = own, 0
+    while True:
+        local = np.full(n, -1, np.int64)
+        local[S] = np.arange(len(S))
+        inside = np.flatnonzero((local[pairs[:, 0]] >= 0) & (local[pairs[:, 1]] >= 0))
+        itfs = [replace(model.interfaces[j], a=(int(local[model.interfaces[j].a[0]]), model.interfaces[j].a[1]),
+                        b=(int(local[model.interfaces[j].b[0]]), model.interfaces[j].b[1])) for j in inside]
+        sub_spaces = [spaces[i] for i in S]
+        sizes = np.diff(offsets)[S]
+        sub_off = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+        cons = prolongation(_View([model.patches[i] for i in S], itfs), sub_spaces, sub_off)
+        own_rows = ranges(sub_off[local[own]], sub_off[local[own] + 1])
+        read = np.zeros(cons.P.shape[1], bool)
+        read[cons.P[own_rows].indices] = True
+        border = _border(model, spaces, sub_off, local, pairs)
+        leaks = _leaks(border, cons.P, read)
+        if not len(leaks):
+            break
+        S, layers = np.union1d(S, leaks), layers + 1  # only where a class leaks out: the closure stays thin
+    rows = ranges(offsets[S], offsets[S + 1])  # global DOF of each row of the closure (increasing)
+    C = cons.P.tocoo()
+    P = sp.csr_matrix((C.data, (rows[C.row], C.col)), shape=(int(offsets[-1]), C.shape[1]))
+    dm = np.full(int(offsets[-1]), -1, np.int64)
+    dm[rows] = cons.dof_master
+    stats = dict(cons.stats, closure_patches=int(len(S)), closure_layers=layers)
+    on_border = np.zeros(C.shape[1], bool)  # classes that patches outside the closure may read
+    for rows_b, _, _ in border:
+        on_border[cons.P[rows_b].indices] = True
+    return RankConstraints(S, Constraints(P, dm, stats), own, ranges(offsets[own], offsets[own + 1]), layers,
+                           on_border)
+
+
+_MPI_TYPES = {np.dtype(np.int64): "INT64_T", np.dtype(np.int32): "INT32_T", np.dtype(np.float64): "DOUBLE"}
+
+
+def alltoallv(comm, a: np.ndarray, counts: np.ndarray, keep_own: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Send ``a``'s consecutive parts of ``counts[q]`` entries to rank ``q``: (what every rank sent here, in
+    rank order, and how many from each); ``keep_own=False``: this rank's own part stays out (it is not
+    copied to itself)."""
+    from mpi4py import MPI
+
+    a = np.ascontiguousarray(a)
+    mpi_type = getattr(MPI, _MPI_TYPES[a.dtype])
+    counts = np.asarray(counts, np.int64)
+    sdisp = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+    send = counts.copy()
+    if not keep_own:
+        send[comm.Get_rank()] = 0
+    recv = np.asarray(comm.alltoall(send.tolist()), np.int64)
+    rdisp = np.concatenate([[0], np.cumsum(recv)[:-1]]).astype(np.int64)
+    out = np.empty(int(recv.sum()), a.dtype)
+    comm.Alltoallv([a, (send, sdisp), mpi_type], [out, (recv, rdisp), mpi_type])
+    return out, recv
+
+
+@dataclass
+class GlobalColumns:
+    """The reduced unknowns a rank's rows read, in the global numbering (owners' rows consecutive).
+
+    ``gid`` (sorted): the global number of each local column; ``starts`` (ranks + 1): the first global
+    unknown of every rank; ``asked``: per rank, how many of this rank's columns it owns (sent in the order
+    of ``ghost``, positions in ``gid``); ``answer``: the positions in this rank's owned range that the
+    others asked for, with ``answer_counts`` per rank.
+    """
+
+    gid: np.ndarray
+    starts: np.ndarray
+    ghost: np.ndarray
+    asked: np.ndarray
+    answer: np.ndarray
+    answer_counts: np.ndarray
+
+    def gather(self, comm, x_owned: np.ndarray) -> np.ndarray:
+        """The values of every local column (sorted by ``gid``) from this rank's owned values."""
+        rank = comm.Get_rank()
+        x = np.empty(len(self.gid))
+        lo, hi = self.starts[rank], self.starts[rank + 1]
+        mine = (self.gid >= lo) & (self.gid < hi)
+        x[mine] = x_owned[self.gid[mine] - lo]
+        got, _ = alltoallv(comm, np.asarray(x_owned, np.float64)[self.answer], self.answer_counts)
+        x[self.ghost] = got
+        return x
+
+
+def number_columns(comm, keys: np.ndarray, owner: np.ndarray) -> tuple[np.ndarray, GlobalColumns]:
+    """Global numbers of classes known by their ``keys`` (smallest global DOF), each owned by ``owner``:
+    (the local order of the classes, sorted by global number, and the :class:`GlobalColumns`)."""
+    rank, size = comm.Get_rank(), comm.Get_size()
+    mine = np.flatnonzero(owner == rank)
+    mine = mine[np.argsort(keys[mine], kind="stable")]
+    counts = np.asarray(comm.allgather(len(mine)), np.int64)
+    starts = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    num = np.empty(len(keys), np.int64)
+    num[mine] = starts[rank] + np.arange(len(mine))
+    others = np.flatnonzero(owner != rank)
+    others = others[np.argsort(owner[others], kind="stable")]
+    asked = np.bincount(owner[others], minlength=size).astype(np.int64)
+    wanted, answer_counts = alltoallv(comm, keys[others].astype(np.int64), asked)
+    owned_keys = keys[mine]
+    pos = np.searchsorted(owned_keys, wanted)
+    bad = (pos >= len(owned_keys)) | (owned_keys[np.minimum(pos, max(len(owned_keys) - 1, 0))] != wanted) \
+        if len(owned_keys) else np.ones(len(wanted), bool)
+    if bad.any():
+        raise ProblemError(f"rank {rank} does not own the constraint class of DOF {int(wanted[np.argmax(bad)])} "
+                           "that another rank reads (the ranks' closures disagree); report this model")
+    got, _ = alltoallv(comm, (starts[rank] + pos).astype(np.int64), answer_counts)
+    num[others] = got
+    order = np.argsort(num, kind="stable")
+    where = np.empty(len(keys), np.int64)
+    where[order] = np.arange(len(keys))
+    cols = GlobalColumns(num[order], starts, where[others], asked, pos, answer_counts)
+    return order, cols
+
+
+def class_keys(dof_master: np.ndarray, ncols: int) -> np.ndarray:
+    """The smallest DOF of every column's class (``dof_master``: the column of each DOF's class, -1 for
+    slave DOFs and DOFs outside the closure), -1 for a column without members."""
+    idx = np.flatnonzero(dof_master >= 0)
+    cls, first = np.unique(dof_master[idx], return_index=True)
+    keys = np.full(ncols, -1, np.int64)
+    keys[cls] = idx[first]
+    return keys
+
+
+def local_prolongation(comm, Pf: sp.spmatrix, keys: np.ndarray, owner: np.ndarray, rows=None):
+    """(``Pl``, :class:`GlobalColumns`): ``Pf`` (ndof x free columns) restricted to the DOFs ``rows`` (all
+    when None) and to the columns they read, those numbered globally (``keys`` and ``owner`` per column of
+    ``Pf``) and ordered by their global number; ``Pl`` is CSR (ndof x columns read)."""
+    R = sp.csr_matrix(Pf)
+    if rows is not None:
+        keep_row = np.zeros(R.shape[0], bool)
+        keep_row[rows] = True
+        lengths = np.diff(R.indptr) * keep_row
+        keep = np.repeat(keep_row, np.diff(R.indptr))
+        R = sp.csr_matrix((R.data[keep], R.indices[keep], np.concatenate([[0], np.cumsum(lengths)])),
+                          shape=R.shape)
+    used = np.unique(R.indices)
+    order, cols = number_columns(comm, keys[used], owner[used])
+    loc = np.full(R.shape[1], -1, np.int64)
+    loc[used[order]] = np.arange(len(used))
+    idx = loc[R.indices]
+    Pl = sp.csr_matrix((R.data, idx.astype(np.int32) if len(used) < 2**31 else idx, R.indptr),
+                       shape=(R.shape[0], len(used)))
+    return Pl, cols

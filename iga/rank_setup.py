@@ -1,0 +1,46 @@
+"""What a rank of a distributed heat solve builds before its matrix (:mod:`iga.distributed`): the constraints
+its patches read (:mod:`iga.rank_constraints`), the Dirichlet data of its closure's faces, and the model's
+components found across the ranks (:mod:`iga.rank_components`); or, where Dirichlet slot faces meet a
+branch face inside an element on some rank (their induced conditions tie unknowns of the whole model
+together, :func:`iga.constraints.induced_elimination`), the whole model's, as a serial solve builds them."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .components import analyse_components
+from .constraints import prolongation
+from .dirichlet import project_dirichlet
+from .rank_components import rank_components
+from .rank_constraints import class_keys, rank_constraints
+
+__all__ = ["rank_setup"]
+
+
+def rank_setup(problem, world, part, book):
+    """(constraints, Dirichlet data, own DOFs or None for the whole model's) of a
+    :class:`iga.HeatProblem` about to be solved on ``world`` = (comm, rank, size), ``part`` the rank of every
+    patch, ``book`` its assembly's bookkeeping; sets the problem's components and constraint counts."""
+    from mpi4py import MPI
+
+    comm, rank, _ = world
+    rc = rank_constraints(problem.model, problem.spaces, problem.offsets, part, rank)
+    closure = set(rc.patches.tolist())
+    dd = project_dirichlet(problem.faces, {k: v for k, v in book["dirichlet"].items() if k[0] in closure},
+                           problem.ndof, rc.constraints)
+    by_kind = problem._faces_by_kind()
+    if comm.allreduce(len(dd.slave_rows)):
+        constraints = prolongation(problem.model, problem.spaces, problem.offsets)
+        problem.constraint_stats = dict(constraints.stats)
+        problem.components, problem.idle_components = analyse_components(problem, constraints, by_kind,
+                                                                          book["source"])
+        return constraints, project_dirichlet(problem.faces, book["dirichlet"], problem.ndof, constraints), None
+    problem.components, problem.idle_components = rank_components(problem, rc, by_kind, book["source"], comm)
+    stats = rc.constraints.stats
+    keys = class_keys(rc.constraints.dof_master, rc.constraints.P.shape[1])[dd.dofs]
+    mine = int(np.count_nonzero(part[np.searchsorted(problem.offsets, keys, side="right") - 1] == rank))
+    problem.constraint_stats = {  # the prescribed unknowns counted once, by the owner of their key
+        "closure_patches_max": comm.allreduce(stats["closure_patches"], op=MPI.MAX),
+        "closure_layers_max": comm.allreduce(stats["closure_layers"], op=MPI.MAX),
+        "prescribed": comm.allreduce(mine)}
+    return rc.constraints, dd, rc.own

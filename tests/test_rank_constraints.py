@@ -1,0 +1,70 @@
+"""Each rank's constraints (iga.rank_constraints) against the whole model's, without MPI: for every rank of
+a partition, the rows of its own DOFs equal the serial prolongation's, with the columns matched by their
+classes' smallest DOF (the key every rank numbers them by)."""
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+import tiling
+from geometry import primitives as pr
+from iga import HeatProblem
+from iga.constraints import prolongation
+from iga.distributed import partition
+from iga.rank_constraints import class_keys, rank_constraints, ranges
+from tiling import library as L
+
+
+def _rows_by_key(P, dof_master, rows):
+    """(row, key of the column's class, value) of ``P``'s ``rows``, sorted: the rows with their columns named
+    by class, not by a numbering."""
+    keys = class_keys(dof_master, P.shape[1])
+    C = sp.coo_matrix(P[rows])
+    C.eliminate_zeros()
+    out = np.stack([C.row.astype(float), keys[C.col].astype(float), C.data], axis=1)
+    return out[np.lexsort((out[:, 1], out[:, 0]))]
+
+
+def _models():
+    twisted = pr.twisted(pr.box((1.0, 1.0, 1.0), degrees=(2, 2, 2)), 0.3, axis_point=(0.5, 0.5))
+    yield "lattice", HeatProblem(tiling.regular(twisted, L.cross(), (3, 3, 2)), degree_elevation=1)
+    yield "hierarchy", HeatProblem(tiling.hierarchical(pr.box((0.06, 0.06, 0.03)), L.heat_sink_t2(), (2, 2), 3))
+    yield "slots", HeatProblem(tiling.hierarchical(pr.box(), L.skinned_branching(), (1, 1), 2))
+
+
+@pytest.mark.parametrize("name", ["lattice", "hierarchy", "slots"])
+@pytest.mark.parametrize("ranks", [2, 5])
+def test_each_ranks_rows_are_the_serial_rows(name, ranks):
+    prob = dict(_models())[name]
+    full = prolongation(prob.model, prob.spaces, prob.offsets)
+    part = partition(prob, ranks)
+    seen = np.zeros(prob.ndof, bool)
+    layers = []
+    for r in range(ranks):
+        rc = rank_constraints(prob.model, prob.spaces, prob.offsets, part, r)
+        own = np.flatnonzero(part == r)
+        assert np.array_equal(rc.own_patches, own) and set(own) <= set(rc.patches)
+        assert np.array_equal(rc.own, ranges(prob.offsets[own], prob.offsets[own + 1]))
+        mine = _rows_by_key(rc.constraints.P, rc.constraints.dof_master, rc.own)
+        serial = _rows_by_key(full.P, full.dof_master, rc.own)
+        assert mine.shape == serial.shape and np.allclose(mine, serial, rtol=0, atol=1e-13)
+        # the slave DOFs (dof_master -1) are the serial ones on the own patches
+        assert np.array_equal(rc.constraints.dof_master[rc.own] < 0, full.dof_master[rc.own] < 0)
+        seen[rc.own] = True
+        layers.append(rc.layers)
+    assert seen.all()  # the ranks' own DOFs cover the model
+    assert max(layers) >= 1  # closures reach past the own patches
+
+
+def test_a_lattice_closure_is_two_layers_and_a_fraction_of_the_model():
+    """A cross tile's centre block shares its edges with four arms, so a class can span three patches: at
+    most two layers of neighbours close every rank of a lattice, and the closure stays local."""
+    D = pr.box((1.0, 1.0, 1.0), degrees=(2, 2, 2))
+    prob = HeatProblem(tiling.regular(D, L.cross(), (6, 6, 6)), degree_elevation=1)
+    part = partition(prob, 4)
+    layers = []
+    for r in range(4):
+        rc = rank_constraints(prob.model, prob.spaces, prob.offsets, part, r)
+        layers.append(rc.layers)
+        assert len(rc.patches) < 0.5 * len(prob.model.patches)
+    assert max(layers) == 2
