@@ -29,9 +29,8 @@ from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from geometry.resources import usable_cores
 from solvers import SolveInfo
-from solvers.petsc_ksp import ksp_solve, petsc
-
 from solvers.indexing import complement
+from solvers.petsc_ksp import ksp_solve, petsc
 
 from .errors import ProblemError
 from .rank_constraints import alltoallv, class_keys, local_prolongation, ranges
