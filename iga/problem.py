@@ -264,23 +264,21 @@ class HeatProblem:
         if world:  # each rank integrated the source over its own patches
             book["source"] = world[0].allreduce(book["source"])
         t0 = time.perf_counter()
-        own = None
+        own = dd = None
         if world and self._needs_constraints():  # each rank builds the constraints its patches read
             constraints, dd, own = rank_setup(self, world, part, book)
         else:
             constraints = prolongation(self.model, self.spaces, self.offsets) if self._needs_constraints() else None
-        if own is None:
+        if dd is None:
             self.constraint_stats = dict(constraints.stats) if constraints is not None else {}
             self.components, self.idle_components = analyse_components(self, constraints, self._faces_by_kind(),
                                                                         book["source"])
             dd = project_dirichlet(self.faces, book["dirichlet"], self.ndof, constraints)
         self.timings["constraints"] = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        options = solver_options(self, solver, constraints, dd, book)
+        t0, options = time.perf_counter(), solver_options(self, solver, constraints, dd, book)
         self.timings["solver_structure"] = time.perf_counter() - t0  # Kronecker factors, multigrid levels
-        if world:
-            system = [K, f]  # handed over: the solve releases K once its reduced matrix is built
-            del K, f
+        if world:  # K handed over: the solve releases it once its reduced matrix is built
+            system, K, f = [K, f], None, None
             res = distributed.solve_system(system, constraints, dd, tol, maxiter, part, world[0], self.offsets,
                                            own=own)
         else:
