@@ -225,9 +225,11 @@ def number_columns(comm, keys: np.ndarray, owner: np.ndarray) -> tuple[np.ndarra
     pos = np.searchsorted(owned_keys, wanted)
     bad = (pos >= len(owned_keys)) | (owned_keys[np.minimum(pos, max(len(owned_keys) - 1, 0))] != wanted) \
         if len(owned_keys) else np.ones(len(wanted), bool)
-    if bad.any():
-        raise ProblemError(f"rank {rank} does not own the constraint class of DOF {int(wanted[np.argmax(bad)])} "
-                           "that another rank reads (the ranks' closures disagree); report this model")
+    first = comm.allgather(int(wanted[np.argmax(bad)]) if bad.any() else -1)  # every rank refuses together
+    if max(first) >= 0:
+        r = int(np.argmax(np.asarray(first) >= 0))
+        raise ProblemError(f"MPI rank {r} does not own the constraint class of DOF {first[r]} that another rank "
+                           "reads (the ranks' closures disagree); report this model")
     got, _ = alltoallv(comm, (starts[rank] + pos).astype(np.int64), answer_counts)
     num[others] = got
     order = np.argsort(num, kind="stable")

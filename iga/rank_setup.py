@@ -11,10 +11,26 @@ import numpy as np
 from .components import analyse_components
 from .constraints import prolongation
 from .dirichlet import project_dirichlet
+from .errors import ProblemError
 from .rank_components import rank_components
 from .rank_constraints import class_keys, rank_constraints
 
-__all__ = ["rank_setup"]
+__all__ = ["rank_setup", "together"]
+
+
+def together(comm, fn):
+    """``fn()`` on every rank; where it raises :class:`ProblemError` on some ranks (bad data that only their
+    patches hold, e.g. two Dirichlet conditions at odds on one face), every rank raises it, naming the rank,
+    instead of the others waiting for it in the next collective call."""
+    try:
+        out, error = fn(), None
+    except ProblemError as exc:
+        out, error = None, str(exc)
+    errors = [(r, e) for r, e in enumerate(comm.allgather(error)) if e is not None]
+    if errors:
+        r, e = errors[0]
+        raise ProblemError(e if r == comm.Get_rank() else f"on MPI rank {r}: {e}")
+    return out
 
 
 def rank_setup(problem, world, part, book):
@@ -24,10 +40,14 @@ def rank_setup(problem, world, part, book):
     from mpi4py import MPI
 
     comm, rank, _ = world
-    rc = rank_constraints(problem.model, problem.spaces, problem.offsets, part, rank)
-    closure = set(rc.patches.tolist())
-    dd = project_dirichlet(problem.faces, {k: v for k, v in book["dirichlet"].items() if k[0] in closure},
-                           problem.ndof, rc.constraints)
+
+    def local():
+        rc = rank_constraints(problem.model, problem.spaces, problem.offsets, part, rank)
+        closure = set(rc.patches.tolist())
+        return rc, project_dirichlet(problem.faces, {k: v for k, v in book["dirichlet"].items() if k[0] in closure},
+                                     problem.ndof, rc.constraints)
+
+    rc, dd = together(comm, local)
     by_kind = problem._faces_by_kind()
     if comm.allreduce(len(dd.slave_rows)):
         constraints = prolongation(problem.model, problem.spaces, problem.offsets)

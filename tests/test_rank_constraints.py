@@ -68,3 +68,31 @@ def test_a_lattice_closure_is_two_layers_and_a_fraction_of_the_model():
         layers.append(rc.layers)
         assert len(rc.patches) < 0.5 * len(prob.model.patches)
     assert max(layers) == 2
+
+
+class _TwoRanks:
+    """The part of an MPI communicator :func:`iga.rank_setup.together` uses, as rank ``rank`` of two whose
+    other rank reports ``other``."""
+
+    def __init__(self, rank, other):
+        self.rank, self.other = rank, other
+
+    def Get_rank(self):
+        return self.rank
+
+    def allgather(self, x):
+        return [x, self.other] if self.rank == 0 else [self.other, x]
+
+
+def test_an_error_on_one_rank_is_raised_on_every_rank():
+    from iga.errors import ProblemError
+    from iga.rank_setup import together
+
+    def fails():
+        raise ProblemError("two Dirichlet conditions at odds")
+
+    assert together(_TwoRanks(0, None), lambda: 42) == 42
+    with pytest.raises(ProblemError, match="^two Dirichlet conditions at odds$"):
+        together(_TwoRanks(1, None), fails)  # the rank whose patches hold the bad data: its own message
+    with pytest.raises(ProblemError, match="^on MPI rank 0: two Dirichlet"):
+        together(_TwoRanks(1, "two Dirichlet conditions at odds"), lambda: 42)  # the others: which rank, and why
