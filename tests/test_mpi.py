@@ -48,6 +48,9 @@ SCRIPT = textwrap.dedent("""
     elif kind == "sink":
         ms = tiling.hierarchical(pr.box((0.06, 0.06, 0.03)), L.heat_sink_t2(), (2, 2), levels=2)
         p = HeatProblem(ms, conductivity=200.0, source=1e5).dirichlet("branch-in", 60.0).robin("exterior", 40.0, 20.0)
+    elif kind == "ring":  # a full annulus: tiles glued across the map's seam, on different ranks
+        ms = tiling.regular(pr.annulus(0.5, 1.0, 0.3, angle=2 * np.pi), L.cross(), (2, 1, 1))
+        p = HeatProblem(ms, conductivity=5.0).dirichlet("vmin", 80.0).robin("vmax", 10.0, 20.0)
     elif kind == "slot":  # Dirichlet slot faces meet the parent's branch-out face inside an element
         ms = tiling.hierarchical(pr.box(), L.skinned_branching(), (1, 1), 2)
         ms.tags["rest"] = [f for f in ms.tags["boundary"] if f not in set(ms.tags["branch-in"])]
@@ -61,7 +64,7 @@ SCRIPT = textwrap.dedent("""
         p = HeatProblem(pr.box(degrees=(2, 2, 2), elements=(4, 4, 4))).dirichlet("boundary", 0.0)
     s = p.solve(solver=sys.argv[3] if len(sys.argv) > 3 else "petsc", tol=1e-12)
     if is_root():
-        tag = {"lattice": "umin", "sink": "branch-in", "slot": "branch-in"}.get(kind, "umax")
+        tag = {"lattice": "umin", "sink": "branch-in", "slot": "branch-in", "ring": "vmin"}.get(kind, "umax")
         json.dump({"u": s.u.tolist(), "balance": s.info["balance"]["relative_error"], "method": s.info["solver"]["method"],
                    "flux": s.flux(tag), "route": s.info["solver"].get("constraints"),
                    "components": [s.info["components"][k] for k in ("count", "idle")],
@@ -89,7 +92,7 @@ def test_the_serial_petsc_backend_solves_like_the_direct_solver():
 @pytest.mark.parametrize("kind,ranks,route", [("lattice", 1, "per rank"), ("lattice", 2, "per rank"),
                                               ("sink", 2, "per rank"), ("lattice", 4, "per rank"),
                                               ("sink", 4, "per rank"), ("slot", 2, "replicated"),
-                                              ("apart-robin", 2, "per rank")])
+                                              ("apart-robin", 2, "per rank"), ("ring", 3, "per rank")])
 def test_ranks_give_the_serial_temperatures(tmp_path, kind, ranks, route):
     """Each rank builds the constraints its patches read (iga.rank_constraints), except where Dirichlet slot
     faces tie unknowns of the whole model together (the replicated route): temperatures, fluxes, the

@@ -30,12 +30,18 @@ def _models():
     yield "lattice", HeatProblem(tiling.regular(twisted, L.cross(), (3, 3, 2)), degree_elevation=1)
     yield "hierarchy", HeatProblem(tiling.hierarchical(pr.box((0.06, 0.06, 0.03)), L.heat_sink_t2(), (2, 2), 3))
     yield "slots", HeatProblem(tiling.hierarchical(pr.box(), L.skinned_branching(), (1, 1), 2))
+    # a full ring: the last cell's tiles are glued to the first cell's across the map's seam
+    yield "ring", HeatProblem(tiling.regular(pr.annulus(0.5, 1.0, 0.3, angle=2 * np.pi), L.cross(), (2, 1, 1)))
 
 
-@pytest.mark.parametrize("name", ["lattice", "hierarchy", "slots"])
+@pytest.mark.parametrize("name", ["lattice", "hierarchy", "slots", "ring"])
 @pytest.mark.parametrize("ranks", [2, 5])
 def test_each_ranks_rows_are_the_serial_rows(name, ranks):
     prob = dict(_models())[name]
+    if name == "ring":
+        from tiling.topology import seams
+
+        assert seams(prob.model.outer)[0]  # the seam is glued (the case this model is here for)
     full = prolongation(prob.model, prob.spaces, prob.offsets)
     part = partition(prob, ranks)
     seen = np.zeros(prob.ndof, bool)
