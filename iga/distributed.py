@@ -33,7 +33,7 @@ from solvers.indexing import complement
 from solvers.petsc_ksp import ksp_solve, petsc
 
 from .errors import ProblemError
-from .rank_constraints import alltoallv, class_keys, local_prolongation, ranges
+from .rank_constraints import alltoallv, local_prolongation, ranges
 from .system import SystemSolution, reduction
 
 __all__ = ["world", "solve_world", "partition", "solve_system", "is_root", "mpiexec", "launch_env"]
@@ -184,16 +184,15 @@ def _matrix(PETSc, comm, local, nfree):
     return M
 
 
-def _columns(comm, Pf, constraints, dirichlet, part, offsets, own):
-    """(``Pl``, :class:`iga.rank_constraints.GlobalColumns`): the prolongation of this rank's DOFs over the
-    reduced unknowns they read, numbered globally.  ``own`` given: ``constraints`` are this rank's
-    (:func:`iga.rank_constraints.rank_constraints`), a class is known by its smallest DOF and owned by the
-    rank of that DOF's patch; None: replicated, a column is known by its index and owned by the lowest rank
-    whose patches touch it."""
-    rank = comm.Get_rank()
-    if own is not None:
+def _columns(comm, Pf, constraints, dirichlet, part, offsets, rc, own):
+    """(``Pl``, :class:`iga.rank_constraints.GlobalColumns`): the rows ``own`` of ``Pf`` (this rank's DOFs)
+    over the reduced unknowns they read, numbered globally.  ``rc`` (:class:`iga.rank_constraints.
+    RankConstraints`) given: ``constraints`` are this rank's, in its closure numbering, a class is known by
+    its smallest global DOF and owned by the rank of that DOF's patch; None: the whole model's, a column is
+    known by its index and owned by the lowest rank whose patches touch it."""
+    if rc is not None:
         free = complement(constraints.P.shape[1], dirichlet.dofs)
-        keys = class_keys(constraints.dof_master, constraints.P.shape[1])[free]
+        keys = rc.keys()[free]
         owner = part[np.searchsorted(offsets, keys, side="right") - 1]  # the rank of the key's patch
         return local_prolongation(comm, Pf, keys, owner, own)
     dof_rank = np.repeat(part, np.diff(offsets))
@@ -202,37 +201,59 @@ def _columns(comm, Pf, constraints, dirichlet, part, offsets, own):
     owner = np.zeros(Pf.shape[1], np.int64)
     owner[touched] = np.minimum.reduceat(dof_rank[Pc.indices], Pc.indptr[:-1][touched])
     del Pc
-    return local_prolongation(comm, Pf, np.arange(Pf.shape[1]), owner, np.flatnonzero(dof_rank == rank))
+    return local_prolongation(comm, Pf, np.arange(Pf.shape[1]), owner, own)
 
 
-def _allgather_patches(comm, u, part, offsets) -> np.ndarray:
-    """The whole coefficient vector from every rank's values on its own patches (one ``Allgatherv``)."""
+def _own_block(K, own: np.ndarray) -> sp.csr_matrix:
+    """K (CSR, ndof x ndof, entries only in the rows and columns ``own``: this rank's patches, whose blocks
+    do not couple) as the own x own matrix, in K's own data and column arrays (renumbered in place):
+    no copy of the stiffness and no array of the whole model's size is kept."""
+    indptr = np.concatenate([[0], K.indptr[own + 1]]).astype(K.indptr.dtype)
+    if indptr[-1] != K.nnz:
+        raise ProblemError("the stiffness of this rank holds entries outside its patches; report this model")
+    loc = np.full(K.shape[0], -1, K.indices.dtype)
+    loc[own] = np.arange(len(own), dtype=K.indices.dtype)
+    step = 1 << 22
+    for s in range(0, K.nnz, step):  # in place, a slab at a time (no second index array)
+        K.indices[s:s + step] = loc[K.indices[s:s + step]]
+    return sp.csr_matrix((K.data, K.indices, indptr), shape=(len(own), len(own)))
+
+
+def _allgather_patches(comm, u_own, part, offsets) -> np.ndarray:
+    """The whole coefficient vector from every rank's values on its own patches, ``u_own`` (one
+    ``Allgatherv``)."""
     idx = [ranges(offsets[p], offsets[p + 1]) for p in (np.flatnonzero(part == q) for q in range(comm.Get_size()))]
     counts = [len(i) for i in idx]
     buf = np.empty(int(sum(counts)))
-    comm.Allgatherv(np.ascontiguousarray(u[idx[comm.Get_rank()]]), [buf, counts])
-    out = np.empty(len(u))
+    comm.Allgatherv(np.ascontiguousarray(u_own, np.float64), [buf, counts])
+    out = np.empty(int(offsets[-1]))
     out[np.concatenate(idx)] = buf
     return out
 
 
 def solve_system(system: list, constraints, dirichlet, tol, maxiter, part, comm, offsets, pc: str = "gamg",
-                 petsc_options=None, own=None) -> SystemSolution:
+                 petsc_options=None, rc=None) -> SystemSolution:
     """The distributed twin of :func:`iga.system.solve_system`: ``system`` = [K, f] holds this rank's patches
-    only (``part``: the rank of every patch, ``offsets``: the patches' first DOFs); the list is emptied and
-    K released once the reduced matrix is built (only its rows that the reactions read are kept), so that
-    GAMG's set-up does not stand on it.  ``own``: the DOFs of this rank's patches when ``constraints`` are
-    this rank's alone (:mod:`iga.rank_constraints`); None when they are the whole model's.  The reaction
+    only (``part``: the rank of every patch, ``offsets``: the patches' first DOFs); the list is emptied, and
+    K and f are cut to this rank's DOFs at once (K in its own arrays) and released once the reduced matrix
+    is built (only the rows that the reactions read are kept), so that GAMG's set-up does not stand on
+    them.  ``rc``: this rank's constraints (:mod:`iga.rank_constraints`; ``constraints`` and ``dirichlet``
+    then in its closure numbering), or None when ``constraints`` are the whole model's.  The reaction
     returned is this rank's part (its rows of ``K u - f``): the sum over the ranks is the serial one."""
     PETSc = petsc()
 
     rank, size = comm.Get_rank(), comm.Get_size()
+    mine = np.flatnonzero(part == rank)
+    own_g = ranges(offsets[mine], offsets[mine + 1])  # this rank's DOFs, global numbers
     K, f = system
     system.clear()
-    ndof = K.shape[0]
+    K, f = _own_block(K, own_g), np.asarray(f[own_g])
+    n = len(rc.rows) if rc is not None else int(offsets[-1])  # the numbering of the constraints' rows
+    own = rc.own if rc is not None else own_g  # this rank's DOFs in it
     t0 = time.perf_counter()
-    Pf, offset, reaction_dofs, induced = reduction(constraints, dirichlet, ndof)
-    Pl, cols = _columns(comm, Pf, constraints, dirichlet, part, offsets, own)
+    Pf, offset, reaction_dofs, induced = reduction(constraints, dirichlet, n)
+    offset = offset[own]
+    Pl, cols = _columns(comm, Pf, constraints, dirichlet, part, offsets, rc, own)
     del Pf  # one copy of the prolongation is kept through the solve: this rank's rows, Pl
     t_reduction = time.perf_counter() - t0
     nfree = int(cols.starts[-1])
@@ -242,11 +263,12 @@ def solve_system(system: list, constraints, dirichlet, tol, maxiter, part, comm,
     A = sp.csr_matrix((C.data, C.indices, C.indptr), shape=C.shape)
     load = Pl.T @ (f - K @ offset)
     del C
-    P = sp.identity(ndof, format="csr") if constraints is None else constraints.P
+    P = sp.identity(n, format="csr") if constraints is None else constraints.P
+    P = sp.csr_matrix(P[own])
     # the rows of the DOFs whose classes' reactions are reported: a surface's worth of K
     read = np.flatnonzero(np.diff(sp.csr_matrix(P[:, reaction_dofs]).indptr))
     Kd, Pd, fd = K[read], P[read], f[read]
-    del K, f
+    del K, f, P
     local, rhs = _route_rows(comm, A, load, cols.gid, cols.starts)
     del A, load
     M = _matrix(PETSc, comm, local, nfree)
@@ -268,13 +290,13 @@ def solve_system(system: list, constraints, dirichlet, tol, maxiter, part, comm,
     if reason < 0 or res > 10 * tol or not finite:
         raise ProblemError(f"PETSc CG on {size} ranks did not converge (reason {reason}): relative residual "
                            f"{res:.2e} after {its} iterations")
-    u = Pl @ cols.gather(comm, x_owned) + offset  # right on this rank's patches
+    u = Pl @ cols.gather(comm, x_owned) + offset  # this rank's DOFs
     reaction = np.ascontiguousarray((Pd.T @ (Kd @ u - fd))[reaction_dofs])  # this rank's rows: Solution sums
     u = _allgather_patches(comm, u, part, offsets)
     info = SolveInfo(f"petsc ({pc}, {size} ranks)", its, res, setup + t_build, solve_s,
                      {"ranks": size, "owned_unknowns": counts.tolist(), "reduction_s": t_reduction,
                       "matrix_s": t_build - t_reduction, "ksp_setup_s": setup,
-                      "constraints": "per rank" if own is not None else "replicated"})
+                      "constraints": "per rank" if rc is not None else "replicated"})
     return SystemSolution(u, reaction_dofs, reaction, info, nfree, induced)
 
 

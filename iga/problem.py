@@ -264,9 +264,9 @@ class HeatProblem:
         if world:  # each rank integrated the source over its own patches
             book["source"] = world[0].allreduce(book["source"])
         t0 = time.perf_counter()
-        own = dd = None
+        rc = dd = None
         if world and self._needs_constraints():  # each rank builds the constraints its patches read
-            constraints, dd, own = rank_setup(self, world, part, book)
+            constraints, dd, rc = rank_setup(self, world, part, book)
         else:
             constraints = prolongation(self.model, self.spaces, self.offsets) if self._needs_constraints() else None
         if dd is None:
@@ -280,10 +280,10 @@ class HeatProblem:
         if world:  # K handed over: the solve releases it once its reduced matrix is built
             system, K, f = [K, f], None, None
             res = distributed.solve_system(system, constraints, dd, tol, maxiter, part, world[0], self.offsets,
-                                           own=own)
+                                           rc=rc)
         else:
             res = solve_system(K, f, constraints, dd, solver, tol, maxiter, options)
-        if own is None:  # (a rank's own constraints counted the prescribed unknowns across the ranks)
+        if rc is None:  # (a rank's own constraints counted the prescribed unknowns across the ranks)
             self.constraint_stats["prescribed"] = int(len(dd.dofs))
         self.constraint_stats["induced_rank"] = res.induced_rank
         self.timings["solve"] = res.info.setup_s + res.info.solve_s

@@ -17,7 +17,6 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from .components import Component, _labels, check_components
-from .rank_constraints import class_keys
 
 __all__ = ["rank_components"]
 
@@ -35,7 +34,7 @@ def _local(problem, rc, faces_by_kind):
     other[P[rest].indices] = True
     read = np.unique(Po.col)
     shared = read[other[read]]
-    keys = class_keys(rc.constraints.dof_master, P.shape[1])
+    keys = rc.keys()
     sel = np.isin(Po.col, shared)
     pairs = np.unique(np.stack([keys[Po.col[sel]], labels[Po.row[sel]]], axis=1), axis=0)
     sizes = np.bincount(labels, minlength=count)
@@ -49,7 +48,7 @@ def _local(problem, rc, faces_by_kind):
     for kind, faces in faces_by_kind.items():
         keys_f = [k for k in faces if k[0] in mine]
         for key, fd in zip(keys_f, problem.faces(keys_f)):
-            for c in np.unique(labels[np.searchsorted(rc.own, fd.dofs)]):
+            for c in np.unique(labels[np.searchsorted(rc.own, rc.local(fd.dofs))]):
                 conds[int(c)].add((kind, index[id(faces[key])]))
     return count, pairs, [(int(n), p, s) for n, p, s in zip(sizes, comp_patches, conds)]
 

@@ -39,18 +39,30 @@ def ranges(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
 
 @dataclass
 class RankConstraints:
-    """A rank's constraints: ``patches`` (its closure ``S``, sorted global patch indices), ``constraints``
-    (``P`` with global DOF rows, empty outside ``S``, and a column per class of ``S``; ``dof_master`` -1
-    outside ``S``), ``own_patches`` and ``own`` (the rank's own patches and their global DOFs, sorted),
-    ``layers`` (the rounds of growth ``S`` needed), ``on_border`` (per column: a class on a face leading out
-    of ``S``, which rows outside ``S`` may read: a child's branch face outside reads its parent's)."""
+    """A rank's constraints, in the *closure numbering*: the DOFs of the closure's patches one patch after the
+    other (no array here has the whole model's size).  ``patches``: the closure ``S`` (sorted global patch
+    indices); ``constraints``: ``P`` (closure DOFs x a column per class of ``S``) and ``dof_master`` (closure
+    DOFs,); ``own_patches``: the rank's own patches; ``own``: their DOFs' positions in the closure numbering;
+    ``rows``: the global DOF of every closure DOF (increasing, so a class's first closure DOF is its smallest
+    global one); ``layers``: the rounds of growth ``S`` needed; ``on_border``: per column, a class on a face
+    leading out of ``S``, which rows outside ``S`` may read (a child's branch face outside reads its parent's)."""
 
     patches: np.ndarray
     constraints: Constraints
     own_patches: np.ndarray
     own: np.ndarray
+    rows: np.ndarray
     layers: int
     on_border: np.ndarray
+
+    def local(self, dofs: np.ndarray) -> np.ndarray:
+        """Closure positions of global DOFs of the closure's patches."""
+        return np.searchsorted(self.rows, dofs)
+
+    def keys(self) -> np.ndarray:
+        """The global key (smallest global DOF) of every column's class, -1 for a column without members."""
+        k = class_keys(self.constraints.dof_master, self.constraints.P.shape[1])
+        return np.where(k >= 0, self.rows[np.maximum(k, 0)], -1)
 
 
 class _View:
@@ -119,7 +131,7 @@ def _grow(S, own, local, pairs, model, spaces, offsets):
     border = _border(model, spaces, sub_off, local, pairs)
     rows, face_of, other, parent = border
     leaks = other[_read_by_rows(cons.P, rows, face_of, len(other), read) & ~parent]
-    return cons, border, np.unique(leaks)
+    return cons, border, np.unique(leaks), sub_off
 
 
 def rank_constraints(model, spaces, offsets, part: np.ndarray, rank: int) -> RankConstraints:
@@ -139,20 +151,16 @@ def rank_constraints(model, spaces, offsets, part: np.ndarray, rank: int) -> Ran
     while True:
         local = np.full(n, -1, np.int64)
         local[S] = np.arange(len(S))
-        cons, border, leaks = _grow(S, own, local, pairs, model, spaces, offsets)
+        cons, border, leaks, sub_off = _grow(S, own, local, pairs, model, spaces, offsets)
         if not len(leaks):
             break
         S, layers = np.union1d(S, leaks), layers + 1  # only where a class leaks out: the closure stays thin
     rows = ranges(offsets[S], offsets[S + 1])  # global DOF of each row of the closure (increasing)
-    C = cons.P.tocoo()
-    P = sp.csr_matrix((C.data, (rows[C.row], C.col)), shape=(int(offsets[-1]), C.shape[1]))
-    dm = np.full(int(offsets[-1]), -1, np.int64)
-    dm[rows] = cons.dof_master
-    stats = dict(cons.stats, closure_patches=int(len(S)), closure_layers=layers)
-    on_border = np.zeros(C.shape[1], bool)  # classes that patches outside the closure may read
+    cons.stats.update(closure_patches=int(len(S)), closure_layers=layers)
+    on_border = np.zeros(cons.P.shape[1], bool)  # classes that patches outside the closure may read
     on_border[cons.P[border[0]].indices] = True
-    return RankConstraints(S, Constraints(P, dm, stats), own, ranges(offsets[own], offsets[own + 1]), layers,
-                           on_border)
+    own_rows = ranges(sub_off[local[own]], sub_off[local[own] + 1])
+    return RankConstraints(S, cons, own, own_rows, rows, layers, on_border)
 
 
 _MPI_TYPES = {np.dtype(np.int64): "INT64_T", np.dtype(np.int32): "INT32_T", np.dtype(np.float64): "DOUBLE"}
@@ -249,18 +257,11 @@ def class_keys(dof_master: np.ndarray, ncols: int) -> np.ndarray:
     return keys
 
 
-def local_prolongation(comm, Pf: sp.spmatrix, keys: np.ndarray, owner: np.ndarray, rows=None):
-    """(``Pl``, :class:`GlobalColumns`): ``Pf`` (ndof x free columns) restricted to the DOFs ``rows`` (all
-    when None) and to the columns they read, those numbered globally (``keys`` and ``owner`` per column of
-    ``Pf``) and ordered by their global number; ``Pl`` is CSR (ndof x columns read)."""
-    R = sp.csr_matrix(Pf)
-    if rows is not None:
-        keep_row = np.zeros(R.shape[0], bool)
-        keep_row[rows] = True
-        lengths = np.diff(R.indptr) * keep_row
-        keep = np.repeat(keep_row, np.diff(R.indptr))
-        R = sp.csr_matrix((R.data[keep], R.indices[keep], np.concatenate([[0], np.cumsum(lengths)])),
-                          shape=R.shape)
+def local_prolongation(comm, Pf: sp.spmatrix, keys: np.ndarray, owner: np.ndarray, rows: np.ndarray):
+    """(``Pl``, :class:`GlobalColumns`): the rows ``rows`` of ``Pf`` (DOFs x free columns) over the columns
+    they read, those numbered globally (``keys`` and ``owner`` per column of ``Pf``) and ordered by their
+    global number; ``Pl`` is CSR (len(rows) x columns read)."""
+    R = sp.csr_matrix(sp.csr_matrix(Pf)[rows])
     used = np.unique(R.indices)
     order, cols = number_columns(comm, keys[used], owner[used])
     loc = np.full(R.shape[1], -1, np.int64)

@@ -6,6 +6,8 @@ together, :func:`iga.constraints.induced_elimination`), the whole model's, as a 
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from .components import analyse_components
@@ -13,7 +15,7 @@ from .constraints import prolongation
 from .dirichlet import project_dirichlet
 from .errors import ProblemError
 from .rank_components import rank_components
-from .rank_constraints import class_keys, rank_constraints
+from .rank_constraints import rank_constraints
 
 __all__ = ["rank_setup", "together"]
 
@@ -34,7 +36,8 @@ def together(comm, fn):
 
 
 def rank_setup(problem, world, part, book):
-    """(constraints, Dirichlet data, own DOFs or None for the whole model's) of a
+    """(constraints, Dirichlet data, :class:`iga.rank_constraints.RankConstraints`) of this rank's patches in
+    its closure numbering, or (the whole model's constraints, Dirichlet data, None), of a
     :class:`iga.HeatProblem` about to be solved on ``world`` = (comm, rank, size), ``part`` the rank of every
     patch, ``book`` its assembly's bookkeeping; sets the problem's components and constraint counts."""
     from mpi4py import MPI
@@ -44,8 +47,12 @@ def rank_setup(problem, world, part, book):
     def local():
         rc = rank_constraints(problem.model, problem.spaces, problem.offsets, part, rank)
         closure = set(rc.patches.tolist())
-        return rc, project_dirichlet(problem.faces, {k: v for k, v in book["dirichlet"].items() if k[0] in closure},
-                                     problem.ndof, rc.constraints)
+
+        def faces(keys):  # the faces' data with their DOFs in the closure numbering
+            return [replace(fd, dofs=rc.local(fd.dofs)) for fd in problem.faces(keys)]
+
+        return rc, project_dirichlet(faces, {k: v for k, v in book["dirichlet"].items() if k[0] in closure},
+                                     len(rc.rows), rc.constraints)
 
     rc, dd = together(comm, local)
     by_kind = problem._faces_by_kind()
@@ -57,10 +64,10 @@ def rank_setup(problem, world, part, book):
         return constraints, project_dirichlet(problem.faces, book["dirichlet"], problem.ndof, constraints), None
     problem.components, problem.idle_components = rank_components(problem, rc, by_kind, book["source"], comm)
     stats = rc.constraints.stats
-    keys = class_keys(rc.constraints.dof_master, rc.constraints.P.shape[1])[dd.dofs]
+    keys = rc.keys()[dd.dofs]
     mine = int(np.count_nonzero(part[np.searchsorted(problem.offsets, keys, side="right") - 1] == rank))
     problem.constraint_stats = {  # the prescribed unknowns counted once, by the owner of their key
         "closure_patches_max": comm.allreduce(stats["closure_patches"], op=MPI.MAX),
         "closure_layers_max": comm.allreduce(stats["closure_layers"], op=MPI.MAX),
         "prescribed": comm.allreduce(mine)}
-    return rc.constraints, dd, rc.own
+    return rc.constraints, dd, rc
