@@ -57,13 +57,17 @@ class Solution:
 
     # ---------------------------------------------------------------- fields
     def temperature_spline(self, pi: int) -> SplineFunction:
-        """The temperature on patch ``pi`` as a scalar spline over the patch parameters."""
+        """The temperature on patch ``pi`` as a scalar spline over the patch parameters (kept for the probes
+        that ask again)."""
         if pi not in self._splines:
-            space = self.problem.spaces[pi]
-            o = self.problem.offsets
-            coef = self.u[o[pi] : o[pi + 1]].reshape(space.shape + (1,))
-            self._splines[pi] = SplineFunction([d.degree for d in space.dirs], [d.knots for d in space.dirs], coef)
+            self._splines[pi] = self._spline(pi)
         return self._splines[pi]
+
+    def _spline(self, pi: int) -> SplineFunction:
+        space = self.problem.spaces[pi]
+        o = self.problem.offsets
+        coef = self.u[o[pi] : o[pi + 1]].reshape(space.shape + (1,))
+        return SplineFunction([d.degree for d in space.dirs], [d.knots for d in space.dirs], coef)
 
     def evaluate(self, pi: int, params):
         """Temperature (N,), gradient (N, 3) in physical space, and x (N, 3) at parameters of patch ``pi``."""
@@ -218,8 +222,8 @@ class Solution:
         :func:`iga.write_vtu`.
         """
         lo, hi = np.inf, -np.inf
-        for pi in range(len(self.problem.model.patches)):
-            T = self.temperature_spline(pi)
+        for pi in range(len(self.problem.model.patches)):  # not kept: one spline per patch of the model
+            T = self._splines[pi] if pi in self._splines else self._spline(pi)
             axes = sample_axes(T.knots, samples)
             v = T.evaluate_grid(axes)
             lo, hi = min(lo, float(v.min())), max(hi, float(v.max()))
