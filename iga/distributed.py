@@ -1,8 +1,9 @@
 """Distributed assembly and solve on PETSc (petsc4py, MPI): ``mpiexec -n R iga run CONFIG.toml``.
 
 With ``solver="petsc"`` under ``mpiexec -n R``, every rank builds the model and its spaces (replicated:
-about 130 MiB per rank of the 1M-unknown cross lattice; README), and assembles the volume terms and the
-Neumann and Robin faces of its own patches only.  Patches are partitioned by :func:`partition`: the patch
+about 60 MiB of objects per rank for the 1M-unknown cross lattice; README), and assembles the volume terms
+and the Neumann and Robin faces of its own patches only, then works in its own numbering (its DOFs, its
+closure's constraints; only the gathered solution has the whole model's size).  Patches are partitioned by :func:`partition`: the patch
 graph (an edge per interface) is ordered by reverse Cuthill-McKee (SciPy), which keeps neighbouring tiles
 together, and cut into R consecutive parts of about equal unknowns.  Each rank builds the constraints its
 own DOFs read on its patches and the few neighbours their classes reach, with the Dirichlet data of those
