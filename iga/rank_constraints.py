@@ -4,15 +4,16 @@ smallest DOF; no rank forms the whole prolongation or a union-find over every DO
 
 A rank's *closure* ``S`` starts as its own patches and grows until it is closed: no class that the rank's
 own DOFs read (a column of ``P`` in their rows: their identity class, or the masters of their branch rows)
-reaches a DOF on a face that leads out of ``S``; each round adds the patches across the faces where one
-does (a layer of neighbours only where a class leaks, so the closure of a hierarchy stays thin).  Equalities and branch rows only cross interfaces, so a closed ``S`` holds every member of those
-classes and every row that expresses them: :func:`iga.constraints.prolongation` on ``S`` alone gives the
-serial prolongation's rows of the own DOFs (up to the numbering of the columns), the Dirichlet projection on
+reaches a DOF on a face that leads out of ``S``.  Each round adds the patches across the faces where one
+does, so the closure grows only where a class leaks: two layers for a lattice of crosses (a centre block
+shares its edges with four arms), a few more in a hierarchy (a slave's masters lie on its parent's face).
+Equalities and branch rows only cross interfaces, so a closed ``S`` holds every member of those classes and
+every row that expresses them: :func:`iga.constraints.prolongation` on ``S`` alone gives the serial
+prolongation's rows of the own DOFs (up to the numbering of the columns), the Dirichlet projection on
 ``S``'s faces gives the serial values of those classes, and a class's smallest DOF (its *key*) is the same
 on every rank that sees it.  The rank that owns the patch of a key owns the class's reduced unknown; the
 unknowns are numbered by owner (consecutive per rank, by key inside a rank), and a rank asks the owners for
-the numbers of the classes it shares with them (two ``Alltoallv``).  For a regular lattice ``S`` is the own
-patches and one layer; deeper hierarchies need more (a slave's masters lie on its parent's face).
+the numbers of the classes it shares with them (two ``Alltoallv``).
 """
 
 from __future__ import annotations
@@ -25,7 +26,8 @@ import scipy.sparse as sp
 from .constraints import Constraints, _face_grid, prolongation
 from .errors import ProblemError
 
-__all__ = ["RankConstraints", "rank_constraints", "ranges", "alltoallv", "GlobalColumns", "number_columns"]
+__all__ = ["RankConstraints", "rank_constraints", "ranges", "alltoallv", "GlobalColumns", "number_columns",
+           "class_keys", "local_prolongation"]
 
 
 def ranges(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
