@@ -39,9 +39,9 @@ def _local(problem, rc, faces_by_kind):
     pairs = np.unique(np.stack([keys[Po.col[sel]], labels[Po.row[sel]]], axis=1), axis=0)
     sizes = np.bincount(labels, minlength=count)
     patch_of = np.repeat(rc.own_patches, np.diff(problem.offsets)[rc.own_patches])
-    comp_patches: list = [[] for _ in range(count)]
-    for c, p in np.unique(np.stack([labels, patch_of], axis=1), axis=0):  # (component, patch) pairs: few
-        comp_patches[int(c)].append(int(p))
+    cp = np.unique(np.stack([labels, patch_of], axis=1), axis=0)  # (component, patch) pairs, by component
+    cut = np.searchsorted(cp[:, 0], np.arange(count + 1))
+    comp_patches = [cp[a:b, 1].tolist() for a, b in zip(cut[:-1], cut[1:])]
     index = {id(c): i for i, c in enumerate(problem.conditions)}
     mine = set(rc.own_patches.tolist())
     conds: list = [set() for _ in range(count)]
