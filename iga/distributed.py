@@ -34,7 +34,7 @@ from solvers.indexing import complement
 from solvers.petsc_ksp import ksp_solve, petsc
 
 from .errors import ProblemError
-from .rank_constraints import alltoallv, local_prolongation, ranges
+from .rank_constraints import alltoallv, local_prolongation, patch_pairs, ranges
 from .system import SystemSolution, reduction
 
 __all__ = ["world", "solve_world", "partition", "solve_system", "is_root", "mpiexec", "launch_env"]
@@ -123,7 +123,7 @@ def partition(problem, size: int) -> np.ndarray:
     if size > n:
         raise ProblemError(f"{size} MPI ranks for {n} patch{'' if n == 1 else 'es'}: every rank needs at least one "
                            f"patch; run with mpiexec -n {n} or fewer")
-    pairs = np.array([(i.a[0], i.b[0]) for i in problem.model.interfaces], dtype=np.int64).reshape(-1, 2)
+    pairs, _ = patch_pairs(problem.model)
     G = sp.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)).tocsr()
     order = reverse_cuthill_mckee((G + G.T).tocsr(), symmetric_mode=True)
     sizes = np.diff(problem.offsets)[order].astype(float)

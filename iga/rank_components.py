@@ -25,8 +25,9 @@ def _local(problem, rc, faces_by_kind):
     """(number of components of the own patches, (key, component) pairs of the classes shared with other
     ranks, per component (DOFs, patches, {(kind, condition index)}))."""
     P = rc.constraints.P
-    Po = P[rc.own].tocoo()
-    count, labels = _labels([problem.spaces[i] for i in rc.own_patches], Po.tocsr())
+    own_rows = P[rc.own]
+    count, labels = _labels([problem.spaces[i] for i in rc.own_patches], own_rows)
+    Po = own_rows.tocoo()
     rest = np.flatnonzero(np.diff(P.indptr) > 0)
     rest = rest[~np.isin(rest, rc.own)]  # the closure's rows of other ranks' patches
     # classes other ranks read: those the closure's other rows read, and those on its border

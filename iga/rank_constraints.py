@@ -26,7 +26,7 @@ import scipy.sparse as sp
 from .constraints import Constraints, _face_grid, prolongation
 from .errors import ProblemError
 
-__all__ = ["RankConstraints", "rank_constraints", "ranges", "alltoallv", "GlobalColumns", "number_columns",
+__all__ = ["RankConstraints", "rank_constraints", "patch_pairs", "ranges", "alltoallv", "GlobalColumns", "number_columns",
            "class_keys", "local_prolongation"]
 
 
@@ -88,8 +88,10 @@ class _Renumbered:
         self.a, self.b = (pa, itf.a[1]), (pb, itf.b[1])
 
 
-def _interface_pairs(model) -> np.ndarray:
-    return np.array([(i.a[0], i.b[0]) for i in model.interfaces], np.int64).reshape(-1, 2)
+def patch_pairs(model) -> tuple[np.ndarray, np.ndarray]:
+    """(the two patches of every interface (n, 2), whether each is a branch interface (n,)): the patch graph."""
+    pairs = np.array([(i.a[0], i.b[0]) for i in model.interfaces], np.int64).reshape(-1, 2)
+    return pairs, np.array([i.kind == "branch" for i in model.interfaces], bool).reshape(-1)
 
 
 def _border(model, spaces, sub_off, local, pairs):
@@ -120,9 +122,10 @@ def _read_by_rows(P, rows, face_of, nfaces, cols) -> np.ndarray:
 
 
 def _grow(S, own, local, pairs, model, spaces, offsets):
-    """The prolongation of the closure ``S`` and its border: (constraints, sub offsets, border, patches outside
+    """The prolongation of the closure ``S`` and its border: (constraints, border, patches outside
     that a class the own rows read reaches: across the border faces where one of those classes lies, except
-    a branch parent's face, whose child outside reads the parent's classes but adds no member to them)."""
+    a branch parent's face, whose child outside reads the parent's classes but adds no member to them, the
+    own DOFs' positions in the closure numbering)."""
     inside = np.flatnonzero((local[pairs[:, 0]] >= 0) & (local[pairs[:, 1]] >= 0))
     itfs = [_Renumbered(model.interfaces[j], int(local[pairs[j, 0]]), int(local[pairs[j, 1]])) for j in inside]
     sub_off = np.concatenate([[0], np.cumsum(np.diff(offsets)[S])]).astype(np.int64)
@@ -133,27 +136,26 @@ def _grow(S, own, local, pairs, model, spaces, offsets):
     border = _border(model, spaces, sub_off, local, pairs)
     rows, face_of, other, parent = border
     leaks = other[_read_by_rows(cons.P, rows, face_of, len(other), read) & ~parent]
-    return cons, border, np.unique(leaks), sub_off
+    return cons, border, np.unique(leaks), own_rows
 
 
 def rank_constraints(model, spaces, offsets, part: np.ndarray, rank: int) -> RankConstraints:
     """The constraints of rank ``rank``'s patches (``part``: the rank of every patch), on its closure."""
     n = len(model.patches)
     offsets = np.asarray(offsets, np.int64)
-    pairs = _interface_pairs(model)
-    own = np.flatnonzero(part == rank)
+    pairs, branch = patch_pairs(model)
+    is_own = part == rank
+    own = np.flatnonzero(is_own)
     # the first round needs no prolongation: every own face on the border holds own classes, so the closure
     # reaches across each of them, except a branch parent's (its child reads it and adds nothing)
-    is_own = part == rank
     out = is_own[pairs[:, 0]] != is_own[pairs[:, 1]]
-    kinds = np.array([i.kind == "branch" for i in model.interfaces], bool).reshape(-1)
-    parent_inside = kinds & is_own[pairs[:, 0]]
+    parent_inside = branch & is_own[pairs[:, 0]]
     across = np.where(is_own[pairs[:, 0]], pairs[:, 1], pairs[:, 0])[out & ~parent_inside]
     S, layers = np.union1d(own, across), int(bool(len(across)))
     while True:
         local = np.full(n, -1, np.int64)
         local[S] = np.arange(len(S))
-        cons, border, leaks, sub_off = _grow(S, own, local, pairs, model, spaces, offsets)
+        cons, border, leaks, own_rows = _grow(S, own, local, pairs, model, spaces, offsets)
         if not len(leaks):
             break
         S, layers = np.union1d(S, leaks), layers + 1  # only where a class leaks out: the closure stays thin
@@ -161,7 +163,6 @@ def rank_constraints(model, spaces, offsets, part: np.ndarray, rank: int) -> Ran
     cons.stats.update(closure_patches=int(len(S)), closure_layers=layers)
     on_border = np.zeros(cons.P.shape[1], bool)  # classes that patches outside the closure may read
     on_border[cons.P[border[0]].indices] = True
-    own_rows = ranges(sub_off[local[own]], sub_off[local[own] + 1])
     return RankConstraints(S, cons, own, own_rows, rows, layers, on_border)
 
 
@@ -193,15 +194,14 @@ class GlobalColumns:
     """The reduced unknowns a rank's rows read, in the global numbering (owners' rows consecutive).
 
     ``gid`` (sorted): the global number of each local column; ``starts`` (ranks + 1): the first global
-    unknown of every rank; ``asked``: per rank, how many of this rank's columns it owns (sent in the order
-    of ``ghost``, positions in ``gid``); ``answer``: the positions in this rank's owned range that the
-    others asked for, with ``answer_counts`` per rank.
+    unknown of every rank; ``ghost``: the positions in ``gid`` of the columns other ranks own, in the order
+    their values arrive (by owner); ``answer``: the positions in this rank's owned range that the others
+    asked for, with ``answer_counts`` per rank.
     """
 
     gid: np.ndarray
     starts: np.ndarray
     ghost: np.ndarray
-    asked: np.ndarray
     answer: np.ndarray
     answer_counts: np.ndarray
 
@@ -245,7 +245,7 @@ def number_columns(comm, keys: np.ndarray, owner: np.ndarray) -> tuple[np.ndarra
     order = np.argsort(num, kind="stable")
     where = np.empty(len(keys), np.int64)
     where[order] = np.arange(len(keys))
-    cols = GlobalColumns(num[order], starts, where[others], asked, pos, answer_counts)
+    cols = GlobalColumns(num[order], starts, where[others], pos, answer_counts)
     return order, cols
 
 
