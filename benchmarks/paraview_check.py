@@ -88,7 +88,27 @@ def compare(data, serial, size) -> list:
     return bad
 
 
+def _refuse(argv) -> str | None:
+    """What is wrong with the command line (a missing file, ``--against`` without one), or None."""
+    import os
+
+    usage = "usage: pvpython benchmarks/paraview_check.py FILE.vtu|FILE.pvtu [--against SERIAL.vtu]"
+    if not argv or argv[0].startswith("--"):
+        return usage
+    if "--against" in argv and argv.index("--against") + 1 >= len(argv):
+        return f"--against needs the serial .vtu to compare with; {usage}"
+    files = [argv[0]] + ([argv[argv.index("--against") + 1]] if "--against" in argv else [])
+    missing = [f for f in files if not os.path.isfile(f)]
+    if missing:
+        return f"no such file: {missing[0]} (give a .vtu or .pvtu written by iga run or iga.write_vtu)"
+    return None
+
+
 def main(argv):
+    problem = _refuse(argv)
+    if problem is not None:
+        print(f"paraview_check: {problem}", file=sys.stderr)
+        return 2
     path = argv[0]
     source, data, size = _welded(path)
     counts = _edges(source)

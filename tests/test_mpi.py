@@ -192,6 +192,10 @@ def test_mpiexec_iga_run_writes_one_result(tmp_path):
                                 capture_output=True, text=True, timeout=300, env=launch_env())
         assert pv_out.returncode == 0, pv_out.stdout[-2000:] + pv_out.stderr[-2000:]
         assert "same points, cells, point arrays and values" in pv_out.stdout
+        bad = subprocess.run(["xvfb-run", "-a", "pvpython", str(ROOT / "benchmarks" / "paraview_check.py"),
+                              str(out_dir / "missing.pvtu")], capture_output=True, text=True, timeout=300,
+                             env=launch_env())
+        assert bad.returncode == 2 and "no such file: " in bad.stderr and "missing.pvtu" in bad.stderr
 
 
 def test_more_ranks_than_patches_are_refused(tmp_path):
