@@ -16,7 +16,8 @@ Built-in backends
 -----------------
 ``direct``   SciPy SuperLU (CHOLMOD via scikit-sparse when installed).
 ``amg-cg``   conjugate gradients preconditioned by smoothed-aggregation AMG (pyamg's hierarchy,
-             the V-cycle of :mod:`solvers.amg`).
+             the V-cycle of :mod:`solvers.amg`); strongly coupled unknowns (thin features) are
+             relaxed together (:mod:`solvers.clusters`; option ``block_theta``, None to turn it off).
 ``cg``       conjugate gradients with a Jacobi preconditioner (for comparison).
 ``fd-cg``    conjugate gradients preconditioned by fast diagonalization (:mod:`solvers.kronecker`); needs
              the option ``kronecker`` (a :class:`solvers.kronecker.KroneckerSum` close to A, or a list
@@ -41,6 +42,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from . import clusters
 from .errors import SolverError
 from geometry import progress
 from geometry.errors import show
@@ -171,7 +173,7 @@ def _krylov(A, b, M, tol, maxiter, name, t_setup, extra):
     return x, SolveInfo(name, it[0], res, t_setup, t2 - t1, extra)
 
 
-@register("amg-cg", options=("near_nullspace", "node_slots"))
+@register("amg-cg", options=("near_nullspace", "node_slots", "block_theta"))
 def _amg_cg(A, b, tol, maxiter, **options):
     if importlib.util.find_spec("pyamg") is None:
         raise SolverError("the 'amg-cg' solver needs pyamg: pip install pyamg")
@@ -179,7 +181,8 @@ def _amg_cg(A, b, tol, maxiter, **options):
 
     t0 = time.perf_counter()
     M = AMGPreconditioner(A, overwrite=bool(options.get("overwrite_a", False)),
-                          near_nullspace=options.get("near_nullspace"), node_slots=options.get("node_slots"))
+                          near_nullspace=options.get("near_nullspace"), node_slots=options.get("node_slots"),
+                          block_theta=options.get("block_theta", clusters.THETA))
     setup = time.perf_counter() - t0
     return _krylov(M.system_operator(), b, M.operator(), tol, maxiter, "amg-cg", setup, M.info)
 

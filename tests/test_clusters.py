@@ -1,0 +1,111 @@
+"""Block relaxation of strongly coupled unknowns (solvers.clusters) and its use by the AMG preconditioner."""
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+import solvers
+from geometry import primitives as pr
+from iga import HeatProblem
+from solvers.amg import AMGPreconditioner
+from solvers.clusters import ClusterScaling
+
+
+def _laplacian(n: int) -> sp.csr_matrix:
+    """The 7-point Laplacian on an n^3 grid with a unit diagonal (off-diagonal -1/6: no strong coupling)."""
+    T = sp.diags([-np.ones(n - 1), 2 * np.ones(n), -np.ones(n - 1)], [-1, 0, 1])
+    I = sp.identity(n)
+    A = sp.kron(sp.kron(T, I), I) + sp.kron(sp.kron(I, T), I) + sp.kron(sp.kron(I, I), T)
+    return sp.csr_matrix(A / 6.0)
+
+
+def _unit(A) -> sp.csr_matrix:
+    d = 1 / np.sqrt(A.diagonal())
+    out = sp.csr_matrix(sp.diags(d) @ A @ sp.diags(d))
+    out.sort_indices()
+    return out
+
+
+def _planted(n=8, seed=0):
+    """The Laplacian with stiff springs alpha (e_i - e_j)(e_i - e_j)^T planted between neighbours: pairs
+    and one chain of three, each a cluster of the Jacobi-scaled matrix."""
+    A = _laplacian(n).tolil()
+    groups = [(0, 1), (10, 11), (100, 100 + n), (200, 201, 202), (300, 300 + n * n)]
+    for g in groups:
+        for i, j in zip(g[:-1], g[1:]):
+            A[i, i] += 50.0
+            A[j, j] += 50.0
+            A[i, j] -= 50.0
+            A[j, i] -= 50.0
+    return _unit(sp.csr_matrix(A)), groups
+
+
+def test_the_planted_clusters_are_found_and_the_scaling_is_an_exact_congruence():
+    A, groups = _planted()
+    cs = ClusterScaling.of(A)
+    assert cs.count == len(groups) and cs.unknowns == sum(len(g) for g in groups) and cs.largest == 3
+    for g in groups:  # each planted group is one cluster, and nothing else is clustered
+        assert len({int(cs.labels[i]) for i in g}) == 1 and cs.labels[g[0]] >= 0
+    assert np.count_nonzero(cs.labels >= 0) == cs.unknowns
+    Ab = cs.scale(A)
+    rng = np.random.default_rng(1)
+    x = rng.standard_normal(A.shape[0])
+    np.testing.assert_allclose(cs.factor(Ab @ cs.factor_t(x)), A @ x, atol=1e-12)  # A = L Ab L^T
+    np.testing.assert_allclose(cs.lower(cs.factor(x)), x, atol=1e-12)  # L^-1 L = I
+    np.testing.assert_allclose(cs.lower_t(cs.factor_t(x)), x, atol=1e-12)
+    assert abs(Ab - Ab.T).max() == 0.0  # exactly symmetric, as pyamg's symmetric hierarchy assumes
+    np.testing.assert_allclose(Ab.diagonal(), 1.0, atol=1e-12)
+    for g in groups:  # identity blocks on the clusters
+        np.testing.assert_allclose(Ab[np.ix_(g, g)].toarray(), np.eye(len(g)), atol=1e-12)
+    B = rng.standard_normal((A.shape[0], 2))
+    np.testing.assert_allclose(cs.candidates(B), cs.factor_t(B), atol=0)
+    np.testing.assert_allclose(cs.factor(Ab @ cs.candidates(B)), A @ B, atol=1e-12)  # L^T B is Ab's image of B
+
+
+def test_no_strong_coupling_means_no_clusters_and_the_point_scaled_preconditioner():
+    A = _laplacian(8)
+    assert ClusterScaling.of(A) is None
+    M = AMGPreconditioner(A)
+    assert "clusters" not in M.info
+    r = np.random.default_rng(2).standard_normal(A.shape[0])
+    np.testing.assert_array_equal(M(r), AMGPreconditioner(A, block_theta=None)(r))
+
+
+def test_components_larger_than_the_limit_keep_point_relaxation():
+    A, _ = _planted()
+    assert ClusterScaling.of(A, max_size=2).largest == 2  # the chain of three is left out
+    assert ClusterScaling.of(A, max_size=1) is None
+
+
+def test_bad_block_theta_and_indefinite_clusters_are_refused():
+    A, _ = _planted()
+    for bad in (0.0, 1.5, "0.5", np.nan):
+        with pytest.raises(solvers.SolverError, match="block_theta"):
+            AMGPreconditioner(A, block_theta=bad)
+    C = sp.csr_matrix(np.array([[1.0, -1.5, 0.0], [-1.5, 1.0, 0.1], [0.0, 0.1, 1.0]]))  # positive diagonal
+    with pytest.raises(solvers.SolverError, match="not positive definite"):
+        AMGPreconditioner(C)
+
+
+def test_thin_element_layers_are_relaxed_together(monkeypatch):
+    # a box with three element layers 1/40 as thick as the others: across them the unknowns are nearly
+    # rigidly coupled, which point relaxation cannot smooth along the layers
+    box = pr.box(degrees=(1, 1, 1), elements=(24, 24, 1))
+    box = box.insert_knots(2, np.r_[np.linspace(0, 1, 25)[1:-1], [0.251, 0.501, 0.751]])[0]
+
+    def solve():
+        pb = HeatProblem(box, source=lambda x: 1.0 + x[:, 0]).dirichlet("wmin", 0.0).robin("wmax", 2.0, 1.0)
+        return pb.solve(solver="amg-cg", tol=1e-10)
+
+    blocks = solve()
+    info = blocks.info["solver"]
+    assert info["clusters"] == 25 * 25 * 3 and info["largest_cluster"] == 2  # one pair per node and layer
+    with monkeypatch.context() as m:
+        m.setattr(ClusterScaling, "of", classmethod(lambda cls, A, *a, **k: None))
+        points = solve()
+    assert "clusters" not in points.info["solver"]
+    assert info["iterations"] <= 0.6 * points.info["solver"]["iterations"]
+    exact = HeatProblem(box, source=lambda x: 1.0 + x[:, 0]).dirichlet("wmin", 0.0).robin("wmax", 2.0, 1.0)
+    u = exact.solve(solver="direct").u
+    for s in (blocks, points):
+        assert np.abs(s.u - u).max() <= 1e-7 * np.abs(u).max()
