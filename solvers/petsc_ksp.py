@@ -43,12 +43,21 @@ def ksp_solve(M, b_vec, x_vec, tol: float, maxiter: int, pc: str = "gamg", petsc
                           "built with --download-hypre for 'hypre'") from None
     ksp.setTolerances(rtol=tol, atol=0.0, max_it=int(maxiter))
     opts = PETSc.Options()
-    for key, value in (petsc_options or {}).items():
-        opts[str(key).lstrip("-")] = "" if value is None else str(value)
+    given = {str(key).lstrip("-"): "" if value is None else str(value) for key, value in (petsc_options or {}).items()}
+    before = {key: opts.getString(key) if opts.hasName(key) else None for key in given}
+    for key, value in given.items():
+        opts[key] = value
     added = _gamg_defaults(PETSc, opts, pc)
     ksp.setFromOptions()
-    for key in added:  # ours for this solve only: the options database is the process's
+    # this solve's options only: the options database is the process's, and a later solve must not inherit
+    # them (a second call with other petsc_options used to run with the first call's still set)
+    for key in added:
         opts.delValue(key)
+    for key, value in before.items():
+        if value is None:
+            opts.delValue(key)
+        else:
+            opts[key] = value
     t0 = time.perf_counter()
     ksp.setUp()
     t1 = time.perf_counter()
