@@ -48,18 +48,20 @@ def ksp_solve(M, b_vec, x_vec, tol: float, maxiter: int, pc: str = "gamg", petsc
     for key, value in given.items():
         opts[key] = value
     added = _gamg_defaults(PETSc, opts, pc)
-    ksp.setFromOptions()
-    # this solve's options only: the options database is the process's, and a later solve must not inherit
-    # them (a second call with other petsc_options used to run with the first call's still set)
-    for key in added:
-        opts.delValue(key)
-    for key, value in before.items():
-        if value is None:
-            opts.delValue(key)
-        else:
-            opts[key] = value
     t0 = time.perf_counter()
-    ksp.setUp()
+    try:
+        ksp.setFromOptions()
+        ksp.setUp()  # the multigrid levels' smoothers read their options (mg_levels_*) here
+    finally:
+        # this solve's options only: the options database is the process's, and a later solve must not
+        # inherit them (a second call with other petsc_options used to run with the first call's still set)
+        for key in added:
+            opts.delValue(key)
+        for key, value in before.items():
+            if value is None:
+                opts.delValue(key)
+            else:
+                opts[key] = value
     t1 = time.perf_counter()
     ksp.solve(b_vec, x_vec)
     t2 = time.perf_counter()
