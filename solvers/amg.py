@@ -35,13 +35,14 @@ Choices (the measurements behind them are in docs/performance.md):
   more).  On a plain p = 2 cube it costs iterations (22 instead of 14 at 24^3;
   theta 0 keeps 14 there but not the lattices' gain); single patches are
   solved by block fast diagonalization anyway (``iga.ElasticityProblem``).
-* Scalar problems relax strongly coupled unknowns together: where the scaled
-  matrix couples unknowns by ``|Â_ij| >= block_theta`` (0.5; thin features,
+* Strongly coupled unknowns are relaxed together: where the scaled matrix
+  couples unknowns by ``|Â_ij| >= block_theta`` (0.5; thin features,
   slivers), Â is scaled further by the Cholesky factors of those clusters'
-  blocks (:mod:`solvers.clusters`), M r = S L^-T V(L^-1 S r), so the point
-  smoother becomes a block smoother there.  The winged-duck V-model: 296
-  iterations -> 36; box u cylinder 31 -> 13; models without such couplings
-  get exactly the point-scaled hierarchy.  ``block_theta=None`` turns it off.
+  blocks (:mod:`solvers.clusters`; vector problems cluster whole nodes),
+  M r = S L^-T V(L^-1 S r), so the point smoother becomes a block smoother
+  there.  The winged-duck V-model: 296 iterations -> 36; box u cylinder 31
+  -> 13 (heat), 85 -> 71 (elasticity); models without such couplings get
+  exactly the point-scaled hierarchy.  ``block_theta=None`` turns it off.
 """
 
 from __future__ import annotations
@@ -121,8 +122,8 @@ class AMGPreconditioner:
     elasticity); default the constants (diffusion).  ``node_slots`` (n,):
     each unknown's place 3 node + component, for vector problems aggregated by
     node (module notes); A is then copied, node-major, whatever ``overwrite``.
-    ``block_theta``: the coupling of the scaled matrix from which unknowns are relaxed together (scalar
-    problems; module notes), None for point relaxation only.
+    ``block_theta``: the coupling of the scaled matrix from which unknowns (nodes, for vector problems)
+    are relaxed together (module notes), None for point relaxation only.
     """
 
     def __init__(self, A, max_coarse: int = 500, degree: int = 3, overwrite: bool = False, near_nullspace=None,
@@ -157,9 +158,9 @@ class AMGPreconditioner:
         scale_columns(A, self.s, copy=False)
         B = _candidates(near_nullspace, self.s)
         self.clusters = None
-        if self.slots is None and block_theta is not None:  # thin features: relaxed by blocks (module notes)
+        if block_theta is not None:  # thin features: relaxed by blocks (module notes); vector problems by node
             try:
-                self.clusters = clusters.ClusterScaling.of(A, block_theta)
+                self.clusters = clusters.ClusterScaling.of(A, block_theta, node=3 if self.slots is not None else 1)
             except np.linalg.LinAlgError:
                 raise SolverError("AMG needs a positive definite matrix, but a block of strongly coupled unknowns "
                                   "is not: the matrix is not positive definite") from None
@@ -267,7 +268,8 @@ class AMGPreconditioner:
         back for node-major storage)."""
         s, Ah, cs = self.s, self.scaled, self.clusters
         if cs is not None:  # A = S^-1 L Â_b L^T S^-1
-            return spla.LinearOperator(self.shape, matvec=lambda x: cs.factor(Ah @ cs.factor_t(np.ravel(x) / s)) / s,
-                                       dtype=float)
+            return spla.LinearOperator(
+                self.shape, matvec=lambda x: self._unpad(cs.factor(Ah @ cs.factor_t(self._pad(np.ravel(x)) / s)) / s),
+                dtype=float)
         return spla.LinearOperator(self.shape, matvec=lambda x: self._unpad((Ah @ (self._pad(np.ravel(x)) / s)) / s),
                                    dtype=float)

@@ -71,10 +71,23 @@ def test_no_strong_coupling_means_no_clusters_and_the_point_scaled_preconditione
     np.testing.assert_array_equal(M(r), AMGPreconditioner(A, block_theta=None)(r))
 
 
-def test_components_larger_than_the_limit_keep_point_relaxation():
+def test_components_larger_than_the_limit_are_split_at_stricter_thresholds():
     A, _ = _planted()
-    assert ClusterScaling.of(A, max_size=2).largest == 2  # the chain of three is left out
+    assert ClusterScaling.of(A, max_size=2).largest == 2  # the chain of equal springs cannot split: left out
     assert ClusterScaling.of(A, max_size=1) is None
+    # a chain a - b - c with a stiff a-b spring and a softer b-c one: one cluster of three, or {a, b} alone
+    # once three is too many (split at (1 + 0.5) / 2 = 0.75, where only a-b is coupled strongly enough)
+    L = _laplacian(6).tolil()
+    for (i, j), k in (((40, 41), 60.0), ((41, 42), 30.0)):
+        L[i, i] += k
+        L[j, j] += k
+        L[i, j] -= k
+        L[j, i] -= k
+    A = _unit(sp.csr_matrix(L))
+    assert 0.5 < abs(A[41, 42]) < 0.75 < abs(A[40, 41])
+    whole, split = ClusterScaling.of(A), ClusterScaling.of(A, max_size=2)
+    assert whole.count == 1 and whole.unknowns == 3
+    assert split.count == 1 and split.labels[40] == split.labels[41] >= 0 and split.labels[42] == -1
 
 
 def test_bad_block_theta_and_indefinite_clusters_are_refused():
@@ -87,11 +100,16 @@ def test_bad_block_theta_and_indefinite_clusters_are_refused():
         AMGPreconditioner(C)
 
 
+def _thin_layers(n: int, thickness: float = 1e-3):
+    """A unit box of n x n x n linear elements with three more element layers ``thickness`` thick along z:
+    across them the unknowns are nearly rigidly coupled, which point relaxation cannot smooth along the
+    layers."""
+    box = pr.box(degrees=(1, 1, 1), elements=(n, n, 1))
+    return box.insert_knots(2, np.r_[np.linspace(0, 1, n + 1)[1:-1], 0.25 + np.arange(3) * 0.25 + thickness])[0]
+
+
 def test_thin_element_layers_are_relaxed_together(monkeypatch):
-    # a box with three element layers 1/40 as thick as the others: across them the unknowns are nearly
-    # rigidly coupled, which point relaxation cannot smooth along the layers
-    box = pr.box(degrees=(1, 1, 1), elements=(24, 24, 1))
-    box = box.insert_knots(2, np.r_[np.linspace(0, 1, 25)[1:-1], [0.251, 0.501, 0.751]])[0]
+    box = _thin_layers(24)
 
     def solve():
         pb = HeatProblem(box, source=lambda x: 1.0 + x[:, 0]).dirichlet("wmin", 0.0).robin("wmax", 2.0, 1.0)
@@ -107,5 +125,27 @@ def test_thin_element_layers_are_relaxed_together(monkeypatch):
     assert info["iterations"] <= 0.6 * points.info["solver"]["iterations"]
     exact = HeatProblem(box, source=lambda x: 1.0 + x[:, 0]).dirichlet("wmin", 0.0).robin("wmax", 2.0, 1.0)
     u = exact.solve(solver="direct").u
+    for s in (blocks, points):
+        assert np.abs(s.u - u).max() <= 1e-7 * np.abs(u).max()
+
+
+def test_thin_layers_under_elasticity_are_relaxed_by_node(monkeypatch):
+    from iga import ElasticityProblem
+
+    box = _thin_layers(12)
+
+    def solve():
+        pb = ElasticityProblem(box, youngs=1.0, poisson=0.3).dirichlet("wmin", 0.0)
+        return pb.traction("wmax", [0.1, 0.0, -1.0]).solve(solver="amg-cg", tol=1e-10)
+
+    blocks = solve()
+    info = blocks.info["solver"]
+    assert info["clusters"] == 13 * 13 * 3 and info["largest_cluster"] == 6  # pairs of nodes, three unknowns each
+    with monkeypatch.context() as m:
+        m.setattr(ClusterScaling, "of", classmethod(lambda cls, A, *a, **k: None))
+        points = solve()
+    assert info["iterations"] <= 0.5 * points.info["solver"]["iterations"]
+    exact = ElasticityProblem(box, youngs=1.0, poisson=0.3).dirichlet("wmin", 0.0)
+    u = exact.traction("wmax", [0.1, 0.0, -1.0]).solve(solver="direct").u
     for s in (blocks, points):
         assert np.abs(s.u - u).max() <= 1e-7 * np.abs(u).max()
