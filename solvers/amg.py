@@ -131,7 +131,8 @@ class AMGPreconditioner:
         import pyamg
         from pyamg.util.utils import scale_columns, scale_rows
 
-        if block_theta is not None and not (isinstance(block_theta, (int, float)) and 0 < block_theta <= 1):
+        if block_theta is not None and (isinstance(block_theta, bool) or not (
+                isinstance(block_theta, (int, float)) and 0 < block_theta <= 1)):
             raise SolverError(f"block_theta must be a number in (0, 1] (the coupling of the unit-diagonal matrix from "
                               f"which unknowns are relaxed together) or None to relax point by point, got "
                               f"{block_theta!r}")

@@ -38,7 +38,7 @@ from scipy.sparse import csgraph
 
 #: coupling |Â_ij| (unit diagonal) from which two unknowns are relaxed together (docs/performance.md)
 THETA = 0.5
-#: largest cluster factored densely; larger components keep the point scaling
+#: largest cluster factored densely (unknowns); larger components are split at stricter thresholds
 MAX_SIZE = 64
 
 
@@ -150,7 +150,6 @@ def _components(rows, cols, strength, m: int, theta: float, limit: int) -> np.nd
     the couplings ``>= theta`` with 2 to ``limit`` nodes; the nodes of larger ones are split again from
     their own couplings at (1 + theta) / 2 (all such components at once), up to a threshold of 0.99."""
     labels = np.full(m, -1)
-    nodes = np.arange(m)
     count = 0
     while len(rows) and theta <= 0.99:
         keep = strength >= theta
@@ -159,7 +158,7 @@ def _components(rows, cols, strength, m: int, theta: float, limit: int) -> np.nd
         _, comp = csgraph.connected_components(G, directed=False)
         sizes = np.bincount(comp)
         good = (sizes >= 2) & (sizes <= limit)
-        fit = good[comp] & np.isin(nodes, rows)
+        fit = good[comp]  # components of two or more nodes: every node in one has a coupling
         ranks = np.cumsum(good) - 1
         labels[fit] = count + ranks[comp[fit]]
         count += int(good.sum())

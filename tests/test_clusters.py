@@ -92,7 +92,7 @@ def test_components_larger_than_the_limit_are_split_at_stricter_thresholds():
 
 def test_bad_block_theta_and_indefinite_clusters_are_refused():
     A, _ = _planted()
-    for bad in (0.0, 1.5, "0.5", np.nan):
+    for bad in (0.0, 1.5, "0.5", np.nan, True):
         with pytest.raises(solvers.SolverError, match="block_theta"):
             AMGPreconditioner(A, block_theta=bad)
     C = sp.csr_matrix(np.array([[1.0, -1.5, 0.0], [-1.5, 1.0, 0.1], [0.0, 0.1, 1.0]]))  # positive diagonal
