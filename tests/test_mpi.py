@@ -215,19 +215,18 @@ def test_our_gamg_default_lasts_one_solve_and_the_users_option_wins():
 
     PETSc = petsc()
     opts = PETSc.Options()
-    newer = PETSc.Sys.getVersion() >= (3, 19, 0)
-    assert _gamg_defaults(PETSc, opts, "gamg") == (["pc_gamg_aggressive_coarsening"] if newer else [])
+    key = "pc_gamg_aggressive_coarsening" if PETSc.Sys.getVersion() >= (3, 19, 0) else "pc_gamg_square_graph"
+    assert _gamg_defaults(PETSc, opts, "gamg") == [key] and opts.getInt(key) == 0
     assert _gamg_defaults(PETSc, opts, "hypre") == []
-    if newer:
-        opts.delValue("pc_gamg_aggressive_coarsening")
+    opts.delValue(key)
     A = (sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(300, 300)) + 1e-3 * sp.identity(300)).tocsr()
     x, info = solvers.solve(A, np.ones(300), method="petsc", tol=1e-10)
-    assert info.iterations > 0 and not opts.hasName("pc_gamg_aggressive_coarsening")  # removed after the solve
-    opts["pc_gamg_aggressive_coarsening"] = "1"  # as a user's PETSC_OPTIONS would set it
+    assert info.iterations > 0 and not opts.hasName(key)  # removed after the solve
+    opts[key] = "1"  # as a user's PETSC_OPTIONS would set it
     try:
-        assert _gamg_defaults(PETSc, opts, "gamg") == [] and opts.getInt("pc_gamg_aggressive_coarsening") == 1
+        assert _gamg_defaults(PETSc, opts, "gamg") == [] and opts.getInt(key) == 1
     finally:
-        opts.delValue("pc_gamg_aggressive_coarsening")
+        opts.delValue(key)
 
 
 def test_a_solves_petsc_options_apply_to_it_and_do_not_outlive_it():
