@@ -24,8 +24,8 @@ block smoother on Â, and the near-null space carries over as L^T B.  The
 winged-duck V-model (126k free unknowns, about 13,000 clusters of 2-28 at
 theta 0.5): 296 AMG-CG iterations without, 36 with (docs/performance.md).
 Vector problems in node-major order (elasticity) cluster whole nodes, two
-nodes being coupled where any entry of their 3 x 3 block is: thin layers
-under elasticity 45 -> 17 iterations, box u cylinder 85 -> 71.  Unknowns
+nodes being coupled where any entry of their 3 x 3 block reaches theta: thin
+layers under elasticity 45 -> 17 iterations, box u cylinder 85 -> 71.  Unknowns
 outside clusters keep the point scaling, so a model without strong
 couplings gets exactly the point-scaled operator.
 """

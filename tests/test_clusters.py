@@ -26,8 +26,8 @@ def _unit(A) -> sp.csr_matrix:
     return out
 
 
-def _planted(n=8, seed=0):
-    """The Laplacian with stiff springs alpha (e_i - e_j)(e_i - e_j)^T planted between neighbours: pairs
+def _planted(n=8):
+    """The Laplacian with stiff springs 50 (e_i - e_j)(e_i - e_j)^T planted between neighbours: pairs
     and one chain of three, each a cluster of the Jacobi-scaled matrix."""
     A = _laplacian(n).tolil()
     groups = [(0, 1), (10, 11), (100, 100 + n), (200, 201, 202), (300, 300 + n * n)]
