@@ -41,7 +41,7 @@ Choices (the measurements behind them are in docs/performance.md):
   blocks (:mod:`solvers.clusters`; vector problems cluster whole nodes),
   M r = S L^-T V(L^-1 S r), so the point smoother becomes a block smoother
   there.  The winged-duck V-model: 296 iterations -> 36; box u cylinder 31
-  -> 13 (heat), 85 -> 71 (elasticity); models without such couplings get
+  -> 13 (heat), 85 -> 57 (elasticity); models without such couplings get
   exactly the point-scaled hierarchy.  ``block_theta=None`` turns it off.
 """
 

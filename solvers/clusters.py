@@ -24,8 +24,9 @@ block smoother on Â, and the near-null space carries over as L^T B.  The
 winged-duck V-model (126k free unknowns, about 13,000 clusters of 2-28 at
 theta 0.5): 296 AMG-CG iterations without, 36 with (docs/performance.md).
 Vector problems in node-major order (elasticity) cluster whole nodes, two
-nodes being coupled where any entry of their 3 x 3 block reaches theta: thin
-layers under elasticity 45 -> 17 iterations, box u cylinder 85 -> 71.  Unknowns
+nodes being coupled by the Frobenius norm of their 3 x 3 block over sqrt(3)
+(1 for a block -I): thin layers under elasticity 45 -> 17 iterations, box u
+cylinder 85 -> 57.  Unknowns
 outside clusters keep the point scaling, so a model without strong
 couplings gets exactly the point-scaled operator.
 """
@@ -93,15 +94,22 @@ class ClusterScaling:
         nodes, of 2 to ``max_size`` unknowns; a larger component is split by the same rule at a stricter
         threshold, (1 + theta) / 2, until its parts fit.  None where there are none.  ``node``: unknowns
         per node (3 for node-major vector problems, whose nodes are clustered whole: unknown i is in node
-        i // node).  Raises numpy's LinAlgError where a cluster's block is not positive definite (A is not)."""
-        n = A.shape[0]
-        at = np.flatnonzero(np.abs(A.data) >= theta)  # the unit diagonal among them
+        i // node, and two nodes are coupled by the Frobenius norm of their block over sqrt(node), 1 for a
+        block -I; entries below theta / node are left out of it).  Raises numpy's LinAlgError where a
+        cluster's block is not positive definite (A is not)."""
+        n, m = A.shape[0], -(-A.shape[0] // node)
+        # entries below theta / node cannot make two nodes strongly coupled on their own: left out
+        at = np.flatnonzero(np.abs(A.data) >= theta / node)  # the unit diagonal among them
         if len(at) <= n:
             return None
         rows = (np.searchsorted(A.indptr, at, side="right") - 1) // node
         cols = A.indices[at] // node
         off = rows != cols
-        labels = _components(rows[off], cols[off], np.abs(A.data[at[off]]), -(-n // node), theta, max_size // node)
+        rows, cols, strength = rows[off], cols[off], np.abs(A.data[at[off]])
+        if node > 1:  # a node pair's coupling: |block|_F / sqrt(node), 1 for a block -I
+            S = sp.coo_matrix((strength ** 2, (rows, cols)), shape=(m, m)).tocsr().tocoo()  # duplicates summed
+            rows, cols, strength = S.row, S.col, np.sqrt(S.data / node)
+        labels = _components(rows, cols, strength, m, theta, max_size // node)
         if labels.max() < 0:
             return None
         return cls(A, labels[np.arange(n) // node])

@@ -149,3 +149,16 @@ def test_thin_layers_under_elasticity_are_relaxed_by_node(monkeypatch):
     u = exact.traction("wmax", [0.1, 0.0, -1.0]).solve(solver="direct").u
     for s in (blocks, points):
         assert np.abs(s.u - u).max() <= 1e-7 * np.abs(u).max()
+
+
+def test_nodes_are_coupled_by_their_whole_block():
+    # two nodes of three unknowns, unit diagonal: a block -0.6 I couples them (Frobenius norm over sqrt(3):
+    # 0.6 >= 0.5); one entry -0.6 alone does not (0.35), though it would couple two scalar unknowns
+    def two_nodes(B):
+        return sp.csr_matrix(np.block([[np.eye(3), B], [B.T, np.eye(3)]]))
+
+    whole = ClusterScaling.of(two_nodes(-0.6 * np.eye(3)), node=3)
+    assert whole.count == 1 and whole.unknowns == 6 and whole.largest == 6
+    one = two_nodes(np.diag([-0.6, 0.0, 0.0]))
+    assert ClusterScaling.of(one, node=3) is None
+    assert ClusterScaling.of(one).unknowns == 2  # unknown by unknown: the pair (0, 3)
