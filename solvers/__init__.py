@@ -164,10 +164,16 @@ def _krylov(A, b, M, tol, maxiter, name, t_setup, extra):
             f"{name} broke down with non-finite values after {it[0]} iterations (residual undefined): "
             "the matrix is singular or indefinite; a steady heat problem needs a Dirichlet or Robin condition"
         )
+    if res > 10 * tol and _flag == 0:  # CG's own residual converged, the true one did not: rounding
+        raise SolverError(
+            f"{name} stopped at its tolerance after {it[0]} iterations, but the true relative residual is "
+            f"{res:.2e} (tolerance {tol:.0e}): the system is too ill-conditioned for that tolerance (very thin "
+            "or stiff features); loosen tol (e.g. 1e-8) or use solver='direct'"
+        )
     if res > 10 * tol:  # judged by the true residual: an iteration limit reached after convergence is no failure
         raise SolverError(
             f"{name} did not converge: relative residual {res:.2e} after {it[0]} iterations "
-            f"(tolerance {tol:.0e}); the system may be singular (no Dirichlet or Robin condition?) "
+            f"(tolerance {tol:.0e}); the system may be singular (too few boundary conditions?) "
             "or need more iterations (maxiter)"
         )
     return x, SolveInfo(name, it[0], res, t_setup, t2 - t1, extra)
@@ -224,7 +230,8 @@ def _petsc(A, b, tol, maxiter, **options):
     res = _residual(A, x, b)
     if reason < 0 or not np.all(np.isfinite(x)) or res > 10 * tol:
         raise SolverError(f"PETSc CG did not converge (reason {reason}): relative residual {res:.2e} after {its} "
-                          "iterations; the system may be singular (no Dirichlet or Robin condition?)")
+                          "iterations; the system may be singular (too few boundary conditions?) or need more "
+                          "iterations (maxiter)")
     return x, SolveInfo(f"petsc ({options.get('pc', 'gamg')})", its, res, setup, solve_s)
 
 

@@ -524,6 +524,10 @@ SOLVERS = [
                                                   np.ones(5), method="cg"), SolverError, r"positive diagonal"),
     case("not converged", lambda t: solvers.solve(_spd(200), np.ones(200), method="cg", maxiter=2), SolverError,
          r"did not converge: relative residual .* after 2 iterations"),
+    # Hilbert(10), condition number 1.6e13: CG's own residual reaches 1e-12, the true one stays near 1e-10
+    case("ill-conditioned", lambda t: solvers.solve(__import__("scipy.sparse").sparse.csr_matrix(
+        __import__("scipy.linalg").linalg.hilbert(10)), np.ones(10), method="cg", tol=1e-12), SolverError,
+         r"stopped at its tolerance .* true relative residual is .* too ill-conditioned .* loosen tol"),
     case("unknown option", lambda t: solvers.solve(_spd(), np.ones(5), method="cg", smoother="x"), SolverError,
          r"unknown option 'smoother'"),
 ]
