@@ -130,6 +130,19 @@ class BSpline(SplineFunction):
         P = self.points.reshape(-1, 3)
         return np.stack([P.min(0), P.max(0)], axis=1)
 
+    def element_boxes(self) -> np.ndarray:
+        """Axis-aligned boxes (E, 3, 2) containing the image of each knot span (element) in C order: the box of
+        the (p + 1)^d control points that span's basis functions weigh (the local convex hull property)."""
+        P = self.points
+        d = self.dim
+        p = tuple(int(q) for q in self.degrees)
+        win = np.lib.stride_tricks.sliding_window_view(P, tuple(q + 1 for q in p), axis=tuple(range(d)))
+        lo, hi = win.min(axis=tuple(range(-d, 0))), win.max(axis=tuple(range(-d, 0)))
+        # the window starting at control point i - p serves the span [U_i, U_i+1] when that span is not empty
+        starts = [np.flatnonzero(np.diff(U)[q:len(U) - q - 1] > 0) for U, q in zip(self.knots, p)]
+        sel = np.ix_(*starts)
+        return np.stack([lo[sel].reshape(-1, 3), hi[sel].reshape(-1, 3)], axis=-1)
+
     def __repr__(self) -> str:
         base = super().__repr__()[:-1]
         return f"{base}, channels={list(self.channels)})"

@@ -41,33 +41,115 @@ def start_grid(domain: np.ndarray, breaks, per_element: int = 4) -> list[np.ndar
     return axes
 
 
+_FREE_STEPS = 4  # steps every point takes before it may stop for want of progress
+_HALVINGS = 8  # damped: halvings of an uphill step before a point stays at its better iterate
+_CREEP = 1e-6  # a point held at the domain's bound that gains less than this (relative) in a step stops
+
+
 def newton_inverse(fn, domain: np.ndarray, start: np.ndarray, targets: np.ndarray, tol: float,
-                   max_iter: int = 40) -> np.ndarray:
+                   max_iter: int = 40, damped: bool = False) -> np.ndarray:
     """Refine parameters ``start`` (N, d) so that ``fn(params)[0]`` approaches ``targets`` (N, 3).
 
     ``fn(params) -> (x (N, 3), J (N, 3, d))``.  Gauss-Newton steps (the
-    least-squares step for d < 3), clipped to ``domain`` (d, 2); stops when no
-    step exceeds ``tol`` (in parameter units).  Returns the parameters.
+    least-squares step for d < 3), clipped to the box ``domain`` (d, 2).  A
+    point stops when its step is below ``tol`` (parameter units), or, after
+    ``_FREE_STEPS`` steps, when it is held at the domain's bound and a step
+    brings it nearer its target by less than ``_CREEP`` (relative): a point
+    outside the image then crept along the boundary for all ``max_iter`` steps.
+
+    ``damped``: the foot points of points off the image, for distances
+    (:func:`_damped_newton`).  Off by default: where a point has two nearest
+    points, the V-rep bridges are built (and were tested) on the one the full
+    steps find.  Returns the parameters.
     """
+    if damped:
+        return _damped_newton(fn, domain, start, targets, tol, max_iter)
     t = np.array(start, float)
+    last = np.full(len(t), np.inf)  # each point's residual norm at its previous iterate
     active = np.arange(len(t))
-    for _ in range(max_iter):
+    for k in range(max_iter):
         if not len(active):
             break
         x, J = fn(t[active])
         r = x - targets[active]
-        JT = np.transpose(J, (0, 2, 1))
-        A = JT @ J
-        g = (JT @ r[:, :, None])[:, :, 0]
-        # a rank-deficient normal matrix (degenerate point) gets a tiny regularisation instead of a LinAlgError
-        reg = ROUNDOFF * (np.trace(A, axis1=1, axis2=2) + 1e-300)
-        A = A + reg[:, None, None] * np.eye(A.shape[1])
-        step = np.linalg.solve(A, g[:, :, None])[:, :, 0]
-        new = np.clip(t[active] - step, domain[:, 0], domain[:, 1])
-        moved = np.abs(new - t[active]).max(axis=1)
+        if k >= _FREE_STEPS - 1:  # residuals are compared from here on only (small calls pay per operation)
+            norm = np.sqrt(np.einsum("ij,ij->i", r, r))
+            if k >= _FREE_STEPS:
+                ta = t[active]
+                held = np.any((ta <= domain[:, 0]) | (ta >= domain[:, 1]), axis=1)
+                go = ~(held & (norm >= (1.0 - _CREEP) * last[active]))
+                if not go.all():
+                    active, J, r, norm = active[go], J[go], r[go], norm[go]
+            last[active] = norm
+        ta = t[active]
+        new = np.clip(ta - _gauss_newton_step(J, r, ta, domain, False), domain[:, 0], domain[:, 1])
+        moved = np.abs(new - ta).max(axis=1)
         t[active] = new
         active = active[moved > tol]
     return t
+
+
+def _damped_newton(fn, domain, start, targets, tol, max_iter) -> np.ndarray:
+    """:func:`newton_inverse` with projected, damped steps: a parameter at its bound that the step would push
+    out takes no part in the step of the others, a step that takes a point farther from its target (beyond
+    round-off) is halved, up to ``_HALVINGS`` times, and a step that gains nothing beyond round-off stops the
+    point.  The full step can overshoot off a curved image: iterates about a cylinder face's foot point fell
+    into a two-cycle 0.003 above the distance."""
+    t = np.array(start, float)
+    prev = t.copy()  # each point's last iterate that got nearer (where a halved step starts)
+    last = np.full(len(t), np.inf)  # and its residual norm there
+    halved = np.zeros(len(t), np.int64)  # halvings since that iterate
+    floor = 64 * np.finfo(float).eps * np.maximum(1.0, np.abs(targets).max(axis=1))  # round-off in a norm
+    active = np.arange(len(t))
+    for k in range(max_iter):
+        if not len(active):
+            break
+        x, J = fn(t[active])
+        r = x - targets[active]
+        norm = np.linalg.norm(r, axis=1)
+        ta, before, fl = t[active], last[active], floor[active]
+        worse = norm > before + fl
+        held = np.any((ta <= domain[:, 0]) | (ta >= domain[:, 1]), axis=1)
+        idle = (norm >= before - fl) | (held & (norm >= (1.0 - _CREEP) * before))
+        stop = ~worse & idle & (k >= _FREE_STEPS)
+        back = active[worse]
+        if len(back):  # halve the step that went uphill; give up at the better point after a few halvings
+            t[back] = 0.5 * (prev[back] + t[back])
+            halved[back] += 1
+            done = (halved[back] > _HALVINGS) | (np.abs(t[back] - prev[back]).max(axis=1) <= tol)
+            t[back[done]] = prev[back[done]]
+            back = back[~done]
+        go = ~worse & ~stop
+        active, J, r, ta = active[go], J[go], r[go], ta[go]
+        prev[active], last[active], halved[active] = ta, norm[go], 0
+        new = np.clip(ta - _gauss_newton_step(J, r, ta, domain, True), domain[:, 0], domain[:, 1])
+        moved = np.abs(new - ta).max(axis=1)
+        t[active] = new
+        active = np.concatenate([active[moved > tol], back])
+    return t
+
+
+def _gauss_newton_step(J: np.ndarray, r: np.ndarray, t: np.ndarray, domain: np.ndarray,
+                       projected: bool) -> np.ndarray:
+    """The Gauss-Newton steps (N, d) at parameters t (N, d) (new = t - step) from Jacobians J (N, 3, d) and
+    residuals r (N, 3); ``projected``: parameters pinned at a bound the step would cross left out."""
+    JT = np.transpose(J, (0, 2, 1))
+    A = JT @ J
+    g = (JT @ r[:, :, None])[:, :, 0]
+    # a rank-deficient normal matrix (degenerate point) gets a tiny regularisation instead of a LinAlgError
+    reg = ROUNDOFF * (np.trace(A, axis1=1, axis2=2) + 1e-300)
+    eye = np.eye(A.shape[1])
+    A = A + reg[:, None, None] * eye
+    step = np.linalg.solve(A, g[:, :, None])[:, :, 0]
+    if not projected:
+        return step
+    pinned = ((t <= domain[:, 0]) & (step > 0)) | ((t >= domain[:, 1]) & (step < 0))
+    rows = np.flatnonzero(pinned.any(axis=1) & ~pinned.all(axis=1))
+    if len(rows):  # solved as if a pinned parameter could move, the step misleads the others
+        free = ~pinned[rows]
+        Af = A[rows] * (free[:, :, None] & free[:, None, :]) + pinned[rows][:, :, None] * eye
+        step[rows] = np.linalg.solve(Af, (g[rows] * free)[:, :, None])[:, :, 0]
+    return step
 
 
 # the sampled start grid of each spline, kept while the spline lives: splines are immutable, and the V-rep
@@ -87,7 +169,7 @@ def _starts(spline):
     return known
 
 
-def invert(spline, points, tol: float = 1e-10, compiled: bool | None = None) -> Inversion:
+def invert(spline, points, tol: float = 1e-10, compiled: bool | None = None, damped: bool = False) -> Inversion:
     """Parameters of ``points`` (N, 3) on ``spline`` (curve, surface or trivariate), nearest in the image.
 
     ``distance`` is the remaining distance to the image; ``inside`` marks
@@ -96,7 +178,8 @@ def invert(spline, points, tol: float = 1e-10, compiled: bool | None = None) -> 
     non-finite or badly shaped points.  ``compiled``: whether the Newton iterations of a trivariate evaluate
     by the compiled kernel (:mod:`geometry._fast`): None from :data:`geometry._fast.MIN_POINTS` / 10 points
     (the iterations evaluate them about ten times, so the kernel's import pays as it does for one
-    evaluation of MIN_POINTS), True for any number, False never.
+    evaluation of MIN_POINTS), True for any number, False never.  ``damped``: for points off the image,
+    the nearest point and its distance by damped, projected steps (:func:`newton_inverse`).
     """
     pts = np.asarray(points, float)
     if pts.ndim != 2 or pts.shape[1] != 3 or not np.all(np.isfinite(pts)):
@@ -116,6 +199,6 @@ def invert(spline, points, tol: float = 1e-10, compiled: bool | None = None) -> 
         return v[:, :3], J[:, :3, :]
 
     span = float((dom[:, 1] - dom[:, 0]).max())
-    t = newton_inverse(fn, dom, grid[nearest], pts, 1e-15 * span)
+    t = newton_inverse(fn, dom, grid[nearest], pts, 1e-15 * span, damped=damped)
     dist = np.linalg.norm(spline.evaluate(t)[:, :3] - pts, axis=1)
     return Inversion(t, dist, dist <= tol * scale)

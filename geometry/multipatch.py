@@ -31,8 +31,9 @@ from scipy.spatial import cKDTree
 from .bspline import BSpline
 from .composition import compose_many, compose_placed
 from .errors import SplineError
-from .faces import FACE_AXIS, FACE_NAMES, face_knots, nested_refinement
+from .faces import FACE_NAMES, face_knots, nested_refinement
 from .inversion import invert
+from .placed_points import face_points, physical_corners, tile_corners
 from .grouping import ObjectIndex
 from .tolerances import CONTACT, INTERFACE, model_size, same_space
 
@@ -130,68 +131,6 @@ def _orientations():
 ORIENTATIONS, _ORIENTATION_PERMS = _orientations()
 
 
-def _face_corner_index() -> np.ndarray:
-    """Corner index (i, j, k) -> 4 i + 2 j + k of the 4 corners of each face, in face order (00, 10, 01, 11)."""
-    out = np.zeros((6, 4), np.int64)
-    for fi, f in enumerate(FACE_NAMES):
-        k, side = FACE_AXIS[f]
-        rest = [d for d in range(3) if d != k]
-        for c, (s_, t_) in enumerate(((0, 0), (1, 0), (0, 1), (1, 1))):
-            ijk = [0, 0, 0]
-            ijk[k], ijk[rest[0]], ijk[rest[1]] = side, s_, t_
-            out[fi, c] = ijk[0] * 4 + ijk[1] * 2 + ijk[2]
-    return out
-
-
-_FACE_CORNERS = _face_corner_index()
-
-
-def _groups(patches, key):
-    out: dict = {}
-    for i, P in enumerate(patches):
-        if P.spline.dim == 3:
-            out.setdefault(key(P), []).append(i)
-    return out
-
-
-def tile_corners(patches):
-    """Trivariate patch indices (T,) and their face corners (T, 6, 4, 3) in the placed (outer-parameter) space.
-
-    One array operation per tile spline (patches sharing a spline share its
-    corners; the corner control points of a clamped spline are its corners).
-    """
-    same = ObjectIndex()  # patches share splines and maps: group by object
-    groups = _groups(patches, lambda P: same(P.spline))
-    if not groups:
-        return np.zeros(0, np.int64), np.zeros((0, 6, 4, 3))
-    idx, out = [], []
-    for members in groups.values():
-        c = patches[members[0]].spline.points[np.ix_([0, -1], [0, -1], [0, -1])].reshape(8, 3)
-        M = np.stack([_IDENTITY if patches[i].placement is None else patches[i].placement for i in members])
-        pts = np.einsum("pij,cj->pci", M[:, :, :3], c) + M[:, None, :, 3]  # (P, 8, 3)
-        out.append(pts[:, _FACE_CORNERS])
-        idx += members
-    idx = np.asarray(idx)
-    order = np.argsort(idx, kind="stable")
-    return idx[order], np.concatenate(out)[order]
-
-
-def _physical_corners(patches, pidx, fc):
-    """Face corners (T, 6, 4, 3) in physical space: through each patch's outer map (one evaluation per map)."""
-    same = ObjectIndex()  # patches share splines and maps: group by object
-    out = fc.copy()
-    by_outer: dict = {}
-    for t, i in enumerate(pidx):
-        if patches[int(i)].outer is not None:
-            by_outer.setdefault(same(patches[int(i)].outer), []).append(t)
-    for ts in by_outer.values():
-        D = patches[int(pidx[ts[0]])].outer
-        dom = D.domain
-        params = np.clip(fc[ts].reshape(-1, 3), dom[:, 0], dom[:, 1])
-        out[ts] = D.evaluate(params)[:, :3].reshape(len(ts), 6, 4, 3)
-    return out
-
-
 def _same_face_space(patches, a, b, swap, flip) -> bool:
     ka, kb = face_knots(patches[a[0]].spline, a[1]), face_knots(patches[b[0]].spline, b[1])
     if swap:
@@ -203,46 +142,6 @@ def _same_face_space(patches, a, b, swap, flip) -> bool:
 # interior sample points of a face (normalised face parameters): images must coincide on conforming faces
 _SAMPLES = np.array([[0.5, 0.5], [0.2113, 0.3187], [0.7887, 0.2311], [0.3571, 0.8123], [0.8811, 0.6917]])
 _SAMPLES.setflags(write=False)
-
-
-def face_points(patches, keys, st, through_outer: bool = True) -> np.ndarray:
-    """Points (len(keys), n, 3) of faces ``keys`` [(patch, face)] at normalised face parameters.
-
-    ``st``: one (n, 2) array for every face, or a list of them, one per face.
-    Physical points, or with ``through_outer=False`` the placed points in the
-    outer map's parameter space.  One tile evaluation per (tile spline, face,
-    samples), one evaluation per outer map.
-    """
-    same = ObjectIndex()  # patches share splines and maps: group by object
-    sts = st if isinstance(st, list) else [np.asarray(st, float)] * len(keys)
-    n = len(sts[0]) if sts else 0
-    y = np.empty((len(keys), n, 3))
-    by_sf: dict = {}
-    for j, (pi, f) in enumerate(keys):
-        by_sf.setdefault((same(patches[pi].spline), f, sts[j].tobytes()), []).append(j)
-    for (_, f, _), js in by_sf.items():
-        s = patches[keys[js[0]][0]].spline
-        k, side = FACE_AXIS[f]
-        dom = s.domain
-        prm = np.empty((n, 3))
-        prm[:, k] = dom[k, side]
-        for c, d in enumerate([d for d in range(3) if d != k]):
-            prm[:, d] = dom[d, 0] + sts[js[0]][:, c] * (dom[d, 1] - dom[d, 0])
-        pts = s.evaluate(prm)[:, :3]
-        M = np.stack([_IDENTITY if patches[keys[j][0]].placement is None else patches[keys[j][0]].placement
-                      for j in js])
-        y[js] = np.einsum("pij,nj->pni", M[:, :, :3], pts) + M[:, None, :, 3]
-    if not through_outer:
-        return y
-    by_outer: dict = {}
-    for j, (pi, _) in enumerate(keys):
-        if patches[pi].outer is not None:
-            by_outer.setdefault(same(patches[pi].outer), []).append(j)
-    for js in by_outer.values():
-        D = patches[keys[js[0]][0]].outer
-        dom = D.domain
-        y[js] = D.evaluate(np.clip(y[js].reshape(-1, 3), dom[:, 0], dom[:, 1]))[:, :3].reshape(len(js), n, 3)
-    return y
 
 
 def _oriented_samples(swap, flip):
@@ -270,7 +169,7 @@ def detect_interfaces(patches, strict: bool = False):
     pidx, fc = tile_corners(patches)
     if not len(pidx):
         return [], []
-    corners = _physical_corners(patches, pidx, fc).reshape(len(pidx) * 6, 4, 3)
+    corners = physical_corners(patches, pidx, fc).reshape(len(pidx) * 6, 4, 3)
     rec_patch = np.repeat(pidx, 6)
     rec_face = np.tile(np.arange(6), len(pidx))
     scale = model_size(corners)
@@ -327,17 +226,18 @@ def _coincide(patches, todo, scale) -> np.ndarray:
     res = np.zeros(len(todo), bool)
     if not todo:
         return res
-    st_b = [_oriented_samples(*ORIENTATIONS[o]) for _, _, o in todo]
-    same = [i for i, (a, b, _) in enumerate(todo) if patches[a[0]].outer is patches[b[0]].outer]
-    if same:
+    sets = np.stack([_oriented_samples(*o) for o in ORIENTATIONS])  # face b's samples, per orientation
+    orient = np.array([o for _, _, o in todo])
+    same = np.nonzero([patches[a[0]].outer is patches[b[0]].outer for a, b, _ in todo])[0]
+    if len(same):
         pa = face_points(patches, [todo[i][0] for i in same], _SAMPLES, through_outer=False)
-        pb = face_points(patches, [todo[i][1] for i in same], [st_b[i] for i in same], through_outer=False)
+        pb = face_points(patches, [todo[i][1] for i in same], sets, through_outer=False, which=orient[same])
         hit = np.abs(pa - pb).max(axis=(1, 2)) <= TOL * max(1.0, float(np.abs(pa).max()))
-        res[np.asarray(same)[hit]] = True
+        res[same[hit]] = True
     rest = np.nonzero(~res)[0]
     if len(rest):
         pa = face_points(patches, [todo[i][0] for i in rest], _SAMPLES)
-        pb = face_points(patches, [todo[i][1] for i in rest], [st_b[i] for i in rest])
+        pb = face_points(patches, [todo[i][1] for i in rest], sets, which=orient[rest])
         res[rest] = np.abs(pa - pb).max(axis=(1, 2)) <= TOL * scale
     return res
 

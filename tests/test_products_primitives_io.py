@@ -185,6 +185,41 @@ def test_point_inversion_recovers_parameters_and_reuses_its_start_grid_while_the
     assert len(inversion._STARTS) <= n_before - 2  # entries die with their splines
 
 
+def test_element_boxes_hold_every_element_and_outside_points_stop_inverting_once_they_stall():
+    from geometry import inversion
+    from geometry.shapes import cylinder
+
+    rng = np.random.default_rng(4)
+    D = cylinder(1.0, 4.0, 0)
+    boxes = D.element_boxes()
+    bps = [D.breakpoints(k) for k in range(3)]
+    assert len(boxes) == int(np.prod(D.n_elements))
+    for e, idx in enumerate(np.ndindex(*D.n_elements)):  # C order, as documented
+        lo, hi = [bps[k][idx[k]] for k in range(3)], [bps[k][idx[k] + 1] for k in range(3)]
+        x = D.evaluate(rng.uniform(lo, hi, (300, 3)))[:, :3]
+        assert np.all(x >= boxes[e, :, 0] - 1e-12) and np.all(x <= boxes[e, :, 1] + 1e-12)
+    assert np.all(boxes[:, :, 1] - boxes[:, :, 0] < np.ptp(D.points.reshape(-1, 3), axis=0) + 1e-12)
+    # points around the cylinder: the inside ones found exactly; the outside ones, whose clipped iterates
+    # only crept along the boundary for all 40 iterations, stop within a few
+    lo, hi = D.bounding_box().T
+    pts = rng.uniform(lo - 0.5, hi + 0.5, (2000, 3))
+    t_in = rng.uniform(D.domain[:, 0], D.domain[:, 1], (300, 3))
+    pts[:300] = D.evaluate(t_in)[:, :3]
+    calls = []
+    newton = inversion.newton_inverse
+
+    def counting(fn, *args, **kwargs):
+        return newton(lambda t: calls.append(len(t)) or fn(t), *args, **kwargs)
+
+    inversion.newton_inverse = counting
+    try:
+        r = inversion.invert(D, pts)
+    finally:
+        inversion.newton_inverse = newton
+    assert r.inside[:300].all() and np.abs(D.evaluate(r.params[:300])[:, :3] - pts[:300]).max() < 1e-10
+    assert sum(calls) < 6 * len(pts)  # 11.6 evaluations per point when they crept for all 40 iterations
+
+
 @pytest.mark.parametrize("allow_zeros,depth", [(False, 9), (True, 6)])
 def test_regularity_proofs_together_equal_the_proofs_alone(allow_zeros, depth):
     from geometry.regularity import check_regular, check_regular_many

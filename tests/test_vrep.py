@@ -122,6 +122,32 @@ def test_a_margin_purges_bridged_tiles_too_close_to_the_surface():
     assert B.distance(pts).min() >= 0.4 - 0.05  # samples of 4^3 per tile bound the distance within a tile's step
 
 
+def test_distance_to_a_primitive_is_the_distance_to_its_boundary_and_within_agrees_with_it():
+    from scipy.spatial import cKDTree
+
+    from geometry.faces import FACE_NAMES
+
+    _, B, _ = _cylinders()
+    rng = np.random.default_rng(11)
+    lo, hi = B.D.bounding_box().T
+    pts = rng.uniform(lo - 0.6, hi + 0.6, (1500, 3))
+    # independent: the nearest of dense samples of the six boundary surfaces (an upper bound, h-accurate)
+    g = np.linspace(0.0, 1.0, 241)
+    st = np.stack(np.meshgrid(g, g, indexing="ij"), -1).reshape(-1, 2)
+    dense = np.concatenate([B.D.boundary(f).evaluate(st)[:, :3] for f in FACE_NAMES])
+    upper, _ = cKDTree(dense).query(pts)
+    d = B.distance(pts)
+    inside = B.contains(pts)
+    assert inside.sum() > 100 and np.all(d[inside] == 0.0)
+    out = ~inside
+    assert np.all(d[out] <= upper[out] * (1 + 1e-6))  # not beyond a point of the boundary (a stall stops at 1e-6)
+    assert np.all(d[out] >= upper[out] - 0.02)  # and within the dense samples' spacing of the nearest one
+    for r in (0.05, 0.3):
+        w = B.within(pts, r)
+        clear = np.abs(d - r) > 1e-9
+        assert np.array_equal(w[clear], (d < r)[clear]) and w[inside].all()
+
+
 def test_v_model_bad_input():
     A, B, C = _cylinders()
     far = Primitive(cylinder(0.5, 1.0, 2, centre=(10.0, 10.0, 0.0)), L.cross(), (2, 2, 2), priority=5, name="far")

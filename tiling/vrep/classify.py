@@ -115,7 +115,7 @@ def classify(model: VModel, prim: Primitive, samples: int = 4, margin: float = 0
     bridged = (state == INSIDE) & np.any((nb >= 0) & (state[nb] == INTERSECTING), axis=1)
     state[bridged] = TO_BE_BRIDGED
     while margin > 0 and bridged.any():  # purged tiles expose the next layer, which is bridged (or purged) in turn
-        close = _boundary_distance(model, prim, boxes[bridged], samples) < margin
+        close = _near_boundary(model, prim, boxes[bridged], samples, margin)
         if not close.any():
             break
         state[np.flatnonzero(bridged)[close]] = MARGIN
@@ -127,15 +127,14 @@ def classify(model: VModel, prim: Primitive, samples: int = 4, margin: float = 0
     return Classification(prim, shape, boxes, state, anchors)
 
 
-def _boundary_distance(model: VModel, prim: Primitive, boxes: np.ndarray, s: int) -> np.ndarray:
-    """Per tile: the distance of its samples to the nearest primitive that bounds ``prim``'s territory from
-    outside (a subtracted or higher-priority primitive the tile lies outside of)."""
-    pts = _tile_samples(prim.D, boxes, s)
-    flat = pts.reshape(-1, 3)
-    best = np.full(len(flat), np.inf)
+def _near_boundary(model: VModel, prim: Primitive, boxes: np.ndarray, s: int, margin: float) -> np.ndarray:
+    """Per tile: whether a sample lies nearer than ``margin`` to a primitive that bounds ``prim``'s territory
+    from outside (a subtracted or higher-priority primitive the tile lies outside of)."""
+    flat = _tile_samples(prim.D, boxes, s).reshape(-1, 3)
+    near = np.zeros(len(flat), bool)
     for q in model.primitives():
         if q is prim or (q in model.positive() and q.priority <= prim.priority):
             continue
-        best = np.minimum(best, q.distance(flat))
-    return best.reshape(len(boxes), -1).min(axis=1)
-
+        rest = np.flatnonzero(~near)
+        near[rest] = q.within(flat[rest], margin)
+    return near.reshape(len(boxes), -1).any(axis=1)
