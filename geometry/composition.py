@@ -23,9 +23,12 @@ denominator; the result degree is then ``(n_1 + ... + n_D + 1) * m``.
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
 from functools import partial
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from . import knots as kn
 from . import progress
@@ -202,15 +205,34 @@ def _compose_located(outer, inner, A, b, placed, where, patches=None) -> list[BS
     # placements in different outer pieces share one batch (the factor products do not depend on the
     # piece), in order of their piece
     todo = todo[np.argsort(keys[todo], kind="stable")]
-    for c0 in range(0, len(todo), chunk):
-        sel = todo[c0 : c0 + chunk]
+
+    def run(sel):
         es = [piece(key) for key in keys[sel]]
         Q = np.stack([patches[e] for e, _, _ in es])
         elo, ehi = np.stack([lo for _, lo, _ in es]), np.stack([hi for _, _, hi in es])
         degrees, knots, coefs, rational = compose_batch(Q, outer.is_rational, elo, ehi, inner, A[sel], b[sel], bez)
         for j, i in enumerate(sel):
             results[i] = finish(outer, inner, degrees, knots, coefs[j], rational)
+
+    chunks = [todo[c0 : c0 + chunk] for c0 in range(0, len(todo), chunk)]
+    workers = min(_cores(), len(chunks))
+    if workers < 2:
+        for sel in chunks:
+            run(sel)
+        return results
+    # the chunks on the cores, the compiled products releasing the GIL; BLAS held to one thread meanwhile,
+    # whose idle threads otherwise spin between the calls of every worker (2.0 -> 1.1 s on Fig. 4(c), 2 cores)
+    with threadpool_limits(1, user_api="blas"), ThreadPoolExecutor(workers) as pool:
+        list(pool.map(run, chunks))
     return results
+
+
+def _cores() -> int:
+    """The cores this process may run on (its CPU affinity where the system reports one)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # (macOS, Windows)
+        return os.cpu_count() or 1
 
 
 _IDENTITY = np.hstack([np.eye(3), np.zeros((3, 1))])[None]  # inner coordinates are the outer parameters

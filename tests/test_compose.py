@@ -191,6 +191,30 @@ def test_compose_many_matches_compose_and_batches_pieces():
         assert rel_err(r(x)[:, :3], outer(v[:, :3])[:, :3]) < 1e-12
 
 
+def test_batches_composed_on_several_cores_equal_the_serial_composition(monkeypatch):
+    from geometry import composition
+
+    rng = np.random.default_rng(8)
+    outer = random_outer(rng, (2, 2, 2), rational=True, spans=2)
+    tile = random_inner(rng, 3, (2, 2, 2), False, np.array([[0.0, 1.0]] * 3), n_inner=1)
+    lo = rng.uniform(0.05, 0.45, (40, 3))  # each placement inside one knot span (the spans split at 0.5)
+    lo[20:] += 0.5
+    P = np.concatenate([np.stack([np.diag(rng.uniform(0.02, 0.04, 3))] * 40), lo[:, :, None]], axis=2)
+    limits = composition.threadpool_limits
+    used = []
+    monkeypatch.setattr(composition, "threadpool_limits", lambda *a, **k: used.append(a) or limits(*a, **k))
+    monkeypatch.setattr(composition, "_cores", lambda: 2)  # two workers, whatever this machine has
+    parallel = compose_many(outer, tile, P)
+    assert used == [(1,)]  # more than one batch: the pool ran them, BLAS held to one thread meanwhile
+    monkeypatch.setattr(composition, "_cores", lambda: 1)
+    serial = compose_many(outer, tile, P)
+    x = rng.random((200, 3))
+    for a, b, M in zip(parallel, serial, P):
+        assert np.array_equal(a.control_points, b.control_points) and a.knots[0].tobytes() == b.knots[0].tobytes()
+        v = tile.affine(M[:, :3], M[:, 3])(x)
+        assert rel_err(a(x)[:, :3], outer(v[:, :3])[:, :3]) < 1e-12
+
+
 def test_surface_into_surface():
     rng = np.random.default_rng(5)
     sheet = pr.annulus(0.5, 1.0, 1.0, elements=(2, 1, 1)).boundary("wmin")  # a planar ring sector
