@@ -175,6 +175,9 @@ def _nearly_affine(spline) -> np.ndarray:
     refined patch, are decided from the control net alone, without extracting
     Bezier elements or forming the determinant's Bernstein form.
     """
+    separable = _separable_signs(spline)
+    if separable is not None:
+        return separable
     d = spline.dim
     P = spline.coefficients[..., :d]
     firsts = [f for _, f in _element_windows(spline)]
@@ -205,6 +208,44 @@ def _nearly_affine(spline) -> np.ndarray:
     bound = np.sqrt(sum(e ** 2 for e in dev))
     ok = smin > (1 + 1e-8) * bound + 1e-14 * np.sqrt(fro2)
     return np.where(ok, np.sign(det), 0).astype(int)
+
+
+def _separable_signs(spline) -> np.ndarray | None:
+    """:func:`_nearly_affine` of a nearly separable map (coordinate k a spline of parameter k, up to small
+    cross terms: a box, an axis-aligned grid), when it decides every element; None otherwise.
+
+    By the convex hull property, on an element the diagonal entry dx_k/du_k of the Jacobian lies between
+    the least and largest derivative coefficients of its window, and every off-diagonal entry dx_k/du_j is
+    at most the largest |derivative coefficient| anywhere.  Where each diagonal entry keeps one sign and
+    exceeds its row's off-diagonal bounds, the Jacobian is strictly diagonally dominant (Gershgorin):
+    non-singular, of the sign of the diagonal's product.  Exact, and a few passes over the control points
+    instead of a 3 x 3 bound per element (0.4 s for the 98^3-element cube).
+    """
+    d = spline.dim
+    P = spline.coefficients[..., :d]
+    scales = []
+    for k in range(d):
+        U, p, n = spline.knots[k], spline.degrees[k], P.shape[k]
+        den = U[p + 1 : n + p] - U[1:n]  # derivative coefficients Q_i = p (P_i+1 - P_i) / (U_i+p+1 - U_i+1)
+        shape = [1] * d
+        shape[k] = n - 1
+        scales.append(np.where(den > 0, p / np.where(den > 0, den, 1.0), 0.0).reshape(shape))
+    radius = [sum(float(np.abs(np.diff(P[..., k], axis=j) * scales[j]).max(initial=0.0)) for j in range(d) if j != k)
+              for k in range(d)]
+    signs = []
+    for k, (_, first) in enumerate(_element_windows(spline)):
+        Q = np.moveaxis(np.diff(P[..., k], axis=k) * scales[k], k, 0).reshape(P.shape[k] - 1, -1)
+        p = spline.degrees[k]
+        lo = np.lib.stride_tricks.sliding_window_view(Q.min(axis=1), p)[first].min(axis=1)
+        hi = np.lib.stride_tricks.sliding_window_view(Q.max(axis=1), p)[first].max(axis=1)
+        s_ = np.where(lo > radius[k], 1, np.where(hi < -radius[k], -1, 0))
+        if np.any(s_ == 0):
+            return None
+        signs.append(s_)
+    out = signs[0]
+    for s_ in signs[1:]:
+        out = np.multiply.outer(out, s_)
+    return out.astype(int)
 
 
 def _bezier_subset(spline, sel: np.ndarray):
@@ -317,8 +358,11 @@ def _prove_kind(splines, d: int, rational: bool, max_depth: int, allow_zeros: bo
         if rational:
             hom, bx = _elements(spline)
         else:  # nearly affine elements are decided from the control net; the others take the Bernstein form
-            sel = np.stack(np.meshgrid(*[np.arange(n) for n in spline.n_elements], indexing="ij"), -1).reshape(-1, d)
             sign = _nearly_affine(spline).reshape(-1)
+            if sign[0] != 0 and np.all(sign == sign[0]):  # all of one sign: the domain stands for its elements
+                decided[0 if sign[0] > 0 else 1].append((spline.domain[None], np.array([o])))
+                continue  # (a million element boxes cost more than the proof: 0.5 s on the 98^3 cube)
+            sel = np.stack(np.meshgrid(*[np.arange(n) for n in spline.n_elements], indexing="ij"), -1).reshape(-1, d)
             wins = _element_windows(spline)
             all_boxes = np.stack([wins[k][0][sel[:, k]] for k in range(d)], axis=1)
             for kind, mask in ((0, sign > 0), (1, sign < 0)):
@@ -327,8 +371,9 @@ def _prove_kind(splines, d: int, rational: bool, max_depth: int, allow_zeros: bo
         homs.append(hom[..., list(range(d)) + ([-1] if rational else [])])  # coordinates (and weight): no channels
         boxes.append(bx)
         owners.append(np.full(len(hom), o))
-    hom = np.concatenate(homs)
-    owner = np.concatenate(owners)
+    hom = np.concatenate(homs) if homs else np.zeros((0,) + (1,) * (d + 1))
+    owner = np.concatenate(owners) if owners else np.zeros(0, int)
+    boxes = boxes or [np.zeros((0, d, 2))]
     J = _bernstein_jacobian(hom, d, rational) if len(hom) else np.zeros((0,) + (1,) * d)
     lo = np.full(S, np.inf)
     hi = np.full(S, -np.inf)

@@ -261,6 +261,34 @@ def test_identity_box_and_annulus_are_regular():
     assert check_regular(pr.annulus(exact=False)).orientation == -1
 
 
+def test_nearly_separable_maps_are_decided_by_diagonal_dominance_exactly():
+    from geometry import regularity as R
+
+    rng = np.random.default_rng(12)
+    decided = 0
+    for trial in range(40):
+        degs = tuple(int(p) for p in rng.integers(1, 4, 3))
+        knots = [kn.uniform_knots(p, int(rng.integers(1, 5))) for p in degs]
+        ns = [len(U) - p - 1 for U, p in zip(knots, degs)]
+        lines = [np.cumsum(rng.uniform(-0.2 if trial % 2 else 0.05, 1.0, n)) * rng.choice([-1, 1]) for n in ns]
+        cross = rng.uniform(-1, 1, tuple(ns) + (3,)) * 10.0 ** rng.uniform(-16, -1)  # small cross terms
+        S = BSpline(degs, knots, np.stack(np.meshgrid(*lines, indexing="ij"), -1) + cross)
+        signs = R._separable_signs(S)
+        if signs is None:  # not dominant somewhere: the general bound decides (or the Bernstein form)
+            continue
+        decided += 1
+        x = rng.random((3000, 3))
+        det = np.linalg.det(S.jacobian(x)[:, :3, :])
+        el = tuple(np.minimum((x[:, k] * (len(np.unique(knots[k])) - 1)).astype(int), signs.shape[k] - 1)
+                   for k in range(3))
+        assert np.all(signs != 0) and np.all(np.sign(det) == signs[el])  # the proven sign, at random points
+        assert check_regular(S).status == ("regular" if np.all(signs == signs.flat[0]) else "singular")
+    assert decided >= 10
+    assert R._separable_signs(pr.twisted(pr.box(), 0.5)) is None  # cross terms of order one: not this path
+    cube = pr.box(degrees=(2, 2, 2), elements=(30, 30, 30))  # round-off cross terms (1e-17), decided here
+    assert np.array_equal(R._separable_signs(cube), np.ones((30, 30, 30), int))
+
+
 def test_folded_control_net_is_singular_with_a_box_around_the_fold():
     bx = pr.box(degrees=(2, 1, 1))
     cp = bx.control_points.copy()
