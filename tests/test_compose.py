@@ -262,7 +262,7 @@ def test_identity_box_and_annulus_are_regular():
 
 
 def test_nearly_separable_maps_are_decided_by_diagonal_dominance_exactly():
-    from geometry import regularity as R
+    from geometry import regularity_net as N
 
     rng = np.random.default_rng(12)
     decided = 0
@@ -273,7 +273,7 @@ def test_nearly_separable_maps_are_decided_by_diagonal_dominance_exactly():
         lines = [np.cumsum(rng.uniform(-0.2 if trial % 2 else 0.05, 1.0, n)) * rng.choice([-1, 1]) for n in ns]
         cross = rng.uniform(-1, 1, tuple(ns) + (3,)) * 10.0 ** rng.uniform(-16, -1)  # small cross terms
         S = BSpline(degs, knots, np.stack(np.meshgrid(*lines, indexing="ij"), -1) + cross)
-        signs = R._separable_signs(S)
+        signs = N._separable_signs(S)
         if signs is None:  # not dominant somewhere: the general bound decides (or the Bernstein form)
             continue
         decided += 1
@@ -284,9 +284,9 @@ def test_nearly_separable_maps_are_decided_by_diagonal_dominance_exactly():
         assert np.all(signs != 0) and np.all(np.sign(det) == signs[el])  # the proven sign, at random points
         assert check_regular(S).status == ("regular" if np.all(signs == signs.flat[0]) else "singular")
     assert decided >= 10
-    assert R._separable_signs(pr.twisted(pr.box(), 0.5)) is None  # cross terms of order one: not this path
+    assert N._separable_signs(pr.twisted(pr.box(), 0.5)) is None  # cross terms of order one: not this path
     cube = pr.box(degrees=(2, 2, 2), elements=(30, 30, 30))  # round-off cross terms (1e-17), decided here
-    assert np.array_equal(R._separable_signs(cube), np.ones((30, 30, 30), int))
+    assert np.array_equal(N._separable_signs(cube), np.ones((30, 30, 30), int))
 
 
 def test_folded_control_net_is_singular_with_a_box_around_the_fold():
