@@ -64,14 +64,11 @@ def newton_inverse(fn, domain: np.ndarray, start: np.ndarray, targets: np.ndarra
     """
     if damped:
         return _damped_newton(fn, domain, start, targets, tol, max_iter)
-    t = np.array(start, float)
-    last = np.full(len(t), np.inf)  # each point's residual norm at its previous iterate
-    active = np.arange(len(t))
+    t, last, active = _iterates(start)  # last: each point's residual norm at its previous iterate
     for k in range(max_iter):
         if not len(active):
             break
-        x, J = fn(t[active])
-        r = x - targets[active]
+        J, r = _residuals(fn, t, active, targets)
         if k >= _FREE_STEPS - 1:  # residuals are compared from here on only (small calls pay per operation)
             norm = np.sqrt(np.einsum("ij,ij->i", r, r))
             if k >= _FREE_STEPS:
@@ -95,17 +92,14 @@ def _damped_newton(fn, domain, start, targets, tol, max_iter) -> np.ndarray:
     round-off) is halved, up to ``_HALVINGS`` times, and a step that gains nothing beyond round-off stops the
     point.  The full step can overshoot off a curved image: iterates about a cylinder face's foot point fell
     into a two-cycle 0.003 above the distance."""
-    t = np.array(start, float)
-    prev = t.copy()  # each point's last iterate that got nearer (where a halved step starts)
-    last = np.full(len(t), np.inf)  # and its residual norm there
+    t, last, active = _iterates(start)  # last: the residual norm at each point's last iterate that got nearer
+    prev = t.copy()  # that iterate (where a halved step starts)
     halved = np.zeros(len(t), np.int64)  # halvings since that iterate
     floor = 64 * np.finfo(float).eps * np.maximum(1.0, np.abs(targets).max(axis=1))  # round-off in a norm
-    active = np.arange(len(t))
     for k in range(max_iter):
         if not len(active):
             break
-        x, J = fn(t[active])
-        r = x - targets[active]
+        J, r = _residuals(fn, t, active, targets)
         norm = np.linalg.norm(r, axis=1)
         ta, before, fl = t[active], last[active], floor[active]
         worse = norm > before + fl
@@ -127,6 +121,18 @@ def _damped_newton(fn, domain, start, targets, tol, max_iter) -> np.ndarray:
         t[active] = new
         active = np.concatenate([active[moved > tol], back])
     return t
+
+
+def _iterates(start):
+    """The iterates (a copy of ``start``), residual norms so far (inf) and the active points (all)."""
+    t = np.array(start, float)
+    return t, np.full(len(t), np.inf), np.arange(len(t))
+
+
+def _residuals(fn, t, active, targets):
+    """Jacobians and residuals x(t) - target of the active points."""
+    x, J = fn(t[active])
+    return J, x - targets[active]
 
 
 def _gauss_newton_step(J: np.ndarray, r: np.ndarray, t: np.ndarray, domain: np.ndarray,
