@@ -146,6 +146,9 @@ def test_distance_to_a_primitive_is_the_distance_to_its_boundary_and_within_agre
         w = B.within(pts, r)
         clear = np.abs(d - r) > 1e-9
         assert np.array_equal(w[clear], (d < r)[clear]) and w[inside].all()
+    for bad in (0.0, -1.0, float("nan"), "0.3", True):
+        with pytest.raises(TilingError, match="positive number"):
+            B.within(pts[:3], bad)
 
 
 def test_v_model_bad_input():

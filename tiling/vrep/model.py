@@ -103,6 +103,9 @@ class Primitive:
         """Whether points (N, 3) lie nearer than ``r`` (model units, > 0) to the primitive: :meth:`distance` < r,
         asked only where the bounds cannot tell.  The boxes of the map's elements (local convex hull) bound the
         distance from below; the inversion into the trivariate bounds it from above."""
+        if isinstance(r, bool) or not isinstance(r, (int, float, np.number)) or not np.isfinite(r) or r <= 0:
+            raise TilingError(f"primitive {show(self.name)}: the distance to test within must be a positive "
+                              f"number (model units), got {show(r)}")
         pts = np.asarray(points, float)
         near = np.zeros(len(pts), bool)
         cand = np.flatnonzero(_box_gap(pts, self._made("boxes", lambda: self.D.element_boxes())) < r)
