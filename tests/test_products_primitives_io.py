@@ -191,14 +191,15 @@ def test_element_boxes_hold_every_element_and_outside_points_stop_inverting_once
 
     rng = np.random.default_rng(4)
     D = cylinder(1.0, 4.0, 0)
-    boxes = D.element_boxes()
-    bps = [D.breakpoints(k) for k in range(3)]
-    assert len(boxes) == int(np.prod(D.n_elements))
-    for e, idx in enumerate(np.ndindex(*D.n_elements)):  # C order, as documented
-        lo, hi = [bps[k][idx[k]] for k in range(3)], [bps[k][idx[k] + 1] for k in range(3)]
-        x = D.evaluate(rng.uniform(lo, hi, (300, 3)))[:, :3]
-        assert np.all(x >= boxes[e, :, 0] - 1e-12) and np.all(x <= boxes[e, :, 1] + 1e-12)
-    assert np.all(boxes[:, :, 1] - boxes[:, :, 0] < np.ptp(D.points.reshape(-1, 3), axis=0) + 1e-12)
+    for S in (D, pr.annulus(1.0, 2.0, 1.0).refine(2)[0]):  # polynomial, and rational with 64 elements
+        boxes = S.element_boxes()
+        bps = [S.breakpoints(k) for k in range(3)]
+        assert len(boxes) == int(np.prod(S.n_elements))
+        for e, idx in enumerate(np.ndindex(*S.n_elements)):  # C order, as documented
+            lo, hi = [bps[k][idx[k]] for k in range(3)], [bps[k][idx[k] + 1] for k in range(3)]
+            x = S.evaluate(rng.uniform(lo, hi, (300, 3)))[:, :3]
+            assert np.all(x >= boxes[e, :, 0] - 1e-12) and np.all(x <= boxes[e, :, 1] + 1e-12)
+        assert np.all(boxes[:, :, 1] - boxes[:, :, 0] <= np.ptp(S.points.reshape(-1, 3), axis=0) + 1e-12)
     # points around the cylinder: the inside ones found exactly; the outside ones, whose clipped iterates
     # only crept along the boundary for all 40 iterations, stop within a few
     lo, hi = D.bounding_box().T
