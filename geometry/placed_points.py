@@ -110,8 +110,9 @@ def face_points(patches, keys, st, through_outer: bool = True, which=None) -> np
     sample set), one evaluation per outer map.
     """
     K = len(keys)
-    if not K:
-        return np.empty((0, len(st[0]) if len(st) else 0, 3))
+    if not K:  # the sample count of one set: a list's first, a stack's rows, or the one array's rows
+        n = (len(st[0]) if len(st) else 0) if isinstance(st, list) else np.shape(st)[1 if which is not None else 0]
+        return np.empty((0, n, 3))
     if which is not None:
         sets, set_of = np.asarray(st, float), np.asarray(which, np.int64)
     elif isinstance(st, list):

@@ -74,3 +74,24 @@ def test_pavings_and_user_lists_couple_at_every_length_scale(size):
     assert sol.flux("umin") / size == pytest.approx(expected, rel=1e-9)
     pair = MultiPatch.from_splines([pr.box((size,) * 3), pr.box((size,) * 3, origin=(size, 0.0, 0.0))])
     assert len(pair.interfaces) == 1
+
+
+def test_face_points_of_many_faces_equal_each_face_alone():
+    """geometry.placed_points.face_points batches faces by spline, face and sample set: its points equal those
+    of every face evaluated alone (placed through its map), whichever way the sample sets are given."""
+    from geometry.multipatch import _SAMPLES, ORIENTATIONS, _oriented_samples
+    from geometry.placed_points import face_points
+
+    ms = regular(pr.twisted(pr.box((2.0, 1.0, 1.0)), 0.4), L.cross(), (2, 2, 2))
+    keys = [(i, f) for i in range(0, len(ms.patches), 3) for f in ("umin", "vmax", "wmax")]
+    which = np.random.default_rng(3).integers(0, 8, len(keys))
+    sets = np.stack([_oriented_samples(*o) for o in ORIENTATIONS])
+    together = face_points(ms.patches, keys, sets, which=which)
+    assert np.array_equal(together, face_points(ms.patches, keys, [sets[k] for k in which]))
+    for (p, f), k, got in zip(keys, which, together):
+        P = ms.patches[p]
+        alone = face_points([P], [(0, f)], sets[k])[0]
+        assert np.array_equal(got, alone)
+        placed = face_points([P], [(0, f)], sets[k], through_outer=False)[0]
+        assert np.allclose(P.outer.evaluate(placed)[:, :3], got, atol=1e-14)
+    assert face_points(ms.patches, [], _SAMPLES).shape == (0, 5, 3)
