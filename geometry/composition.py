@@ -23,7 +23,6 @@ denominator; the result degree is then ``(n_1 + ... + n_D + 1) * m``.
 
 from __future__ import annotations
 
-import os
 from concurrent.futures import ThreadPoolExecutor
 from functools import partial
 
@@ -38,6 +37,7 @@ from .compose_boxes import axis_aligned, restrict_batch
 from .compose_curves import compose_curve_split
 from .errors import SplineError
 from .grouping import ObjectIndex
+from .resources import usable_cores
 from .tolerances import SINGULAR, SNAP
 
 __all__ = ["compose", "compose_many", "compose_placed", "map_points", "result_degrees", "KnotLineCrossing"]
@@ -215,7 +215,7 @@ def _compose_located(outer, inner, A, b, placed, where, patches=None) -> list[BS
             results[i] = finish(outer, inner, degrees, knots, coefs[j], rational)
 
     chunks = [todo[c0 : c0 + chunk] for c0 in range(0, len(todo), chunk)]
-    workers = min(_cores(), len(chunks))
+    workers = min(usable_cores(), len(chunks))
     if workers < 2:
         for sel in chunks:
             run(sel)
@@ -225,14 +225,6 @@ def _compose_located(outer, inner, A, b, placed, where, patches=None) -> list[BS
     with threadpool_limits(1, user_api="blas"), ThreadPoolExecutor(workers) as pool:
         list(pool.map(run, chunks))
     return results
-
-
-def _cores() -> int:
-    """The cores this process may run on (its CPU affinity where the system reports one)."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # (macOS, Windows)
-        return os.cpu_count() or 1
 
 
 _IDENTITY = np.hstack([np.eye(3), np.zeros((3, 1))])[None]  # inner coordinates are the outer parameters

@@ -30,6 +30,7 @@ from functools import lru_cache
 import numpy as np
 import scipy.sparse as sp
 
+from geometry.ranges import concatenated_ranges
 from geometry.resources import usable_cores
 
 from .errors import ProblemError
@@ -372,8 +373,7 @@ def add_within(K: sp.csr_matrix, M: sp.spmatrix) -> sp.csr_matrix:
     starts, ends = K.indptr[rows].astype(np.int64), K.indptr[rows + 1].astype(np.int64)
     lengths = ends - starts
     n = np.int64(K.shape[1])
-    local = np.arange(int(lengths.sum())) - np.repeat(np.cumsum(lengths) - lengths, lengths)
-    where = np.repeat(starts, lengths) + local  # the positions of those rows' entries in K
+    where = concatenated_ranges(starts, lengths)  # the positions of those rows' entries in K
     keys = np.repeat(np.arange(len(rows), dtype=np.int64), lengths) * n + K.indices[where]
     m_rows = np.repeat(np.arange(len(rows), dtype=np.int64), np.diff(M.indptr)[rows])
     wanted = m_rows * n + M.indices

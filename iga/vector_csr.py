@@ -18,6 +18,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from geometry.ranges import concatenated_ranges
+
 from .assembly import CSRPattern, _band_limits
 from .errors import ProblemError
 
@@ -76,8 +78,7 @@ class VectorCSR:
         if len(members) and np.any(self.before[members] != np.r_[self.before, self.nnz][members + 1]):
             raise ProblemError("only patches given no non-zeros can be skipped")
         sizes = (self.offsets[members + 1] - self.offsets[members]).astype(np.int64)
-        rows = np.repeat(self.offsets[members], sizes) + np.arange(int(sizes.sum())) - np.repeat(
-            np.cumsum(sizes) - sizes, sizes)
+        rows = concatenated_ranges(self.offsets[members], sizes)
         for a in range(self.c):
             self.indptr[a * self.n + rows] = np.repeat(self.bases(members, a), sizes)
         self.mark(members)

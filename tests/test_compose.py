@@ -203,10 +203,10 @@ def test_batches_composed_on_several_cores_equal_the_serial_composition(monkeypa
     limits = composition.threadpool_limits
     used = []
     monkeypatch.setattr(composition, "threadpool_limits", lambda *a, **k: used.append(a) or limits(*a, **k))
-    monkeypatch.setattr(composition, "_cores", lambda: 2)  # two workers, whatever this machine has
+    monkeypatch.setattr(composition, "usable_cores", lambda: 2)  # two workers, whatever this machine has
     parallel = compose_many(outer, tile, P)
     assert used == [(1,)]  # more than one batch: the pool ran them, BLAS held to one thread meanwhile
-    monkeypatch.setattr(composition, "_cores", lambda: 1)
+    monkeypatch.setattr(composition, "usable_cores", lambda: 1)
     serial = compose_many(outer, tile, P)
     x = rng.random((200, 3))
     for a, b, M in zip(parallel, serial, P):

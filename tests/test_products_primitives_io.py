@@ -239,3 +239,15 @@ def test_regularity_proofs_together_equal_the_proofs_alone(allow_zeros, depth):
         assert np.allclose(a.jacobian_bounds, b.jacobian_bounds, rtol=1e-12, atol=0)  # (products batched: rounding)
         order = lambda B: B[np.lexsort(B.reshape(len(B), B.shape[1] * B.shape[2]).T)]  # noqa: E731
         assert np.array_equal(order(a.boxes), order(b.boxes))
+
+
+def test_concatenated_ranges_equal_the_loop_of_aranges():
+    from geometry.ranges import concatenated_ranges
+
+    rng = np.random.default_rng(9)
+    for _ in range(20):
+        starts, counts = rng.integers(-50, 50, 30), rng.integers(0, 6, 30)
+        loop = np.concatenate([np.arange(s, s + c) for s, c in zip(starts, counts)] + [np.zeros(0, np.int64)])
+        assert np.array_equal(concatenated_ranges(starts, counts), loop)
+    assert np.array_equal(concatenated_ranges(7, [2, 1]), [7, 8, 7])
+    assert concatenated_ranges([], []).shape == (0,)

@@ -60,6 +60,8 @@ from scipy import ndimage
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import breadth_first_order, dijkstra
 
+from geometry.ranges import concatenated_ranges
+
 from .implicit_boxes import BAND, BoxGrid, classify, judge, judge_children, sign_at
 from .implicit_connect import BRIDGE, grid_graph, trace
 
@@ -119,7 +121,7 @@ def _spread(graph, ok, new):
         flat[front] = True
         starts, ends = graph.indptr[front], graph.indptr[front + 1]
         counts = ends - starts
-        pos = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts) + np.repeat(starts, counts)
+        pos = concatenated_ranges(starts, counts)
         nxt = graph.indices[pos]
         front = np.unique(nxt[(nxt < len(flat)) & ~flat[np.minimum(nxt, len(flat) - 1)]])
     return flat.reshape(ok.shape)

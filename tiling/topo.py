@@ -25,6 +25,7 @@ import numpy as np
 from geometry import BSpline
 from geometry.errors import show
 from geometry.faces import FACE_NAMES
+from geometry.ranges import concatenated_ranges
 from geometry.resources import check_memory
 
 from .errors import TilingError
@@ -212,7 +213,7 @@ def _overlapping(B: np.ndarray, A: np.ndarray, tol: float) -> tuple[np.ndarray, 
     stop = np.searchsorted(lo_sorted, B[:, 0, 1] - tol, side="left")
     count = np.maximum(stop - start, 0)
     rb = np.repeat(np.arange(len(B)), count)
-    pos = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count) + np.repeat(start, count)
+    pos = concatenated_ranges(start, count)
     ra = order[pos]
     lo = np.maximum(B[rb, :, 0], A[ra, :, 0])
     hi = np.minimum(B[rb, :, 1], A[ra, :, 1])
