@@ -37,6 +37,7 @@ from .compose_boxes import axis_aligned, restrict_batch
 from .compose_curves import compose_curve_split
 from .errors import SplineError
 from .grouping import ObjectIndex
+from .placed_points import placements
 from .resources import usable_cores
 from .tolerances import SINGULAR, SNAP
 
@@ -283,7 +284,7 @@ def compose_placed(patches) -> list[BSpline]:
             groups.setdefault((same(p.spline), same(p.outer)), []).append(i)
     for members in progress.bar(list(groups.values()), desc="composition", unit="tile patch"):
         first = patches[members[0]]
-        A = np.stack([_IDENTITY[0] if patches[i].placement is None else patches[i].placement for i in members])
+        A = placements(patches, members)
         for i, r in zip(members, compose_many(first.outer, first.spline, A)):
             patches[i].set_composed(r)
     return [p.composed for p in patches]

@@ -14,7 +14,7 @@ import numpy as np
 
 from .faces import FACE_AXIS, FACE_NAMES
 
-__all__ = ["tile_corners", "physical_corners", "face_points"]
+__all__ = ["placements", "tile_corners", "physical_corners", "face_points"]
 
 _IDENTITY = np.hstack([np.eye(3), np.zeros((3, 1))])
 _IDENTITY.setflags(write=False)
@@ -44,8 +44,8 @@ def _identities(objs) -> tuple[np.ndarray, np.ndarray]:
     return first, inverse.reshape(-1)
 
 
-def _placements(patches, idx) -> np.ndarray:
-    """Placements (n, 3, 4) of patches ``idx`` (the identity where a patch has none)."""
+def placements(patches, idx) -> np.ndarray:
+    """The placements [A | b] (n, 3, 4) of patches ``idx`` (the identity where a patch has none)."""
     if not len(idx):
         return np.zeros((0, 3, 4))
     return np.array([_IDENTITY if patches[i].placement is None else patches[i].placement for i in idx], float)
@@ -91,7 +91,7 @@ def tile_corners(patches):
     splines = [patches[i].spline for i in idx]
     first, which = _identities(splines)
     corners = np.stack([splines[f].points[np.ix_([0, -1], [0, -1], [0, -1])].reshape(8, 3) for f in first])
-    pts = _place(_placements(patches, idx), corners[which])  # (T, 8, 3)
+    pts = _place(placements(patches, idx), corners[which])  # (T, 8, 3)
     return idx, pts[:, FACE_CORNERS]
 
 
@@ -139,5 +139,5 @@ def face_points(patches, keys, st, through_outer: bool = True, which=None) -> np
         for c, d in enumerate([d for d in range(3) if d != k]):
             prm[:, d] = dom[d, 0] + samples[:, c] * (dom[d, 1] - dom[d, 0])
         pts[g] = s.evaluate(prm)[:, :3]
-    y = _place(_placements(patches, up)[of], pts[gidx.reshape(-1)])
+    y = _place(placements(patches, up)[of], pts[gidx.reshape(-1)])
     return _through_outer(patches, up, y, of) if through_outer else y

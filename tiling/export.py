@@ -25,6 +25,7 @@ from geometry import Interface, MultiPatch, compose_many
 from geometry.faces import FACE_AXIS, FACE_NAMES, face_name, parse_slot_face
 from geometry.errors import SplineError
 from geometry.iges import write_iges as _write_iges
+from geometry.placed_points import placements
 from geometry.io import atomic_write, offscreen_plotter, save_screenshot
 from geometry.sampling import piece_boxes, sample_axes, sampled_mesh, weld
 
@@ -356,11 +357,6 @@ def boundary_splines(ms: Microstructure) -> list:
 _OUTWARD = {"umin": -1, "umax": 1, "vmin": 1, "vmax": -1, "wmin": -1, "wmax": 1}
 
 
-def _placements(ms, members) -> np.ndarray:
-    """The placements [A | b] (P, 3, 4) of the patches ``members`` (the identity where a patch has none)."""
-    return np.stack([_IDENTITY if ms.patches[i].placement is None else ms.patches[i].placement for i in members])
-
-
 def _slot_side_face(fid: str) -> str:
     """The face of the one-sided sub-patch that a slot face is: ``u=0.5-`` is the umax face of u <= 0.5."""
     d, _, side = parse_slot_face(fid)
@@ -372,7 +368,7 @@ def _handedness(ms, members) -> np.ndarray:
     P0 = ms.patches[members[0]]
     c = P0.spline.domain.mean(axis=1)[None]
     JT = P0.spline.jacobian(c)[0, :3, :]
-    A = _placements(ms, members)
+    A = placements(ms.patches, members)
     sign = np.sign(np.linalg.det(JT)) * np.sign(np.linalg.det(A[:, :, :3]))
     if P0.outer is not None:
         y = np.einsum("pij,j->pi", A[:, :, :3], P0.spline.evaluate(c)[0, :3]) + A[:, :, 3]
@@ -384,7 +380,7 @@ def _handedness(ms, members) -> np.ndarray:
 def _placed_surfaces(ms, members, piece) -> list:
     """A tile-space curve or surface ``piece`` of the patches ``members``, placed and composed into their map."""
     first = ms.patches[members[0]]
-    A = _placements(ms, members)
+    A = placements(ms.patches, members)
     if first.outer is None:
         return [piece.affine(a[:, :3], a[:, 3]) for a in A]
     return compose_many(first.outer, piece, A)

@@ -12,11 +12,10 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from geometry.grouping import ObjectIndex
+from geometry.placed_points import placements
 from geometry.sampling import sample_axes
 
 __all__ = ["conforming_axes"]
-
-_IDENTITY = np.hstack([np.eye(3), np.zeros((3, 1))])
 
 
 def conforming_axes(patches, samples: int, rounds: int = 32) -> dict:
@@ -95,7 +94,7 @@ def _placed_edges(patches, surf, axes) -> list:
     out = []
     for members in groups.values():
         S, ax = patches[members[0]].spline, axes[members[0]]
-        M = np.stack([_IDENTITY if patches[i].placement is None else patches[i].placement for i in members])
+        M = placements(patches, members)
         for d in (0, 1):
             t = np.asarray(ax[d], float)
             for side in (0, 1):
