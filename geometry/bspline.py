@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import SplineError
+from .regularity_net import element_windows, window_extremes
 from .spline import SplineFunction
 from .errors import show
 
@@ -133,15 +134,9 @@ class BSpline(SplineFunction):
     def element_boxes(self) -> np.ndarray:
         """Axis-aligned boxes (E, 3, 2) containing the image of each knot span (element) in C order: the box of
         the (p + 1)^d control points that span's basis functions weigh (the local convex hull property)."""
-        P = self.points
-        d = self.dim
-        p = tuple(int(q) for q in self.degrees)
-        win = np.lib.stride_tricks.sliding_window_view(P, tuple(q + 1 for q in p), axis=tuple(range(d)))
-        lo, hi = win.min(axis=tuple(range(-d, 0))), win.max(axis=tuple(range(-d, 0)))
-        # the window starting at control point i - p serves the span [U_i, U_i+1] when that span is not empty
-        starts = [np.flatnonzero(np.diff(U)[q:len(U) - q - 1] > 0) for U, q in zip(self.knots, p)]
-        sel = np.ix_(*starts)
-        return np.stack([lo[sel].reshape(-1, 3), hi[sel].reshape(-1, 3)], axis=-1)
+        hi, lo = window_extremes(self.points, [p + 1 for p in self.degrees])
+        at = np.ix_(*[first for _, first in element_windows(self)])  # each element's first control point
+        return np.stack([lo[at].reshape(-1, 3), hi[at].reshape(-1, 3)], axis=-1)
 
     def __repr__(self) -> str:
         base = super().__repr__()[:-1]

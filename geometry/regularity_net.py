@@ -12,7 +12,7 @@ import numpy as np
 
 from . import knots as kn
 
-__all__ = ["element_windows", "nearly_affine"]
+__all__ = ["element_windows", "window_extremes", "nearly_affine"]
 
 
 def element_windows(spline):
@@ -25,7 +25,7 @@ def element_windows(spline):
     return out
 
 
-def _window_extremes(Q: np.ndarray, widths) -> tuple[np.ndarray, np.ndarray]:
+def window_extremes(Q: np.ndarray, widths) -> tuple[np.ndarray, np.ndarray]:
     """Componentwise max and min of ``Q`` (n_1, ..., n_d, c) over every window of ``widths`` starting at each index.
 
     Separable: one sliding maximum (minimum) per axis, so the cost is linear in
@@ -74,7 +74,7 @@ def nearly_affine(spline) -> np.ndarray:
         shape[k] = n - 1
         scale = np.where(den > 0, p / np.where(den > 0, den, 1.0), 0.0).reshape(shape)
         widths = [spline.degrees[j] + (0 if j == k else 1) for j in range(d)]
-        hi, lo = _window_extremes(np.diff(P, axis=k) * scale, widths)
+        hi, lo = window_extremes(np.diff(P, axis=k) * scale, widths)
         at = np.ix_(*firsts)
         hi, lo = hi[at], lo[at]  # (E_1, ..., E_d, d): the box of each element's coefficients
         cols.append(0.5 * (hi + lo))
