@@ -1,11 +1,12 @@
 """Points of placed patches in bulk: face corners and face samples of thousands of patches at once.
 
 A paving places a few tile splines thousands of times, so the work is one
-spline evaluation per (tile spline, face, sample set), one einsum applying
-every placement, and one evaluation per outer map.  Patches are grouped by
-spline and outer map with ``np.unique`` over object identities: the
-``patches`` list holds every spline and map for the duration of a call, so
-no identity can be reused while it is in use.
+spline evaluation per (tile spline, face, sample set), one batched matrix
+product applying every placement, and one evaluation per outer map.  Patches
+are grouped by spline and outer map with
+:func:`geometry.grouping.identity_groups`: the ``patches`` list holds every
+spline and map for the duration of a call, so no identity can be reused
+while it is in use.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from .faces import FACE_AXIS, FACE_NAMES
+from .grouping import identity_groups
 
 __all__ = ["placements", "tile_corners", "physical_corners", "face_points"]
 
@@ -37,13 +39,6 @@ def _face_corner_index() -> np.ndarray:
 FACE_CORNERS = _face_corner_index()
 
 
-def _identities(objs) -> tuple[np.ndarray, np.ndarray]:
-    """(first index of each distinct object, object number per entry) by identity; ``None`` is an object too."""
-    ids = np.fromiter((id(o) for o in objs), np.int64, count=len(objs))
-    _, first, inverse = np.unique(ids, return_index=True, return_inverse=True)
-    return first, inverse.reshape(-1)
-
-
 def placements(patches, idx) -> np.ndarray:
     """The placements [A | b] (n, 3, 4) of patches ``idx`` (the identity where a patch has none)."""
     if not len(idx):
@@ -63,7 +58,7 @@ def _through_outer(patches, idx, y: np.ndarray, of=None) -> np.ndarray:
     """
     out = y.copy()
     outers = [patches[i].outer for i in idx]
-    first, which = _identities(outers)
+    first, which = identity_groups(outers)
     if of is not None:
         which = which[of]
     order = np.argsort(which, kind="stable")
@@ -89,7 +84,7 @@ def tile_corners(patches):
     if not len(idx):
         return idx, np.zeros((0, 6, 4, 3))
     splines = [patches[i].spline for i in idx]
-    first, which = _identities(splines)
+    first, which = identity_groups(splines)
     corners = np.stack([splines[f].points[np.ix_([0, -1], [0, -1], [0, -1])].reshape(8, 3) for f in first])
     pts = _place(placements(patches, idx), corners[which])  # (T, 8, 3)
     return idx, pts[:, FACE_CORNERS]
@@ -125,7 +120,7 @@ def face_points(patches, keys, st, through_outer: bool = True, which=None) -> np
     kf = np.fromiter((_FACE_INDEX[k[1]] for k in keys), np.int64, count=K)
     up, of = np.unique(kp, return_inverse=True)  # the distinct patches: faces of one patch share its data
     of = of.reshape(-1)
-    spline_of = _identities([patches[p].spline for p in up])[1][of]
+    spline_of = identity_groups([patches[p].spline for p in up])[1][of]
     group = (spline_of * 6 + kf) * len(sets) + set_of
     _, rep, gidx = np.unique(group, return_index=True, return_inverse=True)
     pts = np.empty((len(rep), n, 3))
