@@ -78,7 +78,7 @@ def tile_corners(patches):
     """Trivariate patch indices (T,) and their face corners (T, 6, 4, 3) in the placed (outer-parameter) space.
 
     The corner control points of a clamped spline are its corners: one array
-    operation per distinct tile spline, one einsum for all placements.
+    operation per distinct tile spline, one batched matrix product for all placements.
     """
     idx = np.array([i for i, P in enumerate(patches) if P.spline.dim == 3], np.int64)
     if not len(idx):

@@ -67,14 +67,8 @@ def nearly_affine(spline) -> np.ndarray:
     firsts = [f for _, f in element_windows(spline)]
     cols, dev = [], []
     for k in range(d):
-        U, p = spline.knots[k], spline.degrees[k]
-        n = P.shape[k]
-        den = U[p + 1 : n + p] - U[1:n]  # derivative coefficients Q_i = p (P_i+1 - P_i) / (U_i+p+1 - U_i+1)
-        shape = [1] * (d + 1)
-        shape[k] = n - 1
-        scale = np.where(den > 0, p / np.where(den > 0, den, 1.0), 0.0).reshape(shape)
         widths = [spline.degrees[j] + (0 if j == k else 1) for j in range(d)]
-        hi, lo = window_extremes(np.diff(P, axis=k) * scale, widths)
+        hi, lo = window_extremes(_derivative(spline, P, k), widths)
         at = np.ix_(*firsts)
         hi, lo = hi[at], lo[at]  # (E_1, ..., E_d, d): the box of each element's coefficients
         cols.append(0.5 * (hi + lo))
@@ -94,6 +88,16 @@ def nearly_affine(spline) -> np.ndarray:
     return np.where(ok, np.sign(det), 0).astype(int)
 
 
+def _derivative(spline, P: np.ndarray, k: int) -> np.ndarray:
+    """B-spline coefficients of the derivative along direction k of coefficients ``P`` (n_1, ..., n_d[, c])
+    on ``spline``'s knots: Q_i = p (P_i+1 - P_i) / (U_i+p+1 - U_i+1), zero where that span is empty."""
+    U, p, n = spline.knots[k], spline.degrees[k], P.shape[k]
+    den = U[p + 1 : n + p] - U[1:n]
+    shape = [1] * P.ndim
+    shape[k] = n - 1
+    return np.diff(P, axis=k) * np.where(den > 0, p / np.where(den > 0, den, 1.0), 0.0).reshape(shape)
+
+
 def _separable_signs(spline) -> np.ndarray | None:
     """:func:`_nearly_affine` of a nearly separable map (coordinate k a spline of parameter k, up to small
     cross terms: a box, an axis-aligned grid), when it decides every element; None otherwise.
@@ -107,18 +111,11 @@ def _separable_signs(spline) -> np.ndarray | None:
     """
     d = spline.dim
     P = spline.coefficients[..., :d]
-    scales = []
-    for k in range(d):
-        U, p, n = spline.knots[k], spline.degrees[k], P.shape[k]
-        den = U[p + 1 : n + p] - U[1:n]  # derivative coefficients Q_i = p (P_i+1 - P_i) / (U_i+p+1 - U_i+1)
-        shape = [1] * d
-        shape[k] = n - 1
-        scales.append(np.where(den > 0, p / np.where(den > 0, den, 1.0), 0.0).reshape(shape))
-    radius = [sum(float(np.abs(np.diff(P[..., k], axis=j) * scales[j]).max(initial=0.0)) for j in range(d) if j != k)
+    radius = [sum(float(np.abs(_derivative(spline, P[..., k], j)).max(initial=0.0)) for j in range(d) if j != k)
               for k in range(d)]
     signs = []
     for k, (_, first) in enumerate(element_windows(spline)):
-        Q = np.moveaxis(np.diff(P[..., k], axis=k) * scales[k], k, 0).reshape(P.shape[k] - 1, -1)
+        Q = np.moveaxis(_derivative(spline, P[..., k], k), k, 0).reshape(P.shape[k] - 1, -1)
         p = spline.degrees[k]
         lo = np.lib.stride_tricks.sliding_window_view(Q.min(axis=1), p)[first].min(axis=1)
         hi = np.lib.stride_tricks.sliding_window_view(Q.max(axis=1), p)[first].max(axis=1)
