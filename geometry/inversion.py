@@ -20,7 +20,7 @@ from . import _fast
 from .errors import SplineError
 from .tolerances import ROUNDOFF
 
-__all__ = ["Inversion", "invert", "newton_inverse", "start_grid"]
+__all__ = ["Inversion", "invert", "invert_nearest", "newton_inverse", "start_grid"]
 
 
 @dataclass
@@ -208,3 +208,36 @@ def invert(spline, points, tol: float = 1e-10, compiled: bool | None = None, dam
     t = newton_inverse(fn, dom, grid[nearest], pts, 1e-15 * span, damped=damped)
     dist = np.linalg.norm(spline.evaluate(t)[:, :3] - pts, axis=1)
     return Inversion(t, dist, dist <= tol * scale)
+
+
+def invert_nearest(splines, points, tol: float = 1e-10, damped: bool = False) -> tuple[np.ndarray, Inversion]:
+    """(index (N,), :class:`Inversion`): for each of ``points`` (N, 3) the one of ``splines`` (e.g. the six
+    boundary surfaces of a trivariate) whose :func:`invert` distance is least (the first on a tie), and that
+    inversion: the choice and result of inverting every point into every spline and taking the argmin (up to
+    round-off where a smaller batch changes :func:`invert`'s evaluation path, at ``MIN_POINTS`` / 10 points).
+
+    A spline's control points' box bounds its distance from below (convex hull; a spline point lies in the
+    box), so each point tries the splines in the order of its box gaps and skips one whose gap exceeds the
+    least distance it found: a point near one face of a box is inverted into that face alone.
+    """
+    pts = np.asarray(points, float)
+    if pts.ndim != 2 or pts.shape[1] != 3 or not np.all(np.isfinite(pts)):
+        raise SplineError(f"points to invert must be a finite array of shape (N, 3), got shape {np.shape(points)}")
+    n, d = len(pts), splines[0].dim
+    boxes = np.array([[S.points.reshape(-1, 3).min(0), S.points.reshape(-1, 3).max(0)] for S in splines])
+    gap = np.linalg.norm(np.maximum(np.maximum(boxes[None, :, 0] - pts[:, None], pts[:, None] - boxes[None, :, 1]),
+                                    0.0), axis=2)  # (N, splines)
+    slack = 1e-9 * np.maximum(1.0, np.abs(pts).max(axis=1))  # round-off of the gap against a distance
+    which, params = np.full(n, len(splines)), np.zeros((n, d))
+    best, inside = np.full(n, np.inf), np.zeros(n, bool)
+    order = np.argsort(gap, axis=1, kind="stable")
+    for k in range(len(splines)):  # round k: each point's k-th nearest box
+        for g in np.unique(order[:, k]):
+            sel = np.flatnonzero((order[:, k] == g) & (gap[:, g] <= best + slack))
+            if not len(sel):
+                continue
+            inv = invert(splines[g], pts[sel], tol, damped=damped)
+            win = (inv.distance < best[sel]) | ((inv.distance == best[sel]) & (g < which[sel]))
+            sel = sel[win]
+            which[sel], params[sel], best[sel], inside[sel] = g, inv.params[win], inv.distance[win], inv.inside[win]
+    return which, Inversion(params, best, inside)

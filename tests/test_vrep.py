@@ -151,6 +151,29 @@ def test_distance_to_a_primitive_is_the_distance_to_its_boundary_and_within_agre
             B.within(pts[:3], bad)
 
 
+@pytest.mark.parametrize("damped", [False, True])
+def test_the_nearest_boundary_surface_is_the_one_every_inversion_would_choose(damped):
+    from geometry.errors import SplineError
+    from geometry.faces import FACE_NAMES
+    from geometry.inversion import invert, invert_nearest
+
+    _, B, _ = _cylinders()
+    faces = [B.D.boundary(f) for f in FACE_NAMES]
+    rng = np.random.default_rng(5)
+    lo, hi = B.D.bounding_box().T
+    pts = np.concatenate([rng.uniform(lo - 0.6, hi + 0.6, (600, 3)),  # around and inside the cylinder
+                          faces[0].evaluate(rng.random((50, 2)))[:, :3]])  # on a face: ties broken as argmin does
+    invs = [invert(S, pts, damped=damped) for S in faces]  # every point into every face: the reference
+    dist = np.stack([v.distance for v in invs])
+    near, inv = invert_nearest(faces, pts, damped=damped)
+    assert np.array_equal(near, np.argmin(dist, axis=0))
+    assert np.array_equal(inv.distance, dist.min(axis=0))
+    assert np.array_equal(inv.params, np.stack([v.params for v in invs])[near, np.arange(len(pts))])
+    assert np.array_equal(inv.inside, np.stack([v.inside for v in invs])[near, np.arange(len(pts))])
+    with pytest.raises(SplineError, match="finite array of shape"):
+        invert_nearest(faces, np.array([[0.0, np.nan, 1.0]]))
+
+
 def test_v_model_bad_input():
     A, B, C = _cylinders()
     far = Primitive(cylinder(0.5, 1.0, 2, centre=(10.0, 10.0, 0.0)), L.cross(), (2, 2, 2), priority=5, name="far")
@@ -235,7 +258,7 @@ def _bridge_objects(model):
 
 
 def test_colliding_bridges_are_separated_or_eliminated():
-    from tiling.vrep.bridges import _assemble, axis_samples, resolve_collisions
+    from tiling.vrep.bridges import _snap, axis_samples, resolve_collisions
 
     A, B, C = _cylinders()
     bridges = _bridge_objects(A - B)
@@ -243,9 +266,13 @@ def test_colliding_bridges_are_separated_or_eliminated():
     a, b = bridges[0], min(bridges[1:], key=lambda x: np.linalg.norm(x.axis[0] - bridges[0].axis[0]))
     a.axis[2:], b.axis[2:] = b.axis[2:].copy(), a.axis[2:].copy()
     a.axis[2], b.axis[2] = a.axis[2] + 0.3 * (b.axis[3] - a.axis[3]), b.axis[2] + 0.3 * (a.axis[3] - b.axis[3])
-    _assemble(a), _assemble(b)
+    _snap([a, b])
     kept, counts = resolve_collisions(bridges)
     assert counts.collisions >= 1 and counts.swapped + counts.repelled + counts.eliminated >= 1
+    # every kept bridge's control net follows its final axis (the moved ones are snapped in one batch at the end)
+    nets = [x.spline.control_points.copy() for x in kept]
+    _snap(kept)
+    assert max(np.abs(x.spline.control_points - n).max() for x, n in zip(kept, nets)) < 1e-12
     for i, x in enumerate(kept):
         for y in kept[i + 1:]:
             if np.linalg.norm(x.axis[0] - y.axis[0]) > 3.0:

@@ -22,7 +22,7 @@ import numpy as np
 from geometry import BSpline
 from geometry.errors import show
 from geometry.faces import FACE_NAMES
-from geometry.inversion import invert
+from geometry.inversion import invert, invert_nearest
 
 from ..errors import TilingError
 from ..paving import _check_budget
@@ -96,7 +96,7 @@ class Primitive:
         d[inside] = 0.0
         out = np.flatnonzero(~inside)
         if len(out):
-            d[out] = np.min([invert(S, pts[out], damped=True).distance for S in self._boundary], axis=0)
+            d[out] = invert_nearest(self._boundary, pts[out], damped=True)[1].distance
         return d
 
     def within(self, points: np.ndarray, r: float) -> np.ndarray:
@@ -114,7 +114,7 @@ class Primitive:
         near[cand] = invert(self.D, pts[cand]).distance < r
         todo = cand[~near[cand]]
         if len(todo):
-            near[todo] = np.min([invert(S, pts[todo], damped=True).distance for S in self._boundary], axis=0) < r
+            near[todo] = invert_nearest(self._boundary, pts[todo], damped=True)[1].distance < r
         return near
 
     @property
