@@ -30,7 +30,7 @@ import numpy as np
 from . import bernstein as bz
 from . import knots as kn
 from .errors import SplineError
-from .regularity_net import element_windows, nearly_affine
+from .regularity_net import element_windows, nearly_affine_stacked
 from .spline import SplineFunction
 
 __all__ = ["check_regular", "check_regular_many", "prove_one_signed", "prove_one_signed_many", "RegularityResult",
@@ -126,20 +126,22 @@ def jacobian_bezier(spline: SplineFunction):
     return _bernstein_jacobian(hom, spline.dim, spline.is_rational), boxes
 
 
-def _gather(arr, firsts, widths, sel):
-    """Windows of ``arr`` (n_1, ..., n_d, c) for the elements ``sel`` (S, d): (S, w_1, ..., w_d, c)."""
+def _gather(arr, firsts, widths, sel, which):
+    """Windows of the stacked ``arr`` (G, n_1, ..., n_d, c) for the elements ``sel`` (S, d) of the splines
+    ``which`` (S,): (S, w_1, ..., w_d, c)."""
     d = len(firsts)
     idx = [firsts[k][sel[:, k]][:, None] + np.arange(widths[k])[None, :] for k in range(d)]
     grids = [idx[k].reshape((len(sel),) + tuple(widths[k] if j == k else 1 for j in range(d))) for k in range(d)]
-    return arr[tuple(grids)]
+    return arr[(which.reshape((-1,) + (1,) * d),) + tuple(grids)]
 
 
-def _bezier_subset(spline, sel: np.ndarray):
-    """Homogeneous Bezier elements (S, p_1+1, ..., m) and boxes (S, d, 2) of the elements ``sel`` (S, d)."""
+def _bezier_subset(stacked, spline, sel: np.ndarray, which: np.ndarray):
+    """Bezier elements (S, p_1+1, ..., m) and boxes (S, d, 2) of the elements ``sel`` (S, d) of the splines
+    ``which`` (S,) whose coefficients ``stacked`` (G, n_1, ..., n_d, m) are on ``spline``'s knots."""
     d = spline.dim
     wins = element_windows(spline)
     ops = [kn.extraction_operators(U, p)[0] for U, p in zip(spline.knots, spline.degrees)]
-    hom = _gather(spline.homogeneous, [f for _, f in wins], [p + 1 for p in spline.degrees], sel)
+    hom = _gather(stacked, [f for _, f in wins], [p + 1 for p in spline.degrees], sel, which)
     for k in range(d):  # apply each element's extraction operator along axis k
         C = ops[k][sel[:, k]]  # (S, p+1, p+1)
         moved = np.moveaxis(hom, 1 + k, 1)
@@ -240,23 +242,18 @@ def _prove_kind(splines, d: int, rational: bool, max_depth: int, allow_zeros: bo
     S = len(splines)
     decided = [[], [], []]  # (boxes, owners) of proven positive, negative and crossing boxes
     homs, boxes, owners = [], [], []
-    for o, spline in enumerate(splines):
-        if rational:
+    if rational:
+        for o, spline in enumerate(splines):
             hom, bx = _elements(spline)
-        else:  # nearly affine elements are decided from the control net; the others take the Bernstein form
-            sign = nearly_affine(spline).reshape(-1)
-            if sign[0] != 0 and np.all(sign == sign[0]):  # all of one sign: the domain stands for its elements
-                decided[0 if sign[0] > 0 else 1].append((spline.domain[None], np.array([o])))
-                continue  # (a million element boxes cost more than the proof: 0.5 s on the 98^3 cube)
-            sel = np.stack(np.meshgrid(*[np.arange(n) for n in spline.n_elements], indexing="ij"), -1).reshape(-1, d)
-            wins = element_windows(spline)
-            all_boxes = np.stack([wins[k][0][sel[:, k]] for k in range(d)], axis=1)
-            for kind, mask in ((0, sign > 0), (1, sign < 0)):
-                decided[kind].append((all_boxes[mask], np.full(int(mask.sum()), o)))
-            hom, bx = _bezier_subset(spline, sel[sign == 0])
-        homs.append(hom[..., list(range(d)) + ([-1] if rational else [])])  # coordinates (and weight): no channels
-        boxes.append(bx)
-        owners.append(np.full(len(hom), o))
+            homs.append(hom[..., list(range(d)) + [-1]])  # coordinates and weight: no channels
+            boxes.append(bx)
+            owners.append(np.full(len(hom), o))
+    else:  # nearly affine elements are decided from the control net; the others take the Bernstein form
+        for group in _same_knots(splines):
+            hom, bx, own = _net_signs(splines, np.array(group), d, decided)
+            homs.append(hom)
+            boxes.append(bx)
+            owners.append(own)
     hom = np.concatenate(homs) if homs else np.zeros((0,) + (1,) * (d + 1))
     owner = np.concatenate(owners) if owners else np.zeros(0, int)
     boxes = boxes or [np.zeros((0, d, 2))]
@@ -273,6 +270,39 @@ def _prove_kind(splines, d: int, rational: bool, max_depth: int, allow_zeros: bo
     und = _by_owner([undecided], S, d)
     return [_verdict([pos[o]], [neg[o]], [zero[o]], und[o], (float(lo[o]), float(hi[o])),
                      max(abs(lo[o]), abs(hi[o]), 1e-300), int(depth[o]), d) for o in range(S)]
+
+
+def _same_knots(splines) -> list[list[int]]:
+    """Indices of ``splines`` grouped by equal knot vectors (the tubes of a V-model share their space)."""
+    groups: dict = {}
+    for i, sp_ in enumerate(splines):
+        groups.setdefault(tuple(np.asarray(U, float).tobytes() for U in sp_.knots), []).append(i)
+    return list(groups.values())
+
+
+def _net_signs(splines, group: np.ndarray, d: int, decided: list):
+    """Signs from the control nets (:func:`nearly_affine_stacked`) of the polynomial ``splines[group]`` (equal
+    knots), appended to ``decided`` (a spline of one sign everywhere by its domain: a million element boxes
+    cost more than the proof, 0.5 s on the 98^3 cube); returns the Bezier elements, boxes and owners of the
+    undecided elements."""
+    s0 = splines[group[0]]
+    P = np.stack([splines[o].coefficients[..., :d] for o in group])
+    flat = nearly_affine_stacked(P, s0.knots, s0.degrees).reshape(len(group), -1)
+    one = (flat[:, 0] != 0) & np.all(flat == flat[:, :1], axis=1)
+    for o, sign in zip(group[one], flat[one, 0]):
+        decided[0 if sign > 0 else 1].append((splines[o].domain[None], np.array([o])))
+    rest = np.flatnonzero(~one)
+    if not len(rest):
+        return np.zeros((0,) + tuple(p + 1 for p in s0.degrees) + (d,)), np.zeros((0, d, 2)), np.zeros(0, int)
+    sel = np.stack(np.meshgrid(*[np.arange(n) for n in s0.n_elements], indexing="ij"), -1).reshape(-1, d)
+    wins = element_windows(s0)
+    all_boxes = np.stack([wins[k][0][sel[:, k]] for k in range(d)], axis=1)
+    for kind, mask in ((0, flat[rest] > 0), (1, flat[rest] < 0)):
+        r, e = np.nonzero(mask)  # per spline in element order, as alone
+        decided[kind].append((all_boxes[e], group[rest][r]))
+    r, e = np.nonzero(flat[rest] == 0)
+    hom, bx = _bezier_subset(P, s0, sel[e], rest[r])
+    return hom, bx, group[rest][r]
 
 
 def _by_owner(pairs, S: int, d: int) -> list[np.ndarray]:
