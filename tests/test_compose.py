@@ -289,6 +289,34 @@ def test_nearly_separable_maps_are_decided_by_diagonal_dominance_exactly():
     assert np.array_equal(N._separable_signs(cube), np.ones((30, 30, 30), int))
 
 
+def test_stacked_net_signs_and_batched_proofs_equal_each_spline_alone():
+    from geometry import regularity_net as N
+    from geometry.regularity import check_regular_many
+
+    rng = np.random.default_rng(21)
+    degs, knots = (2, 1, 3), [kn.uniform_knots(2, 3), kn.uniform_knots(1, 2), kn.uniform_knots(3, 2)]
+    base = BSpline(degs, knots, np.stack(np.meshgrid(*[kn.greville(U, p) for U, p in zip(knots, degs)],
+                                                     indexing="ij"), -1))
+    splines = []
+    for i, scale in enumerate((1e-17, 1e-3, 0.02, 0.025, 0.03, 0.3)):  # separable, nearly affine, mixed, folded
+        for _ in range(4):
+            cp = base.control_points + scale * rng.standard_normal(base.control_points.shape)
+            cp[..., 0] *= (-1) ** i  # left-handed ones too
+            splines.append(BSpline(degs, knots, cp))
+    other = pr.twisted(pr.box(degrees=(2, 2, 2), elements=(2, 2, 2)), 0.7)  # another space in the same call
+    stacked = N.nearly_affine_stacked(np.stack([s.points for s in splines]), knots, degs)
+    alone = [N.nearly_affine(s) for s in splines]
+    assert all(np.array_equal(a, b) for a, b in zip(stacked, alone))
+    assert set(np.concatenate([a.ravel() for a in alone]).tolist()) == {-1, 0, 1}
+    assert any(np.any(a == 0) and np.any(a != 0) for a in alone)  # partly decided nets among them
+    together = check_regular_many(splines + [other], 8, allow_zeros=True)
+    for s, r in zip(splines + [other], together):
+        one = check_regular(s, 8, allow_zeros=True)
+        assert (r.status, r.orientation, r.depth) == (one.status, one.orientation, one.depth)
+        assert np.array_equal(r.boxes, one.boxes)
+    assert {r.status for r in together} >= {"regular", "singular"}
+
+
 def test_folded_control_net_is_singular_with_a_box_around_the_fold():
     bx = pr.box(degrees=(2, 1, 1))
     cp = bx.control_points.copy()
