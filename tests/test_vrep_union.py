@@ -78,6 +78,29 @@ def test_two_to_one_bridges_are_continuous_at_both_ends_and_regular(forked):
         assert {sides[0][1:], sides[1][1:]} == {"min", "max"} and sides[0][0] == sides[1][0]
 
 
+def test_forks_proven_in_batches_are_the_forks_searched_one_by_one(forked, monkeypatch):
+    from tiling.vrep import union as U
+
+    (u,) = forked.unions
+    jobs = [(f.inlet, tuple(arm.b for arm in f.arms)) for f in u.forks]
+    searched = []
+    one_by_one = U._regular_fork
+    monkeypatch.setattr(U, "_regular_fork", lambda *a: searched.append(a) or one_by_one(*a))
+    # a steep side angle folds the first tries, so that the one-by-one search takes over for them
+    for alpha, fallbacks in ((np.pi / 4, 0), (1.4, len(jobs))):
+        searched.clear()
+        batched = U._regular_forks(jobs, alpha, 0.5, 0.0)
+        assert len(searched) == fallbacks
+        alone = [one_by_one(inlet, outs, alpha, 0.5, 0.0) for inlet, outs in jobs]
+        assert [f is None for f in batched] == [f is None for f in alone]
+        for a, b in zip(batched, alone):
+            if a is None:
+                continue
+            assert a.sides == b.sides and np.array_equal(a.base.control_points, b.base.control_points)
+            assert all(np.array_equal(x.geometry.control_points, y.geometry.control_points)
+                       for x, y in zip(a.arms, b.arms))
+
+
 def test_no_face_receives_more_than_two_bridges(forked, tubed):
     for res in (forked, tubed):
         ms = res.microstructure
