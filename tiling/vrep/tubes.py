@@ -65,14 +65,20 @@ class Face:
     key: tuple
 
     @cached_property
+    def _at_centre(self) -> tuple:
+        """(point, tangents (3, 2)) at the face's parameter centre: one evaluation for both of these."""
+        x, J = self.surface.value_and_jacobian(np.array([[0.5, 0.5]]))
+        return x[0, :3], J[0, :3]
+
+    @property
     def centre(self) -> np.ndarray:
-        return self.surface.evaluate(np.array([[0.5, 0.5]]))[0, :3]
+        return self._at_centre[0]
 
     @cached_property
     def normal(self) -> np.ndarray:
         """Unit normal at the centre, pointing out of the tile (along ``out``)."""
-        _, J = self.surface.value_and_jacobian(np.array([[0.5, 0.5]]))
-        n = np.cross(J[0, :3, 0], J[0, :3, 1])
+        J = self._at_centre[1]
+        n = np.cross(J[:, 0], J[:, 1])
         n /= max(np.linalg.norm(n), 1e-300)
         return n if np.dot(n, self.direction) >= 0 else -n
 
