@@ -17,13 +17,15 @@ bridged to the trimming surfaces.  For each case: trivariates (tiles x 7 + bridg
 trivariates, union matches, collisions, time, peak memory, and Table 1's figures with the speed-up.  Each
 case runs in its own subprocess and is timed after two small warm-up unions in the same process (the
 one-off imports and JIT compilation are not the work measured); "time s" is the first build, "best s"
-the least of 3 (1 for the winged duck), as this VM's timings vary by up to 2x.  Renders go to vrep_<case>.png in benchmarks/out/figures (docs/ with --figures), coloured by tile.  Writes benchmarks/out/vrep.json.
+the least of 3 (1 for the winged duck), as this VM's timings vary by up to 2x.  Each case prints a
+fingerprint of its model (:func:`fingerprint`): a speed change that claims the same output keeps it.  Renders go to vrep_<case>.png in benchmarks/out/figures (docs/ with --figures), coloured by tile.  Writes benchmarks/out/vrep.json.
 The heat solve on the winged duck is benchmarks/vrep_heat.py.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import resource
 import time
 
@@ -97,6 +99,7 @@ def run(case: str, png: bool) -> dict:
            "compose s": composing[0], "time s": t, "best s": min(times), "times s": times, "peak MiB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
            "timings": res.timings, "report": dataclasses.asdict(rep),
            "tiles kept": {n: c["inside"] + c["to-be-bridged"] for n, c in res.counts().items()}}
+    row["fingerprint"] = fingerprint(ms)
     if case in TABLE1:
         row["paper trivariates"], row["paper bridges"], row["paper s"] = TABLE1[case]
         row["speed-up"] = row["paper s"] / t
@@ -109,6 +112,19 @@ def run(case: str, png: bool) -> dict:
     return row
 
 
+def fingerprint(ms) -> str:
+    """SHA-1 (16 hex digits) of every patch's tile spline, placement and map coefficients: equal fingerprints
+    before and after a change mean the same model, bit for bit."""
+    h = hashlib.sha1()
+    for P in ms.patches:
+        h.update(np.ascontiguousarray(P.spline.coefficients).tobytes())
+        if P.placement is not None:
+            h.update(np.ascontiguousarray(P.placement).tobytes())
+        if P.outer is not None:
+            h.update(np.ascontiguousarray(P.outer.coefficients).tobytes())
+    return h.hexdigest()[:16]
+
+
 def main():
     rows = run_cases(__file__, CASES, run, renders=True)
     if rows is None:
@@ -119,6 +135,8 @@ def main():
                        ("peak MiB", ".0f"), ("paper trivariates", "d"), ("paper bridges", "d"), ("paper s", "d"),
                        ("speed-up", ".0f"), ("best speed-up", ".0f")])
     print("(the paper's times are on an Intel i7-7700K at 4.2 GHz; ours on this 2-core VM)")
+    print("fingerprints (the same after a change: the same models, bit for bit):",
+          ", ".join(f"{r['case']} {r['fingerprint']}" for r in rows))
     save_json("vrep.json", rows)
 
 
