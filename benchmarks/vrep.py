@@ -16,7 +16,7 @@ bridge them by cubic Hermite tubes and two-to-one bifurcation bridges; the other
 bridged to the trimming surfaces.  For each case: trivariates (tiles x 7 + bridging trivariates), bridging
 trivariates, union matches, collisions, time, peak memory, and Table 1's figures with the speed-up.  Each
 case runs in its own subprocess and is timed after two small warm-up unions in the same process (the
-one-off imports and JIT compilation are not the work measured); "time s" is the first build, "best s"
+one-off imports and JIT compilation are not the work measured) and a garbage collection; "time s" is the first build, "best s"
 the least of 3 (1 for the winged duck), as this VM's timings vary by up to 2x.  Each case prints a
 fingerprint of its model (:func:`fingerprint`): a speed change that claims the same output keeps it.  Renders go to vrep_<case>.png in benchmarks/out/figures (docs/ with --figures), coloured by tile.  Writes benchmarks/out/vrep.json.
 The heat solve on the winged duck is benchmarks/vrep_heat.py.
@@ -31,7 +31,7 @@ import time
 
 import numpy as np
 
-from _common import figures_dir, print_table, run_cases, save_json
+from _common import figures_dir, print_table, run_cases, save_json, settle
 
 DOCS = figures_dir()  # benchmarks/out/figures; docs/ with --figures
 CASES = ("box u cyl", "AuB", "(AuB)-C", "A-B-C", "AnBnC A>B>C", "AnBnC B>C>A", "AnBnC C>A>B", "winged duck")
@@ -72,6 +72,7 @@ def warm_up() -> None:
     from geometry import _fast  # large evaluations load numba's compiled kernels on first use
 
     box().value_and_jacobian(np.random.default_rng(0).random((_fast.MIN_POINTS, 3)))
+    settle()  # what the imports and the warm-up left for the collector is not the builds'
 
 
 def run(case: str, png: bool) -> dict:
