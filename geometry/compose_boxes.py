@@ -67,7 +67,7 @@ def restrict_batch(outer, Q, elo, ehi, inner, sigma, alpha, beta, finish):
     outer(alpha_k + beta_k xi_sigma[k]) has the outer degrees, so the result is
     the piece re-expanded on each sub-box (blossoming), axes permuted to the
     inner parameter order.  Returns one BSpline per placement, built by
-    ``finish(outer, inner, degrees, knots, coefficients, rational)``.
+    ``finish(outer, inner, degrees, knots, coefficients (B, ...), rational)`` (a list).
     """
     Do = len(sigma)
     dom = inner.domain
@@ -85,6 +85,6 @@ def restrict_batch(outer, Q, elo, ehi, inner, sigma, alpha, beta, finish):
     R = np.transpose(R, (0,) + tuple(1 + int(k) for k in inv) + (Do + 1,))
     degrees = tuple(Q.shape[int(k)] - 1 for k in inv)
     knots = [np.repeat(dom[j], p + 1) for j, p in enumerate(degrees)]
-    return [finish(outer, inner, degrees, knots, np.ascontiguousarray(r), outer.is_rational) for r in R]
+    return finish(outer, inner, degrees, knots, R, outer.is_rational)
 
 

@@ -71,10 +71,16 @@ def _check_pair(outer, inner):
         raise SplineError(f"outer and inner both define channel(s) {sorted(clash)}; rename one of them")
 
 
-def finish(outer, inner, degrees, knots, hom, rational):
-    """The composed BSpline from validated-by-construction data (re-validation dominated large pavings)."""
-    knots = [kn.validate_knots(U, p, n, k) for k, (U, p, n) in enumerate(zip(knots, degrees, hom.shape[:-1]))]
-    return BSpline._trusted(degrees, knots, hom, rational, channels=outer.channels + inner.channels)
+def finish(outer, inner, degrees, knots, homs, rational) -> list:
+    """The composed BSplines, one per coefficient array (n_1, ..., m) of ``homs`` (an array or a list), all on
+    ``knots``: from validated-by-construction data (re-validation dominated large pavings), the knots
+    checked once."""
+    if not len(homs):
+        return []
+    shape = np.shape(homs[0])[:-1]
+    knots = [kn.validate_knots(U, p, n, k) for k, (U, p, n) in enumerate(zip(knots, degrees, shape))]
+    channels = outer.channels + inner.channels
+    return [BSpline._trusted(degrees, knots, np.ascontiguousarray(h), rational, channels=channels) for h in homs]
 
 
 def _spans(lo, hi, breaks, tol):
@@ -212,8 +218,8 @@ def _compose_located(outer, inner, A, b, placed, where, patches=None) -> list[BS
         Q = np.stack([patches[e] for e, _, _ in es])
         elo, ehi = np.stack([lo for _, lo, _ in es]), np.stack([hi for _, _, hi in es])
         degrees, knots, coefs, rational = compose_batch(Q, outer.is_rational, elo, ehi, inner, A[sel], b[sel], bez)
-        for j, i in enumerate(sel):
-            results[i] = finish(outer, inner, degrees, knots, coefs[j], rational)
+        for i, spline in zip(sel, finish(outer, inner, degrees, knots, coefs, rational)):
+            results[i] = spline
 
     chunks = [todo[c0 : c0 + chunk] for c0 in range(0, len(todo), chunk)]
     workers = min(usable_cores(), len(chunks))
