@@ -35,7 +35,8 @@ def unglued_contacts(patches, interfaces, limit: int = 5) -> list[tuple[tuple, t
     scale = model_size(pts)
     flat = pts.reshape(-1, 3)
     owner = np.repeat(np.arange(len(free)), pts.shape[1])
-    pairs = cKDTree(flat).query_pairs(TOL * scale, output_type="ndarray")
+    # midpoint splits (balanced_tree=False) build faster on these 10^5-10^6 points; the pairs are the same
+    pairs = cKDTree(flat, balanced_tree=False).query_pairs(TOL * scale, output_type="ndarray")
     if not len(pairs):
         return []
     fa, fb = owner[pairs[:, 0]], owner[pairs[:, 1]]

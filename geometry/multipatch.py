@@ -173,8 +173,9 @@ def detect_interfaces(patches, strict: bool = False):
     rec_patch = np.repeat(pidx, 6)
     rec_face = np.tile(np.arange(6), len(pidx))
     scale = model_size(corners)
-    # candidate pairs: face centres within the tolerance (a KD-tree, so no rounding bucket can split a pair)
-    found = cKDTree(corners.mean(axis=1)).query_pairs(TOL * scale, output_type="ndarray")
+    # candidate pairs: face centres within the tolerance (a KD-tree, so no rounding bucket can split a pair;
+    # midpoint splits build faster on 10^5 centres, the pairs are the same)
+    found = cKDTree(corners.mean(axis=1), balanced_tree=False).query_pairs(TOL * scale, output_type="ndarray")
     found = found[np.lexsort(found.T[::-1])] if len(found) else np.zeros((0, 2), np.int64)  # a fixed order
     ia, ib = found[:, 0], found[:, 1]
     keep = rec_patch[ia] != rec_patch[ib]

@@ -37,6 +37,8 @@ def _face_corner_index() -> np.ndarray:
 
 
 FACE_CORNERS = _face_corner_index()
+# each of the 8 corners once: (face, slot) of its first appearance in FACE_CORNERS
+_ONCE = np.array([np.argwhere(FACE_CORNERS == c)[0] for c in range(8)])
 
 
 def placements(patches, idx) -> np.ndarray:
@@ -91,8 +93,10 @@ def tile_corners(patches):
 
 
 def physical_corners(patches, pidx, fc) -> np.ndarray:
-    """Face corners (T, 6, 4, 3) in physical space: ``fc`` of patches ``pidx`` through their outer maps."""
-    return _through_outer(patches, pidx, fc.reshape(len(pidx), 24, 3)).reshape(fc.shape)
+    """Face corners (T, 6, 4, 3) in physical space: ``fc`` of patches ``pidx`` through their outer maps (each
+    patch's 8 corners mapped once, not the 24 face corners: every corner is on three faces)."""
+    eight = _through_outer(patches, pidx, fc[:, _ONCE[:, 0], _ONCE[:, 1]])  # (T, 8, 3)
+    return eight[:, FACE_CORNERS]
 
 
 def face_points(patches, keys, st, through_outer: bool = True, which=None) -> np.ndarray:
