@@ -198,33 +198,39 @@ def _branch_interface(placed, parent, pface, pbox, child, cface) -> Interface:
 
 
 def _tags(outer, placed, interfaces, root_faces, leaf_faces=()) -> dict:
-    glued = set()
-    for itf in interfaces:  # a parent's branch-out face is covered by its children's faces
-        glued.add(itf.a)
-        glued.add(itf.b)
-    tags = {f: [] for f in FACE_NAMES}
-    tags.update({"internal": [], "boundary": [], "branch-in": [], "branch-out": []})
+    """Tags of the free faces (module notes): every trivariate face no interface glues, by the domain face
+    all its corners lie on (``internal`` if none), in patch then face order; one array pass over the faces
+    instead of a set lookup per face (the 65k patches of a 21^3 cross lattice: 0.36 -> 0.21 s)."""
+    face_index = {f: k for k, f in enumerate(FACE_NAMES)}
+    ends = [e for itf in interfaces for e in (itf.a, itf.b)]  # a parent's branch-out face is covered by its children's
     dom = outer.domain
     scale = float(np.abs(dom).max()) + 1.0
     pidx, fc = tile_corners(placed)
+    row = np.full(len(placed), -1)
+    row[pidx] = np.arange(len(pidx))
+    glued = np.zeros((len(pidx), 6), bool)  # slot faces (not among the six) never hide a face
+    ep = np.fromiter((e[0] for e in ends), np.int64, count=len(ends))
+    ef = np.fromiter((face_index.get(e[1], -1) for e in ends), np.int64, count=len(ends))
+    six = (ef >= 0) & (row[ep] >= 0)
+    glued[row[ep[six]], ef[six]] = True
     # where[t, f]: index of the domain face all 4 corners lie on (the last match wins), 6 = internal
     where = np.full(fc.shape[:2], 6)
     for k in range(3):
         for side in (0, 1):
             on = np.all(np.abs(fc[..., k] - dom[k, side]) < TOL * scale, axis=-1)
             where[on] = 2 * k + side
+    t, f = np.nonzero(~glued)  # row-major: patch then face order
+    pid = pidx.tolist()  # one int per patch, shared by its faces' keys
+    # one tuple per free face in every list that holds it (a million free faces on large lattices)
+    keys = [(pid[a], FACE_NAMES[b]) for a, b in zip(t.tolist(), f.tolist())]
     names = FACE_NAMES + ("internal",)
-    for t, i in enumerate(pidx):
-        i = int(i)
-        for fi, f in enumerate(FACE_NAMES):
-            if (i, f) in glued:
-                continue
-            key = (i, f)  # one tuple in both lists (a million free faces on large lattices)
-            tags[names[where[t, fi]]].append(key)
-            tags["boundary"].append(key)
+    kind = where[t, f]
+    tags = {name: [keys[j] for j in np.flatnonzero(kind == n).tolist()] for n, name in enumerate(names)}
+    tags.update({"boundary": keys, "branch-in": [], "branch-out": []})
     # root and leaf faces a seal plate covers are glued, not free
-    tags["branch-in"] = [f for f in root_faces if f not in glued]
-    tags["branch-out"] = [f for f in leaf_faces if f not in glued]  # free branch-out faces of the last level
+    glued_set = set(ends) if len(root_faces) or len(leaf_faces) else set()
+    tags["branch-in"] = [x for x in root_faces if x not in glued_set]
+    tags["branch-out"] = [x for x in leaf_faces if x not in glued_set]  # free branch-out faces of the last level
     return tags
 
 
