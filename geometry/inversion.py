@@ -223,6 +223,9 @@ def invert_nearest(splines, points, tol: float = 1e-10, damped: bool = False) ->
     pts = np.asarray(points, float)
     if pts.ndim != 2 or pts.shape[1] != 3 or not np.all(np.isfinite(pts)):
         raise SplineError(f"points to invert must be a finite array of shape (N, 3), got shape {np.shape(points)}")
+    if not len(splines) or len({S.dim for S in splines}) != 1:
+        raise SplineError(f"invert_nearest needs one or more splines of one dimension, got "
+                          f"{[S.dim for S in splines] or 'none'}; pass e.g. the six boundary surfaces of a trivariate")
     n, d = len(pts), splines[0].dim
     boxes = np.array([[S.points.reshape(-1, 3).min(0), S.points.reshape(-1, 3).max(0)] for S in splines])
     gap = np.linalg.norm(np.maximum(np.maximum(boxes[None, :, 0] - pts[:, None], pts[:, None] - boxes[None, :, 1]),

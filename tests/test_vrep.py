@@ -172,6 +172,12 @@ def test_the_nearest_boundary_surface_is_the_one_every_inversion_would_choose(da
     assert np.array_equal(inv.inside, np.stack([v.inside for v in invs])[near, np.arange(len(pts))])
     with pytest.raises(SplineError, match="finite array of shape"):
         invert_nearest(faces, np.array([[0.0, np.nan, 1.0]]))
+    with pytest.raises(SplineError, match="one or more splines of one dimension"):
+        invert_nearest([], pts[:2])
+    with pytest.raises(SplineError, match="one or more splines of one dimension"):
+        invert_nearest(faces + [B.D], pts[:2])
+    empty, none = invert_nearest(faces, np.zeros((0, 3)))
+    assert empty.shape == (0,) and none.params.shape == (0, 2)
 
 
 def test_v_model_bad_input():
