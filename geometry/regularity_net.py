@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import knots as kn
+from .errors import SplineError
 
 __all__ = ["element_windows", "knot_windows", "window_extremes", "nearly_affine", "nearly_affine_stacked"]
 
@@ -73,6 +74,10 @@ def nearly_affine_stacked(P: np.ndarray, knots, degrees) -> np.ndarray:
     ``P`` (G, n_1, ..., n_d, d): signs (G, E_1, ..., E_d), each spline's those it would have alone (the
     tubes of a V-model share their space: one pass for a hundred of them instead of a hundred calls)."""
     d = len(degrees)
+    n = tuple(len(U) - p - 1 for U, p in zip(knots, degrees))
+    if np.ndim(P) != d + 2 or np.shape(P)[1:] != n + (d,):
+        raise SplineError(f"nearly_affine_stacked: control points must have shape (G,) + {n + (d,)} for these "
+                          f"knots and degrees, got {np.shape(P)}")
     firsts = [f for _, f in knot_windows(knots, degrees)]
     out, decided = _separable_stacked(P, knots, degrees, firsts)
     if decided.all():

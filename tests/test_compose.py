@@ -307,6 +307,8 @@ def test_stacked_net_signs_and_batched_proofs_equal_each_spline_alone():
     stacked = N.nearly_affine_stacked(np.stack([s.points for s in splines]), knots, degs)
     alone = [N.nearly_affine(s) for s in splines]
     assert all(np.array_equal(a, b) for a, b in zip(stacked, alone))
+    with pytest.raises(SplineError, match="control points must have shape"):
+        N.nearly_affine_stacked(np.stack([s.points for s in splines])[:, :-1], knots, degs)
     assert set(np.concatenate([a.ravel() for a in alone]).tolist()) == {-1, 0, 1}
     assert any(np.any(a == 0) and np.any(a != 0) for a in alone)  # partly decided nets among them
     together = check_regular_many(splines + [other], 8, allow_zeros=True)
