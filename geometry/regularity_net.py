@@ -140,8 +140,8 @@ def _separable_stacked(P: np.ndarray, knots, degrees, firsts) -> tuple[np.ndarra
     G, d = P.shape[0], len(degrees)
     radius = [sum(np.abs(_derivative(knots[j], degrees[j], P[..., k], 1 + j)).reshape(G, -1).max(1, initial=0.0)
                   for j in range(d) if j != k) for k in range(d)]  # (G,) per row k
-    out = np.ones((G,) + tuple(len(f) for f in firsts), int)
-    decided = np.ones(G, bool)
+    shape_e = tuple(len(f) for f in firsts)
+    decided, signs = np.ones(G, bool), []
     for k in range(d):
         Q = np.moveaxis(_derivative(knots[k], degrees[k], P[..., k], 1 + k), 1 + k, 1).reshape(G, P.shape[1 + k] - 1, -1)
         p = degrees[k]
@@ -150,8 +150,11 @@ def _separable_stacked(P: np.ndarray, knots, degrees, firsts) -> tuple[np.ndarra
         r = radius[k][:, None] if d > 1 else 0.0
         s_ = np.where(lo > r, 1, np.where(hi < -r, -1, 0))  # (G, E_k)
         decided &= np.all(s_ != 0, axis=1)
-        shape = [G] + [1] * d
-        shape[1 + k] = len(firsts[k])
-        out = out * s_.reshape(shape)
+        if not decided.any():  # none of them is separable: the general bound decides
+            return np.zeros((G,) + shape_e, int), decided
+        signs.append(s_)
+    out = signs[0].reshape((G, -1) + (1,) * (d - 1))
+    for k in range(1, d):  # the outer product, the full grid formed by the last factor only
+        out = out * signs[k].reshape((G,) + (1,) * k + (-1,) + (1,) * (d - 1 - k))
     out[~decided] = 0
     return out, decided
