@@ -276,7 +276,7 @@ def _regular_forks(jobs, alpha, beta, phi) -> list:
     """:func:`_regular_fork` of every (inlet, outlets) of ``jobs``, the same forks: the first try of each (the
     first shape's base, then its arms at the first tangent length) built for all and proven in two batches,
     the search one by one only for the forks where one of these folds (the winged duck's 120 forks were
-    proven one trivariate at a time: 2.9 of its 15 s)."""
+    proven one trivariate at a time: 4.0 of its 15 s under a line profiler)."""
     da, height = _SHAPES[0]
     bases = [bifurcation_base(inlet, outs, float(np.clip(alpha + da, 0.15, 1.45)), phi, height) for inlet, outs in jobs]
     tried = []  # (job, base, space, arms) of the forks whose first base is regular
