@@ -19,16 +19,17 @@ from .tolerances import model_size
 __all__ = ["unglued_contacts"]
 
 
-def unglued_contacts(patches, interfaces, limit: int = 5) -> list[tuple[tuple, tuple]]:
+def unglued_contacts(patches, interfaces, limit: int = 5, mask=None) -> list[tuple[tuple, tuple]]:
     """Pairs of free faces of different patches that touch: a sample point of one lies on a sample of the other.
 
     Every free face is sampled at its centre (which every orientation maps
     onto the other face's centre) and four interior points; two free faces
     sharing one of these points (within the coupling tolerance) lie on each
     other, so an interface is missing or the faces do not conform.  One batched evaluation and one KD-tree; returns at
-    most ``limit`` pairs [((patch, face), (patch, face))].
+    most ``limit`` pairs [((patch, face), (patch, face))].  ``mask``: the free faces'
+    :func:`geometry.multipatch.free_face_mask`, when the caller has it.
     """
-    free = free_faces(patches, interfaces)
+    free = free_faces(patches, interfaces, mask)
     if len(free) < 2:
         return []
     pts = face_points(patches, free, _SAMPLES)  # (F, n, 3)

@@ -37,7 +37,8 @@ from .placed_points import face_points, physical_corners, tile_corners
 from .grouping import ObjectIndex
 from .tolerances import CONTACT, INTERFACE, model_size, same_space
 
-__all__ = ["PlacedPatch", "Interface", "MultiPatch", "detect_interfaces", "free_faces", "face_points", "ORIENTATIONS"]
+__all__ = ["PlacedPatch", "Interface", "MultiPatch", "detect_interfaces", "free_faces", "free_face_mask", "face_points",
+           "ORIENTATIONS"]
 
 TOL = INTERFACE  # coinciding corners and faces, relative to the model's size (at least 1)
 
@@ -243,10 +244,30 @@ def _coincide(patches, todo, scale) -> np.ndarray:
     return res
 
 
-def free_faces(patches, interfaces) -> list[tuple[int, str]]:
-    """Faces of trivariate patches that no interface glues, in patch then face order."""
-    glued = {itf.a for itf in interfaces} | {itf.b for itf in interfaces}
-    return [(i, f) for i, P in enumerate(patches) if P.spline.dim == 3 for f in FACE_NAMES if (i, f) not in glued]
+def free_faces(patches, interfaces, mask=None) -> list[tuple[int, str]]:
+    """Faces of trivariate patches that no interface glues, in patch then face order (``mask``: the
+    :func:`free_face_mask` of these patches and interfaces, when the caller has it)."""
+    pidx, free = free_face_mask(patches, interfaces) if mask is None else mask
+    t, f = np.nonzero(free)  # row-major: patch then face order
+    pid = pidx.tolist()  # one int per patch, shared by its faces' keys
+    return [(pid[a], FACE_NAMES[b]) for a, b in zip(t.tolist(), f.tolist())]
+
+
+def free_face_mask(patches, interfaces) -> tuple[np.ndarray, np.ndarray]:
+    """(trivariate patch indices (T,), free (T, 6) bool in FACE_NAMES order): the faces no interface glues,
+    from one array pass over the interfaces' ends (a set lookup per face took 0.15 s on 65k patches).
+    Interface ends that are not one of the six faces (slot faces) hide none of them."""
+    pidx = np.array([i for i, P in enumerate(patches) if P.spline.dim == 3], np.int64)
+    row = np.full(len(patches), -1)
+    row[pidx] = np.arange(len(pidx))
+    face_index = {f: k for k, f in enumerate(FACE_NAMES)}
+    ends = [e for itf in interfaces for e in (itf.a, itf.b)]
+    ep = np.fromiter((e[0] for e in ends), np.int64, count=len(ends))
+    ef = np.fromiter((face_index.get(e[1], -1) for e in ends), np.int64, count=len(ends))
+    six = (ef >= 0) & (row[ep] >= 0)
+    free = np.ones((len(pidx), 6), bool)
+    free[row[ep[six]], ef[six]] = False
+    return pidx, free
 
 
 @dataclass(eq=False)

@@ -115,6 +115,27 @@ def test_regular_cross_paving_interfaces_and_free_faces():
         assert_identity_coincides(D, ms, itf, st)
 
 
+def test_free_faces_are_the_faces_no_interface_glues_slot_and_branch_faces_included():
+    from geometry.multipatch import free_face_mask, free_faces
+
+    D = pr.box((2.0, 1.0, 1.0))
+    models = [tiling.regular(D, L.cross(), (2, 2, 1), seal="cap"), tiling.hierarchical(D, L.heat_sink_t2(), (2, 1), 3)]
+    slotted = [m for m in models if any(not isinstance(k[1], str) or k[1] not in ("umin", "umax", "vmin", "vmax",
+                                                                                     "wmin", "wmax")
+                                        for k in m.tags["internal"])]
+    for ms in models:
+        glued = {e for itf in ms.interfaces for e in (itf.a, itf.b)}  # the definition, one face at a time
+        want = [(i, f) for i, P in enumerate(ms.patches) if P.spline.dim == 3
+                for f in ("umin", "umax", "vmin", "vmax", "wmin", "wmax") if (i, f) not in glued]
+        assert free_faces(ms.patches, ms.interfaces) == want
+        pidx, free = free_face_mask(ms.patches, ms.interfaces)
+        assert free.sum() == len(want) and len(pidx) == len(ms.patches)
+        assert any(i.kind == "branch" for i in ms.interfaces) or ms is models[0]
+        # every free face is tagged as boundary (and the slot faces besides)
+        assert set(want) <= set(ms.tags["boundary"])
+    assert slotted  # a model with slot faces (keys that are not one of the six faces) is among them
+
+
 def test_regular_paving_boundary_variants():
     D = pr.box()
     sealed = L.hollow_box()
