@@ -33,7 +33,8 @@ from geometry import BSpline
 from geometry.errors import SplineError
 from geometry.faces import FACE_NAMES, discontinuity_slots, face_knots, nested_refinement
 from geometry.contact import unglued_contacts
-from geometry.multipatch import Interface, MultiPatch, PlacedPatch, detect_interfaces, free_face_mask, tile_corners
+from geometry.multipatch import (Interface, MultiPatch, PlacedPatch, detect_interfaces, free_face_mask, free_faces,
+                                 tile_corners)
 
 from . import export
 from .errors import TilingError
@@ -213,12 +214,11 @@ def _tags(outer, placed, interfaces, root_faces, leaf_faces=(), mask=None) -> di
         for side in (0, 1):
             on = np.all(np.abs(fc[..., k] - dom[k, side]) < TOL * scale, axis=-1)
             where[on] = 2 * k + side
-    t, f = np.nonzero(free)  # row-major: patch then face order
-    pid = pidx.tolist()  # one int per patch, shared by its faces' keys
-    # one tuple per free face in every list that holds it (a million free faces on large lattices)
-    keys = [(pid[a], FACE_NAMES[b]) for a, b in zip(t.tolist(), f.tolist())]
+    # one tuple per free face in every list that holds it (a million free faces on large lattices), in patch
+    # then face order, the order of ``where[free]``
+    keys = free_faces(placed, interfaces, (pidx, free))
     names = FACE_NAMES + ("internal",)
-    kind = where[t, f]
+    kind = where[free]
     tags = {name: [keys[j] for j in np.flatnonzero(kind == n).tolist()] for n, name in enumerate(names)}
     tags.update({"boundary": keys, "branch-in": [], "branch-out": []})
     # root and leaf faces a seal plate covers are glued, not free
