@@ -317,15 +317,15 @@ class EdgeSplines:
         inner = (cols[None, :] <= W[:, None] - 1) & (U[:, p + 1:] <= t[:, None])
         s = p + inner.sum(axis=1)  # the local span: u_s <= t < u_{s+1}
         d = np.take_along_axis(C, s[:, None] - p + np.arange(p + 1), axis=1)
+        # the 2p knots u_{s-p+1} .. u_{s+p} that de Boor reads, gathered once: column c holds u_{s-p+1+c}
+        Uw = np.take_along_axis(U, s[:, None] - p + 1 + np.arange(2 * p), axis=1)
         slope = None
         for r in range(1, p + 1):
             if derivative and r == p:  # C'(t) = p (d_s - d_{s-1}) / (u_{s+1} - u_s) at level p - 1
-                span = (np.take_along_axis(U, (s + 1)[:, None], axis=1) - np.take_along_axis(U, s[:, None], axis=1))
-                slope = p * (d[:, p] - d[:, p - 1]) / np.where(span[:, 0] > 0, span[:, 0], np.inf)
+                span = Uw[:, p] - Uw[:, p - 1]
+                slope = p * (d[:, p] - d[:, p - 1]) / np.where(span > 0, span, np.inf)
             for j in range(p, r - 1, -1):
-                i = s - p + j
-                lo = np.take_along_axis(U, i[:, None], axis=1)[:, 0]
-                hi = np.take_along_axis(U, (i + p + 1 - r)[:, None], axis=1)[:, 0]
+                lo, hi = Uw[:, j - 1], Uw[:, j + p - r]  # u_{s-p+j} and u_{s+j+1-r}
                 den = hi - lo
                 alpha = np.where(den > 0, (t - lo) / np.where(den > 0, den, 1.0), 0.0)
                 d[:, j] = (1.0 - alpha) * d[:, j - 1] + alpha * d[:, j]
