@@ -20,7 +20,7 @@ from . import _fast
 from .errors import SplineError
 from .tolerances import ROUNDOFF
 
-__all__ = ["Inversion", "invert", "invert_nearest", "newton_inverse", "start_grid"]
+__all__ = ["Inversion", "box_gaps", "invert", "invert_nearest", "newton_inverse", "start_grid"]
 
 
 @dataclass
@@ -227,9 +227,7 @@ def invert_nearest(splines, points, tol: float = 1e-10, damped: bool = False) ->
         raise SplineError(f"invert_nearest needs one or more splines of one dimension, got "
                           f"{[S.dim for S in splines] or 'none'}; pass e.g. the six boundary surfaces of a trivariate")
     n, d = len(pts), splines[0].dim
-    boxes = np.array([[S.points.reshape(-1, 3).min(0), S.points.reshape(-1, 3).max(0)] for S in splines])
-    gap = np.linalg.norm(np.maximum(np.maximum(boxes[None, :, 0] - pts[:, None], pts[:, None] - boxes[None, :, 1]),
-                                    0.0), axis=2)  # (N, splines)
+    gap = box_gaps(pts, np.array([S.bounding_box() for S in splines]))  # (N, splines)
     slack = 1e-9 * np.maximum(1.0, np.abs(pts).max(axis=1))  # round-off of the gap against a distance
     which, params = np.full(n, len(splines)), np.zeros((n, d))
     best, inside = np.full(n, np.inf), np.zeros(n, bool)
@@ -244,3 +242,11 @@ def invert_nearest(splines, points, tol: float = 1e-10, damped: bool = False) ->
             sel = sel[win]
             which[sel], params[sel], best[sel], inside[sel] = g, inv.params[win], inv.distance[win], inv.inside[win]
     return which, Inversion(params, best, inside)
+
+
+def box_gaps(points, boxes: np.ndarray) -> np.ndarray:
+    """Distances (N, M) from points (N, 3) to axis-aligned boxes (M, 3, 2) (0 inside a box): lower bounds of the
+    distance to a spline whose control points a box holds (convex hull)."""
+    x = np.asarray(points, float)[:, None, :]
+    gap = np.maximum(np.maximum(boxes[None, :, :, 0] - x, x - boxes[None, :, :, 1]), 0.0)
+    return np.sqrt(np.sum(gap * gap, axis=2))

@@ -22,7 +22,7 @@ import numpy as np
 from geometry import BSpline
 from geometry.errors import show
 from geometry.faces import FACE_NAMES
-from geometry.inversion import invert, invert_nearest
+from geometry.inversion import box_gaps, invert, invert_nearest
 
 from ..errors import TilingError
 from ..paving import _check_budget
@@ -150,9 +150,7 @@ def _box_gap(points: np.ndarray, boxes: np.ndarray, chunk: int = 1 << 21) -> np.
     out = np.empty(len(points))
     step = max(1, chunk // max(1, len(boxes)))
     for a in range(0, len(points), step):
-        x = points[a:a + step, None, :]
-        gap = np.maximum(np.maximum(boxes[None, :, :, 0] - x, x - boxes[None, :, :, 1]), 0.0)
-        out[a:a + step] = np.sqrt(np.min(np.sum(gap * gap, axis=2), axis=1))
+        out[a:a + step] = box_gaps(points[a:a + step], boxes).min(axis=1)
     return out
 
 
