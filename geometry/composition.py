@@ -37,7 +37,7 @@ from .compose_boxes import axis_aligned, restrict_batch
 from .compose_curves import compose_curve_split
 from .errors import SplineError
 from .grouping import ObjectIndex
-from .placed_points import placements
+from .placed_points import IDENTITY, placements
 from .resources import usable_cores
 from .tolerances import SINGULAR, SNAP
 
@@ -234,14 +234,11 @@ def _compose_located(outer, inner, A, b, placed, where, patches=None) -> list[BS
     return results
 
 
-_IDENTITY = np.hstack([np.eye(3), np.zeros((3, 1))])[None]  # inner coordinates are the outer parameters
-
-
 def _compose_curve_piece(outer: BSpline, piece: BSpline, patches=None) -> BSpline:
     """Compose a curve piece whose image lies in one knot span (located from its midpoint, not its hull);
     ``patches``: the outer map's homogeneous Bezier pieces, extracted once for many pieces."""
     Do = outer.dim
-    A, b = _IDENTITY[:, :Do, :3], _IDENTITY[:, :Do, 3]
+    A, b = IDENTITY[None, :Do, :3], IDENTITY[None, :Do, 3]  # inner coordinates are the outer parameters
     placed = piece.points[None, :, :Do]
     mid = piece.evaluate(np.array([[piece.domain[0].mean()]]))[:, :Do]
     breaks = [outer.breakpoints(k) for k in range(Do)]
@@ -262,7 +259,7 @@ def compose(outer: BSpline, inner: BSpline) -> BSpline:
     """
     _check_pair(outer, inner)
     try:
-        return compose_many(outer, inner, _IDENTITY)[0]
+        return compose_many(outer, inner, IDENTITY[None])[0]
     except KnotLineCrossing:
         if inner.dim != 1:
             raise

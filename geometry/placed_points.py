@@ -16,10 +16,11 @@ import numpy as np
 from .faces import FACE_AXIS, FACE_NAMES
 from .grouping import identity_groups
 
-__all__ = ["placements", "tile_corners", "physical_corners", "face_points"]
+__all__ = ["IDENTITY", "placements", "trivariates", "tile_corners", "physical_corners", "face_points"]
 
-_IDENTITY = np.hstack([np.eye(3), np.zeros((3, 1))])
-_IDENTITY.setflags(write=False)
+#: the placement [A | b] (3, 4) of a patch placed as it is (read-only, shared)
+IDENTITY = np.hstack([np.eye(3), np.zeros((3, 1))])
+IDENTITY.setflags(write=False)
 _FACE_INDEX = {name: i for i, name in enumerate(FACE_NAMES)}
 
 
@@ -45,7 +46,12 @@ def placements(patches, idx) -> np.ndarray:
     """The placements [A | b] (n, 3, 4) of patches ``idx`` (the identity where a patch has none)."""
     if not len(idx):
         return np.zeros((0, 3, 4))
-    return np.array([_IDENTITY if patches[i].placement is None else patches[i].placement for i in idx], float)
+    return np.array([IDENTITY if patches[i].placement is None else patches[i].placement for i in idx], float)
+
+
+def trivariates(patches) -> np.ndarray:
+    """Indices (T,) of the trivariate patches, in order."""
+    return np.array([i for i, P in enumerate(patches) if P.spline.dim == 3], np.int64)
 
 
 def _place(M: np.ndarray, pts: np.ndarray) -> np.ndarray:
@@ -82,7 +88,7 @@ def tile_corners(patches):
     The corner control points of a clamped spline are its corners: one array
     operation per distinct tile spline, one batched matrix product for all placements.
     """
-    idx = np.array([i for i, P in enumerate(patches) if P.spline.dim == 3], np.int64)
+    idx = trivariates(patches)
     if not len(idx):
         return idx, np.zeros((0, 6, 4, 3))
     splines = [patches[i].spline for i in idx]

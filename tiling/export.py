@@ -25,7 +25,7 @@ from geometry import Interface, MultiPatch, compose_many
 from geometry.faces import FACE_AXIS, FACE_NAMES, face_name, parse_slot_face
 from geometry.errors import SplineError
 from geometry.iges import write_iges as _write_iges
-from geometry.placed_points import placements
+from geometry.placed_points import IDENTITY, placements
 from geometry.io import atomic_write, offscreen_plotter, save_screenshot
 from geometry.sampling import piece_boxes, sample_axes, sampled_mesh, weld
 
@@ -44,7 +44,6 @@ __all__ = ["surface", "watertightness", "pinch_lines", "mesh_watertightness", "w
            "boundary_splines", "continuous_pieces", "slot_surfaces", "write_iges",
            "samples_for_tolerance"]
 
-_IDENTITY = np.hstack([np.eye(3), np.zeros((3, 1))])
 _FORMATS = {".vtu": "vtu", ".obj": "obj", ".stl": "stl", ".ply": "ply", ".vtp": "vtp"}
 
 
@@ -55,7 +54,7 @@ def _map(P, params):
 
 def _place(P, x):
     """Tile-space points (N, 3) of a placed patch in physical space: placement, then the map D."""
-    A = _IDENTITY if P.placement is None else P.placement
+    A = IDENTITY if P.placement is None else P.placement
     y = x @ A[:, :3].T + A[:, 3]
     if P.outer is None:  # already in physical space (e.g. swept struts)
         return y

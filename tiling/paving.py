@@ -29,6 +29,7 @@ from geometry.errors import SplineError
 from geometry.faces import FACE_NAMES
 from geometry.errors import show
 from geometry.grouping import ObjectIndex
+from geometry.placed_points import IDENTITY
 from geometry.tolerances import COINCIDENT
 
 
@@ -198,9 +199,6 @@ def regular_placements(D: BSpline, tile: Tile, counts, variants: dict | None = N
     return placed, tiles, links, caps, sealed, trimmed
 
 
-_IDENTITY = np.hstack([np.eye(3), np.zeros((3, 1))])
-
-
 def grid_identity(D: BSpline, tiles: list, shape: tuple):
     """The identity interfaces, by construction (:mod:`tiling.topology`), of a grid of cells of the shape
     ``shape`` holding ``tiles`` in C order, each tile's patches placed in turn; (interfaces, mismatched)."""
@@ -210,7 +208,7 @@ def grid_identity(D: BSpline, tiles: list, shape: tuple):
     layouts = {}
     for t in tiles:
         if same(t) not in layouts:
-            layouts[same(t)] = [(p, _IDENTITY) for p in t.patches]
+            layouts[same(t)] = [(p, IDENTITY) for p in t.patches]
     return _grid_interfaces(keys, first, layouts, seams(D))
 
 
@@ -392,7 +390,7 @@ def hierarchical(D: BSpline, tile: Tile, counts, levels: int, scale: float | Non
             keys[i, j, 0], first[i, j, 0] = sides, cell_first
             if sides not in cell_layouts:  # the cell's patches in the unit cell: the hierarchy, then the plates
                 cell_layouts[sides] = [(p, (squeeze @ Nrm @ M)[:3]) for M, *_ in nodes for p in tile.patches]
-                cell_layouts[sides] += [(p, _IDENTITY) for p in (layouts[sides][1].patches if sides else ())]
+                cell_layouts[sides] += [(p, IDENTITY) for p in (layouts[sides][1].patches if sides else ())]
             if sides:
                 lay, plates = layouts[sides]
                 tid, pfirst = len(out.tiles), len(out.placed)
