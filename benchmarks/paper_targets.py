@@ -19,7 +19,12 @@ benchmarks behind the rows and prints one table of measured figures beside the t
   under 8 s), and its warm assembly time per unknown against the 110k cube's (target: linear in size;
   within 30% counts);
 * ``first``: the first ``solve()`` of the 110k cube in a process against the third (target: at most
-  0.5 s more).
+  0.5 s more);
+* ``memory``: not a target but the machine: how fast a fresh process writes 512 MiB it never touched
+  before, on NumPy's transparent huge pages and on small pages (:func:`iga.memory.streamed_empty`, which
+  the heat operator's arrays take), against writing them again.  On this Firecracker VM the first
+  write costs 0.3-0.4 GB/s on huge pages, about 2 GB/s on small ones and 11-21 GB/s again
+  (docs/performance.md): read the cold rows beside this one.
 
 Writes benchmarks/out/paper_targets.json.  Takes about 6 minutes on this 2-core VM.
 """
@@ -49,6 +54,19 @@ for _ in range(runs):
     out["runs"].append({"solve s": time.perf_counter() - t, "timings": s.info["timings"], "dofs": s.info["dofs"],
                         "method": s.info["solver"]["method"]})
 print(json.dumps(out))
+"""
+
+
+TOUCH = """
+import json, time
+import numpy as np
+from iga.memory import streamed_empty
+n = 512 * 2**20 // 8
+t = time.perf_counter(); a = np.empty(n); a.fill(1.0); huge = time.perf_counter() - t
+t = time.perf_counter(); a.fill(2.0); again = time.perf_counter() - t
+t = time.perf_counter(); b = streamed_empty(n); b.fill(1.0); small = time.perf_counter() - t
+print(json.dumps({"fresh GB/s": 8 * n / huge / 1e9, "again GB/s": 8 * n / again / 1e9,
+                  "small GB/s": 8 * n / small / 1e9}))
 """
 
 
@@ -144,8 +162,20 @@ def first() -> list[dict]:
                  f"first {r['runs'][0]['solve s']:.2f} s, third {r['runs'][-1]['solve s']:.2f} s")]
 
 
+def memory() -> list[dict]:
+    r = run_child([sys.executable, "-c", TOUCH], "first touch")
+    if r is None:
+        return []
+    csr = 1.5  # GB: the 1M cube's stiffness, 125 non-zeros a row at 12 bytes
+    return [{"case": "machine: writing 512 MiB never touched (not a target)", "measured": r["fresh GB/s"],
+             "unit": "GB/s", "target": "-", "meets": "-",
+             "note": f"NumPy's huge pages; {r['small GB/s']:.2f} GB/s on small pages (the heat CSR: 1M cube "
+                     f"{csr / r['small GB/s']:.1f} s, {csr / r['fresh GB/s']:.1f} s on huge pages); "
+                     f"{r['again GB/s']:.1f} GB/s written again"}]
+
+
 CASES = {"duck": duck, "fig4": fig4, "bifurcation": bifurcation, "table1": table1, "splinepy": splinepy,
-         "million": million, "first": first}
+         "million": million, "first": first, "memory": memory}
 
 
 def main(argv=None) -> int:

@@ -22,6 +22,7 @@ from geometry.ranges import concatenated_ranges
 
 from .assembly import CSRPattern, _band_limits
 from .errors import ProblemError
+from .memory import streamed_empty
 
 __all__ = ["VectorCSR", "pattern_nnz"]
 
@@ -55,8 +56,12 @@ class VectorCSR:
         self.nnz = int(nnz.sum())
         self.indptr = np.empty(c * self.n + 1, np.int64)
         self.indptr[-1] = c * c * self.nnz
-        self.indices = np.empty(c * c * self.nnz, np.int64 if c * self.n > np.iinfo(np.int32).max else np.int32)
-        self.data = np.empty(c * c * self.nnz)
+        # one component: written once in row order, then streamed, so small pages (iga.memory.streamed_empty);
+        # several: each block pass writes a third of every row and the lower blocks are scattered, where huge
+        # pages save TLB misses (24^3 elastic assembly: best of 6, 0.20 s on small pages, 0.14 s on NumPy's)
+        empty = streamed_empty if c == 1 else np.empty
+        self.indices = empty(c * c * self.nnz, np.int64 if c * self.n > np.iinfo(np.int32).max else np.int32)
+        self.data = empty(c * c * self.nnz)
         self._written = np.zeros(len(nnz), bool)
 
     def bases(self, members, a: int) -> np.ndarray:

@@ -1,0 +1,53 @@
+"""iga.memory: the pages of streamed arrays (read back from the kernel's own account, /proc/self/smaps)."""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+import pytest
+
+from iga.memory import streamed_empty
+from iga.vector_csr import VectorCSR
+
+
+def _vm_flags(a: np.ndarray) -> list[str]:
+    """The VmFlags of the mapping that holds the middle of ``a`` (/proc/self/smaps)."""
+    address = a.ctypes.data + a.nbytes // 2
+    inside = False
+    for line in open("/proc/self/smaps"):
+        head = line.split()[0]
+        if "-" in head and not head.endswith(":"):
+            lo, hi = (int(x, 16) for x in head.split("-"))
+            inside = lo <= address < hi
+        elif inside and head == "VmFlags:":
+            return line.split()[1:]
+    raise AssertionError("no mapping holds the array")
+
+
+linux = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="madvise and smaps are Linux's")
+
+
+@linux
+def test_large_streamed_arrays_ask_for_small_pages():
+    a = streamed_empty(3 << 21, np.int32)  # 24 MiB
+    assert a.shape == (3 << 21,) and a.dtype == np.int32
+    assert "nh" in _vm_flags(a)  # MADV_NOHUGEPAGE reached the kernel
+    a[:] = 7  # and the memory is ordinary, writable memory
+    assert int(a[-1]) == 7
+
+
+@linux
+def test_small_arrays_are_left_as_numpy_makes_them():
+    a = streamed_empty(1000)
+    assert a.shape == (1000,) and a.dtype == float
+    big = np.empty(3 << 21)  # NumPy's own large array keeps its huge-page request
+    assert "nh" not in _vm_flags(big)
+
+
+@linux
+def test_heat_operator_arrays_use_small_pages_and_elastic_ones_do_not():
+    heat = VectorCSR(np.array([0, 1000]), np.array([5 << 20]), components=1)
+    elastic = VectorCSR(np.array([0, 1000]), np.array([5 << 20]), components=3)
+    assert "nh" in _vm_flags(heat.data) and "nh" in _vm_flags(heat.indices)
+    assert "nh" not in _vm_flags(elastic.data)
