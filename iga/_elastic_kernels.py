@@ -179,15 +179,17 @@ def elastic3_for(p3: int, g3: int):
 
 
 @njit(cache=True, parallel=True)
-def mirror_lower(indptr, indices, transpose, before, offsets, n_total, nnz_total, data, cols):
+def mirror_lower(indptr, indices, transpose, before, nnz_total, data, cols):
     """Blocks (1, 0), (2, 0), (2, 1) of component-major operators as the transposes of (0, 1), (0, 2), (1, 2),
-    in place, with their columns, for the patches whose scalar non-zeros start at ``before[m]`` and unknowns at
-    ``offsets[m]`` (layout of :class:`iga.vector_csr.VectorCSR`); ``transpose[k]`` the position of entry (j, i)
-    for entry k = (i, j) of the scalar pattern (indptr, indices).  Row by row of the upper blocks, scattering
-    into the lower ones (gathering row by row of the lower blocks measured 2x slower)."""
+    in place, for the patches whose scalar non-zeros start at ``before[m]`` (layout of
+    :class:`iga.vector_csr.VectorCSR`); ``transpose[k]`` the position of entry (j, i) for entry k = (i, j) of
+    the scalar pattern (indptr, indices).  Row by row of the upper blocks, scattering into the lower ones
+    (gathering row by row of the lower blocks measured 2x slower).  The columns of the rows of components 1 and
+    2, lower blocks included, are those of component 0's row (block b of every row reads columns j + b n +
+    offset): copied a row at a time, in order, from the columns the kernel wrote for component 0."""
     n = indptr.shape[0] - 1
     for m in range(before.shape[0]):
-        nb, off = before[m], offsets[m]
+        nb = before[m]
         for i in prange(n):
             s, li = indptr[i], indptr[i + 1] - indptr[i]
             for k in range(s, s + li):
@@ -197,9 +199,13 @@ def mirror_lower(indptr, indices, transpose, before, offsets, n_total, nnz_total
                 t = transpose[k] - sj
                 for a in range(2):
                     for b in range(a + 1, 3):
-                        dst = b * 3 * nnz_total + 3 * (nb + sj) + a * lj + t
-                        data[dst] = data[a * 3 * nnz_total + 3 * (nb + s) + b * li + k - s]
-                        cols[dst] = i + a * n_total + off
+                        data[b * 3 * nnz_total + 3 * (nb + sj) + a * lj + t] = \
+                            data[a * 3 * nnz_total + 3 * (nb + s) + b * li + k - s]
+            row = 3 * (nb + s)
+            for a in range(1, 3):
+                shift = a * 3 * nnz_total
+                for k in range(row, row + 3 * li):
+                    cols[shift + k] = cols[k]
 
 
 @njit(cache=True, parallel=True)

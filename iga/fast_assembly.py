@@ -281,9 +281,10 @@ def elastic_into(space: TensorSpace, members, G: np.ndarray, LM: np.ndarray, out
     ``G`` (9, P) + qshape: the metric rows, ``G[3 r + k] = c_r[k]`` (:func:`iga.elastic_forms.metric_rows`);
     ``LM`` (2, P) + qshape: lambda w / |det J| and mu w / |det J| (Pa).  Block (a, b) couples component a of
     the test functions (rows) with component b of the trial functions.  The kernel computes the six upper
-    blocks, the diagonal ones through the scalar kernel's symmetric stages, writing data and columns as rows
-    complete; the lower blocks are copied from the upper ones' transposes (the pattern's mirrored band
-    offsets) by one parallel pass.  Compiled (:mod:`iga._elastic_kernels`); the NumPy reference is
+    blocks, the diagonal ones through the scalar kernel's symmetric stages, writing data as rows complete and
+    columns for component 0's rows; the lower blocks are copied from the upper ones' transposes (the
+    pattern's mirrored band offsets), and the other components' columns from component 0's, by one parallel
+    pass.  Compiled (:mod:`iga._elastic_kernels`); the NumPy reference is
     :func:`iga.elastic_forms.block_terms`.
     """
     t1, t2, t3 = (_tables(s) for s in space.dirs)
@@ -301,7 +302,9 @@ def elastic_into(space: TensorSpace, members, G: np.ndarray, LM: np.ndarray, out
     out.put_rows(members, indptr)
     for a in range(3):
         for b in range(a, 3):
-            dest = np.stack([out.bases(members, a), np.full(P, 3), np.full(P, b), b * out.n + offsets], axis=1)
+            # columns written for component 0's rows only: the mirror copies them to the other components' rows
+            cols = b * out.n + offsets if a == 0 else np.full(P, -1)
+            dest = np.stack([out.bases(members, a), np.full(P, 3), np.full(P, b), cols], axis=1)
             kernel(G, LM, a, b, 0, t1["b"], t1["first"], t2["W"], t2["r"], t2["s"], t3["b"], t3["first"], indptr,
                    t1["lo"], t1["c"], t2["lo"], t2["c"], t3["lo"], t3["c"], ring, Z7, Z9, Y, out.data, out.indices,
                    readonly(dest, np.int64))
@@ -309,7 +312,7 @@ def elastic_into(space: TensorSpace, members, G: np.ndarray, LM: np.ndarray, out
     locked(kernels.transpose_positions)(indptr, t1["lo"], t1["c"], t2["lo"], t2["c"], t3["lo"], t3["c"],
                                         p1, p2, p3, transpose)
     locked(kernels.mirror_lower)(indptr, readonly(pat.indices, pat.indices.dtype), readonly(transpose, np.int64),
-                                 before, offsets, out.n, out.nnz, out.data, out.indices)
+                                 before, out.nnz, out.data, out.indices)
     out.mark(members)
 
 

@@ -423,6 +423,27 @@ def test_the_split_block_assembly_equals_the_nine_term_form(compiled, monkeypatc
     assert abs(K - K.T).max() <= 1e-12 * abs(K).max()
 
 
+def test_the_compiled_assembly_of_batched_patches_equals_the_numpy_one(monkeypatch):
+    """Several patches per compiled batch (a lattice of cross tiles, patches sharing spaces): their rows,
+    columns and the lower blocks' copies land where the NumPy path puts them, whatever each patch's offset."""
+    from iga import elastic_volume, fast_assembly
+
+    if not fast_assembly.AVAILABLE:
+        pytest.skip("numba is not installed")
+    twisted = pr.twisted(pr.box((2.0, 1.0, 1.0), degrees=(2, 2, 2)), 0.3, axis_point=(1.0, 0.5))
+    ms = tiling.regular(twisted, L.cross(), (2, 2, 1))
+    p = ElasticityProblem(ms, youngs=lambda x: 1.0 + x[:, 0], poisson=0.3, degree_elevation=1)
+    vol = elastic_volume.ElasticVolume(p.disc)
+    monkeypatch.setattr(fast_assembly, "MIN_POINTS", 10**12)
+    ref = vol.assemble(p.youngs, p.poisson)[0]
+    monkeypatch.setattr(fast_assembly, "MIN_POINTS", 1)
+    groups = p.disc.volume.groups.values()
+    assert any(len(g) > 1 for g in groups) and all(fast_assembly.applies(p.spaces[g[0]], len(g)) for g in groups)
+    K = vol.assemble(p.youngs, p.poisson)[0]
+    assert np.array_equal(K.indptr, ref.indptr) and np.array_equal(K.indices, ref.indices)
+    assert abs(K - ref).max() <= 1e-12 * abs(ref).max()
+
+
 def test_the_component_major_operator_is_the_block_matrix_of_its_patches():
     import scipy.sparse as sp
 
