@@ -128,3 +128,48 @@ def test_solutions_print_in_one_line_and_the_demo_takes_quiet_after_its_name(tmp
     out = subprocess.run([sys.executable, "-m", "iga", "demo", "heat-sink", "--quiet", "--help"], capture_output=True,
                          text=True)
     assert out.returncode == 0 and "--quiet" in out.stdout
+
+
+def test_paused_gc_restores_the_collector_as_it_found_it():
+    import gc
+
+    from geometry.resources import paused_gc
+
+    assert gc.isenabled()
+    with paused_gc():
+        assert not gc.isenabled()
+        with paused_gc():  # a builder calling another: still paused when the inner one ends
+            pass
+        assert not gc.isenabled()
+    assert gc.isenabled()
+    with pytest.raises(ValueError):
+        with paused_gc():
+            raise ValueError("a failed build")
+    assert gc.isenabled()  # restored on the error too
+    gc.disable()
+    try:
+        with paused_gc():
+            pass
+        assert not gc.isenabled()  # the caller had it off: left off
+    finally:
+        gc.enable()
+
+
+def test_pavings_build_with_the_collector_paused_and_leave_it_on(monkeypatch):
+    import gc
+
+    import tiling
+    from geometry import primitives as pr
+    from tiling import library as L
+    from tiling.microstructure import Microstructure
+
+    seen = []
+    real = Microstructure.build.__func__
+
+    def spy(cls, *args, **kwargs):
+        seen.append(gc.isenabled())
+        return real(cls, *args, **kwargs)
+
+    monkeypatch.setattr(Microstructure, "build", classmethod(spy))
+    ms = tiling.regular(pr.box(), L.cross(), (2, 1, 1))
+    assert seen == [False] and gc.isenabled() and len(ms.patches) == 14

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from geometry import BSpline, check_regular, progress
-from geometry.resources import check_memory
+from geometry.resources import check_memory, bulk_build
 from geometry.sampling import sample_axes
 
 from .errors import TilingError
@@ -115,6 +115,7 @@ def _check_spans(D: BSpline, placed: list) -> None:
                 )
 
 
+@bulk_build
 def regular(D: BSpline, tile: Tile, counts, variants: dict | None = None, name: str = "regular",
             seal: str | None = None, thickness: float = SEAL_THICKNESS, seal_sides=None) -> Microstructure:
     """Regular paving: ``counts`` = (cx, cy, cz) copies of ``tile`` per knot span of D.
@@ -333,6 +334,7 @@ def _place_hierarchy(out: _Paving, D, tile: Tile, nodes, cell, levels: int) -> N
             out.leaves += [(first + bf.patch, bf.face) for bf in tile.branch_outs]
 
 
+@bulk_build
 def hierarchical(D: BSpline, tile: Tile, counts, levels: int, scale: float | None = None,
                  name: str = "hierarchical", seal: str | None = None, thickness: float = SEAL_THICKNESS,
                  seal_sides=None) -> Microstructure:
