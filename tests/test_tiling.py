@@ -96,6 +96,21 @@ def test_interfaces_coincide_and_branch_matrices_reproduce_parent_faces():
         assert rel_err(sub(child_params), fa(parent_params)) < 1e-12
 
 
+def test_branch_faces_of_one_configuration_share_one_read_only_refinement():
+    from geometry.faces import face_knots, nested_refinement
+
+    ms = tiling.hierarchical(curved_map(), L.heat_sink_t2(), (2, 1), 3)
+    branch = [i for i in ms.interfaces if i.kind == "branch"]
+    shared = {id(i.R) for i in branch}
+    assert len(shared) < len(branch)  # 40 links, a handful of configurations
+    for itf in branch:  # each equals its own refinement, computed afresh
+        fresh = nested_refinement(face_knots(ms.patches[itf.a[0]].spline, itf.a[1]), itf.box,
+                                  face_knots(ms.patches[itf.b[0]].spline, itf.b[1]))
+        assert (abs(itf.R - fresh)).max() == 0 and itf.R.nnz == fresh.nnz
+        with pytest.raises(ValueError):
+            itf.R.data[0] = 1.0  # shared: nothing may write into it
+
+
 def test_regular_cross_paving_interfaces_and_free_faces():
     rng = np.random.default_rng(2)
     D = curved_map()

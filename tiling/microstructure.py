@@ -163,8 +163,9 @@ class Microstructure(MultiPatch):
                                   "use tiles whose opposite faces have matching knot vectors and control points")
         # a branch-out face that coincides with the child's branch-in face is glued by the branch constraint
         interfaces = [itf for itf in found if frozenset([itf.a, itf.b]) not in linked]
+        same = {}  # branch faces of equal knots and box share one refinement matrix (read-only)
         for parent, pface, pbox, child, cface in branch_links:
-            interfaces.append(_branch_interface(placed, parent, pface, pbox, child, cface))
+            interfaces.append(_branch_interface(placed, parent, pface, pbox, child, cface, same))
         mask = free_face_mask(placed, interfaces)  # for the contact search and the tags
         touching = unglued_contacts(placed, interfaces, mask=mask)
         if touching:
@@ -191,12 +192,25 @@ def branch_refinement(parent_knots, box, child_knots) -> sp.csr_matrix:
         raise TilingError(f"branch faces: {exc}") from None
 
 
-def _branch_interface(placed, parent, pface, pbox, child, cface) -> Interface:
+def _branch_interface(placed, parent, pface, pbox, child, cface, same: dict | None = None) -> Interface:
+    """The branch interface of a link; ``same``: the refinement matrices made so far in this build, by their
+    knots and box (a hierarchy repeats a handful of configurations thousands of times: its 5,376 links took
+    5-10 s to refine one by one)."""
     pk = face_knots(placed[parent].spline, pface)
     if pbox is None:
         pbox = tuple((float(U[0]), float(U[-1])) for U, _ in pk)
-    R = branch_refinement(pk, pbox, face_knots(placed[child].spline, cface))
-    return Interface("branch", (parent, pface), (child, cface), box=tuple(map(tuple, pbox)), R=R)
+    pbox = tuple(tuple(float(x) for x in side) for side in pbox)
+    ck = face_knots(placed[child].spline, cface)
+    key = (tuple((np.asarray(U, float).tobytes(), p) for U, p in pk), pbox,
+           tuple((np.asarray(U, float).tobytes(), p) for U, p in ck))
+    R = None if same is None else same.get(key)
+    if R is None:
+        R = branch_refinement(pk, pbox, ck)
+        for a in (R.data, R.indices, R.indptr):  # shared between interfaces: nothing may write into it
+            a.flags.writeable = False
+        if same is not None:
+            same[key] = R
+    return Interface("branch", (parent, pface), (child, cface), box=pbox, R=R)
 
 
 def _tags(outer, placed, interfaces, root_faces, leaf_faces=(), mask=None) -> dict:
