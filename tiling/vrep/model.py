@@ -75,8 +75,8 @@ class Primitive:
         """
         pts = np.asarray(points, float)
         tol = _INSIDE_TOL * self.size
-        cp = self.D.points.reshape(-1, 3)
-        cand = np.flatnonzero(np.all((pts >= cp.min(0) - tol) & (pts <= cp.max(0) + tol), axis=1))
+        box = self.D.bounding_box()
+        cand = np.flatnonzero(np.all((pts >= box[:, 0] - tol) & (pts <= box[:, 1] + tol), axis=1))
         out = np.zeros(len(pts), bool)
         if len(cand):
             out[cand] = invert(self.D, pts[cand]).distance <= tol  # inside or not: no foot point needed
