@@ -9,6 +9,9 @@ rational) piece, and the composition with that piece is computed exactly:
   of degree ``(n_1 + ... + n_D) * m`` per inner direction (Eq. 7);
 * :mod:`geometry.compose_boxes` -- axis-aligned boxes (regular pavings of
   box-shaped tile patches): ``D`` restricted to a sub-box, outer degrees kept;
+* :mod:`geometry.compose_affine` -- a piece of ``D`` that is affine (a box or
+  slab modelled at a higher degree): the inner spline's control points mapped,
+  inner degrees kept;
 * :mod:`geometry.compose_curves` -- curves crossing knot lines (:func:`compose`
   splits them at the crossings and joins the composed pieces).
 
@@ -32,6 +35,7 @@ from threadpoolctl import threadpool_limits
 from . import knots as kn
 from . import progress
 from .bspline import BSpline
+from .compose_affine import affine_images, affine_piece
 from .compose_bezier import compose_batch, inner_bezier
 from .compose_boxes import axis_aligned, restrict_batch
 from .compose_curves import compose_curve_split
@@ -202,6 +206,7 @@ def _compose_located(outer, inner, A, b, placed, where, patches=None) -> list[BS
                                                         beta[sub], finish)):
                 results[i] = spline
     todo = np.nonzero(perm[:, 0] < 0)[0]
+    todo = _affine_into(outer, inner, A, b, keys[todo], todo, patches, piece, results)
     if not len(todo):
         return results
     bez = inner_bezier(inner)
@@ -232,6 +237,24 @@ def _compose_located(outer, inner, A, b, placed, where, patches=None) -> list[BS
     with threadpool_limits(1, user_api="blas"), ThreadPoolExecutor(workers) as pool:
         list(pool.map(run, chunks))
     return results
+
+
+def _affine_into(outer, inner, A, b, keys, todo, patches, piece, results) -> np.ndarray:
+    """Compose the placements ``todo`` whose outer piece (``keys``) is affine (:mod:`geometry.compose_affine`)
+    into ``results``; returns the others."""
+    rest = []
+    for key in np.unique(keys):
+        sel = todo[keys == key]
+        e, lo, hi = piece(key)
+        affine = affine_piece(patches[e], lo, hi, outer.is_rational)
+        if affine is None:
+            rest.append(sel)
+            continue
+        for i in sel:
+            hom = affine_images(inner, *affine, A[i], b[i])
+            results[i] = BSpline._trusted(inner.degrees, inner.knots, hom, inner.is_rational,
+                                          channels=outer.channels + inner.channels)
+    return np.sort(np.concatenate(rest)) if rest else np.zeros(0, np.int64)
 
 
 def _compose_curve_piece(outer: BSpline, piece: BSpline, patches=None) -> BSpline:

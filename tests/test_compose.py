@@ -424,3 +424,66 @@ def test_a_curve_whose_joint_lies_on_a_knot_line_is_cut_there(rational):
     t = np.random.default_rng(12).uniform(0, 3, 500)[:, None]
     direct = S.evaluate(curve.evaluate(t)[:, :2])[:, :3]
     assert np.abs(compose(S, curve).evaluate(t)[:, :3] - direct).max() < 1e-12
+
+
+def _affine_outer(rng, degrees, spans, rational, channels=("k",)):
+    """An affine map (a sheared, rotated, scaled box with affine channels) at ``degrees``, on random knots."""
+    knots = [random_knots(rng, p, spans - 1, max_mult=1) if spans > 1 else kn.uniform_knots(p, 1) for p in degrees]
+    g = np.stack(np.meshgrid(*[kn.greville(U, p) for U, p in zip(knots, degrees)], indexing="ij"), -1)
+    M = np.eye(3) * rng.uniform(0.5, 2.0, 3) + 0.3 * rng.uniform(-1, 1, (3, 3))
+    x = g @ M.T + rng.uniform(-1, 1, 3)
+    ch = g @ rng.uniform(-1, 1, (3, len(channels))) + 2.0
+    w = np.full(g.shape[:-1], 1.7) if rational else None  # equal weights: still affine
+    return BSpline(degrees, knots, np.concatenate([x, ch], -1), w, channels)
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_an_affine_map_keeps_the_inner_degrees_exactly(seed):
+    rng = np.random.default_rng(100 + seed)
+    outer = _affine_outer(rng, tuple(int(p) for p in rng.integers(1, 4, 3)), 1 + seed % 3, seed % 4 == 1)
+    dim = 1 + seed % 3
+    inner = random_inner(rng, dim, tuple(int(p) for p in rng.integers(1, 4, dim)), seed % 2 == 0,
+                         np.array([[0.1, 0.9]] * 3), n_inner=seed % 2)
+    lo = np.array([outer.breakpoints(k)[0] for k in range(3)])  # the first knot span
+    hi = np.array([outer.breakpoints(k)[1] for k in range(3)])
+    A = np.zeros((3, 4))
+    A[:, :3] = np.diag(0.6 * (hi - lo)) @ rotation(rng)  # rotated (not an axis-aligned box), inside the span
+    A[:, 3] = 0.5 * (lo + hi) - A[:, :3] @ np.full(3, 0.5)
+    [c] = compose_many(outer, inner, A[None])
+    assert c.degrees == inner.degrees and c.channels == outer.channels + inner.channels
+    x = rng.random((400, dim)) * (inner.domain[:, 1] - inner.domain[:, 0]) + inner.domain[:, 0]
+    v = inner.evaluate(x)
+    ref = np.column_stack([outer.evaluate(v[:, :3] @ A[:, :3].T + A[:, 3]), v[:, 3:]])
+    assert rel_err(c.evaluate(x), ref) < 1e-13
+
+
+def test_a_map_affine_on_one_piece_only_composes_each_placement_on_its_own_path():
+    rng = np.random.default_rng(7)
+    outer = _affine_outer(rng, (2, 2, 2), 2, False, channels=())
+    cp = outer.coefficients.copy()
+    cp[-1, :, :, 0] += 0.05  # the last control plane in u moves: the second piece in u is curved, the first is not
+    first = outer.breakpoints(0)[1]
+    assert np.all(outer.knots[0][:3] == 0.0) and 0 < first < 1
+    outer = BSpline(outer.degrees, outer.knots, cp)
+    inner = random_inner(rng, 3, (2, 1, 2), False, np.array([[0.1, 0.9]] * 3), channels=())
+    (v0, v1), (w0, w1) = outer.breakpoints(1)[:2], outer.breakpoints(2)[:2]
+    P = np.zeros((2, 3, 4))
+    for i, (a, b) in enumerate([(0.0, first), (first, 1.0)]):
+        P[i, :, :3] = np.diag([0.6 * (b - a), 0.6 * (v1 - v0), 0.6 * (w1 - w0)]) @ rotation(rng)
+        P[i, :, 3] = [0.5 * (a + b), 0.5 * (v0 + v1), 0.5 * (w0 + w1)] - P[i, :, :3] @ np.full(3, 0.5)
+    flat, curved = compose_many(outer, inner, P)
+    assert flat.degrees == inner.degrees and curved.degrees == geometry.result_degrees(outer.degrees, inner.degrees)
+    x = rng.random((400, 3))
+    for c, A in zip((flat, curved), P):
+        assert rel_err(c.evaluate(x), outer.evaluate(inner.evaluate(x) @ A[:, :3].T + A[:, 3])) < 1e-12
+    # off affine by more than round-off: the general path, whatever the size of the deviation
+    cp = outer.coefficients.copy()
+    cp[0, 0, 0, 1] += 1e-11
+    near = compose_many(BSpline(outer.degrees, outer.knots, cp), inner, P[:1])[0]
+    assert near.degrees == geometry.result_degrees(outer.degrees, inner.degrees)
+
+
+def rotation(rng) -> np.ndarray:
+    """A random rotation (3, 3)."""
+    q, r = np.linalg.qr(rng.normal(size=(3, 3)))
+    return q * np.sign(np.diag(r))

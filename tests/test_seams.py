@@ -206,8 +206,9 @@ def _vrep_union():
 @pytest.mark.parametrize("which", ["circular", "vertical", "vrep union"])
 def test_opencascade_rereads_the_iges_with_every_area(which, tmp_path):
     """gmsh's OpenCASCADE reads every surface back: the same surfaces (points and areas, integrated on the
-    surfaces OpenCASCADE holds) and its own area integral (BRepGProp, whose fixed rule reaches about 4e-6 on
-    the sinks' degree-12 surfaces)."""
+    surfaces OpenCASCADE holds) and its own area integral (BRepGProp, whose fixed rule, with Gauss points
+    by the degree, reaches about 4e-6 on the circular sink's degree-12 surfaces and 7e-5 on the curved
+    degree-2 ones of the vertical sink, whose box map is affine: exact to 3e-16 on its flat faces)."""
     gmsh = pytest.importorskip("gmsh")
     from geometry.iges import write_iges
     from tiling.export import boundary_splines
@@ -235,7 +236,7 @@ def test_opencascade_rereads_the_iges_with_every_area(which, tmp_path):
             x = np.array(gmsh.model.getValue(2, tag, g[:7].ravel())).reshape(-1, 3)
             assert np.abs(x - s.evaluate(g[:7])[:, :3]).max() < 1e-9 * max(1.0, np.abs(x).max())
             if j in mass_check:
-                assert gmsh.model.occ.getMass(2, tag) == pytest.approx(mine, rel=1e-5)
+                assert gmsh.model.occ.getMass(2, tag) == pytest.approx(mine, rel=1e-4)
     finally:
         gmsh.finalize()
 
@@ -255,7 +256,6 @@ def test_iges_strings_that_would_corrupt_the_records_are_refused(tmp_path):
 
 
 # ------------------------------------------------------------------ G+Smo XML
-@pytest.mark.long
 def test_gismo_round_trip_of_the_graded_sink_with_robin_on_exterior(tmp_path):
     """The README's T2 sink (conductivity graded as the channel k), Robin on every exterior face, slot walls
     included: read back, the same temperatures at the bases the exported problem used; G+Smo's own reader
