@@ -40,12 +40,15 @@ def affine_piece(Q: np.ndarray, lo: np.ndarray, hi: np.ndarray, rational: bool):
         corner[k] = degrees[k] - 1
         M[k] = (X[tuple(corner)] - origin) / (hi[k] - lo[k])
     # the affine function's Bezier coefficients: its values at the Greville points lo + i / p (hi - lo)
-    grids = np.meshgrid(*[lo[k] + np.linspace(0.0, 1.0, degrees[k]) * (hi[k] - lo[k]) for k in range(D)],
-                        indexing="ij")
-    G = np.stack(grids, -1)
+    axes = [lo[k] + np.linspace(0.0, 1.0, degrees[k]) * (hi[k] - lo[k]) for k in range(D)]
     c = origin - lo @ M
-    scale = max(float(np.abs(X).max()), 1.0)
-    if np.abs(G @ M + c - X).max() > AFFINE_TOL * scale:
+    tol = AFFINE_TOL * max(float(np.abs(X).max()), 1.0)
+    # the far corner and the middle first: a curved piece fails there, without the whole net
+    for idx in (tuple(n - 1 for n in degrees), tuple(n // 2 for n in degrees)):
+        if np.abs(np.array([axes[k][i] for k, i in enumerate(idx)]) @ M + c - X[idx]).max() > tol:
+            return None
+    G = np.stack(np.meshgrid(*axes, indexing="ij"), -1)
+    if np.abs(G @ M + c - X).max() > tol:
         return None
     return M, c
 
