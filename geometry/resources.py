@@ -123,7 +123,7 @@ def paused_gc():
 
     Building a large model creates hundreds of thousands of objects that live on (a 21^3 lattice: 280k), and
     each time their number grows by a quarter CPython walks all of them looking for reference cycles, which
-    a build does not make: 0.46 s of that lattice's 2.7 s build went to 1,250 collections, 0.35 s to the
+    a build does not make: 0.46 s of that lattice's 2.7 s build went to 1,258 collections, 0.35 s to the
     four full ones (docs/performance.md).  Nothing is lost by pausing: the next collection after the block
     finds whatever cycles it left.  Nested blocks (a builder calling another) leave the collector paused
     until the outermost one ends; a block entered while collection was already off leaves it off.

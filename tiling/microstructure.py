@@ -195,7 +195,7 @@ def branch_refinement(parent_knots, box, child_knots) -> sp.csr_matrix:
 def _branch_interface(placed, parent, pface, pbox, child, cface, same: dict | None = None) -> Interface:
     """The branch interface of a link; ``same``: the refinement matrices made so far in this build, by their
     knots and box (a hierarchy repeats a handful of configurations thousands of times: its 5,376 links took
-    5-10 s to refine one by one)."""
+    8-11 s to refine one by one)."""
     pk = face_knots(placed[parent].spline, pface)
     if pbox is None:
         pbox = tuple((float(U[0]), float(U[-1])) for U, _ in pk)
