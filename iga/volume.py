@@ -36,12 +36,14 @@ from geometry.grouping import ObjectIndex
 __all__ = ["VolumeAssembler"]
 
 # Gauss points per slab (at least one element): the NumPy path keeps cache-sized temporaries; the compiled
-# kernels re-contract the coefficient rows a slab touches, so they take larger slabs (about 40 MB of
-# fields); the fused geometry-metric pass takes small ones, whose fields (64 bytes a point) are still in
-# cache when the stiffness kernel reads them: 1-2 element layers, 20-35% faster than 2^20 points from
-# 24^3 to 98^3 elements (docs/performance.md)
+# kernels take 2^16 (the chain rule through placement and map holds about 600 bytes a point while a slab is
+# formed: 2^18 points made a 150 MiB transient per batch, a fixed cost on every MPI rank, and the refined
+# demo sink assembled in 2.4-2.5 s against 1.6-1.7 s at 2^16; lattices the same either way); the fused
+# geometry-metric pass takes small ones, whose fields (64 bytes a point) are still in cache when the
+# stiffness kernel reads them: 1-2 element layers, 20-35% faster than 2^20 points from 24^3 to 98^3
+# elements (docs/performance.md)
 _NUMPY_SLAB_POINTS = 1 << 14
-_COMPILED_SLAB_POINTS = 1 << 18
+_COMPILED_SLAB_POINTS = 1 << 16
 _FUSED_SLAB_POINTS = 1 << 15
 
 
