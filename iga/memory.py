@@ -35,14 +35,11 @@ def retain_freed_memory() -> bool:
     size then stays near its peak until exit.  Returns True when applied,
     False where the C library is not glibc (nothing is changed).
     """
-    if not sys.platform.startswith("linux"):
-        return False
-    name = ctypes.util.find_library("c")
+    libc = _libc()
     try:
-        libc = ctypes.CDLL(name)
         mallopt = libc.mallopt
         _ = libc.gnu_get_libc_version  # glibc only: musl has no mallopt knobs worth setting
-    except (OSError, AttributeError, TypeError):
+    except AttributeError:  # (None off Linux, too)
         return False
     mallopt.argtypes = [ctypes.c_int, ctypes.c_int]
     return bool(mallopt(_M_MMAP_MAX, 0)) and bool(mallopt(_M_TRIM_THRESHOLD, 2**31 - 1))
@@ -53,16 +50,22 @@ _SMALL_PAGES_BYTES = 1 << 24  # 16 MiB: smaller arrays are left to NumPy's defau
 
 
 @lru_cache(maxsize=1)
-def _madvise():
-    """libc's ``madvise`` (None off Linux or where it cannot be loaded)."""
+def _libc():
+    """The C library (``ctypes.CDLL``), or None off Linux or where it cannot be loaded."""
     if not sys.platform.startswith("linux"):
         return None
     try:
-        fn = ctypes.CDLL(ctypes.util.find_library("c"), use_errno=True).madvise
-    except (OSError, AttributeError, TypeError):
+        return ctypes.CDLL(ctypes.util.find_library("c"), use_errno=True)
+    except (OSError, TypeError):
         return None
-    fn.argtypes = [ctypes.c_void_p, ctypes.c_size_t, ctypes.c_int]
-    fn.restype = ctypes.c_int
+
+
+def _madvise():
+    """libc's ``madvise`` (None where :func:`_libc` has no C library or it has no ``madvise``)."""
+    fn = getattr(_libc(), "madvise", None)
+    if fn is not None:
+        fn.argtypes = [ctypes.c_void_p, ctypes.c_size_t, ctypes.c_int]
+        fn.restype = ctypes.c_int
     return fn
 
 
