@@ -250,10 +250,9 @@ def _affine_into(outer, inner, A, b, keys, todo, patches, piece, results) -> np.
         if affine is None:
             rest.append(sel)
             continue
-        for i in sel:
-            hom = affine_images(inner, *affine, A[i], b[i])
-            results[i] = BSpline._trusted(inner.degrees, inner.knots, hom, inner.is_rational,
-                                          channels=outer.channels + inner.channels)
+        homs = [affine_images(inner, *affine, A[i], b[i]) for i in sel]
+        for i, spline in zip(sel, finish(outer, inner, inner.degrees, inner.knots, homs, inner.is_rational)):
+            results[i] = spline
     return np.sort(np.concatenate(rest)) if rest else np.zeros(0, np.int64)
 
 
