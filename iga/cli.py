@@ -25,6 +25,7 @@ from geometry import progress, resources
 from tiling.library import TILES
 from geometry.errors import ToolkitError
 
+from .distributed import launched
 from .errors import ProblemError
 from .memory import retain_freed_memory
 from geometry.errors import show
@@ -265,7 +266,8 @@ def main(argv=None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 0
-    retain_freed_memory()  # a whole-process choice, so the application (not the library) makes it
+    if not launched():  # a whole-process choice, so the application (not the library) makes it; an MPI rank
+        retain_freed_memory()  # returns freed memory instead (iga.distributed.load_petsc)
     progress.enable(False if args.quiet else None)  # bars on a terminal only
     try:
         resources.set_memory_limit(args.max_memory)

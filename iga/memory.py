@@ -1,5 +1,5 @@
-"""Memory of large assemblies: a process-level allocator setting (opt-in; the CLI and benchmarks use it)
-and the page size of streamed arrays.
+"""Memory of large assemblies: process-level allocator settings (opt-in; the CLI and benchmarks use one,
+the distributed solve the other) and the page size of streamed arrays.
 
 Assembly and solve allocate and free arrays of hundreds of MB.  glibc serves
 each one with a fresh ``mmap`` and unmaps it on free, so every large array
@@ -8,7 +8,10 @@ the host (free-page reporting), those faults dominate the time of a large
 assembly (docs/performance.md has the figures).
 
 :func:`retain_freed_memory` changes allocator behaviour for the whole process,
-so the library never calls it on import; applications opt in (``iga`` does).
+so the library never calls it on import; applications opt in (``iga`` does, on
+one process).  :func:`return_freed_memory` unmaps large arrays when freed
+again: a distributed solve, whose point is memory per rank, sets it once
+PETSc is loaded, as loading Debian's PETSc turns unmapping off.
 :func:`streamed_empty` concerns one array only: the heat operator's CSR
 arrays take it (:class:`iga.vector_csr.VectorCSR`).
 """
@@ -24,6 +27,7 @@ from functools import lru_cache
 import numpy as np
 
 _M_TRIM_THRESHOLD = -1
+_M_MMAP_THRESHOLD = -3
 _M_MMAP_MAX = -4
 
 
@@ -35,6 +39,30 @@ def retain_freed_memory() -> bool:
     size then stays near its peak until exit.  Returns True when applied,
     False where the C library is not glibc (nothing is changed).
     """
+    return _mallopt(0, None, 2**31 - 1)
+
+
+def return_freed_memory() -> bool:
+    """Give blocks of 16 MiB and more mappings of their own, unmapped when freed, and return a free heap top
+    above 16 MiB to the system (glibc only: ``M_MMAP_MAX = 65536``, ``M_MMAP_THRESHOLD`` and
+    ``M_TRIM_THRESHOLD`` 16 MiB): the resident size follows the large arrays in use, while smaller blocks
+    are still reused from the heap without new page faults.  Returns True when applied, False where the C
+    library is not glibc.
+
+    The distributed solve sets this after loading PETSc (:func:`iga.distributed.load_petsc`): Debian's
+    PETSc 3.18 loads SuperLU_DIST, whose loader sets ``M_MMAP_MAX = 0`` and ``M_TRIM_THRESHOLD = -1`` for
+    the whole process, so no freed array went back; on each of 4 ranks of the 21^3 cross lattice 293 MiB
+    lay freed in the heap when GAMG's set-up began.  Measured on 4 ranks (docs/performance.md): the
+    lattice's peak per rank 938-945 -> 870-873 MiB with 16 MiB (the same with glibc's 128 KiB, where every
+    slab of the assembly is faulted in afresh, or 32 MiB); the refined demo sink's 539-541 MiB with 16 MiB
+    or less, 580-599 MiB with 32 MiB, as its rank's matrices are smaller.
+    """
+    return _mallopt(65536, 16 << 20, 16 << 20)
+
+
+def _mallopt(mmap_max: int, mmap_threshold: int | None, trim_threshold: int) -> bool:
+    """glibc's ``M_MMAP_MAX``, ``M_MMAP_THRESHOLD`` (None: left as it is) and ``M_TRIM_THRESHOLD``; False
+    (nothing changed) off glibc."""
     libc = _libc()
     try:
         mallopt = libc.mallopt
@@ -42,7 +70,8 @@ def retain_freed_memory() -> bool:
     except AttributeError:  # (None off Linux, too)
         return False
     mallopt.argtypes = [ctypes.c_int, ctypes.c_int]
-    return bool(mallopt(_M_MMAP_MAX, 0)) and bool(mallopt(_M_TRIM_THRESHOLD, 2**31 - 1))
+    done = bool(mallopt(_M_MMAP_MAX, mmap_max)) and bool(mallopt(_M_TRIM_THRESHOLD, trim_threshold))
+    return done and (mmap_threshold is None or bool(mallopt(_M_MMAP_THRESHOLD, mmap_threshold)))
 
 
 _MADV_NOHUGEPAGE = 15

@@ -51,3 +51,39 @@ def test_heat_operator_arrays_use_small_pages_and_elastic_ones_do_not():
     elastic = VectorCSR(np.array([0, 1000]), np.array([5 << 20]), components=3)
     assert "nh" in _vm_flags(heat.data) and "nh" in _vm_flags(heat.indices)
     assert "nh" not in _vm_flags(elastic.data)
+
+
+def _mapped_bytes() -> int:
+    """Bytes glibc holds in mappings of their own (``mallinfo2().hblkhd``): large blocks outside the heap."""
+    import ctypes
+    import ctypes.util
+
+    class Info(ctypes.Structure):
+        _fields_ = [(n, ctypes.c_size_t) for n in
+                    "arena ordblks smblks hblks hblkhd usmblks fsmblks uordblks fordblks keepcost".split()]
+
+    libc = ctypes.CDLL(ctypes.util.find_library("c"))
+    if not hasattr(libc, "mallinfo2"):
+        pytest.skip("the C library has no mallinfo2 (glibc 2.33 or later)")
+    libc.mallinfo2.restype = Info
+    return int(libc.mallinfo2().hblkhd)
+
+
+@linux
+def test_returned_memory_gives_large_arrays_their_own_mappings_again():
+    from iga.memory import retain_freed_memory, return_freed_memory
+
+    try:
+        if not retain_freed_memory():
+            pytest.skip("not glibc: no allocator settings to change")
+        before = _mapped_bytes()
+        kept = np.ones(5 << 20)  # 40 MiB from the heap: nothing new is mapped
+        assert _mapped_bytes() - before < kept.nbytes
+        del kept
+    finally:
+        assert return_freed_memory()  # large blocks unmapped again, for the rest of this process too
+    before = _mapped_bytes()
+    own = np.ones(6 << 20)  # 48 MiB (larger than the freed heap block): a mapping of its own, unmapped on free
+    assert _mapped_bytes() - before >= own.nbytes
+    del own
+    assert _mapped_bytes() - before < 1 << 20

@@ -254,3 +254,25 @@ def test_a_solves_petsc_options_apply_to_it_and_do_not_outlive_it():
         assert opts.getString("pc_gamg_threshold") == "0.01"
     finally:
         opts.delValue("pc_gamg_threshold")
+
+
+def test_a_distributed_solve_loads_petsc_with_freed_arrays_returned():
+    # Debian's PETSc loads SuperLU_DIST, whose loader turns glibc's unmapping off for the whole process; the
+    # distributed path loads PETSc through load_petsc, after which a large array has a mapping of its own
+    code = textwrap.dedent("""
+        import ctypes, ctypes.util, numpy as np
+        class Info(ctypes.Structure):
+            _fields_ = [(n, ctypes.c_size_t) for n in
+                        "arena ordblks smblks hblks hblkhd usmblks fsmblks uordblks fordblks keepcost".split()]
+        libc = ctypes.CDLL(ctypes.util.find_library("c"))
+        libc.mallinfo2.restype = Info
+        from iga.distributed import load_petsc
+        load_petsc()
+        before = libc.mallinfo2().hblkhd
+        a = np.ones(6 << 20)
+        print(libc.mallinfo2().hblkhd - before >= a.nbytes)
+    """)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=300,
+                         env=launch_env())
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split()[-1] == "True"

@@ -364,3 +364,20 @@ def test_pinch_lines_of_a_tile_are_named_and_explain_its_non_manifold_edges():
     sink = tiling.hierarchical(pr.box((0.06, 0.06, 0.03), degrees=(2, 2, 2)), L.heat_sink_t2(), (2, 2), levels=2)
     w = watertightness(sink)  # slots that open above a solid base: a crease, no pinch
     assert w["manifold"] and not w["pinch_lines"]
+
+
+def test_the_contact_check_finds_the_same_pairs_whatever_its_chunks(monkeypatch):
+    """The free faces are sampled in chunks (bounded transients); pairs across chunks are still found."""
+    import geometry.contact as contact
+    from geometry.multipatch import free_face_mask
+
+    ms = tiling.regular(pr.box((2.0, 1.0, 1.0)), L.cross(), (3, 2, 2))
+    cut = [i for i in ms.interfaces if ms.patches[i.a[0]].tile != ms.patches[i.b[0]].tile][:4]
+    for itf in cut:  # four glued pairs between tiles made free faces that touch
+        ms.interfaces.remove(itf)
+    mask = free_face_mask(ms.patches, ms.interfaces)
+    whole = contact.unglued_contacts(ms.patches, ms.interfaces, limit=10, mask=mask)
+    monkeypatch.setattr(contact, "_CHUNK", 7)  # a prime below the faces' count: pairs straddle chunks
+    chunked = contact.unglued_contacts(ms.patches, ms.interfaces, limit=10, mask=mask)
+    expected = {frozenset([i.a, i.b]) for i in cut}
+    assert {frozenset(p) for p in whole} == expected and {frozenset(p) for p in chunked} == expected
