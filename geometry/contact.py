@@ -13,7 +13,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .multipatch import _SAMPLES, TOL, face_points, free_faces
+from .faces import FACE_NAMES
+from .multipatch import _SAMPLES, TOL, face_points, free_face_mask
 from .tolerances import model_size
 
 __all__ = ["unglued_contacts"]
@@ -33,7 +34,9 @@ def unglued_contacts(patches, interfaces, limit: int = 5, mask=None) -> list[tup
     most ``limit`` pairs [((patch, face), (patch, face))].  ``mask``: the free faces'
     :func:`geometry.multipatch.free_face_mask`, when the caller has it.
     """
-    free = free_faces(patches, interfaces, mask)
+    pidx, free_mask = free_face_mask(patches, interfaces) if mask is None else mask
+    t, f = np.nonzero(free_mask)  # patch then face order, as free_faces; arrays, not a tuple per face
+    free = np.stack([pidx[t], f], axis=1)
     if len(free) < 2:
         return []
     pts = np.empty((len(free), len(_SAMPLES), 3))  # (F, n, 3)
@@ -47,7 +50,5 @@ def unglued_contacts(patches, interfaces, limit: int = 5, mask=None) -> list[tup
     if not len(pairs):
         return []
     fa, fb = owner[pairs[:, 0]], owner[pairs[:, 1]]
-    pa = np.array([free[i][0] for i in fa])
-    pb = np.array([free[i][0] for i in fb])
-    hit = np.unique(np.sort(np.stack([fa, fb], 1)[pa != pb], axis=1), axis=0)
-    return [(free[int(a)], free[int(b)]) for a, b in hit[:limit]]
+    hit = np.unique(np.sort(np.stack([fa, fb], 1)[free[fa, 0] != free[fb, 0]], axis=1), axis=0)
+    return [tuple((int(free[i, 0]), FACE_NAMES[free[i, 1]]) for i in (a, b)) for a, b in hit[:limit]]

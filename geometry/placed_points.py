@@ -106,7 +106,8 @@ def physical_corners(patches, pidx, fc) -> np.ndarray:
 
 
 def face_points(patches, keys, st, through_outer: bool = True, which=None) -> np.ndarray:
-    """Points (len(keys), n, 3) of faces ``keys`` [(patch, face)] at normalised face parameters.
+    """Points (len(keys), n, 3) of faces ``keys`` [(patch, face name)], or an (F, 2) int array of (patch, face
+    index in FACE_NAMES), at normalised face parameters.
 
     ``st``: one (n, 2) array for every face, or a list of them, one per face,
     or with ``which`` (len(keys),) sample sets (S, n, 2) of which face j takes
@@ -126,8 +127,11 @@ def face_points(patches, keys, st, through_outer: bool = True, which=None) -> np
         sets, set_of = np.asarray(st, float)[None], np.zeros(K, np.int64)
     set_of = set_of.reshape(-1)
     n = sets.shape[1]
-    kp = np.fromiter((k[0] for k in keys), np.int64, count=K)
-    kf = np.fromiter((_FACE_INDEX[k[1]] for k in keys), np.int64, count=K)
+    if isinstance(keys, np.ndarray):  # (patch, face index) rows: no tuple per face (a million on large pavings)
+        kp, kf = keys[:, 0].astype(np.int64), keys[:, 1].astype(np.int64)
+    else:
+        kp = np.fromiter((k[0] for k in keys), np.int64, count=K)
+        kf = np.fromiter((_FACE_INDEX[k[1]] for k in keys), np.int64, count=K)
     up, of = np.unique(kp, return_inverse=True)  # the distinct patches: faces of one patch share its data
     of = of.reshape(-1)
     spline_of = identity_groups([patches[p].spline for p in up])[1][of]
