@@ -38,7 +38,8 @@ from .memory import return_freed_memory
 from .rank_constraints import alltoallv, local_prolongation, patch_pairs, ranges
 from .system import SystemSolution, reduction
 
-__all__ = ["world", "launched", "load_petsc", "solve_world", "partition", "solve_system", "is_root", "mpiexec", "launch_env"]
+__all__ = ["world", "launched", "load_petsc", "solve_world", "partition", "solve_system", "is_root", "mpiexec",
+           "launch_env"]
 
 # what an MPI launcher leaves in its children's environment: a process that inherits it (a test run, a script
 # that once initialised PETSc as a singleton) would start its own mpiexec as a rank of the old job
@@ -70,9 +71,10 @@ def launched() -> bool:
 
 def load_petsc():
     """petsc4py's ``PETSc`` module, with freed large arrays returned to the system once it is loaded
-    (:func:`iga.memory.return_freed_memory`): loading Debian's PETSc turns off the unmapping of freed arrays
-    for the whole process, and a distributed solve is there to divide memory among ranks: 4 ranks of the
-    21^3 cross lattice peaked at 938-945 MiB per rank with it off, 870-873 MiB with it on, at the price of
+    (:func:`iga.memory.return_freed_memory`, replacing whatever the process had set, a
+    :func:`iga.memory.retain_freed_memory` included): loading Debian's PETSc turns off the unmapping of freed
+    arrays for the whole process, and a distributed solve is there to divide memory among ranks: 4 ranks of
+    the 21^3 cross lattice peaked at 938-945 MiB per rank with it off, 870-876 MiB with it on, at the price of
     fresh page faults (their assembly took 2.9-4.2 s instead of 1.4-1.8 s on this VM, where fresh memory
     is slow to fault in)."""
     PETSc = petsc()

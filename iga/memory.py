@@ -53,7 +53,7 @@ def return_freed_memory() -> bool:
     PETSc 3.18 loads SuperLU_DIST, whose loader sets ``M_MMAP_MAX = 0`` and ``M_TRIM_THRESHOLD = -1`` for
     the whole process, so no freed array went back; on each of 4 ranks of the 21^3 cross lattice 293 MiB
     lay freed in the heap when GAMG's set-up began.  Measured on 4 ranks (docs/performance.md): the
-    lattice's peak per rank 938-945 -> 870-873 MiB with 16 MiB (the same with glibc's 128 KiB, where every
+    lattice's peak per rank 938-945 -> 870-876 MiB with 16 MiB (the same with glibc's 128 KiB, where every
     slab of the assembly is faulted in afresh, or 32 MiB); the refined demo sink's 539-541 MiB with 16 MiB
     or less, 580-599 MiB with 32 MiB, as its rank's matrices are smaller.
     """
