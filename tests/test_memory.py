@@ -53,8 +53,8 @@ def test_heat_operator_arrays_use_small_pages_and_elastic_ones_do_not():
     assert "nh" not in _vm_flags(elastic.data)
 
 
-def _mapped_bytes() -> int:
-    """Bytes glibc holds in mappings of their own (``mallinfo2().hblkhd``): large blocks outside the heap."""
+def _malloc_info() -> tuple[int, int]:
+    """(heap bytes, bytes in mappings of their own) of glibc's allocator (``mallinfo2()``: arena, hblkhd)."""
     import ctypes
     import ctypes.util
 
@@ -66,24 +66,27 @@ def _mapped_bytes() -> int:
     if not hasattr(libc, "mallinfo2"):
         pytest.skip("the C library has no mallinfo2 (glibc 2.33 or later)")
     libc.mallinfo2.restype = Info
-    return int(libc.mallinfo2().hblkhd)
+    info = libc.mallinfo2()
+    return int(info.arena), int(info.hblkhd)
 
 
 @linux
 def test_returned_memory_gives_large_arrays_their_own_mappings_again():
     from iga.memory import retain_freed_memory, return_freed_memory
 
+    # each array is larger than the whole heap, so no free block of the heap can serve it: it either grows the
+    # heap or gets a mapping of its own, whatever the tests before left in this process
     try:
         if not retain_freed_memory():
             pytest.skip("not glibc: no allocator settings to change")
-        before = _mapped_bytes()
-        kept = np.ones(5 << 20)  # 40 MiB from the heap: nothing new is mapped
-        assert _mapped_bytes() - before < kept.nbytes
+        heap, mapped = _malloc_info()
+        kept = np.ones((heap >> 3) + (5 << 20))  # the heap grows: nothing new is mapped
+        assert _malloc_info()[1] - mapped < kept.nbytes
         del kept
     finally:
         assert return_freed_memory()  # large blocks unmapped again, for the rest of this process too
-    before = _mapped_bytes()
-    own = np.ones(6 << 20)  # 48 MiB (larger than the freed heap block): a mapping of its own, unmapped on free
-    assert _mapped_bytes() - before >= own.nbytes
+    heap, mapped = _malloc_info()
+    own = np.ones((heap >> 3) + (6 << 20))  # a mapping of its own, unmapped when freed
+    assert _malloc_info()[1] - mapped >= own.nbytes
     del own
-    assert _mapped_bytes() - before < 1 << 20
+    assert _malloc_info()[1] - mapped < 1 << 20
