@@ -35,20 +35,37 @@ def _unit_basis(U: bytes, degree: int, x: bytes) -> np.ndarray:
 
 def grid_values(f: SplineFunction, axes) -> np.ndarray:
     """The scalar trivariate f on the grid of ``axes`` (tensor contractions with cached, normalised bases)."""
-    C = f.coefficients[..., 0]
-    for k, (U, p, x) in enumerate(zip(f.knots, f.degrees, axes)):
+    B = []
+    for U, p, x in zip(f.knots, f.degrees, axes):
         lo, hi = U[0], U[-1]
-        B = _unit_basis(np.round((U - lo) / (hi - lo), 13).tobytes(), int(p),
-                        np.clip(np.round((x - lo) / (hi - lo), 13), 0.0, 1.0).tobytes())
-        C = np.moveaxis(np.tensordot(B, C, axes=(1, k)), 0, k)
-    return C
+        B.append(_unit_basis(np.round((U - lo) / (hi - lo), 13).tobytes(), int(p),
+                             np.clip(np.round((x - lo) / (hi - lo), 13), 0.0, 1.0).tobytes()))
+    # direction 3, 2, then 1, each a matrix product on the array as it lies (no axis moves)
+    return np.tensordot(B[0], B[1] @ (f.coefficients[..., 0] @ B[2].T), axes=(1, 0))
 
 
 def scalar_surface(c, degree, box=((0.0, 1.0), (0.0, 1.0))) -> SplineFunction:
+    """The bicubic (``degree``) scalar surface with the square coefficients ``c`` (n, n) (finite) on uniform
+    knots over ``box`` ((lo, hi), (lo, hi)), lo < hi: knots valid by construction, built without the checks."""
     n = c.shape[0]
+    U = _unit_knots(int(degree), int(n))
+    knots = []
+    for d in range(2):
+        if box[d][0] == 0.0 and box[d][1] == 1.0:
+            knots.append(U)  # one shared object, so that the Boolean sum sees equal knots at once
+            continue
+        V = box[d][0] + (box[d][1] - box[d][0]) * U
+        V.setflags(write=False)
+        knots.append(V)
+    return SplineFunction._trusted((degree, degree), knots, c[..., None], False)
+
+
+@lru_cache(maxsize=64)
+def _unit_knots(degree: int, n: int) -> np.ndarray:
+    """The uniform open knots of n coefficients of ``degree`` on [0, 1] (read-only, shared)."""
     U = kn.uniform_knots(degree, n - degree)
-    knots = [box[d][0] + (box[d][1] - box[d][0]) * U for d in range(2)]
-    return SplineFunction((degree, degree), knots, c[..., None])
+    U.setflags(write=False)
+    return U
 
 
 def merge_pieces(pieces, degree) -> SplineFunction:
@@ -113,6 +130,16 @@ def _missing_cached(want: bytes, have: bytes) -> bytes:
     return np.repeat(w, np.maximum(wc - present, 0)).astype(float).tobytes()
 
 
+# per direction k: the faces spanning it, each with the index (0 or 1) of its own direction that runs along k
+_SPANNING = tuple(tuple((f, [j for j in range(3) if j != i // 2].index(k)) for i, f in enumerate(FACE_NAMES)
+                        if i // 2 != k) for k in range(3))
+
+
+@lru_cache(maxsize=256)
+def _greville(U: bytes, degree: int) -> np.ndarray:
+    return kn.greville(np.frombuffer(U), degree)
+
+
 def boolean_sum(faces, degree, box, rim) -> SplineFunction:
     """Volumetric Boolean sum of six scalar faces with the constant rim ``rim``: P_u + P_v + P_w - 2 rim (on the net).
 
@@ -120,26 +147,29 @@ def boolean_sum(faces, degree, box, rim) -> SplineFunction:
     """
     knots = []
     for k in range(3):  # the union of the knots of the four faces spanning direction k
-        users = [(f, [j for j in range(3) if j != FACE_NAMES.index(f) // 2].index(k)) for f in FACE_NAMES
-                 if FACE_NAMES.index(f) // 2 != k]
-        allk = [faces[f].knots[d] for f, d in users]
+        allk = [faces[f].knots[d] for f, d in _SPANNING[k]]
         U = allk[0]
         for V in allk[1:]:
-            U = np.sort(np.concatenate([U, _missing(V, U)]))
+            if V is not U:  # (validated knot vectors are shared objects: the same knots, mostly)
+                U = np.sort(np.concatenate([U, _missing(V, U)]))
         knots.append(U)
-    for f in FACE_NAMES:  # refine every face to the cell's knots
-        k = FACE_NAMES.index(f) // 2
-        rest = [j for j in range(3) if j != k]
+    for i, f in enumerate(FACE_NAMES):  # refine every face to the cell's knots
+        rest = [j for j in range(3) if j != i // 2]
         for d in range(2):
-            extra = _missing(knots[rest[d]], faces[f].knots[d])
-            if len(extra):
-                faces[f] = _insert(faces[f], d, extra)
-    g = [kn.greville(U, degree) for U in knots]
-    C = -2.0 * rim * np.ones(tuple(len(x) for x in g))
+            if knots[rest[d]] is not faces[f].knots[d]:
+                extra = _missing(knots[rest[d]], faces[f].knots[d])
+                if len(extra):
+                    faces[f] = _insert(faces[f], d, extra)
+    g = [_greville(np.asarray(U, float).tobytes(), int(degree)) for U in knots]
+    C = np.full(tuple(len(x) for x in g), -2.0 * rim)
     for k in range(3):
         lo, hi = faces[FACE_NAMES[2 * k]].coefficients[..., 0], faces[FACE_NAMES[2 * k + 1]].coefficients[..., 0]
-        t = np.moveaxis(g[k][:, None, None], 0, 0)  # (n_k, 1, 1)
+        t = g[k][:, None, None]  # (n_k, 1, 1)
         term = (1 - t) * lo[None] + t * hi[None]  # (n_k, n_a, n_b) with a < b the remaining directions
         C += np.moveaxis(term, 0, k)
-    return SplineFunction((degree,) * 3, [box[k, 0] + (box[k, 1] - box[k, 0]) * knots[k] for k in range(3)],
-                          C[..., None])
+    mapped = []
+    for k in range(3):  # an increasing affine map of valid knots: valid, so built without the checks
+        U = box[k, 0] + (box[k, 1] - box[k, 0]) * knots[k]
+        U.setflags(write=False)
+        mapped.append(U)
+    return SplineFunction._trusted((degree,) * 3, mapped, C[..., None], False)

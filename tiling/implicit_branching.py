@@ -43,6 +43,7 @@ from geometry.faces import FACE_NAMES
 
 from .errors import TilingError
 from .cell_splines import boolean_sum, grid_values, merge_pieces, scalar_surface
+from .implicit_checks import cells_ok, faces_ok
 from .implicit_surface import EdgeSplines, SurfaceOutputs, zero_surface
 from .paving import _check_map
 from .topo import CellComplex, topo_subdiv
@@ -149,6 +150,13 @@ def _window(axes, box) -> tuple:
                  for a, (lo, hi) in zip(axes, box))
 
 
+def _windows(axes, boxes) -> list:
+    """Per box of ``boxes`` (N, 3, 2), :func:`_window`'s slices, all boxes searched at once."""
+    lo = np.stack([np.searchsorted(a, boxes[:, k, 0] - ON_DOMAIN) for k, a in enumerate(axes)], 1).tolist()
+    hi = np.stack([np.searchsorted(a, boxes[:, k, 1] + ON_DOMAIN, side="right") for k, a in enumerate(axes)], 1).tolist()
+    return [tuple(slice(u, v) for u, v in zip(a, b)) for a, b in zip(lo, hi)]
+
+
 def _canonical_face(degree, controls, radius=0.35):
     """Face pattern (controls, controls): positive disc of ``radius`` in the middle, the rim at RIM."""
     g = kn.greville(kn.uniform_knots(degree, controls - degree), degree)
@@ -163,26 +171,6 @@ def _canonical_face(degree, controls, radius=0.35):
 def _face_basis(degree: int, n: int, x: bytes) -> np.ndarray:
     """Values (len(x), n) of the uniform face basis at the sample coordinates x (cached: faces repeat them)."""
     return kn.basis_matrix(kn.uniform_knots(degree, n - degree), degree, np.frombuffer(x)).toarray()
-
-
-def _face_ok(c, degree, xs, ys) -> bool:
-    """Inside samples of the face one component holding the centre (the cell's tubes aim there); outside one.
-
-    ``xs``, ``ys``: the face's sample lines (normalised to [0, 1]), those every
-    cell touching the face will use, so the check holds for them all.
-    """
-    return _face_ok_cached(np.ascontiguousarray(c, float).tobytes(), c.shape[0], degree,
-                           np.round(xs, 13).tobytes(), np.round(ys, 13).tobytes())
-
-
-@lru_cache(maxsize=4096)
-def _face_ok_cached(c: bytes, n: int, degree: int, xs: bytes, ys: bytes) -> bool:
-    # (cached: the canonical pattern recurs on faces with the same relative samples)
-    c = np.frombuffer(c).reshape(n, n)
-    xs, ys = np.frombuffer(xs), np.frombuffer(ys)
-    v = _face_basis(degree, n, xs.tobytes()) @ c @ _face_basis(degree, n, ys.tobytes()).T
-    i, j = int(np.argmin(np.abs(xs - 0.5))), int(np.argmin(np.abs(ys - 0.5)))
-    return v[i, j] > 0 and ndimage.label(v > 0)[1] == 1 and ndimage.label(v <= 0)[1] == 1
 
 
 def implicit_bifurcation(D: BSpline, epsilon: float, *, degree: int = 3, controls: int = 8, alpha: float = 0.0,
@@ -214,12 +202,19 @@ def implicit_bifurcation(D: BSpline, epsilon: float, *, degree: int = 3, control
     out = BifurcationStructure(D, cells, [None] * len(cells), int(resolution), bool(cap), stats)
     axes = out.axes()
     F = np.empty(tuple(len(a) for a in axes))
-    unit = _unit_faces(cells, degree, controls, alpha, cap, rng, radius, axes, stats)
+    windows = _windows(axes, cells.boxes)
+    unit = _unit_faces(cells, degree, controls, alpha, cap, rng, radius, axes, windows, stats)
+    nested = cells.boxes.tolist()
+    bases, noises = [], []
     for i in progress.bar(range(len(cells)), desc="implicit bifurcation cells", unit="cell"):
         faces = {f: _cell_face(cells, i, f, unit, degree) for f in FACE_NAMES}
-        base = _with_tubes(boolean_sum(faces, degree, cells.boxes[i], RIM), _targets(cells, i, cap), radius)
-        out.fields[i], sl, v = _random_interior(base, alpha, rng, cells.boxes[i], axes, stats, i)
-        F[sl] = v  # the accepted cell's samples: the build resolution's grid, kept for the surface
+        bases.append(_with_tubes(boolean_sum(faces, degree, cells.boxes[i], RIM), _targets(cells, nested, i, cap),
+                                 radius))
+        noises.append(rng.uniform(-1.0, 1.0, bases[-1].coefficients.shape[:-1]))  # Eq. 6's draw, cell by cell
+    subs = [[a[s] for a, s in zip(axes, w)] for w in windows]
+    out.fields, samples = _random_interiors(bases, noises, alpha, subs, stats, cells.boxes)
+    for w, v in zip(windows, samples):
+        F[w] = v  # the accepted cells' samples: the build resolution's grid, kept for the surface
     out._cache["samples"] = F
     if ndimage.label(F > 0)[1] != 1:
         raise TilingError("the implicit bifurcation structure is not connected on its samples; raise the "
@@ -229,42 +224,69 @@ def implicit_bifurcation(D: BSpline, epsilon: float, *, degree: int = 3, control
     return out
 
 
-def _unit_faces(cells, degree, controls, alpha, cap, rng, radius, axes, stats) -> dict:
-    """{(cell, face): surface over [0, 1]^2} of every unit face, keyed by each cell that has it."""
+def _unit_faces(cells, degree, controls, alpha, cap, rng, radius, axes, windows, stats) -> dict:
+    """{(cell, face): surface over [0, 1]^2} of every unit face, keyed by each cell that has it; ``windows[i]``
+    cell i's slices of the sample ``axes``."""
     p0 = _canonical_face(degree, controls, radius)
-    out = {}
+    c = np.full((controls, controls), CAP)
+    c[[0, -1], :] = RIM
+    c[:, [0, -1]] = RIM
+    capped = scalar_surface(c, degree)  # every capped boundary face: one (immutable) surface
+    out, twin, todo = {}, {}, []  # (the faces to draw, in order: the random draws of one face at a time)
     for i, faces in enumerate(cells.faces):
         for f, (kind, nb) in faces.items():
             if kind == "complex" or (i, f) in out:
                 continue
             if kind == "boundary" and cap:
-                c = np.full((controls, controls), CAP)
-                c[[0, -1], :] = RIM
-                c[:, [0, -1]] = RIM
-                out[(i, f)] = scalar_surface(c, degree)
+                out[(i, f)] = capped
                 continue
             noise = rng.uniform(-1.0, 1.0, p0.shape)
             k = FACE_NAMES.index(f) // 2
             box = cells.boxes[i]
             lines = []
-            window = _window(axes, box)
+            window = windows[i]
             for d in (j for j in range(3) if j != k):  # the face's sample lines, normalised
                 a = axes[d][window[d]]
                 lines.append(np.clip((a - box[d, 0]) / (box[d, 1] - box[d, 0]), 0.0, 1.0))
-            for h in range(_HALVINGS + 1):
-                a = 0.0 if h == _HALVINGS else alpha * 0.5 ** h
-                c = (1 - a) * p0 + a * noise
-                c[[0, -1], :] = RIM
-                c[:, [0, -1]] = RIM
-                if _face_ok(c, degree, *lines):
-                    break
-            stats["face_halvings"][(i, f)] = h
-            out[(i, f)] = c = scalar_surface(c, degree)  # one surface object, shared by both cells
+            todo.append(((i, f), noise, lines))
+            out[(i, f)] = None  # (decided below)
             if kind == "neighbour":  # the neighbour sees the same face (its opposite face name)
-                j = nb[0]
-                k = FACE_NAMES.index(f) // 2
-                out[(j, FACE_NAMES[2 * k + (1 - FACE_NAMES.index(f) % 2)])] = c
+                twin[(i, f)] = (nb[0], FACE_NAMES[2 * k + (1 - FACE_NAMES.index(f) % 2)])
+                out[twin[(i, f)]] = None
+    for key, c, h in _halved_faces(p0, todo, alpha, degree):
+        stats["face_halvings"][key] = h
+        out[key] = surface = scalar_surface(c, degree)  # one surface object, shared by both cells
+        if key in twin:
+            out[twin[key]] = surface
     return out
+
+
+def _halved_faces(p0, todo, alpha, degree):
+    """Each face of ``todo`` ((key, noise, sample lines)) as (key, coefficients, halvings): Eq. 6's draw, its
+    amplitude halved until the face passes :func:`tiling.implicit_checks.faces_ok` (all faces a round)."""
+    n = len(todo)
+    if not n:
+        return []
+    noise = np.array([t[1] for t in todo])
+    bases = [(_face_basis(degree, p0.shape[0], np.round(x, 13).tobytes()),
+              _face_basis(degree, p0.shape[0], np.round(y, 13).tobytes())) for _, _, (x, y) in todo]
+    centres = [(int(np.argmin(np.abs(x - 0.5))), int(np.argmin(np.abs(y - 0.5)))) for _, _, (x, y) in todo]
+    halvings, chosen = np.full(n, _HALVINGS), np.empty_like(noise)
+    pending = np.arange(n)
+    for h in range(_HALVINGS + 1):
+        a = 0.0 if h == _HALVINGS else alpha * 0.5 ** h
+        c = (1 - a) * p0 + a * noise[pending]
+        c[:, [0, -1], :] = RIM
+        c[:, :, [0, -1]] = RIM
+        chosen[pending] = c
+        if h == _HALVINGS:  # the canonical pattern, whatever the check says
+            break
+        ok = faces_ok([bases[b][0] @ cb @ bases[b][1].T for b, cb in zip(pending, c)], [centres[b] for b in pending])
+        halvings[pending[ok]] = h
+        pending = pending[~ok]
+        if not len(pending) or a == 0.0:  # (alpha 0: the canonical pattern failed; it stays, as at the end)
+            break
+    return [(t[0], chosen[b], int(halvings[b])) for b, t in enumerate(todo)]
 
 
 def _cell_face(cells, i, f, unit, degree) -> SplineFunction:
@@ -283,9 +305,10 @@ def _cell_face(cells, i, f, unit, degree) -> SplineFunction:
     return merge_pieces(pieces, degree)
 
 
-def _targets(cells, i, cap) -> list:
-    """Centres (normalised cell coordinates) and sizes of the discs on cell i's faces: (point (3,), size)."""
-    box = cells.boxes[i]
+def _targets(cells, nested, i, cap) -> list:
+    """Centres (normalised cell coordinates) and sizes of the discs on cell i's faces: (point [3], size);
+    ``nested`` the cells' boxes as nested lists (a face's few numbers: plain floats, not small arrays)."""
+    box = nested[i]
     out = []
     for fi, f in enumerate(FACE_NAMES):
         kind, nb = cells.faces[i][f]
@@ -293,12 +316,14 @@ def _targets(cells, i, cap) -> list:
             continue
         k, side = divmod(fi, 2)
         rest = [j for j in range(3) if j != k]
-        parts = [cells.boxes[j] for j in nb] if kind == "complex" else [box]
+        parts = [nested[j] for j in nb] if kind == "complex" else [box]
         for b in parts:
-            c = np.full(3, float(side))
-            r = (b[rest] - box[rest, :1]) / (box[rest, 1:] - box[rest, :1])
-            c[rest] = r.mean(axis=1)
-            out.append((c, float(np.min(r[:, 1] - r[:, 0]))))
+            c = [float(side)] * 3
+            r = [((b[j][0] - box[j][0]) / (box[j][1] - box[j][0]), (b[j][1] - box[j][0]) / (box[j][1] - box[j][0]))
+                 for j in rest]
+            for j, (u, v) in zip(rest, r):
+                c[j] = (u + v) / 2
+            out.append((c, min(v - u for u, v in r)))
     return out
 
 
@@ -309,54 +334,57 @@ def _with_tubes(f, targets, radius) -> SplineFunction:
     cell's discs on two faces); the tubes make the canonical cell one piece.
     """
     C = f.coefficients[..., 0].copy()
-    if not targets:
-        return SplineFunction(f.degrees, f.knots, C[..., None])
-    g = [kn.greville(U, d) for U, d in zip(f.knots, f.degrees)]
-    g = [(x - x[0]) / (x[-1] - x[0]) for x in g]
-    Y = np.stack(np.meshgrid(*g, indexing="ij"), -1).reshape(-1, 3) - 0.5  # control points from the centre
-    D = np.array([p for p, _ in targets]) - 0.5  # (T, 3): the axes to the face discs, all targets at once
-    r = radius * np.array([size for _, size in targets])
-    t = np.clip((Y @ D.T) / np.einsum("ij,ij->i", D, D), 0.0, 1.0)  # (N, T): nearest point on each axis
-    dist = np.linalg.norm(Y[:, None, :] - t[..., None] * D[None], axis=-1)
-    tube = np.clip((r - dist) / r, -1.0, 1.0).max(axis=1).reshape(C.shape)
+    if targets:
+        unit = tuple(np.round((U - U[0]) / (U[-1] - U[0]), 13).tobytes() for U in f.knots)
+        Y = _interior_grevilles(unit, f.degrees)  # (N, 3), from the centre
+        D = np.array([p for p, _ in targets]) - 0.5  # (T, 3): the axes to the face discs, all targets at once
+        r = radius * np.array([size for _, size in targets])
+        YD, DD = Y @ D.T, np.einsum("ij,ij->i", D, D)
+        t = np.clip(YD / DD, 0.0, 1.0)  # (N, T): the nearest point t D on each axis, at squared distance:
+        dist = np.sqrt(np.maximum(np.einsum("ij,ij->i", Y, Y)[:, None] - t * (2.0 * YD - t * DD), 0.0))
+        tube = np.clip((r - dist) / r, -1.0, 1.0).max(axis=1)
+        inner = (slice(1, -1),) * 3
+        C[inner] = np.maximum(C[inner], tube.reshape(C[inner].shape))
+    return SplineFunction._trusted(f.degrees, f.knots, C[..., None], False)
+
+
+@lru_cache(maxsize=256)
+def _interior_grevilles(knots: tuple, degrees: tuple) -> np.ndarray:
+    """The interior control points' Greville abscissae (N, 3), C order, of the unit-cube ``knots`` less the
+    cube's centre (cached: cells repeat their knots up to scale)."""
+    g = [kn.greville(np.frombuffer(U), d)[1:-1] for U, d in zip(knots, degrees)]
+    Y = np.stack(np.meshgrid(*g, indexing="ij"), -1).reshape(-1, 3) - 0.5
+    Y.setflags(write=False)
+    return Y
+
+
+def _random_interiors(bases, noises, alpha, subs, stats, boxes):
+    """Eq. 6 on the interior coefficients of every cell's field ``bases[i]`` (its draw ``noises[i]``), the
+    amplitude halved until the cell's samples on its sample lines ``subs[i]`` (three arrays) pass
+    :func:`tiling.implicit_checks.cells_ok` (all cells a round).  Returns the fields and their samples."""
+    n = len(bases)
+    fields, samples, halvings = [None] * n, [None] * n, np.zeros(n, int)
     inner = (slice(1, -1),) * 3
-    C[inner] = np.maximum(C[inner], tube[inner])
-    return SplineFunction(f.degrees, f.knots, C[..., None])
-
-
-def _random_interior(f, alpha, rng, box, axes, stats, i):
-    """Eq. 6 on the interior coefficients, the amplitude halved until the cell's samples are valid.
-
-    Returns the cell's field, its slice of the global sample grid and its samples there.
-    """
-    C = f.coefficients[..., 0]
-    noise = rng.uniform(-1.0, 1.0, C.shape)
-    sl = _window(axes, box)
-    sub = [a[s] for a, s in zip(axes, sl)]
-    inner = (slice(1, -1),) * 3
+    pending = np.arange(n)
     for h in range(_HALVINGS + 1):
         a = 0.0 if h == _HALVINGS or alpha == 0 else alpha * 0.5 ** h
-        c = C.copy()
-        c[inner] = (1 - a) * C[inner] + a * noise[inner]
-        g = SplineFunction(f.degrees, f.knots, c[..., None])
-        v = grid_values(g, sub)
-        if _cell_ok(v):
-            stats["cell_halvings"][i] = h
-            return g, sl, v
-        if a == 0.0:
+        trial = []
+        for i in pending:
+            C = bases[i].coefficients[..., 0]
+            c = C.copy()
+            c[inner] = (1 - a) * C[inner] + a * noises[i][inner]
+            g = SplineFunction._trusted(bases[i].degrees, bases[i].knots, c[..., None], False)
+            trial.append((g, grid_values(g, subs[i])))
+        ok = cells_ok([v for _, v in trial])
+        for i, (g, v), good in zip(pending, trial, ok):
+            if good:
+                fields[i], samples[i], halvings[i] = g, v, h
+        pending = pending[~ok]
+        if not len(pending) or a == 0.0:
             break
-    raise TilingError(f"cell {i} (parameter box {show(box.tolist())}) is not one connected piece even with its "
-                      "canonical faces; raise the resolution or the radius")
-
-
-def _cell_ok(v) -> bool:
-    """Inside samples one component; every outside component reaches the cell's boundary."""
-    if ndimage.label(v > 0)[1] != 1:
-        return False
-    label, n = ndimage.label(v <= 0)
-    if n == 0:
-        return True
-    seen = np.zeros(n + 1, bool)  # the outside components with a sample on one of the six boundary layers
-    for k in range(3):
-        seen[np.moveaxis(label, k, 0)[[0, -1]]] = True
-    return bool(seen[1:].all())
+    if len(pending):
+        i = int(pending[0])
+        raise TilingError(f"cell {i} (parameter box {show(boxes[i].tolist())}) is not one connected piece even "
+                          "with its canonical faces; raise the resolution or the radius")
+    stats["cell_halvings"].update({i: int(h) for i, h in enumerate(halvings)})
+    return fields, samples

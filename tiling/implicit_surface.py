@@ -191,42 +191,69 @@ def _illinois(a, b, fa, fb, ax, f_edge, tol, iterations):
 
 def _bracketed_newton(a, b, fa, fb, ax, E, tol, iterations):
     """Roots of the edge splines E (:class:`EdgeSplines`) on the edges [a, b] (along axis ``ax``, f of opposite
-    signs at the ends), all edges at once: Newton steps from the secant point, kept inside the shrinking
-    bracket (a bisection where a step would leave it); returns (roots (N, 3), iterations used).  Each round
-    evaluates the edges still open; on the Fig. 16 ducks 9-10 rounds in all where the Illinois iteration
-    (:func:`_illinois`) took 12, and far fewer edges open after the first rounds."""
+    signs at the ends), all edges at once: each bracket first narrowed to the polynomial piece of its edge
+    that holds a sign change (:meth:`EdgeSplines.bracket`), then Newton steps from the secant point, kept
+    inside the shrinking bracket (a bisection where a step would leave it), the piece evaluated by de
+    Casteljau's algorithm; returns (roots (N, 3), iterations used).  On the Fig. 16 ducks 9-10 rounds in
+    all where the Illinois iteration (:func:`_illinois`) took 12, and far fewer edges open after the first
+    rounds, so the open edges' data are kept compact (gathered once a round)."""
     i = np.arange(len(a))
-    lo, hi, flo = a[i, ax].copy(), b[i, ax].copy(), fa.copy()
-    x = lo + fa / (fa - fb) * (hi - lo)
-    act, its = i, 0
+    piece, lo, hi, flo, fhi = E.bracket(a[i, ax], b[i, ax], fa, fb)
+    origin, width, bern = E.origin[i, piece], E.width[i, piece], E.bern[i, piece]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = flo / (flo - fhi)
+    x = np.where(np.isfinite(s), lo + s * (hi - lo), lo)  # lo == hi: a root at a knot, found by bracket
+    act, its, xa = i, 0, x
     while len(act) and its < iterations:
         its += 1
-        fx, dfx = E(act, x[act], derivative=True)
+        fx, dfx = _de_casteljau(bern, (xa - origin) / width)
+        dfx = dfx / width
         done = np.abs(fx) < tol
-        left = fx * flo[act] > 0  # the root lies between x and hi: x replaces lo
-        lo[act[left]], flo[act[left]] = x[act[left]], fx[left]
-        hi[act[~left]] = x[act[~left]]
+        left = fx * flo > 0  # the root lies between x and hi: x replaces lo
+        lo, flo, hi = np.where(left, xa, lo), np.where(left, fx, flo), np.where(left, hi, xa)
         with np.errstate(divide="ignore", invalid="ignore"):
-            step = x[act] - fx / dfx
-        inside = np.isfinite(step) & (step > lo[act]) & (step < hi[act])
-        act = act[~done]
-        x[act] = np.where(inside[~done], step[~done], 0.5 * (lo[act] + hi[act]))
-    c = a.copy()
-    c[i, ax] = x
-    return c, its
+            step = xa - fx / dfx
+        inside = np.isfinite(step) & (step > lo) & (step < hi)
+        x[act] = xa  # every open edge's current iterate (the converged ones keep theirs)
+        keep = ~done
+        act, xa = act[keep], np.where(inside, step, 0.5 * (lo + hi))[keep]
+        lo, hi, flo, origin, width, bern = lo[keep], hi[keep], flo[keep], origin[keep], width[keep], bern[keep]
+    x[act] = xa
+    out = a.copy()
+    out[i, ax] = x
+    return out, its
+
+
+def _de_casteljau(bern, tau):
+    """Polynomials in Bernstein form ``bern`` (n, p + 1) at ``tau`` (n,) in [0, 1]: values and derivatives
+    d/dtau (n,) (the derivative from the last level's two points)."""
+    b, t = bern, tau[:, None]
+    slope = None
+    for r in range(bern.shape[1] - 1, 0, -1):
+        if r == 1:
+            slope = (bern.shape[1] - 1) * (b[:, 1] - b[:, 0])
+        b = b[:, :-1] + t * (b[:, 1:] - b[:, :-1])
+    return b[:, 0], (np.zeros(len(tau)) if slope is None else slope)
 
 
 class EdgeSplines:
-    """Scalar trivariates restricted to grid edges: one univariate B-spline per edge, on its few knot spans.
+    """Scalar trivariates restricted to grid edges: each edge's restriction as its polynomial pieces, one per
+    knot span it crosses, in Bernstein form.
 
-    ``knots`` (n, W + p + 1) and ``coefs`` (n, W) hold each edge's local
-    window (padded rows repeat their last entries), ``count`` (n,) the used
-    coefficients.  Evaluating them is a vectorised de Boor over all edges at
-    once, far cheaper than evaluating the trivariate again at every step.
+    For n edges of at most m pieces: ``bern`` (n, m, p + 1) the Bernstein
+    coefficients of each piece over its whole knot span, which starts at
+    ``origin`` (n, m) and is ``width`` (n, m) long; ``breaks`` (n, m - 1) the
+    knots inside each edge, where its pieces meet (+inf pads rows with fewer
+    pieces).  A piece is its spline's Bezier extraction on the span
+    (:func:`geometry.knots.extraction_operators`) contracted with the basis
+    values of the two other directions: exact, and evaluating it is de
+    Casteljau's algorithm over all edges at once, far cheaper than
+    evaluating the trivariate again at every step.
     """
 
-    def __init__(self, knots, coefs, count, degree):
-        self.knots, self.coefs, self.count, self.p = knots, coefs, count, int(degree)
+    def __init__(self, bern, origin, width, breaks):
+        self.bern, self.origin, self.width, self.breaks = bern, origin, width, breaks
+        self.p = bern.shape[2] - 1
 
     @classmethod
     def of(cls, spline, a, b, axis) -> "EdgeSplines":
@@ -240,18 +267,27 @@ class EdgeSplines:
         Splines with the same degrees, coefficient shape and knots up to an
         affine map of each direction (the cells of a structure) are restricted
         together, in their unit cube: one gather per direction and kind
-        instead of one per cell; the knots are mapped back.
+        instead of one per cell; the pieces' spans are mapped back.
         """
-        groups = {}
+        kinds = {}
         for i in np.unique(cell):
             sp = splines[i]
             if len(set(sp.degrees)) != 1:
                 raise TilingError(f"edge restrictions need equal degrees in all directions, got {sp.degrees}")
-            unit = tuple(np.round((U - U[0]) / (U[-1] - U[0]), 12).tobytes() for U in sp.knots)
-            groups.setdefault((sp.degrees, sp.coefficients.shape, unit), []).append(i)
-        parts, where = [], []
+            kinds.setdefault((sp.degrees, sp.coefficients.shape), []).append(i)
+        groups = []
+        for same in kinds.values():  # then by the knots in the unit cube, all of a kind's splines at once
+            K = np.array([np.concatenate(splines[i].knots) for i in same])
+            bounds = np.cumsum([0] + [len(U) for U in splines[same[0]].knots])
+            unit = np.concatenate([(K[:, u:v] - K[:, u:u + 1]) / (K[:, v - 1:v] - K[:, u:u + 1])
+                                   for u, v in zip(bounds[:-1], bounds[1:])], axis=1)
+            index = {}
+            for i, row in zip(same, np.round(unit, 12)):
+                index.setdefault(row.tobytes(), []).append(i)
+            groups += index.values()
+        parts = []
         slot = np.full(len(splines), -1)
-        for members in groups.values():
+        for members in groups:
             ref = splines[members[0]]
             unit = [(U - U[0]) / (U[-1] - U[0]) for U in ref.knots]
             G = np.stack([splines[i].coefficients[..., 0] for i in members])
@@ -261,72 +297,87 @@ class EdgeSplines:
             ci = slot[cell[mine]]
             lo, size = ends[ci, :, 0], ends[ci, :, 1] - ends[ci, :, 0]
             an, bn = (a[mine] - lo) / size, (b[mine] - lo) / size
-            chunk = 16384  # rows per gather: (rows, W, p + 1, p + 1) coefficients, about 10 MB
+            chunk = 16384  # edges per gather: (edges, p + 1, p + 1, p + 1) coefficients, about 8 MB
             for k in range(3):
                 along = np.flatnonzero(axis[mine] == k)
                 for rows in np.array_split(along, max(1, -(-len(along) // chunk))):
                     if len(rows):
-                        e = cls._restrict(unit, ref.degrees, G, ci[rows], an[rows], bn[rows], k)
-                        e.knots = lo[rows, k, None] + size[rows, k, None] * e.knots
-                        parts.append(e)
-                        where.append(mine[rows])
-        return cls.stack(parts, where, len(a))
+                        parts.append((mine[rows],) + cls._pieces(unit, ref.degrees, G, ci[rows], an[rows], bn[rows],
+                                                                 k, lo[rows, k], size[rows, k]))
+        return cls._stack(parts, len(a))
 
-    @classmethod
-    def _restrict(cls, knots, degrees, G, ci, a, b, k) -> "EdgeSplines":
-        """Edges along direction k from a to b (rows of one chunk) of the splines G[ci] (knots, degrees)."""
+    @staticmethod
+    def _pieces(knots, degrees, G, ci, a, b, k, lo, size):
+        """The pieces of edges along direction k from a to b (unit coordinates) of the splines G[ci] (knots,
+        degrees, unit cube), mapped back by ``lo + size * u``: (bern, origin, width, breaks), rows padded."""
         o = [j for j in range(3) if j != k]
-        p = degrees[k]
-        Uk = knots[k]
-        sa = kn.find_spans(Uk, p, a[:, k])
-        sb = np.maximum(kn.find_spans(Uk, p, b[:, k], side="left"), sa)
-        W = int((sb - sa).max()) + p + 1
-        ik = np.clip(sa[:, None] - p + np.arange(W), 0, G.shape[k + 1] - 1)
-        (s1, v1), (s2, v2) = [kn.basis_functions(knots[j], degrees[j], a[:, j]) for j in o]
-        i1 = s1[:, None] - degrees[o[0]] + np.arange(degrees[o[0]] + 1)
-        i2 = s2[:, None] - degrees[o[1]] + np.arange(degrees[o[1]] + 1)
-        Gk = np.ascontiguousarray(np.moveaxis(G, k + 1, 1))  # (C, n_k, n_o1, n_o2)
-        n1, n2 = Gk.shape[2], Gk.shape[3]
-        # one flat take instead of four broadcast index arrays (NumPy's multi-index gather is 3-5x slower)
-        row = (ci[:, None] * Gk.shape[1] + ik) * n1  # (n, W)
-        flat = ((row[:, :, None] + i1[:, None, :])[:, :, :, None] * n2 + i2[:, None, None, :])
-        sub = np.take(Gk.reshape(-1), flat)
-        coefs = np.einsum("nwij,ni,nj->nw", sub, v1[:, 0], v2[:, 0])
-        window = Uk[np.clip(sa[:, None] - p + np.arange(W + p + 1), 0, len(Uk) - 1)]
-        return cls(window, coefs, sb - sa + p + 1, p)
+        p, Uk = degrees[k], knots[k]
+        vals = np.unique(Uk)  # the span ends
+        ne = len(vals) - 1
+        ext, first = kn.extraction_operators(Uk, p)
+        ea = np.clip(np.searchsorted(vals, a[:, k], side="right") - 1, 0, ne - 1)
+        eb = np.clip(np.searchsorted(vals, b[:, k], side="left") - 1, ea, ne - 1)  # an end on a knot: the left span
+        m = eb - ea + 1
+        n, M = len(ci), int(m.max())
+        r = np.repeat(np.arange(n), m)  # one row per (edge, span crossed)
+        j = np.arange(len(r)) - np.repeat(np.cumsum(m) - m, m)
+        e = ea[r] + j
+        (s1, v1), (s2, v2) = [kn.basis_functions(knots[d], degrees[d], a[:, d]) for d in o]
+        q1, q2 = degrees[o[0]] + 1, degrees[o[1]] + 1
+        # the splines' Bernstein coefficients along k, span by span: (C, ne, n_o1, n_o2, p + 1)
+        Gk = np.moveaxis(G, k + 1, 1)
+        bez = np.einsum("eij,cejab->ceabi", ext, Gk[:, first[:, None] + np.arange(p + 1)])
+        # each piece's (p + 1, q1, q2) block is one window of them: gathered from a windowed view by one index
+        # per axis, the four adjacent (a flat take through (rows, p + 1, q1, q2) index arrays measured 5x
+        # slower, a slice between the indices 2x)
+        view = np.lib.stride_tricks.sliding_window_view(bez, (q1, q2), axis=(2, 3))
+        sub = view[ci[r], e, s1[r] - q1 + 1, s2[r] - q2 + 1].reshape(len(r), p + 1, q1 * q2)
+        weights = (v1[:, 0, :, None] * v2[:, 0, None, :]).reshape(n, q1 * q2)
+        bern = np.zeros((n, M, p + 1))
+        bern[r, j] = np.einsum("nik,nk->ni", sub, weights[r])
+        span = np.minimum(ea[:, None] + np.arange(M), ne - 1)
+        origin = lo[:, None] + size[:, None] * vals[span]
+        width = size[:, None] * (vals[span + 1] - vals[span])
+        inner = np.arange(M - 1) < (m - 1)[:, None]
+        breaks = np.where(inner, lo[:, None] + size[:, None] * vals[np.minimum(span[:, 1:], ne)], np.inf)
+        return bern, origin, width, breaks
 
     @classmethod
-    def stack(cls, parts, where, n) -> "EdgeSplines":
-        """One set from parts holding the rows ``where[i]`` (index arrays) of n edges (equal degrees)."""
-        p = parts[0].p
-        W = max(e.coefs.shape[1] for e in parts)
-        knots, coefs, count = np.zeros((n, W + p + 1)), np.zeros((n, W)), np.zeros(n, int)
-        for e, rows in zip(parts, where):
-            w = e.coefs.shape[1]
-            coefs[rows, :w], coefs[rows, w:] = e.coefs, e.coefs[:, -1:]
-            knots[rows, :w + p + 1], knots[rows, w + p + 1:] = e.knots, e.knots[:, -1:]
-            count[rows] = e.count
-        return cls(knots, coefs, count, p)
+    def _stack(cls, parts, n) -> "EdgeSplines":
+        """One set from parts (rows (index array), bern, origin, width, breaks) covering n edges."""
+        M = max(part[1].shape[1] for part in parts)
+        p = parts[0][1].shape[2] - 1
+        bern, origin = np.zeros((n, M, p + 1)), np.zeros((n, M))
+        width, breaks = np.ones((n, M)), np.full((n, M - 1), np.inf)
+        for rows, bb, oo, ww, kk in parts:
+            if bb.shape[2] != p + 1:
+                raise TilingError("edge restrictions need one degree for all edges")
+            m = bb.shape[1]
+            bern[rows, :m], origin[rows, :m], width[rows, :m], breaks[rows, :m - 1] = bb, oo, ww, kk
+        return cls(bern, origin, width, breaks)
+
+    def bracket(self, lo, hi, flo, fhi):
+        """Each edge's bracket [lo, hi] (n,) with f of opposite signs ``flo``, ``fhi`` at its ends narrowed to
+        one piece: the first piece with a sign change (f at the knots inside is read off the pieces' last
+        Bernstein coefficients; a knot where f is 0 becomes a bracket of width 0 at its piece's right end).
+        Returns (piece, lo, hi, flo, fhi), each (n,)."""
+        n, m = self.breaks.shape
+        if m == 0:
+            return np.zeros(n, int), lo, hi, flo, fhi
+        live = np.isfinite(self.breaks)
+        pts = np.concatenate([lo[:, None], np.where(live, self.breaks, hi[:, None]), hi[:, None]], axis=1)
+        val = np.concatenate([flo[:, None], np.where(live, self.bern[:, :-1, -1], fhi[:, None]), fhi[:, None]],
+                             axis=1)
+        q = np.argmax(val[:, :-1] * val[:, 1:] <= 0, axis=1)  # a sign change, or a zero at its right end
+        at = np.arange(n)
+        zero = val[at, q + 1] == 0
+        return (q, np.where(zero, pts[at, q + 1], pts[at, q]), pts[at, q + 1],
+                np.where(zero, 0.0, val[at, q]), val[at, q + 1])
 
     def __call__(self, rows, t, derivative: bool = False):
-        """Values of edges ``rows`` at their coordinates ``t`` (de Boor, vectorised); with ``derivative``, the
-        pair (values, derivatives along the edge), the derivative from the last de Boor level."""
-        p = self.p
-        U, C, W = self.knots[rows], self.coefs[rows], self.count[rows]
-        cols = np.arange(p + 1, U.shape[1])
-        inner = (cols[None, :] <= W[:, None] - 1) & (U[:, p + 1:] <= t[:, None])
-        s = p + inner.sum(axis=1)  # the local span: u_s <= t < u_{s+1}
-        d = np.take_along_axis(C, s[:, None] - p + np.arange(p + 1), axis=1)
-        # the 2p knots u_{s-p+1} .. u_{s+p} that de Boor reads, gathered once: column c holds u_{s-p+1+c}
-        Uw = np.take_along_axis(U, s[:, None] - p + 1 + np.arange(2 * p), axis=1)
-        slope = None
-        for r in range(1, p + 1):
-            if derivative and r == p:  # C'(t) = p (d_s - d_{s-1}) / (u_{s+1} - u_s) at level p - 1
-                span = Uw[:, p] - Uw[:, p - 1]
-                slope = p * (d[:, p] - d[:, p - 1]) / np.where(span > 0, span, np.inf)
-            for j in range(p, r - 1, -1):
-                lo, hi = Uw[:, j - 1], Uw[:, j + p - r]  # u_{s-p+j} and u_{s+j+1-r}
-                den = hi - lo
-                alpha = np.where(den > 0, (t - lo) / np.where(den > 0, den, 1.0), 0.0)
-                d[:, j] = (1.0 - alpha) * d[:, j - 1] + alpha * d[:, j]
-        return (d[:, p], slope) if derivative else d[:, p]
+        """Values of edges ``rows`` at their coordinates ``t`` (de Casteljau on the piece holding t); with
+        ``derivative``, the pair (values, derivatives along the edge)."""
+        j = (self.breaks[rows] <= t[:, None]).sum(axis=1)
+        w = self.width[rows, j]
+        f, df = _de_casteljau(self.bern[rows, j], (t - self.origin[rows, j]) / w)
+        return (f, df / w) if derivative else f

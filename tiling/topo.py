@@ -170,14 +170,15 @@ def classify_faces(boxes: np.ndarray, domain: np.ndarray) -> list:
     n = len(boxes)
     tol = ON_DOMAIN * float(np.abs(domain).max() + 1.0)
     out = [dict() for _ in range(n)]
+    nested = boxes.tolist()
     for k in range(3):
         rest = [j for j in range(3) if j != k]
         upper: dict = {}
         for i in range(n):
-            upper.setdefault(float(boxes[i, k, 1]), []).append(i)
+            upper.setdefault(nested[i][k][1], []).append(i)
         lower: dict = {}
         for i in range(n):
-            lower.setdefault(float(boxes[i, k, 0]), []).append(i)
+            lower.setdefault(nested[i][k][0], []).append(i)
         for plane, below in upper.items():
             above = np.array(lower.get(plane, []), dtype=np.int64)
             below = np.array(below, dtype=np.int64)
@@ -186,9 +187,9 @@ def classify_faces(boxes: np.ndarray, domain: np.ndarray) -> list:
             order = np.argsort(ra, kind="stable")
             by_a = np.split(below[rb[order]], np.searchsorted(ra[order], np.arange(1, len(above))))
             for r, i in enumerate(below):
-                out[i][FACE_NAMES[2 * k + 1]] = _kind(boxes, i, by_b[r], rest, tol)
+                out[i][FACE_NAMES[2 * k + 1]] = _kind(nested, i, by_b[r], rest, tol)
             for c, j in enumerate(above):
-                out[j][FACE_NAMES[2 * k]] = _kind(boxes, j, by_a[c], rest, tol)
+                out[j][FACE_NAMES[2 * k]] = _kind(nested, j, by_a[c], rest, tol)
         for i in range(n):  # lower faces with nothing below them: D's boundary
             out[i].setdefault(FACE_NAMES[2 * k], ("boundary", ()))
             out[i].setdefault(FACE_NAMES[2 * k + 1], ("boundary", ()))
@@ -224,16 +225,16 @@ def _overlapping(B: np.ndarray, A: np.ndarray, tol: float) -> tuple[np.ndarray, 
 
 
 def _kind(boxes, i, nbrs, rest, tol):
-    """(kind, neighbours) of cell i's face whose neighbours across it are ``nbrs``."""
+    """(kind, neighbours) of cell i's face whose neighbours across it are ``nbrs``; ``boxes`` nested lists
+    (N, 3, 2) of floats (a face's two intervals: plain floats, far cheaper than small arrays)."""
     nbrs = tuple(int(j) for j in nbrs)
     if not nbrs:
         return "boundary", ()
-    mine = boxes[i][rest]
     if len(nbrs) > 1:
         return "complex", nbrs
-    theirs = boxes[nbrs[0]][rest]
-    if np.all(np.abs(theirs - mine) <= tol):
+    mine, theirs = [boxes[i][r] for r in rest], [boxes[nbrs[0]][r] for r in rest]
+    if all(abs(t[0] - m[0]) <= tol and abs(t[1] - m[1]) <= tol for t, m in zip(theirs, mine)):
         return "neighbour", nbrs
-    if np.all((theirs[:, 0] <= mine[:, 0] + tol) & (theirs[:, 1] >= mine[:, 1] - tol)):
+    if all(t[0] <= m[0] + tol and t[1] >= m[1] - tol for t, m in zip(theirs, mine)):
         return "partial", nbrs
     return "complex", nbrs  # one smaller neighbour covering part of the face (the rest is D's boundary)
