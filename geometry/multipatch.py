@@ -34,7 +34,7 @@ from .errors import SplineError
 from .faces import FACE_NAMES, face_knots, nested_refinement
 from .inversion import invert
 from .placed_points import IDENTITY, face_points, physical_corners, tile_corners, trivariates
-from .grouping import ObjectIndex
+from .grouping import identity_groups
 from .tolerances import CONTACT, INTERFACE, model_size, same_space
 
 __all__ = ["PlacedPatch", "Interface", "MultiPatch", "detect_interfaces", "free_faces", "free_face_mask", "face_points",
@@ -165,7 +165,6 @@ def detect_interfaces(patches, strict: bool = False):
     that fail either check are returned in ``mismatched`` (with the reason), or
     raise :class:`SplineError` when ``strict``.  Returns ``(interfaces, mismatched)``.
     """
-    same = ObjectIndex()  # patches share splines and maps: group by object
     pidx, fc = tile_corners(patches)
     if not len(pidx):
         return [], []
@@ -189,27 +188,25 @@ def detect_interfaces(patches, strict: bool = False):
         a = faces[int(np.argmax(counts > 1))]
         raise SplineError(f"more than two patch faces meet at the face {FACE_NAMES[rec_face[a]]} of patch "
                           f"{rec_patch[a]}; patches overlap")
-    pairs = [((int(rec_patch[a]), FACE_NAMES[rec_face[a]]), (int(rec_patch[b]), FACE_NAMES[rec_face[b]]), int(o))
-             for a, b, o in zip(ia, ib, orient) if o >= 0]  # same centre, other corners: e.g. a face inside a larger one
-    out, bad = [], []
-    checked: dict = {}
-    todo = []  # pairs whose images must be compared at interior points
-    for a, b, o in pairs:
-        swap, flip = ORIENTATIONS[o]
-        sig = (same(patches[a[0]].spline), a[1], same(patches[b[0]].spline), b[1], o)
-        if sig not in checked:  # face spaces depend on the tile patches only
-            checked[sig] = _same_face_space(patches, a, b, swap, flip)
-        if not checked[sig]:
-            bad.append((a, b, "their spline spaces differ (degrees or knots)"))
-            continue
-        todo.append((a, b, o))
-    coincide = _coincide(patches, todo, scale)
-    for (a, b, o), c in zip(todo, coincide):
-        if c:
-            swap, flip = ORIENTATIONS[o]
-            out.append(Interface("identity", a, b, swap, flip))
-        else:
-            bad.append((a, b, "their surfaces part between the corners (the control points differ)"))
+    # the matched pairs (same centre, other corners: e.g. a face inside a larger one is not), as arrays
+    ia, ib, orient = ia[matched], ib[matched], orient[matched]
+    pa, fa, pb, fb = rec_patch[ia], rec_face[ia], rec_patch[ib], rec_face[ib]
+    # face spaces depend on the tile patches only: one check per (tile spline, face, spline, face, orientation)
+    users = np.unique(np.concatenate([pa, pb]))
+    spline_of = np.zeros(len(patches), np.int64)
+    spline_of[users] = identity_groups([patches[i].spline for i in users])[1]
+    sig = np.stack([spline_of[pa], fa, spline_of[pb], fb, orient], axis=1)
+    _, first, inverse = np.unique(sig, axis=0, return_index=True, return_inverse=True)
+    space_ok = np.array([_same_face_space(patches, (int(pa[j]), FACE_NAMES[fa[j]]), (int(pb[j]), FACE_NAMES[fb[j]]),
+                                          *ORIENTATIONS[orient[j]]) for j in first.tolist()], bool)[inverse.ravel()]
+    bad = [(_key(pa[j], fa[j]), _key(pb[j], fb[j]), "their spline spaces differ (degrees or knots)")
+           for j in np.flatnonzero(~space_ok).tolist()]
+    todo = np.flatnonzero(space_ok)
+    coincide = _coincide(patches, pa[todo], fa[todo], pb[todo], fb[todo], orient[todo], scale)
+    out = [Interface("identity", (p1, FACE_NAMES[f1]), (p2, FACE_NAMES[f2]), *ORIENTATIONS[o])
+           for p1, f1, p2, f2, o in zip(*(x[todo[coincide]].tolist() for x in (pa, fa, pb, fb, orient)))]
+    bad += [(_key(pa[j], fa[j]), _key(pb[j], fb[j]), "their surfaces part between the corners (the control points "
+             "differ)") for j in todo[~coincide].tolist()]
     if strict and bad:
         a, b, why = bad[0]
         raise SplineError(f"face {a[1]} of patch {a[0]} and face {b[1]} of patch {b[0]} touch but do not conform: "
@@ -217,29 +214,38 @@ def detect_interfaces(patches, strict: bool = False):
     return out, bad
 
 
-def _coincide(patches, todo, scale) -> np.ndarray:
-    """Whether the images of the face pairs ``todo`` [(a, b, orientation)] coincide at the interior samples.
+def _key(patch, face) -> tuple:
+    """The (patch, face name) key of a patch and face index, as interfaces hold them."""
+    return int(patch), FACE_NAMES[face]
+
+
+def _coincide(patches, pa, fa, pb, fb, orient, scale) -> np.ndarray:
+    """Whether the images of the face pairs (patch ``pa``, face index ``fa``) and (``pb``, ``fb``) (arrays) under
+    the orientations ``orient`` coincide at the interior samples.
 
     Pairs of patches placed in one outer map are compared in its parameter
     space first (exact and cheap: placed tile coordinates); the rest, and
     pairs that differ there (a periodic map's seam), through the images.
     """
-    res = np.zeros(len(todo), bool)
-    if not todo:
+    res = np.zeros(len(pa), bool)
+    if not len(pa):
         return res
     sets = np.stack([_oriented_samples(*o) for o in ORIENTATIONS])  # face b's samples, per orientation
-    orient = np.array([o for _, _, o in todo])
-    same = np.nonzero([patches[a[0]].outer is patches[b[0]].outer for a, b, _ in todo])[0]
+    users = np.unique(np.concatenate([pa, pb]))
+    outer_of = np.zeros(len(patches), np.int64)
+    outer_of[users] = identity_groups([patches[i].outer for i in users])[1]
+    ka, kb = np.stack([pa, fa], axis=1), np.stack([pb, fb], axis=1)
+    same = np.flatnonzero(outer_of[pa] == outer_of[pb])
     if len(same):
-        pa = face_points(patches, [todo[i][0] for i in same], _SAMPLES, through_outer=False)
-        pb = face_points(patches, [todo[i][1] for i in same], sets, through_outer=False, which=orient[same])
-        hit = np.abs(pa - pb).max(axis=(1, 2)) <= TOL * max(1.0, float(np.abs(pa).max()))
+        qa = face_points(patches, ka[same], _SAMPLES, through_outer=False)
+        qb = face_points(patches, kb[same], sets, through_outer=False, which=orient[same])
+        hit = np.abs(qa - qb).max(axis=(1, 2)) <= TOL * max(1.0, float(np.abs(qa).max()))
         res[same[hit]] = True
-    rest = np.nonzero(~res)[0]
+    rest = np.flatnonzero(~res)
     if len(rest):
-        pa = face_points(patches, [todo[i][0] for i in rest], _SAMPLES)
-        pb = face_points(patches, [todo[i][1] for i in rest], sets, which=orient[rest])
-        res[rest] = np.abs(pa - pb).max(axis=(1, 2)) <= TOL * scale
+        qa = face_points(patches, ka[rest], _SAMPLES)
+        qb = face_points(patches, kb[rest], sets, which=orient[rest])
+        res[rest] = np.abs(qa - qb).max(axis=(1, 2)) <= TOL * scale
     return res
 
 

@@ -95,3 +95,24 @@ def test_face_points_of_many_faces_equal_each_face_alone():
         placed = face_points([P], [(0, f)], sets[k], through_outer=False)[0]
         assert np.allclose(P.outer.evaluate(placed)[:, :3], got, atol=1e-14)
     assert face_points(ms.patches, [], _SAMPLES).shape == (0, 5, 3)
+
+
+def test_the_geometric_search_names_faces_that_touch_without_conforming():
+    from geometry.multipatch import PlacedPatch
+
+    # three unit boxes in a row along u: the 1st and 2nd share a face of equal corners but different knots
+    # (the 2nd refined along v), the 2nd and 3rd one whose middle differs (the 3rd's control point moved), and a
+    # 4th above the 1st glues to it
+    a = pr.box()
+    b = pr.box(origin=(1.0, 0.0, 0.0), elements=(1, 2, 1)).elevate_to((1, 2, 1))
+    c = pr.box(origin=(2.0, 0.0, 0.0), elements=(1, 2, 1)).elevate_to((1, 2, 1))
+    cp = c.control_points.copy()
+    cp[0, 2, 0, 0] += 0.05  # a point of c's umin face off its corners: the same corners, another surface
+    c = type(c)(c.degrees, c.knots, cp)
+    d = pr.box(origin=(0.0, 0.0, 1.0))
+    found, bad = detect_interfaces([PlacedPatch(s) for s in (a, b, c, d)])
+    assert [(i.a, i.b) for i in found] == [((0, "wmax"), (3, "wmin"))]
+    assert [(x, y) for x, y, _ in bad] == [((0, "umax"), (1, "umin")), ((1, "umax"), (2, "umin"))]
+    assert "spline spaces differ" in bad[0][2] and "surfaces part between the corners" in bad[1][2]
+    with pytest.raises(Exception, match="do not conform: their spline spaces differ"):
+        detect_interfaces([PlacedPatch(s) for s in (a, b, c, d)], strict=True)

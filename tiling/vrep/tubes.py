@@ -66,9 +66,16 @@ class Face:
 
     @cached_property
     def _at_centre(self) -> tuple:
-        """(point, tangents (3, 2)) at the face's parameter centre: one evaluation for both of these."""
-        x, J = self.surface.value_and_jacobian(np.array([[0.5, 0.5]]))
-        return x[0, :3], J[0, :3]
+        """(point, tangents (3, 2)) at the face's parameter centre, both from one pair of basis evaluations
+        contracted with the (polynomial) control net: a general evaluation's set-up cost several times more."""
+        S = self.surface
+        (su, Nu), (sv, Nv) = [kn.basis_functions(U, p, _MIDDLE, nder=1) for U, p in zip(S.knots, S.degrees)]
+        pu, pv = S.degrees
+        block = S.control_points[su[0] - pu: su[0] + 1, sv[0] - pv: sv[0] + 1, :3]  # (pu + 1, pv + 1, 3)
+        x = np.einsum("i,j,ijk->k", Nu[0, 0], Nv[0, 0], block)
+        J = np.stack([np.einsum("i,j,ijk->k", Nu[0, 1], Nv[0, 0], block),
+                      np.einsum("i,j,ijk->k", Nu[0, 0], Nv[0, 1], block)], axis=1)
+        return x, J
 
     @property
     def centre(self) -> np.ndarray:
@@ -95,6 +102,26 @@ class Face:
         ring = ring - ring.mean(0)
         proj = ring @ np.linalg.svd(ring, full_matrices=False)[2][:2].T
         return float(np.abs(proj).max(axis=0).min())
+
+
+_MIDDLE = np.array([0.5])
+_MIDDLE.setflags(write=False)
+_CUBIC = np.array([0.0] * 4 + [1.0] * 4)  # a tube's knots along w
+_CUBIC.setflags(write=False)
+
+
+def _net(degrees, knots, net, channels=()) -> BSpline:
+    """The polynomial B-spline with the knots and control net made here by exact operations on validated
+    splines (elevation, insertion, merged knots, sums of nets): built without re-validation, knots kept
+    read-only (each tube makes about 20 of these: 0.1 s of a box-and-cylinder union went to the checks)."""
+    ks = []
+    for U in knots:
+        U = np.asarray(U, float)
+        if U.flags.writeable:
+            U = U.copy()
+            U.setflags(write=False)
+        ks.append(U)
+    return BSpline._trusted(tuple(degrees), ks, net, False, channels=tuple(channels))
 
 
 def _surface(degrees, knots, net, channels=()) -> BSpline:
@@ -194,7 +221,7 @@ def _elevated(S: BSpline, degrees) -> BSpline:
         key = (np.asarray(knots[d]).tobytes(), S.degrees[d], t)
         knots[d], E = _ELEVATIONS.get(key, lambda U=knots[d], p=S.degrees[d], t=t: kn.elevation_matrix(U, p, t))
         cp = kn.apply_along(cp, d, E)
-    return BSpline(tuple(degrees), knots, cp, channels=S.channels)
+    return _net(degrees, knots, cp, S.channels)
 
 
 def _common(surfs: list) -> list:
@@ -224,7 +251,7 @@ def _common(surfs: list) -> list:
                 s = s.insert_knots(d, ins)[0]
             knots = list(s.knots)
             knots[d] = target  # the same values everywhere (the merged ones differ by round-off only)
-            out.append(BSpline(s.degrees, knots, s.control_points, channels=s.channels))
+            out.append(_net(s.degrees, knots, s.control_points, s.channels))
         surfs = out
     return surfs
 
@@ -234,7 +261,7 @@ def direction_field(f: Face, phi: float) -> BSpline:
     d = f.out.points
     scale = max(float(np.linalg.norm(d.reshape(-1, 3).mean(0))), 1e-300)
     v = (1 - phi) * d / scale + phi * f.normal
-    return BSpline(f.out.degrees, f.out.knots, v)
+    return _net(f.out.degrees, f.out.knots, v)
 
 
 @dataclass
@@ -264,7 +291,7 @@ class Tube:
 
     def _cubic(self) -> BSpline:
         net = np.stack(self.layers, axis=2)
-        return BSpline(self.degrees + (3,), self.knots + [np.r_[[0.0] * 4, [1.0] * 4]], net, channels=self.channels)
+        return _net(self.degrees + (3,), self.knots + [_CUBIC], net, self.channels)
 
     def _geometry(self) -> BSpline:
         if not np.any(self.shift):
@@ -275,7 +302,7 @@ class Tube:
         cp = Q.control_points.copy()
         cp[:, :, 2, :3] += self.shift[0]
         cp[:, :, 3, :3] += self.shift[1]
-        return BSpline(Q.degrees, Q.knots, cp, channels=self.channels)
+        return _net(Q.degrees, Q.knots, cp, self.channels)
 
     def displace(self, v: np.ndarray) -> None:
         """Move the quintic's two inner layers by ``v`` (3,) (model units)."""
@@ -319,8 +346,8 @@ def hermite_tube(a: Face, b: Face, beta: float = 0.5, phi: float = 0.0) -> Tube:
         raise TilingError(f"faces {a.key} and {b.key}: the primitives' maps carry different channels "
                           f"({list(a.surface.channels)} and {list(sb.channels)}); give every primitive the same ones")
     # each end with its direction field as three more components: one elevation and insertion per end
-    ends = [BSpline(S.degrees, S.knots, np.concatenate([S.control_points, F.points], -1),
-                    channels=S.channels + ("~dx", "~dy", "~dz")) for S, F in ((a.surface, oa), (sb, ob))]
+    ends = [_net(S.degrees, S.knots, np.concatenate([S.control_points, F.points], -1), S.channels + ("~dx", "~dy", "~dz"))
+            for S, F in ((a.surface, oa), (sb, ob))]
     fa, fb = _common(ends)
     A, B = fa.control_points[..., : 3 + nc], fb.control_points[..., : 3 + nc]
     L1, L2 = A.copy(), B.copy()
