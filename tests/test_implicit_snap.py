@@ -26,6 +26,16 @@ def _edges(rng, n, lo=0.0, hi=1.0):
     return a, b, np.full(n, 2)
 
 
+def _crossing(f, rng, n):
+    """Edges along w over the whole domain at random (u, v) where f changes sign: a, b, axes, f(a), f(b)."""
+    a, b, ax = _edges(rng, n)
+    E = EdgeSplines.of(f, a, b, ax)
+    fa, fb = E(np.arange(n), a[:, 2]), E(np.arange(n), b[:, 2])
+    keep = fa * fb < 0
+    assert keep.sum() > n // 6
+    return a[keep], b[keep], ax[keep], fa[keep], fb[keep]
+
+
 def test_edge_pieces_equal_the_field_across_knots_and_on_them():
     rng = np.random.default_rng(3)
     f = _field(rng, [0, 0, 0, 0, 0.2, 0.5, 0.5, 0.7, 1, 1, 1, 1])  # a double knot at 0.5
@@ -51,21 +61,15 @@ def test_edge_pieces_equal_the_field_across_knots_and_on_them():
 def test_the_bracket_takes_the_first_piece_with_a_sign_change_and_a_root_on_a_knot():
     rng = np.random.default_rng(4)
     f = _field(rng, [0, 0, 0, 0, 0.25, 0.5, 0.75, 1, 1, 1, 1])
-    a, b, ax = _edges(rng, 300)
-    E = EdgeSplines.of(f, a, b, ax)
-    fa, fb = E(np.arange(300), a[:, 2]), E(np.arange(300), b[:, 2])
-    keep = fa * fb < 0
-    assert keep.sum() > 50
-    rows = np.flatnonzero(keep)
-    piece, lo, hi, flo, fhi = EdgeSplines.of(f, a[rows], b[rows], ax[rows]).bracket(a[rows, 2], b[rows, 2], fa[rows],
-                                                                                    fb[rows])
+    a, b, ax, fa, fb = _crossing(f, rng, 300)
+    piece, lo, hi, flo, fhi = EdgeSplines.of(f, a, b, ax).bracket(a[:, 2], b[:, 2], fa, fb)
     assert np.all(flo * fhi <= 0) and np.all(lo <= hi)
     # the bracket is one piece: no knot strictly inside, and it is the first piece with a sign change
     knots = np.array([0.25, 0.5, 0.75])
     assert not np.any((knots[None] > lo[:, None] + 1e-15) & (knots[None] < hi[:, None] - 1e-15))
     before = knots[None] <= lo[:, None] + 1e-15
-    ends = np.c_[a[rows, 2], np.where(before, knots[None], np.nan)]
-    for r, e in zip(rows, ends):  # f keeps its sign at every knot left of the bracket
+    ends = np.c_[a[:, 2], np.where(before, knots[None], np.nan)]
+    for r, e in enumerate(ends):  # f keeps its sign at every knot left of the bracket
         x = np.tile(a[r], (np.isfinite(e).sum(), 1))
         x[:, 2] = e[np.isfinite(e)]
         assert np.all(np.sign(f.evaluate(x, compiled=False)[:, 0]) == np.sign(fa[r]))
@@ -74,21 +78,18 @@ def test_the_bracket_takes_the_first_piece_with_a_sign_change_and_a_root_on_a_kn
     U = kn.uniform_knots(3, 3)
     g = SplineFunction((3, 3, 3), [U, U, np.array([0, 0, 0, 0, 0.5, 0.5, 0.5, 1, 1, 1, 1.0])],
                        np.broadcast_to(np.array([-1, -0.7, -0.3, 0, 0.3, 0.7, 1]), (6, 6, 7))[..., None])
+    n = len(a)
     E = EdgeSplines.of(g, a, b, ax)
-    piece, lo, hi, flo, fhi = E.bracket(a[:, 2], b[:, 2], np.full(300, -1.0), np.full(300, 1.0))
+    piece, lo, hi, flo, fhi = E.bracket(a[:, 2], b[:, 2], np.full(n, -1.0), np.full(n, 1.0))
     assert np.all(lo == 0.5) and np.all(hi == 0.5) and np.all(flo == 0) and np.all(fhi == 0)
-    c, _ = _bracketed_newton(a, b, np.full(300, -1.0), np.full(300, 1.0), ax, E, 1e-12, 60)
+    c, _ = _bracketed_newton(a, b, np.full(n, -1.0), np.full(n, 1.0), ax, E, 1e-12, 60)
     assert np.all(c[:, 2] == 0.5)
 
 
 def test_newton_on_the_pieces_lands_on_the_exact_zero_set_inside_each_edge():
     rng = np.random.default_rng(5)
     f = _field(rng, [0, 0, 0, 0, 0.3, 0.3, 0.6, 1, 1, 1, 1])
-    a, b, ax = _edges(rng, 2000)
-    E = EdgeSplines.of(f, a, b, ax)
-    fa, fb = E(np.arange(2000), a[:, 2]), E(np.arange(2000), b[:, 2])
-    keep = fa * fb < 0
-    a, b, ax, fa, fb = a[keep], b[keep], ax[keep], fa[keep], fb[keep]
+    a, b, ax, fa, fb = _crossing(f, rng, 2000)
     E = EdgeSplines.of(f, a, b, ax)
     c, its = _bracketed_newton(a, b, fa, fb, ax, E, 1e-13, 60)
     assert its < 60
