@@ -125,8 +125,8 @@ def _net(degrees, knots, net, channels=()) -> BSpline:
 
 
 def _surface(degrees, knots, net, channels=()) -> BSpline:
-    s = BSpline(degrees, knots, net, channels=channels)
-    return s.reparametrize(np.array([[0.0, 1.0], [0.0, 1.0]]))
+    """A face of a composed (validated) patch, its knots mapped onto [0, 1]^2."""
+    return _net(degrees, [(U - U[0]) / (U[-1] - U[0]) for U in knots], net, channels)
 
 
 def face_of(P: PlacedPatch, face: str, key=None) -> Face:

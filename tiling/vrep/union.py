@@ -363,6 +363,19 @@ def _base_face(G, side: str, space: list):
     return f
 
 
+def _axis_distances(axes: list, pairs: np.ndarray, chunk: int = 4096) -> np.ndarray:
+    """:func:`tiling.vrep.repulsion.closest`'s distance of every pair (i, j) of ``pairs`` (P, 2) of sampled
+    axes (each (n, 3), one n), the same arithmetic batched."""
+    if not len(pairs):
+        return np.zeros(0)
+    A = np.stack(axes)
+    out = np.empty(len(pairs))
+    for s in range(0, len(pairs), chunk):  # (chunk, n, n, 3) differences at a time
+        i, j = pairs[s:s + chunk, 0], pairs[s:s + chunk, 1]
+        out[s:s + chunk] = np.linalg.norm(A[i][:, :, None] - A[j][:, None], axis=3).min(axis=(1, 2))
+    return out
+
+
 def resolve_tube_collisions(res: UnionBridges, max_repel: int = 20) -> tuple[dict, Collisions, int]:
     """Collisions between tubes (one-to-one tubes and arms): sampled axes closer than the sum of the inscribed
     radii.  Both tubes of a colliding pair are raised to quintics and their inner layers repelled along
@@ -380,12 +393,16 @@ def resolve_tube_collisions(res: UnionBridges, max_repel: int = 20) -> tuple[dic
         mids = np.array([a[len(a) // 2] for a in axes])
         reach = max(float(np.linalg.norm(a[-1] - a[0])) for a in axes)
         rmax = max(t.radius for _, _, t in items)
-        for i, j in cKDTree(mids).query_pairs(reach + 2 * rmax, output_type="ndarray"):
+        pairs = cKDTree(mids).query_pairs(reach + 2 * rmax, output_type="ndarray")
+        # the candidates' axis distances with the axes as built, all at once (the sequential loop below reads
+        # them while neither tube of a pair has moved, and measures again once one has)
+        first = _axis_distances(axes, pairs)
+        for (i, j), d0 in zip(pairs.tolist(), first.tolist()):
             (ki, ii, a), (kj, jj, b) = items[i], items[j]
             if ii in dead[ki] or jj in dead[kj] or (ki == kj == "fork" and ii == jj):
                 continue  # the two arms of one fork meet at their base by construction
             need = a.radius + b.radius
-            if closest(axes[i], axes[j])[0] >= need:
+            if (d0 if i not in moved and j not in moved else closest(axes[i], axes[j])[0]) >= need:
                 continue
             counts.collisions += 1
 
