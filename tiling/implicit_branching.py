@@ -24,8 +24,11 @@ from both sides): every unit face's inside part is one non-empty piece and
 its outside part one piece touching the rim; every cell's inside samples
 are one component and its voids reach the cell's boundary; where a random
 draw breaks that, its amplitude is halved (down to the canonical pattern).
-The whole inside region is then one component and, capped, the outside one
-too: the surface is closed and connected.
+The draws are made face by face and cell by cell as before; the halving
+rounds check all faces, then all cells, at once
+(:mod:`tiling.implicit_checks`).  The whole inside region is then one
+component and, capped, the outside one too: the surface is closed and
+connected.
 """
 
 from __future__ import annotations
@@ -153,7 +156,8 @@ def _window(axes, box) -> tuple:
 def _windows(axes, boxes) -> list:
     """Per box of ``boxes`` (N, 3, 2), :func:`_window`'s slices, all boxes searched at once."""
     lo = np.stack([np.searchsorted(a, boxes[:, k, 0] - ON_DOMAIN) for k, a in enumerate(axes)], 1).tolist()
-    hi = np.stack([np.searchsorted(a, boxes[:, k, 1] + ON_DOMAIN, side="right") for k, a in enumerate(axes)], 1).tolist()
+    hi = np.stack([np.searchsorted(a, boxes[:, k, 1] + ON_DOMAIN, side="right") for k, a in enumerate(axes)],
+                  1).tolist()
     return [tuple(slice(u, v) for u, v in zip(a, b)) for a, b in zip(lo, hi)]
 
 
@@ -232,7 +236,7 @@ def _unit_faces(cells, degree, controls, alpha, cap, rng, radius, axes, windows,
     c[[0, -1], :] = RIM
     c[:, [0, -1]] = RIM
     capped = scalar_surface(c, degree)  # every capped boundary face: one (immutable) surface
-    out, twin, todo = {}, {}, []  # (the faces to draw, in order: the random draws of one face at a time)
+    out, twin, todo = {}, {}, []  # todo: the faces to decide, in order (each face's draw made here, as before)
     for i, faces in enumerate(cells.faces):
         for f, (kind, nb) in faces.items():
             if kind == "complex" or (i, f) in out:

@@ -4,8 +4,11 @@ The field is sampled on a grid in D's parameter domain (uniform: VTK's flying
 edges on ``ImageData``; rectilinear: VTK's contour filter on a
 ``RectilinearGrid``) and contoured at 0 in parameter space.  Each vertex lies
 on a grid edge; :func:`snap` moves it along that edge onto the exact zero set
-of the field (vectorised Illinois regula falsi), then it is mapped through D,
-so pieces that share grid points share vertices and the mesh is one piece.
+of the field (bracketed Newton on the polynomial pieces of the field's
+restriction to the edge, :class:`EdgeSplines`, where the builder gives them;
+vectorised Illinois regula falsi on the field otherwise), then it is mapped
+through D, so pieces that share grid points share vertices and the mesh is
+one piece.
 """
 
 from __future__ import annotations

@@ -346,8 +346,8 @@ def hermite_tube(a: Face, b: Face, beta: float = 0.5, phi: float = 0.0) -> Tube:
         raise TilingError(f"faces {a.key} and {b.key}: the primitives' maps carry different channels "
                           f"({list(a.surface.channels)} and {list(sb.channels)}); give every primitive the same ones")
     # each end with its direction field as three more components: one elevation and insertion per end
-    ends = [_net(S.degrees, S.knots, np.concatenate([S.control_points, F.points], -1), S.channels + ("~dx", "~dy", "~dz"))
-            for S, F in ((a.surface, oa), (sb, ob))]
+    ends = [_net(S.degrees, S.knots, np.concatenate([S.control_points, F.points], -1),
+                 S.channels + ("~dx", "~dy", "~dz")) for S, F in ((a.surface, oa), (sb, ob))]
     fa, fb = _common(ends)
     A, B = fa.control_points[..., : 3 + nc], fb.control_points[..., : 3 + nc]
     L1, L2 = A.copy(), B.copy()
