@@ -137,7 +137,10 @@ _SPANNING = tuple(tuple((f, [j for j in range(3) if j != i // 2].index(k)) for i
 
 @lru_cache(maxsize=256)
 def _greville(U: bytes, degree: int) -> np.ndarray:
-    return kn.greville(np.frombuffer(U), degree)
+    """Greville abscissae of the knots ``U`` (read-only: cached, cells repeat their knots)."""
+    g = kn.greville(np.frombuffer(U), degree)
+    g.setflags(write=False)
+    return g
 
 
 def boolean_sum(faces, degree, box, rim) -> SplineFunction:
