@@ -23,6 +23,15 @@ from .faces import FACE_NAMES
 from .errors import show
 
 
+def _read_only(U) -> np.ndarray:
+    """A float knot vector that nothing can write into: ``U`` itself when it already is one, else a copy."""
+    U = np.asarray(U, float)
+    if U.flags.writeable:
+        U = U.copy()
+        U.setflags(write=False)
+    return U
+
+
 class SplineFunction(SplineEvaluation):
     """A tensor-product B-spline function ``R^d -> R^m`` (d = 1, 2, 3).
 
@@ -116,14 +125,15 @@ class SplineFunction(SplineEvaluation):
         """Build from homogeneous coefficients computed by this package (internal; no validation).
 
         For results of exact operations on validated splines (e.g. thousands of
-        composed tiles): the knot vectors must already be valid, read-only
-        float arrays and ``hom`` finite with positive weights.
+        composed tiles): the knot vectors must already be valid (a writable one
+        is kept as a read-only copy, a read-only one as it is) and ``hom``
+        finite with positive weights.
         """
         obj = cls.__new__(cls)
         for key, value in extra.items():
             setattr(obj, key, tuple(value) if key == "channels" else value)
         obj.degrees = tuple(int(p) for p in degrees)
-        obj.knots = tuple(knots)
+        obj.knots = tuple(_read_only(U) for U in knots)
         hom = np.array(hom, dtype=float)  # own copy
         hom.setflags(write=False)
         obj._hom = hom

@@ -49,14 +49,9 @@ def scalar_surface(c, degree, box=((0.0, 1.0), (0.0, 1.0))) -> SplineFunction:
     knots over ``box`` ((lo, hi), (lo, hi)), lo < hi: knots valid by construction, built without the checks."""
     n = c.shape[0]
     U = _unit_knots(int(degree), int(n))
-    knots = []
-    for d in range(2):
-        if box[d][0] == 0.0 and box[d][1] == 1.0:
-            knots.append(U)  # one shared object, so that the Boolean sum sees equal knots at once
-            continue
-        V = box[d][0] + (box[d][1] - box[d][0]) * U
-        V.setflags(write=False)
-        knots.append(V)
+    # the unit box's knots: one shared object, so that the Boolean sum sees equal knots at once
+    knots = [U if box[d][0] == 0.0 and box[d][1] == 1.0 else box[d][0] + (box[d][1] - box[d][0]) * U
+             for d in range(2)]
     return SplineFunction._trusted((degree, degree), knots, c[..., None], False)
 
 
@@ -170,9 +165,6 @@ def boolean_sum(faces, degree, box, rim) -> SplineFunction:
         t = g[k][:, None, None]  # (n_k, 1, 1)
         term = (1 - t) * lo[None] + t * hi[None]  # (n_k, n_a, n_b) with a < b the remaining directions
         C += np.moveaxis(term, 0, k)
-    mapped = []
-    for k in range(3):  # an increasing affine map of valid knots: valid, so built without the checks
-        U = box[k, 0] + (box[k, 1] - box[k, 0]) * knots[k]
-        U.setflags(write=False)
-        mapped.append(U)
+    # an increasing affine map of valid knots is valid: built without the checks
+    mapped = [box[k, 0] + (box[k, 1] - box[k, 0]) * knots[k] for k in range(3)]
     return SplineFunction._trusted((degree,) * 3, mapped, C[..., None], False)

@@ -114,14 +114,7 @@ def _net(degrees, knots, net, channels=()) -> BSpline:
     """The polynomial B-spline with the knots and control net made here by exact operations on validated
     splines (elevation, insertion, merged knots, sums of nets): built without re-validation, knots kept
     read-only (each tube makes about 20 of these: 0.1 s of a box-and-cylinder union went to the checks)."""
-    ks = []
-    for U in knots:
-        U = np.asarray(U, float)
-        if U.flags.writeable:
-            U = U.copy()
-            U.setflags(write=False)
-        ks.append(U)
-    return BSpline._trusted(tuple(degrees), ks, net, False, channels=tuple(channels))
+    return BSpline._trusted(tuple(degrees), knots, net, False, channels=tuple(channels))
 
 
 def _surface(degrees, knots, net, channels=()) -> BSpline:
