@@ -36,7 +36,7 @@ from .classify import Classification, classify
 from .model import VModel
 from .report import BridgeReport
 from .spatial import crosses_knot_lines, in_space
-from .tubes import bridge_patch, is_regular
+from .tubes import are_regular, bridge_patch
 from .union import boundary_faces, bridge_union, shared_faces, union_anchors
 from geometry.grouping import ObjectIndex
 from geometry.tolerances import COINCIDENT, ON_DOMAIN
@@ -174,8 +174,8 @@ def _surface_bridges(model, kept: _Kept, margin, beta, report: BridgeReport, tim
         made += [(prim.name, b) for b in _unfold(model, prim, cls, kept.placed, got, beta)]
         report.add_surface(counts)
     survivors, report.collisions = resolve_collisions([b for _, b in made])
-    valid = [b for b in survivors if _valid(b)]  # a heat model takes regular patches only
-    valid = [b for b in valid if _exact(b, kept.placed)]
+    valid = [b for b, ok in zip(survivors, _valid(survivors)) if ok]  # a heat model takes regular patches only
+    valid = [b for b, ok in zip(valid, _exact(valid, kept.placed)) if ok]
     report.folded = len(survivors) - len(valid)
     report.surface_bridges = len(valid)
     same = ObjectIndex()
@@ -184,19 +184,24 @@ def _surface_bridges(model, kept: _Kept, margin, beta, report: BridgeReport, tim
     return [(n, b) for n, b in made if same(b) in alive], union
 
 
-def _exact(b, placed) -> bool:
-    """A bridge whose map's knot lines cut it is rebuilt in space (:mod:`tiling.vrep.spatial`), so the model
-    composes exactly; False (given up as folded) where that geometry folds."""
-    if not crosses_knot_lines(b):
-        return True
-    for bend in (b.beta,) + _BENDS:  # the bend it was built with, then the others a folded bridge tries
-        built = in_space(b, placed, bend)
-        if built is None:  # a rational tile face: the bridge stays in map parameters (analysed through the map)
-            return True
-        if is_regular(built[0]):
-            b.geometry, b.space = built
-            return True
-    return False
+def _exact(bridges: list, placed) -> list[bool]:
+    """Per bridge: whether the model composes it exactly.  A bridge whose map's knot lines cut it is rebuilt in
+    space (:mod:`tiling.vrep.spatial`) with the first bend whose geometry is regular (the one it was built with,
+    then the others a folded bridge tries); False (given up as folded) where every one folds.  Where the
+    rebuild declines (a rational tile face) the bridge stays in map parameters, analysed through the map.  The
+    geometries of one bend are proven regular together."""
+    out = [True] * len(bridges)
+    todo = [i for i, b in enumerate(bridges) if crosses_knot_lines(b)]
+    for k in range(1 + len(_BENDS)):
+        built = [(i, in_space(bridges[i], placed, ((bridges[i].beta,) + _BENDS)[k])) for i in todo]
+        built = [(i, made) for i, made in built if made is not None]
+        for (i, made), ok in zip(built, are_regular([g for _, (g, _) in built])):
+            if ok:
+                bridges[i].geometry, bridges[i].space = made
+        todo = [i for i, made in built if bridges[i].geometry is not made[0]]
+    for i in todo:
+        out[i] = False
+    return out
 
 
 def _place_surface_bridges(kept: _Kept, made: list) -> dict:
@@ -319,14 +324,30 @@ def _side_tags(out, model, tags) -> None:
                                                if (a + int(pidx[t]), side) in free]
 
 
-def _valid(b) -> bool:
-    """A bridge to a surface the analysis can take: its net inside its map's domain (else its image would be
-    clipped there) and its Jacobian of one sign."""
-    dom = b.D.domain
-    pts = b.spline.points.reshape(-1, 3)
-    tol = COINCIDENT * float(np.ptp(dom, axis=1).max())
-    inside = np.all(pts >= dom[:, 0] - tol) and np.all(pts <= dom[:, 1] + tol)
-    return bool(inside) and is_regular(b.spline)
+def _valid(bridges: list) -> list[bool]:
+    """Per bridge: one the analysis can take (a bridge to a surface): its net inside its map's domain (else its
+    image would be clipped there) and its Jacobian of one sign.  The regularity proofs run together
+    (:func:`tiling.vrep.tubes.are_regular`), and each answer is kept on the bridge with the spline it is about
+    (``Bridge.regular``): the survivors of the collisions are asked again, and only those that moved (a new
+    spline) are proven again."""
+    out = [None] * len(bridges)
+    ask = []
+    for i, b in enumerate(bridges):
+        if b.regular is not None and b.regular[0] is b.spline:
+            out[i] = b.regular[1]
+            continue
+        dom = b.D.domain
+        pts = b.spline.points.reshape(-1, 3)
+        tol = COINCIDENT * float(np.ptp(dom, axis=1).max())
+        if np.all(pts >= dom[:, 0] - tol) and np.all(pts <= dom[:, 1] + tol):
+            ask.append(i)
+        else:
+            out[i] = False
+    for i, ok in zip(ask, are_regular([bridges[i].spline for i in ask])):
+        out[i] = bool(ok)
+    for b, ok in zip(bridges, out):
+        b.regular = (b.spline, ok)
+    return out
 
 
 _BENDS = (0.3, 0.7, 0.15, 0.85)  # bend parameters tried for a bridge that folds
@@ -335,16 +356,16 @@ _BENDS = (0.3, 0.7, 0.15, 0.85)  # bend parameters tried for a bridge that folds
 def _unfold(model, prim, cls, placed, bridges: list, beta: float) -> list:
     """Rebuild the bridges that fold or leave their map's domain with other bend parameters (the first valid one
     is kept; the others stay, and are eliminated after the collisions)."""
-    bad = {(b.patch, b.face): i for i, b in enumerate(bridges) if not _valid(b)}
+    bad = {(b.patch, b.face): i for i, (b, ok) in enumerate(zip(bridges, _valid(bridges))) if not ok}
     out = list(bridges)
     for bend in _BENDS:
         if not bad or bend == beta:
             continue
         again, _ = build_bridges(model, prim, cls, placed, list(bad), bend)
-        for b in again:
-            key = (b.patch, b.face)
-            if key in bad and _valid(b):
-                out[bad.pop(key)] = b
+        again = [b for b in again if (b.patch, b.face) in bad]
+        for b, ok in zip(again, _valid(again)):
+            if ok and (b.patch, b.face) in bad:
+                out[bad.pop((b.patch, b.face))] = b
     return out
 
 

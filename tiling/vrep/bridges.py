@@ -69,6 +69,9 @@ class Bridge:
     #: where the bridge is rebuilt in space (:mod:`tiling.vrep.spatial`): its geometry and analysis space
     geometry: BSpline = field(repr=False, default=None)
     space: list = field(repr=False, default=None)
+    #: (spline, whether the analysis can take it) once asked (:func:`tiling.vrep.assemble._valid`); stale once
+    #: the spline is replaced (a bridge that moved is snapped into a new one)
+    regular: tuple = field(repr=False, default=None)
 
 
 def _bernstein3(r):
