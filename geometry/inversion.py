@@ -5,7 +5,11 @@ Jacobian is square), started from the nearest point of a sampled parameter
 grid (a KD-tree query, so a point far from the grid's first guess still finds
 the right element), with every step clipped to the parameter domain.
 Vectorised over the points: one evaluation of values and Jacobians per
-iteration for all of them.
+iteration for all of them.  Callers that read distances and memberships only
+(a V-model's classification and margins: a few hundred points at a time, a
+thousand times per model) ask for the whole iteration in one compiled kernel
+(``kernel=True``, :mod:`geometry._newton_kernels`): the same iterates point by
+point, without a NumPy call per step.
 """
 
 from __future__ import annotations
@@ -17,6 +21,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from . import _fast
+from ._fast import readonly
+from .compile_lock import locked
 from .errors import SplineError
 from .tolerances import ROUNDOFF
 
@@ -43,11 +49,12 @@ def start_grid(domain: np.ndarray, breaks, per_element: int = 4) -> list[np.ndar
 
 _FREE_STEPS = 4  # steps every point takes before it may stop for want of progress
 _HALVINGS = 8  # damped: halvings of an uphill step before a point stays at its better iterate
+_MAX_ITER = 40  # Newton steps at most
 _CREEP = 1e-6  # a point held at the domain's bound that gains less than this (relative) in a step stops
 
 
 def newton_inverse(fn, domain: np.ndarray, start: np.ndarray, targets: np.ndarray, tol: float,
-                   max_iter: int = 40, damped: bool = False) -> np.ndarray:
+                   max_iter: int = _MAX_ITER, damped: bool = False) -> np.ndarray:
     """Refine parameters ``start`` (N, d) so that ``fn(params)[0]`` approaches ``targets`` (N, 3).
 
     ``fn(params) -> (x (N, 3), J (N, 3, d))``.  Gauss-Newton steps (the
@@ -175,7 +182,8 @@ def _starts(spline):
     return known
 
 
-def invert(spline, points, tol: float = 1e-10, compiled: bool | None = None, damped: bool = False) -> Inversion:
+def invert(spline, points, tol: float = 1e-10, compiled: bool | None = None, damped: bool = False,
+           kernel: bool = False) -> Inversion:
     """Parameters of ``points`` (N, 3) on ``spline`` (curve, surface or trivariate), nearest in the image.
 
     ``distance`` is the remaining distance to the image; ``inside`` marks
@@ -185,7 +193,11 @@ def invert(spline, points, tol: float = 1e-10, compiled: bool | None = None, dam
     by the compiled kernel (:mod:`geometry._fast`): None from :data:`geometry._fast.MIN_POINTS` / 10 points
     (the iterations evaluate them about ten times, so the kernel's import pays as it does for one
     evaluation of MIN_POINTS), True for any number, False never.  ``damped``: for points off the image,
-    the nearest point and its distance by damped, projected steps (:func:`newton_inverse`).
+    the nearest point and its distance by damped, projected steps (:func:`newton_inverse`).  ``kernel``: the
+    whole iteration of a surface or trivariate in one compiled kernel (:mod:`geometry._newton_kernels`, when
+    numba is installed), point by point: the same iterates up to round-off, about ten times faster on the few
+    hundred points a V-model's membership and margin tests invert at a time; for callers that read the
+    distances and ``inside``, not the last bits of the parameters.
     """
     pts = np.asarray(points, float)
     if pts.ndim != 2 or pts.shape[1] != 3 or not np.all(np.isfinite(pts)):
@@ -196,6 +208,10 @@ def invert(spline, points, tol: float = 1e-10, compiled: bool | None = None, dam
     if not len(pts):
         return Inversion(np.zeros((0, d)), np.zeros(0), np.zeros(0, bool))
     _, nearest = tree.query(pts)
+    span = float((dom[:, 1] - dom[:, 0]).max())
+    if kernel and _fast.AVAILABLE and d in (2, 3):
+        t, dist = _kernel_invert(spline, grid[nearest], pts, 1e-15 * span, damped)
+        return Inversion(t, dist, dist <= tol * scale)
 
     if compiled is None and 10 * len(pts) >= _fast.MIN_POINTS:
         compiled = True
@@ -204,17 +220,42 @@ def invert(spline, points, tol: float = 1e-10, compiled: bool | None = None, dam
         v, J = spline._value_jacobian(t, values=True, checked=True, compiled=compiled)
         return v[:, :3], J[:, :3, :]
 
-    span = float((dom[:, 1] - dom[:, 0]).max())
     t = newton_inverse(fn, dom, grid[nearest], pts, 1e-15 * span, damped=damped)
     dist = np.linalg.norm(spline.evaluate(t)[:, :3] - pts, axis=1)
     return Inversion(t, dist, dist <= tol * scale)
 
 
-def invert_nearest(splines, points, tol: float = 1e-10, damped: bool = False) -> tuple[np.ndarray, Inversion]:
+def _kernel_invert(spline, start: np.ndarray, pts: np.ndarray, tol: float, damped: bool):
+    """(parameters (N, d), distances (N,)) of ``pts`` on a surface or trivariate by
+    :func:`geometry._newton_kernels.invert_points` from ``start`` (N, d), steps below ``tol`` ending a point."""
+    from ._newton_kernels import invert_points
+
+    d, n = spline.dim, len(pts)
+    C, U = spline._hom, list(spline.knots)
+    degrees = list(spline.degrees)
+    dom = np.asarray(spline.domain, float)
+    if d == 2:  # a trivariate of degree 0 in a third direction: one layer of coefficients, knots [0, 1]
+        C, U, degrees = C[:, :, None, :], U + [np.array([0.0, 1.0])], degrees + [0]
+        dom = np.vstack([dom, [0.0, 0.0]])
+    t0 = np.zeros((n, 3))
+    t0[:, :d] = start
+    floor = 64 * np.finfo(float).eps * np.maximum(1.0, np.abs(pts).max(axis=1))  # round-off in a norm
+    params, dist = np.empty((n, 3)), np.empty(n)
+    K = [readonly(u) for u in U]
+    locked(invert_points)(readonly(C), K[0], int(degrees[0]), K[1], int(degrees[1]), K[2], int(degrees[2]),
+                          bool(spline.is_rational), d, readonly(dom[:, 0]), readonly(dom[:, 1]), readonly(t0),
+                          readonly(pts), float(tol), _MAX_ITER, bool(damped), _FREE_STEPS, _HALVINGS, _CREEP, ROUNDOFF,
+                          readonly(floor), params, dist)
+    return params[:, :d], dist
+
+
+def invert_nearest(splines, points, tol: float = 1e-10, damped: bool = False,
+                   kernel: bool = False) -> tuple[np.ndarray, Inversion]:
     """(index (N,), :class:`Inversion`): for each of ``points`` (N, 3) the one of ``splines`` (e.g. the six
     boundary surfaces of a trivariate) whose :func:`invert` distance is least (the first on a tie), and that
     inversion: the choice and result of inverting every point into every spline and taking the argmin (up to
     round-off where a smaller batch changes :func:`invert`'s evaluation path, at ``MIN_POINTS`` / 10 points).
+    ``kernel``: as :func:`invert`'s.
 
     A spline's control points' box bounds its distance from below (convex hull; a spline point lies in the
     box), so each point tries the splines in the order of its box gaps and skips one whose gap exceeds the
@@ -237,7 +278,7 @@ def invert_nearest(splines, points, tol: float = 1e-10, damped: bool = False) ->
             sel = np.flatnonzero((order[:, k] == g) & (gap[:, g] <= best + slack))
             if not len(sel):
                 continue
-            inv = invert(splines[g], pts[sel], tol, damped=damped)
+            inv = invert(splines[g], pts[sel], tol, damped=damped, kernel=kernel)
             win = (inv.distance < best[sel]) | ((inv.distance == best[sel]) & (g < which[sel]))
             sel = sel[win]
             which[sel], params[sel], best[sel], inside[sel] = g, inv.params[win], inv.distance[win], inv.inside[win]

@@ -79,7 +79,7 @@ class Primitive:
         cand = np.flatnonzero(np.all((pts >= box[:, 0] - tol) & (pts <= box[:, 1] + tol), axis=1))
         out = np.zeros(len(pts), bool)
         if len(cand):
-            out[cand] = invert(self.D, pts[cand]).distance <= tol  # inside or not: no foot point needed
+            out[cand] = invert(self.D, pts[cand], kernel=True).distance <= tol  # inside or not: no foot point
         return out
 
     def distance(self, points: np.ndarray) -> np.ndarray:
@@ -91,12 +91,12 @@ class Primitive:
         around the cylinder of :func:`tiling.vrep.examples.box_cylinder`, more than its margin.
         """
         pts = np.asarray(points, float)
-        d = invert(self.D, pts).distance
+        d = invert(self.D, pts, kernel=True).distance
         inside = d <= _INSIDE_TOL * self.size
         d[inside] = 0.0
         out = np.flatnonzero(~inside)
         if len(out):
-            d[out] = invert_nearest(self._boundary, pts[out], damped=True)[1].distance
+            d[out] = invert_nearest(self._boundary, pts[out], damped=True, kernel=True)[1].distance
         return d
 
     def within(self, points: np.ndarray, r: float) -> np.ndarray:
@@ -111,10 +111,10 @@ class Primitive:
         cand = np.flatnonzero(_box_gap(pts, self._made("boxes", lambda: self.D.element_boxes())) < r)
         if not len(cand):
             return near
-        near[cand] = invert(self.D, pts[cand]).distance < r
+        near[cand] = invert(self.D, pts[cand], kernel=True).distance < r
         todo = cand[~near[cand]]
         if len(todo):
-            near[todo] = invert_nearest(self._boundary, pts[todo], damped=True)[1].distance < r
+            near[todo] = invert_nearest(self._boundary, pts[todo], damped=True, kernel=True)[1].distance < r
         return near
 
     @property

@@ -1,0 +1,197 @@
+"""Compiled point inversion (imported only when numba is installed and first needed): the iterations of
+:func:`geometry.inversion.newton_inverse`, plain and damped, one point per work item.
+
+Each point's iterates depend on that point alone in the vectorised loop too (the stopping and halving rules
+are per point), so running them point by point gives the same iterates up to round-off: a 3 x 3 solve by
+partial-pivoting elimination instead of LAPACK's, the Cox-de Boor basis of :mod:`geometry._fast_kernels`
+instead of SciPy's.  A surface is evaluated as a trivariate of degree 0 in a third direction (knots [0, 1],
+one layer of coefficients), whose derivative there is zero and whose parameter never moves.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+from ._fast_kernels import _basis, _basis_d1, _span
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _value_jacobian(C, U0, p0, U1, p1, U2, p2, rational, t, B0, B1, B2, dB0, dB1, dB2, Nm, L, R, acc, x, J):
+    """x (3,) and J (3, 3) (column k: d/dt_k) of the first three components at parameters t (3,) inside the
+    domain; ``acc`` (4, 4) scratch: value and the three derivatives of components 0-2 and the weight."""
+    n0, n1, n2, m = C.shape[0], C.shape[1], C.shape[2], C.shape[3]
+    i0 = _span(U0, p0, n0, t[0])
+    i1 = _span(U1, p1, n1, t[1])
+    i2 = _span(U2, p2, n2, t[2])
+    _basis(U0, p0, i0, t[0], B0, L, R)
+    _basis(U1, p1, i1, t[1], B1, L, R)
+    _basis(U2, p2, i2, t[2], B2, L, R)
+    _basis_d1(U0, p0, i0, t[0], dB0, Nm, L, R)
+    _basis_d1(U1, p1, i1, t[1], dB1, Nm, L, R)
+    _basis_d1(U2, p2, i2, t[2], dB2, Nm, L, R)
+    for j in range(4):
+        for c in range(4):
+            acc[j, c] = 0.0
+    nc = 4 if rational else 3
+    for a in range(p0 + 1):
+        ia = i0 - p0 + a
+        for b in range(p1 + 1):
+            ib = i1 - p1 + b
+            vv, dv, vd = B0[a] * B1[b], dB0[a] * B1[b], B0[a] * dB1[b]
+            for e in range(p2 + 1):
+                ie = i2 - p2 + e
+                w, w0, w1, w2 = vv * B2[e], dv * B2[e], vd * B2[e], vv * dB2[e]
+                for c in range(nc):
+                    h = C[ia, ib, ie, m - 1 if c == 3 else c]
+                    acc[0, c] += w * h
+                    acc[1, c] += w0 * h
+                    acc[2, c] += w1 * h
+                    acc[3, c] += w2 * h
+    for c in range(3):
+        if rational:  # S = A / w: dS = (dA - S dw) / w
+            x[c] = acc[0, c] / acc[0, 3]
+            for k in range(3):
+                J[c, k] = (acc[1 + k, c] - x[c] * acc[1 + k, 3]) / acc[0, 3]
+        else:
+            x[c] = acc[0, c]
+            for k in range(3):
+                J[c, k] = acc[1 + k, c]
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _solve(A, g, d, step):
+    """step (d,) = A^-1 g for the d x d matrix A (overwritten), by elimination with partial pivoting."""
+    for j in range(d):
+        step[j] = g[j]
+    for j in range(d):
+        piv = j
+        for i in range(j + 1, d):
+            if abs(A[i, j]) > abs(A[piv, j]):
+                piv = i
+        if piv != j:
+            for k in range(d):
+                A[j, k], A[piv, k] = A[piv, k], A[j, k]
+            step[j], step[piv] = step[piv], step[j]
+        for i in range(j + 1, d):
+            f = A[i, j] / A[j, j]
+            for k in range(j, d):
+                A[i, k] -= f * A[j, k]
+            step[i] -= f * step[j]
+    for j in range(d - 1, -1, -1):
+        s = step[j]
+        for k in range(j + 1, d):
+            s -= A[j, k] * step[k]
+        step[j] = s / A[j, j]
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _gauss_newton_step(J, r, t, lo, hi, d, projected, roundoff, A, Af, g, step):
+    """:func:`geometry.inversion._gauss_newton_step` for one point: the regularised normal equations, and with
+    ``projected`` the parameters pinned at a bound the step would cross left out."""
+    trace = 0.0
+    for i in range(d):
+        s = 0.0
+        for c in range(3):
+            s += J[c, i] * r[c]
+        g[i] = s
+        for k in range(d):
+            s = 0.0
+            for c in range(3):
+                s += J[c, i] * J[c, k]
+            A[i, k] = s
+        trace += A[i, i]
+    reg = roundoff * (trace + 1e-300)
+    for i in range(d):
+        A[i, i] += reg
+    for i in range(d):
+        for k in range(d):
+            Af[i, k] = A[i, k]
+    _solve(Af, g, d, step)
+    if not projected:
+        return
+    pinned = 0
+    for i in range(d):
+        if (t[i] <= lo[i] and step[i] > 0) or (t[i] >= hi[i] and step[i] < 0):
+            pinned |= 1 << i
+    if pinned == 0 or pinned == (1 << d) - 1:
+        return
+    for i in range(d):
+        fi = (pinned >> i) & 1 == 0
+        for k in range(d):
+            fk = (pinned >> k) & 1 == 0
+            Af[i, k] = A[i, k] if (fi and fk) else (1.0 if (i == k and not fi) else 0.0)
+        if not fi:
+            g[i] = 0.0
+    _solve(Af, g, d, step)
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def invert_points(C, U0, p0, U1, p1, U2, p2, rational, d, lo, hi, start, targets, tol, max_iter, damped,
+                  free_steps, halvings, creep, roundoff, floor, params, dist):
+    """Parameters ``params`` (N, 3) and distances ``dist`` (N,) of ``targets`` (N, 3) on the spline with
+    homogeneous coefficients C (n0, n1, n2, m), by the iterations of
+    :func:`geometry.inversion.newton_inverse` (``damped``: :func:`geometry.inversion._damped_newton`) from
+    ``start`` (N, 3); the first d parameters move, each clipped to [lo, hi]; ``floor`` (N,) the round-off of
+    a residual norm (damped steps)."""
+    n = start.shape[0]
+    pm = max(p0, max(p1, p2)) + 1
+    for q in prange(n):
+        B0, B1, B2 = np.empty(pm), np.empty(pm), np.empty(pm)
+        dB0, dB1, dB2 = np.zeros(pm), np.zeros(pm), np.zeros(pm)
+        Nm, L, R = np.empty(pm), np.empty(pm), np.empty(pm)
+        acc, x, J = np.empty((4, 4)), np.empty(3), np.empty((3, 3))
+        A, Af, g, step = np.empty((3, 3)), np.empty((3, 3)), np.empty(3), np.empty(3)
+        r, t, prev = np.empty(3), np.empty(3), np.empty(3)
+        for i in range(3):
+            t[i] = start[q, i]
+            prev[i] = t[i]
+        last = np.inf
+        halved = 0
+        for k in range(max_iter):
+            _value_jacobian(C, U0, p0, U1, p1, U2, p2, rational, t, B0, B1, B2, dB0, dB1, dB2, Nm, L, R, acc, x, J)
+            for c in range(3):
+                r[c] = x[c] - targets[q, c]
+            held = False
+            for i in range(d):
+                if t[i] <= lo[i] or t[i] >= hi[i]:
+                    held = True
+            if damped:
+                norm = np.sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2])
+                fl = floor[q]
+                if norm > last + fl:  # uphill: halve the step; give up at the better point after a few halvings
+                    gap = 0.0
+                    for i in range(d):
+                        t[i] = 0.5 * (prev[i] + t[i])
+                        gap = max(gap, abs(t[i] - prev[i]))
+                    halved += 1
+                    if halved > halvings or gap <= tol:
+                        for i in range(d):
+                            t[i] = prev[i]
+                        break
+                    continue
+                idle = norm >= last - fl or (held and norm >= (1.0 - creep) * last)
+                if idle and k >= free_steps:
+                    break
+                for i in range(d):
+                    prev[i] = t[i]
+                last, halved = norm, 0
+            elif k >= free_steps - 1:
+                norm = np.sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2])
+                if k >= free_steps and held and norm >= (1.0 - creep) * last:
+                    break
+                last = norm
+            _gauss_newton_step(J, r, t, lo, hi, d, damped, roundoff, A, Af, g, step)
+            moved = 0.0
+            for i in range(d):
+                new = min(max(t[i] - step[i], lo[i]), hi[i])
+                moved = max(moved, abs(new - t[i]))
+                t[i] = new
+            if not moved > tol:
+                break
+        _value_jacobian(C, U0, p0, U1, p1, U2, p2, rational, t, B0, B1, B2, dB0, dB1, dB2, Nm, L, R, acc, x, J)
+        s = 0.0
+        for c in range(3):
+            s += (x[c] - targets[q, c]) ** 2
+            params[q, c] = t[c]
+        dist[q] = np.sqrt(s)
