@@ -241,11 +241,11 @@ def _kernel_invert(spline, start: np.ndarray, pts: np.ndarray, tol: float, dampe
     t0[:, :d] = start
     floor = 64 * np.finfo(float).eps * np.maximum(1.0, np.abs(pts).max(axis=1))  # round-off in a norm
     params, dist = np.empty((n, 3)), np.empty(n)
-    K = [readonly(u) for u in U]
-    locked(invert_points)(readonly(C), K[0], int(degrees[0]), K[1], int(degrees[1]), K[2], int(degrees[2]),
-                          bool(spline.is_rational), d, readonly(dom[:, 0]), readonly(dom[:, 1]), readonly(t0),
-                          readonly(pts), float(tol), _MAX_ITER, bool(damped), _FREE_STEPS, _HALVINGS, _CREEP, ROUNDOFF,
-                          readonly(floor), params, dist)
+    off = np.cumsum([0] + [len(u) for u in U])
+    locked(invert_points)(readonly(C), readonly(np.concatenate(U)), readonly(off, np.int64),
+                          readonly(degrees, np.int64), bool(spline.is_rational), d, readonly(dom[:, 0]),
+                          readonly(dom[:, 1]), readonly(t0), readonly(pts), float(tol), _MAX_ITER, bool(damped),
+                          _FREE_STEPS, _HALVINGS, _CREEP, ROUNDOFF, readonly(floor), params, dist)
     return params[:, :d], dist
 
 
