@@ -363,3 +363,19 @@ def test_a_small_fold_that_depth_8_leaves_undecided_is_refused_before_assembly()
     assert check_regular(G).status == "singular"
     with pytest.raises(ProblemError, match="patch 0 is folded or degenerate"):
         HeatProblem(G)
+
+
+def test_batched_axis_distances_are_the_closest_pair_distances_bit_for_bit():
+    # the collision screen reads these instead of closest() while neither tube has moved: the same numbers
+    from tiling.vrep.repulsion import closest
+    from tiling.vrep.union import _axis_distances
+
+    rng = np.random.default_rng(4)
+    axes = [np.cumsum(rng.normal(size=(24, 3)), axis=0) * rng.uniform(0.01, 3.0) for _ in range(40)]
+    axes[3] = axes[2].copy()  # touching and identical axes: distance 0
+    axes[5][7] = axes[6][11]
+    pairs = np.array([(i, j) for i in range(40) for j in range(i + 1, 40)])
+    got = _axis_distances(axes, pairs, chunk=97)  # several chunks, the last one short
+    want = np.array([closest(axes[i], axes[j])[0] for i, j in pairs])
+    assert np.array_equal(got, want) and got[np.flatnonzero((pairs == (2, 3)).all(1))[0]] == 0.0
+    assert len(_axis_distances(axes, np.zeros((0, 2), np.int64))) == 0

