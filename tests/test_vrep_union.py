@@ -379,3 +379,19 @@ def test_batched_axis_distances_are_the_closest_pair_distances_bit_for_bit():
     want = np.array([closest(axes[i], axes[j])[0] for i, j in pairs])
     assert np.array_equal(got, want) and got[np.flatnonzero((pairs == (2, 3)).all(1))[0]] == 0.0
     assert len(_axis_distances(axes, np.zeros((0, 2), np.int64))) == 0
+
+
+def test_closest_axis_points_and_cross_products_are_numpys_bit_for_bit():
+    # the repulsion's hand-rolled kernels: the same numbers as np.linalg.norm and np.cross (the V-rep models'
+    # fingerprints rest on it)
+    from tiling.vrep.repulsion import closest, cross3
+
+    rng = np.random.default_rng(0)
+    for _ in range(300):
+        s = rng.uniform(1e-3, 1e3)
+        pa, pb = rng.normal(size=(24, 3)) * s, rng.normal(size=(17, 3)) * s
+        d = np.linalg.norm(pa[:, None] - pb[None], axis=2)
+        i, j = np.unravel_index(np.argmin(d), d.shape)
+        assert closest(pa, pb) == (float(d[i, j]), int(i), int(j))
+        a, b = rng.normal(size=3) * s, rng.normal(size=3)
+        assert np.array_equal(cross3(a, b), np.cross(a, b))

@@ -44,6 +44,7 @@ from geometry.regularity import prove_one_signed_many
 from geometry.cache import BoundedCache
 
 from ..errors import TilingError
+from .repulsion import cross3
 from geometry.tolerances import COINCIDENT
 
 __all__ = ["is_regular", "are_regular", "Face", "face_of", "Tube", "hermite_tube", "carrier", "orient",
@@ -85,7 +86,7 @@ class Face:
     def normal(self) -> np.ndarray:
         """Unit normal at the centre, pointing out of the tile (along ``out``)."""
         J = self._at_centre[1]
-        n = np.cross(J[:, 0], J[:, 1])
+        n = cross3(J[:, 0], J[:, 1])
         n /= max(np.linalg.norm(n), 1e-300)
         return n if np.dot(n, self.direction) >= 0 else -n
 
@@ -198,7 +199,7 @@ def corner_index(o: int) -> list:
 def _jac_normal(S: BSpline) -> np.ndarray:
     """The face's orientation normal from its corners (the sign of d/ds x d/dt of a regular face)."""
     c = _corners(S)
-    return np.cross(c[1] - c[0] + c[3] - c[2], c[2] - c[0] + c[3] - c[1])
+    return cross3(c[1] - c[0] + c[3] - c[2], c[2] - c[0] + c[3] - c[1])
 
 
 _ELEVATIONS = BoundedCache(256)  # (knots, degree, times) -> (new knots, matrix): faces of one tile repeat them
@@ -304,7 +305,7 @@ class Tube:
     def axis(self, r=None) -> np.ndarray:
         """Physical points of the sweep axis (the face centres' curve) at w = r (default 24 samples): the Bezier
         curve of the control layers' centres (a tensor product's centre curve)."""
-        r = np.linspace(0.0, 1.0, 24) if r is None else np.asarray(r, float)
+        r = _AXIS_SAMPLES if r is None else np.asarray(r, float)
         if self._centres is None:
             S = SplineFunction(self.degrees, self.knots, np.concatenate([L[..., :3] for L in self.layers], axis=-1))
             self._centres = S.evaluate(np.array([[0.5, 0.5]]))[0].reshape(len(self.layers), 3)
@@ -315,6 +316,10 @@ class Tube:
             c[2] += self.shift[0]
             c[3] += self.shift[1]
         return _bernstein(len(c) - 1, r) @ c
+
+
+_AXIS_SAMPLES = np.linspace(0.0, 1.0, 24)  # the default axis samples (read-only, shared)
+_AXIS_SAMPLES.setflags(write=False)
 
 
 def _bernstein(n: int, r: np.ndarray) -> np.ndarray:
