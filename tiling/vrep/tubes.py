@@ -180,7 +180,7 @@ def orientation_for(a: Face, b: Face) -> int:
         swap, flip = ORIENTATIONS[o]
         if nb * (-1) ** (int(swap) + int(flip[0]) + int(flip[1])) != ja:  # each swap or flip turns the normal
             continue
-        cost = np.sum((cb[corner_index(o)] - ca) ** 2)
+        cost = np.sum((cb[_CORNER_INDEX[o]] - ca) ** 2)
         if cost < best_cost:
             best, best_cost = o, cost
     return best
@@ -194,6 +194,9 @@ def corner_index(o: int) -> list:
         s2, t2 = (t_, s_) if swap else (s_, t_)
         idx.append((1 - t2 if flip[1] else t2) * 2 + (1 - s2 if flip[0] else s2))
     return idx
+
+
+_CORNER_INDEX = [corner_index(o) for o in range(8)]
 
 
 def _jac_normal(S: BSpline) -> np.ndarray:
@@ -274,6 +277,7 @@ class Tube:
     _cache: tuple = field(default=None, repr=False)
     _quintic: BSpline = field(default=None, repr=False)
     _centres: np.ndarray = field(default=None, repr=False)
+    _centres5: np.ndarray = field(default=None, repr=False)  # the centres raised to a quintic (unshifted)
 
     @property
     def geometry(self) -> BSpline:
@@ -310,9 +314,12 @@ class Tube:
             S = SplineFunction(self.degrees, self.knots, np.concatenate([L[..., :3] for L in self.layers], axis=-1))
             self._centres = S.evaluate(np.array([[0.5, 0.5]]))[0].reshape(len(self.layers), 3)
         c = self._centres
-        if np.any(self.shift):
-            c = np.stack([c[0], 0.4 * c[0] + 0.6 * c[1], 0.1 * c[0] + 0.6 * c[1] + 0.3 * c[2],
-                          0.3 * c[1] + 0.6 * c[2] + 0.1 * c[3], 0.6 * c[2] + 0.4 * c[3], c[3]])  # cubic -> quintic
+        if np.any(self.shift):  # the repulsion samples a displaced tube's axis at every step: raised once
+            if self._centres5 is None:
+                self._centres5 = np.stack([c[0], 0.4 * c[0] + 0.6 * c[1], 0.1 * c[0] + 0.6 * c[1] + 0.3 * c[2],
+                                           0.3 * c[1] + 0.6 * c[2] + 0.1 * c[3], 0.6 * c[2] + 0.4 * c[3],
+                                           c[3]])  # cubic -> quintic
+            c = self._centres5.copy()
             c[2] += self.shift[0]
             c[3] += self.shift[1]
         return _bernstein(len(c) - 1, r) @ c
