@@ -24,7 +24,11 @@ benchmarks behind the rows and prints one table of measured figures beside the t
   before, on NumPy's transparent huge pages and on small pages (:func:`iga.memory.streamed_empty`, which
   the heat operator's arrays take), against writing them again.  On this Firecracker VM the first
   write costs 0.3-0.4 GB/s on huge pages, about 2 GB/s on small ones and 11-21 GB/s again
-  (docs/performance.md): read the cold rows beside this one.
+  (docs/performance.md): read the cold rows beside this one;
+* ``cpu_before``, ``cpu_after``: not targets but the machine's speed at the start and the end of the run: a
+  fixed single-core workload (a Python loop, a sort, elementwise NumPy), best of 3.  This VM runs the same
+  code up to 2x slower for minutes at a time (all rows at once, the untouched ones too), so runs are
+  compared by these two rows.
 
 Writes benchmarks/out/paper_targets.json.  Takes about 6 minutes on this 2-core VM.
 """
@@ -54,6 +58,22 @@ for _ in range(runs):
     out["runs"].append({"solve s": time.perf_counter() - t, "timings": s.info["timings"], "dofs": s.info["dofs"],
                         "method": s.info["solver"]["method"]})
 print(json.dumps(out))
+"""
+
+
+CPU = """
+import json, time
+import numpy as np
+def work():  # fixed single-core work: a Python loop, a sort, elementwise NumPy
+    s = 0
+    for i in range(2_000_000):
+        s += i * i % 7
+    x = np.random.default_rng(0).random(4_000_000)
+    return s + float(np.sort(x)[1000] + np.exp(-x).sum())
+times = []
+for _ in range(3):
+    t = time.perf_counter(); work(); times.append(time.perf_counter() - t)
+print(json.dumps({"best s": min(times)}))
 """
 
 
@@ -162,6 +182,15 @@ def first() -> list[dict]:
                  f"first {r['runs'][0]['solve s']:.2f} s, third {r['runs'][-1]['solve s']:.2f} s")]
 
 
+def cpu(when: str) -> list[dict]:
+    r = run_child([sys.executable, "-c", CPU], "cpu reference")
+    if r is None:
+        return []
+    return [{"case": f"machine: a fixed single-core workload, {when} (not a target)", "measured": r["best s"],
+             "unit": "s", "target": "-", "meets": "-",
+             "note": "the VM's speed at the time (it changes by up to 2x over minutes): compare runs by it"}]
+
+
 def memory() -> list[dict]:
     r = run_child([sys.executable, "-c", TOUCH], "first touch")
     if r is None:
@@ -174,8 +203,9 @@ def memory() -> list[dict]:
                      f"{r['again GB/s']:.1f} GB/s written again"}]
 
 
-CASES = {"duck": duck, "fig4": fig4, "bifurcation": bifurcation, "table1": table1, "splinepy": splinepy,
-         "million": million, "first": first, "memory": memory}
+CASES = {"cpu_before": lambda: cpu("before the rows"), "duck": duck, "fig4": fig4, "bifurcation": bifurcation, "table1": table1, "splinepy": splinepy,
+         "million": million, "first": first, "memory": memory,
+         "cpu_after": lambda: cpu("after the rows")}
 
 
 def main(argv=None) -> int:
