@@ -20,7 +20,7 @@ from .bspline import BSpline
 from .errors import SplineError
 from .faces import FACE_AXIS, FACE_NAMES
 from .products import multiply
-from .shapes import cylinder, duck  # example shapes live in their own module
+from .shapes import _with_channels, cylinder, duck  # example shapes live in their own module
 from .spline import SplineFunction
 from .errors import show
 from .tolerances import ON_DOMAIN
@@ -41,14 +41,6 @@ __all__ = [
     "duck",
     "cylinder",
 ]
-
-
-def _with_channels(cp: np.ndarray, channels) -> tuple[np.ndarray, tuple]:
-    channels = dict(channels or {})
-    if not channels:
-        return cp, ()
-    extra = [np.full(cp.shape[:-1] + (1,), float(v)) for v in channels.values()]
-    return np.concatenate([cp] + extra, axis=-1), tuple(channels)
 
 
 def refined(spline: BSpline, elements) -> BSpline:

@@ -6,7 +6,7 @@ import numpy as np
 
 from . import knots as kn
 from .bspline import BSpline
-from .errors import SplineError
+from .errors import SplineError, show
 
 __all__ = ["duck", "cylinder"]
 
@@ -23,6 +23,25 @@ _DUCK_SECTIONS = np.array([
 ])
 
 
+def _with_channels(cp: np.ndarray, channels) -> tuple[np.ndarray, tuple]:
+    """``cp`` with one constant column per channel of ``channels`` ({name: finite number} or None)."""
+    if channels is None:
+        return cp, ()
+    if not isinstance(channels, dict):
+        raise SplineError(f"channels must be a dict {{name: constant}}, e.g. {{'k': 205.0}}, got {show(channels)}")
+    extra = []
+    for name, v in channels.items():
+        ok = isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool) and np.isfinite(v)
+        if not ok:
+            raise SplineError(f"channel {show(name)} must be a finite number (one value over the whole primitive), got "
+                              f"{show(v)}; for a field that varies, set its control values with "
+                              "BSpline.with_channel(name, values)")
+        extra.append(np.full(cp.shape[:-1] + (1,), float(v)))
+    if not extra:
+        return cp, ()
+    return np.concatenate([cp] + extra, axis=-1), tuple(channels)
+
+
 def duck(length: float = 2.1, channels=None) -> BSpline:
     """A duck-like trivariate (Massarwi et al. 2018, Figs. 14-16): curved, tapered, nearly singular at both ends.
 
@@ -33,8 +52,9 @@ def duck(length: float = 2.1, channels=None) -> BSpline:
     the paper's duck, so that tiles there nearly vanish; the map stays regular.
     ``channels``: {name: constant} extra components.
     """
-    if not (np.isfinite(length) and length > 0):
-        raise SplineError(f"duck length must be positive, got {length!r}")
+    if isinstance(length, bool) or not isinstance(length, (int, float, np.number)) or not (np.isfinite(length)
+                                                                                         and length > 0):
+        raise SplineError(f"duck length must be a positive number (model units), got {show(length)}")
     sec = _DUCK_SECTIONS.copy()
     sec[:, 0] *= length / sec[-1, 0]
     s = np.array([-1.0, 0.0, 1.0])
@@ -44,12 +64,10 @@ def duck(length: float = 2.1, channels=None) -> BSpline:
         cp[:, :, k, 0] = x
         cp[:, :, k, 1] = (s[:, None] * hw) * bulge[None, :]
         cp[:, :, k, 2] = zc + (s[None, :] * hh) * bulge[:, None]
-    extra = dict(channels or {})
-    if extra:
-        cp = np.concatenate([cp] + [np.full(cp.shape[:-1] + (1,), float(v)) for v in extra.values()], axis=-1)
+    cp, names = _with_channels(cp, channels)
     U = kn.uniform_knots(2, 1)
     W = kn.uniform_knots(3, len(sec) - 3)
-    return BSpline((2, 2, 3), [U, U, W], cp, channels=tuple(extra))
+    return BSpline((2, 2, 3), [U, U, W], cp, channels=names)
 
 
 def cylinder(radius: float = 1.0, length: float = 4.0, axis: int = 2, centre=(0.0, 0.0, 0.0),
