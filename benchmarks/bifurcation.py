@@ -32,6 +32,8 @@ CASES = ("1-2", "1-4a", "1-4b", "implicit", "implicit random")
 
 def run_implicit(case: str, png: bool) -> dict:
     import pyvista  # noqa: F401  (imports are not the work measured)
+    import vtkmodules.vtkFiltersCore  # noqa: F401  (nor the module of the contour filter, which pyvista loads on
+    # its first contour: 10-15 ms of a cold surface)
 
     import tiling
     from geometry import primitives
