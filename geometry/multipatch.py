@@ -154,7 +154,7 @@ def _oriented_samples(swap, flip):
     return st
 
 
-def detect_interfaces(patches, strict: bool = False, corners=None):
+def detect_interfaces(patches, strict: bool = False, placed_corners=None):
     """Identity interfaces between coinciding faces of trivariate patches.
 
     Faces are matched by their four corners in physical space (face centres
@@ -163,10 +163,10 @@ def detect_interfaces(patches, strict: bool = False, corners=None):
     when the two face spline spaces are equal (after the orientation) and the
     images coincide at interior sample points.  Pairs whose corners coincide but
     that fail either check are returned in ``mismatched`` (with the reason), or
-    raise :class:`SplineError` when ``strict``.  Returns ``(interfaces, mismatched)``.  ``corners``: the
-    :func:`geometry.placed_points.tile_corners` of ``patches``, when the caller has them.
+    raise :class:`SplineError` when ``strict``.  Returns ``(interfaces, mismatched)``.  ``placed_corners``:
+    the :func:`geometry.placed_points.tile_corners` of ``patches``, when the caller has them.
     """
-    pidx, fc = tile_corners(patches) if corners is None else corners
+    pidx, fc = tile_corners(patches) if placed_corners is None else placed_corners
     if not len(pidx):
         return [], []
     corners = physical_corners(patches, pidx, fc).reshape(len(pidx) * 6, 4, 3)

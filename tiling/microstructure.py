@@ -155,7 +155,7 @@ class Microstructure(MultiPatch):
         linked = {frozenset([(p, pf), (c, cf)]) for p, pf, _, c, cf in branch_links}
         corners = tile_corners(placed)  # for the interface search and the tags
         try:
-            found, mismatched = detect_interfaces(placed, corners=corners) if identity is None else identity
+            found, mismatched = detect_interfaces(placed, placed_corners=corners) if identity is None else identity
         except SplineError as exc:
             raise TilingError(f"{exc}; overlapping tiles or patches") from None
         for a, b, why in mismatched:
