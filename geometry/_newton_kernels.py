@@ -22,8 +22,9 @@ def _value_jacobian(C, U, off, deg, rational, t, span, B, dB, Nm, L, R, acc, x, 
     domain.  ``U``: the three knot vectors one after the other, direction k's at U[off[k]:off[k + 1]], of
     degree deg[k]; scratch: ``span`` (3,), ``B``, ``dB`` (3, p + 1) the basis values and derivatives,
     ``acc`` (4, 4) the value and the three derivatives of components 0-2 and the weight.  One loop over
-    the directions, so each basis routine is inlined once (three copies of each took the compilation
-    from 10 to 33 s)."""
+    the directions, so each basis routine is inlined once: the kernel compiles in 13-16 s, where three
+    copies of each took 33-41 s.  Inlined into the point loop (not called): 38 ms for 50k points against
+    90-103 ms as a call."""
     m = C.shape[3]
     for k in range(3):
         Uk = U[off[k]:off[k + 1]]
