@@ -105,8 +105,8 @@ def main(argv=None):
             row.update({"splinepy ms": np.median(times) * 1e3, "speed-up": np.median(times) / ours,
                         "max |dCP|": float(max(diffs))})
         rows.append(row)
-    cols = [("case", "s"), ("result degrees", "s"), ("control points", "d"), ("ours ms", ".3f"), ("ours first ms", ".3f"),
-            ("placements/s", ".0f"), ("splinepy ms", ".3f"), ("speed-up", ".1f"), ("max |dCP|", ".1e")]
+    cols = [("case", "s"), ("result degrees", "s"), ("control points", "d"), ("ours ms", ".3f"),
+            ("ours first ms", ".3f"), ("placements/s", ".0f"), ("splinepy ms", ".3f"), ("speed-up", ".1f"), ("max |dCP|", ".1e")]
     print(f"\n{n} placements into a tricubic Bezier piece (times per composition)")
     print_table(rows, cols)
     save_json("composition.json", rows)

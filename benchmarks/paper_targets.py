@@ -204,8 +204,8 @@ def memory() -> list[dict]:
                      f"{r['again GB/s']:.1f} GB/s written again"}]
 
 
-CASES = {"cpu_before": lambda: cpu("before the rows"), "duck": duck, "fig4": fig4, "bifurcation": bifurcation, "table1": table1, "splinepy": splinepy,
-         "million": million, "first": first, "memory": memory,
+CASES = {"cpu_before": lambda: cpu("before the rows"), "duck": duck, "fig4": fig4, "bifurcation": bifurcation,
+         "table1": table1, "splinepy": splinepy, "million": million, "first": first, "memory": memory,
          "cpu_after": lambda: cpu("after the rows")}
 
 
