@@ -106,7 +106,8 @@ def main(argv=None):
                         "max |dCP|": float(max(diffs))})
         rows.append(row)
     cols = [("case", "s"), ("result degrees", "s"), ("control points", "d"), ("ours ms", ".3f"),
-            ("ours first ms", ".3f"), ("placements/s", ".0f"), ("splinepy ms", ".3f"), ("speed-up", ".1f"), ("max |dCP|", ".1e")]
+            ("ours first ms", ".3f"), ("placements/s", ".0f"), ("splinepy ms", ".3f"), ("speed-up", ".1f"),
+            ("max |dCP|", ".1e")]
     print(f"\n{n} placements into a tricubic Bezier piece (times per composition)")
     print_table(rows, cols)
     save_json("composition.json", rows)
