@@ -102,7 +102,7 @@ def _damped_newton(fn, domain, start, targets, tol, max_iter) -> np.ndarray:
     t, last, active = _iterates(start)  # last: the residual norm at each point's last iterate that got nearer
     prev = t.copy()  # that iterate (where a halved step starts)
     halved = np.zeros(len(t), np.int64)  # halvings since that iterate
-    floor = 64 * np.finfo(float).eps * np.maximum(1.0, np.abs(targets).max(axis=1))  # round-off in a norm
+    floor = _norm_floor(targets)
     for k in range(max_iter):
         if not len(active):
             break
@@ -128,6 +128,12 @@ def _damped_newton(fn, domain, start, targets, tol, max_iter) -> np.ndarray:
         t[active] = new
         active = np.concatenate([active[moved > tol], back])
     return t
+
+
+def _norm_floor(targets: np.ndarray) -> np.ndarray:
+    """Per target (N, 3): the round-off of a residual norm about it (N,), below which the damped steps count
+    no gain or loss."""
+    return 64 * np.finfo(float).eps * np.maximum(1.0, np.abs(targets).max(axis=1))
 
 
 def _iterates(start):
@@ -239,7 +245,7 @@ def _kernel_invert(spline, start: np.ndarray, pts: np.ndarray, tol: float, dampe
         dom = np.vstack([dom, [0.0, 0.0]])
     t0 = np.zeros((n, 3))
     t0[:, :d] = start
-    floor = 64 * np.finfo(float).eps * np.maximum(1.0, np.abs(pts).max(axis=1))  # round-off in a norm
+    floor = _norm_floor(pts)
     params, dist = np.empty((n, 3)), np.empty(n)
     off = np.cumsum([0] + [len(u) for u in U])
     locked(invert_points)(readonly(C), readonly(np.concatenate(U)), readonly(off, np.int64),

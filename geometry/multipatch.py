@@ -259,11 +259,12 @@ def free_faces(patches, interfaces, mask=None) -> list[tuple[int, str]]:
     return [(pid[a], FACE_NAMES[b]) for a, b in zip(t.tolist(), f.tolist())]
 
 
-def free_face_mask(patches, interfaces) -> tuple[np.ndarray, np.ndarray]:
+def free_face_mask(patches, interfaces, pidx=None) -> tuple[np.ndarray, np.ndarray]:
     """(trivariate patch indices (T,), free (T, 6) bool in FACE_NAMES order): the faces no interface glues,
     from one array pass over the interfaces' ends (a set lookup per face took 0.15 s on 65k patches).
-    Interface ends that are not one of the six faces (slot faces) hide none of them."""
-    pidx = trivariates(patches)
+    Interface ends that are not one of the six faces (slot faces) hide none of them.  ``pidx``: the
+    :func:`geometry.placed_points.trivariates` of ``patches``, when the caller has them."""
+    pidx = trivariates(patches) if pidx is None else pidx
     row = np.full(len(patches), -1)
     row[pidx] = np.arange(len(pidx))
     face_index = {f: k for k, f in enumerate(FACE_NAMES)}

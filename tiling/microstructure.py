@@ -167,7 +167,7 @@ class Microstructure(MultiPatch):
         same = {}  # branch faces of equal knots and box share one refinement matrix (read-only)
         for parent, pface, pbox, child, cface in branch_links:
             interfaces.append(_branch_interface(placed, parent, pface, pbox, child, cface, same))
-        mask = free_face_mask(placed, interfaces)  # for the contact search and the tags
+        mask = free_face_mask(placed, interfaces, corners[0])  # for the contact search and the tags
         touching = unglued_contacts(placed, interfaces, mask=mask)
         if touching:
             (a, fa), (b, fb) = touching[0]
