@@ -33,7 +33,8 @@ class Collisions:
 def closest(pa: np.ndarray, pb: np.ndarray) -> tuple[float, int, int]:
     """(distance, index in pa, index in pb) of the closest pair of two sampled axes (n, 3) and (m, 3).  The
     norms component by component (x, y, z summed in the order a norm sums them: the same numbers, without
-    a reduction over a last axis of three; a thousand calls per union)."""
+    a reduction over a last axis of three; a thousand calls per union).  The collision screen batches the
+    same sums over many pairs (:func:`tiling.vrep.union._axis_distances`, on contiguous components)."""
     sq = None
     for k in range(3):
         d = pa[:, None, k] - pb[None, :, k]
