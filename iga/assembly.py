@@ -24,7 +24,7 @@ stiffness with compiled kernels (numba) for large 3-D patches.
 from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
@@ -172,6 +172,9 @@ class CSRPattern:
     ``take[e]`` is the flat index, in the banded layout (n_1, D_1, ..., n_d,
     D_d), of CSR entry ``e``; ``transpose[e]`` is the CSR position of the
     mirrored entry (j, i), so ``data[transpose]`` is the data of the transpose.
+    ``derived`` keeps index arrays computed from these once per pattern (the
+    patterns themselves are cached by :func:`pattern`), e.g. the order of a
+    component-major operator's rows (:func:`iga.vector_csr.interleaved`).
     """
 
     indptr: np.ndarray
@@ -179,6 +182,7 @@ class CSRPattern:
     take: np.ndarray
     transpose: np.ndarray
     n: int
+    derived: dict = field(default_factory=dict, repr=False)
 
 
 def _band_limits(n: int, p: int):

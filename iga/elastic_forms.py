@@ -25,7 +25,7 @@ import numpy as np
 from .errors import ProblemError
 from .faces import cross
 
-__all__ = ["lame", "metric_rows", "block_terms", "symmetric_fields", "skew_terms", "divergence_terms"]
+__all__ = ["lame", "metric_rows", "block_terms", "divergence_terms"]
 
 
 def lame(E: np.ndarray, nu: np.ndarray, where: str) -> tuple[np.ndarray, np.ndarray]:
@@ -53,44 +53,27 @@ def _variants(r: int, s: int | None) -> tuple:
 
 
 def block_terms(c, fac, lam, mu, a: int, b: int, shape) -> list:
-    """The banded-form terms [(F (P,) + qshape, derivative orders)] of block (a, b); ``fac`` = w / |det J|: the
-    plain nine-term form, the reference the split assembly (:func:`symmetric_fields`, :func:`skew_terms`) is
-    tested against.
+    """The banded-form terms [(F (P,) + qshape, derivative orders)] of block (a, b); ``fac`` = w / |det J| (1
+    when lam and mu already carry it): what the NumPy assembly sums (:mod:`iga.elastic_volume`).
 
     Off the diagonal all nine.  On a diagonal block F is symmetric, so only the half H = F_rr / 2 + F_rs
     (r < s) is returned, six terms, and the block is H + H^T (as :func:`iga.assembly.stiffness_data`)."""
+    lca = [lam * c[r][a] for r in range(3)]  # products shared by the terms
+    mcb = [mu * c[r][b] for r in range(3)]
     out = []
     for r in range(3):
         for s in range(3):
             if a == b and s < r:
                 continue
-            F = lam * c[r][a] * c[s][b] + mu * c[r][b] * c[s][a]
+            F = lca[r] * c[s][b] + mcb[r] * c[s][a]
             if a == b:
-                F = F + mu * (c[r][0] * c[s][0] + c[r][1] * c[s][1] + c[r][2] * c[s][2])
+                F += mu * (c[r][0] * c[s][0] + c[r][1] * c[s][1] + c[r][2] * c[s][2])
                 if s == r:
-                    F = 0.5 * F
-            out.append(((fac * F).reshape(shape), _variants(r, s)))
+                    F *= 0.5
+            if not (np.isscalar(fac) and fac == 1.0):
+                F = fac * F
+            out.append((F.reshape(shape), _variants(r, s)))
     return out
-
-
-def symmetric_fields(c, fac, lam, mu, a: int, b: int) -> np.ndarray:
-    """The symmetric part (F_rs + F_sr) / 2 of block (a, b) as six fields (6, ...) in the pair order (0,0),
-    (1,1), (2,2), (0,1), (0,2), (1,2): what the scalar stiffness kernels take (compiled or not)."""
-    out = []
-    for r, s in ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)):
-        if a == b:
-            F = (lam + mu) * c[r][a] * c[s][a] + mu * (c[r][0] * c[s][0] + c[r][1] * c[s][1] + c[r][2] * c[s][2])
-        else:
-            F = 0.5 * (lam + mu) * (c[r][a] * c[s][b] + c[s][a] * c[r][b])
-        out.append(fac * F)
-    return np.stack(out)
-
-
-def skew_terms(c, fac, lam, mu, a: int, b: int, shape) -> list:
-    """The antisymmetric part of an off-diagonal block (a != b) as the three terms r < s of B with
-    block = sym + B - B^T: G_rs = (lambda - mu) / 2 (c_r[a] c_s[b] - c_s[a] c_r[b]) w / |det J|."""
-    return [((fac * 0.5 * (lam - mu) * (c[r][a] * c[s][b] - c[s][a] * c[r][b])).reshape(shape), _variants(r, s))
-            for r, s in ((0, 1), (0, 2), (1, 2))]
 
 
 def divergence_terms(c, weight, a: int, shape) -> list:

@@ -24,7 +24,7 @@ from .assembly import CSRPattern, _band_limits
 from .errors import ProblemError
 from .memory import streamed_empty
 
-__all__ = ["VectorCSR", "pattern_nnz"]
+__all__ = ["VectorCSR", "pattern_nnz", "interleaved"]
 
 
 def pattern_nnz(space) -> int:
@@ -34,6 +34,47 @@ def pattern_nnz(space) -> int:
         lo, hi = _band_limits(d.n, d.degree)
         total *= int((hi - lo + 1).sum())
     return total
+
+
+def interleaved(pat: CSRPattern, c: int) -> np.ndarray:
+    """The order (c nnz,) of c blocks' data on ``pat`` along the rows of one component of a component-major
+    operator: stacked as entry b nnz + k of block b, they run as row 0 of blocks 0 .. c - 1, then row 1 of
+    each, ... (module notes).  Kept on the pattern (``pat.derived``)."""
+    key = ("interleaved", c)
+    if key not in pat.derived:
+        indptr = np.asarray(pat.indptr, np.int64)
+        nnz = int(indptr[-1])
+        length = np.diff(indptr)
+        row = np.repeat(np.arange(pat.n), length)
+        start = indptr[:-1][row]
+        # entry k of block b goes b len_i + (k - start_i) into row i's run, which starts at c start_i
+        dest = (c * start + (np.arange(nnz) - start))[None, :] + np.arange(c)[:, None] * length[row][None, :]
+        order = np.empty(c * nnz, np.int64)
+        order[dest.ravel()] = np.arange(c * nnz)
+        pat.derived[key] = order
+    return pat.derived[key]
+
+
+def _runs(target: np.ndarray, starts: np.ndarray, width: int) -> np.ndarray | None:
+    """A (len(starts), width) view of ``target`` from each start, when the starts step evenly by at least
+    ``width`` (the runs are then disjoint); None otherwise."""
+    step = np.diff(starts)
+    if len(starts) > 1 and not (np.all(step == step[0]) and step[0] >= width):
+        return None
+    stride = int(step[0]) if len(starts) > 1 else 0
+    return np.lib.stride_tricks.as_strided(target[int(starts[0]):], shape=(len(starts), width),
+                                           strides=(stride * target.itemsize, target.itemsize))
+
+
+def _write_runs(target: np.ndarray, starts: np.ndarray, values: np.ndarray) -> None:
+    """target[starts[m] : starts[m] + width] = values[m] for every m (values (len(starts), width))."""
+    if not len(starts):
+        return
+    view = _runs(target, starts, values.shape[1])
+    if view is not None:
+        view[...] = values
+    else:
+        target[starts[:, None] + np.arange(values.shape[1])] = values
 
 
 class VectorCSR:
@@ -94,56 +135,26 @@ class VectorCSR:
 
     def put(self, members, pat: CSRPattern, blocks: dict) -> None:
         """Write the rows of ``members`` (patches sharing the scalar pattern ``pat``): ``blocks[(a, b)]`` the data
-        (len(members), pat nnz) of block (a, b), all c^2 present."""
+        (len(members), pat nnz) of block (a, b), all c^2 present.
+
+        Each member's rows of component a are one run of c nnz entries: the blocks (a, 0), ..., (a, c - 1)
+        stacked and gathered into row order (:func:`interleaved`; one component: as they are), written by one
+        copy per component, through a strided view when the members' runs step evenly (the same tile patch in
+        every cell of a regular paving), without index arrays."""
         members = np.asarray(members)
         c = self.c
-        indptr = np.asarray(pat.indptr, np.int64)
-        if c == 1 and self._put_strided(members, pat, blocks[(0, 0)]):
-            return
-        length = np.diff(indptr)
-        row = np.repeat(np.arange(pat.n), length)
-        start = indptr[:-1][row]
-        rel = c * start + (np.arange(len(row)) - start)  # entry k's place in its vector row, less b len
-        shift = length[row]
-        offsets = self.offsets[members]
-        cols = np.asarray(pat.indices, np.int64)[None, :] + offsets[:, None]
-        self.put_rows(members, indptr)
+        self.put_rows(members, pat.indptr)
+        indices = np.asarray(pat.indices, self.indices.dtype)
+        if c > 1:
+            order = interleaved(pat, c)
+            indices = np.concatenate([indices + b * self.n for b in range(c)])[order]
+        cols = indices[None, :] + self.offsets[members].astype(self.indices.dtype)[:, None]
         for a in range(c):
             base = self.bases(members, a)
-            for b in range(c):
-                pos = base[:, None] + (rel + b * shift)[None, :]
-                if a == 0:
-                    self.indices[pos] = cols + b * self.n
-                self.data[pos] = blocks[(a, b)]
-        # the columns of rows a >= 1 are those of a = 0, c nnz further on (a measured alternative,
-        # gathering each component's rows through one permutation, was slower)
-        seg = c * self.before[members][:, None] + np.arange(c * len(row))
-        for a in range(1, c):
-            self.indices[c * a * self.nnz + seg] = self.indices[seg]
+            values = np.concatenate([blocks[(a, b)] for b in range(c)], axis=1)[:, order] if c > 1 else blocks[(0, 0)]
+            _write_runs(self.data, base, values)
+            _write_runs(self.indices, base, cols)  # every component's rows read the same columns
         self.mark(members)
-
-    def _put_strided(self, members, pat: CSRPattern, data: np.ndarray) -> bool:
-        """One component, members whose blocks lie at equal strides (the same tile patch in every cell of a
-        regular paving): the blocks are written through strided views, without index arrays; False (nothing
-        written) otherwise."""
-        first = self.before[members]
-        step = np.diff(first)
-        size = len(pat.indices)
-        # equal, increasing strides no shorter than a block: the strided windows are disjoint and in bounds
-        if not len(members) or (len(members) > 1 and not (np.all(step == step[0]) and step[0] >= size)):
-            return False
-        stride = int(step[0]) if len(members) > 1 else 0
-        self.put_rows(members, pat.indptr)
-        for target, values in ((self.data, data), (self.indices, None)):
-            view = np.lib.stride_tricks.as_strided(target[int(first[0]):], shape=(len(members), size),
-                                                   strides=(stride * target.itemsize, target.itemsize))
-            if values is None:
-                view[...] = np.asarray(pat.indices)[None, :]
-                view += self.offsets[members].astype(target.dtype)[:, None]
-            else:
-                view[...] = values
-        self.mark(members)
-        return True
 
     def matrix(self) -> sp.csr_matrix:
         """The operator, once every patch is written (its arrays, not copies)."""

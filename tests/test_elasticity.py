@@ -381,45 +381,50 @@ def test_thermal_stress_of_the_graded_demo_sink_balances_and_is_symmetric():
     assert np.abs(R).max() < 1e-6 * np.abs(S).max() * 0.06 * 0.06
 
 
-@pytest.mark.parametrize("compiled", [False, True])
-def test_the_split_block_assembly_equals_the_nine_term_form(compiled, monkeypatch):
-    import scipy.sparse as sp
+def _dense_elastic_stiffness(problem):
+    """The stiffness of a one-patch problem by plain quadrature, independent of the assembly: SciPy's B-spline
+    basis (values and derivatives) on the space's Gauss grid, physical gradients through J^-T per point, and
+    K^{ab} = sum_q w |det J| (lambda d_a N_i d_b N_j + mu d_b N_i d_a N_j + mu delta_ab grad N_i . grad N_j)."""
+    from scipy.interpolate import BSpline as SciBSpline
 
+    from geometry.chain import patch_geometry_grid
+    from iga.elastic_forms import lame
+
+    space = problem.spaces[0]
+    tables = []
+    for d, q in zip(space.dirs, space.qaxes):
+        basis = SciBSpline(d.knots, np.eye(len(d.knots) - d.degree - 1), d.degree)
+        tables.append((basis(q), basis.derivative()(q)))  # (nq, n) each
+    grads_hat = []
+    for r in range(3):
+        M = np.ones((1, 1))
+        for k in range(3):
+            M = np.kron(M, tables[k][int(k == r)])
+        grads_hat.append(M)  # d N_i / d u_r at the grid points (C order), (nq, ndof)
+    x, J, _ = patch_geometry_grid(problem.model.patches[0], space.qaxes)
+    Jinv = np.linalg.inv(J)  # Jinv[q, r, a] = d u_r / d x_a
+    grads = [sum(Jinv[:, r, a][:, None] * grads_hat[r] for r in range(3)) for a in range(3)]
+    w = np.einsum("i,j,k->ijk", *(d.qw for d in space.dirs)).ravel() * np.abs(np.linalg.det(J))
+    lam, mu = lame(problem.youngs.values(x, {}, "test"), problem.poisson.values(x, {}, "test"), "test")
+    lw, mw = (lam * w)[:, None], (mu * w)[:, None]
+    lap = sum(grads[c].T @ (mw * grads[c]) for c in range(3))
+    return np.block([[grads[a].T @ (lw * grads[b]) + grads[b].T @ (mw * grads[a]) + (lap if a == b else 0)
+                      for b in range(3)] for a in range(3)])
+
+
+@pytest.mark.parametrize("compiled", [False, True])
+def test_the_block_assembly_equals_plain_quadrature_with_scipy_basis_functions(compiled, monkeypatch):
     from iga import elastic_volume, fast_assembly
 
     if compiled and not fast_assembly.AVAILABLE:
         pytest.skip("numba is not installed")
     monkeypatch.setattr(fast_assembly, "MIN_POINTS", 1000 if compiled else 10**12)  # which path the blocks take
-    n = 6
-    from iga.assembly import banded_form, banded_to_csr_data, pattern
-    from iga.elastic_forms import block_terms
-
-    geo = pr.twisted(pr.box(degrees=(2, 2, 2), elements=(n, n, n)), 0.5, axis_point=(0.5, 0.5))
-    p = ElasticityProblem(geo, youngs=lambda x: 1.0 + x[:, 0], poisson=0.3)
-    vol = elastic_volume.ElasticVolume(p.disc)
-    K = vol.assemble(p.youngs, p.poisson)[0]
-    # the reference: every block straight from its nine parametric terms, on the NumPy path
-    space = p.spaces[0]
-    assert fast_assembly.applies(space, 1) == compiled
-    shape = (1,) + space.qshape
-    # its fields straight from the geometry on the whole Gauss grid (no slabs, no compiled metric)
-    from geometry.chain import patch_geometry_derivs
-    from iga.elastic_forms import lame, metric_rows
-
-    x, D, _ = patch_geometry_derivs(p.model.patches[0], space.qaxes)
-    c_rows, det = metric_rows(D)
-    c = [[c_rows[r][a].reshape(shape) for a in range(3)] for r in range(3)]
-    w = np.einsum("i,j,k->ijk", *(d.qw for d in space.dirs)).reshape(shape)
-    fac = w / np.abs(det).reshape(shape)
-    lam, mu = (v.reshape(shape) for v in lame(1.0 + x[:, 0], np.full(len(x), 0.3), "test"))
-    pat = pattern(space)
-    blocks = {}
-    for a in range(3):
-        for b in range(a, 3):
-            H = banded_to_csr_data(space, banded_form(space, block_terms(c, fac, lam, mu, a, b, shape)), pat)[0]
-            blocks[(a, b)] = sp.csr_matrix((H + H[pat.transpose] if a == b else H, pat.indices, pat.indptr))
-    ref = sp.bmat([[blocks[(a, b)] if a <= b else blocks[(b, a)].T for b in range(3)] for a in range(3)]).tocsr()
-    assert abs(K - ref).max() <= 1e-12 * abs(ref).max()
+    geo = pr.twisted(pr.box(degrees=(2, 2, 2), elements=(4, 4, 4)), 0.5, axis_point=(0.5, 0.5))
+    p = ElasticityProblem(geo, youngs=lambda x: 1.0 + x[:, 0], poisson=lambda x: 0.2 + 0.1 * x[:, 1])
+    assert fast_assembly.applies(p.spaces[0], 1, terms=elastic_volume.ELASTIC_TERMS) == compiled
+    K = elastic_volume.ElasticVolume(p.disc).assemble(p.youngs, p.poisson)[0]
+    ref = _dense_elastic_stiffness(p)
+    assert abs(K.toarray() - ref).max() <= 1e-12 * abs(ref).max()
     assert abs(K - K.T).max() <= 1e-12 * abs(K).max()
 
 
@@ -452,20 +457,21 @@ def test_the_component_major_operator_is_the_block_matrix_of_its_patches():
     from iga.vector_csr import VectorCSR
 
     rng = np.random.default_rng(3)
-    sizes = (300, 120, 300)  # three patches, two patterns; the first and the last written together
+    # four patches, two patterns; 0, 2 and 3 written together, at uneven steps (no strided view)
+    sizes = (300, 120, 300, 300)
     pats = []
     for seed, n in enumerate(sizes[:2]):
         A = sp.random(n, n, density=0.05, random_state=4 + seed, format="csr") + sp.eye(n, format="csr")
         A.sort_indices()
         pats.append(CSRPattern(A.indptr.astype(np.int64), A.indices, None, None, n))
-    pats.append(pats[0])
+    pats += [pats[0], pats[0]]
     offsets = np.concatenate([[0], np.cumsum(sizes)])
     out = VectorCSR(offsets, [len(p.indices) for p in pats])
     blocks = [{(a, b): rng.standard_normal(len(p.indices)) for a in range(3) for b in range(3)} for p in pats]
     out.put([1], pats[1], {ab: v[None] for ab, v in blocks[1].items()})
-    with pytest.raises(ProblemError, match=r"patches \[0, 2\] were not assembled"):
+    with pytest.raises(ProblemError, match=r"patches \[0, 2, 3\] were not assembled"):
         out.matrix()
-    out.put([0, 2], pats[0], {ab: np.stack([blocks[0][ab], blocks[2][ab]]) for ab in blocks[0]})
+    out.put([0, 2, 3], pats[0], {ab: np.stack([blocks[m][ab] for m in (0, 2, 3)]) for ab in blocks[0]})
     K = out.matrix()
     n = offsets[-1]
 
