@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
+from geometry import BSpline
 from geometry.chain import patches_geometry_derivs_slabs
 from geometry.errors import SplineError, show
 from geometry.faces import FACE_AXIS
@@ -79,8 +80,17 @@ class Effective:
 
 
 def periodic_cell(tile) -> MultiPatch:
-    """The tile's trivariate patches on the unit cell with its own interfaces and the periodic ones."""
-    patches = list(getattr(tile, "patches", []))
+    """The tile's trivariate patches on the unit cell with its own interfaces and the periodic ones.  ``tile``: a
+    :class:`tiling.Tile`, or trivariate BSplines in the unit cell (one, or a list: a solid cell is one box)."""
+    if isinstance(tile, BSpline):
+        patches = [tile]
+    elif isinstance(tile, (list, tuple)):
+        patches = list(tile)
+    elif hasattr(tile, "patches"):
+        patches = list(tile.patches)
+    else:
+        raise ProblemError(f"cannot homogenise a {type(tile).__name__}: pass a tile (e.g. tiling.library.cross()), "
+                           "a trivariate BSpline in the unit cell or a list of them")
     vols = [p for p in patches if getattr(p, "dim", 0) == 3]
     if not vols:
         raise ProblemError(f"tile {show(getattr(tile, 'name', tile))} has no trivariate patches: a surface tile has no "
@@ -116,12 +126,22 @@ def _check_walls(vols, k: int, glued: set, n: int) -> None:
                     if key not in glued:
                         raise ProblemError(f"the tile is not periodic along {'xyz'[k]}: face {face} of patch {pi} on the "
                                            f"wall {'xyz'[k]} = {wall:g} has no matching face on the opposite wall; "
-                                           "homogenisation needs opposite walls that conform")
+                                           f"homogenisation needs opposite walls that conform{_span_hint(vols, k)}")
+
+
+def _span_hint(vols, k: int) -> str:
+    """A note on the tile's extent along axis k when its control points leave the unit cell."""
+    lo = min(float(v.points[..., k].min()) for v in vols)
+    hi = max(float(v.points[..., k].max()) for v in vols)
+    if lo >= -1e-9 and hi <= 1 + 1e-9:
+        return ""
+    return f" (a tile lives in the unit cell [0, 1]^3; its control points span {'xyz'[k]} in [{lo:g}, {hi:g}])"
 
 
 def effective_conductivity(tile, conductivity=1.0, degree_elevation: int = 1, refine: int = 0,
                            diagnostics: bool = False):
     """The effective conductivity tensor (3, 3) of ``tile`` paving the unit cell periodically (module notes).
+    ``tile``: a :class:`tiling.Tile`, or trivariate BSplines in the unit cell (one or a list).
 
     ``conductivity``: W/(m K), a number, a channel name of the tile or a callable of the cell point x (N, 3)
     (isotropic); ``degree_elevation``, ``refine``: the cell problems' spaces, as for :class:`iga.HeatProblem`;
@@ -202,7 +222,7 @@ def _unit_strains() -> list:
 def effective_stiffness(tile, youngs, poisson, degree_elevation: int = 1, refine: int = 0,
                         diagnostics: bool = False):
     """The effective elasticity tensor (6, 6) in Voigt notation (xx, yy, zz, yz, xz, xy; engineering shear
-    strains) of ``tile`` paving the unit cell periodically: the six cell problems
+    strains) of ``tile`` (as :func:`effective_conductivity` takes it) paving the unit cell periodically: the six cell problems
     div C (eps(chi_m) + E_m) = 0 with chi_m periodic, C_mn = int E_m : C : (E_n + eps(chi_n)) dV.
 
     ``youngs`` (Pa) and ``poisson``: numbers, channel names or callables of the cell point, as for

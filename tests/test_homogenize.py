@@ -52,8 +52,28 @@ def test_tiles_that_cannot_be_homogenised_are_refused_naming_why():
     with pytest.raises(ProblemError, match="has no trivariate patches: a surface tile has no volume"):
         effective_conductivity(L.hollow_cross())
     lopsided = Tile([pr.box((1.0, 0.5, 1.0), degrees=(1, 1, 1))], name="half")  # the wall y = 1 is not reached
-    with pytest.raises(ProblemError, match=r"not periodic along y"):
+    with pytest.raises(ProblemError, match=r"not periodic along y") as info:
         effective_conductivity(lopsided)
+    assert "unit cell" not in str(info.value)  # inside the cell: no hint about its extent
+    with pytest.raises(ProblemError, match=r"not periodic along x.*its control points span x in \[0, 2\]"):
+        effective_conductivity(pr.box((2.0, 1.0, 1.0), degrees=(1, 1, 1)))
+    with pytest.raises(ProblemError, match=r"cannot homogenise a str: pass a tile"):
+        effective_conductivity("cross")
+
+
+def test_bare_trivariates_in_the_unit_cell_are_a_tile():
+    from iga import effective_stiffness
+
+    solid = pr.box(degrees=(2, 2, 2), elements=(2, 1, 1))
+    assert np.abs(effective_conductivity(solid, 3.0) - 3.0 * np.eye(3)).max() < 1e-12
+    # two boxes side by side, as a list: the laminate of their conductivities (arithmetic along, harmonic across)
+    halves = [pr.box((0.5, 1.0, 1.0), degrees=(1, 1, 1)), pr.box((0.5, 1.0, 1.0), degrees=(1, 1, 1)).translate([0.5, 0, 0])]
+    K = effective_conductivity(halves, lambda x: np.where(x[:, 0] < 0.5, 1.0, 4.0), degree_elevation=0)
+    assert np.allclose(np.diag(K), [2 / (1 + 1 / 4), 2.5, 2.5], rtol=1e-12) and np.abs(K - np.diag(np.diag(K))).max() < 1e-12
+    E, nu = 2.0, 0.3
+    C = effective_stiffness(solid, E, nu)
+    lam, mu = E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))
+    assert np.allclose(np.diag(C), [lam + 2 * mu] * 3 + [mu] * 3, rtol=1e-12) and np.isclose(C[0, 1], lam, rtol=1e-12)
 
 
 def _laminate_stiffness(E1, E2, nu):
