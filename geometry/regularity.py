@@ -204,7 +204,7 @@ def _verdict(pos_boxes, neg_boxes, zero_boxes, undecided, bounds, scale, depth, 
 
 
 def check_regular(spline: SplineFunction, max_depth: int = 9, allow_zeros: bool = False) -> RegularityResult:
-    """Decide whether ``spline`` (trivariate, or planar surface) has a non-vanishing Jacobian.
+    """Decide whether ``spline`` (trivariate, or planar surface in any plane) has a non-vanishing Jacobian.
 
     Returns a :class:`RegularityResult`; ``bool(result)`` is True only when
     regularity is proven.  ``max_depth`` bounds the subdivision rounds (each
@@ -226,6 +226,7 @@ def check_regular_many(splines, max_depth: int = 9, allow_zeros: bool = False) -
     :func:`check_regular` gives for its spline alone."""
     out = [None] * len(splines)
     kinds: dict = {}
+    splines = [_in_own_plane(s) if s.dim == 2 else s for s in splines]
     for i, s in enumerate(splines):
         if s.dim not in (2, 3):
             raise SplineError(f"check_regular needs a planar surface or a trivariate, got a {s.dim}-variate spline")
@@ -234,6 +235,31 @@ def check_regular_many(splines, max_depth: int = 9, allow_zeros: bool = False) -
         for i, r in zip(members, _prove_kind([splines[i] for i in members], d, rational, max_depth, allow_zeros)):
             out[i] = r
     return out
+
+
+def _in_own_plane(surface):
+    """A surface whose control points lie in a plane other than z = const, rotated so that they lie in one (its
+    in-plane axes first, the normal last: its Jacobian is then the sign of (S_u x S_v) . n, with n pointing
+    along the positive side of its largest component); the surface itself when they already do.  A surface
+    whose control points leave every plane is refused: its regularity is a non-vanishing normal, which is
+    not the sign of one polynomial."""
+    P = np.asarray(getattr(surface, "points", np.zeros((0, 0))), float)
+    if P.ndim < 2 or P.shape[-1] != 3:
+        return surface  # plane coordinates only
+    P = P.reshape(-1, 3)
+    size = max(float(np.ptp(P, axis=0).max()), 1e-300)
+    if np.ptp(P[:, 2]) <= 1e-12 * size:
+        return surface
+    c = P.mean(axis=0)
+    _, _, Vt = np.linalg.svd(P - c)
+    n = Vt[2] * np.sign(Vt[2][np.argmax(np.abs(Vt[2]))])
+    off = float(np.abs((P - c) @ n).max())
+    if off > 1e-9 * size:
+        raise SplineError(f"check_regular proves planar surfaces and trivariates; this surface's control points "
+                          f"leave their best plane by {off:.3g} ({size:.3g} across): a surface in space is regular "
+                          "where its normal does not vanish, which is not the sign of a Jacobian")
+    R = np.stack([Vt[0], np.cross(n, Vt[0]), n])  # a rotation: in-plane axes, then the normal
+    return surface.affine(R, -R @ c)
 
 
 def _prove_kind(splines, d: int, rational: bool, max_depth: int, allow_zeros: bool) -> list[RegularityResult]:

@@ -330,6 +330,32 @@ def test_folded_control_net_is_singular_with_a_box_around_the_fold():
     assert np.all(r.boxes[:, 0, 1] > 0.6)  # nothing reported far from the fold on the regular side
 
 
+def test_planar_surfaces_in_any_plane_are_proven_in_their_own_plane():
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(5)
+    box, ring = pr.box(degrees=(2, 2, 2), elements=(2, 2, 2)), pr.annulus(elements=(3, 2, 2))
+    flat = BSpline(box.boundary("wmin").degrees, box.boundary("wmin").knots, box.boundary("wmin").control_points.copy())
+    cp = flat.control_points.copy()
+    cp[1, 1, 0] = 5.0  # folds the xy square over itself
+    folded = BSpline(flat.degrees, flat.knots, cp)
+    for face in ("umin", "umax", "vmin", "vmax", "wmin", "wmax"):  # every face of a box: planes x, y, z = const
+        assert check_regular(box.boundary(face)).regular
+    assert check_regular(ring.boundary("wmin")).regular  # a rational ring in z = 0
+    xy = check_regular(folded)
+    assert xy.status == "singular"
+    for _ in range(3):  # the same surfaces moved into a random plane: the same verdicts, the same fold boxes
+        R, b = Rotation.random(random_state=rng).as_matrix(), rng.uniform(-5, 5, 3)
+        assert check_regular(ring.boundary("wmin").affine(R, b)).regular
+        r = check_regular(folded.affine(R, b))
+        assert r.status == "singular" and np.allclose(r.boxes, xy.boxes)
+        assert abs(check_regular(flat.affine(R, b)).orientation) == 1
+    bent = flat.control_points.copy()
+    bent[1, 1, 2] = 0.3  # one control point out of the plane: a surface in space, not a planar map
+    with pytest.raises(SplineError, match="leave their best plane by 0.26"):
+        check_regular(BSpline(flat.degrees, flat.knots, bent))
+
+
 def test_composed_tile_regularity_and_collapsed_map():
     outer = pr.annulus(elements=(2, 1, 1))
     tile = pr.box((0.4, 0.8, 0.8), (0.05, 0.1, 0.1), degrees=(2, 1, 1))
