@@ -207,7 +207,7 @@ def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``iga`` command (subcommands demo, run, info)."""
     parser = argparse.ArgumentParser(
         prog="iga",
-        description="Exact B-spline micro-structures and isogeometric heat-transfer analysis.",
+        description="Exact B-spline micro-structures and their isogeometric heat-transfer and elasticity analysis.",
         epilog="Run 'iga COMMAND --help' for the options of one command.",
     )
     parser.add_argument("--version", action="version", version=f"iga {_version()}")

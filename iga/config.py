@@ -17,7 +17,7 @@ folder.  The schema (README, "Pipelines")::
     [second_level] tile, counts, degree, seal               (optional)
     [reduce]   degree, check                                (optional)
     [material] conductivity = number | channel | 6 channels | 3 x 3 matrix, source = number
-    [[bc]]     kind = "dirichlet" | "neumann" | "robin", tag, value | (h, ambient)
+    [[bc]]     kind = "dirichlet" | "neumann" | "robin", tag, value | (h, ambient): numbers or formulas of x, y, z
     [physics]  kind, youngs, poisson, expansion, reference, hold_rigid; [[support]], [[load]]
     [solver]   method, tol, maxiter, refine, degree_elevation, degree, quadrature_extra
     [output]   dir, name, vtu, bezier, png, samples | tolerance, probes, exports
@@ -29,8 +29,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import solvers
-from .config_checks import (boolean as _bool, choice as _choice, fail as _fail, integer as _int, number as _number,
-                            string as _str, table as _table, tag as _tag)
+from .config_checks import (boolean as _bool, choice as _choice, fail as _fail, formula as _formula, integer as _int,
+                            number as _number, string as _str, table as _table, tag as _tag)
 from .config_model import (NO_MAP, NO_TILE, map_section, paving_section, polygon_tile, primitives, reduce_section,
                            second_level, surface_reason, tile_section)
 from .config_physics import physics as _physics
@@ -59,13 +59,13 @@ def _bc(v, where) -> dict:
                 raise ProblemError(f"config {where} (robin) needs keys 'h' and 'ambient'")
         if "value" in t:
             _fail(f"{where}.value", "a robin condition takes 'h' and 'ambient', not 'value'")
-        out["h"] = _number(t["h"], f"{where}.h", lo=0)
-        out["ambient"] = _number(t["ambient"], f"{where}.ambient")
+        out["h"] = _formula(t["h"], f"{where}.h", lo=0)
+        out["ambient"] = _formula(t["ambient"], f"{where}.ambient")
     else:
         extra = sorted(set(t) & {"h", "ambient"})
         if extra:
             _fail(f"{where}.{extra[0]}", f"a {kind} condition takes 'value', not {extra}")
-        out["value"] = _number(t.get("value", 0.0), f"{where}.value")
+        out["value"] = _formula(t.get("value", 0.0), f"{where}.value")
     return out
 
 

@@ -10,7 +10,7 @@ from geometry.errors import show
 
 from .errors import ProblemError
 
-__all__ = ["fail", "number", "integer", "boolean", "string", "choice", "ints", "table", "kwargs", "tag"]
+__all__ = ["fail", "number", "formula", "integer", "boolean", "string", "choice", "ints", "table", "kwargs", "tag"]
 
 
 def fail(where: str, message: str):
@@ -25,6 +25,18 @@ def number(v, where, lo=None, hi=None, open_lo=True) -> float:
     if hi is not None and v >= hi:
         fail(where, f"must be < {hi}, got {show(v)}")
     return float(v)
+
+
+def formula(v, where, lo=None):
+    """A number (checked against ``lo``) or a formula of the position x, y, z written as a string
+    (:class:`iga.expressions.Expression`, checked for its grammar now and for finite values where evaluated)."""
+    if isinstance(v, str):
+        from .expressions import Expression
+
+        return Expression(v, f"config key {where}")
+    if not isinstance(v, Real) or isinstance(v, bool):
+        fail(where, f"must be a finite number or a formula of x, y, z in quotes (e.g. \"20 + 3000 * z\"), got {show(v)}")
+    return number(v, where, lo=lo)
 
 
 def integer(v, where, lo=0) -> int:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from geometry.errors import show
 
-from .config_checks import choice as _choice, fail as _fail, number as _number, string as _str
+from .config_checks import choice as _choice, fail as _fail, formula as _formula, number as _number, string as _str
 from .config_checks import table as _table, tag as _tag
 from .errors import ProblemError
 
@@ -70,11 +70,18 @@ def physics(config, surface: str | None = None) -> dict:
 
 
 def _vector(v, where, broadcast: bool):
+    """Three numbers or formulas of x, y, z (:mod:`iga.expressions`), or with ``broadcast`` one for all three: a
+    list of numbers, or a callable (N, 3) -> (N, 3) when a formula is among them."""
+    from .expressions import VectorExpression
+
     if broadcast and not isinstance(v, list):
-        return _number(v, where)
+        value = _formula(v, where)
+        return VectorExpression([value] * 3) if callable(value) else value
     if not (isinstance(v, list) and len(v) == 3):
-        _fail(where, f"must be {'a number or ' if broadcast else ''}a list of three numbers, got {show(v)}")
-    return [_number(x, f"{where}[{i}]") for i, x in enumerate(v)]
+        _fail(where, f"must be {'a number, a formula or ' if broadcast else ''}a list of three numbers or formulas, "
+              f"got {show(v)}")
+    parts = [_formula(x, f"{where}[{i}]") for i, x in enumerate(v)]
+    return VectorExpression(parts) if any(callable(p) for p in parts) else parts
 
 
 def _support(v, where) -> dict:
@@ -89,5 +96,5 @@ def _support(v, where) -> dict:
 def _load(v, where) -> dict:
     t = _table(v, where, {"kind", "tag", "value"}, ("kind", "tag", "value"))
     kind = _choice(t["kind"], f"{where}.kind", ("traction", "pressure"))
-    value = _number(t["value"], f"{where}.value") if kind == "pressure" else _vector(t["value"], f"{where}.value", False)
+    value = _formula(t["value"], f"{where}.value") if kind == "pressure" else _vector(t["value"], f"{where}.value", False)
     return {"kind": kind, "tag": _tag(t["tag"], f"{where}.tag"), "value": value}

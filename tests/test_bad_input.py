@@ -700,7 +700,10 @@ CONFIG = [
          r"material\.conductivity: must be a finite number, got True"),
     case("source text", _validate(material__source="x"), ProblemError, r"material\.source.*'x'"),
     case("bc kind", _validate(bc__0__kind="fixed"), ProblemError, r"bc\[0\]\.kind: must be one of"),
-    case("bc value text", _validate(bc__0__value="1515.8"), ProblemError, r"bc\[0\]\.value: .*'1515\.8'"),
+    case("bc value text", _validate(bc__0__value="hot"), ProblemError, r"bc\[0\]\.value: 'hot' names 'hot', which is "
+         r"neither a coordinate nor a constant"),
+    case("bc value list", _validate(bc__0__value=[1.0]), ProblemError, r"bc\[0\]\.value: must be a finite number or a "
+         r"formula"),
     case("bc robin without h", _validate(bc__1__h=KeyError), ProblemError, r"bc\[1\] \(robin\) needs keys 'h'"),
     case("bc robin value", _validate(bc__1__value=3.0), ProblemError, r"bc\[1\]\.value: a robin condition"),
     case("bc empty", _validate(bc=[]), ProblemError, r"config section bc is empty"),

@@ -1,0 +1,142 @@
+"""Values written as formulas of the position, for pipelines: ``value = "20 + 3000 * z"``.
+
+A configuration value that varies over a face (a Dirichlet temperature, a flux,
+a film coefficient, a displacement or a traction component) is written as an
+arithmetic expression of the physical coordinates ``x``, ``y``, ``z`` (model
+units, m) in Python syntax: numbers, ``+ - * / ** %``, parentheses, ``pi``,
+``e``, the functions in :data:`FUNCTIONS` (NumPy's, elementwise) and
+comparisons inside ``where(condition, a, b)``.  The text is parsed once, when
+the configuration is checked, into a syntax tree that holds nothing else (no
+names but these, no attributes, no indexing, no other calls), so a
+configuration file can say no more than a formula; :class:`Expression` then
+evaluates it on whole point arrays, as the problems' callables are.
+"""
+
+from __future__ import annotations
+
+import ast
+import operator
+
+import numpy as np
+
+from .errors import ProblemError
+
+__all__ = ["Expression", "VectorExpression", "FUNCTIONS"]
+
+#: the functions an expression may call, by name: NumPy's elementwise ones
+FUNCTIONS = {name: getattr(np, name) for name in (
+    "sin", "cos", "tan", "arcsin", "arccos", "arctan", "arctan2", "sinh", "cosh", "tanh", "exp", "log", "log10",
+    "sqrt", "abs", "hypot", "minimum", "maximum", "where", "floor", "ceil")}
+_CONSTANTS = {"pi": np.float64(np.pi), "e": np.float64(np.e)}
+_COORDINATES = ("x", "y", "z")
+_BINARY = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul, ast.Div: operator.truediv,
+           ast.Pow: operator.pow, ast.Mod: operator.mod}
+_UNARY = {ast.USub: operator.neg, ast.UAdd: operator.pos}
+_COMPARE = {ast.Lt: operator.lt, ast.LtE: operator.le, ast.Gt: operator.gt, ast.GtE: operator.ge}
+_EXAMPLE = "e.g. \"20 + 3000 * z\" or \"where(x < 0.01, 80, 20)\""
+
+
+class Expression:
+    """A scalar formula of the position: ``Expression("20 + 3000 * z")(x)`` -> (N,) for points x (N, 3).
+
+    ``where`` (e.g. ``"config key bc[0].value"``) names the value in every error: a syntax error or a construct
+    outside the grammar (module notes) when it is made, a value that is not finite when it is evaluated."""
+
+    def __init__(self, text: str, where: str = "expression"):
+        self.text, self.where = str(text), where
+        try:
+            tree = ast.parse(self.text.strip(), mode="eval")
+        except SyntaxError as exc:
+            raise ProblemError(f"{where}: {self.text!r} is not a formula ({exc.msg} at column {exc.offset}); write "
+                               f"an expression of x, y, z, {_EXAMPLE}") from None
+        self._tree = tree.body
+        self._check(self._tree)
+
+    def _fail(self, what: str):
+        raise ProblemError(f"{self.where}: {self.text!r} {what}; a formula may use numbers, x, y, z, pi, e, "
+                           f"+ - * / ** %, comparisons inside where(...), and {', '.join(FUNCTIONS)}")
+
+    def _check(self, node) -> None:
+        """Every node of the tree is one the grammar allows (module notes)."""
+        if isinstance(node, ast.Constant):
+            if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
+                self._fail(f"holds {node.value!r}, which is not a number")
+        elif isinstance(node, ast.Name):
+            if node.id not in _COORDINATES and node.id not in _CONSTANTS:
+                self._fail(f"names {node.id!r}, which is neither a coordinate nor a constant")
+        elif isinstance(node, ast.BinOp) and type(node.op) in _BINARY:
+            self._check(node.left)
+            self._check(node.right)
+        elif isinstance(node, ast.UnaryOp) and type(node.op) in _UNARY:
+            self._check(node.operand)
+        elif isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in FUNCTIONS:
+            if node.keywords:
+                self._fail(f"passes keywords to {node.func.id}")
+            for k, arg in enumerate(node.args):
+                if node.func.id == "where" and k == 0 and isinstance(arg, ast.Compare):
+                    self._compare(arg)
+                else:
+                    self._check(arg)
+        elif isinstance(node, ast.Compare):
+            self._fail("compares outside where(condition, a, b)")
+        else:
+            self._fail(f"uses {type(node).__name__.lower()} {ast.unparse(node)!r}, which a formula cannot hold")
+
+    def _compare(self, node) -> None:
+        if not all(type(op) in _COMPARE for op in node.ops):
+            self._fail("compares with an operator other than <, <=, >, >=")
+        for part in [node.left] + node.comparators:
+            self._check(part)
+
+    def __call__(self, x) -> np.ndarray:
+        """The values (N,) at the points x (N, 3) (m)."""
+        x = np.asarray(x, float)
+        names = {**_CONSTANTS, **{c: x[:, k] for k, c in enumerate(_COORDINATES)}}
+        with np.errstate(all="ignore"):
+            try:
+                out = np.broadcast_to(np.asarray(self._eval(self._tree, names), float), (len(x),))
+            except (TypeError, ValueError) as exc:  # e.g. where() with the wrong number of arguments
+                raise ProblemError(f"{self.where}: {self.text!r} cannot be evaluated: {exc}") from None
+        if not np.all(np.isfinite(out)):
+            bad = x[~np.isfinite(out)][0]
+            raise ProblemError(f"{self.where}: {self.text!r} is not finite at x = {bad.tolist()} (a division by zero, "
+                               "a logarithm or root of a negative number, or an overflow there)")
+        return np.array(out)
+
+    def _eval(self, node, names):
+        if isinstance(node, ast.Constant):
+            return np.float64(node.value)  # NumPy's arithmetic: an overflow is inf (refused below), not an error
+        if isinstance(node, ast.Name):
+            return names[node.id]
+        if isinstance(node, ast.BinOp):
+            return _BINARY[type(node.op)](self._eval(node.left, names), self._eval(node.right, names))
+        if isinstance(node, ast.UnaryOp):
+            return _UNARY[type(node.op)](self._eval(node.operand, names))
+        if isinstance(node, ast.Compare):
+            left, result = self._eval(node.left, names), True
+            for op, right in zip(node.ops, node.comparators):
+                value = self._eval(right, names)
+                result = np.logical_and(result, _COMPARE[type(op)](left, value))
+                left = value
+            return result
+        return FUNCTIONS[node.func.id](*(self._eval(a, names) for a in node.args))
+
+    def __repr__(self) -> str:
+        return f"Expression({self.text!r})"
+
+    def __str__(self) -> str:
+        return self.text
+
+
+class VectorExpression:
+    """Three components, each a number or an :class:`Expression`: ``(x (N, 3)) -> (N, 3)``."""
+
+    def __init__(self, components):
+        self.components = list(components)
+
+    def __call__(self, x) -> np.ndarray:
+        x = np.asarray(x, float)
+        return np.stack([c(x) if callable(c) else np.full(len(x), float(c)) for c in self.components], axis=1)
+
+    def __repr__(self) -> str:
+        return f"VectorExpression({[str(c) for c in self.components]})"
