@@ -11,7 +11,7 @@ from .elastic_forms import lame
 from .errors import ProblemError
 from .fields import integrate_fields
 from .locate import Locator
-from .solution import physical_gradient
+from .solution import check_reference, physical_gradient, reference_values
 
 __all__ = ["ElasticSolution"]
 
@@ -151,11 +151,15 @@ class ElasticSolution:
 
     def l2_error(self, exact) -> float:
         """|| u - exact ||_L2 (m^{5/2}); ``exact(x (N, 3)) -> (N, 3)``."""
-        return float(np.sqrt(self.integrate(lambda x, u, g: np.sum((u - exact(x)) ** 2, axis=1))))
+        check_reference(exact, "exact")
+        return float(np.sqrt(self.integrate(
+            lambda x, u, g: np.sum((u - reference_values(exact, x, (3,), "exact")) ** 2, axis=1))))
 
     def h1_error(self, exact_grad) -> float:
         """| u - exact |_H1 (gradient seminorm); ``exact_grad(x) -> (N, 3, 3)`` with ``[n, a, k] = d u_a/d x_k``."""
-        return float(np.sqrt(self.integrate(lambda x, u, g: np.sum((g - exact_grad(x)) ** 2, axis=(1, 2)))))
+        check_reference(exact_grad, "exact_grad")
+        return float(np.sqrt(self.integrate(
+            lambda x, u, g: np.sum((g - reference_values(exact_grad, x, (3, 3), "exact_grad")) ** 2, axis=(1, 2)))))
 
 
 def _von_mises(S: np.ndarray) -> np.ndarray:

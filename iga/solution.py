@@ -231,11 +231,41 @@ class Solution:
 
     def l2_error(self, exact) -> float:
         """|| T - exact ||_L2 over the model; ``exact(x (N, 3)) -> (N,)``."""
-        return float(np.sqrt(self.integrate(lambda x, T, g: (T - exact(x)) ** 2)))
+        check_reference(exact, "exact")
+        return float(np.sqrt(self.integrate(lambda x, T, g: (T - reference_values(exact, x, (), "exact")) ** 2)))
 
     def h1_error(self, exact_grad) -> float:
         """| T - exact |_H1 (gradient seminorm); ``exact_grad(x) -> (N, 3)``."""
-        return float(np.sqrt(self.integrate(lambda x, T, g: np.sum((g - exact_grad(x)) ** 2, axis=1))))
+        check_reference(exact_grad, "exact_grad")
+        return float(np.sqrt(self.integrate(
+            lambda x, T, g: np.sum((g - reference_values(exact_grad, x, (3,), "exact_grad")) ** 2, axis=1))))
+
+
+def check_reference(fn, what: str) -> None:
+    """A user's exact solution or gradient must be a callable of x (N, 3)."""
+    if not callable(fn):
+        raise ProblemError(f"{what} must be a callable of the points x (N, 3), got a {type(fn).__name__}")
+
+
+def reference_values(fn, x: np.ndarray, tail: tuple, what: str) -> np.ndarray:
+    """``fn(x)`` of a user's exact solution or gradient as an (N,) + ``tail`` float array (a scalar is taken as a
+    constant); a callable that fails, returns another shape or values that are not finite raises
+    :class:`ProblemError` naming ``what``."""
+    try:
+        v = np.asarray(fn(x), float)
+    except ProblemError:
+        raise
+    except Exception as exc:  # the user's callable: say whose
+        raise ProblemError(f"{what} failed at x of shape {x.shape}: {type(exc).__name__}: {exc}") from None
+    shape = (len(x),) + tuple(tail)
+    if v.ndim == 0:
+        v = np.full(shape, float(v))
+    if v.shape != shape:
+        raise ProblemError(f"{what} must return shape {shape} for x of shape {x.shape}, got {v.shape}")
+    if not np.all(np.isfinite(v)):
+        raise ProblemError(f"{what} returned values that are not finite, e.g. at x = "
+                           f"{np.round(x[np.argmax(~np.isfinite(v.reshape(len(x), -1)).any(axis=1))], 6).tolist()}")
+    return v
 
 
 def physical_gradient(J: np.ndarray, dxi: np.ndarray, where: str, params=None) -> np.ndarray:

@@ -440,6 +440,16 @@ HEAT = [
     case("probe shape", lambda t: solved().probe([1.0, 2.0]), ProblemError, r"shape \(N, 3\), got \(2,\)"),
     case("probe nan", lambda t: solved().probe([[np.nan, 0, 0]]), ProblemError, r"finite array"),
     case("flux unknown tag", lambda t: solved().flux("top"), ProblemError, r"unknown boundary tag 'top'"),
+    case("l2_error not callable", lambda t: solved().l2_error(3.0), ProblemError,
+         r"exact must be a callable of the points x \(N, 3\), got a float"),
+    case("l2_error shape", lambda t: solved().l2_error(lambda x: x[:, :2]), ProblemError,
+         r"exact must return shape \(\d+,\) for x of shape \(\d+, 3\), got \(\d+, 2\)"),
+    case("h1_error shape", lambda t: solved().h1_error(lambda x: x[:, 0]), ProblemError,
+         r"exact_grad must return shape \(\d+, 3\) for x of shape \(\d+, 3\), got \(\d+,\)"),
+    case("l2_error failing", lambda t: solved().l2_error(lambda x: x[:, 5]), ProblemError,
+         r"exact failed at x of shape \(\d+, 3\): IndexError"),
+    case("l2_error nan", lambda t: solved().l2_error(lambda x: np.where(x[:, 2] > 0.5, np.nan, 0.0)), ProblemError,
+         r"exact returned values that are not finite, e\.g\. at x = \["),
 ]
 
 

@@ -228,6 +228,10 @@ def test_free_thermal_expansion_of_a_homogeneous_body_is_stress_free():
      r"traction on 'umax' must be three finite numbers"),
     (lambda m: ElasticityProblem(m, youngs=lambda x: 1.0 - 2 * x[:, 0], poisson=0.3).dirichlet("umin").solve(),
      r"Young's modulus must be positive, but is -0.77"),
+    (lambda m: ElasticityProblem(m, youngs=1.0, poisson=0.3).dirichlet("umin").solve().l2_error(lambda x: x[:, 0]),
+     r"exact must return shape \(\d+, 3\) for x of shape \(\d+, 3\), got \(\d+,\)"),
+    (lambda m: ElasticityProblem(m, youngs=1.0, poisson=0.3).dirichlet("umin").solve().h1_error(lambda x: x),
+     r"exact_grad must return shape \(\d+, 3, 3\) for x of shape \(\d+, 3\), got \(\d+, 3\)"),
 ])
 def test_bad_elastic_input_is_refused_naming_it(build, match):
     with pytest.raises(ProblemError, match=match):
