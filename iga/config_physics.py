@@ -63,6 +63,9 @@ def physics(config, surface: str | None = None) -> dict:
     loads = config.get("load", [])
     loads = loads if isinstance(loads, list) else [loads]
     out["load"] = [_load(x, f"load[{i}]") for i, x in enumerate(loads)]
+    if out["support"] and hold:
+        _fail("physics.hold_rigid", "holds a body without [[support]] tables against rigid motion; with supports "
+              "the 3-2-1 pins would add supports of their own: drop one or the other")
     if not out["support"] and not hold:
         raise ProblemError("an elastic analysis needs [[support]] tables (tag, value, components) or "
                            "physics.hold_rigid = true; without them the body is free to move")

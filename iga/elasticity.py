@@ -160,7 +160,9 @@ class ElasticityProblem:
     def hold_rigid(self) -> "ElasticityProblem":
         """Hold the body against rigid motion only (free to expand): the 3-2-1 rule at three patch corners (where
         the spline interpolates its control point) far apart: all of A, two components of B across AB, one of
-        C across the plane ABC.  Statically determinate, so a free thermal expansion stays stress free."""
+        C across the plane ABC.  Statically determinate, so a free thermal expansion stays stress free.  It holds a
+        body that has no displacement condition: with one, :meth:`solve` refuses it (the pins would be supports
+        too)."""
         self.rigid_hold = True
         return self
 
@@ -264,6 +266,11 @@ class ElasticityProblem:
         if maxiter is not None:
             count("maxiter", maxiter, 1)
         supports = self._support_faces()
+        if self.rigid_hold and any(supports):
+            tags = sorted({show(sup.tag) for sup in self.supports})
+            raise ProblemError(f"hold_rigid pins three corners against rigid motion only, but displacement conditions "
+                               f"on {', '.join(tags)} already hold the body: the pins would add supports (and "
+                               "reactions) of their own; use either the conditions or hold_rigid")
         K, f, book = self.assemble()
         work, applied = book["work"], book["applied"]
         t1 = time.perf_counter()

@@ -45,6 +45,8 @@ def test_an_elastic_pipeline_reports_reactions_that_balance_the_load(tmp_path):
     (lambda c: c.pop("support"), r"needs \[\[support\]\] tables .* or physics\.hold_rigid = true"),
     (lambda c: c["physics"].update(kind="thermo-elastic", expansion=1e-5), r"missing required config section 'bc'"),
     (lambda c: c["physics"].update(hold_rigid="yes"), r"physics\.hold_rigid: must be true or false"),
+    (lambda c: c["physics"].update(hold_rigid=True), r"physics\.hold_rigid: holds a body without \[\[support\]\] "
+     r"tables"),
 ])
 def test_bad_physics_sections_are_refused_before_any_work(change, match, tmp_path):
     cfg = _cfg()

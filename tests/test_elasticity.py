@@ -232,6 +232,8 @@ def test_free_thermal_expansion_of_a_homogeneous_body_is_stress_free():
      r"exact must return shape \(\d+, 3\) for x of shape \(\d+, 3\), got \(\d+,\)"),
     (lambda m: ElasticityProblem(m, youngs=1.0, poisson=0.3).dirichlet("umin").solve().h1_error(lambda x: x),
      r"exact_grad must return shape \(\d+, 3, 3\) for x of shape \(\d+, 3\), got \(\d+, 3\)"),
+    (lambda m: ElasticityProblem(m, youngs=1.0, poisson=0.3).dirichlet("umin", 0.0, components="z").hold_rigid()
+     .traction("umax", [0, 0, 1]).solve(), r"hold_rigid pins three corners .* conditions on 'umin' already hold"),
 ])
 def test_bad_elastic_input_is_refused_naming_it(build, match):
     with pytest.raises(ProblemError, match=match):
