@@ -195,8 +195,10 @@ class ElasticityProblem:
         return [np.array(o, np.int64) for o in out]
 
     # ------------------------------------------------------------------ solve
-    def _loads(self, f: np.ndarray) -> dict:
-        """Add the traction and pressure loads to f; returns {tag: applied force (3,)}."""
+    def _loads(self, f: np.ndarray, supports: list) -> dict:
+        """Add the traction and pressure loads to f; returns {tag: applied force (3,)}.  ``supports``: the
+        :meth:`_support_faces`; a load on a component they prescribe on the same face is refused (it would only
+        change the reaction there)."""
         n, applied = self.ndof, {}
         for load in self.loads:
             keys = self.tag_faces(load.tag)
@@ -207,6 +209,7 @@ class ElasticityProblem:
                     t = load.value.values(fd.x, f"patch {fd.patch} face {fd.face}")
                 else:
                     t = -load.value.values(fd.x, fd.chans, f"patch {fd.patch} face {fd.face}")[:, None] * fd.normal
+                _refuse_held_load(load, fd, t, supports)
                 for a in range(3):
                     f[a * n : (a + 1) * n] += boundary_load([fd], [t[:, a] * fd.dAw], n)
                 force += (t * fd.dAw[:, None]).sum(0)
@@ -255,7 +258,7 @@ class ElasticityProblem:
         ``timings["assembly"]`` (s).  :meth:`solve` calls it."""
         t0 = time.perf_counter()
         K, f, work = ElasticVolume(self.disc).assemble(self.youngs, self.poisson, self.body, self.thermal_strain)
-        applied = self._loads(f)
+        applied = self._loads(f, self._support_faces())
         self.timings["assembly"] = time.perf_counter() - t0
         return K, f, {"work": work, "applied": applied}
 
@@ -301,3 +304,19 @@ class ElasticityProblem:
                              "solve": res.info.setup_s + res.info.solve_s})
         self.reduced_dofs = res.reduced
         return ElasticSolution(self, res, K, f, dd, work, applied)
+
+
+def _refuse_held_load(load, fd, t: np.ndarray, supports: list) -> None:
+    """A traction or pressure ``t`` (N, 3) on face ``fd`` with a component that a displacement condition prescribes
+    on that face raises :class:`ProblemError`: it would only change the reaction there."""
+    key = (fd.patch, fd.face)
+    size = float(np.abs(t).max()) if t.size else 0.0
+    # beyond round-off: a pressure on a face normal to x, held in y, has normals with 1e-17 y components
+    held = [a for a in range(3) if key in supports[a] and np.abs(t[:, a]).max(initial=0.0) > 1e-9 * size]
+    if held:
+        a = held[0]
+        raise ProblemError(f"the {load.kind} on {show(load.tag)} has {'an' if a == 0 else 'a'} {_AXES[a]} component on "
+                           f"patch {fd.patch} face "
+                           f"{fd.face}, where the displacement condition on {supports[a][key][1]} prescribes "
+                           f"{_AXES[a]}: a load on a prescribed component only changes the reaction; drop it there or "
+                           "free that component (dirichlet(..., components=...))")

@@ -234,10 +234,33 @@ def test_free_thermal_expansion_of_a_homogeneous_body_is_stress_free():
      r"exact_grad must return shape \(\d+, 3, 3\) for x of shape \(\d+, 3\), got \(\d+, 3\)"),
     (lambda m: ElasticityProblem(m, youngs=1.0, poisson=0.3).dirichlet("umin", 0.0, components="z").hold_rigid()
      .traction("umax", [0, 0, 1]).solve(), r"hold_rigid pins three corners .* conditions on 'umin' already hold"),
+    (lambda m: ElasticityProblem(m, youngs=1.0, poisson=0.3).dirichlet("umin").traction("umin", [1, 0, 0]).solve(),
+     r"the traction on 'umin' has an x component on patch 0 face umin, where the displacement condition on the faces "
+     r"tagged 'umin' prescribes x"),
+    (lambda m: ElasticityProblem(m, youngs=1.0, poisson=0.3).dirichlet("umin").dirichlet("umax", 0.0, components="z")
+     .traction("umax", [0, 0, 1]).solve(), r"the traction on 'umax' has a z component"),
+    (lambda m: ElasticityProblem(m, youngs=1.0, poisson=0.3).dirichlet("umin", 0.0, components="x")
+     .dirichlet("vmin").pressure("umin", 1.0).solve(), r"the pressure on 'umin' has an x component"),
 ])
 def test_bad_elastic_input_is_refused_naming_it(build, match):
     with pytest.raises(ProblemError, match=match):
         build(pr.box(degrees=(2, 2, 2)))
+
+
+def test_loads_on_free_components_of_a_held_face_are_applied():
+    # held vertically on umax (rollers), pulled along x there and pressed on vmax, whose normal is y: the loads
+    # act where nothing is prescribed (a pressure's round-off normal components along x or z are not loads)
+    m = pr.twisted(pr.box(degrees=(2, 2, 2), elements=(2, 2, 2)), 0.2, axis_point=(0.5, 0.5))
+    s = (ElasticityProblem(m, youngs=1.0, poisson=0.3).dirichlet("umin").dirichlet("umax", 0.0, components="z")
+         .traction("umax", [1e-3, 0, 0]).solve())
+    pulled = s.info["applied_N"]["umax"][0]  # 1e-3 times the twisted face's area
+    assert s.info["work"]["relative_error"] < 1e-9 and pulled > 1e-3
+    assert abs(s.reaction("umin")[0] + s.reaction("umax")[0] + pulled) < 1e-9 * pulled  # x: balanced
+    c, s_ = np.cos(np.pi / 2), np.sin(np.pi / 2)  # c = 6e-17: vmax's normal is -x with round-off along y
+    box = pr.box(degrees=(2, 2, 2), elements=(2, 2, 2)).affine(np.array([[c, -s_, 0], [s_, c, 0], [0, 0, 1.0]]))
+    r = (ElasticityProblem(box, youngs=1.0, poisson=0.3).dirichlet("vmax", 0.0, components="yz").dirichlet("vmin")
+         .pressure("vmax", 1e-3).solve())
+    assert abs(r.reaction("vmin")[0] + 1e-3) < 1e-9  # the pressure pushes the body onto its support
 
 
 def test_free_rigid_motions_are_refused_naming_them():
