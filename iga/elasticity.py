@@ -105,6 +105,14 @@ class ElasticityProblem:
                    for f in tag_faces(self.model, c.tag)}
         return tag_faces(self.model, tag, [f for f in self.model.tags.get("boundary", []) if f not in covered])
 
+    def _condition_faces(self, tag) -> list:
+        """The faces a support or load acts on once every condition is known; a ``rest`` that the other conditions
+        leave empty is refused (as :class:`iga.HeatProblem` does)."""
+        faces = self.tag_faces(tag)
+        if not faces:
+            raise ProblemError(f"tag {show(tag)} names no face here (the other conditions cover them all)")
+        return faces
+
     def _faces_of(self, tag: str, what: str) -> list:
         if mentions_rest(self.model, tag):
             check_expression(self.model, tag)  # its faces are known once every condition is
@@ -201,7 +209,7 @@ class ElasticityProblem:
         change the reaction there)."""
         n, applied = self.ndof, {}
         for load in self.loads:
-            keys = self.tag_faces(load.tag)
+            keys = self._condition_faces(load.tag)
             fds = self.faces(keys)
             force = np.zeros(3)
             for fd in fds:
@@ -221,7 +229,7 @@ class ElasticityProblem:
         out = [{}, {}, {}]
         owner = [{}, {}, {}]
         for s in self.supports:
-            for key in self.tag_faces(s.tag):
+            for key in self._condition_faces(s.tag):
                 for a in s.components:
                     if key in out[a]:
                         raise ProblemError(f"patch {key[0]} face {key[1]}: displacement component {_AXES[a]} is "

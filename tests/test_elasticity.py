@@ -241,6 +241,8 @@ def test_free_thermal_expansion_of_a_homogeneous_body_is_stress_free():
      .traction("umax", [0, 0, 1]).solve(), r"the traction on 'umax' has a z component"),
     (lambda m: ElasticityProblem(m, youngs=1.0, poisson=0.3).dirichlet("umin", 0.0, components="x")
      .dirichlet("vmin").pressure("umin", 1.0).solve(), r"the pressure on 'umin' has an x component"),
+    (lambda m: ElasticityProblem(m, youngs=1.0, poisson=0.3).dirichlet("boundary").traction("rest", [0, 0, 1]).solve(),
+     r"tag 'rest' names no face here \(the other conditions cover them all\)"),
 ])
 def test_bad_elastic_input_is_refused_naming_it(build, match):
     with pytest.raises(ProblemError, match=match):
