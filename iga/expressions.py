@@ -34,6 +34,7 @@ _BINARY = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul,
 _UNARY = {ast.USub: operator.neg, ast.UAdd: operator.pos}
 _COMPARE = {ast.Lt: operator.lt, ast.LtE: operator.le, ast.Gt: operator.gt, ast.GtE: operator.ge}
 _EXAMPLE = "e.g. \"20 + 3000 * z\" or \"where(x < 0.01, 80, 20)\""
+_MAX_LENGTH = 2000  # characters: a formula, not a program (deeper nesting exhausts Python's parser)
 
 
 class Expression:
@@ -44,16 +45,27 @@ class Expression:
 
     def __init__(self, text: str, where: str = "expression"):
         self.text, self.where = str(text), where
+        if len(self.text) > _MAX_LENGTH:
+            raise ProblemError(f"{where}: a formula of {len(self.text)} characters is longer than {_MAX_LENGTH}; write "
+                               f"a shorter expression of x, y, z, {_EXAMPLE}")
         try:
             tree = ast.parse(self.text.strip(), mode="eval")
+            self._tree = tree.body
+            self._check(self._tree)
         except SyntaxError as exc:
-            raise ProblemError(f"{where}: {self.text!r} is not a formula ({exc.msg} at column {exc.offset}); write "
+            raise ProblemError(f"{where}: {self._shown} is not a formula ({exc.msg} at column {exc.offset}); write "
                                f"an expression of x, y, z, {_EXAMPLE}") from None
-        self._tree = tree.body
-        self._check(self._tree)
+        except RecursionError:
+            raise ProblemError(f"{where}: {self._shown} is nested too deeply to read; write it with fewer levels "
+                               "of operators and parentheses") from None
+
+    @property
+    def _shown(self) -> str:
+        """The text for messages, cut to 80 characters."""
+        return repr(self.text if len(self.text) <= 80 else self.text[:77] + "...")
 
     def _fail(self, what: str):
-        raise ProblemError(f"{self.where}: {self.text!r} {what}; a formula may use numbers, x, y, z, pi, e, "
+        raise ProblemError(f"{self.where}: {self._shown} {what}; a formula may use numbers, x, y, z, pi, e, "
                            f"+ - * / ** %, comparisons inside where(...), and {', '.join(FUNCTIONS)}")
 
     def _check(self, node) -> None:
@@ -96,10 +108,13 @@ class Expression:
             try:
                 out = np.broadcast_to(np.asarray(self._eval(self._tree, names), float), (len(x),))
             except (TypeError, ValueError) as exc:  # e.g. where() with the wrong number of arguments
-                raise ProblemError(f"{self.where}: {self.text!r} cannot be evaluated: {exc}") from None
+                raise ProblemError(f"{self.where}: {self._shown} cannot be evaluated: {exc}") from None
+            except RecursionError:
+                raise ProblemError(f"{self.where}: {self._shown} is nested too deeply to evaluate; write it with "
+                                   "fewer levels of operators and parentheses") from None
         if not np.all(np.isfinite(out)):
             bad = x[~np.isfinite(out)][0]
-            raise ProblemError(f"{self.where}: {self.text!r} is not finite at x = {bad.tolist()} (a division by zero, "
+            raise ProblemError(f"{self.where}: {self._shown} is not finite at x = {bad.tolist()} (a division by zero, "
                                "a logarithm or root of a negative number, or an overflow there)")
         return np.array(out)
 

@@ -51,6 +51,16 @@ def test_anything_but_a_formula_is_refused_naming_the_key(text, why):
         Expression(text, "config key bc[0].value")
 
 
+def test_formulas_too_long_or_too_deep_are_refused_not_crashed():
+    with pytest.raises(ProblemError, match="a formula of 3000 characters is longer than 2000"):
+        Expression("x" * 3000)
+    for text in ("-" * 1500 + "x", "+".join(["x"] * 999), "(" * 300 + "x" + ")" * 300):  # RecursionErrors in ast
+        with pytest.raises(ProblemError, match=r"nested too deeply|is not a formula") as info:
+            Expression(text)(np.ones((2, 3)))
+        assert len(str(info.value)) < 400  # the text is cut in the message
+    assert Expression("+".join(["x"] * 500))(np.ones((2, 3)))[0] == 500
+
+
 def test_a_formula_that_is_not_finite_somewhere_names_the_point():
     f = Expression("log(x)", "config key bc[1].value")
     with pytest.raises(ProblemError, match=r"config key bc\[1\].value: 'log\(x\)' is not finite at x = \[-1.0, 0.0, 0.0\]"):
