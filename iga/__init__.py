@@ -3,10 +3,11 @@
 Public names: :class:`HeatProblem`, :class:`Solution`, :class:`ElasticityProblem`, :class:`ElasticSolution`,
 :func:`effective_conductivity`, :func:`effective_stiffness`, :func:`effective_table` and :func:`macro_map`
 (graded macro models), :func:`write_vtu`, :func:`write_pieces` (one VTU piece per MPI rank and a ``.pvtu``),
-:class:`ProblemError`.  Command line: ``iga --help``.
+:class:`Expression` (a formula of the position, for values that G+Smo export writes), :class:`ProblemError`.  Command line: ``iga --help``.
 """
 
 from .errors import ProblemError, SingularProblemError
+from .expressions import Expression
 from .problem import HeatProblem
 from .elasticity import ElasticityProblem
 from .elastic_solution import ElasticSolution
@@ -17,4 +18,4 @@ from .vtu import write_pieces, write_vtu
 
 __all__ = ["ProblemError", "SingularProblemError", "HeatProblem", "Solution", "ElasticityProblem", "ElasticSolution",
            "effective_conductivity", "effective_stiffness", "EffectiveTable", "effective_table", "macro_map",
-           "write_vtu", "write_pieces"]
+           "write_vtu", "write_pieces", "Expression"]

@@ -15,7 +15,9 @@ evaluates it on whole point arrays, as the problems' callables are.
 from __future__ import annotations
 
 import ast
+import functools
 import operator
+import re
 
 import numpy as np
 
@@ -73,6 +75,8 @@ class Expression:
         if isinstance(node, ast.Constant):
             if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
                 self._fail(f"holds {node.value!r}, which is not a number")
+            if not abs(node.value) <= 1.7976931348623157e308:  # 1e999 (inf) or a 400-digit integer
+                self._fail("holds a number beyond the largest finite one (1.8e308)")
         elif isinstance(node, ast.Name):
             if node.id not in _COORDINATES and node.id not in _CONSTANTS:
                 self._fail(f"names {node.id!r}, which is neither a coordinate nor a constant")
@@ -85,20 +89,27 @@ class Expression:
             if node.keywords:
                 self._fail(f"passes keywords to {node.func.id}")
             for k, arg in enumerate(node.args):
-                if node.func.id == "where" and k == 0 and isinstance(arg, ast.Compare):
-                    self._compare(arg)
+                if node.func.id == "where" and k == 0:
+                    self._condition(arg)
                 else:
                     self._check(arg)
-        elif isinstance(node, ast.Compare):
+        elif isinstance(node, (ast.Compare, ast.BoolOp)):
             self._fail("compares outside where(condition, a, b)")
         else:
             self._fail(f"uses {type(node).__name__.lower()} {ast.unparse(node)!r}, which a formula cannot hold")
 
-    def _compare(self, node) -> None:
-        if not all(type(op) in _COMPARE for op in node.ops):
-            self._fail("compares with an operator other than <, <=, >, >=")
-        for part in [node.left] + node.comparators:
-            self._check(part)
+    def _condition(self, node) -> None:
+        """where's first argument: comparisons joined by and / or, or a formula (non-zero is true)."""
+        if isinstance(node, ast.BoolOp):
+            for part in node.values:
+                self._condition(part)
+        elif isinstance(node, ast.Compare):
+            if not all(type(op) in _COMPARE for op in node.ops):
+                self._fail("compares with an operator other than <, <=, >, >=")
+            for part in [node.left] + node.comparators:
+                self._check(part)
+        else:
+            self._check(node)
 
     def __call__(self, x) -> np.ndarray:
         """The values (N,) at the points x (N, 3) (m)."""
@@ -127,6 +138,9 @@ class Expression:
             return _BINARY[type(node.op)](self._eval(node.left, names), self._eval(node.right, names))
         if isinstance(node, ast.UnaryOp):
             return _UNARY[type(node.op)](self._eval(node.operand, names))
+        if isinstance(node, ast.BoolOp):
+            join = np.logical_and if isinstance(node.op, ast.And) else np.logical_or
+            return functools.reduce(join, [np.asarray(self._eval(v, names)) != 0 for v in node.values])
         if isinstance(node, ast.Compare):
             left, result = self._eval(node.left, names), True
             for op, right in zip(node.ops, node.comparators):
@@ -136,11 +150,56 @@ class Expression:
             return result
         return FUNCTIONS[node.func.id](*(self._eval(a, names) for a in node.args))
 
+    def exprtk(self) -> str:
+        """The formula in G+Smo's expression syntax (``gsFunctionExpr``, exprtk), fully parenthesised: ``^`` for
+        powers, ``if`` for where, ``asin`` ... ``min``, ``max`` for NumPy's names, Python's floored ``a % b`` as
+        ``a - b floor(a / b)`` (exprtk's ``%`` truncates), ``e`` as its digits."""
+        return _exprtk(self._tree)
+
+    @classmethod
+    def from_exprtk(cls, text: str, where: str = "expression") -> "Expression":
+        """A formula written in G+Smo's expression syntax, as far as this grammar goes (what :meth:`exprtk`
+        writes, and hand-written formulas of the same operators and functions)."""
+        words = {"asin": "arcsin", "acos": "arccos", "atan": "arctan", "atan2": "arctan2", "min": "minimum",
+                 "max": "maximum", "if": "where"}
+        python = re.sub(r"\b(asin|acos|atan2|atan|min|max|if)(\s*\()", lambda m: words[m.group(1)] + m.group(2),
+                        str(text)).replace("^", "**")
+        return cls(python, where)
+
     def __repr__(self) -> str:
         return f"Expression({self.text!r})"
 
     def __str__(self) -> str:
         return self.text
+
+
+_EXPRTK_CALLS = {"arcsin": "asin", "arccos": "acos", "arctan": "atan", "arctan2": "atan2", "minimum": "min",
+                 "maximum": "max", "where": "if"}
+_EXPRTK_OPS = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/", ast.Pow: "^", ast.Lt: "<", ast.LtE: "<=",
+               ast.Gt: ">", ast.GtE: ">=", ast.And: "and", ast.Or: "or"}
+
+
+def _exprtk(node) -> str:
+    """One checked node in exprtk syntax (:meth:`Expression.exprtk`)."""
+    if isinstance(node, ast.Constant):
+        return repr(float(node.value))
+    if isinstance(node, ast.Name):
+        return repr(float(_CONSTANTS["e"])) if node.id == "e" else node.id
+    if isinstance(node, ast.BinOp):
+        a, b = _exprtk(node.left), _exprtk(node.right)
+        if isinstance(node.op, ast.Mod):
+            return f"({a} - {b} * floor({a} / {b}))"
+        return f"({a} {_EXPRTK_OPS[type(node.op)]} {b})"
+    if isinstance(node, ast.UnaryOp):
+        return f"(-{_exprtk(node.operand)})" if isinstance(node.op, ast.USub) else _exprtk(node.operand)
+    if isinstance(node, ast.BoolOp):
+        return "(" + f" {_EXPRTK_OPS[type(node.op)]} ".join(_exprtk(v) for v in node.values) + ")"
+    if isinstance(node, ast.Compare):
+        parts = [node.left] + node.comparators
+        return "(" + " and ".join(f"({_exprtk(a)} {_EXPRTK_OPS[type(op)]} {_exprtk(b)})"
+                                  for a, op, b in zip(parts[:-1], node.ops, parts[1:])) + ")"
+    name = node.func.id
+    return f"{_EXPRTK_CALLS.get(name, name)}({', '.join(_exprtk(a) for a in node.args)})"
 
 
 class VectorExpression:

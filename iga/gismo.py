@@ -30,8 +30,11 @@ which G+Smo skips, named by a :class:`GismoExtensionWarning` (or refused with
   degree and quadrature of the exported problem): ``<AnalysisBases>``, so that
   the re-import analyses in the same spaces, not at the composed geometry's degree.
 
-Conditions given as Python callables have no expression: export refuses them,
-naming the tag.
+Numbers and formulas of x, y, z (:class:`iga.expressions.Expression`, what a
+pipeline's quoted values are) are written as G+Smo expressions (``^`` for
+powers, ``if`` for where; G+Smo's own parser evaluates them to round-off, tested
+with pygismo) and read back; conditions given as Python functions have no
+expression: export refuses them, naming the tag.
 
 :func:`load_gismo` reads a G+Smo file back as a :class:`geometry.MultiPatch`
 whose topology is detected from the geometry (and checked against the
@@ -52,6 +55,7 @@ from geometry.faces import FACE_NAMES
 from geometry.gismo_xml import GismoCondition, number_text, read_gismo, write_gismo
 
 from .errors import ProblemError
+from .expressions import Expression
 from .problem import HeatProblem
 
 __all__ = ["export_gismo", "load_gismo", "problem_from_gismo", "GismoExtensionWarning"]
@@ -60,9 +64,14 @@ _KINDS = {"dirichlet": "Dirichlet", "neumann": "Neumann", "robin": "Robin"}
 
 
 def _expression(field, what) -> str:
+    """A number or a formula (:class:`iga.expressions.Expression`) in G+Smo's expression syntax."""
+    if field.kind == "callable" and isinstance(field.spec, Expression):
+        return field.spec.exprtk()
     if field.kind != "number":
-        raise ProblemError(f"{what} is a {field.kind}; G+Smo XML export writes constants only (a number), "
-                           "evaluate it yourself or export the geometry alone with geometry.gismo_xml.write_gismo")
+        raise ProblemError(f"{what} is a {field.kind}; G+Smo XML export writes numbers and formulas of x, y, z "
+                           "(iga.expressions.Expression, what pipelines write in quotes), not Python functions: "
+                           "give it as Expression(\"...\"), or export the geometry alone with "
+                           "geometry.gismo_xml.write_gismo")
     return repr(float(field.spec))
 
 
@@ -223,21 +232,21 @@ def load_gismo(path) -> MultiPatch:
 
 
 def problem_from_gismo(path, **options):
-    """The :class:`iga.HeatProblem` of a G+Smo heat problem file (constants only; ``options`` for HeatProblem).
+    """The :class:`iga.HeatProblem` of a G+Smo heat problem file (``options`` for HeatProblem).
 
     Conductivity and source come from the functions labelled ``conductivity``
     and ``source`` (default 1 and 0); each boundary condition applies to its
-    tag ``bc{j}``.  Expressions must be numbers.
+    tag ``bc{j}``.  Expressions are numbers or formulas of x, y, z in G+Smo's syntax with the operators and
+    functions :class:`iga.expressions.Expression` reads (:meth:`~iga.expressions.Expression.from_exprtk`).
     """
     model = load_gismo(path)
     g = model.gismo
 
-    def number(expr, what):
+    def number(expr, what):  # a number, else a formula of x, y, z (what the export writes for formulas)
         try:
             return float(expr)
         except (TypeError, ValueError):
-            raise ProblemError(f"{path}: {what} is {show(expr)}; only constant expressions (numbers) are read") \
-                from None
+            return Expression.from_exprtk(expr, f"{path}: {what}")
 
     saved = _read_extensions(g, path)  # what the toolkit wrote beside G+Smo's elements
     if "conductivity" not in saved:

@@ -125,3 +125,55 @@ value = [0.0, 0.0, "{a} * x"]
     assert s["max_displacement_m"] == pytest.approx(a * 0.03, rel=1e-9)
     assert s["max_von_mises_Pa"] == pytest.approx(np.sqrt(3) * mu * a, rel=1e-9)
     assert np.abs(s["reactions_N"]["boundary"]).max() < 1e-9 * mu * a * 0.03 ** 2  # a self-balanced field
+
+
+FORMULAS = ["20 + 3000 * z", "-x ** 2 + y % 0.3 - +z / 7", "sin(pi * x) * exp(-y) + sqrt(abs(z)) + hypot(x, y)",
+            "where(x < 0.5, 80, where(0.5 <= x <= 1.5, 60, e))", "2 ** -x ** 2", "(-x) % 0.7 - x % -0.3",
+            "maximum(x, y) - minimum(y, z) + arctan2(y, x) + floor(2 * z) + ceil(x) + log10(z) + log(z)",
+            "where(x > 0 and y < 0 or z > 1, arcsin(x / 3), arccos(y / 3) + arctan(z))",
+            "sinh(x) + cosh(y) + tanh(z) + cos(x) + tan(y / 3)"]
+
+
+def test_formulas_leave_in_gismo_syntax_that_gismo_evaluates_alike_and_come_back():
+    gs = pytest.importorskip("pygismo")
+    rng = np.random.default_rng(1)
+    x = rng.uniform(-2, 2, (300, 3))
+    x[:, 2] = np.abs(x[:, 2]) + 0.1  # inside the logarithms' domain
+    for text in FORMULAS:
+        f = Expression(text)
+        ours, written = f(x), f.exprtk()
+        theirs = gs.core.gsFunctionExpr(written, 3).eval(np.ascontiguousarray(x.T))[0]  # G+Smo's own parser
+        assert np.abs(theirs - ours).max() <= 1e-14 * np.abs(ours).max(), (text, written)
+        back = Expression.from_exprtk(written)(x)
+        assert np.abs(back - ours).max() <= 1e-14 * np.abs(ours).max(), (text, written)
+    # a hand-written G+Smo formula of the same functions reads too
+    hand = Expression.from_exprtk("if(x < 1, asin(x/3)^2, max(y, z)) + atan2(y, x)")
+    X, Y, Z = x.T
+    assert np.allclose(hand(x), np.where(X < 1, np.arcsin(X / 3) ** 2, np.maximum(Y, Z)) + np.arctan2(Y, X),
+                       rtol=1e-15, atol=1e-15)
+    with pytest.raises(ProblemError, match="sample.xml: the value.*is not a formula"):
+        Expression.from_exprtk("x < 1 ? 2 : 3", "sample.xml: the value")  # exprtk's ternary: not this grammar
+
+
+def test_a_heat_problem_with_formula_conditions_goes_to_gismo_and_back(tmp_path):
+    import re
+
+    from geometry import primitives as pr
+    from iga import HeatProblem
+    from iga.gismo import export_gismo, problem_from_gismo
+
+    box = pr.twisted(pr.box(degrees=(2, 2, 2), elements=(2, 2, 2)), 0.3, axis_point=(0.5, 0.5))
+    p = (HeatProblem(box, source=Expression("10 * sin(pi * x) * y")).dirichlet("umin", Expression("20 + 30 * z ** 2"))
+         .neumann("umax", Expression("where(y < 0.5, 5, -3)")).robin("vmax", Expression("2 + x"), Expression("15 % 4 + y")))
+    path = export_gismo(p, tmp_path / "box.xml")
+    q = problem_from_gismo(path)
+    s1, s2 = p.solve(tol=1e-12), q.solve(tol=1e-12)
+    x = box.evaluate(np.random.default_rng(3).random((50, 3)))[:, :3]
+    assert np.abs(s1.probe(x) - s2.probe(x)).max() < 1e-10 * np.abs(s1.probe(x)).max()
+    gs = pytest.importorskip("pygismo")
+    fd = gs.io.gsFileData(str(path))
+    bc = gs.pde.gsBoundaryConditions()
+    fd.getId(int(re.search(r'<boundaryConditions multipatch="\d+" id="(\d+)"', path.read_text()).group(1)), bc)
+    assert bc.size() == 3
+    with pytest.raises(ProblemError, match="not Python functions: give it as Expression"):
+        export_gismo(HeatProblem(box).dirichlet("umin", lambda y: y[:, 0]), tmp_path / "lambda.xml")
