@@ -17,6 +17,7 @@ from numbers import Real
 import numpy as np
 
 from .errors import ProblemError
+from .expressions import Expression
 from geometry.errors import show
 from geometry.tolerances import ON_DOMAIN
 
@@ -153,8 +154,8 @@ class Conductivity:
             _check_spd(K6[None], np.zeros((0, 3)), "the model")
             self.tensor, self.K6 = True, K6
             return
-        if callable(spec) and not isinstance(spec, str):
-            self.callable = spec  # scalar or tensor, decided by what it returns
+        if callable(spec) and not isinstance(spec, (str, Expression)):
+            self.callable = spec  # scalar or tensor, decided by what it returns (a formula is a scalar)
             return
         self.scalar = ScalarField(spec, "conductivity", positive=True, model=model)
 

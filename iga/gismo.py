@@ -91,9 +91,11 @@ def export_gismo(problem, path, strict: bool = False) -> Path:
     if any(p.spline.dim != 3 for p in model.patches):
         raise ProblemError("G+Smo export writes trivariate models")
     k = problem.conductivity
-    if k.scalar is None or k.scalar.kind not in ("number", "channel"):
-        raise ProblemError("G+Smo export needs an isotropic conductivity that is a number or a channel; this "
-                           f"problem's is {'a tensor' if k.tensor else 'a callable'}: evaluate it into a channel")
+    formula = k.scalar is not None and k.scalar.kind == "callable" and isinstance(k.scalar.spec, Expression)
+    if k.scalar is None or not (k.scalar.kind in ("number", "channel") or formula):
+        raise ProblemError("G+Smo export needs an isotropic conductivity that is a number, a channel or a formula "
+                           f"(iga.Expression); this problem's is {'a tensor' if k.tensor else 'a Python function'}: "
+                           "evaluate it into a channel")
     identity = [(i.a, i.b, bool(i.swap), tuple(i.flip)) for i in model.interfaces if i.kind == "identity"]
     sides = [f for f in model.tags.get("boundary", []) if f[1] in FACE_NAMES]
     conditions, slot_conditions = [], []
@@ -104,8 +106,8 @@ def export_gismo(problem, path, strict: bool = False) -> Path:
         conditions.append(GismoCondition(_KINDS[c.kind], [f for f in faces if f[1] in FACE_NAMES], expr, coef))
         slot_conditions += [(j, f) for f in faces if f[1] not in FACE_NAMES]
     functions = {"source": _expression(problem.source, "the heat source")}
-    if k.scalar.kind == "number":
-        functions["conductivity"] = repr(float(k.scalar.spec))
+    if k.scalar.kind != "channel":
+        functions["conductivity"] = _expression(k.scalar, "the conductivity")
     branches = [(i.a, i.box, i.b) for i in model.interfaces if i.kind == "branch"]
     unseen = [what for what, n in ((f"{len(branches)} branch interfaces", len(branches)),
                                    (f"{len(slot_conditions)} conditions on slot faces", len(slot_conditions)),

@@ -163,7 +163,8 @@ def test_a_heat_problem_with_formula_conditions_goes_to_gismo_and_back(tmp_path)
     from iga.gismo import export_gismo, problem_from_gismo
 
     box = pr.twisted(pr.box(degrees=(2, 2, 2), elements=(2, 2, 2)), 0.3, axis_point=(0.5, 0.5))
-    p = (HeatProblem(box, source=Expression("10 * sin(pi * x) * y")).dirichlet("umin", Expression("20 + 30 * z ** 2"))
+    p = (HeatProblem(box, conductivity=Expression("1 + x ** 2"), source=Expression("10 * sin(pi * x) * y"))
+         .dirichlet("umin", Expression("20 + 30 * z ** 2"))
          .neumann("umax", Expression("where(y < 0.5, 5, -3)")).robin("vmax", Expression("2 + x"), Expression("15 % 4 + y")))
     path = export_gismo(p, tmp_path / "box.xml")
     q = problem_from_gismo(path)

@@ -135,7 +135,7 @@ def test_gismo_bad_input(tmp_path):
     p = HeatProblem(AFFINE).dirichlet("umin", lambda x: x[:, 0])
     with pytest.raises(ProblemError, match="dirichlet value on 'umin' is a callable"):
         export_gismo(p, tmp_path / "c.xml")
-    with pytest.raises(ProblemError, match="isotropic conductivity that is a number or a channel"):
+    with pytest.raises(ProblemError, match="isotropic conductivity that is a number, a channel or a formula"):
         export_gismo(HeatProblem(AFFINE, conductivity=np.diag([1.0, 2.0, 3.0])), tmp_path / "k.xml")
     assert not (tmp_path / "c.xml").exists() and not (tmp_path / "k.xml").exists()
 
