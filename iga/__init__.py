@@ -3,7 +3,8 @@
 Public names: :class:`HeatProblem`, :class:`Solution`, :class:`ElasticityProblem`, :class:`ElasticSolution`,
 :func:`effective_conductivity`, :func:`effective_stiffness`, :func:`effective_table` and :func:`macro_map`
 (graded macro models), :func:`write_vtu`, :func:`write_pieces` (one VTU piece per MPI rank and a ``.pvtu``),
-:class:`Expression` (a formula of the position, for values that G+Smo export writes), :class:`ProblemError`.  Command line: ``iga --help``.
+:class:`Expression` (a formula of the position, for values that G+Smo export writes),
+:class:`ProblemError`.  Command line: ``iga --help``.
 """
 
 from .errors import ProblemError, SingularProblemError

@@ -35,7 +35,8 @@ def formula(v, where, lo=None):
 
         return Expression(v, f"config key {where}")
     if not isinstance(v, Real) or isinstance(v, bool):
-        fail(where, f"must be a finite number or a formula of x, y, z in quotes (e.g. \"20 + 3000 * z\"), got {show(v)}")
+        fail(where, f"must be a finite number or a formula of x, y, z in quotes (e.g. \"20 + 3000 * z\"), "
+                    f"got {show(v)}")
     return number(v, where, lo=lo)
 
 

@@ -99,5 +99,6 @@ def _support(v, where) -> dict:
 def _load(v, where) -> dict:
     t = _table(v, where, {"kind", "tag", "value"}, ("kind", "tag", "value"))
     kind = _choice(t["kind"], f"{where}.kind", ("traction", "pressure"))
-    value = _formula(t["value"], f"{where}.value") if kind == "pressure" else _vector(t["value"], f"{where}.value", False)
+    where_value = f"{where}.value"
+    value = _formula(t["value"], where_value) if kind == "pressure" else _vector(t["value"], where_value, False)
     return {"kind": kind, "tag": _tag(t["tag"], f"{where}.tag"), "value": value}

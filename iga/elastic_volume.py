@@ -131,10 +131,11 @@ class ElasticVolume:
 
 
 def _numpy_blocks(space, pat, c, LM, shape) -> dict:
-    """The nine blocks' CSR data {(a, b): (P, nnz)} of patches on ``space`` (pattern ``pat``) through NumPy: each upper block from
-    its parametric terms in one banded form (:func:`iga.elastic_forms.block_terms`; the weights are in LM, so
-    fac 1), a diagonal block as H + H^T of its six symmetric half terms, an off-diagonal one from all nine (one
-    form, measured 1.8x faster than a symmetric and an antisymmetric part), the lower blocks as transposes."""
+    """The nine blocks' CSR data {(a, b): (P, nnz)} of patches on ``space`` (pattern ``pat``) through NumPy:
+    each upper block from its parametric terms in one banded form (:func:`iga.elastic_forms.block_terms`; the
+    weights are in LM, so fac 1), a diagonal block as H + H^T of its six symmetric half terms, an off-diagonal
+    one from all nine (one form, measured 1.8x faster than a symmetric and an antisymmetric part), the lower
+    blocks as transposes."""
     data = {}
     for a in range(3):
         for b in range(a, 3):

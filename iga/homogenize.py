@@ -222,8 +222,8 @@ def _unit_strains() -> list:
 def effective_stiffness(tile, youngs, poisson, degree_elevation: int = 1, refine: int = 0,
                         diagnostics: bool = False):
     """The effective elasticity tensor (6, 6) in Voigt notation (xx, yy, zz, yz, xz, xy; engineering shear
-    strains) of ``tile`` (as :func:`effective_conductivity` takes it) paving the unit cell periodically: the six cell problems
-    div C (eps(chi_m) + E_m) = 0 with chi_m periodic, C_mn = int E_m : C : (E_n + eps(chi_n)) dV.
+    strains) of ``tile`` (as :func:`effective_conductivity` takes it) paving the unit cell periodically: the
+    six cell problems div C (eps(chi_m) + E_m) = 0 with chi_m periodic, C_mn = int E_m : C : (E_n + eps(chi_n)) dV.
 
     ``youngs`` (Pa) and ``poisson``: numbers, channel names or callables of the cell point, as for
     :class:`iga.ElasticityProblem`; the correctors are fixed against the three translations they are defined

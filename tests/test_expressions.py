@@ -47,7 +47,8 @@ def test_formulas_evaluate_as_numpy_does_at_random_points():
     ("[x, y]", "uses list"),
 ])
 def test_anything_but_a_formula_is_refused_naming_the_key(text, why):
-    with pytest.raises(ProblemError, match="config key bc\\[0\\].value: .*" + why.replace("(", "\\(").replace(")", "\\)")):
+    pattern = "config key bc\\[0\\].value: .*" + why.replace("(", "\\(").replace(")", "\\)")
+    with pytest.raises(ProblemError, match=pattern):
         Expression(text, "config key bc[0].value")
 
 
@@ -63,7 +64,8 @@ def test_formulas_too_long_or_too_deep_are_refused_not_crashed():
 
 def test_a_formula_that_is_not_finite_somewhere_names_the_point():
     f = Expression("log(x)", "config key bc[1].value")
-    with pytest.raises(ProblemError, match=r"config key bc\[1\].value: 'log\(x\)' is not finite at x = \[-1.0, 0.0, 0.0\]"):
+    with pytest.raises(ProblemError, match=r"config key bc\[1\].value: 'log\(x\)' is not finite at "
+                                           r"x = \[-1.0, 0.0, 0.0\]"):
         f(np.array([[1.0, 0, 0], [-1.0, 0, 0]]))
     with pytest.raises(ProblemError, match="is not finite"):
         Expression("10 ** 10 ** 10")(np.zeros((2, 3)))  # an overflow is inf, refused, not an OverflowError
@@ -165,7 +167,8 @@ def test_a_heat_problem_with_formula_conditions_goes_to_gismo_and_back(tmp_path)
     box = pr.twisted(pr.box(degrees=(2, 2, 2), elements=(2, 2, 2)), 0.3, axis_point=(0.5, 0.5))
     p = (HeatProblem(box, conductivity=Expression("1 + x ** 2"), source=Expression("10 * sin(pi * x) * y"))
          .dirichlet("umin", Expression("20 + 30 * z ** 2"))
-         .neumann("umax", Expression("where(y < 0.5, 5, -3)")).robin("vmax", Expression("2 + x"), Expression("15 % 4 + y")))
+         .neumann("umax", Expression("where(y < 0.5, 5, -3)"))
+         .robin("vmax", Expression("2 + x"), Expression("15 % 4 + y")))
     path = export_gismo(p, tmp_path / "box.xml")
     q = problem_from_gismo(path)
     s1, s2 = p.solve(tol=1e-12), q.solve(tol=1e-12)
