@@ -1,15 +1,19 @@
-"""Values written as formulas of the position, for pipelines: ``value = "20 + 3000 * z"``.
+"""Values written as formulas of the position: ``value = "20 + 3000 * z"`` in a pipeline, ``Expression(...)``
+in a script, ``<Function type="FunctionExpr">`` in a G+Smo file.
 
-A configuration value that varies over a face (a Dirichlet temperature, a flux,
-a film coefficient, a displacement or a traction component) is written as an
-arithmetic expression of the physical coordinates ``x``, ``y``, ``z`` (model
-units, m) in Python syntax: numbers, ``+ - * / ** %``, parentheses, ``pi``,
-``e``, the functions in :data:`FUNCTIONS` (NumPy's, elementwise) and
-comparisons inside ``where(condition, a, b)``.  The text is parsed once, when
-the configuration is checked, into a syntax tree that holds nothing else (no
-names but these, no attributes, no indexing, no other calls), so a
-configuration file can say no more than a formula; :class:`Expression` then
-evaluates it on whole point arrays, as the problems' callables are.
+A value that varies over a face (a Dirichlet temperature, a flux, a film
+coefficient, a displacement or a traction component, a source or a
+conductivity) is written as an arithmetic expression of the physical
+coordinates ``x``, ``y``, ``z`` (model units, m) in Python syntax: numbers,
+``+ - * / ** %``, parentheses, ``pi``, ``e``, the functions in
+:data:`FUNCTIONS` (NumPy's, elementwise) and comparisons, joined by ``and`` /
+``or``, inside ``where(condition, a, b)``.  The text is parsed once, when the
+configuration is checked, into a syntax tree that holds nothing else (no names
+but these, no attributes, no indexing, no other calls), so a configuration
+file can say no more than a formula; :class:`Expression` then evaluates it on
+whole point arrays, as the problems' callables are.  The same tree is written
+in G+Smo's expression syntax (exprtk) for :func:`iga.gismo.export_gismo`, and
+read back from it.
 """
 
 from __future__ import annotations
@@ -37,6 +41,7 @@ _UNARY = {ast.USub: operator.neg, ast.UAdd: operator.pos}
 _COMPARE = {ast.Lt: operator.lt, ast.LtE: operator.le, ast.Gt: operator.gt, ast.GtE: operator.ge}
 _EXAMPLE = "e.g. \"20 + 3000 * z\" or \"where(x < 0.01, 80, 20)\""
 _MAX_LENGTH = 2000  # characters: a formula, not a program (deeper nesting exhausts Python's parser)
+_MAX_EXPORTED = 100_000  # characters of a formula written in G+Smo's syntax
 
 
 class Expression:
@@ -154,7 +159,12 @@ class Expression:
         """The formula in G+Smo's expression syntax (``gsFunctionExpr``, exprtk), fully parenthesised: ``^`` for
         powers, ``if`` for where, ``asin`` ... ``min``, ``max`` for NumPy's names, Python's floored ``a % b`` as
         ``a - b floor(a / b)`` (exprtk's ``%`` truncates), ``e`` as its digits."""
-        return _exprtk(self._tree)
+        try:
+            return _exprtk(self._tree)
+        except _TooLong:  # each % spells its operands out twice: nested ones double the text
+            raise ProblemError(f"{self.where}: {self._shown} becomes more than {_MAX_EXPORTED} characters in "
+                               "G+Smo's syntax (each % writes its operands twice); write it with fewer nested %") \
+                from None
 
     @classmethod
     def from_exprtk(cls, text: str, where: str = "expression") -> "Expression":
@@ -179,6 +189,10 @@ _EXPRTK_OPS = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/", ast.Pow:
                ast.Gt: ">", ast.GtE: ">=", ast.And: "and", ast.Or: "or"}
 
 
+class _TooLong(Exception):
+    """A formula's G+Smo text outgrows :data:`_MAX_EXPORTED` (caught by :meth:`Expression.exprtk`)."""
+
+
 def _exprtk(node) -> str:
     """One checked node in exprtk syntax (:meth:`Expression.exprtk`)."""
     if isinstance(node, ast.Constant):
@@ -188,6 +202,8 @@ def _exprtk(node) -> str:
     if isinstance(node, ast.BinOp):
         a, b = _exprtk(node.left), _exprtk(node.right)
         if isinstance(node.op, ast.Mod):
+            if 2 * (len(a) + len(b)) > _MAX_EXPORTED:
+                raise _TooLong
             return f"({a} - {b} * floor({a} / {b}))"
         return f"({a} {_EXPRTK_OPS[type(node.op)]} {b})"
     if isinstance(node, ast.UnaryOp):

@@ -153,6 +153,11 @@ def test_formulas_leave_in_gismo_syntax_that_gismo_evaluates_alike_and_come_back
     X, Y, Z = x.T
     assert np.allclose(hand(x), np.where(X < 1, np.arcsin(X / 3) ** 2, np.maximum(Y, Z)) + np.arctan2(Y, X),
                        rtol=1e-15, atol=1e-15)
+    nested = "x"
+    for _ in range(60):  # each % is written a - b floor(a / b): its operands twice
+        nested = f"({nested} % 1.5)"
+    with pytest.raises(ProblemError, match="more than 100000 characters in G\\+Smo's syntax"):
+        Expression(nested).exprtk()
     with pytest.raises(ProblemError, match="sample.xml: the value.*is not a formula"):
         Expression.from_exprtk("x < 1 ? 2 : 3", "sample.xml: the value")  # exprtk's ternary: not this grammar
 
