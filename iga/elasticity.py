@@ -323,8 +323,8 @@ def _refuse_held_load(load, fd, t: np.ndarray, supports: list) -> None:
     held = [a for a in range(3) if key in supports[a] and np.abs(t[:, a]).max(initial=0.0) > 1e-9 * size]
     if held:
         a = held[0]
-        raise ProblemError(f"the {load.kind} on {show(load.tag)} has {'an' if a == 0 else 'a'} {_AXES[a]} component on "
-                           f"patch {fd.patch} face "
-                           f"{fd.face}, where the displacement condition on {supports[a][key][1]} prescribes "
-                           f"{_AXES[a]}: a load on a prescribed component only changes the reaction; drop it there or "
-                           "free that component (dirichlet(..., components=...))")
+        article = "an" if a == 0 else "a"  # an x, a y, a z
+        raise ProblemError(f"the {load.kind} on {show(load.tag)} has {article} {_AXES[a]} component on patch "
+                           f"{fd.patch} face {fd.face}, where the displacement condition on {supports[a][key][1]} "
+                           f"prescribes {_AXES[a]}: a load on a prescribed component only changes the reaction; drop "
+                           "it there or free that component (dirichlet(..., components=...))")
