@@ -16,7 +16,7 @@ folder.  The schema (README, "Pipelines")::
     [[primitive]]  name, map, tile, counts, priority        (scheme "vrep")
     [second_level] tile, counts, degree, seal               (optional)
     [reduce]   degree, check                                (optional)
-    [material] conductivity = number | channel | 6 channels | 3 x 3 matrix, source = number
+    [material] conductivity = number | channel | 6 channels | 3 x 3 matrix, source = number | formula of x, y, z
     [[bc]]     kind = "dirichlet" | "neumann" | "robin", tag, value | (h, ambient): numbers or formulas of x, y, z
     [physics]  kind, youngs, poisson, expansion, reference, hold_rigid; [[support]], [[load]]
     [solver]   method, tol, maxiter, refine, degree_elevation, degree, quadrature_extra
@@ -198,7 +198,7 @@ def validate(config, base_dir=".") -> dict:
                            "and [[load]] (or use kind = 'thermo-elastic')")
     mat = _table(config.get("material", {}), "material", {"conductivity", "source"})
     cfg["material"] = {"conductivity": _conductivity(mat.get("conductivity", 1.0), "material.conductivity"),
-                       "source": _number(mat.get("source", 0.0), "material.source")}
+                       "source": _formula(mat.get("source", 0.0), "material.source")}
     bcs = config.get("bc", [])
     bcs = bcs if isinstance(bcs, list) else [bcs]
     if not bcs and physics["kind"] in ("heat", "thermo-elastic"):

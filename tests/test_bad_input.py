@@ -708,7 +708,8 @@ CONFIG = [
     case("scale negative", _validate(paving__scale=-1.0), ProblemError, r"paving\.scale: must be > 0, got -1\.0"),
     case("conductivity text", _validate(material__conductivity=True), ProblemError,
          r"material\.conductivity: must be a finite number, got True"),
-    case("source text", _validate(material__source="x"), ProblemError, r"material\.source.*'x'"),
+    case("source text", _validate(material__source="heat"), ProblemError,
+         r"material\.source: 'heat' names 'heat', which is neither a coordinate nor a constant"),
     case("bc kind", _validate(bc__0__kind="fixed"), ProblemError, r"bc\[0\]\.kind: must be one of"),
     case("bc value text", _validate(bc__0__value="hot"), ProblemError, r"bc\[0\]\.value: 'hot' names 'hot', which is "
          r"neither a coordinate nor a constant"),

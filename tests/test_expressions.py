@@ -108,6 +108,12 @@ value = "20 + 1000 * x - 500 * y + 200 * z"
     T = np.array(s["probes"]["temperature_C"])
     want = 20 + 1000 * centres[:, 0] - 500 * centres[:, 1] + 200 * centres[:, 2]
     assert np.abs(T - want).max() < 1e-9 * np.abs(want).max()
+    # a quadratic T = 20 + 1000 x^2 takes the source -k lap T = -32000 (W/m^3): exact once the trilinear tiles'
+    # spaces are raised to degree 2
+    cfg["material"]["source"], cfg["bc"][0]["value"] = "-32000 + 0 * x", "20 + 1000 * x ** 2"
+    cfg["output"]["dir"], cfg["solver"] = str(tmp_path / "quadratic"), {"degree_elevation": 1}
+    T = np.array(run_pipeline(cfg, progress=False)["probes"]["temperature_C"])
+    assert np.abs(T - (20 + 1000 * centres[:, 0] ** 2)).max() < 1e-9 * 20
 
 
 def test_an_affine_displacement_written_as_formulas_is_reproduced_through_a_pipeline(tmp_path):
