@@ -73,18 +73,14 @@ def physics(config, surface: str | None = None) -> dict:
 
 
 def _vector(v, where, broadcast: bool):
-    """Three numbers or formulas of x, y, z (:mod:`iga.expressions`), or with ``broadcast`` one for all three: a
-    list of numbers, or a callable (N, 3) -> (N, 3) when a formula is among them."""
-    from .expressions import VectorExpression
-
+    """Three numbers or formulas of x, y, z (:mod:`iga.expressions`), or with ``broadcast`` one for all three
+    (:class:`iga.vector_data.VectorField` takes either)."""
     if broadcast and not isinstance(v, list):
-        value = _formula(v, where)
-        return VectorExpression([value] * 3) if callable(value) else value
+        return _formula(v, where)
     if not (isinstance(v, list) and len(v) == 3):
         _fail(where, f"must be {'a number, a formula or ' if broadcast else ''}a list of three numbers or formulas, "
               f"got {show(v)}")
-    parts = [_formula(x, f"{where}[{i}]") for i, x in enumerate(v)]
-    return VectorExpression(parts) if any(callable(p) for p in parts) else parts
+    return [_formula(x, f"{where}[{i}]") for i, x in enumerate(v)]
 
 
 def _support(v, where) -> dict:

@@ -11,17 +11,22 @@ from geometry.errors import show
 from .coefficients import is_number
 from .dirichlet import DirichletData, project_dirichlet
 from .errors import ProblemError
+from .expressions import Expression, VectorExpression
 
 __all__ = ["VectorField", "component_field", "merge_dirichlet", "pin_dofs"]
 
 
 class VectorField:
-    """Three numbers or a callable ``v(x (N, 3)) -> (N, 3)``; with ``broadcast`` one number serves all three."""
+    """Three numbers or a callable ``v(x (N, 3)) -> (N, 3)``; with ``broadcast`` one number (or one
+    :class:`iga.Expression`) serves all three; three numbers or Expressions make a callable component by component."""
 
     def __init__(self, spec, what: str, broadcast: bool = False):
         self.what = what
-        if broadcast and is_number(spec):
+        if broadcast and (is_number(spec) or isinstance(spec, Expression)):
             spec = [spec] * 3
+        if isinstance(spec, (list, tuple)) and len(spec) == 3 and any(isinstance(c, Expression) for c in spec) \
+                and all(isinstance(c, Expression) or is_number(c) for c in spec):
+            spec = VectorExpression(spec)
         if callable(spec):
             self.spec, self.kind = spec, "callable"
             return

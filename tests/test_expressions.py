@@ -192,3 +192,17 @@ def test_a_heat_problem_with_formula_conditions_goes_to_gismo_and_back(tmp_path)
     assert bc.size() == 3
     with pytest.raises(ProblemError, match="not Python functions: give it as Expression"):
         export_gismo(HeatProblem(box).dirichlet("umin", lambda y: y[:, 0]), tmp_path / "lambda.xml")
+
+
+def test_scripts_give_vector_values_as_lists_of_numbers_and_formulas():
+    from geometry import primitives as pr
+    from iga import ElasticityProblem
+
+    box = pr.box(degrees=(2, 2, 2), elements=(2, 2, 2))
+    x = np.random.default_rng(4).uniform(0.1, 0.9, (20, 3))
+    s = ElasticityProblem(box, 1.0, 0.3).dirichlet("boundary", [0, 0, Expression("1e-3 * x")]).solve()
+    assert np.abs(s.displacement(x) - np.c_[0 * x[:, :2], 1e-3 * x[:, 0]]).max() < 1e-15  # affine: exact
+    t = ElasticityProblem(box, 1.0, 0.3).dirichlet("boundary", Expression("1e-3 * y")).solve()  # all three
+    assert np.abs(t.displacement(x) - 1e-3 * x[:, [1, 1, 1]]).max() < 1e-15
+    with pytest.raises(ProblemError, match=r"traction on 'umax' callable must return shape \(\d+, 3\)"):
+        ElasticityProblem(box, 1.0, 0.3).dirichlet("umin").traction("umax", Expression("x")).solve()
