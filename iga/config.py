@@ -16,7 +16,7 @@ folder.  The schema (README, "Pipelines")::
     [[primitive]]  name, map, tile, counts, priority        (scheme "vrep")
     [second_level] tile, counts, degree, seal               (optional)
     [reduce]   degree, check                                (optional)
-    [material] conductivity = number | channel | 6 channels | 3 x 3 matrix, source = number | formula of x, y, z
+    [material] conductivity = number | channel | {formula} | 6 channels | 3 x 3 matrix, source = number | formula
     [[bc]]     kind = "dirichlet" | "neumann" | "robin", tag, value | (h, ambient): numbers or formulas of x, y, z
     [physics]  kind, youngs, poisson, expansion, reference, hold_rigid; [[support]], [[load]]
     [solver]   method, tol, maxiter, refine, degree_elevation, degree, quadrature_extra
@@ -29,8 +29,9 @@ from __future__ import annotations
 from pathlib import Path
 
 import solvers
-from .config_checks import (boolean as _bool, choice as _choice, fail as _fail, formula as _formula, integer as _int,
-                            number as _number, string as _str, table as _table, tag as _tag)
+from .config_checks import (boolean as _bool, choice as _choice, fail as _fail, formula as _formula,
+                            formula_table as _formula_table, integer as _int, number as _number, string as _str,
+                            table as _table, tag as _tag)
 from .config_model import (NO_MAP, NO_TILE, map_section, paving_section, polygon_tile, primitives, reduce_section,
                            second_level, surface_reason, tile_section)
 from .config_physics import physics as _physics
@@ -70,6 +71,8 @@ def _bc(v, where) -> dict:
 
 
 def _conductivity(v, where):
+    if isinstance(v, dict):
+        return _formula_table(v, where)
     if isinstance(v, str):
         return v
     if isinstance(v, list) and len(v) == 6 and all(isinstance(c, str) for c in v):

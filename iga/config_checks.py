@@ -10,7 +10,7 @@ from geometry.errors import show
 
 from .errors import ProblemError
 
-__all__ = ["fail", "number", "formula", "integer", "boolean", "string", "choice", "ints", "table", "kwargs", "tag"]
+__all__ = ["fail", "number", "formula", "formula_table", "integer", "boolean", "string", "choice", "ints", "table", "kwargs", "tag"]
 
 
 def fail(where: str, message: str):
@@ -38,6 +38,18 @@ def formula(v, where, lo=None):
         fail(where, f"must be a finite number or a formula of x, y, z in quotes (e.g. \"20 + 3000 * z\"), "
                     f"got {show(v)}")
     return number(v, where, lo=lo)
+
+
+def formula_table(v, where):
+    """A material given as ``{formula = "..."}`` (a string alone is a channel name there): the
+    :class:`iga.expressions.Expression`, or None when ``v`` is not a table."""
+    if not isinstance(v, dict):
+        return None
+    t = table(v, where, {"formula"}, ("formula",))
+    if not isinstance(t["formula"], str):
+        fail(f"{where}.formula", f"must be a formula of x, y, z in quotes (e.g. \"16 * (1 + x)\"), got "
+                                 f"{show(t['formula'])}")
+    return formula(t["formula"], f"{where}.formula")
 
 
 def integer(v, where, lo=0) -> int:

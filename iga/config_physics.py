@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from geometry.errors import show
 
-from .config_checks import choice as _choice, fail as _fail, formula as _formula, number as _number, string as _str
+from .config_checks import choice as _choice, fail as _fail, formula as _formula, formula_table as _formula_table
+from .config_checks import number as _number, string as _str
 from .config_checks import table as _table, tag as _tag
 from .errors import ProblemError
 
@@ -14,7 +15,9 @@ PHYSICS = ("heat", "elasticity", "thermo-elastic", "none")
 
 
 def _material_value(v, where, lo=None, hi=None):
-    """A number (checked against (lo, hi)) or a channel name."""
+    """A number (checked against (lo, hi)), a channel name or ``{formula = "..."}`` (checked where evaluated)."""
+    if isinstance(v, dict):
+        return _formula_table(v, where)
     return _str(v, where) if isinstance(v, str) else _number(v, where, lo=lo, hi=hi)
 
 
