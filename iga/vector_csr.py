@@ -36,12 +36,18 @@ def pattern_nnz(space) -> int:
     return total
 
 
+#: scalar non-zeros up to which a pattern keeps its interleaving order (24 bytes per non-zero for c = 3: 6 MiB)
+_KEEP_NNZ = 1 << 18
+
+
 def interleaved(pat: CSRPattern, c: int) -> np.ndarray:
     """The order (c nnz,) of c blocks' data on ``pat`` along the rows of one component of a component-major
     operator: stacked as entry b nnz + k of block b, they run as row 0 of blocks 0 .. c - 1, then row 1 of
-    each, ... (module notes).  Kept on the pattern (``pat.derived``)."""
+    each, ... (module notes).  Kept on the pattern (``pat.derived``) when it is small (the many small patches of
+    micro-structures, whose patterns :func:`iga.assembly.pattern` caches); a large one's is made each time."""
     key = ("interleaved", c)
-    if key not in pat.derived:
+    order = pat.derived.get(key)
+    if order is None:
         indptr = np.asarray(pat.indptr, np.int64)
         nnz = int(indptr[-1])
         length = np.diff(indptr)
@@ -51,8 +57,9 @@ def interleaved(pat: CSRPattern, c: int) -> np.ndarray:
         dest = (c * start + (np.arange(nnz) - start))[None, :] + np.arange(c)[:, None] * length[row][None, :]
         order = np.empty(c * nnz, np.int64)
         order[dest.ravel()] = np.arange(c * nnz)
-        pat.derived[key] = order
-    return pat.derived[key]
+        if nnz <= _KEEP_NNZ:
+            pat.derived[key] = order
+    return order
 
 
 def _runs(target: np.ndarray, starts: np.ndarray, width: int) -> np.ndarray | None:
