@@ -101,6 +101,29 @@ class ScalarField:
         return v
 
 
+def user_values(fn, x: np.ndarray, tail: tuple, what: str, where: str, constant: bool = False) -> np.ndarray:
+    """A user's callable at the points x (N, 3) as an (N,) + ``tail`` float array: one that fails, returns another
+    shape or values that are not finite raises :class:`ProblemError` naming ``what`` and ``where`` (a
+    ProblemError of its own, e.g. from an :class:`iga.Expression`, passes as it is).  ``constant``: a number
+    returned stands for every point."""
+    try:
+        v = np.asarray(fn(x), float)
+    except ProblemError:
+        raise
+    except Exception as exc:  # the user's callable: say whose and where
+        raise ProblemError(f"{what} failed on {where}: {type(exc).__name__}: {exc}") from None
+    shape = (len(x),) + tuple(tail)
+    if constant and v.ndim == 0:
+        v = np.full(shape, float(v))
+    if v.shape != shape:
+        raise ProblemError(f"{what} must return shape {shape} for x of shape {x.shape}, got {v.shape}")
+    if not np.all(np.isfinite(v)):
+        bad = np.argmax(~np.isfinite(v.reshape(len(x), -1)).any(axis=1))
+        raise ProblemError(f"{what} returned values that are not finite on {where}, e.g. at x = "
+                           f"{np.round(x[bad], 6).tolist()}")
+    return v
+
+
 def _call(fn, x, what, where) -> np.ndarray:
     try:
         return np.asarray(fn(x), float)

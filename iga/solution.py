@@ -6,7 +6,7 @@ import numpy as np
 
 from geometry import SplineFunction
 
-from .coefficients import tensor_matrix
+from .coefficients import tensor_matrix, user_values
 from .errors import ProblemError
 from .fields import integrate_fields
 from geometry.chain import patch_geometry_points
@@ -248,24 +248,9 @@ def check_reference(fn, what: str) -> None:
 
 
 def reference_values(fn, x: np.ndarray, tail: tuple, what: str) -> np.ndarray:
-    """``fn(x)`` of a user's exact solution or gradient as an (N,) + ``tail`` float array (a scalar is taken as a
-    constant); a callable that fails, returns another shape or values that are not finite raises
-    :class:`ProblemError` naming ``what``."""
-    try:
-        v = np.asarray(fn(x), float)
-    except ProblemError:
-        raise
-    except Exception as exc:  # the user's callable: say whose
-        raise ProblemError(f"{what} failed at x of shape {x.shape}: {type(exc).__name__}: {exc}") from None
-    shape = (len(x),) + tuple(tail)
-    if v.ndim == 0:
-        v = np.full(shape, float(v))
-    if v.shape != shape:
-        raise ProblemError(f"{what} must return shape {shape} for x of shape {x.shape}, got {v.shape}")
-    if not np.all(np.isfinite(v)):
-        raise ProblemError(f"{what} returned values that are not finite, e.g. at x = "
-                           f"{np.round(x[np.argmax(~np.isfinite(v.reshape(len(x), -1)).any(axis=1))], 6).tolist()}")
-    return v
+    """``fn(x)`` of a user's exact solution or gradient as an (N,) + ``tail`` float array (a number stands for
+    every point), checked as :func:`iga.coefficients.user_values` checks material callables."""
+    return user_values(fn, x, tail, what, "the model", constant=True)
 
 
 def physical_gradient(J: np.ndarray, dxi: np.ndarray, where: str, params=None) -> np.ndarray:

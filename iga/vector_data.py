@@ -8,7 +8,7 @@ import scipy.sparse as sp
 
 from geometry.errors import show
 
-from .coefficients import is_number
+from .coefficients import is_number, user_values
 from .dirichlet import DirichletData, project_dirichlet
 from .errors import ProblemError
 from .expressions import Expression, VectorExpression
@@ -45,17 +45,7 @@ class VectorField:
         n = len(x)
         if self.kind == "vector":
             return np.broadcast_to(self.spec, (n, 3))
-        try:
-            v = np.asarray(self.spec(x), float)
-        except ProblemError:
-            raise
-        except Exception as exc:  # the user's callable: say whose and where
-            raise ProblemError(f"{self.what} callable failed on {where}: {type(exc).__name__}: {exc}") from None
-        if v.shape != (n, 3):
-            raise ProblemError(f"{self.what} callable must return shape ({n}, 3) for x of shape ({n}, 3), got {v.shape}")
-        if not np.all(np.isfinite(v)):
-            raise ProblemError(f"{self.what} callable returned non-finite values on {where}")
-        return v
+        return user_values(self.spec, x, (3,), f"{self.what} callable", where)
 
 
 class _Component:
