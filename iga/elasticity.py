@@ -34,7 +34,7 @@ from .forms import boundary_load
 from .model import tag_faces
 from .rigid import free_modes, greville_points, rigid_modes
 from .system import solve_system
-from .tags import as_expression, check_expression, mentions_rest
+from .tags import as_expression, check_expression, condition_faces, mentions_rest
 from .vector_data import VectorField, component_field, merge_dirichlet, pin_dofs
 
 __all__ = ["ElasticityProblem"]
@@ -104,14 +104,6 @@ class ElasticityProblem:
         covered = {f for c in self.supports + self.loads if not mentions_rest(self.model, c.tag)
                    for f in tag_faces(self.model, c.tag)}
         return tag_faces(self.model, tag, [f for f in self.model.tags.get("boundary", []) if f not in covered])
-
-    def _condition_faces(self, tag) -> list:
-        """The faces a support or load acts on once every condition is known; a ``rest`` that the other conditions
-        leave empty is refused (as :class:`iga.HeatProblem` does)."""
-        faces = self.tag_faces(tag)
-        if not faces:
-            raise ProblemError(f"tag {show(tag)} names no face here (the other conditions cover them all)")
-        return faces
 
     def _faces_of(self, tag: str, what: str) -> list:
         if mentions_rest(self.model, tag):
@@ -209,7 +201,7 @@ class ElasticityProblem:
         change the reaction there)."""
         n, applied = self.ndof, {}
         for load in self.loads:
-            keys = self._condition_faces(load.tag)
+            keys = condition_faces(self.tag_faces(load.tag), load.tag)
             fds = self.faces(keys)
             force = np.zeros(3)
             for fd in fds:
@@ -229,7 +221,7 @@ class ElasticityProblem:
         out = [{}, {}, {}]
         owner = [{}, {}, {}]
         for s in self.supports:
-            for key in self._condition_faces(s.tag):
+            for key in condition_faces(self.tag_faces(s.tag), s.tag):
                 for a in s.components:
                     if key in out[a]:
                         raise ProblemError(f"patch {key[0]} face {key[1]}: displacement component {_AXES[a]} is "

@@ -32,7 +32,7 @@ from .assembly import add_within
 from .forms import boundary_load, boundary_mass
 from .model import tag_faces
 from .rank_setup import rank_setup
-from .tags import as_expression, check_expression, mentions_rest
+from .tags import as_expression, check_expression, condition_faces, mentions_rest
 from .solution import Solution
 from . import distributed
 from .multilevel import solver_options
@@ -174,10 +174,7 @@ class HeatProblem:
         """{kind: {(patch, face): condition}}; one condition per face and kind, and Dirichlet faces alone."""
         out = {"dirichlet": {}, "neumann": {}, "robin": {}}
         for c in self.conditions:
-            faces = self.tag_faces(c.tag)
-            if not faces:
-                raise ProblemError(f"tag {show(c.tag)} names no face here (the other conditions cover them all)")
-            for key in faces:
+            for key in condition_faces(self.tag_faces(c.tag), c.tag):
                 other = out[c.kind].get(key)
                 if other is not None:
                     raise ProblemError(

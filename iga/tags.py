@@ -18,7 +18,8 @@ from geometry.errors import show
 
 from .errors import ProblemError
 
-__all__ = ["REST", "resolve", "check_expression", "mentions_rest", "as_expression", "parse_expression"]
+__all__ = ["REST", "resolve", "check_expression", "mentions_rest", "as_expression", "parse_expression",
+           "condition_faces"]
 
 REST = "rest"
 _TOKENS = re.compile(r"\s+-\s+|\||&|\(|\)")
@@ -134,6 +135,14 @@ def mentions_rest(model, tag) -> bool:
     """Whether ``tag`` uses ``rest`` (then it resolves after the problem's other conditions)."""
     items = list(tag) if isinstance(tag, (list, tuple)) else [tag]
     return any(isinstance(t, str) and t not in model.tags and REST in _tokens(t) for t in items)
+
+
+def condition_faces(faces: list, tag) -> list:
+    """The faces a condition on ``tag`` resolved to, refused when there are none (a ``rest`` that the problem's
+    other conditions leave empty)."""
+    if not faces:
+        raise ProblemError(f"tag {show(tag)} names no face here (the other conditions cover them all)")
+    return faces
 
 
 def check_expression(model, tag) -> None:
