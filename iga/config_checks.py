@@ -9,6 +9,7 @@ from numbers import Real
 from geometry.errors import show
 
 from .errors import ProblemError
+from .expressions import Expression
 
 __all__ = ["fail", "number", "formula", "formula_table", "integer", "boolean", "string", "choice", "ints", "table", "kwargs", "tag"]
 
@@ -31,8 +32,6 @@ def formula(v, where, lo=None):
     """A number (checked against ``lo``) or a formula of the position x, y, z written as a string
     (:class:`iga.expressions.Expression`, checked for its grammar now and for finite values where evaluated)."""
     if isinstance(v, str):
-        from .expressions import Expression
-
         return Expression(v, f"config key {where}")
     if not isinstance(v, Real) or isinstance(v, bool):
         fail(where, f"must be a finite number or a formula of x, y, z in quotes (e.g. \"20 + 3000 * z\"), "

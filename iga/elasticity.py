@@ -251,14 +251,15 @@ class ElasticityProblem:
                 options["kronecker"] = ks
         return options
 
-    def assemble(self):
+    def assemble(self, supports: list | None = None):
         """(K, f, book): the stiffness (3 ndof x 3 ndof CSR, component-major: unknown a ndof + i is component a
         of DOF i; N/m), the load vector (N: body force, thermal strain, tractions and pressures) and
         {"work": {"body": int f dV (N, (3,))}, "applied": {tag: resultant (N, (3,))}}; sets
-        ``timings["assembly"]`` (s).  :meth:`solve` calls it."""
+        ``timings["assembly"]`` (s).  :meth:`solve` calls it with the :meth:`_support_faces` it resolved."""
+        supports = self._support_faces() if supports is None else supports
         t0 = time.perf_counter()
         K, f, work = ElasticVolume(self.disc).assemble(self.youngs, self.poisson, self.body, self.thermal_strain)
-        applied = self._loads(f, self._support_faces())
+        applied = self._loads(f, supports)
         self.timings["assembly"] = time.perf_counter() - t0
         return K, f, {"work": work, "applied": applied}
 
@@ -274,7 +275,7 @@ class ElasticityProblem:
             raise ProblemError(f"hold_rigid pins three corners against rigid motion only, but displacement conditions "
                                f"on {', '.join(tags)} already hold the body: the pins would add supports (and "
                                "reactions) of their own; use either the conditions or hold_rigid")
-        K, f, book = self.assemble()
+        K, f, book = self.assemble(supports)
         work, applied = book["work"], book["applied"]
         t1 = time.perf_counter()
         scalar = prolongation(self.model, self.spaces, self.offsets) if needs_constraints(self.model, self.spaces) \
