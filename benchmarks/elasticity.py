@@ -73,7 +73,8 @@ def compare(quick: bool, repeats: int = 5) -> list[dict]:
                      # the same time per stored non-zero (elastic: 9x heat's) and per parametric coefficient
                      # term per Gauss point (45 for the six computed elastic blocks, 6 for heat's one): the
                      # measures the note of issue #31 offers beside the 6x target
-                     "per nnz": (min(ea) / elastic_nnz) / (min(ha) / heat_nnz), "per term": min(ea) / min(ha) / (ELASTIC_TERMS / 6),
+                     "per nnz": (min(ea) / elastic_nnz) / (min(ha) / heat_nnz),
+                     "per term": min(ea) / min(ha) / (ELASTIC_TERMS / 6),
                      "heat its": hs.info["solver"]["iterations"], "elastic its": es.info["solver"]["iterations"],
                      "its ratio": es.info["solver"]["iterations"] / max(hs.info["solver"]["iterations"], 1),
                      "its target": 2.0, "heat s": th, "elastic s": te,
