@@ -30,7 +30,6 @@ from concurrent.futures import ThreadPoolExecutor
 from functools import partial
 
 import numpy as np
-from threadpoolctl import threadpool_limits
 
 from . import knots as kn
 from . import progress
@@ -42,7 +41,7 @@ from .compose_curves import compose_curve_split
 from .errors import SplineError
 from .grouping import ObjectIndex
 from .placed_points import IDENTITY, placements
-from .resources import usable_cores
+from .resources import one_blas_thread, usable_cores
 from .tolerances import SINGULAR, SNAP
 
 __all__ = ["compose", "compose_many", "compose_placed", "map_points", "result_degrees", "KnotLineCrossing"]
@@ -228,14 +227,17 @@ def _compose_located(outer, inner, A, b, placed, where, patches=None) -> list[BS
 
     chunks = [todo[c0 : c0 + chunk] for c0 in range(0, len(todo), chunk)]
     workers = min(usable_cores(), len(chunks))
-    if workers < 2:
-        for sel in chunks:
-            run(sel)
-        return results
-    # the chunks on the cores, the compiled products releasing the GIL; BLAS held to one thread meanwhile,
-    # whose idle threads otherwise spin between the calls of every worker (2.0 -> 1.1 s on Fig. 4(c), 2 cores)
-    with threadpool_limits(1, user_api="blas"), ThreadPoolExecutor(workers) as pool:
-        list(pool.map(run, chunks))
+    # BLAS on one thread, in the pool and without it: its idle threads would spin between the calls of every
+    # worker (2.0 -> 1.1 s on Fig. 4(c), 2 cores), and a product's sums split over two threads round
+    # differently from one thread's, so the composed coefficients would depend on how many chunks there are
+    with one_blas_thread():
+        if workers < 2:
+            for sel in chunks:
+                run(sel)
+            return results
+        # the chunks on the cores, the compiled products releasing the GIL
+        with ThreadPoolExecutor(workers) as pool:
+            list(pool.map(run, chunks))
     return results
 
 

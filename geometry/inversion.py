@@ -24,7 +24,7 @@ from . import _fast
 from ._fast import readonly
 from .compile_lock import locked
 from .errors import SplineError
-from .tolerances import ROUNDOFF
+from .tolerances import COINCIDENT, ROUNDOFF
 
 __all__ = ["Inversion", "box_gaps", "invert", "invert_nearest", "newton_inverse", "start_grid"]
 
@@ -258,7 +258,7 @@ def _kernel_invert(spline, start: np.ndarray, pts: np.ndarray, tol: float, dampe
 def invert_nearest(splines, points, tol: float = 1e-10, damped: bool = False,
                    kernel: bool = False) -> tuple[np.ndarray, Inversion]:
     """(index (N,), :class:`Inversion`): for each of ``points`` (N, 3) the one of ``splines`` (e.g. the six
-    boundary surfaces of a trivariate) whose :func:`invert` distance is least (the first on a tie), and that
+    boundary surfaces of a trivariate) whose :func:`invert` distance is least (the lowest index on a tie within ``COINCIDENT`` x the splines' size), and that
     inversion: the choice and result of inverting every point into every spline and taking the argmin (up to
     round-off where a smaller batch changes :func:`invert`'s evaluation path, at ``MIN_POINTS`` / 10 points).
     ``kernel``: as :func:`invert`'s.
@@ -274,8 +274,13 @@ def invert_nearest(splines, points, tol: float = 1e-10, damped: bool = False,
         raise SplineError(f"invert_nearest needs one or more splines of one dimension, got "
                           f"{[S.dim for S in splines] or 'none'}; pass e.g. the six boundary surfaces of a trivariate")
     n, d = len(pts), splines[0].dim
-    gap = box_gaps(pts, np.array([S.bounding_box() for S in splines]))  # (N, splines)
-    slack = 1e-9 * np.maximum(1.0, np.abs(pts).max(axis=1))  # round-off of the gap against a distance
+    boxes = np.array([S.bounding_box() for S in splines])
+    gap = box_gaps(pts, boxes)  # (N, splines)
+    # the splines' size: ties are decided with the margin COINCIDENT x size (a stated margin, so every CPU
+    # kernel makes the same choice), and a box gap needs twice that of slack against a distance
+    size = max(float(np.max(boxes[:, :, 1].max(0) - boxes[:, :, 0].min(0))), 1e-300)
+    margin = COINCIDENT * size
+    slack = 2 * margin
     which, params = np.full(n, len(splines)), np.zeros((n, d))
     best, inside = np.full(n, np.inf), np.zeros(n, bool)
     order = np.argsort(gap, axis=1, kind="stable")
@@ -285,7 +290,9 @@ def invert_nearest(splines, points, tol: float = 1e-10, damped: bool = False,
             if not len(sel):
                 continue
             inv = invert(splines[g], pts[sel], tol, damped=damped, kernel=kernel)
-            win = (inv.distance < best[sel]) | ((inv.distance == best[sel]) & (g < which[sel]))
+            # a near tie (a point off an edge where two faces are equally near) goes to the lower index
+            # whatever the rounding: a later face wins only by more than the margin
+            win = (inv.distance < best[sel] - margin) | ((inv.distance <= best[sel] + margin) & (g < which[sel]))
             sel = sel[win]
             which[sel], params[sel], best[sel], inside[sel] = g, inv.params[win], inv.distance[win], inv.inside[win]
     return which, Inversion(params, best, inside)

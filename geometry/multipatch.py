@@ -26,7 +26,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
-from scipy.spatial import cKDTree
 
 from .bspline import BSpline
 from .composition import compose_many, compose_placed
@@ -34,7 +33,7 @@ from .errors import SplineError
 from .faces import FACE_NAMES, face_knots, nested_refinement
 from .inversion import invert
 from .placed_points import IDENTITY, face_points, physical_corners, tile_corners, trivariates
-from .grouping import identity_groups
+from .grouping import identity_groups, near_pairs
 from .tolerances import CONTACT, INTERFACE, model_size, same_space
 
 __all__ = ["PlacedPatch", "Interface", "MultiPatch", "detect_interfaces", "free_faces", "free_face_mask", "face_points",
@@ -175,8 +174,7 @@ def detect_interfaces(patches, strict: bool = False, placed_corners=None):
     scale = model_size(corners)
     # candidate pairs: face centres within the tolerance (a KD-tree, so no rounding bucket can split a pair;
     # midpoint splits build faster on 10^5 centres, the pairs are the same)
-    found = cKDTree(corners.mean(axis=1), balanced_tree=False).query_pairs(TOL * scale, output_type="ndarray")
-    found = found[np.lexsort(found.T[::-1])] if len(found) else np.zeros((0, 2), np.int64)  # a fixed order
+    found = near_pairs(corners.mean(axis=1), TOL * scale, balanced_tree=False)
     ia, ib = found[:, 0], found[:, 1]
     keep = rec_patch[ia] != rec_patch[ib]
     ia, ib = ia[keep], ib[keep]

@@ -32,6 +32,7 @@ from . import knots as kn
 from .errors import SplineError
 from .regularity_net import element_windows, nearly_affine_stacked
 from .spline import SplineFunction
+from .tolerances import ROUNDOFF
 
 __all__ = ["check_regular", "check_regular_many", "prove_one_signed", "prove_one_signed_many", "RegularityResult",
            "jacobian_bezier"]
@@ -291,7 +292,11 @@ def _prove_kind(splines, d: int, rational: bool, max_depth: int, allow_zeros: bo
         np.minimum.at(lo, owner, flat.min(axis=1))
         np.maximum.at(hi, owner, flat.max(axis=1))
     lo, hi = np.where(np.isfinite(lo), lo, 0.0), np.where(np.isfinite(hi), hi, 0.0)
-    undecided, depth = _subdivide(J, np.concatenate(boxes), owner, decided, d, max_depth, allow_zeros, S)
+    # Bernstein coefficients within ROUNDOFF of their spline's largest are zeros: a sign decided by the last
+    # bits would differ between CPU kernels (a stated margin: a fold shallower than 1e-14 of the Jacobian's
+    # range is not told from a zero of it)
+    floor = ROUNDOFF * np.maximum(np.abs(lo), np.abs(hi))
+    undecided, depth = _subdivide(J, np.concatenate(boxes), owner, decided, d, max_depth, allow_zeros, S, floor)
     pos, neg, zero = (_by_owner(decided[k], S, d) for k in range(3))
     und = _by_owner([undecided], S, d)
     return [_verdict([pos[o]], [neg[o]], [zero[o]], und[o], (float(lo[o]), float(hi[o])),
@@ -341,14 +346,16 @@ def _by_owner(pairs, S: int, d: int) -> list[np.ndarray]:
     return [B[cuts[o] : cuts[o + 1]] for o in range(S)]
 
 
-def _subdivide(J, boxes, owner, decided, d: int, max_depth: int, allow_zeros: bool, S: int):
+def _subdivide(J, boxes, owner, decided, d: int, max_depth: int, allow_zeros: bool, S: int, floor):
     """Split inconclusive boxes (to decide them) and crossing ones (to localise the zero set) round by round,
-    appending proven boxes to ``decided``; returns the undecided (boxes, owners) and each owner's last round."""
+    appending proven boxes to ``decided``; returns the undecided (boxes, owners) and each owner's last round.
+    ``floor`` (S,): per owner, the magnitude up to which a coefficient counts as zero."""
     depth = np.zeros(S, int)
     cur, cur_boxes, cur_owner, rnd = J, boxes, owner, 0
     undecided = (np.zeros((0, d, 2)), np.zeros(0, int))
     while len(cur):
         depth[np.unique(cur_owner)] = rnd
+        cur = np.where(np.abs(cur) <= floor[cur_owner].reshape((-1,) + (1,) * d), 0.0, cur)
         flat = cur.reshape(cur.shape[0], -1)
         corners = _corners(cur, d)
         mixed = (corners.max(axis=1) > 0) & (corners.min(axis=1) < 0)

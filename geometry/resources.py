@@ -27,7 +27,7 @@ from .errors import SplineError
 from .errors import show
 
 __all__ = ["usable_cores", "available_memory", "memory_limit", "memory_budget", "set_memory_limit", "check_memory", "peak_memory_mib", "GiB",
-           "paused_gc", "bulk_build"]
+           "paused_gc", "bulk_build", "one_blas_thread"]
 
 GiB = float(1 << 30)
 _LIMIT: ContextVar[float | None] = ContextVar("memory_limit_bytes", default=None)  # None: available memory
@@ -40,6 +40,27 @@ def usable_cores() -> int:
         return max(1, len(os.sched_getaffinity(0)))
     except (AttributeError, OSError):  # no affinity on this platform
         return max(1, os.cpu_count() or 1)
+
+
+@functools.lru_cache(maxsize=1)
+def _blas_controller():
+    from threadpoolctl import ThreadpoolController
+
+    return ThreadpoolController()  # finding the loaded BLAS libraries costs 0.4 ms: once per process
+
+
+@contextmanager
+def one_blas_thread():
+    """BLAS held to one thread inside the block (the caller's setting restored after).
+
+    Two uses: work that runs its own threads (BLAS's idle threads would spin between their calls), and
+    results that must not depend on the thread count: a multi-threaded BLAS may split a product's sums
+    differently from a single thread, so the same product differs in its last bits between a run on two
+    threads and one on one.  Holding one thread wherever a reduction order matters makes the serial and
+    the parallel paths compute the same numbers.
+    """
+    with _blas_controller().limit(limits=1, user_api="blas"):
+        yield
 
 
 def available_memory() -> float:

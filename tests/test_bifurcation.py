@@ -125,6 +125,7 @@ def test_bifurcation_converges_at_rate_p_plus_1():
     assert np.all(rates > 2.7), rates  # p = 2: rate 3
 
 
+@pytest.mark.kernel_sensitive
 def test_bifurcation_in_the_duck_by_epsilon(duck):
     for kind in ("1-2", "1-4a"):
         ms = bifurcation(duck, 0.35, kind)
@@ -288,6 +289,7 @@ def test_implicit_bifurcation_reproducible_and_bad_input(duck):
         a.evaluate(np.array([[0.5, 0.5, 1.5]]))
 
 
+@pytest.mark.kernel_sensitive
 def test_bicubic_surface_bifurcation_tiles(duck):
     t = bifurcation_tiles("1-4b", surfaces=True)
     assert all(p.dim == 2 and p.degrees == (3, 3) for k in t for p in t[k].patches)

@@ -33,6 +33,7 @@ def _face_points(s, a, k, rng, n=200):
     return x
 
 
+@pytest.mark.kernel_sensitive
 def test_same_seed_gives_identical_mesh_and_another_seed_does_not(duck):
     kw = dict(alpha=0.6, continuity="C1", connectivity=1, cap=True)
     m1 = random_implicit(duck, (2, 2, 4), seed=7, **kw).surface()
@@ -164,6 +165,7 @@ def test_tree_faces_have_a_non_empty_zero_set(duck, connectivity):
         assert v.max() > 0 > v.min()
 
 
+@pytest.mark.kernel_sensitive
 def test_every_cell_inside_region_is_one_component_at_the_build_sampling(duck):
     from scipy import ndimage
 

@@ -126,6 +126,7 @@ def _components(s, r, close, shipped=False):
     return len(np.unique(label[tri[:, 0]]))  # components that hold a triangle
 
 
+@pytest.mark.kernel_sensitive
 @pytest.mark.parametrize("seed", range(5))
 def test_one_surface_at_every_sampling_on_a_443_grid(duck, seed):
     s = tiling.random_implicit(duck, (4, 4, 3), alpha=0.5, seed=seed, cap=True)

@@ -52,6 +52,7 @@ def test_classification_agrees_with_brute_force_membership(op):
             assert np.all(inside.any(axis=1) & ~inside.all(axis=1))
 
 
+@pytest.mark.kernel_sensitive
 def test_a_subtraction_keeps_no_tile_inside_the_subtracted_primitives():
     A, B, C = _cylinders()
     res = vrep_microstructure(A - B - C)
@@ -151,6 +152,7 @@ def test_distance_to_a_primitive_is_the_distance_to_its_boundary_and_within_agre
             B.within(pts[:3], bad)
 
 
+@pytest.mark.kernel_sensitive
 @pytest.mark.parametrize("damped", [False, True])
 def test_the_nearest_boundary_surface_is_the_one_every_inversion_would_choose(damped):
     from geometry.errors import SplineError
@@ -166,8 +168,15 @@ def test_the_nearest_boundary_surface_is_the_one_every_inversion_would_choose(da
     invs = [invert(S, pts, damped=damped) for S in faces]  # every point into every face: the reference
     dist = np.stack([v.distance for v in invs])
     near, inv = invert_nearest(faces, pts, damped=damped)
-    assert np.array_equal(near, np.argmin(dist, axis=0))
-    assert np.array_equal(inv.distance, dist.min(axis=0))
+    # the reference choice: the lowest index within the stated tie margin of the least distance, so the choice
+    # does not rest on the last bits (COINCIDENT x the faces' size)
+    from geometry.tolerances import COINCIDENT
+    boxes = np.array([S.bounding_box() for S in faces])
+    margin = COINCIDENT * float(np.max(boxes[:, :, 1].max(0) - boxes[:, :, 0].min(0)))
+    ref = np.argmax(dist <= dist.min(axis=0) + margin, axis=0)
+    assert np.array_equal(near, ref) and np.any(ref != np.argmin(dist, axis=0))  # the points on face 0 tie
+    assert np.array_equal(inv.distance, dist[ref, np.arange(len(pts))])
+    assert np.all(inv.distance <= dist.min(axis=0) + margin)
     assert np.array_equal(inv.params, np.stack([v.params for v in invs])[near, np.arange(len(pts))])
     assert np.array_equal(inv.inside, np.stack([v.inside for v in invs])[near, np.arange(len(pts))])
     with pytest.raises(SplineError, match="finite array of shape"):
@@ -216,6 +225,7 @@ def _oriented(st, swap, flip):
     return out
 
 
+@pytest.mark.kernel_sensitive
 def test_bridges_start_g1_at_their_tiles_and_end_orthogonal_on_the_trimming_surface():
     """Every bridge (in map parameters, or rebuilt in space where D's knot lines cut it) is glued to its tile by
     an identity interface, its face equal to the tile's point by point and G1 across it, and ends on the
@@ -263,6 +273,7 @@ def _bridge_objects(model):
     return build_bridges(model, cls.primitive, cls, ms.patches, ms.tags[f"anchor:{cls.primitive.name}"])[0]
 
 
+@pytest.mark.kernel_sensitive
 def test_colliding_bridges_are_separated_or_eliminated():
     from tiling.vrep.bridges import _snap, axis_samples, resolve_collisions
 
@@ -341,6 +352,7 @@ def test_v_models_and_primitives_print_as_their_expression():
     assert repr(m.primitives()[0]).startswith("Primitive('body': tile 'cross' x (10, 10, 12), priority 1")
 
 
+@pytest.mark.kernel_sensitive
 @pytest.mark.long
 def test_a_v_model_with_bridges_across_knot_lines_composes_exactly_and_exports_to_iges(tmp_path):
     """(A u B) - C: some bridges to C cross knot lines of their map; rebuilt in space, every patch composes into
@@ -356,6 +368,10 @@ def test_a_v_model_with_bridges_across_knot_lines_composes_exactly_and_exports_t
     ms = res.microstructure
     crossing = [b for b in res.bridge_objects if crosses_knot_lines(b)]
     assert crossing and all(b.geometry is not None for b in crossing)
+    # no bridge of this model folds: a decision that rested on round-off gave one up on some OpenBLAS kernels
+    # (collisions resolved in the KD-tree's order, the nearest trimming face chosen on a near tie); .ci/run
+    # runs this test under a second kernel
+    assert res.bridges.folded == 0 and res.bridges.surface_bridges == res.bridges.surface.built
     composed = ms.compose_all()
     first = min(p for p, _ in ms.tags["bridge"])
     rng = np.random.default_rng(5)

@@ -313,6 +313,7 @@ def test_subtraction_v_models_are_heat_models(which):
     assert abs(s.flux("bridge")) > 0.01 * s.info["balance"]["inflow_W"]  # the heat does reach the bridges
 
 
+@pytest.mark.kernel_sensitive
 def test_a_linear_temperature_is_reproduced_on_every_patch_of_a_box_minus_a_box():
     # the trimming-surface bridges are composed through the affine map like the tiles, in their own (cubic
     # along) spaces: the linear patch test holds on the bridges as on the tiles (the union bridges:
@@ -332,6 +333,7 @@ def test_a_linear_temperature_is_reproduced_on_every_patch_of_a_box_minus_a_box(
         assert np.abs(T - 10.0 - y @ g).max() < 1e-9 * 20 and np.abs(grad - g).max() < 1e-7 * 3, i
 
 
+@pytest.mark.kernel_sensitive
 def test_tubes_that_the_collision_repulsion_folds_are_given_up():
     # Hong and Elber 2021 Fig. 6 (benchmarks/vrep.py's case): 29 tube collisions, repelled or eliminated;
     # displacing a tube's inner layers can fold it, and a folded bridge cannot be analysed: every bridge kept

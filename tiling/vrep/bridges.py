@@ -34,7 +34,6 @@ from dataclasses import dataclass, field
 from functools import partial
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from geometry import BSpline
 from geometry.faces import FACE_AXIS, FACE_NAMES
@@ -43,7 +42,7 @@ from geometry.inversion import invert, invert_nearest
 from ..errors import TilingError
 from .report import SurfaceCounts
 from .repulsion import Collisions, closest, repel
-from geometry.grouping import ObjectIndex
+from geometry.grouping import ObjectIndex, near_pairs
 from geometry.tolerances import COINCIDENT, ROUNDOFF
 
 __all__ = ["Bridge", "build_bridges", "resolve_collisions", "axis_samples"]
@@ -260,7 +259,7 @@ def resolve_collisions(bridges: list, max_repel: int = 20) -> tuple[list, Collis
     mids = np.array([axis_samples(b, [0.5])[0] for b in bridges])
     reach = max(float(np.linalg.norm(axis_samples(b, [0.0]) - axis_samples(b, [1.0]))) for b in bridges)
     rmax = max(b.radius for b in bridges)
-    pairs = cKDTree(mids).query_pairs(reach + 2 * rmax, output_type="ndarray")
+    pairs = near_pairs(mids, reach + 2 * rmax)  # in a fixed order: collisions are resolved in turn
     alive, moved = np.ones(len(bridges), bool), np.zeros(len(bridges), bool)
     axes = [axis_samples(b) for b in bridges]  # kept current: a bridge that moves is sampled again
     for i, j in pairs:
@@ -293,7 +292,9 @@ def _swap_far_ends(a: Bridge, b: Bridge, dist: float) -> bool:
     a2, b2 = a.axis.copy(), b.axis.copy()
     a.axis[2:], b.axis[2:] = b2[2:].copy(), a2[2:].copy()
     a.target, b.target = b.target, a.target
-    if closest(axis_samples(a), axis_samples(b))[0] > dist:  # the axes decide; the caller snaps the sections
+    # the axes decide (the caller snaps the sections), by a stated margin: a swap that gains only round-off
+    # would be taken on one CPU kernel and not on another
+    if closest(axis_samples(a), axis_samples(b))[0] > dist + COINCIDENT * max(a.radius + b.radius, dist):
         return True
     a.axis, b.axis = a2, b2
     a.target, b.target = b.target, a.target

@@ -22,7 +22,7 @@ import numpy as np
 
 from geometry import BSpline
 from geometry.faces import FACE_AXIS
-from geometry.inversion import invert
+from geometry.inversion import invert_nearest
 from geometry.tolerances import COINCIDENT
 
 from .tubes import Face, face_of, face_space, hermite_tube, tube_space
@@ -46,9 +46,8 @@ def crosses_knot_lines(b) -> bool:
 
 def _end_normal(b, end: np.ndarray) -> np.ndarray:
     """Unit normal of the trimming surface nearest to the physical point ``end``, towards the bridge's start."""
-    invs = [invert(G, end[None]) for G in b.target]
-    g = int(np.argmin([v.distance[0] for v in invs]))
-    _, J = b.target[g].value_and_jacobian(invs[g].params)
+    near, inv = invert_nearest(b.target, end[None])  # a near tie at an edge: the lower index, on every kernel
+    _, J = b.target[int(near[0])].value_and_jacobian(inv.params)
     n = np.cross(J[0, :3, 0], J[0, :3, 1])
     start = b.D.evaluate(b.axis[:1])[0, :3]
     return n * np.sign(np.dot(n, start - end)) / np.linalg.norm(n)

@@ -45,7 +45,7 @@ from geometry.cache import BoundedCache
 
 from ..errors import TilingError
 from .repulsion import cross3
-from geometry.tolerances import COINCIDENT
+from geometry.tolerances import COINCIDENT, ROUNDOFF
 
 __all__ = ["is_regular", "are_regular", "Face", "face_of", "Tube", "hermite_tube", "carrier", "orient",
            "orientation_for", "corner_index", "bridge_patch", "uniform_space", "direction_field", "face_space",
@@ -386,7 +386,10 @@ def are_regular(Gs) -> list[bool]:
         _, J = G._value_jacobian(dom[:, 0] + _GRID * (dom[:, 1] - dom[:, 0]), values=False, checked=True,
                                  compiled=True)
         det = np.linalg.det(J[:, :3, :])
-        screened.append(bool(np.all(det > 0) or np.all(det < 0)))
+        # samples of both signs beyond round-off (ROUNDOFF x the largest |det J|, a stated margin) reject at
+        # once; a sample within it is a zero, which only the exact proof can place
+        floor = ROUNDOFF * float(np.abs(det).max())
+        screened.append(not (np.any(det > floor) and np.any(det < -floor)))
     proofs = iter(prove_one_signed_many([G for G, ok in zip(Gs, screened) if ok]))
     return [next(proofs).status != "singular" if ok else False for ok in screened]
 

@@ -18,7 +18,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from geometry import BSpline
 from geometry.errors import show
@@ -32,7 +31,7 @@ from .repulsion import Collisions, closest, repel
 from .fork import bifurcation_base
 from .tubes import (are_regular, bridge_patch, carrier, face_of, face_space, hermite_tube, is_regular as _regular,
                     tube_space)
-from geometry.grouping import ObjectIndex
+from geometry.grouping import ObjectIndex, near_pairs
 from geometry.tolerances import COINCIDENT, same_space
 
 __all__ = ["Fork", "UnionBridges", "union_anchors", "boundary_faces", "shared_faces", "bridge_union"]
@@ -401,7 +400,7 @@ def resolve_tube_collisions(res: UnionBridges, max_repel: int = 20) -> tuple[dic
         mids = np.array([a[len(a) // 2] for a in axes])
         reach = max(float(np.linalg.norm(a[-1] - a[0])) for a in axes)
         rmax = max(t.radius for _, _, t in items)
-        pairs = cKDTree(mids).query_pairs(reach + 2 * rmax, output_type="ndarray")
+        pairs = near_pairs(mids, reach + 2 * rmax)  # in a fixed order: collisions are resolved in turn
         # the candidates' axis distances with the axes as built, all at once (the sequential loop below reads
         # them while neither tube of a pair has moved, and measures again once one has)
         first = _axis_distances(axes, pairs)
