@@ -212,8 +212,11 @@ def sample_model(model, samples: int = 3, knots_of=None, fields=None, spaces_key
         spline = model.patches[members[0]].spline
         for box in piece_boxes(spline):
             sub = spline.extract(box) if not np.array_equal(box, spline.domain) else spline
-            pax = [a[(a >= lo - 0.1 * ON_DOMAIN * (hi - lo)) & (a <= hi + 0.1 * ON_DOMAIN * (hi - lo))] for a, (lo, hi) in
-                   zip(axes[members[0]], box)]
+            # the piece's samples, clipped onto its box: a sample carried over from a neighbour through an
+            # interface map may sit an ulp outside, on a discontinuity knot's other side, where the fields'
+            # basis would take the other wall's limit while the geometry (the extracted piece) takes this one's
+            pax = [np.clip(a[(a >= lo - 0.1 * ON_DOMAIN * (hi - lo)) & (a <= hi + 0.1 * ON_DOMAIN * (hi - lo))], lo, hi)
+                   for a, (lo, hi) in zip(axes[members[0]], box)]
             shape = tuple(len(a) for a in pax)
             geos = [PlacedPatch(sub, p.placement, p.outer, p.tile, p.level) for p in (model.patches[i] for i in members)]
             x, D, chans = patches_geometry_derivs(geos, pax)

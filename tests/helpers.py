@@ -133,3 +133,19 @@ def opencascade(path):
         yield gmsh, [t for _, t in gmsh.model.getEntities(2)]
     finally:
         gmsh.finalize()
+
+
+def vtk_cell_values(grid, rng, n_cells=4, n_points=4, field="temperature"):
+    """Locations and point-data values (``field``) that VTK itself evaluates inside random cells."""
+    import vtk
+
+    xs, ts = [], []
+    for ci in rng.choice(grid.n_cells, min(n_cells, grid.n_cells), replace=False):
+        cell = grid.GetCell(int(ci))
+        ids = [cell.GetPointId(i) for i in range(cell.GetNumberOfPoints())]
+        for _ in range(n_points):
+            x, w = [0.0, 0.0, 0.0], np.zeros(len(ids))
+            cell.EvaluateLocation(vtk.reference(0), list(rng.random(3)), x, w)
+            xs.append(x)
+            ts.append(float(w @ grid.point_data[field][ids]))
+    return np.array(xs), np.array(ts)

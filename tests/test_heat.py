@@ -229,22 +229,6 @@ def test_solver_errors():
         solvers.solve(L, np.ones(n), method="cg", maxiter=3)
 
 
-def _vtk_cell_values(grid, rng, n_cells=4, n_points=4):
-    """Locations and point-data temperatures that VTK itself evaluates inside random cells."""
-    import vtk
-
-    xs, ts = [], []
-    for ci in rng.choice(grid.n_cells, min(n_cells, grid.n_cells), replace=False):
-        cell = grid.GetCell(int(ci))
-        ids = [cell.GetPointId(i) for i in range(cell.GetNumberOfPoints())]
-        for _ in range(n_points):
-            x, w = [0.0, 0.0, 0.0], np.zeros(len(ids))
-            cell.EvaluateLocation(vtk.reference(0), list(rng.random(3)), x, w)
-            xs.append(x)
-            ts.append(float(w @ grid.point_data["temperature"][ids]))
-    return np.array(xs), np.array(ts)
-
-
 @pytest.mark.parametrize("case", ["rational annulus", "polynomial box", "composed micro-structure"])
 def test_bezier_vtu_is_exact(tmp_path, case):
     # VTK evaluates each Bezier hexahedron (type 79) at random local coordinates: the point it
@@ -268,7 +252,7 @@ def test_bezier_vtu_is_exact(tmp_path, case):
     assert ("RationalWeights" in g.point_data) == (case != "polynomial box")
     for name in ("patch", "tile", "level"):
         assert name in g.cell_data
-    x, t = _vtk_cell_values(g, np.random.default_rng(3))
+    x, t = vtk_cell_values(g, np.random.default_rng(3))
     assert np.abs(t - s.probe(x)).max() < 1e-10
     assert [p.name for p in tmp_path.iterdir()] == ["exact.vtu"]  # nothing temporary left behind
     with pytest.raises(ProblemError, match="cells must be"):
