@@ -296,7 +296,7 @@ def connect_cells(B, cells, res, stats) -> int:
         work = 0
         for j, i in enumerate(todo):
             c = cells[i]
-            label, n = ndimage.label(inside[j])
+            label, n = _held_face_islands(B, c, res, *ndimage.label(inside[j]))
             if n <= 1:
                 B.verify(c)
                 continue
@@ -323,6 +323,42 @@ def connect_cells(B, cells, res, stats) -> int:
         key = tuple(int(x) for x in c)
         stats["cell_iterations"][key] = stats["cell_iterations"].get(key, 0) + int(its[i])
     return int(its.sum())
+
+
+def _held_face_islands(B, c, res, label: np.ndarray, n: int) -> tuple[np.ndarray, int]:
+    """Cell ``c``'s inside components without the islands that no step of this cell can change: pieces on
+    its boundary samples alone whose every supporting coefficient is held (a spanning-tree face's anchor).
+
+    Such a piece belongs to the neighbour across the face as much as to this cell, and with C1 the two
+    cells cannot both bridge it: Eq. 8 ties the layers either side to the held face layer, so a bridge
+    raised on one side lowers the other, and the two cells undid each other's bridges round after round
+    until the round limit refused a valid input.  Whether such a piece is joined to the rest is the
+    certificate's to prove on the spline (joined through the neighbour, or given a path); every other
+    island is bridged here as before.  Returns the relabelled components and their count."""
+    if n <= 1:
+        return label, n
+    sizes = np.bincount(label.ravel(), minlength=n + 1)
+    sizes[0] = 0
+    main = int(np.argmax(sizes))
+    interior = np.zeros(n + 1, bool)
+    interior[np.unique(label[1:-1, 1:-1, 1:-1])] = True
+    interior[main] = True
+    drop = [lab for lab in range(1, n + 1) if not interior[lab]]
+    if not drop:
+        return label, n
+    M = B.sampling(res)
+    for lab in drop:
+        pts = np.argwhere(label == lab) + np.asarray(c) * res  # global samples
+        supp = [M[k][pts[:, k]] > 0 for k in range(3)]
+        held = all(np.all(B.fixed[np.ix_(*(np.flatnonzero(s[p]) for s in supp))]) for p in range(len(pts)))
+        interior[lab] = not held
+    interior[0] = False
+    keep = np.flatnonzero(interior)
+    if len(keep) == n:
+        return label, n
+    relabel = np.zeros(n + 1, label.dtype)
+    relabel[keep] = np.arange(1, len(keep) + 1)
+    return relabel[label], len(keep)
 
 
 def open_cavities(field, B, res, stats) -> int:
