@@ -66,6 +66,15 @@ class Constraints:
     stats: dict = field(default_factory=dict)
 
 
+def owners_of(master: np.ndarray) -> np.ndarray:
+    """For each reduced unknown one DOF it owns (u_full = P u_red reads the unknown there), from
+    :attr:`Constraints.dof_master`; -1 for an unknown that owns no DOF."""
+    own = master >= 0
+    out = np.full(int(master.max()) + 1 if own.any() else 0, -1)
+    out[master[own][::-1]] = np.flatnonzero(own)[::-1]
+    return out
+
+
 @dataclass
 class BranchRows:
     """Branch constraints as triplets: row ``r`` says DOF ``child[r]`` = sum of ``weight`` x ``parent``

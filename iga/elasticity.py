@@ -297,14 +297,13 @@ class ElasticityProblem:
             B = B[owners_of(constraints.dof_master)]
         t2 = time.perf_counter()
         options = self._solver_options(solver, constraints, dd, B)
-        # the work balance reads K after the solve: a single patch's elimination consumes K (a copy goes in), the
-        # constrained system is reduced into a new matrix and leaves K as it is (no copy: half the memory)
-        res = solve_system(K if constraints is not None else K.copy(), f, constraints, dd, solver, tol, maxiter,
-                           options)
+        # K is consumed: the work balance reads the displacement field and the load vector, not K
+        res = solve_system(K, f, constraints, dd, solver, tol, maxiter, options)
+        del K
         self.timings.update({"constraints": t2 - t1,
                              "solve": res.info.setup_s + res.info.solve_s})
         self.reduced_dofs = res.reduced
-        return ElasticSolution(self, res, K, f, dd, work, applied)
+        return ElasticSolution(self, res, f, dd, work, applied)
 
 
 def _refuse_held_load(load, fd, t: np.ndarray, supports: list) -> None:

@@ -12,7 +12,7 @@ from geometry.grouping import ObjectIndex
 from .errors import ProblemError
 from .faces import chunks
 
-__all__ = ["grid_fields", "integrate_fields"]
+__all__ = ["grid_fields", "integrate_fields", "GaussPoints"]
 
 
 def grid_fields(U: np.ndarray, tables, D) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -33,11 +33,14 @@ def grid_fields(U: np.ndarray, tables, D) -> tuple[np.ndarray, np.ndarray, np.nd
     return np.stack(vals, 1), np.stack(grads, 1), det
 
 
-def integrate_fields(prob, coefficients, components: int, fn) -> float:
+def integrate_fields(prob, coefficients, components: int, fn, context: bool = False):
     """Sum over the model of int fn(x (N, 3), values (N, c), grads (N, c, 3)) dV by the problem's Gauss rule.
 
     ``coefficients(i)``: patch i's coefficient block (c,) + space shape; patches sharing a tile spline and
-    a space are evaluated together.
+    a space are evaluated together.  ``fn`` returns (N,) (a float is returned) or (N, k) (k integrals from one
+    pass, an array (k,)).  ``context``: ``fn`` takes a fourth argument, a :class:`GaussPoints` with the
+    channels at the points and the patches and parameters they belong to (materials and thermal strains
+    evaluated where the field is).
     """
     same = ObjectIndex()  # patches share splines and maps: group by object
     groups: dict = {}
@@ -48,12 +51,31 @@ def integrate_fields(prob, coefficients, components: int, fn) -> float:
         space = prob.spaces[members[0]]
         tables = [np.swapaxes(d.B[:, :, :-1], 1, 2) for d in space.dirs]  # (2, nq, n): values and derivatives
         w = np.einsum("i,j,k->ijk", *[d.qw for d in space.dirs]).ravel()
+        params = np.stack(np.meshgrid(*space.qaxes, indexing="ij"), -1).reshape(-1, 3) if context else None
         for chunk in chunks(members, components * space.nq_total):
-            x, D, _ = patches_geometry_derivs([prob.model.patches[i] for i in chunk], space.qaxes)
+            x, D, chans = patches_geometry_derivs([prob.model.patches[i] for i in chunk], space.qaxes)
             vals, grads, det = grid_fields(np.stack([coefficients(i) for i in chunk]), tables, D)
             if not np.all(np.isfinite(grads)):
                 raise ProblemError(f"patches {chunk[0]}..{chunk[-1]}: the geometry Jacobian is singular at a Gauss "
                                    "point; the model is degenerate there")
-            wv = np.broadcast_to(w, (len(chunk), len(w))).reshape(-1)
-            total += float(np.sum(fn(x.reshape(-1, 3), vals, grads) * np.abs(det) * wv))
-    return total
+            wv = np.broadcast_to(w, (len(chunk), len(w))).reshape(-1) * np.abs(det)
+            args = (x.reshape(-1, 3), vals, grads)
+            if context:
+                args += (GaussPoints(x, {c: np.reshape(v, -1) for c, v in chans.items()}, chans, list(chunk),
+                                     params),)
+            total = total + np.tensordot(wv, np.asarray(fn(*args), float), axes=(0, 0))
+    return float(total) if np.ndim(total) == 0 else np.asarray(total)
+
+
+class GaussPoints:
+    """Where an integrand of :func:`integrate_fields` is evaluated: ``x`` (P, n, 3) points of the patches
+    ``patches`` (P of them), ``chans`` {name: (P n,)} flat channels, ``by_patch`` {name: (P, n)}, and
+    ``params`` (n, 3) the Gauss points in every one of those patches' parameters."""
+
+    def __init__(self, x, chans, by_patch, patches, params):
+        self.x, self.chans, self.by_patch, self.patches, self.params = x, chans, by_patch, patches, params
+
+    def per_patch(self, fn) -> np.ndarray:
+        """``fn(patch, x (n, 3), params (n, 3), chans {name: (n,)}) -> (n,)`` of every patch, concatenated."""
+        return np.concatenate([fn(pi, self.x[j], self.params, {c: v[j] for c, v in self.by_patch.items()})
+                               for j, pi in enumerate(self.patches)])

@@ -29,7 +29,7 @@ from geometry import knots as kn
 from geometry.chain import patch_geometry_grid
 from solvers.indexing import complement
 
-from .constraints import needs_constraints, prolongation
+from .constraints import needs_constraints, owners_of, prolongation
 from .elastic_forms import lame
 from .errors import ProblemError
 from .space import Space1D, TensorSpace, make_space
@@ -211,14 +211,6 @@ def prolongations(problem, dirichlet_faces, free: np.ndarray, dof_master: np.nda
         fine_spaces, rows = coarse, owners_of(master_c)[free_c]
         if len(free_c) <= MIN_COARSE:
             break
-    return out
-
-
-def owners_of(master: np.ndarray) -> np.ndarray:
-    """For each reduced unknown one DOF it owns (u_full = P u_red reads the unknown there)."""
-    own = master >= 0
-    out = np.full(int(master.max()) + 1, -1)
-    out[master[own][::-1]] = np.flatnonzero(own)[::-1]
     return out
 
 

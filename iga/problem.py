@@ -287,7 +287,8 @@ class HeatProblem:
         self.reduced_dofs = res.reduced
         Gd = dd.G[res.reaction_dofs].toarray() if dd.G is not None else np.zeros((len(res.reaction_dofs), 0))
         integrals = {key: Gd[:, j] for j, key in enumerate(dd.keys)}
-        return Solution(self, res.u, book, res.reaction_dofs, res.reaction, integrals, res.info)
+        return Solution(self, res.u, book, res.reaction_dofs, res.reaction, integrals, res.info,
+                        loads=None if world else f, prescribed=res.prescribed)
 
 
 def _per_face(values: np.ndarray, fds) -> list[np.ndarray]:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from geometry import SplineFunction
@@ -15,6 +17,20 @@ from .locate import Locator
 from geometry.tolerances import SINGULAR
 
 
+@dataclass(frozen=True)
+class EnergyBalance:
+    """Two independently computed sides of an energy identity and their relative difference (None where a
+    distributed solve cannot compute them); see :meth:`Solution.energy_balance` and
+    :meth:`iga.ElasticSolution.work_balance`."""
+
+    internal: float | None
+    external: float | None
+    relative_error: float | None
+
+    def as_dict(self) -> dict:
+        return {"internal": self.internal, "external": self.external, "relative_error": self.relative_error}
+
+
 class Solution:
     """Temperature field of a :class:`iga.HeatProblem`.
 
@@ -25,10 +41,13 @@ class Solution:
         residual), timings (s) and the energy balance
     """
 
-    def __init__(self, problem, u, book, dirichlet_dofs, reaction, dirichlet_integrals, solver_info):
+    def __init__(self, problem, u, book, dirichlet_dofs, reaction, dirichlet_integrals, solver_info, loads=None,
+                 prescribed=None):
         self.problem = problem
         self.u = u
         self._book = book
+        self._loads = loads  # the load vector f (ndof,): source, Neumann and Robin h T_inf; None when distributed
+        self._prescribed = prescribed  # the prescribed unknowns' values (reaction . prescribed: the supports' part)
         # consistent boundary fluxes: the residual K u - f on the prescribed (reduced) unknowns
         self._reaction = np.asarray(reaction, float)
         self._dirichlet_dofs = dirichlet_dofs
@@ -159,6 +178,36 @@ class Solution:
         scale = max(inflow, outflow, abs(src), self._scale, 1e-300)
         return {"inflow_W": inflow, "outflow_W": outflow, "source_W": src,
                 "relative_error": abs(inflow - outflow) / scale, "reference_flow_W": scale}
+
+    def energy_balance(self) -> "EnergyBalance":
+        """The energy identity a(T, T) = l(T) + r . T_D, its two sides computed independently.
+
+        ``internal``: int K grad T . grad T dV (the temperature's gradient and the conductivity evaluated at the
+        Gauss points, as post-processing does) + sum over Robin faces of int h T^2 dA; ``external``: T . f (the
+        load vector of sources, Neumann fluxes and Robin h T_inf, as assembled) + r . T_D (the consistent
+        reactions on the prescribed unknowns times their values).  Both are in W K.  A solution that does not
+        satisfy the discrete equations, or a stiffness that differs from the field's own energy (an assembly
+        kernel, a constraint, a material read differently), shows as a relative error above round-off.  Unlike
+        the heat-flow balance (:meth:`balance`), which sums the consistent flows and so measures the solve's
+        residual only, this compares the field with the loads.  Serial solves only (a distributed solve keeps
+        no global load vector): ``None`` figures there.
+        """
+        prob = self.problem
+        if self._loads is None or self._prescribed is None:
+            return EnergyBalance(None, None, None)
+
+        def density(x, T, g, at):
+            K = prob.conductivity.values(x, at.chans, f"patches {at.patches[0]}..{at.patches[-1]}")
+            return -np.sum(flux_vector(K, g[:, 0]) * g[:, 0], axis=1)
+
+        internal = integrate_fields(prob, lambda i: self.u[prob.offsets[i]:prob.offsets[i + 1]].reshape(
+            (1,) + prob.spaces[i].shape), 1, density, context=True)
+        for key, (h, _) in self._book["robin"].items():
+            fd = prob.face_data(*key)
+            internal += float(np.sum(h * fd.trace(self.u) ** 2 * fd.dAw))
+        external = float(self.u @ self._loads) + float(self._reaction @ self._prescribed)
+        scale = max(abs(internal), abs(external), 1e-300)
+        return EnergyBalance(float(internal), external, float(abs(internal - external) / scale))
 
     def _flow_scale(self) -> float:
         """A heat flow (W) the model could carry: k A dT / L over the faces with conditions.

@@ -19,7 +19,7 @@ import solvers
 from solvers.indexing import complement
 
 from . import fast_assembly
-from .constraints import induced_elimination
+from .constraints import induced_elimination, owners_of
 from .errors import ProblemError
 
 __all__ = ["eliminate", "solve_system", "SystemSolution", "reduction"]
@@ -66,6 +66,9 @@ class SystemSolution:
     info: object
     reduced: int
     induced_rank: int
+    #: the reduced unknowns' values on ``reaction_dofs`` (the supports' work is reaction . prescribed); None
+    #: where a distributed solve does not gather them
+    prescribed: np.ndarray | None = None
 
 
 def reduction(constraints, dirichlet, ndof: int):
@@ -153,7 +156,12 @@ def solve_system(K, f, constraints, dirichlet, solver="auto", tol=1e-10, maxiter
         u[dofs] = g
         u[free] = x
         reaction = Kd @ u - f[reaction_dofs]
+        prescribed = u[reaction_dofs]
     else:
         u = Pf @ x + offset
         reaction = (constraints.P.T @ (K @ u - f))[reaction_dofs]
-    return SystemSolution(u, reaction_dofs, reaction, info, reduced, induced)
+        owners = owners_of(constraints.dof_master)
+        owner = owners[np.minimum(reaction_dofs, len(owners) - 1)] if len(owners) else np.full(len(reaction_dofs), -1)
+        ok = np.all(reaction_dofs < len(owners)) and np.all(owner >= 0)
+        prescribed = u[owner] if ok else None
+    return SystemSolution(u, reaction_dofs, reaction, info, reduced, induced, prescribed)

@@ -10,6 +10,7 @@ from iga import HeatProblem, ProblemError, SingularProblemError, write_vtu
 from iga.manufactured import quarter_annulus
 from iga.assembly import banded_form, banded_to_csr_data, block_diagonal_csr, pattern, stiffness_data
 from iga.space import make_space
+from helpers import vtk_cell_values
 
 
 def test_sum_factorised_stiffness_equals_brute_force():

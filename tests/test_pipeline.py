@@ -66,6 +66,7 @@ def test_iga_run_reduced_heat_sink(tmp_path):
     assert 0 < s["analysis_peak_memory_MiB"] <= s["peak_memory_MiB"]
     assert s["tiles"] == 4 + 8 and s["levels"] == 2
     assert s["energy_balance_error"] < 1e-8
+    assert s["energy_identity"]["relative_error"] < 1e-9 and s["energy_identity"]["internal"] > 0
     assert s["connected_pieces"] == 1  # the paving is one coupled piece
     area = 2 * np.pi * 0.02 * 0.02  # inner ring: an exact cylinder without twist
     assert s["inflow_W"] == pytest.approx(1515.8 * area, rel=1e-5)  # Gauss quadrature of a rational area element
