@@ -14,6 +14,7 @@ from geometry.resources import check_memory
 from .errors import ProblemError
 from .faces import FaceQuadrature
 from .model import as_model
+from .rational import own_rational, rational_quadrature_extra
 from .regularity import prove_regular
 from .space import estimate, make_space, solution_bases
 from .volume import VolumeAssembler
@@ -65,13 +66,22 @@ class Discretisation:
                      "lower refine, degree_elevation or degree, or analyse fewer tiles")
         shared: dict = {}  # patches with equal knot vectors and degrees share one space (and its tables)
         self.spaces = []
-        for knots, degrees in self.bases:
+        for patch, (knots, degrees) in zip(self.model.patches, self.bases):
             key = (tuple(U.tobytes() for U in knots), degrees)
+            if own_rational(patch):  # the NURBS basis's integrands are rational: more Gauss points (iga.rational)
+                key += (id(patch.spline),)
             if key not in shared:
-                shared[key] = make_space(knots, degrees, *args)
+                space = make_space(knots, degrees, *args)
+                if own_rational(patch):
+                    extra = max(quadrature_extra, rational_quadrature_extra(patch.spline, space))
+                    space = space if extra == quadrature_extra else make_space(knots, degrees, extra, *args[1:])
+                shared[key] = space
             self.spaces.append(shared[key])
         self.offsets = np.concatenate([[0], np.cumsum([s.ndof for s in self.spaces])]).astype(np.int64)
         self.ndof = int(self.offsets[-1])
         self.volume = VolumeAssembler(self.model, self.spaces, self.offsets)
-        self.faces = FaceQuadrature(self.model, self.spaces, self.offsets, compiled=self.volume.compiled)
+        #: per patch, the NURBS weights in its space where it is analysed in the NURBS basis (iga.rational)
+        self.weights = self.volume.weights
+        self.faces = FaceQuadrature(self.model, self.spaces, self.offsets, compiled=self.volume.compiled,
+                                    weights=self.weights)
         self.timings = {"regularity": t_regular, "spaces": time.perf_counter() - t0 - t_regular}

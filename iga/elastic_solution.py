@@ -11,7 +11,7 @@ from .elastic_forms import lame
 from .errors import ProblemError
 from .fields import integrate_fields
 from .locate import Locator
-from .solution import EnergyBalance, check_reference, physical_gradient, reference_values
+from .solution import EnergyBalance, check_reference, field_spline, physical_gradient, reference_values
 
 __all__ = ["ElasticSolution"]
 
@@ -65,7 +65,7 @@ class ElasticSolution:
             prob = self.problem
             space, o, n = prob.spaces[pi], prob.offsets, prob.ndof
             coef = np.stack([self.u[a * n + o[pi] : a * n + o[pi + 1]].reshape(space.shape) for a in range(3)], -1)
-            self._splines[pi] = SplineFunction([d.degree for d in space.dirs], [d.knots for d in space.dirs], coef)
+            self._splines[pi] = field_spline(space, coef, prob.weights[pi])
         return self._splines[pi]
 
     def evaluate(self, pi: int, params):

@@ -27,6 +27,7 @@ from .constraints import Constraints
 from .elastic_forms import block_terms, divergence_terms, lame, metric_rows
 from .faces import chunks
 from .geometry_eval import checked_det
+from .rational import nurbs_scale, rational_form, rational_load_terms, weight_grid
 from .vector_csr import VectorCSR, pattern_nnz
 
 __all__ = ["ElasticVolume", "vector_constraints"]
@@ -110,36 +111,51 @@ class ElasticVolume:
         """Write the stiffness of ``members`` into K; returns loads [(P,) + shape or None] * 3 and int f dV (3,)."""
         space = self.disc.spaces[members[0]]
         shape = (len(members),) + space.qshape
-        compiled = fast_assembly.applies(space, len(members), terms=ELASTIC_TERMS)
+        w = self.disc.weights[members[0]]  # the NURBS basis (iga.rational): NumPy forms, scaled by w
+        compiled = w is None and fast_assembly.applies(space, len(members), terms=ELASTIC_TERMS)
         G, LM, fb, th = self._fields(members, youngs, poisson, body, thermal, compiled)
         c = [[G[3 * r + a] for a in range(3)] for r in range(3)]
+        nurbs = None
+        if w is not None:
+            Wq, dWq = weight_grid(self.disc.model.patches[members[0]].spline, space.qaxes)
+            nurbs = (np.broadcast_to(Wq.reshape(space.qshape), shape),
+                     [np.broadcast_to(v.reshape(space.qshape), shape) for v in dWq])
         if compiled:  # the compiled kernel, coefficients formed on the fly
             fast_assembly.elastic_into(space, members, G, LM, K)
         else:
             pat = pattern(space)
-            K.put(members, pat, _numpy_blocks(space, pat, c, LM, shape))
+            K.put(members, pat, _numpy_blocks(space, pat, c, LM, shape, nurbs, w))
         loads, force = [None, None, None], np.zeros(3)
         if fb is not None:
             for a in range(3):
-                loads[a] = load_form(space, fb[a])
+                loads[a] = load_form(space, fb[a] if nurbs is None else fb[a] / nurbs[0])
                 force[a] = float(fb[a].sum())
         if th is not None:
             for a in range(3):
-                L = derivative_load_form(space, divergence_terms(c, th, a, shape))
+                terms = divergence_terms(c, th, a, shape)
+                L = derivative_load_form(space, terms if nurbs is None else rational_load_terms(terms, *nurbs))
                 loads[a] = L if loads[a] is None else loads[a] + L
+        if w is not None:
+            loads = [None if L is None else L * w for L in loads]
         return loads, force
 
 
-def _numpy_blocks(space, pat, c, LM, shape) -> dict:
+def _numpy_blocks(space, pat, c, LM, shape, nurbs=None, w=None) -> dict:
     """The nine blocks' CSR data {(a, b): (P, nnz)} of patches on ``space`` (pattern ``pat``) through NumPy:
     each upper block from its parametric terms in one banded form (:func:`iga.elastic_forms.block_terms`; the
     weights are in LM, so fac 1), a diagonal block as H + H^T of its six symmetric half terms, an off-diagonal
     one from all nine (one form, measured 1.8x faster than a symmetric and an antisymmetric part), the lower
-    blocks as transposes."""
+    blocks as transposes.  ``nurbs`` (W, dW) and ``w``: the NURBS basis (:mod:`iga.rational`)."""
     data = {}
+    scale = None if w is None else nurbs_scale(pat, w.reshape(-1))
     for a in range(3):
         for b in range(a, 3):
-            H = banded_to_csr_data(space, banded_form(space, block_terms(c, 1.0, LM[0], LM[1], a, b, shape)), pat)
+            terms = block_terms(c, 1.0, LM[0], LM[1], a, b, shape)
+            if nurbs is not None:
+                terms = rational_form(terms, *nurbs)
+            H = banded_to_csr_data(space, banded_form(space, terms), pat)
+            if scale is not None:
+                H *= scale
             if a == b:
                 data[(a, a)] = H + H[:, pat.transpose]
             else:

@@ -84,6 +84,7 @@ class ElasticityProblem:
         self.disc = d
         self.model, self.spaces, self.offsets, self.ndof = d.model, d.spaces, d.offsets, d.ndof
         self.faces, self.timings, self.regularity = d.faces, d.timings, d.regularity
+        self.weights = d.weights  # NURBS basis where a patch is its own rational geometry (iga.rational)
         self.youngs = ScalarField(youngs, "Young's modulus", positive=True, model=self.model)
         self.poisson = ScalarField(poisson, "Poisson's ratio", model=self.model)
         if self.poisson.constant is not None and not -1.0 < self.poisson.constant < 0.5:

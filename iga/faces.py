@@ -18,6 +18,7 @@ from geometry.faces import FACE_AXIS, face_name, parse_slot_face
 from geometry.multipatch import PlacedPatch
 
 from . import fast_assembly
+from .rational import weight_grid
 from .errors import ProblemError
 from geometry.chain import patches_geometry_derivs
 from geometry.errors import show
@@ -58,12 +59,22 @@ class FaceData:
     chans: dict
     dAw: np.ndarray
     normal: np.ndarray
+    #: where the patch is analysed in the NURBS basis R = w N / W (:mod:`iga.rational`): 1 / W at the Gauss
+    #: points and the face DOFs' weights w; else None (the face forms scale their basis functions by them)
+    inv_w: np.ndarray | None = None
+    w_dofs: np.ndarray | None = None
 
     def trace(self, u: np.ndarray) -> np.ndarray:
         """Values at the face Gauss points of the global coefficient vector ``u``."""
         Bs, Bt = [d.B[0][:, :-1] for d in self.space.dirs]
-        U = u[self.dofs].reshape(self.space.shape)
-        return np.einsum("ab,aq,br->qr", U, Bs, Bt).ravel()
+        U = u[self.dofs] if self.w_dofs is None else u[self.dofs] * self.w_dofs
+        out = np.einsum("ab,aq,br->qr", U.reshape(self.space.shape), Bs, Bt).ravel()
+        return out if self.inv_w is None else out * self.inv_w
+
+    def basis_scale(self, power: int = 1):
+        """The factor (1 / W)^power of ``power`` basis functions at the Gauss points (1.0 in the polynomial
+        basis); the DOF weights are applied by the forms (:attr:`w_dofs`)."""
+        return 1.0 if self.inv_w is None else self.inv_w**power
 
 
 class FaceQuadrature:
@@ -73,8 +84,9 @@ class FaceQuadrature:
     problem decides, from its size, whether compiled kernels are in use).
     """
 
-    def __init__(self, model, spaces, offsets, compiled: bool = False):
+    def __init__(self, model, spaces, offsets, compiled: bool = False, weights=None):
         self.model, self.spaces, self.offsets, self.compiled = model, spaces, offsets, compiled
+        self.weights = weights if weights is not None else [None] * len(spaces)  # NURBS basis: iga.rational
         self.cache: dict = {}
 
     def __call__(self, keys) -> list[FaceData]:
@@ -151,5 +163,9 @@ class FaceQuadrature:
         names = list(chans)
         rows = zip(*(chans[c] for c in names)) if names else ((),) * len(members)
         global_dofs = dofs[None, :] + np.asarray(self.offsets)[np.asarray(members)][:, None]
+        inv_w = w_dofs = None
+        if self.weights[members[0]] is not None:  # the group shares its spline: one weight function
+            inv_w = 1.0 / weight_grid(geos[0].spline, axes)[0]
+            w_dofs = self.weights[members[0]].reshape(-1)[dofs]
         for pi, d, xj, ch, a, nj in zip(members, global_dofs, x, rows, dAw, normal):
-            self.cache[(pi, face)] = FaceData(pi, face, fs, d, xj, dict(zip(names, ch)), a, nj)
+            self.cache[(pi, face)] = FaceData(pi, face, fs, d, xj, dict(zip(names, ch)), a, nj, inv_w, w_dofs)

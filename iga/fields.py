@@ -15,19 +15,30 @@ from .faces import chunks
 __all__ = ["grid_fields", "integrate_fields", "GaussPoints"]
 
 
-def grid_fields(U: np.ndarray, tables, D) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def grid_fields(U: np.ndarray, tables, D, weights=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Values (P N, c), physical gradients (P N, c, 3) and det J (P N,) of coefficient blocks U (P, c) + shape.
 
     ``tables``: per direction (values, derivatives), each (points, n) of the 1-D basis at that direction's
-    grid points; ``D``: the geometry's parameter derivatives at the P N grid points (C order per patch).
+    grid points; ``D``: the geometry's parameter derivatives at the P N grid points (C order per patch);
+    ``weights``: the NURBS weights (shape) where the patches are analysed in the NURBS basis
+    (:mod:`iga.rational`): U then holds NURBS control values, the field sum w_i U_i N_i / W.
     """
+    def on_grid(block):  # values (P N,) and parameter derivatives (P N, 3) of coefficient blocks (P,) + shape
+        v = np.einsum("pabc,ia,jb,kc->pijk", block, tables[0][0], tables[1][0], tables[2][0], optimize=True)
+        dv = np.stack([np.einsum("pabc,ia,jb,kc->pijk", block, *(tables[d][int(d == k)] for d in range(3)),
+                                 optimize=True).reshape(-1) for k in range(3)], -1)
+        return v.reshape(-1), dv
+
+    W = dW = None
+    if weights is not None:
+        W, dW = on_grid(np.broadcast_to(weights, (U.shape[0],) + weights.shape))
     vals, grads, det = [], [], None
     for a in range(U.shape[1]):
-        Ua = U[:, a]
-        vals.append(np.einsum("pabc,ia,jb,kc->pijk", Ua, tables[0][0], tables[1][0], tables[2][0],
-                              optimize=True).reshape(-1))
-        dxi = np.stack([np.einsum("pabc,ia,jb,kc->pijk", Ua, *(tables[d][int(d == k)] for d in range(3)),
-                                  optimize=True).reshape(-1) for k in range(3)], -1)
+        v, dxi = on_grid(U[:, a] if weights is None else U[:, a] * weights)
+        if W is not None:  # T = phi / W, dT = (dphi - T dW) / W
+            v = v / W
+            dxi = (dxi - v[:, None] * dW) / W[:, None]
+        vals.append(v)
         g, det = gradient_and_det(D, dxi)
         grads.append(g)
     return np.stack(vals, 1), np.stack(grads, 1), det
@@ -54,7 +65,8 @@ def integrate_fields(prob, coefficients, components: int, fn, context: bool = Fa
         params = np.stack(np.meshgrid(*space.qaxes, indexing="ij"), -1).reshape(-1, 3) if context else None
         for chunk in chunks(members, components * space.nq_total):
             x, D, chans = patches_geometry_derivs([prob.model.patches[i] for i in chunk], space.qaxes)
-            vals, grads, det = grid_fields(np.stack([coefficients(i) for i in chunk]), tables, D)
+            vals, grads, det = grid_fields(np.stack([coefficients(i) for i in chunk]), tables, D,
+                                           _weights(prob, chunk[0]))
             if not np.all(np.isfinite(grads)):
                 raise ProblemError(f"patches {chunk[0]}..{chunk[-1]}: the geometry Jacobian is singular at a Gauss "
                                    "point; the model is degenerate there")
@@ -79,3 +91,9 @@ class GaussPoints:
         """``fn(patch, x (n, 3), params (n, 3), chans {name: (n,)}) -> (n,)`` of every patch, concatenated."""
         return np.concatenate([fn(pi, self.x[j], self.params, {c: v[j] for c, v in self.by_patch.items()})
                                for j, pi in enumerate(self.patches)])
+
+
+def _weights(prob, pi):
+    """The NURBS weights of patch ``pi``'s space where it is analysed in the NURBS basis, else None."""
+    w = getattr(prob, "weights", None)
+    return None if w is None else w[pi]

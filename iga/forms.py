@@ -26,6 +26,7 @@ import scipy.sparse as sp
 from .assembly import banded_form, banded_to_csr_data, load_form, pattern
 from .coefficients import TENSOR_PAIRS
 from .faces import cross
+from .rational import nurbs_scale
 
 __all__ = ["diffusion", "boundary_mass", "boundary_load", "boundary_load_columns"]
 
@@ -99,9 +100,12 @@ def boundary_mass(fds, coeffs, ndof: int, patches=None) -> sp.csr_matrix:
     rows, cols, vals = [], [], []
     for idx in _by_space(fds).values():
         space = fds[idx[0]].space
-        F = np.stack([coeffs[i] for i in idx]).reshape((len(idx),) + space.qshape)
+        F = np.stack([coeffs[i] * fds[i].basis_scale(2) for i in idx]).reshape((len(idx),) + space.qshape)
         data = banded_to_csr_data(space, banded_form(space, [(F, ((0, 0), (0, 0)))]))
         pat = pattern(space)
+        for row, i in enumerate(idx):  # the NURBS basis (iga.rational): w_i w_j
+            if fds[i].w_dofs is not None:
+                data[row] *= nurbs_scale(pat, fds[i].w_dofs)
         dofs = np.stack([fds[i].dofs for i in idx])
         local_rows = np.repeat(np.arange(pat.n), np.diff(pat.indptr))
         rows.append(dofs[:, local_rows].ravel())
@@ -117,7 +121,12 @@ def boundary_load_columns(fds, values, ndof: int) -> sp.csc_matrix:
     rows, cols, vals = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)], [np.zeros(0)]
     for idx in _by_space(fds).values():
         space = fds[idx[0]].space
-        L = load_form(space, np.stack([values[i] for i in idx]).reshape((len(idx),) + space.qshape))
+        L = load_form(space, np.stack([values[i] * fds[i].basis_scale() for i in idx]).reshape((len(idx),) +
+                                                                                              space.qshape))
+        L = L.reshape(len(idx), -1)
+        for row, i in enumerate(idx):
+            if fds[i].w_dofs is not None:
+                L[row] *= fds[i].w_dofs
         rows.append(np.stack([fds[i].dofs for i in idx]).ravel())
         cols.append(np.repeat(idx, space.ndof))
         vals.append(L.reshape(-1))

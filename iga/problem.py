@@ -96,6 +96,7 @@ class HeatProblem:
         self.model, self.bases, self.regularity, self.space_args = d.model, d.bases, d.regularity, d.space_args
         self.estimate, self.spaces, self.offsets, self.ndof = d.estimate, d.spaces, d.offsets, d.ndof
         self.volume, self.faces, self.timings = d.volume, d.faces, d.timings
+        self.weights = d.weights  # NURBS basis where a patch is its own rational geometry (iga.rational)
         self.conductivity = Conductivity(conductivity, self.model)
         self.source = ScalarField(source, "source", model=self.model)
         self.conditions: list[_Condition] = []

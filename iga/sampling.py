@@ -32,7 +32,7 @@ def _temperature_fields(solution, members, pax, x, D, chans, out: dict) -> np.nd
     space = prob.spaces[members[0]]
     B = [piece_basis(d, a) for d, a in zip(space.dirs, pax)]  # per direction: (values, derivatives)
     U = np.stack([solution.u[prob.offsets[i] : prob.offsets[i + 1]].reshape((1,) + space.shape) for i in members])
-    T, grad, det = grid_fields(U, B, D)
+    T, grad, det = grid_fields(U, B, D, prob.weights[members[0]])
     P, N = x.shape[:2]
     T, grad = T[:, 0].reshape(P, N), grad[:, 0]
     grad[~np.all(np.isfinite(grad), axis=1)] = 0.0  # degenerate points (collapsed edges): no gradient
@@ -62,7 +62,7 @@ def _displacement_fields(solution, members, pax, x, D, chans, out: dict) -> np.n
     o = prob.offsets
     U = np.stack([np.stack([solution.u[a * n + o[i] : a * n + o[i + 1]].reshape(space.shape) for a in range(3)])
                   for i in members])
-    u, grad, det = grid_fields(U, B, D)
+    u, grad, det = grid_fields(U, B, D, prob.weights[members[0]])
     grad[~np.all(np.isfinite(grad), axis=(1, 2))] = 0.0  # degenerate points: no gradient
     flat = {c: np.reshape(v, -1) for c, v in chans.items()}
     xs = x.reshape(-1, 3)

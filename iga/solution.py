@@ -86,7 +86,7 @@ class Solution:
         space = self.problem.spaces[pi]
         o = self.problem.offsets
         coef = self.u[o[pi] : o[pi + 1]].reshape(space.shape + (1,))
-        return SplineFunction([d.degree for d in space.dirs], [d.knots for d in space.dirs], coef)
+        return field_spline(space, coef, self.problem.weights[pi])
 
     def evaluate(self, pi: int, params):
         """Temperature (N,), gradient (N, 3) in physical space, and x (N, 3) at parameters of patch ``pi``."""
@@ -328,3 +328,10 @@ def _components_info(problem) -> dict:
     comps = getattr(problem, "components", [])
     return {"count": len(comps), "idle": len(getattr(problem, "idle_components", [])),
             "pieces": [c.as_dict() for c in comps[:10]]}
+
+
+def field_spline(space, coef: np.ndarray, weights=None) -> SplineFunction:
+    """A solution field on one patch as a spline over its parameters: ``coef`` (space.shape + (c,)) the
+    coefficients; with the NURBS weights of :mod:`iga.rational` (``weights``) the NURBS function of those
+    weights, ``coef`` its control values."""
+    return SplineFunction([d.degree for d in space.dirs], [d.knots for d in space.dirs], coef, weights=weights)

@@ -22,10 +22,12 @@ from __future__ import annotations
 import numpy as np
 
 from . import fast_assembly
-from .assembly import load_form, pattern, stiffness_data
+from .assembly import banded_form, banded_to_csr_data, load_form, pattern, stiffness_data
 from .coefficients import TENSOR_PAIRS
 from .faces import chunks
 from .forms import diffusion
+from .rational import (nurbs_scale, own_rational, rational_form, rational_load, stiffness_half_terms,
+                       weight_coefficients, weight_grid)
 from geometry import progress
 from geometry.chain import patches_geometry_derivs_slabs
 
@@ -58,13 +60,27 @@ class VolumeAssembler:
         for i, s in enumerate(spaces):
             self.groups.setdefault((s.key(), same(model.patches[i].spline)), []).append(i)
         self.nnz = np.zeros(len(spaces), np.int64)  # each patch's pattern size, one count per group
+        #: per patch, the NURBS weight function's coefficients in its analysis space where the patch is analysed
+        #: in the NURBS basis (:mod:`iga.rational`), else None; one array per group
+        self.weights = [None] * len(spaces)
         for g in self.groups.values():
             self.nnz[g] = pattern_nnz(spaces[g[0]])
+            if own_rational(model.patches[g[0]]):
+                w = weight_coefficients(model.patches[g[0]].spline, spaces[g[0]])
+                if w is not None:
+                    w.setflags(write=False)
+                for i in g:
+                    self.weights[i] = w
 
     @property
     def compiled(self) -> bool:
         """Whether some group is large enough for the compiled kernels (then large faces use them too)."""
-        return any(fast_assembly.applies(self.spaces[g[0]], len(g)) for g in self.groups.values())
+        return any(self._compiled(g) for g in self.groups.values())
+
+    def _compiled(self, members) -> bool:
+        """Whether patches ``members`` (one group) assemble in the compiled kernels: large enough, and in the
+        polynomial basis (the NURBS basis adds first- and zero-order terms, which the NumPy forms take)."""
+        return self.weights[members[0]] is None and fast_assembly.applies(self.spaces[members[0]], len(members))
 
     def assemble(self, conductivity, source, patches=None):
         """(K, f, source_total): the stiffness of ``conductivity`` (a :class:`iga.coefficients.Conductivity`)
@@ -81,7 +97,7 @@ class VolumeAssembler:
         K.skip(np.flatnonzero(~chosen))
         groups = [[i for i in g if chosen[i]] for g in self.groups.values()]
         work = [members for group in groups if group
-                for members in chunks(group, _weight(self.spaces[group[0]], len(group)))]
+                for members in chunks(group, _weight(self.spaces[group[0]], len(group), self._compiled(group)))]
         for members in progress.bar(work, desc="assembly", unit="batch"):
             pat, data, loads, total = self._group(members, self.spaces[members[0]], conductivity, source, K)
             source_total += total
@@ -96,7 +112,7 @@ class VolumeAssembler:
         shape or None, and int f dV of patches sharing a space and spline."""
         P, N = len(members), space.nq_total
         total = 0.0
-        if fast_assembly.applies(space, P):  # compiled: each slab goes straight into the global CSR and loads
+        if self._compiled(members):  # compiled: each slab goes straight into the global CSR and loads
             acc = fast_assembly.StiffnessAccumulator(space, P, into=(into, members))
             for planes, Cs, Ls in self._slabs(members, space, conductivity, source, compiled=True):
                 total += float(Ls.sum())
@@ -110,9 +126,23 @@ class VolumeAssembler:
             C[:, :, planes.start * rest : planes.stop * rest] = Cs
             L[:, planes.start * rest : planes.stop * rest] = Ls
         pat = pattern(space)
-        data = stiffness_data(space, {rs: C[j].reshape(shape) for j, rs in enumerate(TENSOR_PAIRS)}, pat)
-        del C
         total = float(L.sum())
+        fields = {rs: C[j].reshape(shape) for j, rs in enumerate(TENSOR_PAIRS)}
+        if self.weights[members[0]] is None:
+            data = stiffness_data(space, fields, pat)
+        else:  # the NURBS basis N / W (iga.rational)
+            Wq, dWq = weight_grid(self.model.patches[members[0]].spline, space.qaxes)
+            W = np.broadcast_to(Wq, (P, N)).reshape(shape)
+            dW = [np.broadcast_to(v, (P, N)).reshape(shape) for v in dWq]
+            data = banded_to_csr_data(space, banded_form(space, rational_form(stiffness_half_terms(fields), W, dW)),
+                                      pat)
+            data += data[:, pat.transpose]
+            w = self.weights[members[0]].reshape(-1)
+            data *= nurbs_scale(pat, w)  # the basis N / W to R = w N / W: both sides scaled by w
+            L = rational_load(L.reshape(shape), W)
+            loads = load_form(space, L.reshape(shape)) * self.weights[members[0]] if np.any(L) else None
+            return pat, data, loads, total
+        del C
         return pat, data, (load_form(space, L.reshape(shape)) if np.any(L) else None), total
 
     def _slabs(self, members, space, conductivity, source, compiled=False):
@@ -176,12 +206,12 @@ def _rows(offsets: np.ndarray, members) -> np.ndarray:
 BANDED_PER_POINT = 16
 
 
-def _weight(space, n_patches: int) -> int:
+def _weight(space, n_patches: int, compiled: bool) -> int:
     """A patch's weight in Gauss points for batching (:func:`iga.faces.chunks`) a group of ``n_patches``: its
     points; on the NumPy path, its banded operator's entries / :data:`BANDED_PER_POINT` where those are more
     (patches of one element, whose banded work per point is largest: 4,096 such patches in one batch took
     372 MB of transient memory).  The compiled path keeps whole batches of points (its memory is the ring)."""
-    if fast_assembly.applies(space, n_patches):
+    if compiled:
         return int(space.nq_total)
     band = int(np.prod([2 * d.degree + 1 for d in space.dirs]))
     return max(int(space.nq_total), space.ndof * band // BANDED_PER_POINT)

@@ -88,6 +88,17 @@ def _field_values(th, gh, pg, rational: bool):
     return gh, np.moveaxis(bz.elevate(np.moveaxis(th, -1, 1), list(target - pt), 3), 1, -1)
 
 
+def _nurbs_field_values(th, gh, pg):
+    """(elevated homogeneous geometry, field control values) of a NURBS field with the geometry's own weight
+    function: its numerator T W (``th[..., :-1]``, degree p_T) and the geometry (degree p_g) elevated to their
+    common degrees; VTK's rational basis w_i B_i / W then carries control values numerator_i / w_i."""
+    pt = np.array(th.shape[1:4]) - 1
+    target = np.maximum(pg, pt)
+    gh = np.moveaxis(bz.elevate(np.moveaxis(gh, -1, 1), list(target - pg), 3), 1, -1)
+    num = np.moveaxis(bz.elevate(np.moveaxis(th[..., :-1], -1, 1), list(target - pt), 3), 1, -1)
+    return gh, num / gh[..., -1:]
+
+
 def bezier_cells(solution, model):
     """Per-patch Bezier cells: list of dicts with points, weights, degrees, point fields and ids."""
     out = []
@@ -102,9 +113,14 @@ def bezier_cells(solution, model):
         pg = np.array(gh.shape[1:4]) - 1
         fields = {}
         if T is not None:
-            th, _ = common_refinement(T, breaks).bezier_patches()  # polynomial, one or three components
-            th = th.reshape((-1,) + th.shape[3:])
-            gh, tvals = _field_values(th, gh, pg, G.is_rational)
+            if T.is_rational:  # the NURBS basis of the geometry's own weights (iga.rational)
+                th, _ = common_refinement(T, breaks).bezier_patches(homogeneous=True)
+                th = th.reshape((-1,) + th.shape[3:])
+                gh, tvals = _nurbs_field_values(th, gh, pg)
+            else:  # polynomial, one or three components
+                th, _ = common_refinement(T, breaks).bezier_patches()
+                th = th.reshape((-1,) + th.shape[3:])
+                gh, tvals = _field_values(th, gh, pg, G.is_rational)
             fields[name] = tvals[..., 0] if tvals.shape[-1] == 1 else tvals
         if G.is_rational:
             w = gh[..., -1]
