@@ -841,7 +841,7 @@ def test_command_line_errors_are_one_line(name, args, toml, match, tmp_path):
 def test_the_catalogue_names_each_case_once_and_expects_the_toolkits_own_errors():
     groups = {"SPLINES": SPLINES, "OPERATIONS": OPERATIONS, "COMPOSITION": COMPOSITION, "TILING": TILING,
               "HEAT": HEAT, "WRONG": WRONG, "SOLVERS": SOLVERS, "FILES": FILES, "CONFIG": CONFIG,
-              "RESOURCES": RESOURCES}
+              "RESOURCES": RESOURCES, "FORMULAS": FORMULAS}
     for name, cases in groups.items():
         ids = [c.id for c in cases]
         assert cases and len(set(ids)) == len(ids), f"{name}: duplicate case names {sorted(ids)}"
@@ -860,3 +860,65 @@ def test_conforming_patches_are_coupled_and_reported():
     assert np.allclose(sol.probe(x), x[:, 0], atol=1e-10)  # linear across both patches: they are coupled
     assert MultiPatch.from_splines([a, b], couple=False).interfaces == []
     assert ToolkitError in SolverError.__mro__ and issubclass(SplineError, ValueError)
+
+
+# ------------------------------------------------------------------ formulas (iga.expressions)
+def _formula(text, where="config key bc[0].value"):
+    from iga.expressions import Expression
+
+    return Expression(text, where)
+
+
+FORMULAS = [
+    case("formula minimum with one arg", lambda t: _formula("minimum(x)"), ProblemError,
+         r"calls minimum with 1 argument; minimum takes 2 or more arguments"),
+    case("formula unary with two args", lambda t: _formula("sin(x, y)"), ProblemError,
+         r"bc\[0\]\.value: 'sin\(x, y\)' calls sin with 2 arguments; sin takes 1 argument"),
+    case("formula arctan2 with three args", lambda t: _formula("arctan2(x, y, z)"), ProblemError,
+         r"calls arctan2 with 3 arguments; arctan2 takes 2 arguments"),
+    case("formula where with two args", lambda t: _formula("where(x < 1, 2)"), ProblemError,
+         r"calls where with 2 arguments; where takes 3 arguments"),
+    case("formula starred args", lambda t: _formula("hypot(*x)"), ProblemError, r"calls hypot with 1 argument"),
+    case("formula incomplete", lambda t: _formula("80 + "), ProblemError, r"'80 \+ ' is not a formula \(.* at its end\)"),
+    case("formula points of shape (3, 2)", lambda t: _formula("x")(np.zeros((3, 2))), ProblemError,
+         r"evaluated at points given as an array of shape \(N, 3\); got shape \(3, 2\)"),
+    case("formula points 1-D", lambda t: _formula("x")(np.zeros(3)), ProblemError,
+         r"array of shape \(N, 3\); got shape \(3,\)"),
+    case("formula points not numbers", lambda t: _formula("x")("abc"), ProblemError,
+         r"array of shape \(N, 3\); got str"),
+]
+
+
+@pytest.mark.parametrize("fn, exc, match", FORMULAS)
+def test_formulas(fn, exc, match, tmp_path):
+    check(fn, exc, match, tmp_path)
+
+
+def test_a_formula_never_writes_into_the_callers_points():
+    from iga.expressions import Expression
+
+    P = np.random.default_rng(0).random((50, 3))
+    before = P.copy()
+    v = Expression("minimum(x, y, z) + maximum(z, y, x, 0.5)")(P)  # variadic: not NumPy's out= argument
+    assert np.array_equal(P, before)
+    assert np.array_equal(v, np.minimum(np.minimum(P[:, 0], P[:, 1]), P[:, 2])
+                          + np.maximum(np.maximum(np.maximum(P[:, 2], P[:, 1]), P[:, 0]), 0.5))
+
+
+def test_gismo_formulas_keep_exprtks_meaning_of_remainder_and_variadic_max():
+    from iga.expressions import Expression
+
+    x = np.array([[-7.0, 3.0, 2.0], [7.0, -3.0, 1.0], [-7.5, 2.0, -1.0]])
+    got = Expression.from_exprtk("x % y")(x)  # exprtk truncates: -7 % 3 = -1 (Python floors: 2)
+    assert np.array_equal(got, np.fmod(x[:, 0], x[:, 1])) and got[0] == -1.0
+    assert np.array_equal(Expression.from_exprtk("max(x, y, z)")(x), x.max(axis=1))
+    # and back: Python's floored % leaves as a - b floor(a / b), exprtk's truncated one as %
+    assert "floor" in Expression("x % y").exprtk() and Expression.from_exprtk("x % y").exprtk() == "(x % y)"
+
+
+def test_a_long_flat_formula_reads_and_evaluates_without_recursion():
+    from iga.expressions import Expression
+
+    text = "+".join(["x"] * 999)  # 1,997 characters: under the documented 2,000
+    assert Expression(text)(np.ones((2, 3)))[0] == 999
+    assert len(Expression(text).exprtk()) > 999
