@@ -39,7 +39,7 @@ def _plain(v):
 
 def check_seed(seed, error=SplineError) -> None:
     """Raise ``error`` unless ``seed`` is a non-negative integer (what numpy.random.default_rng takes)."""
-    import numpy as np
+    from .numbers import is_integer
 
-    if not isinstance(seed, (int, np.integer)) or isinstance(seed, (bool, np.bool_)) or seed < 0:
+    if not is_integer(seed) or seed < 0:
         raise error(f"seed must be a non-negative integer (the random generator's seed), got {show(seed)}")

@@ -25,6 +25,7 @@ import scipy.sparse as sp
 from .cache import BoundedCache
 from .errors import SplineError
 from .errors import show
+from .numbers import is_integer
 
 __all__ = [
     "apply_along",
@@ -71,12 +72,12 @@ def validate_knots(knots, degree: int, n: int, direction: int = 0) -> np.ndarray
     ``direction`` and the offending value otherwise.
     """
     where = f"direction {direction}"
-    if isinstance(knots, np.ndarray) and knots.dtype == float and knots.ndim == 1 and isinstance(degree, (int, np.integer)):
+    if isinstance(knots, np.ndarray) and knots.dtype == float and knots.ndim == 1 and is_integer(degree):
         key = (knots.tobytes(), int(degree), int(n))
         hit = _VALID.get(key)
         if hit is not None:  # the same knot vector was validated before (e.g. thousands of composed tiles)
             return hit
-    if not isinstance(degree, (int, np.integer)) or degree < 1:
+    if not is_integer(degree) or degree < 1:
         raise SplineError(f"{where}: degree must be an integer >= 1, got {show(degree)}")
     try:
         U = np.asarray(knots, dtype=float)

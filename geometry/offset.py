@@ -16,6 +16,7 @@ import numpy as np
 from .bspline import BSpline
 from .errors import SplineError, show
 from .fitting import c0_joints, evaluate, interpolate, span_nodes
+from .numbers import is_real
 
 __all__ = ["Offset", "offset", "exact_offset"]
 
@@ -62,10 +63,10 @@ def offset(S: BSpline, distance: float, tolerance: float | None = None) -> Offse
     """
     if not isinstance(S, BSpline) or S.dim != 2:
         raise SplineError(f"offset needs a BSpline surface, got {show(S)}")
-    if not (isinstance(distance, (int, float, np.floating)) and np.isfinite(distance) and distance != 0):
+    if not (is_real(distance) and np.isfinite(distance) and distance != 0):
         raise SplineError(f"offset distance must be a non-zero length (model units), got {show(distance)}")
     tol = 1e-3 * abs(distance) if tolerance is None else tolerance
-    if not (isinstance(tol, (int, float, np.floating)) and np.isfinite(tol) and tol > 0):
+    if not (is_real(tol) and np.isfinite(tol) and tol > 0):
         raise SplineError(f"offset tolerance must be a positive length (model units), got {show(tolerance)}")
     breaks = [S.breakpoints(k) for k in range(2)]
     joints = [c0_joints(S.knots[k], S.degrees[k]) for k in range(2)]

@@ -30,6 +30,7 @@ from . import progress
 from .bspline import BSpline
 from .errors import SplineError, show
 from .faces import face_knots, nested_refinement
+from .numbers import is_integer
 
 __all__ = ["reduce_degree", "reduce_model", "reduced_model", "deviation"]
 
@@ -70,9 +71,9 @@ def reduce_degree(spline: BSpline, degree: int = 3, check: int = 9) -> tuple[BSp
     """
     if not isinstance(spline, BSpline) or spline.dim != 3:
         raise SplineError(f"reduce_degree approximates trivariate BSplines, got {show(spline)}")
-    if not isinstance(degree, (int, np.integer)) or isinstance(degree, (bool, np.bool_)) or degree not in (2, 3):
+    if not is_integer(degree) or degree not in (2, 3):
         raise SplineError(f"the reduced degree must be the integer 2 or 3 (Massarwi et al. 2018, Section 6.3), got {show(degree)}")
-    if not isinstance(check, (int, np.integer)) or check < 2:
+    if not is_integer(check) or check < 2:
         raise SplineError(f"check must be an integer >= 2 (points per direction), got {show(check)}")
     q = int(degree)
     m = spline.control_points.shape[-1]

@@ -25,6 +25,7 @@ from contextvars import ContextVar
 
 from .errors import SplineError
 from .errors import show
+from .numbers import is_real
 
 __all__ = ["usable_cores", "available_memory", "memory_limit", "memory_budget", "set_memory_limit", "check_memory", "peak_memory_mib", "GiB",
            "paused_gc", "bulk_build", "one_blas_thread"]
@@ -79,7 +80,7 @@ def available_memory() -> float:
 
 
 def _bytes(gib: float | None) -> float | None:
-    if gib is not None and not (isinstance(gib, (int, float)) and not isinstance(gib, bool) and 0 < gib < float("inf")):
+    if gib is not None and not (is_real(gib) and 0 < gib < float("inf")):
         raise SplineError(f"the memory limit must be a positive number of GiB, got {show(gib)}")
     return None if gib is None else float(gib) * GiB
 

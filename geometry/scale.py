@@ -32,6 +32,7 @@ import numpy as np
 from . import bernstein as bz
 from .errors import SplineError, show
 from .spline import SplineFunction
+from .numbers import is_integer
 
 __all__ = ["ScaleBounds", "scale_bounds"]
 
@@ -94,7 +95,7 @@ def scale_bounds(D: SplineFunction, boxes=None, subdivide: int = 2) -> ScaleBoun
     """
     if not isinstance(D, SplineFunction):
         raise SplineError(f"scale_bounds needs a spline, got {show(D)}")
-    if not isinstance(subdivide, (int, np.integer)) or not 1 <= subdivide <= 16:
+    if not is_integer(subdivide) or not 1 <= subdivide <= 16:
         raise SplineError(f"subdivide must be an integer from 1 to 16, got {show(subdivide)}")
     d = D.dim
     hom, el_boxes = D.bezier_patches(homogeneous=True)

@@ -7,6 +7,7 @@ import numpy as np
 from . import knots as kn
 from .bspline import BSpline
 from .errors import SplineError, show
+from .numbers import is_real
 
 __all__ = ["duck", "cylinder"]
 
@@ -31,7 +32,7 @@ def _with_channels(cp: np.ndarray, channels) -> tuple[np.ndarray, tuple]:
         raise SplineError(f"channels must be a dict {{name: constant}}, e.g. {{'k': 205.0}}, got {show(channels)}")
     extra = []
     for name, v in channels.items():
-        ok = isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool) and np.isfinite(v)
+        ok = is_real(v) and np.isfinite(v)
         if not ok:
             raise SplineError(f"channel {show(name)} must be a finite number (one value over the whole primitive), got "
                               f"{show(v)}; for a field that varies, set its control values with "
@@ -52,7 +53,7 @@ def duck(length: float = 2.1, channels=None) -> BSpline:
     the paper's duck, so that tiles there nearly vanish; the map stays regular.
     ``channels``: {name: constant} extra components.
     """
-    if isinstance(length, bool) or not isinstance(length, (int, float, np.number)) or not (np.isfinite(length)
+    if not is_real(length) or not (np.isfinite(length)
                                                                                          and length > 0):
         raise SplineError(f"duck length must be a positive number (model units), got {show(length)}")
     sec = _DUCK_SECTIONS.copy()

@@ -21,6 +21,7 @@ from .evaluation import SplineEvaluation
 from .errors import SplineError
 from .faces import FACE_NAMES
 from .errors import show
+from .numbers import is_integer
 
 
 def _read_only(U) -> np.ndarray:
@@ -51,7 +52,7 @@ class SplineFunction(SplineEvaluation):
             )
         d = coefficients.ndim - 1
         degs = list(degrees) if isinstance(degrees, (list, tuple, np.ndarray)) else [degrees]
-        if not all(isinstance(p, (int, np.integer)) and not isinstance(p, (bool, np.bool_)) for p in degs):
+        if not all(is_integer(p) for p in degs):
             raise SplineError(f"degrees must be integers, one per parametric direction, got {show(degrees)}")
         degrees = tuple(int(p) for p in degs)
         if d not in (1, 2, 3):
@@ -200,7 +201,7 @@ class SplineFunction(SplineEvaluation):
         return tuple(len(self.breakpoints(k)) - 1 for k in range(self.dim))
 
     def _check_direction(self, direction) -> int:
-        if not isinstance(direction, (int, np.integer)) or not 0 <= direction < self.dim:
+        if not is_integer(direction) or not 0 <= direction < self.dim:
             raise SplineError(f"direction must be an integer in 0..{self.dim - 1}, got {show(direction)}")
         return int(direction)
 
@@ -222,7 +223,7 @@ class SplineFunction(SplineEvaluation):
 
         Returns ``(new_spline, [R_0, ..., R_{d-1}])`` (identity where unrefined).
         """
-        if not isinstance(times, (int, np.integer)) or isinstance(times, bool) or times < 0:
+        if not is_integer(times) or times < 0:
             raise SplineError(f"refinement times must be a non-negative integer, got {show(times)}")
         directions = range(self.dim) if directions is None else [self._check_direction(k) for k in directions]
         out = self
@@ -241,7 +242,7 @@ class SplineFunction(SplineEvaluation):
     def elevate(self, direction: int, times: int = 1):
         """Raise the degree along ``direction`` by ``times`` (continuity kept); exact."""
         k = self._check_direction(direction)
-        if not isinstance(times, (int, np.integer)) or times < 0:
+        if not is_integer(times) or times < 0:
             raise SplineError(f"elevation times must be a non-negative integer, got {show(times)}")
         U, E = kn.elevation_matrix(self.knots[k], self.degrees[k], int(times))
         knots = list(self.knots)

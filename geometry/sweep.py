@@ -30,6 +30,7 @@ from .bspline import BSpline
 from .errors import SplineError, show
 from .fitting import c0_joints, evaluate, interpolate, span_nodes
 from .primitives import arc
+from .numbers import is_real
 
 __all__ = ["Sweep", "sweep", "circle", "frames", "section_error", "kinks", "points_and_tangents"]
 
@@ -204,7 +205,7 @@ def sweep(axis: BSpline, radius: float | None = None, section: BSpline | None = 
     if (radius is None) == (section is None):
         raise SplineError("sweep needs exactly one of radius (a circle) and section (a closed planar curve)")
     if section is None:
-        if not (isinstance(radius, (int, float, np.floating)) and np.isfinite(radius) and radius > 0):
+        if not (is_real(radius) and np.isfinite(radius) and radius > 0):
             raise SplineError(f"sweep radius must be a positive length (model units), got {show(radius)}")
         section = circle(float(radius))
     elif not isinstance(section, BSpline) or section.dim != 1:
@@ -215,7 +216,7 @@ def sweep(axis: BSpline, radius: float | None = None, section: BSpline | None = 
         raise SplineError("sweep section must be a closed curve (first and last control points equal) of "
                           "positive size in the (x, y) plane")
     tol = 1e-4 * size if tolerance is None else tolerance
-    if not (isinstance(tol, (int, float, np.floating)) and np.isfinite(tol) and tol > 0):
+    if not (is_real(tol) and np.isfinite(tol) and tol > 0):
         raise SplineError(f"sweep tolerance must be a positive length (model units), got {show(tolerance)}")
     bends = kinks(axis)
     if len(bends):

@@ -32,6 +32,7 @@ from .composition import compose
 from .errors import SplineError, show
 from .resources import check_memory
 from .tolerances import ON_DOMAIN, ROUNDOFF, SNAP
+from .numbers import is_real
 
 __all__ = ["TrimmedSurface", "reversed_curve", "join_curves", "loop_polyline", "inside_polyline"]
 
@@ -285,7 +286,7 @@ class TrimmedSurface:
         the end) of :meth:`tessellate`; the ring points come first, loop by loop."""
         from .triangulate import fill_rings
 
-        if not (isinstance(tolerance, (int, float)) and np.isfinite(tolerance) and tolerance > 0):
+        if not (is_real(tolerance) and np.isfinite(tolerance) and tolerance > 0):
             raise SplineError(f"tolerance must be a positive length (model units), got {show(tolerance)}")
         S = self.surface
         size = float(np.ptp(S.points.reshape(-1, 3), axis=0).max())

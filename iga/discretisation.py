@@ -18,6 +18,7 @@ from .rational import own_rational, rational_quadrature_extra
 from .regularity import prove_regular
 from .space import estimate, make_space, solution_bases
 from .volume import VolumeAssembler
+from geometry.numbers import is_integer
 
 __all__ = ["Discretisation", "count"]
 
@@ -26,7 +27,7 @@ def count(name: str, v, minimum: int, three: bool = False):
     """A non-negative integer (or, with ``three``, one integer or three), else ProblemError."""
     vals = list(v) if three and isinstance(v, (list, tuple, np.ndarray)) else [v]
     ok = len(vals) in ((1, 3) if three else (1,)) and all(
-        isinstance(x, (int, np.integer)) and not isinstance(x, (bool, np.bool_)) and x >= minimum for x in vals)
+        is_integer(x) and x >= minimum for x in vals)
     if not ok:
         what = "an integer" if not three else "an integer or three integers"
         raise ProblemError(f"{name} must be {what} >= {minimum}, got {show(v)}")

@@ -79,8 +79,12 @@ class ElasticSolution:
         grad = np.stack([physical_gradient(J, dxi[:, a, :], f"patch {pi}", params) for a in range(3)], 1)
         return val, grad, x, chans
 
-    def _at_points(self, points, fn):
-        where, params = self._locator(np.asarray(points, float), 1e-10)
+    def _at_points(self, points, fn, tail=()):
+        """``fn(patch, params) -> (n,) + tail`` at physical points (N, 3), located; (0,) + tail for no points."""
+        points = np.asarray(points, float)
+        if points.size == 0:
+            return np.zeros((0,) + tuple(tail))
+        where, params = self._locator(points, 1e-10)
         out = None
         for pi in np.unique(where):
             sel = where == pi
@@ -104,18 +108,18 @@ class ElasticSolution:
 
     def displacement(self, points) -> np.ndarray:
         """Displacement (N, 3) in m at physical points (N, 3)."""
-        return self._at_points(points, lambda pi, p: self.displacement_spline(pi).evaluate(p))
+        return self._at_points(points, lambda pi, p: self.displacement_spline(pi).evaluate(p), (3,))
 
     def strain(self, points) -> np.ndarray:
         """Total small strain sym(grad u) (N, 3, 3) at physical points."""
         def eps(pi, p):
             g = self.evaluate(pi, p)[1]
             return 0.5 * (g + np.transpose(g, (0, 2, 1)))
-        return self._at_points(points, eps)
+        return self._at_points(points, eps, (3, 3))
 
     def stress(self, points) -> np.ndarray:
         """Cauchy stress (N, 3, 3) in Pa at physical points (thermal strain taken off the total)."""
-        return self._at_points(points, self._stress_at)
+        return self._at_points(points, self._stress_at, (3, 3))
 
     def von_mises(self, points) -> np.ndarray:
         """Von Mises equivalent stress (N,) in Pa at physical points."""

@@ -87,6 +87,12 @@ def export_gismo(problem, path, strict: bool = False) -> Path:
     on slot faces, a conductivity channel, the solution bases), and a :class:`GismoExtensionWarning` names it;
     with ``strict`` the export refuses it instead, so that the file says nothing G+Smo does not read.
     """
+    from .problem import HeatProblem
+
+    if not isinstance(problem, HeatProblem):
+        raise ProblemError(f"G+Smo export writes heat problems (iga.HeatProblem), not {type(problem).__name__}: "
+                           "G+Smo's XML holds no elasticity problem of this kind; export the model alone with "
+                           "geometry.gismo_xml, or write the elastic solution with iga.write_vtu")
     model = problem.model
     if any(p.spline.dim != 3 for p in model.patches):
         raise ProblemError("G+Smo export writes trivariate models")

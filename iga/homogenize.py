@@ -86,6 +86,12 @@ def periodic_cell(tile) -> MultiPatch:
         patches = [tile]
     elif isinstance(tile, (list, tuple)):
         patches = list(tile)
+        bad = [i for i, p in enumerate(patches) if not (isinstance(p, BSpline) and p.dim == 3)]
+        if bad:  # a list is the user's own patches: none is dropped without a word
+            raise ProblemError(f"tile list item {bad[0]} is a {type(patches[bad[0]]).__name__}"
+                               f"{'' if not isinstance(patches[bad[0]], BSpline) else f' of dimension {patches[bad[0]].dim}'}"
+                               "; a list of patches to homogenise holds trivariate BSplines in the unit cell only "
+                               "(a Tile keeps its surfaces and curves apart)")
     elif hasattr(tile, "patches"):
         patches = list(tile.patches)
     else:

@@ -22,7 +22,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from geometry import BSpline
-from geometry.errors import show
+from geometry.errors import ToolkitError, show
+from geometry.numbers import is_integer
+from geometry.resources import check_memory
 from tiling.materials import interpolate_channel
 
 from .coefficients import TENSOR_PAIRS
@@ -79,8 +81,24 @@ def effective_table(family, values, conductivity=1.0, degree_elevation: int = 1,
     if not callable(family):
         raise ProblemError(f"effective_table: family must be a callable p -> tile (e.g. tiling.library.cross), got "
                            f"{show(family)}")
-    tensors = np.stack([effective_conductivity(family(float(p)), conductivity, degree_elevation, refine) for p in v])
+    tensors = np.stack([effective_conductivity(_member(family, float(p)), conductivity, degree_elevation, refine)
+                        for p in v])
     return EffectiveTable(v, tensors, name or getattr(family, "__name__", "tile family"))
+
+
+def _member(family, p: float):
+    """``family(p)``, a user's callable: what it raises is reported as the project's error naming it and p."""
+    try:
+        return family(p)
+    except ToolkitError:
+        raise
+    except Exception as exc:  # the user's code: any exception, reported with its own words
+        raise ProblemError(f"effective_table: the family {show(getattr(family, '__name__', family))} failed at "
+                           f"p = {p:g}: {type(exc).__name__}: {exc}") from None
+
+
+#: knot spans per direction at most for macro_map (the six channels on the refined map: 8 GiB at 500^3)
+_MAX_SPANS = 500
 
 
 def macro_map(D: BSpline, table: EffectiveTable, parameter: str, spans: int = 8, prefix: str = "K"):
@@ -93,7 +111,16 @@ def macro_map(D: BSpline, table: EffectiveTable, parameter: str, spans: int = 8,
     """
     if not isinstance(D, BSpline) or D.dim != 3:
         raise ProblemError(f"macro_map needs a trivariate geometry.BSpline map, got {show(D)}")
-    if parameter not in D.channels:
+    if not isinstance(table, EffectiveTable):
+        raise ProblemError(f"macro_map needs an EffectiveTable (iga.effective_table(family, values)) as its table, "
+                           f"got {show(table)}")
+    if not (is_integer(spans) and 1 <= spans <= _MAX_SPANS):
+        raise ProblemError(f"macro_map: spans must be an integer in [1, {_MAX_SPANS}] (knot spans per direction of "
+                           f"the refined map), got {show(spans)}")
+    need = float(np.prod([max(spans, len(D.breakpoints(k)) - 1) + D.degrees[k] for k in range(3)]))
+    check_memory(need * 8 * (D.control_points.shape[-1] + 6) * 4, f"the macro map at {spans} spans per direction",
+                 ProblemError, "lower spans")
+    if not isinstance(parameter, str) or parameter not in D.channels:
         raise ProblemError(f"macro_map: {show(parameter)} is not a channel of the map (its channels: "
                            f"{list(D.channels)}); grade the parameter onto it (tiling.materials.graded_channel)")
     for k in range(3):

@@ -22,9 +22,9 @@ def thermal_strain(problem, temperature, expansion, reference=0.0):
     ref = float(reference)
     if hasattr(temperature, "temperature_spline") and hasattr(temperature, "problem"):
         heat = temperature
-        if heat.problem.model is not problem.model and len(heat.problem.model.patches) != len(problem.model.patches):
-            raise ProblemError("the heat solution was computed on another model; solve the heat problem on the "
-                               "model of the elastic problem")
+        if not _same_model(heat.problem.model, problem.model):
+            raise ProblemError("the heat solution was computed on another model (its patches are not this elastic "
+                               "problem's, patch for patch); solve the heat problem on the model of the elastic problem")
 
         def T_at(pi, x, params, chans):
             return heat.temperature_spline(pi).evaluate(params)[:, 0]
@@ -38,3 +38,23 @@ def thermal_strain(problem, temperature, expansion, reference=0.0):
         return alpha.values(x, chans, f"patch {pi}") * (T_at(pi, x, params, chans) - ref)
 
     return strain
+
+
+def _same_model(a, b) -> bool:
+    """Whether two analysis models hold the same patches, patch for patch: the same tile spline, placement and
+    map (a model normalised twice from one Microstructure is still the same model)."""
+    if a is b:
+        return True
+    if len(a.patches) != len(b.patches):
+        return False
+    for p, q in zip(a.patches, b.patches):
+        if p.spline is not q.spline and not (p.spline.shape == q.spline.shape and
+                                             np.array_equal(p.spline.control_points, q.spline.control_points)):
+            return False
+        if (p.placement is None) != (q.placement is None) or (
+                p.placement is not None and not np.array_equal(p.placement, q.placement)):
+            return False
+        if (p.outer is None) != (q.outer is None) or (p.outer is not None and p.outer is not q.outer and not (
+                p.outer.shape == q.outer.shape and np.array_equal(p.outer.control_points, q.outer.control_points))):
+            return False
+    return True

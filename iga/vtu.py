@@ -34,6 +34,7 @@ from .sampling import displacement_fields, temperature_fields
 from .solution import Solution
 from .vtu_bezier import bezier_grid
 from geometry.errors import show
+from geometry.numbers import is_integer, is_real
 
 __all__ = ["write_vtu", "write_pieces", "save_grid"]
 
@@ -77,9 +78,9 @@ def write_vtu(path, solution_or_model, samples: int = 3, cells: str = "linear", 
     >>> grid.n_cells, round(float(grid.point_data["temperature"].max()), 12)
     (8, 1.0)
     """
-    if not isinstance(samples, (int, np.integer)) or isinstance(samples, bool) or samples < 1:
+    if not is_integer(samples) or samples < 1:
         raise ProblemError(f"samples must be a positive integer, got {show(samples)}")
-    if tolerance is not None and not (isinstance(tolerance, (int, float)) and not isinstance(tolerance, bool)
+    if tolerance is not None and not (is_real(tolerance)
                                       and np.isfinite(tolerance) and tolerance > 0):
         raise ProblemError(f"tolerance must be a positive length (model units), got {show(tolerance)}")
     if cells not in ("linear", "bezier"):
@@ -134,6 +135,12 @@ def write_pieces(path, solution, comm, samples: int = 3, tolerance: float | None
     """
     import xml.etree.ElementTree as ET
 
+    if not isinstance(solution, (Solution, ElasticSolution)):
+        raise ProblemError(f"write_pieces writes a solution (iga.Solution or iga.ElasticSolution) of a distributed "
+                           f"solve, got a {type(solution).__name__}; write a model with write_vtu")
+    if not all(hasattr(comm, name) for name in ("Get_rank", "Get_size", "allreduce", "Barrier")):
+        raise ProblemError(f"write_pieces needs the MPI communicator of the solve (e.g. mpi4py's MPI.COMM_WORLD), got "
+                           f"{show(comm)}; write a serial solution with write_vtu")
     path = Path(path)
     if path.suffix.lower() != ".pvtu":
         raise ProblemError(f"cannot write {path.name}: parallel VTU files end in .pvtu")

@@ -46,6 +46,7 @@ from . import clusters
 from .errors import SolverError
 from geometry import progress
 from geometry.errors import show
+from geometry.numbers import is_integer
 
 __all__ = ["SolverError", "SolveInfo", "solve", "register", "backends", "AUTO_DIRECT_LIMIT"]
 
@@ -126,8 +127,9 @@ def _direct(A, b, tol, maxiter, **options):
             lu = spla.splu(sp.csc_matrix(A))
         except RuntimeError as exc:  # "Factor is exactly singular"
             raise SolverError(
-                f"the system matrix is singular ({exc}); a steady heat problem needs a Dirichlet or "
-                "Robin condition somewhere"
+                f"the system matrix is singular ({exc}): the conditions leave the solution undetermined (a heat "
+                "problem needs a Dirichlet or Robin condition on every connected piece, an elastic one supports "
+                "against every rigid motion of every piece)"
             ) from None
         t1 = time.perf_counter()
         x = lu.solve(b)
@@ -162,7 +164,9 @@ def _krylov(A, b, M, tol, maxiter, name, t_setup, extra):
     if not np.all(np.isfinite(x)):
         raise SolverError(
             f"{name} broke down with non-finite values after {it[0]} iterations (residual undefined): "
-            "the matrix is singular or indefinite; a steady heat problem needs a Dirichlet or Robin condition"
+            "the matrix is singular or indefinite: the conditions leave the solution undetermined (a heat problem "
+            "needs a Dirichlet or Robin condition on every connected piece, an elastic one supports against every "
+            "rigid motion of every piece)"
         )
     if res > 10 * tol and _flag == 0:  # CG's own residual converged, the true one did not: rounding
         raise SolverError(
@@ -279,7 +283,7 @@ def solve(A, b, method: str = "auto", tol: float = 1e-10, maxiter: int | None = 
         raise SolverError(f"unknown solver {show(method)}; choose one of {backends()}")
     if not (isinstance(tol, Real) and not isinstance(tol, bool) and 0 < tol < 1):
         raise SolverError(f"tol must be a number in (0, 1), got {show(tol)}")
-    if maxiter is not None and not (isinstance(maxiter, (int, np.integer)) and not isinstance(maxiter, bool)
+    if maxiter is not None and not (is_integer(maxiter)
                                     and maxiter >= 1):
         raise SolverError(f"maxiter must be an integer >= 1, got {show(maxiter)}")
     if method == "auto":

@@ -54,6 +54,7 @@ import scipy.sparse.linalg as spla
 from . import clusters
 from .errors import SolverError
 from .indexing import complement
+from geometry.numbers import is_real
 
 
 def _near_nullspace(near_nullspace, n: int) -> np.ndarray:
@@ -132,7 +133,7 @@ class AMGPreconditioner:
         from pyamg.util.utils import scale_columns, scale_rows
 
         if block_theta is not None and (isinstance(block_theta, bool) or not (
-                isinstance(block_theta, (int, float)) and 0 < block_theta <= 1)):
+                is_real(block_theta) and 0 < block_theta <= 1)):
             raise SolverError(f"block_theta must be a number in (0, 1] (the coupling of the unit-diagonal matrix from "
                               f"which unknowns are relaxed together) or None to relax point by point, got "
                               f"{block_theta!r}")

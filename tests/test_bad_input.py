@@ -841,7 +841,7 @@ def test_command_line_errors_are_one_line(name, args, toml, match, tmp_path):
 def test_the_catalogue_names_each_case_once_and_expects_the_toolkits_own_errors():
     groups = {"SPLINES": SPLINES, "OPERATIONS": OPERATIONS, "COMPOSITION": COMPOSITION, "TILING": TILING,
               "HEAT": HEAT, "WRONG": WRONG, "SOLVERS": SOLVERS, "FILES": FILES, "CONFIG": CONFIG,
-              "RESOURCES": RESOURCES, "FORMULAS": FORMULAS}
+              "RESOURCES": RESOURCES, "FORMULAS": FORMULAS, "DROPPED": DROPPED, "RAW": RAW}
     for name, cases in groups.items():
         ids = [c.id for c in cases]
         assert cases and len(set(ids)) == len(ids), f"{name}: duplicate case names {sorted(ids)}"
@@ -922,3 +922,120 @@ def test_a_long_flat_formula_reads_and_evaluates_without_recursion():
     text = "+".join(["x"] * 999)  # 1,997 characters: under the documented 2,000
     assert Expression(text)(np.ones((2, 3)))[0] == 999
     assert len(Expression(text).exprtk()) > 999
+
+
+# ------------------------------------------------------------------ numbers: NumPy's scalars are numbers, bools are not
+def test_numpy_scalars_are_numbers_and_bools_are_not():
+    # one helper per concern (geometry.numbers): a NumPy scalar is taken where a number is asked for (np.int64(1)
+    # as a radius was "not a positive length"), a bool is refused where a count or a size is (True was 1)
+    from geometry.numbers import is_flag, is_integer, is_real
+
+    assert is_real(np.int64(1)) and is_real(np.float32(0.5)) and not is_real(True) and not is_real(np.bool_(1))
+    assert is_integer(np.uint8(3)) and not is_integer(3.0) and not is_integer(False)
+    assert is_flag(np.bool_(False)) and not is_flag(0)
+    sol = solved()
+    box = pr.box((2.0, 1.0, 1.0), degrees=(2, 2, 2))
+    tiling.regular(box, L.cross(), (np.int64(2), np.int64(1), np.int64(1)), seal="cap", thickness=np.float32(0.1))
+    tiling.bifurcation(pr.box((2.0, 1.0, 3.0)), levels=[0, np.int64(1), 0], tile="1-2", margin=np.float64(0.3))
+    HeatProblem(box, refine=np.int64(1), degree_elevation=np.int32(0))
+    for fn, match in [
+        (lambda: tiling.regular(box, L.cross(), (2, 1, 1), seal="cap", thickness=True), "thickness"),
+        (lambda: tiling.bifurcation(pr.box((2.0, 1.0, 3.0)), levels=[0, True, 0], tile="1-2"), "levels"),
+        (lambda: tiling.bifurcation(pr.box((2.0, 1.0, 3.0)), levels=[0, 1, 0], tile="1-2", margin=True), "margin"),
+        (lambda: write_vtu("x.vtu", sol, samples=True), "samples"),
+        (lambda: HeatProblem(box, refine=True), "refine"),
+        (lambda: solvers.solve(sp_eye(3), np.ones(3), method="cg", maxiter=True), "maxiter"),
+        (lambda: tiling.random_implicit(box, (1, 1, 1), seed=True), "seed"),
+    ]:
+        with pytest.raises(ToolkitError, match=match):
+            fn()
+
+
+def sp_eye(n):
+    import scipy.sparse as sp
+
+    return sp.identity(n, format="csr")
+
+
+def test_an_elastic_solution_at_no_points_gives_empty_arrays_and_solver_advice_names_both_physics():
+    from iga import ElasticityProblem
+
+    s = ElasticityProblem(cube(), 1e9, 0.3).dirichlet("umin", 0.0).traction("umax", [0.0, 0.0, -1e3]).solve()
+    assert s.stress([]).shape == (0, 3, 3) and s.von_mises([]).shape == (0,)  # None and a raw error before
+    assert s.displacement(np.zeros((0, 3))).shape == (0, 3) and s.strain([]).shape == (0, 3, 3)
+    import scipy.sparse as sp
+
+    singular = sp.csr_matrix(np.array([[1.0, -1.0], [-1.0, 1.0]]))
+    with pytest.raises(SolverError, match="an elastic one supports against every rigid motion"):
+        solvers.solve(singular, np.array([1.0, 0.0]), method="direct")
+
+
+def _polygon_with(polygons):
+    from tiling.polygonal import PolygonTile
+
+    return PolygonTile(np.array([[0.1, 0.1, 0.5], [0.9, 0.1, 0.5], [0.9, 0.9, 0.5], [0.1, 0.9, 0.5]]), polygons)
+
+
+DROPPED = [
+    case("homogenise a list with a surface", lambda t: __import__("iga").effective_conductivity(
+        [pr.box(), pr.box().boundary("umin")]), ProblemError,
+        r"tile list item 1 is a BSpline of dimension 2; a list of patches to homogenise holds trivariate"),
+    case("homogenise a list with a number", lambda t: __import__("iga").effective_conductivity([pr.box(), 3]),
+         ProblemError, r"tile list item 1 is a int"),
+    case("thermal strain from another model", lambda t: __import__("iga").ElasticityProblem(
+        pr.box((2.0, 1.0, 1.0)), 1e9, 0.3).thermal(
+        HeatProblem(pr.box()).dirichlet("umin", 1.0).solve(), 1e-5), ProblemError,
+        r"the heat solution was computed on another model \(its patches are not this elastic problem's"),
+    case("polygon repeats a vertex", lambda t: _polygon_with([[0, 1, 1, 2]]), TilingError,
+         r"polygon 0 repeats a vertex \(\[0, 1, 1, 2\]: vertices 1 and 1 at one place"),
+    case("polygon closes on itself", lambda t: _polygon_with([[0, 1, 2, 0]]), TilingError,
+         r"polygon 0 repeats a vertex"),
+]
+
+
+@pytest.mark.parametrize("fn, exc, match", DROPPED)
+def test_nothing_is_dropped_or_mixed_up_without_a_word(fn, exc, match, tmp_path):
+    check(fn, exc, match, tmp_path)
+
+
+def _table():
+    from iga import effective_table
+
+    return effective_table(L.cross, [0.2, 0.3], degree_elevation=0)
+
+
+def _graded_map():
+    from tiling.materials import graded_channel
+
+    return graded_channel(pr.box(), "t", near=0.2, far=0.3)
+
+
+def _failing_family(p):
+    raise ValueError("no tile for that")
+
+
+RAW = [
+    case("macro_map spans as text", lambda t: __import__("iga").macro_map(_graded_map(), _table(), "t", spans="8"),
+         ProblemError, r"spans must be an integer in \[1, 500\] .* got '8'"),
+    case("macro_map spans beyond memory", lambda t: __import__("iga").macro_map(_graded_map(), _table(), "t",
+                                                                                 spans=3000),
+         ProblemError, r"spans must be an integer in \[1, 500\]"),
+    case("macro_map table as a dict", lambda t: __import__("iga").macro_map(_graded_map(), {"a": 1}, "t"),
+         ProblemError, r"macro_map needs an EffectiveTable"),
+    case("clip_walls of None", lambda t: __import__("tiling.clipping").clipping.clip_walls(None), TilingError,
+         r"clip_walls needs a list of walls .* got None"),
+    case("export_gismo of an elastic problem", lambda t: __import__("iga.gismo").gismo.export_gismo(
+        __import__("iga").ElasticityProblem(cube(), 1e9, 0.3), t / "e.xml"), ProblemError,
+        r"G\+Smo export writes heat problems \(iga.HeatProblem\), not ElasticityProblem"),
+    case("write_pieces without a communicator", lambda t: __import__("iga").write_pieces(t / "a.pvtu", solved(), None),
+         ProblemError, r"write_pieces needs the MPI communicator of the solve .* got None"),
+    case("write_pieces of a spline", lambda t: __import__("iga").write_pieces(t / "a.pvtu", cube(), None),
+         ProblemError, r"write_pieces writes a solution .* got a BSpline"),
+    case("effective_table family raising", lambda t: __import__("iga").effective_table(_failing_family, [0.2, 0.3]),
+         ProblemError, r"the family '_failing_family' failed at p = 0.2: ValueError: no tile for that"),
+]
+
+
+@pytest.mark.parametrize("fn, exc, match", RAW)
+def test_raw_errors_become_the_projects_own(fn, exc, match, tmp_path):
+    check(fn, exc, match, tmp_path)

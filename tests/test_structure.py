@@ -10,9 +10,9 @@ from scipy.sparse.csgraph import connected_components
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("geometry", "tiling", "iga", "solvers")
 # what each package may import from the others: geometry <- tiling <- iga -> solvers; solvers knows nothing
-# about splines and takes only the toolkit's base exception and the progress display from geometry
+# about splines and takes only the toolkit's base exception, the progress display and the number checks from geometry
 ALLOWED = {"geometry": set(), "tiling": {"geometry"}, "iga": {"geometry", "tiling", "solvers"},
-           "solvers": {"geometry.errors", "geometry.progress"}}
+           "solvers": {"geometry.errors", "geometry.progress", "geometry.numbers"}}
 
 
 def _modules(pkg):
@@ -151,13 +151,15 @@ def test_no_public_name_shadows_a_module_of_its_package():
 
 
 def test_solvers_import_without_the_spline_stack():
-    """``import solvers`` takes the base exception and the progress display, nothing of the splines."""
+    """``import solvers`` takes the base exception, the progress display and the number checks, nothing of the
+    splines."""
     import subprocess
     import sys
 
     code = "import sys, solvers; print(sorted(m for m in sys.modules if m.split('.')[0] in ('geometry', 'tiling', 'iga')))"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, check=True)
-    assert out.stdout.strip() == str(["geometry", "geometry.errors", "geometry.progress"]), out.stdout
+    assert out.stdout.strip() == str(["geometry", "geometry.errors", "geometry.numbers", "geometry.progress"]), \
+        out.stdout
 
 
 def test_benchmarks_write_tracked_pictures_only_through_make_figures():

@@ -38,6 +38,7 @@ from .paving import _check_budget, _check_map, _check_spans
 from .tile import Tile, refuse_trimmed
 from .topo import _edge_lengths, topo_subdiv
 from geometry.tolerances import ON_DOMAIN, SNAP
+from geometry.numbers import is_integer, is_real
 
 __all__ = ["bifurcation", "bifurcation_tiles", "smooth_levels", "SPLITS"]
 
@@ -78,10 +79,10 @@ def bifurcation_tiles(kind: str = "1-2", margin: float = 0.3, surfaces: bool = F
     """
     if kind not in SPLITS:
         raise TilingError(f"tile must be one of {list(SPLITS)} (bifurcation kinds), got {show(kind)}")
-    if not isinstance(margin, (int, float)) or not 0 < margin < 0.5:
+    if not is_real(margin) or not 0 < margin < 0.5:
         raise TilingError(f"margin must be in (0, 0.5) (the column's distance from the cell's sides), got "
                           f"{show(margin)}")
-    if not isinstance(trunk, (int, float)) or isinstance(trunk, bool) or not 0 < trunk < 1:
+    if not is_real(trunk) or not 0 < trunk < 1:
         raise TilingError(f"trunk must be in (0, 1) (the height of the split tile's common part), got {show(trunk)}")
     sx, sy = SPLITS[kind]
     c0, c1 = margin, 1.0 - margin
@@ -145,7 +146,7 @@ def _layers(D, g, epsilon, levels):
     """Layer intervals (L, 2) along direction g, and their levels (L,) before smoothing."""
     if levels is not None:
         if not isinstance(levels, (list, tuple, np.ndarray)) or not len(levels) or not all(
-                isinstance(v, (int, np.integer)) and not isinstance(v, bool) and 0 <= v <= _MAX_LEVEL for v in levels):
+                is_integer(v) and 0 <= v <= _MAX_LEVEL for v in levels):
             raise TilingError(f"levels must be a list of integers in [0, {_MAX_LEVEL}], one per layer, got "
                               f"{show(levels)}")
         b = D.breakpoints(g)
@@ -256,7 +257,7 @@ def _check_arguments(D, epsilon, levels, direction, surfaces) -> None:
         raise TilingError(f"surfaces must be true or false, got {show(surfaces)}")
     if (epsilon is None) == (levels is None):
         raise TilingError("give epsilon (model units) or levels (one per layer), not both and not neither")
-    if epsilon is not None and not (isinstance(epsilon, (int, float, np.floating)) and not isinstance(epsilon, bool)
+    if epsilon is not None and not (is_real(epsilon)
                                     and np.isfinite(epsilon) and epsilon > 0):
         raise TilingError(f"epsilon must be a positive length (model units), got {show(epsilon)}")
 

@@ -105,6 +105,8 @@ def clip_walls(walls, name: str = "clipped walls") -> Tile:
     """The planar ``walls`` (bilinear parallelograms of any extent, in cell coordinates) cut by the unit cell:
     a surface tile of the pieces inside (see the module notes).  Walls wholly outside the cell are dropped;
     the normal of every piece is its wall's."""
+    if isinstance(walls, BSpline) or not isinstance(walls, (list, tuple)):
+        raise TilingError(f"clip_walls needs a list of walls (bilinear geometry.BSpline surfaces), got {show(walls)}")
     walls = list(walls)
     if not walls:
         raise TilingError("clip_walls needs at least one wall (a bilinear surface)")

@@ -26,6 +26,7 @@ from .microstructure import Microstructure
 from .paving import _check_counts
 from .struts import round_struts
 from .tile import Tile
+from geometry.numbers import is_real
 
 __all__ = ["StitchedStrip", "stitched_strip"]
 
@@ -54,7 +55,7 @@ def stitched_strip(surface: BSpline, box, thickness: float, tile: Tile, counts, 
     """
     if not isinstance(surface, BSpline) or surface.dim != 2:
         raise TilingError(f"stitched_strip needs a BSpline surface, got {show(surface)}")
-    if not (isinstance(thickness, (int, float, np.floating)) and np.isfinite(thickness) and thickness != 0):
+    if not (is_real(thickness) and np.isfinite(thickness) and thickness != 0):
         raise TilingError(f"strip thickness must be a non-zero length (model units; its sign picks the side), got "
                           f"{show(thickness)}")
     tol = 1e-3 * abs(thickness) if tolerance is None else tolerance

@@ -32,6 +32,7 @@ from geometry.trimmed import join_curves, reversed_curve
 
 from .errors import TilingError
 from .tile import Tile
+from geometry.numbers import is_real
 
 __all__ = ["through_cylinders", "through_cylinders_area"]
 
@@ -84,7 +85,7 @@ def _half(circle: BSpline, r: float, upper: bool, roll: int) -> TrimmedSurface:
 def through_cylinders(radius: float = 0.25) -> Tile:
     """The Fig. 7 tile of Elber 2017: three trimmed through-cylinders (see the module notes), six
     :class:`geometry.TrimmedSurface` members; ``radius`` in cell units, in (0, 0.5)."""
-    if not (isinstance(radius, (int, float, np.integer, np.floating)) and not isinstance(radius, bool)
+    if not (is_real(radius)
             and np.isfinite(radius) and 0 < radius < 0.5):
         raise TilingError(f"through_cylinders: radius must be a number in (0, 0.5) (cell units), got {show(radius)}")
     p, U, P, w = arc(float(radius), 2 * np.pi)

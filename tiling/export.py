@@ -38,6 +38,7 @@ if TYPE_CHECKING:  # annotations only: the Microstructure's own surface() calls 
     from .microstructure import Microstructure
 from geometry.errors import show
 from geometry.grouping import ObjectIndex
+from geometry.numbers import is_integer, is_real
 
 __all__ = ["surface", "watertightness", "pinch_lines", "mesh_watertightness", "write_surfaces", "write_mesh",
            "render_png",
@@ -76,7 +77,7 @@ def surface(ms: Microstructure, samples: int = 4):
     """
     import pyvista as pv
 
-    if not isinstance(samples, (int, np.integer)) or isinstance(samples, bool) or samples < 1:
+    if not is_integer(samples) or samples < 1:
         raise TilingError(f"samples must be a positive integer, got {show(samples)}")
     tri = [i for i, P in enumerate(ms.patches) if P.spline.dim == 3]
     parts_pts, parts_tri, parts_pid = [], [], []
@@ -231,7 +232,7 @@ def _cap_triangles(ms: Microstructure, pc, samples: int):
 def samples_for_tolerance(ms: Microstructure, tolerance: float, max_samples: int = 64) -> int:
     """The fewest subdivisions per element (1, 2, 4, ...) for which every boundary face's triangles are within
     ``tolerance`` (model units) of the exact surface, measured at the centres of the sub-cells."""
-    if not (isinstance(tolerance, (int, float, np.floating)) and np.isfinite(tolerance) and tolerance > 0):
+    if not (is_real(tolerance) and np.isfinite(tolerance) and tolerance > 0):
         raise TilingError(f"tolerance must be a positive length (model units), got {show(tolerance)}")
     composed = ms.compose_all()
     faces = [composed[i].boundary(f) for i, f in ms.tags.get("boundary", []) if f in FACE_NAMES]

@@ -62,6 +62,7 @@ from .implicit_connect import (Builder, cell_knots, connect_cells, connect_faces
 from .implicit_boxes import box_grid
 from .implicit_certify import Certifier
 from geometry.tolerances import SAME_KNOT
+from geometry.numbers import is_integer, is_real
 
 __all__ = ["random_implicit", "ImplicitStructure", "canonical_tubes"]
 
@@ -160,7 +161,7 @@ class ImplicitStructure(SurfaceOutputs):
     def sample(self, resolution: int | None = None) -> tuple[list, np.ndarray]:
         """Parameter axes and F on the global grid with ``resolution`` intervals per cell and direction."""
         resolution = self.resolution if resolution is None else resolution
-        if not isinstance(resolution, (int, np.integer)) or isinstance(resolution, bool) or resolution < 1:
+        if not is_integer(resolution) or resolution < 1:
             raise TilingError(f"resolution must be a positive integer (samples per cell and direction), got "
                               f"{show(resolution)}")
         n = float(np.prod([c * resolution + 1.0 for c in self.counts]))
@@ -214,20 +215,20 @@ def _check_inputs(D, counts, degree, controls, alpha, continuity, connectivity, 
     _check_map(D)  # the check every builder shares: a trivariate, not folded
     _check_counts(counts, 3, "counts (cells per direction)")
     for name, v, lo in (("degree", degree, 1), ("controls", controls, 2)):
-        if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < lo:
+        if not is_integer(v) or v < lo:
             raise TilingError(f"{name} must be an integer >= {lo}, got {show(v)}")
     if controls < degree + 1:
         raise TilingError(f"controls must be at least degree + 1 = {degree + 1} coefficients per direction, "
                           f"got {controls}")
-    if not (isinstance(alpha, (int, float, np.floating)) and not isinstance(alpha, bool) and 0 <= alpha <= 1):
+    if not (is_real(alpha) and 0 <= alpha <= 1):
         raise TilingError(f"alpha must be a number in [0, 1] (the randomization factor of Eq. 6), got {show(alpha)}")
     if continuity not in ("C0", "C1"):
         raise TilingError(f"continuity must be 'C0' or 'C1', got {show(continuity)}")
     if continuity == "C1" and controls < 4:
         raise TilingError(f"C1 continuity needs at least 4 coefficients per direction, got controls={controls}")
-    if not isinstance(connectivity, (int, np.integer)) or isinstance(connectivity, bool) or not 1 <= connectivity <= 3:
+    if not is_integer(connectivity) or not 1 <= connectivity <= 3:
         raise TilingError(f"connectivity must be 1, 2 or 3 (edge-disjoint spanning trees), got {show(connectivity)}")
-    if shell is not None and not (isinstance(shell, (int, float)) and 0 < shell < 0.5):
+    if shell is not None and not (is_real(shell) and 0 < shell < 0.5):
         raise TilingError(f"shell must be a thickness in (0, 0.5) of a boundary cell (its parameter fraction), "
                           f"got {show(shell)}")
     shape = (controls,) * 3
@@ -287,7 +288,7 @@ def random_implicit(D: BSpline, counts, *, degree: int = 3, controls: int = 8, a
     check_seed(seed, TilingError)
     if not isinstance(cap, (bool, np.bool_)):
         raise TilingError(f"cap must be true or false, got {show(cap)}")
-    if not isinstance(resolution, (int, np.integer)) or isinstance(resolution, bool) or resolution < 2:
+    if not is_integer(resolution) or resolution < 2:
         raise TilingError(f"resolution must be an integer >= 2 (samples per cell and direction), got {show(resolution)}")
     counts = tuple(int(c) for c in counts)
     n_cells = int(np.prod(counts))

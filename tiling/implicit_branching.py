@@ -51,6 +51,7 @@ from .implicit_surface import EdgeSplines, SurfaceOutputs, zero_surface
 from .paving import _check_map
 from .topo import CellComplex, topo_subdiv
 from geometry.tolerances import ON_DOMAIN
+from geometry.numbers import is_integer, is_real
 
 __all__ = ["implicit_bifurcation", "BifurcationStructure"]
 
@@ -110,7 +111,7 @@ class BifurcationStructure(SurfaceOutputs):
     def axes(self, resolution: int | None = None) -> list:
         """Per direction, the union of every cell's ``resolution + 1`` sample lines (sorted)."""
         r = self.resolution if resolution is None else resolution
-        if not isinstance(r, (int, np.integer)) or isinstance(r, bool) or r < 2 or r % 2:
+        if not is_integer(r) or r < 2 or r % 2:
             raise TilingError(f"resolution must be an even integer >= 2 (samples per cell and direction; the face "
                               f"centres are samples), got {show(r)}")
         B = self.cells.boxes
@@ -187,15 +188,15 @@ def implicit_bifurcation(D: BSpline, epsilon: float, *, degree: int = 3, control
     samples per cell and direction of the checks and the surface.
     """
     _check_map(D)  # the check every builder shares: a trivariate, not folded
-    if not isinstance(alpha, (int, float, np.floating)) or isinstance(alpha, bool) or not 0 <= alpha <= 1:
+    if not is_real(alpha) or not 0 <= alpha <= 1:
         raise TilingError(f"alpha must be a number in [0, 1] (the randomization factor of Eq. 6), got {show(alpha)}")
     for name, v, lo in (("degree", degree, 1), ("controls", controls, 4), ("resolution", resolution, 2)):
-        if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < lo or (name == "resolution" and v % 2):
+        if not is_integer(v) or v < lo or (name == "resolution" and v % 2):
             raise TilingError(f"{name} must be an integer >= {lo}{' and even' if name == 'resolution' else ''}, "
                               f"got {show(v)}")
     if controls < degree + 1:
         raise TilingError(f"controls must be at least degree + 1 = {degree + 1}, got {controls}")
-    if not isinstance(radius, (int, float)) or not 0 < radius < 0.5:
+    if not is_real(radius) or not 0 < radius < 0.5:
         raise TilingError(f"radius must be in (0, 0.5) (fraction of a face), got {show(radius)}")
     check_seed(seed, TilingError)
     if not isinstance(cap, (bool, np.bool_)):

@@ -44,6 +44,7 @@ from .cylinders import through_cylinders
 from .tile import BranchFace, Tile, discontinuity_branches
 from geometry.errors import show
 from geometry.tolerances import ON_DOMAIN
+from geometry.numbers import is_real
 
 _W_KNOTS = np.array([0, 0, 0, 0.4, 0.4, 1, 1, 1.0])  # quadratic, C0 at 0.4: solid base below
 _Z_LAYERS = np.array([0.0, 0.2, 0.4, 0.7, 1.0])  # Greville abscissae of _W_KNOTS: z linear in w
@@ -175,7 +176,7 @@ def graded_cross(bottom: float = 0.2, top: float = 0.4) -> Tile:
     the centre's.  Stacked along w with matching end widths (:func:`tiling.graded`), neighbouring layers meet
     face to face, so a lattice can be graded (Massarwi et al. 2018, Section 6.1: heterogeneous structures)."""
     for what, v in (("bottom", bottom), ("top", top)):
-        if not (isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool) and 0 < v < 1):
+        if not (is_real(v) and 0 < v < 1):
             raise TilingError(f"graded_cross: the {what} arm width must be in (0, 1), got {show(v)}")
     mid = 0.5 * (bottom + top)
     a, b = 0.5 - mid / 2, 0.5 + mid / 2
@@ -291,7 +292,7 @@ def oblique_tubes(width: float = 0.16) -> Tile:
     (:func:`tiling.clipping.clip_walls`): they cross the walls x = 0, x = 1, z = 0 and z = 1 obliquely, and
     neighbouring cells' pieces meet edge to edge.  Sealed with ``seal="cap"``: the Boolean variant of
     Elber 2017, Section 2 (cut by the planes, the cut capped), the tube walls' angles kept."""
-    if not (isinstance(width, (int, float)) and not isinstance(width, bool) and 0 < width < 0.3):
+    if not (is_real(width) and 0 < width < 0.3):
         raise TilingError(f"oblique_tubes: width must be in (0, 0.3) of a cell, got {show(width)}")
     d = np.array([1.0, 0.0, 0.5])
     e1 = np.array([0.0, 1.0, 0.0])

@@ -31,6 +31,7 @@ from geometry.errors import show
 from geometry.grouping import ObjectIndex
 from geometry.placed_points import IDENTITY
 from geometry.tolerances import COINCIDENT
+from geometry.numbers import is_integer, is_real
 
 
 #: default thickness of seal plates (a fraction of the cell); a different one without ``seal`` is refused
@@ -46,7 +47,7 @@ def _check_map(D) -> None:
 
 
 def _is_int(v) -> bool:
-    return isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_))
+    return is_integer(v)
 
 
 def _check_counts(counts, n, what):
@@ -284,7 +285,7 @@ def _hierarchical_arguments(D, tile, counts, levels, scale, seal, thickness, sea
     per_cell = float(levels) if b == 1 else (float(b) ** int(levels) - 1) / (b - 1)  # 1 + b + ... + b^(levels - 1)
     spans = [len(D.breakpoints(k)) - 1 for k in range(2)]
     _check_budget(per_cell * cx * cy * spans[0] * spans[1], tile, f"the {levels}-level hierarchical paving")
-    if scale is not None and not (isinstance(scale, (int, float, np.integer, np.floating))
+    if scale is not None and not (is_real(scale)
                                   and not isinstance(scale, (bool, np.bool_)) and np.isfinite(scale) and scale > 0):
         raise TilingError(f"scale must be a positive number (a child's height relative to its parent), got "
                           f"{show(scale)} ({type(scale).__name__})")

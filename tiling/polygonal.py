@@ -24,7 +24,8 @@ from geometry.resources import check_memory
 
 from .errors import TilingError
 from .paving import _check_counts, _check_map
-from geometry.tolerances import ON_DOMAIN
+from geometry.tolerances import COINCIDENT, ON_DOMAIN
+from geometry.numbers import is_integer
 
 __all__ = ["PolygonTile", "pave_polygons", "beam_lattice"]
 
@@ -51,10 +52,19 @@ class PolygonTile:
         for kind, items, least in (("polygon", self.polygons, 3), ("line", self.lines, 2)):
             for i, c in enumerate(items):
                 c = list(c)
-                if len(c) < least or any(not isinstance(v, (int, np.integer)) or isinstance(v, (bool, np.bool_))
+                if len(c) < least or any(not is_integer(v)
                                          or not 0 <= v < len(P) for v in c):
                     raise TilingError(f"polygon tile {show(self.name)}: {kind} {i} must list >= {least} vertex "
                                       f"indices in [0, {len(P) - 1}], got {show(c)}")
+                # a vertex named twice in a row (or a polygon closing on its first vertex) is a zero-length edge;
+                # a polygon's vertices at one place are a degenerate face
+                ring = c + [c[0]] if kind == "polygon" else c
+                same = next((j for j in range(len(ring) - 1)
+                             if np.linalg.norm(P[ring[j]] - P[ring[j + 1]]) <= COINCIDENT), None)
+                if same is not None:
+                    raise TilingError(f"polygon tile {show(self.name)}: {kind} {i} repeats a vertex ({show(c)}: "
+                                      f"vertices {ring[same]} and {ring[same + 1]} at one place, a zero-length "
+                                      "edge); list each corner once")
         self.points = P
 
 

@@ -43,6 +43,7 @@ from geometry.faces import FACE_AXIS, FACE_NAMES
 from .errors import TilingError
 from .tile import Tile
 from geometry.tolerances import COINCIDENT, ON_DOMAIN, SAME_KNOT
+from geometry.numbers import is_real
 
 __all__ = ["sealed_variant", "seal_layout", "inner_box", "SealedTile", "SealLayout"]
 
@@ -194,7 +195,7 @@ def _same_space(U, p, V, q) -> bool:
 def inner_box(sides, thickness: float, seal: str = "cap") -> np.ndarray:
     """(3, 2) box the tile is squeezed into: the unit cell less a layer of ``thickness`` (a fraction of the
     cell, 0 < t < 0.5) on each of ``sides``; :class:`TilingError` for another thickness."""
-    if not (isinstance(thickness, (int, float)) and not isinstance(thickness, bool) and 0 < thickness < 0.5):
+    if not (is_real(thickness) and 0 < thickness < 0.5):
         raise TilingError(f"the {seal} thickness must be in (0, 0.5) of a cell, got {show(thickness)}")
     return np.array([[thickness if FACE_NAMES[2 * a] in sides else 0.0,
                       1.0 - thickness if FACE_NAMES[2 * a + 1] in sides else 1.0] for a in range(3)])

@@ -24,6 +24,7 @@ from geometry.trimmed import join_curves, reversed_curve
 
 from .errors import TilingError
 from .microstructure import Microstructure
+from geometry.numbers import is_real
 
 __all__ = ["round_struts", "StrutReport"]
 
@@ -62,7 +63,7 @@ def round_struts(ms: Microstructure, radius: float, tolerance: float | None = No
     """
     if not isinstance(ms, Microstructure):
         raise TilingError(f"round_struts needs a Microstructure (a paving of a curve tile), got {show(ms)}")
-    if not (isinstance(radius, (int, float, np.floating)) and np.isfinite(radius) and radius > 0):
+    if not (is_real(radius) and np.isfinite(radius) and radius > 0):
         raise TilingError(f"strut radius must be a positive length (model units), got {show(radius)}")
     tol = 1e-3 * radius if tolerance is None else tolerance
     curves = [(i, P) for i, P in enumerate(ms.patches) if P.spline.dim == 1]

@@ -30,6 +30,7 @@ from geometry.resources import check_memory
 
 from .errors import TilingError
 from geometry.tolerances import ON_DOMAIN
+from geometry.numbers import is_real
 
 __all__ = ["topo_subdiv", "CellComplex", "FACE_KINDS"]
 
@@ -119,7 +120,7 @@ def topo_subdiv(D: BSpline, epsilon: float, *, directions=(0, 1, 2), max_rounds:
     """
     if not isinstance(D, BSpline) or D.dim != 3:
         raise TilingError(f"the deformation map must be a trivariate geometry.BSpline, got {type(D).__name__}")
-    if not isinstance(epsilon, (int, float, np.floating)) or isinstance(epsilon, bool) or not (
+    if not is_real(epsilon) or not (
             np.isfinite(epsilon) and epsilon > 0):
         raise TilingError(f"epsilon must be a positive length (model units), got {show(epsilon)}")
     dirs = tuple(directions) if isinstance(directions, (list, tuple)) else None

@@ -40,6 +40,7 @@ from .tubes import are_regular, bridge_patch
 from .union import boundary_faces, bridge_union, shared_faces, union_anchors
 from geometry.grouping import ObjectIndex
 from geometry.tolerances import COINCIDENT, ON_DOMAIN
+from geometry.numbers import is_integer, is_real
 
 __all__ = ["VResult", "vrep_microstructure"]
 
@@ -102,12 +103,12 @@ class _Kept:
 def _check_arguments(model, samples, margin, d_maxdist, phi, alpha, beta) -> None:
     if not isinstance(model, VModel):
         raise TilingError(f"vrep_microstructure needs a V-model (primitives combined by |, -, &), got {show(model)}")
-    if not (isinstance(samples, (int, np.integer)) and samples >= 2):
+    if not (is_integer(samples) and samples >= 2):
         raise TilingError(f"samples must be an integer >= 2 per direction, got {show(samples)}")
-    if not (isinstance(margin, (int, float)) and np.isfinite(margin) and margin >= 0):
+    if not (is_real(margin) and np.isfinite(margin) and margin >= 0):
         raise TilingError(f"margin must be a length >= 0 (model units), got {show(margin)}")
     _check_union_parameters(d_maxdist, phi, alpha)
-    if not (isinstance(beta, (int, float)) and not isinstance(beta, bool) and np.isfinite(beta) and 0 < beta < 1):
+    if not (is_real(beta) and np.isfinite(beta) and 0 < beta < 1):
         raise TilingError(f"the bend parameter beta must be in (0, 1), got {show(beta)} (checked with or without "
                           "bridges, so that a later run with bridges does not fail)")
     names = [p.name for p in model.primitives()]
@@ -289,12 +290,12 @@ def _anchor_faces(placed, offset: int, cls: Classification, anchors: dict, tile_
 
 
 def _check_union_parameters(d_maxdist, phi, alpha) -> None:
-    if d_maxdist is not None and not (isinstance(d_maxdist, (int, float)) and np.isfinite(d_maxdist) and d_maxdist > 0):
+    if d_maxdist is not None and not (is_real(d_maxdist) and np.isfinite(d_maxdist) and d_maxdist > 0):
         raise TilingError(f"d_maxdist must be a positive length (model units) or None, got {show(d_maxdist)}")
-    if not (isinstance(phi, (int, float)) and 0.0 <= phi <= 1.0):
+    if not (is_real(phi) and 0.0 <= phi <= 1.0):
         raise TilingError(f"phi blends the cross derivative (0) with the face normal (1): give a number in [0, 1], "
                           f"got {show(phi)}")
-    if not (isinstance(alpha, (int, float)) and 0 < alpha < np.pi / 2):
+    if not (is_real(alpha) and 0 < alpha < np.pi / 2):
         raise TilingError(f"alpha, the bifurcation base's side angle, must lie in (0, pi/2) radians, got "
                           f"{show(alpha)}")
 

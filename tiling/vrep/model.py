@@ -28,6 +28,7 @@ from ..errors import TilingError
 from ..paving import _check_budget
 from ..tile import Tile, refuse_trimmed
 from geometry.tolerances import COINCIDENT
+from geometry.numbers import is_integer, is_real
 
 __all__ = ["Primitive", "VModel", "VCell"]
 
@@ -57,7 +58,7 @@ class Primitive:
         refuse_trimmed(self.tile, "a V-rep primitive")
         c = self.counts
         if not (isinstance(c, (tuple, list)) and len(c) == 3
-                and all(isinstance(n, (int, np.integer)) and not isinstance(n, bool) and n >= 1 for n in c)):
+                and all(is_integer(n) and n >= 1 for n in c)):
             raise TilingError(f"primitive {show(self.name)}: counts must be three integers >= 1 (tiles per knot "
                               f"span in u, v, w), got {show(c)}")
         self.counts = tuple(int(n) for n in c)
@@ -103,7 +104,7 @@ class Primitive:
         """Whether points (N, 3) lie nearer than ``r`` (model units, > 0) to the primitive: :meth:`distance` < r,
         asked only where the bounds cannot tell.  The boxes of the map's elements (local convex hull) bound the
         distance from below; the inversion into the trivariate bounds it from above."""
-        if isinstance(r, bool) or not isinstance(r, (int, float, np.number)) or not np.isfinite(r) or r <= 0:
+        if not is_real(r) or not np.isfinite(r) or r <= 0:
             raise TilingError(f"primitive {show(self.name)}: the distance to test within must be a positive "
                               f"number (model units), got {show(r)}")
         pts = np.asarray(points, float)
