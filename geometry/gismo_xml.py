@@ -326,6 +326,16 @@ def _branches(root, n: int, path) -> list:
     return out
 
 
+def _index(basis, g, path) -> int:
+    """A tensor basis's ``index`` attribute (its direction, 0 when absent), refused unless a whole number."""
+    text = basis.get("index", "0")
+    try:
+        return int(text)
+    except ValueError:
+        raise SplineError(f"{path}: geometry {g.get('id')} has a <Basis index={show(text)}>; the index of a "
+                          "direction's basis is a whole number (0, 1, 2)") from None
+
+
 def _geometry(g, path) -> BSpline:
     basis = g.find("Basis")
     if basis is None:
@@ -336,7 +346,7 @@ def _geometry(g, path) -> BSpline:
     if tensor is None:
         raise SplineError(f"{path}: geometry {g.get('id')} has a NURBS basis without its B-spline basis")
     parts = [tensor] if tensor.get("type") == "BSplineBasis" else sorted(tensor.findall("Basis"),
-                                                                          key=lambda b: int(b.get("index", 0)))
+                                                                          key=lambda b: _index(b, g, path))
     if not parts:
         raise SplineError(f"{path}: geometry {g.get('id')} has no BSplineBasis")
     degrees, knots = [], []

@@ -83,11 +83,23 @@ def _iges(path: Path) -> list[str]:
 def _summary(path: Path) -> list[str]:
     try:
         s = json.loads(path.read_text())
+    except RecursionError:  # thousands of nested brackets
+        raise ProblemError(f"cannot read {path.name} as a pipeline summary: its JSON is nested too deeply") from None
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise ProblemError(f"cannot read {path.name} as a pipeline summary (JSON): {exc}") from None
     if not isinstance(s, dict) or "tiles" not in s:
         raise ProblemError(f"{path.name} is JSON but not a pipeline summary (no 'tiles' entry)")
-    out = [f"{path.name}: pipeline summary, {s['tiles']} tiles on {s.get('levels', '?')} levels, "
+    try:
+        return _summary_lines(path.name, s)
+    except (KeyError, TypeError, ValueError, AttributeError, IndexError) as exc:  # a hand-edited or foreign file
+        raise ProblemError(f"{path.name} is not laid out as a pipeline summary ({type(exc).__name__}: {exc}); "
+                           "describe the summary.json that iga run or iga demo wrote") from None
+
+
+def _summary_lines(name: str, s: dict) -> list[str]:
+    """The description of a parsed summary (raises KeyError, TypeError... where its layout is not the
+    pipeline's: the caller reports it as the project's error)."""
+    out = [f"{name}: pipeline summary, {s['tiles']} tiles on {s.get('levels', '?')} levels, "
            f"{s.get('interfaces', '?')} interfaces"]
     if "temperature_C" in s:
         t = s["temperature_C"]

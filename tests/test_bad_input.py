@@ -1010,6 +1010,24 @@ def _graded_map():
     return graded_channel(pr.box(), "t", near=0.2, far=0.3)
 
 
+def _gismo_with_index(tmp_path, index):
+    from geometry.gismo_xml import read_gismo, write_gismo
+
+    path = write_gismo(tmp_path / "box.xml", [cube()])
+    text = path.read_text()
+    assert 'index="1"' in text
+    path.write_text(text.replace('index="1"', f'index="{index}"', 1))
+    return read_gismo(path)
+
+
+def _describe(tmp_path, text):
+    from iga.describe import describe
+
+    path = tmp_path / "s.json"
+    path.write_text(text)
+    return describe(path)
+
+
 def _failing_family(p):
     raise ValueError("no tile for that")
 
@@ -1031,6 +1049,12 @@ RAW = [
          ProblemError, r"write_pieces needs the MPI communicator of the solve .* got None"),
     case("write_pieces of a spline", lambda t: __import__("iga").write_pieces(t / "a.pvtu", cube(), None),
          ProblemError, r"write_pieces writes a solution .* got a BSpline"),
+    case("G+Smo basis index not a number", lambda t: _gismo_with_index(t, "x"), SplineError,
+         r"has a <Basis index='x'>; the index of a direction's basis is a whole number"),
+    case("iga info of a summary laid out otherwise", lambda t: _describe(t, '{"tiles": 3, "temperature_C": 5}'),
+         ProblemError, r"s\.json is not laid out as a pipeline summary \(KeyError: 'dofs'\)"),
+    case("iga info of a summary nested too deeply", lambda t: _describe(t, "[" * 100000 + "]" * 100000),
+         ProblemError, r"s\.json as a pipeline summary: its JSON is nested too deeply"),
     case("effective_table family raising", lambda t: __import__("iga").effective_table(_failing_family, [0.2, 0.3]),
          ProblemError, r"the family '_failing_family' failed at p = 0.2: ValueError: no tile for that"),
 ]
