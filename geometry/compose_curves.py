@@ -61,7 +61,8 @@ def compose_curve_split(outer: BSpline, curve: BSpline, compose_piece) -> BSplin
     lo, hi = curve.domain[0]
     cuts = np.unique(np.asarray(params, float))
     tol = ON_DOMAIN * (hi - lo)
-    cuts = cuts[np.r_[True, np.diff(cuts) > tol]]  # one cut where roots of neighbouring segments meet
+    if len(cuts):  # none: the control polygon crosses a knot plane while the curve does not (one piece)
+        cuts = cuts[np.r_[True, np.diff(cuts) > tol]]  # one cut where roots of neighbouring segments meet
     cuts = cuts[(cuts > lo + tol) & (cuts < hi - tol)]
     edges = np.r_[lo, cuts, hi]
     pieces = [curve.extract([[a, b]]) for a, b in zip(edges[:-1], edges[1:])]

@@ -196,11 +196,12 @@ class ElasticityProblem:
         return [np.array(o, np.int64) for o in out]
 
     # ------------------------------------------------------------------ solve
-    def _loads(self, f: np.ndarray, supports: list) -> dict:
-        """Add the traction and pressure loads to f; returns {tag: applied force (3,)}.  ``supports``: the
+    def _loads(self, f: np.ndarray, supports: list) -> tuple[dict, dict]:
+        """Add the traction and pressure loads to f; returns ({tag: applied force (N, (3,))}, {tag: its moment
+        about the origin (N m, (3,))}).  ``supports``: the
         :meth:`_support_faces`; a load on a component they prescribe on the same face is refused (it would only
         change the reaction there)."""
-        n, applied = self.ndof, {}
+        n, applied, moments = self.ndof, {}, {}  # moments about the origin (N m): hold_rigid's loads must balance
         for load in self.loads:
             keys = condition_faces(self.tag_faces(load.tag), load.tag)
             fds = self.faces(keys)
@@ -214,8 +215,9 @@ class ElasticityProblem:
                 for a in range(3):
                     f[a * n : (a + 1) * n] += boundary_load([fd], [t[:, a] * fd.dAw], n)
                 force += (t * fd.dAw[:, None]).sum(0)
+                moments[load.tag] = moments.get(load.tag, 0.0) + (np.cross(fd.x, t) * fd.dAw[:, None]).sum(0)
             applied[load.tag] = applied.get(load.tag, 0.0) + force
-        return applied
+        return applied, moments
 
     def _support_faces(self) -> list:
         """Per component, {(patch, face): (field, where)}; a component prescribed twice on one face is refused."""
@@ -255,14 +257,15 @@ class ElasticityProblem:
     def assemble(self, supports: list | None = None):
         """(K, f, book): the stiffness (3 ndof x 3 ndof CSR, component-major: unknown a ndof + i is component a
         of DOF i; N/m), the load vector (N: body force, thermal strain, tractions and pressures) and
-        {"work": {"body": int f dV (N, (3,))}, "applied": {tag: resultant (N, (3,))}}; sets
+        {"work": {"body": int f dV (N, (3,))}, "applied": {tag: resultant (N, (3,))}, "moments": {tag: moment about
+        the origin (N m, (3,))}}; sets
         ``timings["assembly"]`` (s).  :meth:`solve` calls it with the :meth:`_support_faces` it resolved."""
         supports = self._support_faces() if supports is None else supports
         t0 = time.perf_counter()
         K, f, work = ElasticVolume(self.disc).assemble(self.youngs, self.poisson, self.body, self.thermal_strain)
-        applied = self._loads(f, supports)
+        applied, moments = self._loads(f, supports)
         self.timings["assembly"] = time.perf_counter() - t0
-        return K, f, {"work": work, "applied": applied}
+        return K, f, {"work": work, "applied": applied, "moments": moments}
 
     def solve(self, solver: str = "auto", tol: float = 1e-10, maxiter: int | None = None) -> ElasticSolution:
         """Assemble, apply the conditions, refuse free rigid motions, solve; returns an :class:`ElasticSolution`."""
@@ -278,6 +281,8 @@ class ElasticityProblem:
                                "reactions) of their own; use either the conditions or hold_rigid")
         K, f, book = self.assemble(supports)
         work, applied = book["work"], book["applied"]
+        if self.rigid_hold:
+            _refuse_net_load(applied, work["body"], book["moments"])
         t1 = time.perf_counter()
         scalar = prolongation(self.model, self.spaces, self.offsets) if needs_constraints(self.model, self.spaces) \
             else None
@@ -305,6 +310,31 @@ class ElasticityProblem:
                              "solve": res.info.setup_s + res.info.solve_s})
         self.reduced_dofs = res.reduced
         return ElasticSolution(self, res, f, dd, work, applied)
+
+
+def _refuse_net_load(applied: dict, body: np.ndarray, moments: dict) -> None:
+    """Under :meth:`ElasticityProblem.hold_rigid` the loads must balance: its three pins hold rigid motion only,
+    so a net force or moment would be carried by them alone (point reactions, a stress singularity the solution
+    does not report).  Refused naming the net force and each load's share (or the net moment of the tractions),
+    beyond 1e-9 of the loads' size."""
+    forces = [np.asarray(v, float) for v in applied.values()] + [np.asarray(body, float)]
+    net = np.sum(forces, axis=0)
+    size = sum(float(np.linalg.norm(v)) for v in forces)
+    if size > 0 and np.linalg.norm(net) > 1e-9 * size:
+        shares = ", ".join(f"{show(tag)} {np.round(np.asarray(v, float), 6).tolist()} N" for tag, v in applied.items())
+        if np.any(body):
+            shares += f", body force {np.round(np.asarray(body, float), 6).tolist()} N"
+        raise ProblemError(f"hold_rigid holds the body against rigid motion only, but its loads add up to a net force "
+                           f"of {np.round(net, 6).tolist()} N ({shares}), which the three pins would carry alone; "
+                           "support the body with displacement conditions instead, or balance the loads")
+    if not np.any(body) and moments:
+        M = np.sum([np.asarray(v, float) for v in moments.values()], axis=0)
+        msize = sum(float(np.linalg.norm(v)) for v in moments.values())
+        if msize > 0 and np.linalg.norm(M) > 1e-9 * msize:
+            raise ProblemError(f"hold_rigid holds the body against rigid motion only, but its loads add up to a net "
+                               f"moment of {np.round(M, 6).tolist()} N m about the origin, which the three pins would "
+                               "carry alone; support the body with displacement conditions instead, or balance the "
+                               "loads")
 
 
 def _refuse_held_load(load, fd, t: np.ndarray, supports: list) -> None:

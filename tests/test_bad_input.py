@@ -1063,3 +1063,16 @@ RAW = [
 @pytest.mark.parametrize("fn, exc, match", RAW)
 def test_raw_errors_become_the_projects_own(fn, exc, match, tmp_path):
     check(fn, exc, match, tmp_path)
+
+
+def test_hold_rigid_refuses_loads_that_do_not_balance_and_takes_those_that_do():
+    from iga import ElasticityProblem
+
+    b = pr.box((2.0, 1.0, 1.0))
+    with pytest.raises(ProblemError, match=r"net force of \[0.0, 0.0, -1000.0\] N \('umax' \[0.0, 0.0, -1000.0\] N\)"):
+        ElasticityProblem(b, 1e9, 0.3).traction("umax", [0, 0, -1e3]).hold_rigid().solve()
+    with pytest.raises(ProblemError, match=r"net moment of \[0.0, 2000.0, 0.0\] N m about the origin"):
+        ElasticityProblem(b, 1e9, 0.3).traction("umax", [0, 0, -1e3]).traction("umin", [0, 0, 1e3]).hold_rigid().solve()
+    s = ElasticityProblem(b, 1e9, 0.3).traction("umax", [1e3, 0, 0]).traction("umin", [-1e3, 0, 0]).hold_rigid().solve()
+    # a bar pulled at both ends: uniaxial stress 1e3 Pa, the pins carry nothing
+    assert s.stress(np.array([[1.0, 0.5, 0.5]]))[0, 0, 0] == pytest.approx(1e3, rel=1e-9)

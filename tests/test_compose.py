@@ -527,3 +527,14 @@ def rotation(rng) -> np.ndarray:
     """A random rotation (3, 3)."""
     q, r = np.linalg.qr(rng.normal(size=(3, 3)))
     return q * np.sign(np.diag(r))
+
+
+def test_a_curve_whose_polygon_crosses_a_knot_plane_while_the_curve_does_not_composes_in_one_piece():
+    # the control polygon reaches u = 0.62 past D's knot plane u = 0.5, the curve only 0.41: no cut, one piece
+    # (an IndexError on the empty list of cuts took stitched strips and struts down with it)
+    D = pr.box((2.0, 1.0, 1.0), degrees=(2, 2, 2), elements=(2, 1, 1))
+    C = BSpline((2,), [kn.uniform_knots(2, 1)], np.array([[0.2, 0.2, 0.5], [0.62, 0.5, 0.5], [0.2, 0.8, 0.5]]))
+    c = compose(D, C)
+    x = np.random.default_rng(2).random((200, 1))
+    assert c.knots[0].size == 2 * (c.degrees[0] + 1)  # one Bezier piece
+    assert rel_err(c.evaluate(x)[:, :3], D.evaluate(C.evaluate(x)[:, :3])[:, :3]) < 1e-12
