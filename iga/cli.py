@@ -16,7 +16,10 @@ meets is printed as one line on stderr, with exit status 1.
 from __future__ import annotations
 
 import argparse
+import difflib
+import re
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -106,19 +109,32 @@ def _cmd_run(args) -> int:
 def _cmd_homogenize(args) -> int:
     from .homogenize import effective_conductivity, effective_stiffness
 
+    import inspect
+
+    if args.youngs is None and args.poisson is not None:
+        raise ProblemError("--poisson applies to the effective stiffness, which --youngs asks for; give --youngs E "
+                           "(Pa) too, or leave --poisson out")
     kwargs = {}
     for item in args.arg or []:
         key, sep, value = item.partition("=")
-        try:
-            kwargs[key] = float(value)
-        except ValueError:
-            raise ProblemError(f"--arg {item!r}: give name=number, e.g. --arg arm=0.3") from None
         if not sep or not key:
             raise ProblemError(f"--arg {item!r}: give name=number, e.g. --arg arm=0.3")
+        if key in kwargs:
+            raise ProblemError(f"--arg {key} is given twice ({key}={kwargs[key]:g} and {item}); give each tile "
+                               "parameter once")
+        try:  # a whole number stays an integer (a count), anything else is a float
+            kwargs[key] = int(value) if re.fullmatch(r"[+-]?\d+", value.strip()) else float(value)
+        except ValueError:
+            raise ProblemError(f"--arg {item!r}: give name=number, e.g. --arg arm=0.3") from None
+    family = TILES[args.tile]
+    params = inspect.signature(family).parameters
+    unknown = [k for k in kwargs if k not in params]
+    if unknown and not any(p.kind is p.VAR_KEYWORD for p in params.values()):
+        raise ProblemError(f"tile {args.tile!r} does not take {unknown}; its parameters are {list(params)}")
     try:
-        tile = TILES[args.tile](**kwargs)
+        tile = family(**kwargs)
     except TypeError as exc:
-        raise ProblemError(f"tile {args.tile!r} does not take {sorted(kwargs)}: {exc}") from None
+        raise ProblemError(f"tile {args.tile!r} refused {kwargs}: {exc}") from None
     k = effective_conductivity(tile, args.conductivity, refine=args.refine, diagnostics=True)
     np.set_printoptions(precision=6, suppress=True)
     print(f"{args.tile}{kwargs or ''}: volume fraction {k.volume_fraction:.6g}; effective conductivity "
@@ -131,9 +147,10 @@ def _cmd_homogenize(args) -> int:
                                "in .vtu")
         print(f"cell fields (corrector, cell_flux_x/y/z, conductivity): {k.write_vtu(args.out)}")
     if args.youngs is not None:
-        c = effective_stiffness(tile, args.youngs, args.poisson, refine=args.refine, diagnostics=True)
+        nu = 0.3 if args.poisson is None else args.poisson
+        c = effective_stiffness(tile, args.youngs, nu, refine=args.refine, diagnostics=True)
         scale = 10.0 ** np.floor(np.log10(max(np.abs(c.tensor).max(), 1e-300)))
-        print(f"effective stiffness (E = {args.youngs:g}, nu = {args.poisson:g}; Voigt xx yy zz yz xz xy, "
+        print(f"effective stiffness (E = {args.youngs:g}, nu = {nu:g}; Voigt xx yy zz yz xz xy, "
               f"engineering shears) in units of {scale:g} Pa, symmetry error {c.symmetry_error:.1e}:")
         print(np.round(c.tensor / scale, 6) + 0.0)
     return 0
@@ -196,16 +213,54 @@ def _add_homogenize(sub) -> None:
     hom.add_argument("--arg", action="append", metavar="NAME=VALUE", help="a tile parameter, e.g. arm=0.3 (repeatable)")
     hom.add_argument("--conductivity", type=float, default=1.0, help="the solid's conductivity (W/(m K))")
     hom.add_argument("--youngs", type=float, default=None, help="Young's modulus (Pa): also the effective stiffness")
-    hom.add_argument("--poisson", type=float, default=0.3, help="Poisson's ratio (with --youngs)")
+    hom.add_argument("--poisson", type=float, default=None, help="Poisson's ratio (with --youngs; default 0.3)")
     hom.add_argument("--refine", type=int, default=0, help="refinement rounds of the cell problems' spaces")
     hom.add_argument("--out", default=None, metavar="FILE.vtu",
                      help="also write the cell fields: the correctors and the cell's heat flux for unit gradients")
     hom.set_defaults(func=_cmd_homogenize)
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with a "did you mean" for a mistyped option or command (difflib's close matches among every
+    option and command of the ``iga`` command)."""
+
+    def error(self, message):
+        words = [w for w in re.findall(r"(--?[\w-]+|'[\w-]+')", message.split(":", 1)[-1])]
+        known = sorted(_all_names(self._root()))
+        hints = []
+        for w in words:
+            w = w.strip("'")
+            if w in known:
+                continue
+            close = difflib.get_close_matches(w, known, n=1, cutoff=0.6)
+            if close:
+                hints.append(f"{w}: did you mean {close[0]}?")
+        super().error(message + ("; " + "; ".join(hints) if hints else ""))
+
+    def _root(self):
+        return getattr(self, "root", self)
+
+
+def _all_names(parser) -> set:
+    """Every option string and subcommand name of ``parser`` and its subparsers."""
+    out = set()
+    for action in parser._actions:
+        out.update(action.option_strings)
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                out.add(name)
+                out |= _all_names(sub)
+    return out
+
+
+def _one_line_warning(message, category, filename, lineno, file=None, line=None):
+    """A warning reaches a command-line user as one ``iga: warning:`` line, without Python's source line."""
+    print(f"iga: warning: {message}", file=sys.stderr)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``iga`` command (subcommands demo, run, info)."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="iga",
         description="Exact B-spline micro-structures and their isogeometric heat-transfer and elasticity analysis.",
         epilog="Run 'iga COMMAND --help' for the options of one command.",
@@ -256,6 +311,12 @@ def build_parser() -> argparse.ArgumentParser:
     info.add_argument("file", help="a .npz (geometry.save), a G+Smo .xml, a .vtu/.vtp/.stl/.obj/.ply mesh, an "
                                    ".igs file or a summary.json")
     info.set_defaults(func=_cmd_info)
+    for sp_action in [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]:
+        stack = list(sp_action.choices.values())
+        while stack:  # every subparser suggests among the whole command's names
+            p = stack.pop()
+            p.root = parser
+            stack += [c for a in p._actions if isinstance(a, argparse._SubParsersAction) for c in a.choices.values()]
     return parser
 
 
@@ -269,6 +330,12 @@ def main(argv=None) -> int:
     if not launched():  # a whole-process choice, so the application (not the library) makes it; an MPI rank
         retain_freed_memory()  # returns freed memory instead (iga.distributed.load_petsc)
     progress.enable(False if args.quiet else None)  # bars on a terminal only
+    with warnings.catch_warnings():  # restored on return: main() may be called from a script
+        warnings.showwarning = _one_line_warning
+        return _main(args)
+
+
+def _main(args) -> int:
     try:
         resources.set_memory_limit(args.max_memory)
         if getattr(args, "name", None) == "heat-sink":

@@ -199,6 +199,10 @@ def validate(config, base_dir=".") -> dict:
     if physics["kind"] == "elasticity" and "bc" in config:
         raise ProblemError("config section bc holds heat conditions; physics.kind = 'elasticity' takes [[support]] "
                            "and [[load]] (or use kind = 'thermo-elastic')")
+    if physics["kind"] == "elasticity" and "material" in config:
+        raise ProblemError("config section material holds the heat problem's conductivity and source; physics.kind = "
+                           "'elasticity' takes its materials in [physics] (youngs, poisson): drop [material], or "
+                           "use kind = 'thermo-elastic'")
     mat = _table(config.get("material", {}), "material", {"conductivity", "source"})
     cfg["material"] = {"conductivity": _conductivity(mat.get("conductivity", 1.0), "material.conductivity"),
                        "source": _formula(mat.get("source", 0.0), "material.source")}
@@ -209,6 +213,13 @@ def validate(config, base_dir=".") -> dict:
     cfg["bc"] = [_bc(b, f"bc[{i}]") for i, b in enumerate(bcs)]
     cfg["solver"] = _solver(config.get("solver", {}))
     cfg["output"] = _output(config.get("output", {}), Path(base_dir))
+    if physics["kind"] == "elasticity":  # outputs of the temperature: the same rule as elastic keys in a heat run
+        given = config.get("output", {}) if isinstance(config.get("output", {}), dict) else {}
+        for key in ("probes", "bezier"):
+            if given.get(key):
+                _fail(f"output.{key}", "writes temperatures (probes: the temperature at points; bezier: the exact "
+                      "temperature VTU), which physics.kind = 'elasticity' does not compute; drop it, or use "
+                      "kind = 'thermo-elastic'")
     _exports_fit(cfg, surface)
     lim = _table(config.get("limits", {}), "limits", {"max_memory_gib"})
     cfg["limits"] = {"max_memory_gib": None if "max_memory_gib" not in lim

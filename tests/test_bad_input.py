@@ -672,7 +672,21 @@ def _validate(**changes):
     return lambda t: validate(_cfg(**changes), t)
 
 
+def _elastic_cfg(**extra):
+    cfg = {k: v for k, v in _cfg().items() if k not in ("bc", "material")}
+    cfg["physics"] = {"kind": "elasticity", "youngs": 1e9, "poisson": 0.3}
+    cfg["support"] = [{"tag": "branch-in", "value": 0.0}]
+    cfg.update(extra)
+    return cfg
+
+
 CONFIG = [
+    case("elastic run with a material table", lambda t: validate(_elastic_cfg(material={"source": "1/0"}), t),
+         ProblemError, r"config section material holds the heat problem's conductivity and source"),
+    case("elastic run with probes", lambda t: validate(_elastic_cfg(output={"probes": [[0.0, 0.0, 0.0]]}), t),
+         ProblemError, r"output\.probes: writes temperatures .* physics\.kind = 'elasticity' does not compute"),
+    case("elastic run with bezier", lambda t: validate(_elastic_cfg(output={"bezier": True}), t),
+         ProblemError, r"output\.bezier: writes temperatures"),
     case("unknown section", lambda t: validate({**_cfg(), "mesh": {}}, t), ProblemError,
          r"unknown config section 'mesh'"),
     case("missing section", lambda t: validate({k: v for k, v in _cfg().items() if k != "tile"}, t), ProblemError,
@@ -824,6 +838,12 @@ CLI = [
     ("refine 10", ["demo", "heat-sink", "--refine", "10", "--out", "d"], None, r"the analysis .* needs about"),
     ("info missing", ["info", "none.npz"], None, r"none\.npz does not exist"),
     ("info not npz", ["info", "c.toml"], "x = 1", r"not an \.npz archive"),
+    ("homogenize poisson alone", ["homogenize", "--tile", "cross", "--poisson", "0.3"], None,
+     r"--poisson applies to the effective stiffness, which --youngs asks for"),
+    ("homogenize arg twice", ["homogenize", "--tile", "cross", "--arg", "arm=0.3", "--arg", "arm=0.2"], None,
+     r"--arg arm is given twice \(arm=0\.3 and arm=0\.2\)"),
+    ("homogenize unknown arg", ["homogenize", "--tile", "cross", "--arg", "n=16"], None,
+     r"tile 'cross' does not take \['n'\]; its parameters are \['arm'\]"),
 ]
 
 
@@ -1076,3 +1096,30 @@ def test_hold_rigid_refuses_loads_that_do_not_balance_and_takes_those_that_do():
     s = ElasticityProblem(b, 1e9, 0.3).traction("umax", [1e3, 0, 0]).traction("umin", [-1e3, 0, 0]).hold_rigid().solve()
     # a bar pulled at both ends: uniaxial stress 1e3 Pa, the pins carry nothing
     assert s.stress(np.array([[1.0, 0.5, 0.5]]))[0, 0, 0] == pytest.approx(1e3, rel=1e-9)
+
+
+@pytest.mark.parametrize("args, hint", [(["rnu", "c.toml"], "rnu: did you mean run?"),
+                                        (["homogenize", "--tile", "cross", "--poison", "0.3"],
+                                         "--poison: did you mean --poisson?")])
+def test_a_mistyped_command_or_option_gets_a_did_you_mean(args, hint, tmp_path):
+    out = _cli(tmp_path, *args)
+    assert out.returncode == 2 and "Traceback" not in out.stderr
+    assert out.stderr.strip().splitlines()[-1].endswith(hint), out.stderr
+
+
+def test_warnings_reach_command_line_users_as_one_line(capsys, monkeypatch):
+    # a warning raised while a command runs (e.g. G+Smo extensions written by iga run) is one line on stderr, not
+    # Python's "file.py:251: GismoExtensionWarning" and its source line
+    import warnings
+
+    from iga import cli
+
+    def warn(args):
+        warnings.warn("the G+Smo file carries extensions", UserWarning, stacklevel=2)
+        return 0
+
+    monkeypatch.setattr(cli, "_cmd_info", warn)
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")
+        assert cli.main(["info", "x.npz"]) == 0
+    assert capsys.readouterr().err == "iga: warning: the G+Smo file carries extensions\n"
