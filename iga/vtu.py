@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from geometry.io import atomic_write, check_folder
+from geometry.resources import check_memory
 from geometry.sampling import chord_samples, sampled_mesh
 
 from .errors import ProblemError
@@ -98,17 +99,38 @@ def write_vtu(path, solution_or_model, samples: int = 3, cells: str = "linear", 
     return atomic_write(path, lambda tmp: save_grid(grid, tmp), ".vtu", ProblemError)
 
 
+#: bytes per written point while a grid is sampled, welded and handed to VTK (coordinates, fields, their
+#: temporaries, cells): a bound for the size check before sampling
+_BYTES_PER_POINT = 400
+
+
+def _check_sampling(model, knots_of, samples, patches) -> None:
+    """Refuse a sampling whose points would not fit the memory budget, before any is made: the user's
+    ``samples`` (one count, or per patch and direction) times each patch's elements."""
+    chosen = range(len(model.patches)) if patches is None else patches
+    total = 0.0
+    for pi in chosen:
+        s = samples[pi] if isinstance(samples, list) else samples
+        per = [int(s)] * 3 if np.ndim(s) == 0 else [int(v) for v in s]
+        total += float(np.prod([(len(np.unique(U)) - 1) * n + 1 for U, n in zip(knots_of(pi), per)]))
+    check_memory(total * _BYTES_PER_POINT, f"the sampled VTU grid ({total:,.0f} points)", ProblemError,
+                 "lower samples (subdivisions per element) or use a tolerance")
+
+
 def sampled_grid(model, solution=None, samples: int = 3, tolerance: float | None = None, patches=None):
     """The welded linear-hexahedron grid (a ``pyvista.UnstructuredGrid``) of a model or solution; with
     ``tolerance`` the samples per patch and direction that keep the cells within it of the exact geometry;
-    ``patches``: only those (their samples still conform with every neighbour's)."""
+    ``patches``: only those (their samples still conform with every neighbour's).  The grid's size is checked
+    against the memory budget before it is sampled."""
     if solution is None:
         if tolerance is not None:
             samples = chord_samples(model, lambda pi: model.patches[pi].spline.knots, tolerance)
+        _check_sampling(model, lambda pi: model.patches[pi].spline.knots, samples, patches)
         return sampled_mesh(model, samples, patches=patches)
     prob = solution.problem
     if tolerance is not None:
         samples = chord_samples(model, lambda pi: [d.knots for d in prob.spaces[pi].dirs], tolerance)
+    _check_sampling(model, lambda pi: [d.knots for d in prob.spaces[pi].dirs], samples, patches)
     fields = displacement_fields(solution) if isinstance(solution, ElasticSolution) else temperature_fields(solution)
     return sampled_mesh(model, samples, knots_of=lambda pi: [d.knots for d in prob.spaces[pi].dirs],
                         spaces_key=lambda pi: prob.spaces[pi].key(), fields=fields, patches=patches)

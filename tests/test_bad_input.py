@@ -1075,6 +1075,8 @@ RAW = [
          ProblemError, r"s\.json is not laid out as a pipeline summary \(KeyError: 'dofs'\)"),
     case("iga info of a summary nested too deeply", lambda t: _describe(t, "[" * 100000 + "]" * 100000),
          ProblemError, r"s\.json as a pipeline summary: its JSON is nested too deeply"),
+    case("vtu samples beyond memory", lambda t: write_vtu(t / "x.vtu", solved(), samples=100000), ProblemError,
+         r"the sampled VTU grid \([\d,]+ points\) needs about .* GiB, more than"),
     case("effective_table family raising", lambda t: __import__("iga").effective_table(_failing_family, [0.2, 0.3]),
          ProblemError, r"the family '_failing_family' failed at p = 0.2: ValueError: no tile for that"),
 ]
