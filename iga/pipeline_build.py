@@ -75,7 +75,7 @@ def _vrep(cfg, maps: dict) -> Built:
     res = vrep_microstructure(model, samples=p["samples"], margin=p["margin"], bridges=p["bridges"], beta=p["beta"],
                               d_maxdist=p["d_maxdist"], phi=p["phi"], alpha=p["alpha"])
     ms = res.microstructure
-    info = {"vrep": {"model": repr(model), "tiles_per_primitive": res.counts(),
+    info = {"vrep": {"model": repr(model), "tiles_per_primitive": res.counts(), "bridges": res.bridges.as_dict(),
                      "timings_s": {k: float(v) for k, v in res.timings.items()}}}
     return Built(ms, ms, None, info)
 

@@ -37,6 +37,9 @@ def test_a_vrep_union_runs_from_a_pipeline_as_in_python(tmp_path):
     s = run_pipeline(_union(tmp_path), tmp_path)
     assert s["connected_pieces"] == 1 and s["energy_balance_error"] < 1e-9 and s["tiles"] > 20
     assert set(s["vrep"]["tiles_per_primitive"]) == {"A", "B"} and s["vrep"]["model"].startswith("VModel(")
+    b = s["vrep"]["bridges"]  # the bridging in summary.json, with the faces left without a bridge by reason
+    assert b["anchoring_faces"] > 0 and b["surface_bridges"] + b["union_bridges"] > 0
+    assert isinstance(b["unbridged"], dict) and all(n > 0 for n in b["unbridged"].values())
     A = Primitive(box((2.0, 1.0, 1.0), channels={"k": 205.0}), L.cross(), (4, 2, 2), 2, "A")
     B = Primitive(box((2.0, 1.0, 1.0), origin=(1.5, 0.0, 0.0), channels={"k": 54.0}), L.cross(), (4, 2, 2), 1, "B")
     ms = vrep_microstructure(A | B).microstructure

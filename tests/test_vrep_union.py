@@ -341,8 +341,14 @@ def test_tubes_that_the_collision_repulsion_folds_are_given_up():
     # are counted as given up and leave their anchors open
     from tiling.vrep.examples import box_cylinder
 
-    res = vrep_microstructure(box_cylinder(), margin=0.3, d_maxdist=1.0)
+    from tiling.vrep.assemble import UnbridgedWarning
+
+    with pytest.warns(UnbridgedWarning, match=r"anchoring faces have no bridge \(.*union anchor left open") as rec:
+        res = vrep_microstructure(box_cylinder(), margin=0.3, d_maxdist=1.0)
     ms, u = res.microstructure, res.bridges.union
+    left = res.bridges.unbridged()  # the faces left without a bridge, said in the warning with their count
+    assert left and f"{sum(left.values())} anchoring faces have no bridge" in str(rec[0].message)
+    assert res.bridges.as_dict()["unbridged"] == left
     assert u.collisions.collisions > 0 and u.collisions.repelled > 0
     bridges = {i for i, t in enumerate(ms.tiles) if t.name == "union bridge"}
     kept = [p for p in ms.patches if p.tile in bridges]

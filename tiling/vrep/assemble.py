@@ -17,6 +17,7 @@ and the free faces of the bridges (``"bridge"``, ``"bridge:A"``).
 from __future__ import annotations
 
 import time
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -86,7 +87,18 @@ def vrep_microstructure(model: VModel, samples: int = 4, margin: float = 0.0, na
     t0 = time.perf_counter()
     out = _build(model, kept, bridge_first, owner, name)
     timings["build"] = time.perf_counter() - t0
+    left = report.unbridged()
+    if left:  # said where it happens, not only recorded in res.bridges (and in a pipeline's summary.json)
+        warnings.warn(f"V-model {name!r}: {sum(left.values())} anchoring faces have no bridge ("
+                      + "; ".join(f"{n}: {why}" for why, n in left.items()) + "); their tiles end at free faces "
+                      "there (raise the primitives' counts, or margin, for room to bridge)", UnbridgedWarning,
+                      stacklevel=2)
     return VResult(out, kept.classes, timings, report, [b for _, b in made], unions)
+
+
+class UnbridgedWarning(UserWarning):
+    """Some anchoring faces of a V-model were left without a bridge (counts and reasons in the message and in
+    ``VResult.bridges.unbridged()``)."""
 
 
 @dataclass

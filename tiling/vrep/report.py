@@ -69,6 +69,22 @@ class BridgeReport:
         """Bridging trivariates in the model: surface bridges kept and union bridge patches."""
         return self.surface_bridges + self.union_bridges
 
+    def unbridged(self) -> dict:
+        """Anchoring faces left without a bridge, by reason (only the reasons that occur): a surface bridge's
+        target outside its map's domain, surface bridges given up as folded or eliminated by collisions, union
+        anchors left open (unmatched, folded or eliminated)."""
+        reasons = {"target outside the primitive's domain": self.surface.dropped,
+                   "surface bridge folds with every bend tried": self.folded,
+                   "surface bridge eliminated by a collision": self.collisions.eliminated,
+                   "union anchor left open (unmatched, folded or eliminated)": self.union.open_anchors}
+        return {k: int(v) for k, v in reasons.items() if v}
+
+    def as_dict(self) -> dict:
+        """The counts for a summary: anchoring faces, bridges, and the faces left without one by reason."""
+        return {"anchoring_faces": self.surface.anchoring_faces + self.union.anchors,
+                "surface_bridges": self.surface_bridges, "union_bridges": self.union_bridges,
+                "unbridged": self.unbridged()}
+
     def add_surface(self, counts: SurfaceCounts) -> None:
         _add(self.surface, counts)
 
