@@ -997,6 +997,9 @@ def _polygon_with(polygons):
 
 
 DROPPED = [
+    case("bifurcation without a level-0 layer", lambda t: tiling.bifurcation(pr.box((2.0, 1.0, 3.0)), levels=[1],
+                                                                              tile="1-4a"), TilingError,
+         r"levels \[1\] have no layer at level 0, so nothing joins the columns of level 1"),
     case("homogenise a list with a surface", lambda t: __import__("iga").effective_conductivity(
         [pr.box(), pr.box().boundary("umin")]), ProblemError,
         r"tile list item 1 is a BSpline of dimension 2; a list of patches to homogenise holds trivariate"),

@@ -149,6 +149,11 @@ def _layers(D, g, epsilon, levels):
                 is_integer(v) and 0 <= v <= _MAX_LEVEL for v in levels):
             raise TilingError(f"levels must be a list of integers in [0, {_MAX_LEVEL}], one per layer, got "
                               f"{show(levels)}")
+        if min(int(v) for v in levels) > 0:
+            # no layer of one column joins the columns of the finer ones: the structure would be separate pieces
+            raise TilingError(f"levels {show([int(v) for v in levels])} have no layer at level 0, so nothing joins "
+                              f"the columns of level {min(int(v) for v in levels)}: the structure would fall apart "
+                              "into separate pieces; start (or end) the layers at level 0, e.g. [0, 1, 2, 1, 0]")
         b = D.breakpoints(g)
         if len(levels) % (len(b) - 1):
             raise TilingError(f"{len(levels)} levels do not split D's {len(b) - 1} knot spans along direction {g} "
