@@ -173,12 +173,16 @@ def write_pieces(path, solution, comm, samples: int = 3, tolerance: float | None
         raise ProblemError("write_pieces needs the solution of a distributed solve (solver='petsc' under mpiexec "
                            f"with {size} ranks); use write_vtu for a serial one")
     model = solution.problem.model
-    grid = sampled_grid(model, solution, samples, tolerance, patches=np.flatnonzero(part == rank))
     piece = path.with_name(f"{path.stem}_{rank}.vtu")
-    failure = None
-    try:
+    failure, grid = None, None
+    try:  # sampling too: a rank that fails anywhere must still reach the collective below, or the others wait
+        mine = np.flatnonzero(part == rank)
+        if not len(mine):
+            raise ProblemError(f"rank {rank} of {size} solved no patch ({len(part)} patches on {size} ranks): it has "
+                               f"no piece to write; run with at most as many ranks as patches")
+        grid = sampled_grid(model, solution, samples, tolerance, patches=mine)
         atomic_write(piece, lambda tmp: save_grid(grid, tmp), ".vtu", ProblemError)
-    except ProblemError as err:  # the other ranks must still reach the collective below, or they would wait forever
+    except ProblemError as err:
         failure = err
     written = comm.allreduce(0 if failure else 1)  # every rank's piece is in place before the index names it
     if written != size:

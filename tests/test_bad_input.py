@@ -1128,3 +1128,30 @@ def test_warnings_reach_command_line_users_as_one_line(capsys, monkeypatch):
         warnings.simplefilter("always")
         assert cli.main(["info", "x.npz"]) == 0
     assert capsys.readouterr().err == "iga: warning: the G+Smo file carries extensions\n"
+
+
+def test_a_rank_without_patches_fails_its_piece_without_leaving_the_others_waiting(tmp_path):
+    # one process stands for rank 1 of 2; the other rank "wrote" its piece (allreduce adds its 1): the empty rank
+    # must reach the collective and every rank then raises, instead of rank 1 dying before it
+    from iga import write_pieces
+
+    class Comm:
+        def Get_rank(self):
+            return 1
+
+        def Get_size(self):
+            return 2
+
+        def allreduce(self, v):
+            self.reached = True
+            return v + 1
+
+        def Barrier(self):
+            pass
+
+    sol = HeatProblem(lattice()).dirichlet("umin", 0.0).dirichlet("umax", 1.0).solve()
+    sol.problem.partition = np.zeros(len(sol.problem.model.patches), int)  # every patch on rank 0
+    comm = Comm()
+    with pytest.raises(ProblemError, match=r"rank 1 of 2 solved no patch \(14 patches on 2 ranks\)"):
+        write_pieces(tmp_path / "a.pvtu", sol, comm)
+    assert comm.reached and not list(tmp_path.iterdir())
