@@ -31,7 +31,8 @@ from geometry import SplineFunction
 from geometry import knots as kn
 from geometry.chain import grid_values_derivs
 
-__all__ = ["own_rational", "rational_quadrature_extra", "weight_coefficients", "weight_grid", "rational_form", "rational_load_terms", "stiffness_half_terms", "rational_load", "nurbs_scale"]
+__all__ = ["own_rational", "rational_quadrature_extra", "weight_coefficients", "weight_grid", "rational_form",
+           "rational_load_terms", "stiffness_half_terms", "rational_load", "nurbs_scale"]
 
 
 def own_rational(patch) -> bool:
