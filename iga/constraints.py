@@ -320,17 +320,21 @@ def needs_constraints(model, spaces) -> bool:
     return False
 
 
-def prolongation(model, spaces, offsets) -> Constraints:
+def prolongation(model, spaces, offsets, weights=None) -> Constraints:
     """The sparse prolongation P (ndof x nred) of all interface constraints, with its statistics.
 
     ``spaces``: each patch's :class:`iga.space.TensorSpace`; ``offsets`` (patches + 1,) the first global
     DOF of each patch.  Identity and C0 equalities become classes, branch rows make slave classes, slaves
-    are substituted down to masters, and each DOF reads its class's expression.
+    are substituted down to masters, and each DOF reads its class's expression.  ``weights``: per patch, the
+    NURBS weights of a patch analysed in the NURBS basis (:mod:`iga.rational`) or None; two DOFs made equal
+    must then carry equal weights, or the two bases would not glue (refused, naming the patches).
     """
     offsets = np.asarray(offsets, np.int64)
     n = int(offsets[-1])
     ia, ib = identity_pairs(model, spaces, offsets)
     ca, cb = c0_pairs(model, spaces, offsets)
+    if weights is not None and any(w is not None for w in weights):
+        _refuse_unequal_weights(weights, offsets, np.r_[ia, ca], np.r_[ib, cb])
     ncls, cls = equivalence_classes(n, np.r_[ia, ca], np.r_[ib, cb])
     rows = branch_rows(model, spaces, offsets)
     C, slaves = class_expressions(model, ncls, cls, rows)
@@ -345,6 +349,30 @@ def prolongation(model, spaces, offsets) -> Constraints:
     stats = {"identity_pairs": int(len(ia)), "c0_pairs": int(len(ca)), "branch_rows": int(len(rows.child)),
              "classes": int(ncls), "slave_classes": int(len(slaves)), "reduced": int(len(masters))}
     return Constraints(P, column[cls], stats)
+
+
+def _refuse_unequal_weights(weights, offsets, a: np.ndarray, b: np.ndarray) -> None:
+    """Equated DOFs must carry proportional NURBS weights (1 for a polynomial basis), one ratio per pair of
+    patches: a NURBS basis is unchanged by scaling all its weights, and otherwise a field glued to another
+    basis by equal control values is continuous only where both bases agree on the shared face."""
+    if not len(a):
+        return
+    w = np.concatenate([np.ones(int(offsets[i + 1] - offsets[i])) if wi is None else np.asarray(wi).reshape(-1)
+                        for i, wi in enumerate(weights)])
+    pa, pb = np.searchsorted(offsets, a, side="right") - 1, np.searchsorted(offsets, b, side="right") - 1
+    ratio = w[a] / w[b]
+    key = pa * len(weights) + pb
+    order = np.argsort(key, kind="stable")
+    k, r = key[order], ratio[order]
+    starts = np.r_[0, np.flatnonzero(np.diff(k)) + 1]
+    lo, hi = np.minimum.reduceat(r, starts), np.maximum.reduceat(r, starts)
+    bad = np.flatnonzero(hi - lo > CONSISTENT * hi)
+    if len(bad):
+        i = order[starts[bad[0]]]
+        raise ProblemError(f"patches {int(pa[i])} and {int(pb[i])} share a face on which their NURBS weights are not "
+                           f"proportional (ratios {lo[bad[0]]:.6g} to {hi[bad[0]]:.6g}): a patch analysed in the NURBS "
+                           "basis of its own weights (iga.rational) glues only to a face with the same weights, up to "
+                           "one factor; give both patches the same weights on the shared face")
 
 
 def induced_elimination(C: sp.spmatrix, rhs: np.ndarray, tol: float = RANK):

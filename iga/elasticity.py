@@ -284,7 +284,8 @@ class ElasticityProblem:
         if self.rigid_hold:
             _refuse_net_load(applied, work["body"], book["moments"])
         t1 = time.perf_counter()
-        scalar = prolongation(self.model, self.spaces, self.offsets) if needs_constraints(self.model, self.spaces) \
+        scalar = prolongation(self.model, self.spaces, self.offsets, self.weights) \
+            if needs_constraints(self.model, self.spaces) \
             else None
         self.constraint_stats = dict(scalar.stats) if scalar is not None else {}
         constraints = vector_constraints(scalar, self.ndof)

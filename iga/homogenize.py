@@ -157,7 +157,7 @@ def effective_conductivity(tile, conductivity=1.0, degree_elevation: int = 1, re
     model = periodic_cell(tile)
     prob = HeatProblem(model, conductivity=conductivity, degree_elevation=degree_elevation, refine=refine)
     K, _, _ = prob.assemble()
-    c = prolongation(prob.model, prob.spaces, prob.offsets)
+    c = prolongation(prob.model, prob.spaces, prob.offsets, prob.weights)
     P = c.P
     B, total_k, volume = _loads(prob)  # (ndof, 3) of b_j(N_i) = int k d_j N_i; int k dV; int dV
     A = (P.T @ K @ P).tocsc()
@@ -241,7 +241,7 @@ def effective_stiffness(tile, youngs, poisson, degree_elevation: int = 1, refine
     model = periodic_cell(tile)
     prob = ElasticityProblem(model, youngs, poisson, degree_elevation=degree_elevation, refine=refine)
     K = ElasticVolume(prob.disc).assemble(prob.youngs, prob.poisson)[0]
-    c = vector_constraints(prolongation(prob.model, prob.spaces, prob.offsets), prob.ndof)
+    c = vector_constraints(prolongation(prob.model, prob.spaces, prob.offsets, prob.weights), prob.ndof)
     B, mean, volume = _stiffness_loads(prob)  # (3 ndof, 6), int E_m : C : E_n dV (6, 6), solid volume
     A = (c.P.T @ K @ c.P).tocsc()
     Br = c.P.T @ B

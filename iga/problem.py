@@ -266,7 +266,8 @@ class HeatProblem:
         if world and self._needs_constraints():  # each rank builds the constraints its patches read
             constraints, dd, rc = rank_setup(self, world, part, book)
         else:
-            constraints = prolongation(self.model, self.spaces, self.offsets) if self._needs_constraints() else None
+            constraints = (prolongation(self.model, self.spaces, self.offsets, self.weights)
+                           if self._needs_constraints() else None)
         if dd is None:
             self.constraint_stats = dict(constraints.stats) if constraints is not None else {}
             self.components, self.idle_components = analyse_components(self, constraints, self._faces_by_kind(),

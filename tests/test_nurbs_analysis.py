@@ -111,3 +111,23 @@ def test_composed_rational_patches_reproduce_fields_affine_in_the_maps_parameter
     y = inside.evaluate(xi)[:, :3] @ P.placement[:, :3].T + P.placement[:, 3]
     x = D.evaluate(y)[:, :3]
     assert np.abs(s.probe(x) - (1 + y @ c)).max() <= 1e-9 * float(np.abs(c).sum())
+
+
+def test_sectors_whose_weights_differ_by_one_factor_glue_and_unequal_weights_are_refused():
+    # scaling all weights of a NURBS patch leaves its geometry and its basis unchanged: such sectors glue by
+    # equal control values; weights that differ along a shared face would not glue, and are refused
+    from geometry import BSpline
+    from iga import ProblemError
+    from iga.constraints import _refuse_unequal_weights
+
+    a = pr.annulus(0.5, 1.0, 0.4, angle=np.pi / 2, start=0.0, exact=True)
+    b = pr.annulus(0.5, 1.0, 0.4, angle=np.pi / 2, start=np.pi / 2, exact=True)
+    b3 = BSpline(b.degrees, b.knots, b.control_points, 3.0 * b.weights)
+    s = HeatProblem([a, b3], refine=1).dirichlet("boundary", lambda x: 1 + x @ G).solve()
+    x = _random_points(b, 60, 5)
+    assert np.abs(s.probe(x) - (1 + x @ G)).max() <= 1e-9 * float(np.ptp(x @ G))
+    offsets = np.array([0, 3, 6])
+    with pytest.raises(ProblemError, match=r"patches 0 and 1 share a face on which their NURBS weights are not "
+                                           r"proportional \(ratios 0.5 to 1\)"):
+        _refuse_unequal_weights([np.array([1.0, 1.0, 1.0]), np.array([1.0, 2.0, 1.0])], offsets,
+                                np.array([0, 1]), np.array([3, 4]))
