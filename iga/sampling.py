@@ -9,6 +9,7 @@ from geometry.sampling import piece_basis
 
 from .coefficients import tensor_matrix
 from .elastic_forms import lame
+from .errors import ProblemError
 from .fields import grid_fields
 
 __all__ = ["temperature_fields", "displacement_fields", "corrector_fields"]
@@ -34,8 +35,8 @@ def _temperature_fields(solution, members, pax, x, D, chans, out: dict) -> np.nd
     U = np.stack([solution.u[prob.offsets[i] : prob.offsets[i + 1]].reshape((1,) + space.shape) for i in members])
     T, grad, det = grid_fields(U, B, D, prob.weights[members[0]])
     P, N = x.shape[:2]
-    T, grad = T[:, 0].reshape(P, N), grad[:, 0]
-    grad[~np.all(np.isfinite(grad), axis=1)] = 0.0  # degenerate points (collapsed edges): no gradient
+    T = T[:, 0].reshape(P, N)
+    grad = _limits(grad, members, pax, lambda pi, p: solution.evaluate(pi, p)[1][:, None, :], prob)[:, 0]
     flat = {c: np.reshape(v, -1) for c, v in chans.items()}
     K = prob.conductivity.values(x.reshape(-1, 3), flat, f"patches {members[0]}..{members[-1]}")
     flux = -K[:, None] * grad if K.ndim == 1 else -np.einsum("nij,nj->ni", tensor_matrix(K), grad)
@@ -63,7 +64,7 @@ def _displacement_fields(solution, members, pax, x, D, chans, out: dict) -> np.n
     U = np.stack([np.stack([solution.u[a * n + o[i] : a * n + o[i + 1]].reshape(space.shape) for a in range(3)])
                   for i in members])
     u, grad, det = grid_fields(U, B, D, prob.weights[members[0]])
-    grad[~np.all(np.isfinite(grad), axis=(1, 2))] = 0.0  # degenerate points: no gradient
+    grad = _limits(grad, members, pax, lambda pi, p: solution.evaluate(pi, p)[1], prob)
     flat = {c: np.reshape(v, -1) for c, v in chans.items()}
     xs = x.reshape(-1, 3)
     where = f"patches {members[0]}..{members[-1]}"
@@ -93,8 +94,8 @@ def corrector_fields(prob, chi: np.ndarray):
         B = [piece_basis(d, a) for d, a in zip(space.dirs, pax)]
         o = prob.offsets
         U = np.stack([np.stack([chi[o[i]:o[i + 1], j].reshape(space.shape) for j in range(3)]) for i in members])
-        val, grad, det = grid_fields(U, B, D)
-        grad[~np.all(np.isfinite(grad), axis=(1, 2))] = 0.0
+        val, grad, det = grid_fields(U, B, D, prob.weights[members[0]])
+        grad[~np.all(np.isfinite(grad), axis=(1, 2))] = np.nan  # a collapsed point: no gradient (not a zero)
         P, N = x.shape[:2]
         flat = {c: np.reshape(v, -1) for c, v in chans.items()}
         K = prob.conductivity.values(x.reshape(-1, 3), flat, f"patches {members[0]}..{members[-1]}")
@@ -106,3 +107,32 @@ def corrector_fields(prob, chi: np.ndarray):
         return det
 
     return hook
+
+
+#: how far (a fraction of the patch's parameter box) a sample on a collapsed edge or face is moved inwards to
+#: take its gradient's limit
+_INWARD = 1e-6
+
+
+def _limits(grad: np.ndarray, members, pax, grad_at, prob) -> np.ndarray:
+    """Gradients (P N, c, 3) with those at degenerate samples (a collapsed edge or face, where det J = 0 and the
+    grid's gradient is not finite) replaced by their limit from inside: ``grad_at(patch, params (n, 3))`` at
+    the sample moved towards the patch's centre by :data:`_INWARD` of its box.  Where that is singular too the
+    gradient is NaN: written as not-a-number, never as a zero (the heat flux at a wedge's collapsed face is
+    not 0)."""
+    bad = ~np.all(np.isfinite(grad), axis=(1, 2))
+    if not bad.any():
+        return grad
+    grid = np.stack(np.meshgrid(*pax, indexing="ij"), -1).reshape(-1, 3)
+    N = len(grid)
+    for j, pi in enumerate(members):
+        rows = np.flatnonzero(bad[j * N:(j + 1) * N])
+        if not len(rows):
+            continue
+        dom = np.array([[d.knots[0], d.knots[-1]] for d in prob.spaces[pi].dirs])
+        inside = grid[rows] + _INWARD * (dom.mean(axis=1) - grid[rows])
+        try:
+            grad[j * N + rows] = grad_at(pi, inside)
+        except ProblemError:  # singular there too: no limit to write
+            grad[j * N + rows] = np.nan
+    return grad

@@ -1155,3 +1155,20 @@ def test_a_rank_without_patches_fails_its_piece_without_leaving_the_others_waiti
     with pytest.raises(ProblemError, match=r"rank 1 of 2 solved no patch \(14 patches on 2 ranks\)"):
         write_pieces(tmp_path / "a.pvtu", sol, comm)
     assert comm.reached and not list(tmp_path.iterdir())
+
+
+def test_the_heat_flux_at_a_collapsed_face_is_its_limit_not_zero(tmp_path):
+    # a wedge: the box's umax face collapsed onto a line; T = 2 x + 3 y is in its (trilinear) space, so the flux
+    # is (-2, -3, 0) everywhere, and on the collapsed face the VTU writes the limit from inside (it wrote 0)
+    import pyvista as pv
+
+    b = pr.box(degrees=(1, 1, 1))
+    cp = b.control_points.copy()
+    cp[1, :, :, 2] = 0.5
+    wedge = BSpline(b.degrees, b.knots, cp)
+    T = lambda x: 2 * x[:, 0] + 3 * x[:, 1]  # noqa: E731
+    s = HeatProblem(wedge).dirichlet("umin | vmin | vmax", T).solve()
+    g = pv.read(write_vtu(tmp_path / "wedge.vtu", s, samples=2))
+    x, q = np.asarray(g.points), np.asarray(g.point_data["heat_flux"])
+    edge = np.isclose(x[:, 0], 1.0)
+    assert edge.sum() >= 3 and np.abs(q[edge] - [-2.0, -3.0, 0.0]).max() < 1e-6
