@@ -258,9 +258,10 @@ def _kernel_invert(spline, start: np.ndarray, pts: np.ndarray, tol: float, dampe
 def invert_nearest(splines, points, tol: float = 1e-10, damped: bool = False,
                    kernel: bool = False) -> tuple[np.ndarray, Inversion]:
     """(index (N,), :class:`Inversion`): for each of ``points`` (N, 3) the one of ``splines`` (e.g. the six
-    boundary surfaces of a trivariate) whose :func:`invert` distance is least (the lowest index on a tie within ``COINCIDENT`` x the splines' size), and that
-    inversion: the choice and result of inverting every point into every spline and taking the argmin (up to
-    round-off where a smaller batch changes :func:`invert`'s evaluation path, at ``MIN_POINTS`` / 10 points).
+    boundary surfaces of a trivariate) whose :func:`invert` distance is least (the lowest index on a tie within
+    ``COINCIDENT`` x the splines' size), and that inversion: the choice and result of inverting every point into
+    every spline and taking the argmin (up to round-off where a smaller batch changes :func:`invert`'s
+    evaluation path, at ``MIN_POINTS`` / 10 points).
     ``kernel``: as :func:`invert`'s.
 
     A spline's control points' box bounds its distance from below (convex hull; a spline point lies in the

@@ -12,9 +12,10 @@ the pair order of the stiffness kernels.
 
 from __future__ import annotations
 
-from numbers import Real
 
 import numpy as np
+
+from geometry.numbers import is_real
 
 from .errors import ProblemError
 from .expressions import Expression
@@ -28,8 +29,8 @@ TENSOR_PAIRS = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
 
 
 def is_number(v) -> bool:
-    """A real number (bool excluded: ``True`` is not a temperature)."""
-    return isinstance(v, Real) and not isinstance(v, (bool, np.bool_))
+    """A real number (bool excluded: ``True`` is not a temperature): :func:`geometry.numbers.is_real`."""
+    return is_real(v)
 
 
 def tensor_matrix(K6: np.ndarray) -> np.ndarray:

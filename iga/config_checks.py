@@ -7,6 +7,7 @@ import inspect
 from numbers import Real
 
 from geometry.errors import show
+from geometry.numbers import is_real
 
 from .errors import ProblemError
 from .expressions import Expression
@@ -19,7 +20,7 @@ def fail(where: str, message: str):
 
 
 def number(v, where, lo=None, hi=None, open_lo=True) -> float:
-    if not isinstance(v, Real) or isinstance(v, bool) or v != v or v in (float("inf"), float("-inf")):
+    if not is_real(v) or v != v or v in (float("inf"), float("-inf")):
         fail(where, f"must be a finite number, got {show(v)}")
     if lo is not None and (v <= lo if open_lo else v < lo):
         fail(where, f"must be {'>' if open_lo else '>='} {lo}, got {show(v)}")
@@ -33,7 +34,7 @@ def formula(v, where, lo=None):
     (:class:`iga.expressions.Expression`, checked for its grammar now and for finite values where evaluated)."""
     if isinstance(v, str):
         return Expression(v, f"config key {where}")
-    if not isinstance(v, Real) or isinstance(v, bool):
+    if not is_real(v):
         fail(where, f"must be a finite number or a formula of x, y, z in quotes (e.g. \"20 + 3000 * z\"), "
                     f"got {show(v)}")
     return number(v, where, lo=lo)

@@ -27,7 +27,7 @@ from .constraints import Constraints
 from .elastic_forms import block_terms, divergence_terms, lame, metric_rows
 from .faces import chunks
 from .geometry_eval import checked_det
-from .rational import nurbs_scale, rational_form, rational_load_terms, weight_grid
+from .rational import nurbs_scale, rational_form, rational_load_terms, weight_fields
 from .vector_csr import VectorCSR, pattern_nnz
 
 __all__ = ["ElasticVolume", "vector_constraints"]
@@ -117,9 +117,7 @@ class ElasticVolume:
         c = [[G[3 * r + a] for a in range(3)] for r in range(3)]
         nurbs = None
         if w is not None:
-            Wq, dWq = weight_grid(self.disc.model.patches[members[0]].spline, space.qaxes)
-            nurbs = (np.broadcast_to(Wq.reshape(space.qshape), shape),
-                     [np.broadcast_to(v.reshape(space.qshape), shape) for v in dWq])
+            nurbs = weight_fields(self.disc.model.patches[members[0]].spline, space, len(members))
         if compiled:  # the compiled kernel, coefficients formed on the fly
             fast_assembly.elastic_into(space, members, G, LM, K)
         else:

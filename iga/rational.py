@@ -31,8 +31,8 @@ from geometry import SplineFunction
 from geometry import knots as kn
 from geometry.chain import grid_values_derivs
 
-__all__ = ["own_rational", "rational_quadrature_extra", "weight_coefficients", "weight_grid", "rational_form",
-           "rational_load_terms", "stiffness_half_terms", "rational_load", "nurbs_scale"]
+__all__ = ["own_rational", "rational_quadrature_extra", "weight_coefficients", "weight_grid", "weight_fields",
+           "rational_form", "rational_load_terms", "stiffness_half_terms", "rational_load", "nurbs_scale"]
 
 
 def own_rational(patch) -> bool:
@@ -89,6 +89,15 @@ def weight_grid(spline, axes) -> tuple[np.ndarray, list]:
     """W (N,) and its parameter derivatives [(N,)] * 3 on the tensor grid ``axes`` (C order)."""
     H, dH = grid_values_derivs(_weight_function(spline), axes)
     return H[:, 0], [d[:, 0] for d in dH]
+
+
+def weight_fields(spline, space, P: int) -> tuple[np.ndarray, list]:
+    """W and its parameter derivatives on ``space``'s Gauss grid, each broadcast to (P,) + qshape for a batch of
+    P patches sharing the spline: the fields :func:`rational_form` and :func:`rational_load_terms` take."""
+    shape = (P,) + space.qshape
+    W, dW = weight_grid(spline, space.qaxes)
+    return np.broadcast_to(W.reshape(space.qshape), shape), [np.broadcast_to(v.reshape(space.qshape), shape)
+                                                              for v in dW]
 
 
 def _sides(variants):

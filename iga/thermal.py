@@ -43,18 +43,11 @@ def thermal_strain(problem, temperature, expansion, reference=0.0):
 def _same_model(a, b) -> bool:
     """Whether two analysis models hold the same patches, patch for patch: the same tile spline, placement and
     map (a model normalised twice from one Microstructure is still the same model)."""
-    if a is b:
-        return True
-    if len(a.patches) != len(b.patches):
-        return False
-    for p, q in zip(a.patches, b.patches):
-        if p.spline is not q.spline and not (p.spline.shape == q.spline.shape and
-                                             np.array_equal(p.spline.control_points, q.spline.control_points)):
-            return False
-        if (p.placement is None) != (q.placement is None) or (
-                p.placement is not None and not np.array_equal(p.placement, q.placement)):
-            return False
-        if (p.outer is None) != (q.outer is None) or (p.outer is not None and p.outer is not q.outer and not (
-                p.outer.shape == q.outer.shape and np.array_equal(p.outer.control_points, q.outer.control_points))):
-            return False
-    return True
+    def same_spline(s, t) -> bool:
+        return s is t or (s is not None and t is not None and np.array_equal(s.control_points, t.control_points)
+                          and np.array_equal(s.weights, t.weights) and all(
+                              np.array_equal(U, V) for U, V in zip(s.knots, t.knots)))
+
+    return a is b or (len(a.patches) == len(b.patches) and all(
+        same_spline(p.spline, q.spline) and same_spline(p.outer, q.outer)
+        and np.array_equal(p.placement, q.placement) for p, q in zip(a.patches, b.patches)))

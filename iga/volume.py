@@ -27,7 +27,7 @@ from .coefficients import TENSOR_PAIRS
 from .faces import chunks
 from .forms import diffusion
 from .rational import (nurbs_scale, own_rational, rational_form, rational_load, stiffness_half_terms,
-                       weight_coefficients, weight_grid)
+                       weight_coefficients, weight_fields)
 from geometry import progress
 from geometry.chain import patches_geometry_derivs_slabs
 
@@ -131,9 +131,7 @@ class VolumeAssembler:
         if self.weights[members[0]] is None:
             data = stiffness_data(space, fields, pat)
         else:  # the NURBS basis N / W (iga.rational)
-            Wq, dWq = weight_grid(self.model.patches[members[0]].spline, space.qaxes)
-            W = np.broadcast_to(Wq, (P, N)).reshape(shape)
-            dW = [np.broadcast_to(v, (P, N)).reshape(shape) for v in dWq]
+            W, dW = weight_fields(self.model.patches[members[0]].spline, space, P)
             data = banded_to_csr_data(space, banded_form(space, rational_form(stiffness_half_terms(fields), W, dW)),
                                       pat)
             data += data[:, pat.transpose]

@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from geometry.grouping import ObjectIndex
 from geometry.io import atomic_write, check_folder
 from geometry.resources import check_memory
 from geometry.sampling import chord_samples, sampled_mesh
@@ -104,15 +105,21 @@ def write_vtu(path, solution_or_model, samples: int = 3, cells: str = "linear", 
 _BYTES_PER_POINT = 400
 
 
-def _check_sampling(model, knots_of, samples, patches) -> None:
+def _check_sampling(model, basis_of, knots_of, samples, patches) -> None:
     """Refuse a sampling whose points would not fit the memory budget, before any is made: the user's
-    ``samples`` (one count, or per patch and direction) times each patch's elements."""
+    ``samples`` (one count, or per patch and direction) times each patch's elements.  ``basis_of(pi)``: the
+    object whose knots patch ``pi`` samples (its space or spline, shared by many patches: elements are
+    counted once per object), ``knots_of(obj)`` its knot vectors."""
     chosen = range(len(model.patches)) if patches is None else patches
+    same, elements = ObjectIndex(), {}
     total = 0.0
     for pi in chosen:
+        key = same(basis_of(pi))
+        if key not in elements:
+            elements[key] = [len(np.unique(U)) - 1 for U in knots_of(basis_of(pi))]
         s = samples[pi] if isinstance(samples, list) else samples
         per = [int(s)] * 3 if np.ndim(s) == 0 else [int(v) for v in s]
-        total += float(np.prod([(len(np.unique(U)) - 1) * n + 1 for U, n in zip(knots_of(pi), per)]))
+        total += float(np.prod([e * n + 1 for e, n in zip(elements[key], per)]))
     check_memory(total * _BYTES_PER_POINT, f"the sampled VTU grid ({total:,.0f} points)", ProblemError,
                  "lower samples (subdivisions per element) or use a tolerance")
 
@@ -125,12 +132,12 @@ def sampled_grid(model, solution=None, samples: int = 3, tolerance: float | None
     if solution is None:
         if tolerance is not None:
             samples = chord_samples(model, lambda pi: model.patches[pi].spline.knots, tolerance)
-        _check_sampling(model, lambda pi: model.patches[pi].spline.knots, samples, patches)
+        _check_sampling(model, lambda pi: model.patches[pi].spline, lambda s: s.knots, samples, patches)
         return sampled_mesh(model, samples, patches=patches)
     prob = solution.problem
     if tolerance is not None:
         samples = chord_samples(model, lambda pi: [d.knots for d in prob.spaces[pi].dirs], tolerance)
-    _check_sampling(model, lambda pi: [d.knots for d in prob.spaces[pi].dirs], samples, patches)
+    _check_sampling(model, lambda pi: prob.spaces[pi], lambda s: [d.knots for d in s.dirs], samples, patches)
     fields = displacement_fields(solution) if isinstance(solution, ElasticSolution) else temperature_fields(solution)
     return sampled_mesh(model, samples, knots_of=lambda pi: [d.knots for d in prob.spaces[pi].dirs],
                         spaces_key=lambda pi: prob.spaces[pi].key(), fields=fields, patches=patches)

@@ -35,7 +35,6 @@ from __future__ import annotations
 import importlib.util
 import time
 from dataclasses import dataclass, field
-from numbers import Real
 from typing import Callable
 
 import numpy as np
@@ -46,7 +45,7 @@ from . import clusters
 from .errors import SolverError
 from geometry import progress
 from geometry.errors import show
-from geometry.numbers import is_integer
+from geometry.numbers import is_flag, is_integer, is_real
 
 __all__ = ["SolverError", "SolveInfo", "solve", "register", "backends", "AUTO_DIRECT_LIMIT"]
 
@@ -281,7 +280,7 @@ def solve(A, b, method: str = "auto", tol: float = 1e-10, maxiter: int | None = 
         raise SolverError("the system contains non-finite values (NaN or inf); check the material data and loads")
     if not isinstance(method, str) or (method != "auto" and method not in _BACKENDS):
         raise SolverError(f"unknown solver {show(method)}; choose one of {backends()}")
-    if not (isinstance(tol, Real) and not isinstance(tol, bool) and 0 < tol < 1):
+    if not (is_real(tol) and 0 < tol < 1):
         raise SolverError(f"tol must be a number in (0, 1), got {show(tol)}")
     if maxiter is not None and not (is_integer(maxiter)
                                     and maxiter >= 1):
@@ -291,7 +290,7 @@ def solve(A, b, method: str = "auto", tol: float = 1e-10, maxiter: int | None = 
                                                           else "amg-cg")
         # the spline structure is offered to auto; the method it picks takes what it uses
         options = {k: v for k, v in options.items() if k in _OPTIONS[method] or k not in ("kronecker", "prolongations", "near_nullspace", "node_slots")}
-    if not isinstance(options.get("overwrite_a", False), (bool, np.bool_)):
+    if not is_flag(options.get("overwrite_a", False)):
         raise SolverError(f"overwrite_a must be True or False, got {show(options['overwrite_a'])} (a string or "
                           "number would be read as true and let the solver modify your matrix)")
     prol = options.get("prolongations")

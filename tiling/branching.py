@@ -38,7 +38,7 @@ from .paving import _check_budget, _check_map, _check_spans
 from .tile import Tile, refuse_trimmed
 from .topo import _edge_lengths, topo_subdiv
 from geometry.tolerances import ON_DOMAIN, SNAP
-from geometry.numbers import is_integer, is_real
+from geometry.numbers import is_flag, is_integer, is_real
 
 __all__ = ["bifurcation", "bifurcation_tiles", "smooth_levels", "SPLITS"]
 
@@ -258,7 +258,7 @@ def _check_arguments(D, epsilon, levels, direction, surfaces) -> None:
     _check_map(D)
     if direction not in (0, 1, 2) or isinstance(direction, bool):
         raise TilingError(f"direction must be 0, 1 or 2 (the growth direction), got {show(direction)}")
-    if not isinstance(surfaces, (bool, np.bool_)):
+    if not is_flag(surfaces):
         raise TilingError(f"surfaces must be true or false, got {show(surfaces)}")
     if (epsilon is None) == (levels is None):
         raise TilingError("give epsilon (model units) or levels (one per layer), not both and not neither")

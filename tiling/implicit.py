@@ -62,7 +62,7 @@ from .implicit_connect import (Builder, cell_knots, connect_cells, connect_faces
 from .implicit_boxes import box_grid
 from .implicit_certify import Certifier
 from geometry.tolerances import SAME_KNOT
-from geometry.numbers import is_integer, is_real
+from geometry.numbers import is_flag, is_integer, is_real
 
 __all__ = ["random_implicit", "ImplicitStructure", "canonical_tubes"]
 
@@ -286,7 +286,7 @@ def random_implicit(D: BSpline, counts, *, degree: int = 3, controls: int = 8, a
         raise TilingError("cap=True and shell are exclusive: a capped structure closes D's boundary with walls, a "
                           "shelled one with a shell of the given thickness; choose one")
     check_seed(seed, TilingError)
-    if not isinstance(cap, (bool, np.bool_)):
+    if not is_flag(cap):
         raise TilingError(f"cap must be true or false, got {show(cap)}")
     if not is_integer(resolution) or resolution < 2:
         raise TilingError(f"resolution must be an integer >= 2 (samples per cell and direction), got {show(resolution)}")

@@ -51,7 +51,7 @@ from .implicit_surface import EdgeSplines, SurfaceOutputs, zero_surface
 from .paving import _check_map
 from .topo import CellComplex, topo_subdiv
 from geometry.tolerances import ON_DOMAIN
-from geometry.numbers import is_integer, is_real
+from geometry.numbers import is_flag, is_integer, is_real
 
 __all__ = ["implicit_bifurcation", "BifurcationStructure"]
 
@@ -199,7 +199,7 @@ def implicit_bifurcation(D: BSpline, epsilon: float, *, degree: int = 3, control
     if not is_real(radius) or not 0 < radius < 0.5:
         raise TilingError(f"radius must be in (0, 0.5) (fraction of a face), got {show(radius)}")
     check_seed(seed, TilingError)
-    if not isinstance(cap, (bool, np.bool_)):
+    if not is_flag(cap):
         raise TilingError(f"cap must be true or false, got {show(cap)}")
     cells = topo_subdiv(D, epsilon, directions=directions)
     rng = np.random.default_rng(seed)

@@ -285,8 +285,7 @@ def _hierarchical_arguments(D, tile, counts, levels, scale, seal, thickness, sea
     per_cell = float(levels) if b == 1 else (float(b) ** int(levels) - 1) / (b - 1)  # 1 + b + ... + b^(levels - 1)
     spans = [len(D.breakpoints(k)) - 1 for k in range(2)]
     _check_budget(per_cell * cx * cy * spans[0] * spans[1], tile, f"the {levels}-level hierarchical paving")
-    if scale is not None and not (is_real(scale)
-                                  and not isinstance(scale, (bool, np.bool_)) and np.isfinite(scale) and scale > 0):
+    if scale is not None and not (is_real(scale) and np.isfinite(scale) and scale > 0):
         raise TilingError(f"scale must be a positive number (a child's height relative to its parent), got "
                           f"{show(scale)} ({type(scale).__name__})")
     if scale is not None and scale != tile.scale:
