@@ -66,11 +66,11 @@ class Constraints:
     stats: dict = field(default_factory=dict)
 
 
-def owners_of(master: np.ndarray) -> np.ndarray:
-    """For each reduced unknown one DOF it owns (u_full = P u_red reads the unknown there), from
-    :attr:`Constraints.dof_master`; -1 for an unknown that owns no DOF."""
+def owners_of(master: np.ndarray, n: int | None = None) -> np.ndarray:
+    """For each of the ``n`` reduced unknowns (default: up to the largest owner) one DOF it owns (u_full = P
+    u_red reads the unknown there), from :attr:`Constraints.dof_master`; -1 for an unknown that owns no DOF."""
     own = master >= 0
-    out = np.full(int(master.max()) + 1 if own.any() else 0, -1)
+    out = np.full(n if n is not None else int(master.max()) + 1 if own.any() else 0, -1)
     out[master[own][::-1]] = np.flatnonzero(own)[::-1]
     return out
 

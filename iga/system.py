@@ -160,8 +160,6 @@ def solve_system(K, f, constraints, dirichlet, solver="auto", tol=1e-10, maxiter
     else:
         u = Pf @ x + offset
         reaction = (constraints.P.T @ (K @ u - f))[reaction_dofs]
-        owners = owners_of(constraints.dof_master)
-        owner = owners[np.minimum(reaction_dofs, len(owners) - 1)] if len(owners) else np.full(len(reaction_dofs), -1)
-        ok = np.all(reaction_dofs < len(owners)) and np.all(owner >= 0)
-        prescribed = u[owner] if ok else None
+        owner = owners_of(constraints.dof_master, constraints.P.shape[1])[reaction_dofs]
+        prescribed = u[owner] if np.all(owner >= 0) else None
     return SystemSolution(u, reaction_dofs, reaction, info, reduced, induced, prescribed)

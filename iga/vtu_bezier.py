@@ -113,14 +113,11 @@ def bezier_cells(solution, model):
         pg = np.array(gh.shape[1:4]) - 1
         fields = {}
         if T is not None:
-            if T.is_rational:  # the NURBS basis of the geometry's own weights (iga.rational)
-                th, _ = common_refinement(T, breaks).bezier_patches(homogeneous=True)
-                th = th.reshape((-1,) + th.shape[3:])
-                gh, tvals = _nurbs_field_values(th, gh, pg)
-            else:  # polynomial, one or three components
-                th, _ = common_refinement(T, breaks).bezier_patches()
-                th = th.reshape((-1,) + th.shape[3:])
-                gh, tvals = _field_values(th, gh, pg, G.is_rational)
+            # a NURBS field (the geometry's own weights, iga.rational) as its homogeneous numerator; else
+            # polynomial, one or three components
+            th, _ = common_refinement(T, breaks).bezier_patches(homogeneous=T.is_rational)
+            th = th.reshape((-1,) + th.shape[3:])
+            gh, tvals = _nurbs_field_values(th, gh, pg) if T.is_rational else _field_values(th, gh, pg, G.is_rational)
             fields[name] = tvals[..., 0] if tvals.shape[-1] == 1 else tvals
         if G.is_rational:
             w = gh[..., -1]
