@@ -69,6 +69,7 @@ def offset(S: BSpline, distance: float, tolerance: float | None = None) -> Offse
     if not (is_real(tol) and np.isfinite(tol) and tol > 0):
         raise SplineError(f"offset tolerance must be a positive length (model units), got {show(tolerance)}")
     breaks = [S.breakpoints(k) for k in range(2)]
+    _check_curvature(S, float(distance), breaks)
     joints = [c0_joints(S.knots[k], S.degrees[k]) for k in range(2)]
     per = [_START, _START]
     while True:
@@ -86,6 +87,39 @@ def offset(S: BSpline, distance: float, tolerance: float | None = None) -> Offse
                           f"tolerance {tol:.3g}; raise the tolerance, or offset less than the surface's radius of "
                           "curvature")
     return Offset(BSpline((k, k), [tu, tv], coef), float(distance), err, float(tol))
+
+
+CURVATURE_MARGIN = 1e-6
+"""The offset X + d n has the Jacobian (I - d W) dX (W the shape operator): it folds where 1 - d k reaches 0 for a
+principal curvature k.  ``1 - d k`` must stay above ``CURVATURE_MARGIN`` at every check point."""
+
+
+def _check_curvature(S: BSpline, distance: float, breaks) -> None:
+    """Refuse an offset onto or past a radius of curvature of ``S`` (the offset would fold onto itself),
+    naming the parameters, the radius and the side; checked at 16 points per knot span in each direction."""
+    P = _grid([span_nodes(b, 16) for b in breaks])
+    d = S.derivatives(P, 2)
+    Su, Sv = d[(1, 0)][:, :3], d[(0, 1)][:, :3]
+    n = np.cross(Su, Sv)
+    norm = np.linalg.norm(n, axis=1)
+    ok = norm > 1e-12 * max(1.0, float(np.abs(d[(0, 0)][:, :3]).max())) ** 2  # no normal: exact_offset refuses
+    n = n[ok] / norm[ok, None]
+    E, F, G = (np.einsum("ij,ij->i", a[ok], b[ok]) for a, b in ((Su, Su), (Su, Sv), (Sv, Sv)))
+    L, M, N = (np.einsum("ij,ij->i", d[k][ok, :3], n) for k in ((2, 0), (1, 1), (0, 2)))
+    # principal curvatures: eigenvalues of I^-1 II (n = S_u x S_v / |.|; positive where the surface bends away
+    # from n), from det(II - k I) = 0
+    a = E * G - F * F
+    b = -(E * N + G * L - 2 * F * M)
+    c = L * N - M * M
+    mean, root = -b / (2 * a), np.sqrt(np.maximum(b * b - 4 * a * c, 0.0)) / (2 * a)
+    k = np.stack([mean - root, mean + root], 1)
+    fold = 1.0 - distance * k
+    i, j = np.unravel_index(int(np.argmin(fold)), fold.shape)
+    if fold[i, j] <= CURVATURE_MARGIN:
+        uv = np.round(P[np.flatnonzero(ok)[i]], 6).tolist()
+        raise SplineError(f"offset distance {show(distance)} reaches the surface's radius of curvature "
+                          f"{1.0 / abs(k[i, j]):.6g} at parameters {uv} (on the side the offset goes): the offset "
+                          f"would fold onto itself; offset by less than {1.0 / abs(k[i, j]):.6g}")
 
 
 def _grid(axes) -> np.ndarray:

@@ -33,6 +33,7 @@ from . import bernstein as bz
 from .errors import SplineError, show
 from .spline import SplineFunction
 from .numbers import is_integer
+from .resources import check_memory
 
 __all__ = ["ScaleBounds", "scale_bounds"]
 
@@ -98,13 +99,16 @@ def scale_bounds(D: SplineFunction, boxes=None, subdivide: int = 2) -> ScaleBoun
     if not is_integer(subdivide) or not 1 <= subdivide <= 16:
         raise SplineError(f"subdivide must be an integer from 1 to 16, got {show(subdivide)}")
     d = D.dim
+    check_memory(float(np.prod(D.n_elements)) * np.prod(np.add(D.degrees, 1)) * (D.n_components + 1) * 8.0,
+                 f"the Bezier elements of a spline with {int(np.prod(D.n_elements)):,} elements", SplineError,
+                 "bound a coarser spline (fewer knots)")
     hom, el_boxes = D.bezier_patches(homogeneous=True)
     ncoord = 3 if hasattr(D, "channels") else D.n_components
     comps = list(range(ncoord)) + ([hom.shape[-1] - 1] if D.is_rational else [])
     hom = hom[..., comps].reshape((-1,) + hom.shape[d:-1] + (len(comps),))
     el_boxes = el_boxes.reshape(-1, d, 2)
     want = el_boxes if boxes is None else _check_boxes(D, boxes)
-    owner, elem, sub = _pieces(el_boxes, want, subdivide)
+    owner, elem, sub = _pieces(el_boxes, want, subdivide, [D.breakpoints(k) for k in range(d)])
     K = len(want)
     lower, upper = np.full(K, np.inf), np.zeros(K)
     alo, ahi = np.full((K, d), np.inf), np.zeros((K, d))
@@ -136,15 +140,37 @@ def _check_boxes(D, boxes) -> np.ndarray:
     return b
 
 
-def _pieces(el_boxes, want, subdivide):
-    """(box index, element index, local sub-box (P, d, 2) in [0, 1]) for every piece of every wanted box."""
-    lo = np.maximum(want[:, None, :, 0], el_boxes[None, :, :, 0])
-    hi = np.minimum(want[:, None, :, 1], el_boxes[None, :, :, 1])
-    owner, elem = np.nonzero(np.all(hi > lo, axis=2))
-    width = el_boxes[elem, :, 1] - el_boxes[elem, :, 0]
-    t0 = (lo[owner, elem] - el_boxes[elem, :, 0]) / width
-    t1 = (hi[owner, elem] - el_boxes[elem, :, 0]) / width
+def _pieces(el_boxes, want, subdivide, breakpoints=None):
+    """(box index, element index, local sub-box (P, d, 2) in [0, 1]) for every piece of every wanted box.
+
+    ``breakpoints``: the spline's breakpoints per direction (``el_boxes`` is their tensor grid, C order); the
+    elements each box meets are found per direction, so no (boxes x elements) array is formed."""
     d = el_boxes.shape[1]
+    if breakpoints is None:
+        breakpoints = [np.unique(el_boxes[:, k, :]) for k in range(d)]
+    ne = [len(b) - 1 for b in breakpoints]
+    # element i spans [b_i, b_i+1]; a box [lo, hi] meets those with b_i+1 > lo and b_i < hi
+    first = np.stack([np.clip(np.searchsorted(b, want[:, k, 0], "right") - 1, 0, n - 1)
+                      for k, (b, n) in enumerate(zip(breakpoints, ne))], 1)
+    last = np.stack([np.clip(np.searchsorted(b, want[:, k, 1], "left") - 1, 0, n - 1)
+                     for k, (b, n) in enumerate(zip(breakpoints, ne))], 1)
+    counts = np.maximum(last - first + 1, 1)
+    per_box = np.prod(counts, axis=1)
+    pieces = float(per_box.sum()) * subdivide ** d
+    check_memory(pieces * d * 8.0 * 12, f"scale bounds of {len(want):,} boxes over {int(np.prod(ne)):,} elements "
+                 f"cut into {subdivide}^{d} sub-boxes ({pieces:,.0f} pieces)", SplineError,
+                 "pass fewer or smaller boxes, or a smaller subdivide")
+    owner = np.repeat(np.arange(len(want)), per_box)
+    j = np.arange(len(owner)) - np.repeat(np.cumsum(per_box) - per_box, per_box)
+    strides = np.ones_like(counts)  # C order within each box's block of elements
+    strides[:, :-1] = np.cumprod(counts[:, :0:-1], axis=1)[:, ::-1]
+    multi = first[owner] + (j[:, None] // strides[owner]) % counts[owner]
+    elem = np.ravel_multi_index(tuple(multi.T), ne)
+    lo = np.maximum(want[owner, :, 0], el_boxes[elem, :, 0])
+    hi = np.minimum(want[owner, :, 1], el_boxes[elem, :, 1])
+    width = el_boxes[elem, :, 1] - el_boxes[elem, :, 0]
+    t0 = (lo - el_boxes[elem, :, 0]) / width
+    t1 = (hi - el_boxes[elem, :, 0]) / width
     cuts = np.stack(np.meshgrid(*[np.arange(subdivide)] * d, indexing="ij"), -1).reshape(-1, d)  # (S, d)
     f0, f1 = cuts / subdivide, (cuts + 1) / subdivide
     span = (t1 - t0)[:, None, :]

@@ -222,6 +222,7 @@ def sweep(axis: BSpline, radius: float | None = None, section: BSpline | None = 
     if len(bends):
         raise SplineError(f"the axis turns abruptly at v = {bends[0]:.6g} (tangent discontinuity); split it there "
                           "(BSpline.split) and sweep each piece")
+    _check_bend(axis, section)
     per = _START
     joints = c0_joints(axis.knots[0], axis.degrees[0])
     while True:
@@ -238,6 +239,29 @@ def sweep(axis: BSpline, radius: float | None = None, section: BSpline | None = 
                           f"{tol:.3g}; raise the tolerance or simplify the axis")
     surface = _surface(section, k, t, coef)
     return Sweep(surface, axis, None if radius is None else float(radius), err, float(tol))
+
+
+BEND_MARGIN = 1e-6
+"""A section reaching ``r`` from the axis folds where the axis's radius of curvature is r or less: r * curvature
+must stay below ``1 - BEND_MARGIN`` at every check point."""
+
+
+def _check_bend(axis: BSpline, section: BSpline) -> None:
+    """Refuse a sweep whose section reaches past the axis's radius of curvature (the tube would fold onto
+    itself on the inside of the bend), naming the parameter, the radius of curvature and the section's reach.
+    Checked at 32 points per knot span of the axis and 256 of the section."""
+    v = _nodes(axis, 32)
+    d = axis.derivatives(v[:, None], 2)
+    d1, d2 = d[(1,)][:, :3], d[(2,)][:, :3]
+    speed = np.linalg.norm(d1, axis=1)
+    curvature = np.linalg.norm(np.cross(d1, d2), axis=1) / np.maximum(speed, 1e-300) ** 3
+    t = np.linspace(*section.domain[0], 257)[:-1, None]
+    reach = float(np.linalg.norm(section.evaluate(t)[:, :2], axis=1).max())
+    i = int(np.argmax(curvature))
+    if reach * curvature[i] >= 1.0 - BEND_MARGIN:
+        raise SplineError(f"the section reaches {reach:.6g} from the axis, to or past the axis's radius of curvature "
+                          f"{1.0 / curvature[i]:.6g} at v = {v[i]:.6g}: the tube would fold onto itself on the "
+                          "inside of the bend; use a smaller radius or section, or a gentler axis")
 
 
 def _control_error(k, t, coef, v, C) -> float:

@@ -78,6 +78,43 @@ def join_curves(curves, tol: float = 1e-9) -> BSpline:
     return BSpline((p,), [np.concatenate(knots)], np.concatenate(pts), np.concatenate(wts) if rational else None)
 
 
+def _trial_axes(spline, direction: int, per_span: int = 8) -> np.ndarray:
+    """Parameters of ``per_span`` equal steps in every knot span of one direction."""
+    b = spline.breakpoints(direction)
+    return np.unique(np.concatenate([np.linspace(x, y, per_span + 1) for x, y in zip(b[:-1], b[1:])]))
+
+
+def _chord_step(S, tol: float) -> float:
+    """The parameter-plane edge length at which the chord error of the surface ``S`` meets ``tol`` (model
+    units): the worst midpoint deviation of the edges of a trial grid (8 steps per knot span; along u, v and
+    both diagonals) divided by their squared length, as the error falls with h^2.  Infinite on a plane."""
+    u, v = _trial_axes(S, 0), _trial_axes(S, 1)
+    uu, vv = np.meshgrid(u, v, indexing="ij")
+    P = np.stack([uu, vv], -1)
+    X = S.evaluate(P.reshape(-1, 2))[:, :3].reshape(P.shape[:2] + (3,))
+    worst = 0.0
+    for a, b in (((slice(None, -1), slice(None)), (slice(1, None), slice(None))),
+                 ((slice(None), slice(None, -1)), (slice(None), slice(1, None))),
+                 ((slice(None, -1), slice(None, -1)), (slice(1, None), slice(1, None))),
+                 ((slice(1, None), slice(None, -1)), (slice(None, -1), slice(1, None)))):
+        mid = S.evaluate((0.5 * (P[a] + P[b])).reshape(-1, 2))[:, :3]
+        dev = np.linalg.norm(mid - 0.5 * (X[a] + X[b]).reshape(-1, 3), axis=1)
+        length2 = np.sum((P[b] - P[a]) ** 2, axis=-1).ravel()
+        worst = max(worst, float(np.max(dev / length2)))
+    size = float(np.ptp(X.reshape(-1, 3), axis=0).max()) or 1.0
+    return np.sqrt(tol / worst) if worst > 1e-14 * size else np.inf
+
+
+def _ring_estimate(S, c, tol: float) -> float:
+    """How many samples the loop ``c`` needs for chord error ``tol`` in space: its image's midpoint
+    deviations on a trial sampling (8 steps per knot span), scaled as h^2."""
+    t = _trial_axes(c, 0)
+    x = S.evaluate(c.evaluate(t[:, None])[:, :2])[:, :3]
+    mid = S.evaluate(c.evaluate((0.5 * (t[:-1] + t[1:]))[:, None])[:, :2])[:, :3]
+    dev = np.linalg.norm(mid - 0.5 * (x[:-1] + x[1:]), axis=1)
+    return float(np.sum(np.sqrt(dev / tol)))  # a step of deviation d needs sqrt(d / tol) pieces
+
+
 def _polyline(c: BSpline, per_span: int = _LOOP_SAMPLES) -> np.ndarray:
     b = c.breakpoints(0)
     t = np.unique(np.concatenate([np.linspace(x, y, per_span + 1) for x, y in zip(b[:-1], b[1:])]))
@@ -294,8 +331,17 @@ class TrimmedSurface:
             raise SplineError(f"tolerance {show(tolerance)} is below 1e-9 of the surface's size ({size:.3g}); "
                               f"floating point cannot meet it: use at least {1e-9 * size:.3g}")
         outer = _polyline(self.loops[0])
-        h = 0.25 * float(np.ptp(outer, axis=0).max())  # longest edge in the parameter plane
         area = abs(_signed_area(outer))
+        # estimated before any triangle is made, from the chord errors at a trial spacing (they fall as h^2):
+        # the longest interior edge that meets the tolerance, and the ring samples the loops will need
+        step = _chord_step(S, tolerance)
+        h = min(0.25 * float(np.ptp(outer, axis=0).max()), 0.9 * step)  # longest edge in the parameter plane
+        rings = sum(_ring_estimate(S, c, tolerance) for c in self.loops)
+        if max(4.0 * area / h ** 2, rings) > max_triangles:
+            raise SplineError(f"the tessellation at tolerance {show(tolerance)} needs at least about "
+                              f"{max(4.0 * area / h ** 2, rings):,.0f} triangles (estimated from the surface's and "
+                              f"the loops' curvature), more than max_triangles = {max_triangles:,}; raise the "
+                              "tolerance or max_triangles")
         samples = []
         for k in range(40):
             n_est = 4.0 * area / h ** 2  # triangles of edge ~h (right isosceles ones have area h^2 / 4)

@@ -780,7 +780,39 @@ RESOURCES = [
                                                    progress=False), TilingError, r"hierarchical paving"),
     case("pipeline refine", lambda t: run_pipeline(_cfg(solver__refine=10, output__dir=str(t / "o")),
                                                    progress=False), ProblemError, r"the analysis"),
+    case("tessellation 1e-9", lambda t: _bent_disc().tessellate(1e-9), SplineError,
+         r"tessellation at tolerance 1e-09 needs at least about [\d,]+ triangles \(estimated"),
+    case("scale bounds pieces", lambda t: __import__("geometry").scale.scale_bounds(
+        _fine_box(), np.tile(_fine_box().domain, (20000, 1, 1)), subdivide=8), SplineError,
+         r"scale bounds of 20,000 boxes over 512 elements cut into 8\^3 sub-boxes .* needs about"),
+    case("elastic samples", lambda t: write_vtu(t / "e.vtu", _elastic_solution(), samples=100000), ProblemError,
+         r"the sampled VTU grid .* needs about"),
 ]
+
+
+def _bent_disc():
+    """A disc trimmed from a curved quadratic sheet (z = 0.3 u^2), loop an exact NURBS circle."""
+    from geometry.trimmed import TrimmedSurface
+
+    w = np.array([1, np.sqrt(0.5)] * 4 + [1])
+    pts = np.array([[1, 0], [1, 1], [0, 1], [-1, 1], [-1, 0], [-1, -1], [0, -1], [1, -1], [1, 0]], float) * 0.3
+    circle = BSpline((2,), [np.r_[0, 0, 0, 0.25, 0.25, 0.5, 0.5, 0.75, 0.75, 1, 1, 1]],
+                     np.c_[pts + 0.5, np.zeros(9)], w)
+    bent = BSpline((2, 2), [kn.uniform_knots(2, 1)] * 2,
+                   np.array([[[x, y, 0.3 * x * x] for y in (0, 0.5, 1)] for x in (0, 0.5, 1)], float))
+    return TrimmedSurface(bent, [circle])
+
+
+def _fine_box() -> BSpline:
+    return pr.box(degrees=(2, 2, 2)).refine(3)[0]
+
+
+@lru_cache(maxsize=1)
+def _elastic_solution():
+    from iga import ElasticityProblem
+
+    return ElasticityProblem(pr.box(degrees=(2, 2, 2)), 1.0, 0.3).dirichlet("umin", 0.0).traction(
+        "umax", (1.0, 0.0, 0.0)).solve()
 
 
 @pytest.mark.parametrize("fn, exc, match", RESOURCES)
@@ -1172,3 +1204,107 @@ def test_the_heat_flux_at_a_collapsed_face_is_its_limit_not_zero(tmp_path):
     x, q = np.asarray(g.points), np.asarray(g.point_data["heat_flux"])
     edge = np.isclose(x[:, 0], 1.0)
     assert edge.sum() >= 3 and np.abs(q[edge] - [-2.0, -3.0, 0.0]).max() < 1e-6
+
+
+# ------------------------------------------------------------------ surfaces: consistently oriented, outward normals
+def _mirrored(D: BSpline) -> BSpline:
+    """D with x negated: det J < 0 everywhere."""
+    return BSpline(D.degrees, D.knots, D.control_points * np.array([-1.0, 1.0, 1.0]), D.weights, D.channels)
+
+
+def _gauss_volume(ms) -> float:
+    """The volume of a volumetric paving by the problem's Gauss rule (no surface involved)."""
+    from iga.fields import integrate_fields
+
+    prob = HeatProblem(ms)
+    return integrate_fields(prob, lambda i: np.zeros((1,) + prob.spaces[i].shape), 1,
+                            lambda x, v, g: np.ones(len(x)))
+
+
+@pytest.mark.parametrize("mirror", [False, True], ids=["det J > 0", "det J < 0"])
+def test_capped_surfaces_are_oriented_outwards_and_enclose_the_solids_volume(mirror, tmp_path):
+    import pyvista as pv
+
+    from geometry.orientation import orientation_check
+
+    D = pr.box((1.0, 1.0, 1.0), degrees=(2, 2, 2))
+    D = _mirrored(D) if mirror else D
+    capped = tiling.regular(D, L.hollow_cross(0.3), (2, 2, 1), seal="cap")
+    solid = _gauss_volume(tiling.regular(D, L.cross(0.3), (2, 2, 1)))
+    written = pv.read(tiling.export.write_surfaces(tmp_path / "capped.stl", capped, 2))
+    for mesh, rel in ((capped.surface(2), 1e-9), (written.clean(), 1e-6)):  # STL stores float32
+        c = orientation_check(mesh)
+        assert c.repeated_edges == 0 and c.sheets == 1
+        # the caps close the hollow cross around exactly the volume of the solid cross (planar faces: exact)
+        assert c.signed_volume == pytest.approx(solid, rel=rel) and solid > 0.2
+
+
+def test_shells_orient_the_cavity_inwards_and_open_tubes_consistently():
+    from geometry.orientation import orientation_check, orient_outward
+
+    twisted = pr.twisted(pr.box((1.0, 1.0, 1.0), degrees=(2, 2, 2)), 0.4, axis_point=(0.5, 0.5))
+    shell = tiling.regular(_mirrored(twisted), L.hollow_cross(), (2, 1, 1), seal="shell", thickness=0.15).surface(2)
+    c = orientation_check(shell)
+    assert c.repeated_edges == 0 and c.sheets == 2
+    # the skin's outside encloses the box, its inside (joined to the tubes) the void left: the solid between them
+    outer, inner = (shell.extract_cells(np.flatnonzero(shell.connectivity()["RegionId"] == r)).extract_surface(algorithm="dataset_surface")
+                    for r in (0, 1))
+    v = sorted(abs(orientation_check(orient_outward(m)).signed_volume) for m in (outer, inner))
+    assert c.signed_volume == pytest.approx(v[1] - v[0], rel=1e-9) and 0 < c.signed_volume < v[1]
+    duck = pr.duck()
+    tubes = tiling.bifurcation(duck, 0.35, "1-4a", surfaces=True).surface(2)
+    t = orientation_check(tubes)
+    assert t.repeated_edges == 0 and t.signed_volume > 0  # open ends: positive about the sheet's centre
+
+
+def test_implicit_and_polygon_surfaces_face_outwards_under_any_map():
+    from geometry.orientation import orientation_check
+    from tiling.polygonal import PolygonTile, pave_polygons
+
+    cube = PolygonTile(np.array([[i, j, k] for i in (0.2, 0.8) for j in (0.2, 0.8) for k in (0.2, 0.8)]),
+                       polygons=[[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]],
+                       name="box")
+    D = pr.box((2.0, 1.0, 1.0), degrees=(2, 2, 2))
+    implicit = []
+    for E in (D, _mirrored(D)):  # the mirror keeps every volume; outward normals keep its sign
+        c = orientation_check(pave_polygons(E, cube, (2, 1, 1)))
+        assert c.repeated_edges == 0 and c.sheets == 2 and c.signed_volume == pytest.approx(2 * 0.6 ** 3, rel=1e-12)
+        implicit.append(orientation_check(tiling.random_implicit(E, (2, 1, 1), seed=1).surface(6)))
+    assert all(s.repeated_edges == 0 for s in implicit)
+    assert implicit[0].signed_volume > 0 and implicit[1].signed_volume == pytest.approx(implicit[0].signed_volume,
+                                                                                          rel=1e-9)
+
+
+# ------------------------------------------------------------------ geometric validity: no solid folds onto itself
+def _quarter_arc():
+    """(arc, quarter cylinder): an exact NURBS quarter circle of radius 1 and its extrusion along z (n outward)."""
+    p, U, P, w = pr.arc(1.0, np.pi / 2)
+    arc = BSpline((p,), [U], P, w)
+    cyl = BSpline((p, 1), [U, [0, 0, 1, 1.0]], np.stack([P, P + [0, 0, 1.0]], 1), np.stack([w, w], 1))
+    return arc, cyl
+
+
+def test_tubes_and_offsets_past_a_radius_of_curvature_are_refused_with_the_bound():
+    from geometry.offset import offset
+    from geometry.sweep import sweep
+
+    arc, cyl = _quarter_arc()
+    rng = np.random.default_rng(4)
+    # inside the bound: the offset is the concentric cylinder (exact radius check at random points)
+    for d in (-0.9, 2.0):
+        o = offset(cyl, d)
+        x = o.surface.evaluate(rng.uniform(0, 1, (200, 2)))[:, :3]
+        assert np.abs(np.hypot(x[:, 0], x[:, 1]) - (1 + d)).max() <= o.tolerance
+    for d in (-1.0, -1.5):  # onto or past the axis of the cylinder: folds
+        with pytest.raises(SplineError, match=r"reaches the surface's radius of curvature 1 at parameters .* "
+                                              r"offset by less than 1"):
+            offset(cyl, d)
+    assert sweep(arc, radius=0.99).surface.dim == 2
+    for r in (1.0, 1.2):
+        with pytest.raises(SplineError, match=rf"section reaches {r:g} from the axis, to or past the axis's radius "
+                                              r"of curvature 1 at v = "):
+            sweep(arc, radius=r)
+    # a round strut thicker than the bend of its (composed) axis: the toolkit's error naming the strut
+    helices = tiling.regular(pr.box(), L.helix(), (1, 1, 1))
+    with pytest.raises(TilingError, match=r"strut through patch 0 .*to or past the axis's radius of curvature"):
+        tiling.round_struts(helices, 0.45)

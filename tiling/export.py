@@ -26,6 +26,7 @@ from geometry.faces import FACE_AXIS, FACE_NAMES, face_name, parse_slot_face
 from geometry.errors import SplineError
 from geometry.iges import write_iges as _write_iges
 from geometry.placed_points import IDENTITY, placements
+from geometry.orientation import orient_outward
 from geometry.io import atomic_write, offscreen_plotter, save_screenshot
 from geometry.sampling import piece_boxes, sample_axes, sampled_mesh, weld
 
@@ -124,6 +125,9 @@ def surface(ms: Microstructure, samples: int = 4):
     if len(tris):
         mesh.cell_data["patch"] = pid
         mesh.cell_data["level"] = np.array([P.level for P in _drawn(ms)], np.int32)[pid]
+        # surface patches run in their own parameter directions, caps and volume faces in theirs, and a map with
+        # det J < 0 turns everything inside out: one consistent, outward orientation per sheet
+        mesh = orient_outward(mesh)
     for i, ln in lines:
         poly = pv.lines_from_points(ln)
         poly.cell_data["patch"] = np.full(poly.n_cells, i)

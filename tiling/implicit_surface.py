@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from geometry import knots as kn
+from geometry.orientation import orient_outward
 
 from .errors import TilingError
 from .export import mesh_watertightness, write_mesh
@@ -82,6 +83,8 @@ def zero_surface(axes, F, outer, field, *, close: bool = False, snap_vertices: b
     params = np.clip(params, dom[:, 0], dom[:, 1])
     mapped = outer.evaluate(params, compiled=False)  # SciPy: one pass, no numba import (memory)
     out = pv.PolyData(mapped[:, :3], surf.faces)
+    if out.n_cells:
+        out = orient_outward(out)  # a map with det J < 0 turns the contour's facets inside out
     for i, c in enumerate(outer.channels):
         out.point_data[c] = mapped[:, 3 + i]
     for name, values in (point_data(params) if point_data is not None else {}).items():

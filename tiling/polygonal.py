@@ -20,6 +20,7 @@ import numpy as np
 
 from geometry import BSpline, map_points
 from geometry.errors import show
+from geometry.orientation import orient_outward
 from geometry.resources import check_memory
 
 from .errors import TilingError
@@ -121,7 +122,10 @@ def pave_polygons(D: BSpline, tile: PolygonTile, counts):
             flat.append(np.hstack([np.full((len(rows), 1), n), rows]).ravel())
         return np.concatenate(flat)
 
-    mesh = pv.PolyData(mapped[:, :3], faces=cells_of(tile.polygons), lines=cells_of(tile.lines))
+    faces = cells_of(tile.polygons)
+    if faces is not None:  # facets mapped through D (det J < 0 turns them inside out): consistent, outward
+        faces = orient_outward(pv.PolyData(mapped[:, :3], faces)).faces
+    mesh = pv.PolyData(mapped[:, :3], faces=faces, lines=cells_of(tile.lines))
     for i, c in enumerate(D.channels):
         mesh.point_data[c] = mapped[:, 3 + i]
     mesh.point_data["u"], mesh.point_data["v"], mesh.point_data["w"] = flat.T
