@@ -37,6 +37,11 @@ def _mesh(path: Path) -> list[str]:
         raise ProblemError(f"cannot read {path.name} as a mesh: {exc}") from None
     if mesh.n_points == 0:
         raise ProblemError(f"cannot read {path.name} as a mesh: it holds no points (damaged, or not a mesh file)")
+    conn = np.asarray(mesh.cast_to_unstructured_grid().cell_connectivity) if mesh.n_cells else np.zeros(0, int)
+    if conn.size and (conn.min() < 0 or conn.max() >= mesh.n_points):
+        bad = int(conn.max() if conn.max() >= mesh.n_points else conn.min())
+        raise ProblemError(f"{path.name} is damaged: a cell names point {bad + 1} (counting from 1, as OBJ does) "
+                           f"but the file has {mesh.n_points:,} points; repair or re-export the mesh")
     types = {}
     if mesh.n_cells:
         names = {12: "hexahedra", 79: "Bezier hexahedra", 5: "triangles", 9: "quads", 10: "tetrahedra"}

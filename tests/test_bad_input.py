@@ -1075,10 +1075,10 @@ def _gismo_with_index(tmp_path, index):
     return read_gismo(path)
 
 
-def _describe(tmp_path, text):
+def _describe(tmp_path, text, name="s.json"):
     from iga.describe import describe
 
-    path = tmp_path / "s.json"
+    path = tmp_path / name
     path.write_text(text)
     return describe(path)
 
@@ -1110,6 +1110,9 @@ RAW = [
          ProblemError, r"s\.json is not laid out as a pipeline summary \(KeyError: 'dofs'\)"),
     case("iga info of a summary nested too deeply", lambda t: _describe(t, "[" * 100000 + "]" * 100000),
          ProblemError, r"s\.json as a pipeline summary: its JSON is nested too deeply"),
+    case("iga info of an OBJ face naming a missing vertex", lambda t: _describe(
+        t, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n", "bad.obj"), ProblemError,
+         r"bad\.obj is damaged: a cell names point 7 \(counting from 1, as OBJ does\) but the file has 3 points"),
     case("vtu samples beyond memory", lambda t: write_vtu(t / "x.vtu", solved(), samples=100000), ProblemError,
          r"the sampled VTU grid \([\d,]+ points\) needs about .* GiB, more than"),
     case("effective_table family raising", lambda t: __import__("iga").effective_table(_failing_family, [0.2, 0.3]),
