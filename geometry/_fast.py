@@ -16,6 +16,8 @@ import importlib.util
 
 import numpy as np
 
+from .cache import memo
+
 from . import knots as kn
 from .compile_lock import locked
 
@@ -26,18 +28,15 @@ MIN_POINTS = 20_000
 # small analyses (the heat-sink demo) should not pay
 AVAILABLE = importlib.util.find_spec("numba") is not None
 
-_KERNEL = None
 _CHUNKS = 64  # work items of the kernel's parallel loop (must match _fast_kernels)
 
 
+@memo(1)
 def _kernel():
     """The compiled 3-D kernel (numba imported and the kernel loaded on first call)."""
-    global _KERNEL
-    if _KERNEL is None:
-        from ._fast_kernels import _eval3
+    from ._fast_kernels import eval3
 
-        _KERNEL = _eval3
-    return _KERNEL
+    return eval3
 
 
 def readonly(a, dtype=float) -> np.ndarray:

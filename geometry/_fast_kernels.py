@@ -7,7 +7,7 @@ from numba import njit, prange
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _span(U, p, n, t):
+def find_span(U, p, n, t):
     """Knot span index i with U[i] <= t < U[i + 1] (t = U[-1] -> last span); A2.1 of The NURBS Book."""
     if t >= U[n]:
         return n - 1
@@ -24,7 +24,7 @@ def _span(U, p, n, t):
     return mid
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _basis(U, p, i, t, N, left, right):
+def span_basis(U, p, i, t, N, left, right):
     """Non-zero basis values N[0..p] at t in span i (A2.2)."""
     N[0] = 1.0
     for j in range(1, p + 1):
@@ -38,7 +38,7 @@ def _basis(U, p, i, t, N, left, right):
         N[j] = saved
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _basis_d1(U, p, i, t, dN, Nm, left, right):
+def span_basis_d1(U, p, i, t, dN, Nm, left, right):
     """First derivatives dN[0..p] of the non-zero basis functions at t in span i (NURBS Book Eq. 2.7).
 
     N'_{k,p} = p N_{k,p-1} / (U[k+p] - U[k]) - p N_{k+1,p-1} / (U[k+p+1] - U[k+1]); both
@@ -47,7 +47,7 @@ def _basis_d1(U, p, i, t, dN, Nm, left, right):
     if p == 0:
         dN[0] = 0.0
         return
-    _basis(U, p - 1, i, t, Nm, left, right)  # Nm[j] = N_{i-p+1+j, p-1}, j = 0..p-1
+    span_basis(U, p - 1, i, t, Nm, left, right)  # Nm[j] = N_{i-p+1+j, p-1}, j = 0..p-1
     for a in range(p + 1):
         k = i - p + a
         d = 0.0
@@ -59,7 +59,7 @@ def _basis_d1(U, p, i, t, dN, Nm, left, right):
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def _eval3(x, U0, p0, U1, p1, U2, p2, C, out, bad):
+def eval3(x, U0, p0, U1, p1, U2, p2, C, out, bad):
     """Values (out (1, N, m)) or values and first derivatives (out (4, N, m): value, d/dx0, d/dx1, d/dx2).
 
     Points outside the domain or not finite are counted in ``bad`` (per work item) and skipped.
@@ -89,12 +89,12 @@ def _eval3(x, U0, p0, U1, p1, U2, p2, C, out, bad):
             if not (U0[0] <= t0 <= U0[-1] and U1[0] <= t1 <= U1[-1] and U2[0] <= t2 <= U2[-1]):
                 bad[ch] += 1
                 continue
-            i0 = _span(U0, p0, n0, t0)
-            i1 = _span(U1, p1, n1, t1)
-            i2 = _span(U2, p2, n2, t2)
-            _basis(U0, p0, i0, t0, B0, L, R)
-            _basis(U1, p1, i1, t1, B1, L, R)
-            _basis(U2, p2, i2, t2, B2, L, R)
+            i0 = find_span(U0, p0, n0, t0)
+            i1 = find_span(U1, p1, n1, t1)
+            i2 = find_span(U2, p2, n2, t2)
+            span_basis(U0, p0, i0, t0, B0, L, R)
+            span_basis(U1, p1, i1, t1, B1, L, R)
+            span_basis(U2, p2, i2, t2, B2, L, R)
             for j in range(nd):
                 for c in range(m):
                     acc[j, c] = 0.0
@@ -110,9 +110,9 @@ def _eval3(x, U0, p0, U1, p1, U2, p2, C, out, bad):
                             for c in range(m):
                                 acc[0, c] += w * C[ia, ib, ie, c]
             else:
-                _basis_d1(U0, p0, i0, t0, dB0, Nm, L, R)
-                _basis_d1(U1, p1, i1, t1, dB1, Nm, L, R)
-                _basis_d1(U2, p2, i2, t2, dB2, Nm, L, R)
+                span_basis_d1(U0, p0, i0, t0, dB0, Nm, L, R)
+                span_basis_d1(U1, p1, i1, t1, dB1, Nm, L, R)
+                span_basis_d1(U2, p2, i2, t2, dB2, Nm, L, R)
                 for a in range(p0 + 1):
                     ia = i0 - p0 + a
                     for b in range(p1 + 1):

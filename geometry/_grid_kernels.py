@@ -2,8 +2,8 @@
 
 Values and first derivatives on a tensor grid of parameters by sum
 factorisation: directions 2 and 1 contracted on the coefficient rows a slab
-of direction 0 touches (:func:`_contract21`), then direction 0 row by row
-(:func:`_direction0_row`); :func:`grid_derivs3` writes them out.  The metric
+of direction 0 touches (:func:`contract21`), then direction 0 row by row
+(:func:`direction0_row`); :func:`grid_derivs3` writes them out.  The metric
 kernels of the analysis (``iga._metric_kernels``) reuse the two stages.
 """
 
@@ -14,7 +14,7 @@ from numba import njit, prange
 
 
 @njit(cache=True, parallel=True)
-def _contract21(hom, lo, R, B1, f1, B2, f2):
+def contract21(hom, lo, R, B1, f1, B2, f2):
     """Directions 2 and 1 of a 3-D spline contracted on the coefficient rows lo .. lo + R - 1 of direction 0.
 
     Returns U (3, R, nq1, nq2 m): (value, value), (derivative, value) and
@@ -65,10 +65,10 @@ def _contract21(hom, lo, R, B1, f1, B2, f2):
 
 
 @njit(inline="always")
-def _direction0_row(U, B0, q0, s, q1, X, D0, D1, D2, value):
+def direction0_row(U, B0, q0, s, q1, X, D0, D1, D2, value):
     """Direction 0 contracted at grid coordinate q0 for grid row q1: the rows X (if ``value``), D0, D1, D2 (K,).
 
-    U (3, R, nq1, K) from :func:`_contract21`; ``s`` the first coefficient row
+    U (3, R, nq1, K) from :func:`contract21`; ``s`` the first coefficient row
     of q0's basis functions relative to U's first row.
     """
     K = D0.shape[0]
@@ -110,7 +110,7 @@ def grid_derivs3(hom, a, b, f0, B0, f1, B1, f2, B2, out):
     nq1, nq2, m = B1.shape[1], B2.shape[1], hom.shape[3]
     p0 = B0.shape[2] - 1
     lo = f0[a]
-    U = _contract21(hom, lo, f0[b - 1] + p0 + 1 - lo, B1, f1, B2, f2)
+    U = contract21(hom, lo, f0[b - 1] + p0 + 1 - lo, B1, f1, B2, f2)
     K = nq2 * m
     outf = out.reshape(4, b - a, nq1, K)
     for item in prange((b - a) * nq1):
@@ -120,4 +120,4 @@ def grid_derivs3(hom, a, b, f0, B0, f1, B1, f2, B2, out):
         j = item - q1 * (b - a)
         q0 = a + j
         s = f0[q0] - lo
-        _direction0_row(U, B0, q0, s, q1, outf[0, j, q1], outf[1, j, q1], outf[2, j, q1], outf[3, j, q1], True)
+        direction0_row(U, B0, q0, s, q1, outf[0, j, q1], outf[1, j, q1], outf[2, j, q1], outf[3, j, q1], True)

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from ._fast_kernels import _basis, _basis_d1, _span
+from ._fast_kernels import span_basis, span_basis_d1, find_span
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -29,10 +29,10 @@ def _value_jacobian(C, U, off, deg, rational, t, span, B, dB, Nm, L, R, acc, x, 
     for k in range(3):
         Uk = U[off[k]:off[k + 1]]
         p = deg[k]
-        i = _span(Uk, p, C.shape[k], t[k])
+        i = find_span(Uk, p, C.shape[k], t[k])
         span[k] = i - p
-        _basis(Uk, p, i, t[k], B[k], L, R)
-        _basis_d1(Uk, p, i, t[k], dB[k], Nm, L, R)
+        span_basis(Uk, p, i, t[k], B[k], L, R)
+        span_basis_d1(Uk, p, i, t[k], dB[k], Nm, L, R)
     for j in range(4):
         for c in range(4):
             acc[j, c] = 0.0

@@ -16,11 +16,12 @@ slice-add per coefficient of the smaller factor (no dense Kronecker matrices).
 
 from __future__ import annotations
 
-from functools import lru_cache
 from itertools import product as iproduct
 from math import comb
 
 import numpy as np
+
+from .cache import memo
 
 from . import _fast
 from .compile_lock import locked
@@ -33,7 +34,7 @@ COMPILED_MACS = 1 << 16
 __all__ = ["binomials", "multiply", "power", "elevate", "derivative", "split_matrices", "evaluate"]
 
 
-@lru_cache(maxsize=512)
+@memo(512)
 def binomials(p: int) -> np.ndarray:
     """``[C(p, 0), ..., C(p, p)]`` as floats (read-only)."""
     b = np.array([comb(p, i) for i in range(p + 1)], dtype=float)
@@ -148,7 +149,7 @@ def _convolve(a: np.ndarray, b: np.ndarray, max_bytes: int = 64 << 20) -> np.nda
     return out
 
 
-@lru_cache(maxsize=256)
+@memo(256)
 def _weights(shape: tuple, inverse: bool) -> np.ndarray:
     """The binomial scaling (or its inverse) of a Bernstein array of ``shape`` (read-only, as a tensor)."""
     w = np.ones(shape)
@@ -216,7 +217,7 @@ def derivative(a: np.ndarray, axis_k: int, ndim: int, length: float = 1.0) -> np
     return (p / length) * np.diff(a, axis=axis)
 
 
-@lru_cache(maxsize=256)
+@memo(256)
 def split_matrices(p: int, t: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
     """de Casteljau subdivision matrices (left, right) at ``t`` for degree ``p``."""
     I = np.eye(p + 1)

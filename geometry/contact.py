@@ -14,7 +14,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .faces import FACE_NAMES
-from .multipatch import _SAMPLES, TOL, face_points, free_face_mask
+from .multipatch import FACE_SAMPLES, TOL, face_points, free_face_mask
 from .tolerances import model_size
 
 __all__ = ["unglued_contacts"]
@@ -39,9 +39,9 @@ def unglued_contacts(patches, interfaces, limit: int = 5, mask=None) -> list[tup
     free = np.stack([pidx[t], f], axis=1)
     if len(free) < 2:
         return []
-    pts = np.empty((len(free), len(_SAMPLES), 3))  # (F, n, 3)
+    pts = np.empty((len(free), len(FACE_SAMPLES), 3))  # (F, n, 3)
     for a in range(0, len(free), _CHUNK):  # in chunks: the evaluation's transients stay a few MiB
-        pts[a:a + _CHUNK] = face_points(patches, free[a:a + _CHUNK], _SAMPLES)
+        pts[a:a + _CHUNK] = face_points(patches, free[a:a + _CHUNK], FACE_SAMPLES)
     scale = model_size(pts)
     flat = pts.reshape(-1, 3)
     owner = np.repeat(np.arange(len(free)), pts.shape[1])

@@ -14,10 +14,11 @@ point, without a NumPy call per step.
 
 from __future__ import annotations
 
-import weakref
 from dataclasses import dataclass
 
 import numpy as np
+
+from .cache import PerObject
 from scipy.spatial import cKDTree
 
 from . import _fast
@@ -173,19 +174,19 @@ def _gauss_newton_step(J: np.ndarray, r: np.ndarray, t: np.ndarray, domain: np.n
 
 # the sampled start grid of each spline, kept while the spline lives: splines are immutable, and the V-rep
 # builder inverts a few points at a time on the same maps and trimming surfaces about a thousand times
-_STARTS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+_STARTS = PerObject()  # per live spline: its start grid and KD-tree
 
 
 def _starts(spline):
     """(grid parameters (n, d), KD-tree of their images, the model's size for ``inside``) of ``spline``."""
-    known = _STARTS.get(spline)
-    if known is None:
+    def make():
         d, dom = spline.dim, spline.domain
         axes = start_grid(dom, [spline.breakpoints(k) for k in range(d)])
         grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, d)
         xs = spline.evaluate(grid)[:, :3]
-        known = _STARTS[spline] = (grid, cKDTree(xs), max(1.0, float(np.abs(xs).max())))
-    return known
+        return grid, cKDTree(xs), max(1.0, float(np.abs(xs).max()))
+
+    return _STARTS.get(spline, make)
 
 
 def invert(spline, points, tol: float = 1e-10, compiled: bool | None = None, damped: bool = False,

@@ -16,10 +16,11 @@ Conventions
 
 from __future__ import annotations
 
-from functools import lru_cache
 from math import comb
 
 import numpy as np
+
+from .cache import memo
 import scipy.sparse as sp
 
 from .cache import BoundedCache
@@ -61,7 +62,7 @@ def uniform_knots(degree: int, n_elements: int, lo: float = 0.0, hi: float = 1.0
     return np.concatenate([np.full(degree, lo), inner, np.full(degree, hi)])
 
 
-_VALID: dict = {}  # validated knot vectors (read-only arrays), keyed by bytes, degree and count
+_VALID = BoundedCache(1024)  # validated knot vectors (read-only arrays), keyed by bytes, degree and count
 
 
 def validate_knots(knots, degree: int, n: int, direction: int = 0) -> np.ndarray:
@@ -74,7 +75,7 @@ def validate_knots(knots, degree: int, n: int, direction: int = 0) -> np.ndarray
     where = f"direction {direction}"
     if isinstance(knots, np.ndarray) and knots.dtype == float and knots.ndim == 1 and is_integer(degree):
         key = (knots.tobytes(), int(degree), int(n))
-        hit = _VALID.get(key)
+        hit = _VALID.lookup(key)
         if hit is not None:  # the same knot vector was validated before (e.g. thousands of composed tiles)
             return hit
     if not is_integer(degree) or degree < 1:
@@ -116,12 +117,8 @@ def validate_knots(knots, degree: int, n: int, direction: int = 0) -> np.ndarray
         )
     if mults[0] > p + 1 or mults[-1] > p + 1:
         raise SplineError(f"{where}: end knots may repeat at most degree + 1 = {p + 1} times")
-    if len(_VALID) >= 1024:
-        _VALID.clear()
     out = U.copy()
-    out.setflags(write=False)
-    _VALID[(out.tobytes(), p, int(n))] = out
-    return out
+    return _VALID.get((out.tobytes(), p, int(n)), lambda: out)
 
 
 def breakpoints(knots) -> tuple[np.ndarray, np.ndarray]:
@@ -347,7 +344,7 @@ def _extraction(U: np.ndarray, p: int):
 _EXTRACTION = BoundedCache(256)
 
 
-@lru_cache(maxsize=256)
+@memo(256)
 def bernstein_elevation(p: int, t: int) -> np.ndarray:
     """Matrix ``E`` (p+t+1, p+1) raising Bernstein coefficients from degree p to p+t."""
     E = np.zeros((p + t + 1, p + 1))
@@ -377,7 +374,7 @@ def bezier_to_bspline(knots: np.ndarray, degree: int) -> np.ndarray:
     return _bezier_to_bspline(U, int(degree))
 
 
-@lru_cache(maxsize=128)
+@memo(128)
 def _bezier_to_bspline_cached(key: bytes, n_knots: int, p: int) -> np.ndarray:
     return _bezier_to_bspline(np.frombuffer(key, float, n_knots), p)
 

@@ -139,13 +139,13 @@ def _same_face_space(patches, a, b, swap, flip) -> bool:
 
 
 # interior sample points of a face (normalised face parameters): images must coincide on conforming faces
-_SAMPLES = np.array([[0.5, 0.5], [0.2113, 0.3187], [0.7887, 0.2311], [0.3571, 0.8123], [0.8811, 0.6917]])
-_SAMPLES.setflags(write=False)
+FACE_SAMPLES = np.array([[0.5, 0.5], [0.2113, 0.3187], [0.7887, 0.2311], [0.3571, 0.8123], [0.8811, 0.6917]])
+FACE_SAMPLES.setflags(write=False)
 
 
 def _oriented_samples(swap, flip):
     """Face-b parameters of the face-a samples under an orientation."""
-    st = (_SAMPLES[:, ::-1] if swap else _SAMPLES).copy()
+    st = (FACE_SAMPLES[:, ::-1] if swap else FACE_SAMPLES).copy()
     if flip[0]:
         st[:, 0] = 1 - st[:, 0]
     if flip[1]:
@@ -236,13 +236,13 @@ def _coincide(patches, pa, fa, pb, fb, orient, scale) -> np.ndarray:
     ka, kb = np.stack([pa, fa], axis=1), np.stack([pb, fb], axis=1)
     same = np.flatnonzero(outer_of[pa] == outer_of[pb])
     if len(same):
-        qa = face_points(patches, ka[same], _SAMPLES, through_outer=False)
+        qa = face_points(patches, ka[same], FACE_SAMPLES, through_outer=False)
         qb = face_points(patches, kb[same], sets, through_outer=False, which=orient[same])
         hit = np.abs(qa - qb).max(axis=(1, 2)) <= TOL * max(1.0, float(np.abs(qa).max()))
         res[same[hit]] = True
     rest = np.flatnonzero(~res)
     if len(rest):
-        qa = face_points(patches, ka[rest], _SAMPLES)
+        qa = face_points(patches, ka[rest], FACE_SAMPLES)
         qb = face_points(patches, kb[rest], sets, which=orient[rest])
         res[rest] = np.abs(qa - qb).max(axis=(1, 2)) <= TOL * scale
     return res
@@ -345,7 +345,7 @@ def _refuse_nonconforming_contact(patches, interfaces) -> None:
     free = free_faces(patches, interfaces)
     if not free:
         return
-    pts = face_points(patches, free, _SAMPLES)  # (F, n, 3)
+    pts = face_points(patches, free, FACE_SAMPLES)  # (F, n, 3)
     tol = CONTACT * model_size(pts)
     boxes = [P.spline.bounding_box() for P in patches]
     for j, (pi, f) in enumerate(free):

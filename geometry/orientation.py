@@ -83,7 +83,7 @@ def orientation_check(mesh) -> OrientationCheck:
     if len(offsets) < 2:
         return OrientationCheck(0, 0.0, 0)
     e = _edges(offsets, conn)
-    _, uses = np.unique(e, axis=0, return_counts=True)
+    _, uses = np.unique(e[:, 0] * np.int64(mesh.n_points) + e[:, 1], return_counts=True)
     tris, _ = _fan(offsets, conn)
     p = np.asarray(mesh.points, float)
     vol = float(np.einsum("ij,ij->i", p[tris[:, 0]], np.cross(p[tris[:, 1]], p[tris[:, 2]])).sum() / 6.0)
@@ -127,8 +127,8 @@ def orient_outward(mesh):
 
     # closed sheets: every undirected edge used exactly twice
     und = np.sort(edges, axis=1)
-    key, inv, uses = np.unique(und, axis=0, return_inverse=True, return_counts=True)
-    open_edge_sheet = label[key[uses != 2, 0]]
+    key, uses = np.unique(und[:, 0] * np.int64(len(points)) + und[:, 1], return_counts=True)
+    open_edge_sheet = label[key[uses != 2] // len(points)]
     closed = np.ones(label.max() + 1, bool)
     closed[open_edge_sheet] = False
 

@@ -20,7 +20,7 @@ from .bspline import BSpline
 from .errors import SplineError
 from .faces import FACE_AXIS, FACE_NAMES
 from .products import multiply
-from .shapes import _with_channels, cylinder, duck  # example shapes live in their own module
+from .shapes import with_channels, cylinder, duck  # example shapes live in their own module
 from .spline import SplineFunction
 from .errors import show
 from .tolerances import ON_DOMAIN
@@ -64,7 +64,7 @@ def box(size=(1.0, 1.0, 1.0), origin=(0.0, 0.0, 0.0), degrees=(1, 1, 1), element
     if size.shape != (3,) or np.any(~np.isfinite(size)) or np.any(size <= 0):
         raise SplineError(f"box size must be three positive numbers, got {size.tolist()}")
     g = np.stack(np.meshgrid([0.0, 1.0], [0.0, 1.0], [0.0, 1.0], indexing="ij"), axis=-1)
-    cp, names = _with_channels(origin + g * size, channels)
+    cp, names = with_channels(origin + g * size, channels)
     U = kn.uniform_knots(1, 1)
     out = BSpline((1, 1, 1), [U, U, U], cp, channels=names)
     out = out.elevate_to(degrees)
@@ -142,7 +142,7 @@ def annulus(
     cp[..., 1] = P[:, None, None, 1] * radii[None, :, None]
     cp[..., 2] = z[None, None, :]
     W = None if w is None else np.broadcast_to(w[:, None, None], cp.shape[:-1])
-    cp, names = _with_channels(cp, channels)
+    cp, names = with_channels(cp, channels)
     L = kn.uniform_knots(1, 1)
     out = BSpline((p, 1, 1), [U, L, L], cp, W, names)
     return refined(out, elements)

@@ -21,11 +21,12 @@ affine or nearly separable are decided from the control net first
 
 from __future__ import annotations
 
-import weakref
 from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
+
+from .cache import PerObject
 
 from . import bernstein as bz
 from . import knots as kn
@@ -388,7 +389,7 @@ def _subdivide(J, boxes, owner, decided, d: int, max_depth: int, allow_zeros: bo
 
 # proofs of prove_one_signed, kept while their spline lives: splines are immutable (read-only arrays), so a
 # bridge the V-rep builder proved needs no second proof in the analysis that takes its model
-_ONE_SIGNED: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+_ONE_SIGNED = PerObject()  # per live spline: {(depth, deeper): result}
 
 
 def prove_one_signed(spline: SplineFunction, depth: int = 8, deeper: int = 14) -> RegularityResult:
@@ -409,7 +410,7 @@ def prove_one_signed_many(splines, depth: int = 8, deeper: int = 14) -> list[Reg
     out = [None] * len(splines)
     todo = []
     for i, s in enumerate(splines):
-        known = _ONE_SIGNED.get(s)
+        known = _ONE_SIGNED.peek(s)
         if known is not None and (depth, deeper) in known:
             out[i] = known[(depth, deeper)]
         else:
@@ -421,5 +422,5 @@ def prove_one_signed_many(splines, depth: int = 8, deeper: int = 14) -> list[Reg
         if not todo:
             break
     for s, r in zip(splines, out):
-        _ONE_SIGNED.setdefault(s, {})[(depth, deeper)] = r
+        _ONE_SIGNED.get(s, dict)[(depth, deeper)] = r
     return out

@@ -23,6 +23,7 @@ import sys
 from contextlib import contextmanager
 from contextvars import ContextVar
 
+from .cache import memo
 from .errors import SplineError
 from .errors import show
 from .numbers import is_real
@@ -43,7 +44,7 @@ def usable_cores() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-@functools.lru_cache(maxsize=1)
+@memo(1)
 def _blas_controller():
     from threadpoolctl import ThreadpoolController
 

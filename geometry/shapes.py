@@ -24,7 +24,7 @@ _DUCK_SECTIONS = np.array([
 ])
 
 
-def _with_channels(cp: np.ndarray, channels) -> tuple[np.ndarray, tuple]:
+def with_channels(cp: np.ndarray, channels) -> tuple[np.ndarray, tuple]:
     """``cp`` with one constant column per channel of ``channels`` ({name: finite number} or None)."""
     if channels is None:
         return cp, ()
@@ -65,7 +65,7 @@ def duck(length: float = 2.1, channels=None) -> BSpline:
         cp[:, :, k, 0] = x
         cp[:, :, k, 1] = (s[:, None] * hw) * bulge[None, :]
         cp[:, :, k, 2] = zc + (s[None, :] * hh) * bulge[:, None]
-    cp, names = _with_channels(cp, channels)
+    cp, names = with_channels(cp, channels)
     U = kn.uniform_knots(2, 1)
     W = kn.uniform_knots(3, len(sec) - 3)
     return BSpline((2, 2, 3), [U, U, W], cp, channels=names)

@@ -12,9 +12,10 @@ variants v = (0,0), (0,1), (1,0), (1,1) (v = 2 a + b), the window start
 
 from __future__ import annotations
 
-from functools import lru_cache
 
 import numpy as np
+
+from geometry.cache import memo
 from numba import njit, prange
 
 
@@ -55,7 +56,7 @@ def _weights1(b1, e1, l1, m1, t):
 
 
 @njit(inline="always")
-def _band_weights(W2, i2, d2, l):
+def band_weights(W2, i2, d2, l):
     """Direction-2 weights of the variants (0,0), (0,1), (1,0), (1,1) at window point l of band entry (i2, d2)."""
     return W2[0, i2, d2, l], W2[1, i2, d2, l], W2[2, i2, d2, l], W2[3, i2, d2, l]
 
@@ -194,7 +195,7 @@ def heat_stage2(Z, Y, W2, r2, s2):
                     y3[k] = 0.0
             for l in range(r2[i2, d2, 0], r2[i2, d2, 1]):
                 q2 = s2[i2] + l
-                w00, w01, w10, w11 = _band_weights(W2, i2, d2, l)
+                w00, w01, w10, w11 = band_weights(W2, i2, d2, l)
                 z0, z1, z2, z3 = Zf[t, 0, q2], Zf[t, 1, q2], Zf[t, 2, q2], Zf[t, 3, q2]
                 z4, z5, z6 = Zf[t, 4, q2], Zf[t, 5, q2], Zf[t, 6, q2]
                 if upper:
@@ -253,7 +254,7 @@ def stage1_flush(ring, Y, b1, first1, pi, e1, out, cols, dest, indptr, lo1, c1, 
             _flush_row(ring, out, cols, dest, indptr, pi, i1, i2, n2, n3, D3, lo1, c1, lo2, c2, lo3, c3)
 
 
-@lru_cache(maxsize=64)  # one kernel per (p3, g3): a handful per process
+@memo(64)  # one kernel per (p3, g3): a handful per process
 def stiffness3_for(p3: int, g3: int):
     """The stiffness kernel ``stiffness3`` for degree p3 and g3 Gauss points per element in direction 3.
 

@@ -20,12 +20,13 @@ lower blocks from the upper ones.
 
 from __future__ import annotations
 
-from functools import lru_cache
 
 import numpy as np
+
+from geometry.cache import memo
 from numba import njit, prange
 
-from ._assembly_kernels import _band_weights, heat_stage2, stage1_flush, symmetric_stage3
+from ._assembly_kernels import band_weights, heat_stage2, stage1_flush, symmetric_stage3
 
 
 @njit(cache=True, parallel=True, fastmath=True)
@@ -52,7 +53,7 @@ def elastic_stage2(Z, Y, W2, r2, s2):
                 y3[k] = 0.0
             for l in range(r2[i2, d2, 0], r2[i2, d2, 1]):
                 q2 = s2[i2] + l
-                w00, w01, w10, w11 = _band_weights(W2, i2, d2, l)
+                w00, w01, w10, w11 = band_weights(W2, i2, d2, l)
                 f00, f01, f02 = Zf[t, 0, q2], Zf[t, 1, q2], Zf[t, 2, q2]
                 f10, f11, f12 = Zf[t, 3, q2], Zf[t, 4, q2], Zf[t, 5, q2]
                 f20, f21, f22 = Zf[t, 6, q2], Zf[t, 7, q2], Zf[t, 8, q2]
@@ -125,7 +126,7 @@ def _coefficients(G, LM, a, b, pi, q1, q2, q3, F, t3):
                 F[3 * r + s, t3] = lf * ra * G[3 * s + b, pi, q1, q2, q3] + mf * rb * G[3 * s + a, pi, q1, q2, q3]
 
 
-@lru_cache(maxsize=16)  # one kernel per (p3, g3), as stiffness3_for
+@memo(16)  # one kernel per (p3, g3), as stiffness3_for
 def elastic3_for(p3: int, g3: int):
     """The block kernel ``elastic3`` for degree p3 and g3 Gauss points per element in direction 3."""
     P3, G3 = int(p3), int(g3)

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from geometry._grid_kernels import _contract21, _direction0_row
+from geometry._grid_kernels import contract21, direction0_row
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
@@ -94,7 +94,7 @@ def geometry_metric3(hom, rational, a, b, f0, B0, f1, B1, f2, B2, iso, K, fval, 
     nq1, nq2, m = B1.shape[1], B2.shape[1], hom.shape[3]
     p0 = B0.shape[2] - 1
     lo = f0[a]
-    U = _contract21(hom, lo, f0[b - 1] + p0 + 1 - lo, B1, f1, B2, f2)
+    U = contract21(hom, lo, f0[b - 1] + p0 + 1 - lo, B1, f1, B2, f2)
     Kn = nq2 * m
     k00, k11, k22, k01, k02, k12 = K[0], K[1], K[2], K[3], K[4], K[5]
     for item in prange((b - a) * nq1):
@@ -105,7 +105,7 @@ def geometry_metric3(hom, rational, a, b, f0, B0, f1, B1, f2, B2, iso, K, fval, 
         s = f0[q0] - lo
         buf = np.empty((4, Kn))
         X, D0, D1, D2 = buf[0], buf[1], buf[2], buf[3]
-        _direction0_row(U, B0, q0, s, q1, X, D0, D1, D2, rational)  # the value only for the weight
+        direction0_row(U, B0, q0, s, q1, X, D0, D1, D2, rational)  # the value only for the weight
         w01 = qw0[q0] * qw1[q1]
         base = (j * nq1 + q1) * nq2
         for q2 in range(nq2):

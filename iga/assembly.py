@@ -25,9 +25,10 @@ from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
-from functools import lru_cache
 
 import numpy as np
+
+from geometry.cache import memo
 import scipy.sparse as sp
 
 from geometry.ranges import concatenated_ranges
@@ -185,14 +186,14 @@ class CSRPattern:
     derived: dict = field(default_factory=dict, repr=False)
 
 
-def _band_limits(n: int, p: int):
+def band_limits(n: int, p: int):
     """Valid band offsets [lo, hi] per row of a 1-D band (column j = i + d - p inside [0, n))."""
     i = np.arange(n)
     return np.maximum(0, p - i), np.minimum(2 * p, n - 1 - i + p)
 
 
 def _pattern_1d(n: int, p: int, itype) -> CSRPattern:
-    lo, hi = _band_limits(n, p)
+    lo, hi = band_limits(n, p)
     counts = hi - lo + 1
     indptr = np.zeros(n + 1, np.int64)
     np.cumsum(counts, out=indptr[1:])
@@ -215,7 +216,7 @@ def _pattern_combine(n0: int, p0: int, B: CSRPattern, banded_B: int, itype) -> C
     """
     D0 = 2 * p0 + 1
     nB, nnzB = B.n, len(B.indices)
-    lo, hi = _band_limits(n0, p0)
+    lo, hi = band_limits(n0, p0)
     c0 = hi - lo + 1
     cB = np.diff(B.indptr)
     rowB = np.repeat(np.arange(nB), cB)
@@ -272,7 +273,7 @@ def _pattern_combine(n0: int, p0: int, B: CSRPattern, banded_B: int, itype) -> C
     return CSRPattern(indptr, indices, take, transpose, n0 * nB)
 
 
-@lru_cache(maxsize=16)
+@memo(16)
 def _pattern(shape: tuple, degrees: tuple) -> CSRPattern:
     """CSR pattern of a banded tensor-product operator, built direction by direction (last first)."""
     Ds = [2 * p + 1 for p in degrees]
@@ -287,14 +288,14 @@ def _pattern(shape: tuple, degrees: tuple) -> CSRPattern:
     return pat
 
 
-_CACHE_NNZ = 1 << 24  # larger patterns are rebuilt rather than kept (8 bytes per entry each)
+CACHE_NNZ = 1 << 24  # larger patterns are rebuilt rather than kept (8 bytes per entry each)
 
 
 def pattern(space: TensorSpace) -> CSRPattern:
     """CSR pattern of ``space``'s banded operators (cached for the many small spaces of micro-structures)."""
     degrees = tuple(s.degree for s in space.dirs)
     nnz_max = space.ndof * int(np.prod([2 * p + 1 for p in degrees]))
-    if nnz_max > _CACHE_NNZ:
+    if nnz_max > CACHE_NNZ:
         return _pattern.__wrapped__(space.shape, degrees)
     pat = _pattern(space.shape, degrees)
     for a in (pat.indptr, pat.indices):  # shared by every matrix built on it: nobody may write

@@ -79,10 +79,10 @@ def dof_labels(problem, P: sp.spmatrix | None) -> tuple[int, np.ndarray]:
     unknown one of its DOFs depends on (the pattern of ``P``).  Its size is
     that of ``P``, not of the stiffness matrix.
     """
-    return _labels(problem.spaces, P)
+    return patch_dof_labels(problem.spaces, P)
 
 
-def _labels(spaces, P) -> tuple[int, np.ndarray]:
+def patch_dof_labels(spaces, P) -> tuple[int, np.ndarray]:
     """:func:`dof_labels` of the patches with ``spaces`` (P's rows: their DOFs one patch after the other)."""
     same = ObjectIndex()  # patches share splines and maps: group by object
     piece, count = [], 0

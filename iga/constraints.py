@@ -87,7 +87,7 @@ class BranchRows:
     weight: np.ndarray  # (entries,)
 
 
-def _face_grid(spaces, offsets, pi, face):
+def face_dof_grid(spaces, offsets, pi, face):
     """Global DOFs of a patch face as an (n_s, n_t) grid in face-parameter order."""
     space = spaces[pi]
     return (space.face_dofs(face) + offsets[pi]).reshape(space.face_space(face).shape)
@@ -147,8 +147,8 @@ def identity_pairs(model, spaces, offsets) -> tuple[np.ndarray, np.ndarray]:
     a, b = [], []
     for (_, fa, _, fb, swap, flip), members in groups.items():
         pa, pb = np.array(members).T
-        ga = _face_grid(spaces, np.zeros(len(spaces), np.int64), pa[0], fa)
-        gb = _oriented(_face_grid(spaces, np.zeros(len(spaces), np.int64), pb[0], fb), swap, flip)
+        ga = face_dof_grid(spaces, np.zeros(len(spaces), np.int64), pa[0], fa)
+        gb = _oriented(face_dof_grid(spaces, np.zeros(len(spaces), np.int64), pb[0], fb), swap, flip)
         if ga.shape != gb.shape:
             raise ProblemError(f"identity interface patch {pa[0]} {fa} / patch {pb[0]} {fb}: face spaces differ "
                                f"({ga.shape} vs {gb.shape} coefficients); refine all patches alike")
@@ -239,10 +239,10 @@ def branch_rows(model, spaces, offsets) -> BranchRows:
             continue
         (pa, fa), (pb, fb) = itf.a, itf.b
         R = _branch_R(spaces, itf, cache)
-        child.append(_face_grid(spaces, offsets, pb, fb).ravel())
+        child.append(face_dof_grid(spaces, offsets, pb, fb).ravel())
         interface.append(np.full(R.shape[0], j))
         row.append(nrows + np.repeat(np.arange(R.shape[0]), np.diff(R.indptr)))
-        parent.append(_face_grid(spaces, offsets, pa, fa).ravel()[R.indices])
+        parent.append(face_dof_grid(spaces, offsets, pa, fa).ravel()[R.indices])
         weight.append(R.data)
         nrows += R.shape[0]
     return BranchRows(_cat(child), _cat(interface), _cat(row), _cat(parent),

@@ -27,16 +27,17 @@ never load numba).  Without numba, nothing changes.
 from __future__ import annotations
 
 import importlib.util
-from functools import lru_cache
 
 import numpy as np
+
+from geometry.cache import memo
 import scipy.sparse as sp
 
 from .errors import ProblemError
 from geometry.compile_lock import locked
 from geometry._fast import grid_tables, readonly
 
-from .assembly import _CACHE_NNZ, CSRPattern, _band_limits
+from .assembly import CACHE_NNZ, CSRPattern, band_limits
 from .space import Space1D, TensorSpace
 
 #: quadrature points (over all patches of a group) from which the compiled kernels assemble the scalar form
@@ -80,7 +81,7 @@ def _tables(sp1: Space1D) -> dict:
         has = nz.any(axis=-1)
         lo = np.where(has, nz.argmax(axis=-1), 0)
         hi = np.where(has, sp1.L - nz[..., ::-1].argmax(axis=-1), 0)
-        blo, bhi = _band_limits(n, p)
+        blo, bhi = band_limits(n, p)
         # first basis function on each element: knot span of the element's left end, minus p
         first = np.searchsorted(sp1.knots, sp1.breaks[:-1], side="right") - 1 - p
         loc = first[:, None] + np.arange(p + 1)[None, :]  # (E, p+1)
@@ -103,7 +104,7 @@ def _tables(sp1: Space1D) -> dict:
 
 def _structure(shape: tuple, degrees: tuple) -> CSRPattern:
     n = int(np.prod(shape))
-    lims = [_band_limits(m, p) for m, p in zip(shape, degrees)]
+    lims = [band_limits(m, p) for m, p in zip(shape, degrees)]
     los = [lo.astype(np.int64) for lo, _ in lims]
     cs = [(hi - lo + 1).astype(np.int64) for lo, hi in lims]
     counts = np.multiply.outer(np.multiply.outer(cs[0], cs[1]), cs[2])
@@ -115,13 +116,13 @@ def _structure(shape: tuple, degrees: tuple) -> CSRPattern:
     return CSRPattern(indptr, indices, None, None, n)
 
 
-_cached_structure = lru_cache(maxsize=8)(_structure)
+_cached_structure = memo(8)(_structure)
 
 
 def row_pointers(space: TensorSpace) -> np.ndarray:
     """The CSR row pointers (ndof + 1,) of ``space``'s banded operators alone (:func:`structure` without its
     columns: for kernels that write the columns themselves)."""
-    cs = [(hi - lo + 1).astype(np.int64) for lo, hi in (_band_limits(d.n, d.degree) for d in space.dirs)]
+    cs = [(hi - lo + 1).astype(np.int64) for lo, hi in (band_limits(d.n, d.degree) for d in space.dirs)]
     counts = np.multiply.outer(np.multiply.outer(cs[0], cs[1]), cs[2]).reshape(-1)
     return np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
 
@@ -135,7 +136,7 @@ def structure(space: TensorSpace) -> CSRPattern:
     belong to the caller (a matrix built on them may be modified in place).
     """
     key = (space.shape, tuple(s.degree for s in space.dirs))
-    if space.ndof * int(np.prod([2 * p + 1 for p in key[1]])) > _CACHE_NNZ:
+    if space.ndof * int(np.prod([2 * p + 1 for p in key[1]])) > CACHE_NNZ:
         return _structure(*key)
     pat = _cached_structure(*key)
     for a in (pat.indptr, pat.indices):

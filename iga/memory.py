@@ -22,9 +22,10 @@ import ctypes
 import ctypes.util
 import mmap
 import sys
-from functools import lru_cache
 
 import numpy as np
+
+from geometry.cache import memo
 
 _M_TRIM_THRESHOLD = -1
 _M_MMAP_THRESHOLD = -3
@@ -78,7 +79,7 @@ _MADV_NOHUGEPAGE = 15
 _SMALL_PAGES_BYTES = 1 << 24  # 16 MiB: smaller arrays are left to NumPy's default
 
 
-@lru_cache(maxsize=1)
+@memo(1)
 def _libc():
     """The C library (``ctypes.CDLL``), or None off Linux or where it cannot be loaded."""
     if not sys.platform.startswith("linux"):

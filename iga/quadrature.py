@@ -13,12 +13,13 @@ distorted or high-degree composed geometry.  Points and weights come from
 
 from __future__ import annotations
 
-from functools import lru_cache
 
 import numpy as np
 
+from geometry.cache import memo
 
-@lru_cache(maxsize=64)
+
+@memo(64)
 def gauss_legendre(n: int) -> tuple[np.ndarray, np.ndarray]:
     """``n`` Gauss-Legendre points and weights on [0, 1] (read-only arrays)."""
     x, w = np.polynomial.legendre.leggauss(n)

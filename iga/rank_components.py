@@ -16,7 +16,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from .components import Component, _labels, check_components
+from .components import Component, patch_dof_labels, check_components
 
 __all__ = ["rank_components"]
 
@@ -26,7 +26,7 @@ def _local(problem, rc, faces_by_kind):
     ranks, per component (DOFs, patches, {(kind, condition index)}))."""
     P = rc.constraints.P
     own_rows = P[rc.own]
-    count, labels = _labels([problem.spaces[i] for i in rc.own_patches], own_rows)
+    count, labels = patch_dof_labels([problem.spaces[i] for i in rc.own_patches], own_rows)
     Po = own_rows.tocoo()
     rest = np.flatnonzero(np.diff(P.indptr) > 0)
     rest = rest[~np.isin(rest, rc.own)]  # the closure's rows of other ranks' patches

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .constraints import Constraints, _face_grid, prolongation
+from .constraints import Constraints, face_dof_grid, prolongation
 from .errors import ProblemError
 
 __all__ = ["RankConstraints", "rank_constraints", "patch_pairs", "ranges", "alltoallv", "GlobalColumns", "number_columns",
@@ -104,7 +104,7 @@ def _border(model, spaces, sub_off, local, pairs):
         itf = model.interfaces[j]
         inner_is_a = local[itf.a[0]] >= 0
         (pi, face), (out, _) = (itf.a, itf.b) if inner_is_a else (itf.b, itf.a)
-        rows.append(_face_grid(sub_spaces, sub_off, int(local[pi]), face).ravel())
+        rows.append(face_dof_grid(sub_spaces, sub_off, int(local[pi]), face).ravel())
         other.append(out)
         parent.append(itf.kind == "branch" and inner_is_a)
     if not rows:

@@ -20,7 +20,7 @@ import scipy.sparse as sp
 
 from geometry.ranges import concatenated_ranges
 
-from .assembly import CSRPattern, _band_limits
+from .assembly import CSRPattern, band_limits
 from .errors import ProblemError
 from .memory import streamed_empty
 
@@ -31,7 +31,7 @@ def pattern_nnz(space) -> int:
     """Non-zeros of ``space``'s banded pattern (:func:`iga.assembly.pattern`), from the band limits alone."""
     total = 1
     for d in space.dirs:
-        lo, hi = _band_limits(d.n, d.degree)
+        lo, hi = band_limits(d.n, d.degree)
         total *= int((hi - lo + 1).sum())
     return total
 

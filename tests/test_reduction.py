@@ -52,7 +52,7 @@ def test_patches_of_low_degree_are_reproduced():
         assert np.abs(R.evaluate(x) - b.evaluate(x)).max() < 1e-12
 
 
-def _face_grid(s: BSpline, face):
+def face_dof_grid(s: BSpline, face):
     return s.boundary(face).control_points[..., :3]
 
 
@@ -62,7 +62,7 @@ def test_shared_sides_stay_identical(model):
         checked = 0
         for itf in model.interfaces:
             (pa, fa), (pb, fb) = itf.a, itf.b
-            A, Bg = _face_grid(red[pa], fa), _face_grid(red[pb], fb)
+            A, Bg = face_dof_grid(red[pa], fa), face_dof_grid(red[pb], fb)
             if itf.flip[0]:
                 Bg = Bg[::-1]
             if itf.flip[1]:

@@ -385,11 +385,11 @@ def test_the_contact_check_finds_the_same_pairs_whatever_its_chunks(monkeypatch)
 
 def test_face_points_take_keys_as_tuples_or_as_an_index_array():
     from geometry.faces import FACE_NAMES
-    from geometry.multipatch import _SAMPLES
+    from geometry.multipatch import FACE_SAMPLES
     from geometry.placed_points import face_points
 
     ms = tiling.regular(pr.twisted(pr.box(degrees=(2, 2, 2)), 0.3, axis_point=(0.5, 0.5)), L.cross(), (2, 2, 1))
     rng = np.random.default_rng(3)
     rows = np.stack([rng.integers(0, len(ms.patches), 40), rng.integers(0, 6, 40)], axis=1)
     keys = [(int(p), FACE_NAMES[f]) for p, f in rows]
-    assert np.array_equal(face_points(ms.patches, rows, _SAMPLES), face_points(ms.patches, keys, _SAMPLES))
+    assert np.array_equal(face_points(ms.patches, rows, FACE_SAMPLES), face_points(ms.patches, keys, FACE_SAMPLES))

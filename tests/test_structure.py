@@ -169,3 +169,69 @@ def test_benchmarks_write_tracked_pictures_only_through_make_figures():
             continue
         text = path.read_text()
         assert '/ "docs"' not in text and "parent.parent / \"docs\"" not in text, f"{path.name} writes into docs/"
+
+
+@pytest.mark.parametrize("pkg", PACKAGES)
+def test_no_private_name_is_imported_across_modules(pkg):
+    """A name with a leading underscore belongs to its module: what another module needs is made public (e.g.
+    ``tiling.checks``).  Importing a package-private module (``from . import _fast``) is allowed."""
+    modules = {_dotted(p) for name in PACKAGES for p in _modules(name)}
+    found = []
+    for path in _modules(pkg):
+        for target, _ in _imports(path):
+            last = target.rsplit(".", 1)[-1]
+            if last.startswith("_") and not last.startswith("__") and target not in modules:
+                found.append(f"{path.relative_to(ROOT)} imports {target}")
+    assert not found, f"private names imported across modules: {found}"
+
+
+_CACHE_MAKERS = {"lru_cache", "cache", "WeakKeyDictionary", "WeakValueDictionary", "OrderedDict"}
+
+
+def _cache_sites(path: Path):
+    """(line, what) of caches made outside :mod:`geometry.cache`: ``functools.lru_cache`` / ``cache``
+    decorators on module-level functions, and module-level weak or ordered dictionaries."""
+    tree = ast.parse(path.read_text())
+
+    def name(node):
+        node = node.func if isinstance(node, ast.Call) else node
+        return node.attr if isinstance(node, ast.Attribute) else getattr(node, "id", "")
+
+    out = []
+    for node in tree.body:
+        if isinstance(node, (ast.FunctionDef, ast.ClassDef)):
+            out += [(node.lineno, f"@{name(d)} on {node.name}") for d in getattr(node, "decorator_list", [])
+                    if name(d) in ("lru_cache", "cache")]
+        elif isinstance(node, (ast.Assign, ast.AnnAssign)) and isinstance(node.value, ast.Call):
+            inner = node.value.func if isinstance(node.value.func, ast.Call) else node.value
+            if name(inner) in _CACHE_MAKERS:
+                out.append((node.lineno, name(inner)))
+    return out
+
+
+@pytest.mark.parametrize("pkg", PACKAGES)
+def test_every_cache_is_the_memo_helpers(pkg):
+    """One memo (geometry.cache: bounded, keyed on values, read-only outputs, clear_caches empties it)."""
+    found = [f"{path.relative_to(ROOT)}:{line} {what}" for path in _modules(pkg)
+             if path.relative_to(ROOT).as_posix() != "geometry/cache.py" for line, what in _cache_sites(path)]
+    assert not found, f"caches outside geometry.cache (use memo, BoundedCache or PerObject): {found}"
+
+
+def test_cached_results_are_read_only_and_clear_caches_empties_them():
+    import numpy as np
+
+    from geometry import bernstein as bz
+    from geometry.cache import clear_caches
+    from tiling import cell_splines
+
+    U = np.array([0, 0, 0, 0.5, 1, 1, 1.0])
+    x = np.linspace(0, 1, 5)
+    B = cell_splines._unit_basis(U.tobytes(), 2, x.tobytes())  # a writable array under lru_cache before
+    R = cell_splines._insertion(U.tobytes(), 2, np.array([0.25]).tobytes())  # (knots, sparse matrix)
+    for a in (B, bz.binomials(4), R[0], R[1].data):
+        with pytest.raises(ValueError, match="read-only"):
+            a.flat[0] = 7.0
+    assert len(cell_splines._unit_basis.cache) >= 1
+    clear_caches()
+    assert len(cell_splines._unit_basis.cache) == 0 and len(bz.binomials.cache) == 0
+    assert np.array_equal(cell_splines._unit_basis(U.tobytes(), 2, x.tobytes()), B)  # recomputed, the same

@@ -79,7 +79,7 @@ def test_pavings_and_user_lists_couple_at_every_length_scale(size):
 def test_face_points_of_many_faces_equal_each_face_alone():
     """geometry.placed_points.face_points batches faces by spline, face and sample set: its points equal those
     of every face evaluated alone (placed through its map), whichever way the sample sets are given."""
-    from geometry.multipatch import _SAMPLES, ORIENTATIONS, _oriented_samples
+    from geometry.multipatch import FACE_SAMPLES, ORIENTATIONS, _oriented_samples
     from geometry.placed_points import face_points
 
     ms = regular(pr.twisted(pr.box((2.0, 1.0, 1.0)), 0.4), L.cross(), (2, 2, 2))
@@ -94,7 +94,7 @@ def test_face_points_of_many_faces_equal_each_face_alone():
         assert np.array_equal(got, alone)
         placed = face_points([P], [(0, f)], sets[k], through_outer=False)[0]
         assert np.allclose(P.outer.evaluate(placed)[:, :3], got, atol=1e-14)
-    assert face_points(ms.patches, [], _SAMPLES).shape == (0, 5, 3)
+    assert face_points(ms.patches, [], FACE_SAMPLES).shape == (0, 5, 3)
 
 
 def test_the_geometric_search_names_faces_that_touch_without_conforming():

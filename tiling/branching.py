@@ -34,9 +34,9 @@ from geometry.errors import show
 
 from .errors import TilingError
 from .microstructure import Microstructure, PlacedPatch
-from .paving import _check_budget, _check_map, _check_spans
+from .checks import check_budget, check_map, check_spans
 from .tile import Tile, refuse_trimmed
-from .topo import _edge_lengths, topo_subdiv
+from .topo import edge_lengths, topo_subdiv
 from geometry.tolerances import ON_DOMAIN, SNAP
 from geometry.numbers import is_flag, is_integer, is_real
 
@@ -176,7 +176,7 @@ def _level_of(D, g, cross, splits, layer, epsilon):
             boxes[:, k, 0], boxes[:, k, 1] = cut[idx], cut[idx + 1]
         boxes[:, g] = layer
         split_dirs = [k for k, s in zip(cross, splits) if s > 1]  # 1-2, 1-4b refine one cross direction only
-        if np.all(_edge_lengths(D, boxes)[:, split_dirs] < epsilon):
+        if np.all(edge_lengths(D, boxes)[:, split_dirs] < epsilon):
             return lev
     raise TilingError(f"a layer needs more than {_MAX_LEVEL} bifurcation levels for epsilon={show(epsilon)}; "
                       "raise epsilon")
@@ -232,9 +232,9 @@ def bifurcation(D: BSpline, epsilon: float | None = None, tile: str = "1-2", *, 
     g = int(direction)
     cross = ((g + 1) % 3, (g + 2) % 3)  # cyclic: tile (x, y, z) -> D directions (cross[0], cross[1], g), det > 0
     if epsilon is not None:  # a lower bound of the cells before anything is built: domain chords / epsilon
-        whole = _edge_lengths(D, D.domain[None].astype(float))[0]
+        whole = edge_lengths(D, D.domain[None].astype(float))[0]
         dirs = [g] + [k for k, s in zip(cross, SPLITS[tile]) if s > 1]
-        _check_budget(float(np.prod([max(whole[k] / epsilon, 1.0) for k in dirs])), tiles["split"],
+        check_budget(float(np.prod([max(whole[k] / epsilon, 1.0) for k in dirs])), tiles["split"],
                       f"the bifurcation tiling for epsilon={show(epsilon)}", "raise epsilon")
     layers, lev = _layers(D, g, epsilon, levels)
     if lev is None:
@@ -243,10 +243,10 @@ def bifurcation(D: BSpline, epsilon: float | None = None, tile: str = "1-2", *, 
     sx, sy = SPLITS[tile]
     spans = [D.breakpoints(k) for k in cross]
     n_cells = sum(int(np.prod([(len(b) - 1) * s ** int(v) for b, s in zip(spans, (sx, sy))])) for v in lev)
-    _check_budget(n_cells, tiles["split"], f"the bifurcation tiling ({len(lev)} layers)", "raise epsilon or lower "
+    check_budget(n_cells, tiles["split"], f"the bifurcation tiling ({len(lev)} layers)", "raise epsilon or lower "
                   "the levels")
     placed, tile_list, faces = _place_layers(D, tiles, layers, lev, spans, cross, g, (sx, sy))
-    _check_spans(D, placed)
+    check_spans(D, placed)
     links = _links(faces)
     ms = Microstructure.build(D, placed, tile_list, links, name=name)
     ms.info = {"levels": [int(x) for x in lev], "layers": layers.tolist(), "tile": tile, "direction": g,
@@ -255,7 +255,7 @@ def bifurcation(D: BSpline, epsilon: float | None = None, tile: str = "1-2", *, 
 
 
 def _check_arguments(D, epsilon, levels, direction, surfaces) -> None:
-    _check_map(D)
+    check_map(D)
     if direction not in (0, 1, 2) or isinstance(direction, bool):
         raise TilingError(f"direction must be 0, 1 or 2 (the growth direction), got {show(direction)}")
     if not is_flag(surfaces):

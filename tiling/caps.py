@@ -64,7 +64,7 @@ class PlacedCap:
         return TrimmedSurface.with_loops_of(self.cap.trimmed, self.placed.composed)
 
 
-def _wall_plane(k: int, s: int) -> BSpline:
+def wall_plane(k: int, s: int) -> BSpline:
     """The wall x_k = s of the unit cell as a bilinear surface, parameters = the other two axes in order."""
     rest = [j for j in range(3) if j != k]
     cp = np.zeros((2, 2, 3))
@@ -117,23 +117,23 @@ def surface_caps(tile: Tile, sides) -> list[Cap]:
 
     A wall that one of the tile's surfaces already covers (lies in) gets no cap.
     """
-    surfaces = _surfaces(tile, "cap")
+    surfaces = surface_patches(tile, "cap")
     caps, touched = [], False
     for side in sorted(set(sides), key=FACE_NAMES.index):
         k, s = FACE_AXIS[side]
-        if _covered(tile, surfaces, k, s):
+        if wall_covered(tile, surfaces, k, s):
             touched = True
             continue  # a tile surface lies in this wall: it is closed there already
         curves, seglists = wall_loops(tile, surfaces, side)
         touched |= bool(curves)
-        caps += trimmed_regions(tile, side, _wall_plane(k, s), curves, seglists)
+        caps += trimmed_regions(tile, side, wall_plane(k, s), curves, seglists)
     if not touched and sides and not _on_a_wall(tile, surfaces):
         raise TilingError(f"tile {show(tile.name)} has no boundary curves on the walls {sorted(set(sides))}: there is "
                           "nothing to cap (a cap closes the openings of a tile's surfaces on the cell walls)")
     return caps  # (none where the tile has no opening on these walls but has some on others: closed there)
 
 
-def _surfaces(tile: Tile, what: str) -> list[int]:
+def surface_patches(tile: Tile, what: str) -> list[int]:
     """Indices of the tile's surface patches; a tile without any cannot be given a ``what``."""
     surfaces = [i for i, p in enumerate(tile.patches) if p.dim == 2]
     if not surfaces:
@@ -142,7 +142,7 @@ def _surfaces(tile: Tile, what: str) -> list[int]:
     return surfaces
 
 
-def _covered(tile: Tile, surfaces: list, k: int, s: int) -> bool:
+def wall_covered(tile: Tile, surfaces: list, k: int, s: int) -> bool:
     """Whether one of the tile's surfaces lies in the wall x_k = s."""
     return any(np.abs(tile.patches[i].points.reshape(-1, 3)[:, k] - s).max() < _TOL for i in surfaces)
 

@@ -13,9 +13,10 @@
 
 from __future__ import annotations
 
-from functools import lru_cache
 
 import numpy as np
+
+from geometry.cache import memo
 
 from geometry import SplineFunction
 from geometry import knots as kn
@@ -27,7 +28,7 @@ from geometry.tolerances import SAME_KNOT
 __all__ = ["merge_pieces", "boolean_sum", "grid_values", "scalar_surface"]
 
 
-@lru_cache(maxsize=2048)
+@memo(2048)
 def _unit_basis(U: bytes, degree: int, x: bytes) -> np.ndarray:
     """Dense basis values (len(x), n) of knots U on [0, 1] at x (cached: cells repeat their relative samples)."""
     return kn.basis_matrix(np.frombuffer(U), degree, np.frombuffer(x)).toarray()
@@ -55,7 +56,7 @@ def scalar_surface(c, degree, box=((0.0, 1.0), (0.0, 1.0))) -> SplineFunction:
     return SplineFunction._trusted((degree, degree), knots, c[..., None], False)
 
 
-@lru_cache(maxsize=64)
+@memo(64)
 def _unit_knots(degree: int, n: int) -> np.ndarray:
     """The uniform open knots of n coefficients of ``degree`` on [0, 1] (read-only, shared)."""
     U = kn.uniform_knots(degree, n - degree)
@@ -96,7 +97,7 @@ def merge_pieces(pieces, degree) -> SplineFunction:
     return SplineFunction((degree, degree), knots, C[..., None])
 
 
-@lru_cache(maxsize=4096)
+@memo(4096)
 def _insertion(U: bytes, degree: int, extra: bytes):
     """Knot insertion (new knots, matrix) for a knot vector and knots to insert, cached: cells repeat them."""
     return kn.insertion_matrix(np.frombuffer(U), degree, np.frombuffer(extra))
@@ -115,7 +116,7 @@ def _missing(want, have) -> np.ndarray:
     return np.frombuffer(_missing_cached(np.asarray(want, float).tobytes(), np.asarray(have, float).tobytes()))
 
 
-@lru_cache(maxsize=4096)
+@memo(4096)
 def _missing_cached(want: bytes, have: bytes) -> bytes:
     want, have = np.frombuffer(want), np.frombuffer(have)
     w, wc = np.unique(np.round(np.asarray(want, float), 12), return_counts=True)
@@ -130,7 +131,7 @@ _SPANNING = tuple(tuple((f, [j for j in range(3) if j != i // 2].index(k)) for i
                         if i // 2 != k) for k in range(3))
 
 
-@lru_cache(maxsize=256)
+@memo(256)
 def _greville(U: bytes, degree: int) -> np.ndarray:
     """Greville abscissae of the knots ``U`` (read-only: cached, cells repeat their knots)."""
     g = kn.greville(np.frombuffer(U), degree)

@@ -23,7 +23,7 @@ from geometry.offset import Offset, offset
 
 from .errors import TilingError
 from .microstructure import Microstructure
-from .paving import _check_counts
+from .checks import check_counts
 from .struts import round_struts
 from .tile import Tile
 from geometry.numbers import is_real
@@ -70,7 +70,7 @@ def stitched_strip(surface: BSpline, box, thickness: float, tile: Tile, counts, 
     if not proof.regular:
         raise TilingError(f"the ruled volume of strip {show(box)} is not proven regular ({proof.message}); use a "
                           "thinner strip or offset, thinner than the surface's radius of curvature")
-    stitches = _pave_curves(volume, strip, tile, _check_counts(counts, 3, "counts"))
+    stitches = _pave_curves(volume, strip, tile, check_counts(counts, 3, "counts"))
     if radius is not None:
         stitches = round_struts(stitches, radius, tolerance=tol)
     return StitchedStrip(strip, off, volume, stitches)

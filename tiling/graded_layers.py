@@ -20,7 +20,8 @@ from geometry.errors import show
 
 from .errors import TilingError
 from .microstructure import Microstructure, PlacedPatch
-from .paving import _cells, _check_budget, _check_counts, _check_map, _check_spans, grid_identity
+from .checks import check_budget, check_counts, check_map, check_spans, parameter_cells
+from .paving import grid_identity
 from .tile import Tile, refuse_trimmed
 
 __all__ = ["graded"]
@@ -58,12 +59,12 @@ def graded(D: BSpline, family, counts, values, name: str = "graded") -> Microstr
     >>> ms.n_tiles, [round(p, 2) for p in ms.info["parameter"]]
     (16, [0.2, 0.25, 0.3, 0.35, 0.4])
     """
-    _check_map(D)
+    check_map(D)
     if not callable(family):
         raise TilingError(f"graded: family must be a callable (lower, upper) -> Tile, e.g. "
                           f"tiling.library.graded_cross; got {show(family)}")
-    counts = _check_counts(counts, 3, "counts")
-    cells = [_cells(D, k, counts[k]) for k in range(3)]
+    counts = check_counts(counts, 3, "counts")
+    cells = [parameter_cells(D, k, counts[k]) for k in range(3)]
     w = np.append(cells[2][:, 0], cells[2][-1, 1])
     p = _values(D, values, w)
     layers = []
@@ -77,7 +78,7 @@ def graded(D: BSpline, family, counts, values, name: str = "graded") -> Microstr
         refuse_trimmed(t, "the graded paving")
         layers.append(t)
     shape = tuple(len(c) for c in cells)
-    _check_budget(float(np.prod(shape)), layers[0], "the graded paving")
+    check_budget(float(np.prod(shape)), layers[0], "the graded paving")
     placed, tiles = [], []
     for i, j, k in np.ndindex(shape):
         lo = np.array([cells[0][i, 0], cells[1][j, 0], cells[2][k, 0]])
@@ -85,7 +86,7 @@ def graded(D: BSpline, family, counts, values, name: str = "graded") -> Microstr
         M = np.column_stack([np.diag(hi - lo), lo])
         tiles.append(layers[k])
         placed += [PlacedPatch(patch, M, D, len(tiles) - 1, 0, pi) for pi, patch in enumerate(layers[k].patches)]
-    _check_spans(D, placed)
+    check_spans(D, placed)
     ms = Microstructure.build(D, placed, tiles, [], name=name, identity=grid_identity(D, tiles, shape))
     ms.info = {"parameter": [float(v) for v in p]}
     return ms

@@ -55,7 +55,7 @@ from geometry.errors import check_seed, show
 from geometry.resources import check_memory
 
 from .errors import TilingError
-from .paving import _check_counts, _check_map
+from .checks import check_counts, check_map
 from .implicit_surface import EdgeSplines, SurfaceOutputs, zero_surface
 from .implicit_connect import (Builder, cell_knots, connect_cells, connect_faces, grid_graph, open_cavities,
                                spanning_trees)
@@ -212,8 +212,8 @@ class ImplicitStructure(SurfaceOutputs):
 
 # ----------------------------------------------------------------------------------------------- building
 def _check_inputs(D, counts, degree, controls, alpha, continuity, connectivity, canonical, shell):
-    _check_map(D)  # the check every builder shares: a trivariate, not folded
-    _check_counts(counts, 3, "counts (cells per direction)")
+    check_map(D)  # the check every builder shares: a trivariate, not folded
+    check_counts(counts, 3, "counts (cells per direction)")
     for name, v, lo in (("degree", degree, 1), ("controls", controls, 2)):
         if not is_integer(v) or v < lo:
             raise TilingError(f"{name} must be an integer >= {lo}, got {show(v)}")

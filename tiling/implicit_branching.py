@@ -34,9 +34,10 @@ connected.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import lru_cache
 
 import numpy as np
+
+from geometry.cache import memo
 from scipy import ndimage
 
 from geometry import BSpline, SplineFunction, progress
@@ -48,7 +49,7 @@ from .errors import TilingError
 from .cell_splines import boolean_sum, grid_values, merge_pieces, scalar_surface
 from .implicit_checks import cells_ok, faces_ok
 from .implicit_surface import EdgeSplines, SurfaceOutputs, zero_surface
-from .paving import _check_map
+from .checks import check_map
 from .topo import CellComplex, topo_subdiv
 from geometry.tolerances import ON_DOMAIN
 from geometry.numbers import is_flag, is_integer, is_real
@@ -172,7 +173,7 @@ def _canonical_face(degree, controls, radius=0.35):
     return p
 
 
-@lru_cache(maxsize=1024)
+@memo(1024)
 def _face_basis(degree: int, n: int, x: bytes) -> np.ndarray:
     """Values (len(x), n) of the uniform face basis at the sample coordinates x (cached: faces repeat them)."""
     return kn.basis_matrix(kn.uniform_knots(degree, n - degree), degree, np.frombuffer(x)).toarray()
@@ -187,7 +188,7 @@ def implicit_bifurcation(D: BSpline, epsilon: float, *, degree: int = 3, control
     the canonical face disc's radius (fraction of the face); ``resolution``:
     samples per cell and direction of the checks and the surface.
     """
-    _check_map(D)  # the check every builder shares: a trivariate, not folded
+    check_map(D)  # the check every builder shares: a trivariate, not folded
     if not is_real(alpha) or not 0 <= alpha <= 1:
         raise TilingError(f"alpha must be a number in [0, 1] (the randomization factor of Eq. 6), got {show(alpha)}")
     for name, v, lo in (("degree", degree, 1), ("controls", controls, 4), ("resolution", resolution, 2)):
@@ -353,7 +354,7 @@ def _with_tubes(f, targets, radius) -> SplineFunction:
     return SplineFunction._trusted(f.degrees, f.knots, C[..., None], False)
 
 
-@lru_cache(maxsize=256)
+@memo(256)
 def _interior_grevilles(knots: tuple, degrees: tuple) -> np.ndarray:
     """The interior control points' Greville abscissae (N, 3), C order, of the unit-cube ``knots`` less the
     cube's centre (cached: cells repeat their knots up to scale)."""

@@ -16,7 +16,6 @@ from __future__ import annotations
 import numpy as np
 
 from geometry import knots as kn
-from geometry.orientation import orient_outward
 
 from .errors import TilingError
 from .export import mesh_watertightness, write_mesh
@@ -83,14 +82,21 @@ def zero_surface(axes, F, outer, field, *, close: bool = False, snap_vertices: b
     params = np.clip(params, dom[:, 0], dom[:, 1])
     mapped = outer.evaluate(params, compiled=False)  # SciPy: one pass, no numba import (memory)
     out = pv.PolyData(mapped[:, :3], surf.faces)
-    if out.n_cells:
-        out = orient_outward(out)  # a map with det J < 0 turns the contour's facets inside out
+    if _turns_inside_out(outer):  # the contour's facets face out of F > 0 in parameter space; D with det J < 0
+        out = out.flip_faces()    # (one sign everywhere: D is regular) turns them inside out in space
     for i, c in enumerate(outer.channels):
         out.point_data[c] = mapped[:, 3 + i]
     for name, values in (point_data(params) if point_data is not None else {}).items():
         out.point_data[name] = values
     out.point_data["u"], out.point_data["v"], out.point_data["w"] = params.T
     return out
+
+
+def _turns_inside_out(outer) -> bool:
+    """Whether the map ``outer`` reverses orientation (det J < 0; its sign is one everywhere, as paving refuses
+    a singular map), read at the centre of its domain."""
+    J = outer.jacobian(outer.domain.mean(axis=1)[None, :])[0, :3, :3]
+    return bool(np.linalg.det(J) < 0)
 
 
 def snap(params, axes, f, dom, tol, iterations: int = 60, values=None, lines=None):

@@ -23,7 +23,8 @@ from geometry.faces import FACE_NAMES
 from .caps import PlacedCap
 from .errors import TilingError
 from .microstructure import Microstructure, PlacedPatch
-from .paving import _check_counts, regular
+from .checks import check_counts
+from .paving import regular
 from .tile import Tile
 from .trimmed_members import PlacedTrimmed
 
@@ -43,7 +44,7 @@ def compose_levels(first: Microstructure, tile: Tile, counts, degree: int | None
         raise TilingError(f"compose_levels needs a tiling.Microstructure as the first level, got {show(first)}")
     if not isinstance(tile, Tile):
         raise TilingError(f"tile must be a tiling.Tile, got {type(tile).__name__}")
-    counts = _check_counts(counts, 3, "counts")
+    counts = check_counts(counts, 3, "counts")
     if seal not in (None, "cap"):
         raise TilingError(f"seal must be 'cap' or None for a second level, got {show(seal)}")
     if seal and tile.trivariates:

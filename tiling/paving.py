@@ -13,10 +13,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from geometry import BSpline, check_regular, progress
-from geometry.resources import check_memory, bulk_build
-from geometry.sampling import sample_axes
+from geometry import BSpline, progress
+from geometry.resources import bulk_build
 
+from .checks import check_budget, check_counts, check_map, check_spans, parameter_cells
 from .errors import TilingError
 from .microstructure import Microstructure, PlacedPatch
 from .caps import PlacedCap, capped_variant
@@ -30,7 +30,6 @@ from geometry.faces import FACE_NAMES
 from geometry.errors import show
 from geometry.grouping import ObjectIndex
 from geometry.placed_points import IDENTITY
-from geometry.tolerances import COINCIDENT
 from geometry.numbers import is_integer, is_real
 
 
@@ -38,82 +37,10 @@ from geometry.numbers import is_integer, is_real
 SEAL_THICKNESS = 0.1
 
 
-def _check_map(D) -> None:
-    if not isinstance(D, BSpline) or D.dim != 3:
-        raise TilingError(f"the deformation map must be a trivariate geometry.BSpline, got {show(D)}")
-    r = check_regular(D, max_depth=6)
-    if r.status == "singular":
-        raise TilingError(f"the deformation map is singular: {r.message}; fix its control net before paving")
-
-
-def _is_int(v) -> bool:
-    return is_integer(v)
-
-
-def _check_counts(counts, n, what):
-    """``n`` positive integers (a list, tuple or integer array; a string is not a list of counts)."""
-    ok = isinstance(counts, (list, tuple, np.ndarray)) and len(counts) == n and all(_is_int(v) and v >= 1
-                                                                                     for v in counts)
-    if not ok:
-        raise TilingError(f"{what} must be {n} positive integers, got {show(counts)}")
-    return tuple(int(v) for v in counts)
-
-
-#: memory of one placed patch in a Microstructure, interfaces and tags included (measured with tracemalloc on
-#: regular and hierarchical pavings: 6-9 KB at the peak of building)
-BYTES_PER_PATCH = 10_000
-
-
-def _check_budget(n_tiles: float, tile, what: str, hint: str = "lower the counts or levels") -> None:
-    """Refuse pavings whose patches would not fit the memory budget, before building anything."""
-    n = float(n_tiles) * len(tile.patches)
-    check_memory(n * BYTES_PER_PATCH, f"{what} ({n_tiles:.3g} tiles, {n:.3g} patches)", TilingError, hint)
-
-
-def _cells(D: BSpline, k: int, count: int) -> np.ndarray:
-    """(N, 2) parameter intervals: ``count`` equal cells per knot span of D along direction k."""
-    cuts = sample_axes([D.breakpoints(k)], count)[0]  # neighbouring cells share their end exactly
-    return np.stack([cuts[:-1], cuts[1:]], axis=1)
-
-
 def _affine(M: np.ndarray) -> np.ndarray:
     out = np.eye(4)
     out[:3] = M
     return out
-
-
-def _check_spans(D: BSpline, placed: list) -> None:
-    """Every placed patch must lie inside one knot span of D (exact composition per Bezier piece)."""
-    same = ObjectIndex()
-    groups: dict = {}
-    for i, P in enumerate(placed):
-        groups.setdefault(same(P.spline), []).append(i)
-    dom = D.domain
-    tol = COINCIDENT * (dom[:, 1] - dom[:, 0])
-    inner = [D.breakpoints(k)[1:-1] for k in range(3)]
-    for members in groups.values():
-        pts0 = placed[members[0]].spline.points.reshape(-1, 3)
-        M = np.stack([placed[i].placement for i in members])
-        pts = np.einsum("pij,nj->pni", M[:, :, :3], pts0) + M[:, None, :, 3]
-        lo, hi = pts.min(axis=1), pts.max(axis=1)  # (P, 3)
-        out = np.any((lo < dom[:, 0] - tol) | (hi > dom[:, 1] + tol), axis=1)
-        if out.any():
-            P = placed[members[int(np.argmax(out))]]
-            raise TilingError(f"placed patch {members[int(np.argmax(out))]} (tile {P.tile}) leaves the deformation "
-                              "map's domain")
-        for k in range(3):
-            if not len(inner[k]):
-                continue
-            cross = (inner[k][None, :] > lo[:, k : k + 1] + tol[k]) & (inner[k][None, :] < hi[:, k : k + 1] - tol[k])
-            if cross.any():
-                r, c = np.argwhere(cross)[0]
-                i = members[int(r)]
-                P = placed[i]
-                raise TilingError(
-                    f"placed patch {i} (tile {P.tile}, level {P.level}) crosses the deformation map's knot line "
-                    f"{'uvw'[k]} = {inner[k][c]:g}; use a map with one knot span along {'uvw'[k]} for this paving "
-                    "or counts that align tiles with its knot spans"
-                )
 
 
 @bulk_build
@@ -141,7 +68,7 @@ def regular(D: BSpline, tile: Tile, counts, variants: dict | None = None, name: 
     """
     placed, tiles, links, caps, sealed, trimmed = regular_placements(D, tile, counts, variants, seal, thickness,
                                                                      seal_sides)
-    shape = tuple(len(_cells(D, k, c)) for k, c in enumerate(counts))  # (counts checked by the placements)
+    shape = tuple(len(parameter_cells(D, k, c)) for k, c in enumerate(counts))  # (counts checked by the placements)
     ms = Microstructure.build(D, placed, tiles, links, name=name, identity=grid_identity(D, tiles, shape))
     ms.caps = caps
     ms.trimmed = trimmed
@@ -155,10 +82,10 @@ def regular_placements(D: BSpline, tile: Tile, counts, variants: dict | None = N
     """The placements of :func:`regular` without the interface search: (placed patches, tiles, seal links, caps,
     sealed variants by sides, placed trimmed members).  Tiles are numbered in C order over the cells; for
     callers that keep a subset of them and build one micro-structure from several pavings (:mod:`tiling.vrep`)."""
-    _check_map(D)
+    check_map(D)
     if not isinstance(tile, Tile):
         raise TilingError(f"tile must be a tiling.Tile, got {type(tile).__name__}")
-    counts = _check_counts(counts, 3, "counts")
+    counts = check_counts(counts, 3, "counts")
     if seal is not None and variants:
         raise TilingError("give variants or seal, not both")
     allowed = _seal_sides(seal, seal_sides, thickness)
@@ -167,8 +94,8 @@ def regular_placements(D: BSpline, tile: Tile, counts, variants: dict | None = N
         if not isinstance(t, Tile) or len(key) != 3 or any(v not in (-1, 0, 1) for v in key):
             raise TilingError(f"variants keys must be (ku, kv, kw) with entries -1/0/1 and values Tiles; got {show(key)}")
     spans = [len(D.breakpoints(k)) - 1 for k in range(3)]
-    _check_budget(float(np.prod([c * s for c, s in zip(counts, spans)], dtype=float)), tile, "the regular paving")
-    cells = [_cells(D, k, counts[k]) for k in range(3)]
+    check_budget(float(np.prod([c * s for c, s in zip(counts, spans)], dtype=float)), tile, "the regular paving")
+    cells = [parameter_cells(D, k, counts[k]) for k in range(3)]
     N = [len(c) for c in cells]
     placed, tiles, links, caps, trimmed = [], [], [], [], []
     sealed: dict = {}  # sealed variants, built once per set of sides
@@ -197,7 +124,7 @@ def regular_placements(D: BSpline, tile: Tile, counts, variants: dict | None = N
                 caps += [PlacedCap(c, PlacedPatch(c.trimmed.surface, M, D, tid, 0, -1), first)
                          for c in getattr(t, "caps", ())]
                 trimmed += place_trimmed(t, M, D, tid)
-    _check_spans(D, placed + [m.placed for m in trimmed])
+    check_spans(D, placed + [m.placed for m in trimmed])
     return placed, tiles, links, caps, sealed, trimmed
 
 
@@ -273,18 +200,18 @@ class _Paving:
 
 def _hierarchical_arguments(D, tile, counts, levels, scale, seal, thickness, seal_sides):
     """Checked arguments of :func:`hierarchical`: (tile with the scale applied, cx, cy, sealable sides)."""
-    _check_map(D)
+    check_map(D)
     if not isinstance(tile, Tile) or not tile.hierarchical:
         raise TilingError("hierarchical paving needs a Tile with a branch-in face and branch-out faces")
     refuse_trimmed(tile, "the hierarchical paving")
-    cx, cy = _check_counts(counts, 2, "counts")
+    cx, cy = check_counts(counts, 2, "counts")
     allowed = _seal_sides(seal, seal_sides, thickness)
-    if not _is_int(levels) or levels < 1:
+    if not is_integer(levels) or levels < 1:
         raise TilingError(f"levels must be a positive integer, got {show(levels)}")
     b = len(tile.branch_outs)
     per_cell = float(levels) if b == 1 else (float(b) ** int(levels) - 1) / (b - 1)  # 1 + b + ... + b^(levels - 1)
     spans = [len(D.breakpoints(k)) - 1 for k in range(2)]
-    _check_budget(per_cell * cx * cy * spans[0] * spans[1], tile, f"the {levels}-level hierarchical paving")
+    check_budget(per_cell * cx * cy * spans[0] * spans[1], tile, f"the {levels}-level hierarchical paving")
     if scale is not None and not (is_real(scale) and np.isfinite(scale) and scale > 0):
         raise TilingError(f"scale must be a positive number (a child's height relative to its parent), got "
                           f"{show(scale)} ({type(scale).__name__})")
@@ -363,7 +290,7 @@ def hierarchical(D: BSpline, tile: Tile, counts, levels: int, scale: float | Non
     """
     tile, cx, cy, allowed = _hierarchical_arguments(D, tile, counts, levels, scale, seal, thickness, seal_sides)
     nodes, Nrm = _hierarchy(tile, int(levels))
-    cu, cv = _cells(D, 0, cx), _cells(D, 1, cy)
+    cu, cv = parameter_cells(D, 0, cx), parameter_cells(D, 1, cy)
     dw = D.domain[2]
     out = _Paving()
     layouts: dict = {}  # seal plates per set of sealed sides, built once
@@ -400,7 +327,7 @@ def hierarchical(D: BSpline, tile: Tile, counts, levels: int, scale: float | Non
                 out.placed += [PlacedPatch(p, cell[:3], D, tid, 0, q) for q, p in enumerate(plates.patches)]
                 out.links += [(cell_first + a, f, box, pfirst + q, g) for a, f, box, q, g in lay.links]
     placed, tiles, links, roots, leaves = out.placed, out.tiles, out.links, out.roots, out.leaves
-    _check_spans(D, placed)
+    check_spans(D, placed)
     periodic = seams(D)[:2] + (False,)  # every cell spans D's w range: no neighbour along w
     ms = Microstructure.build(D, placed, tiles, links, name=name, root_faces=roots, leaf_faces=sorted(set(leaves)),
                               identity=_grid_interfaces(keys, first, cell_layouts, periodic))

@@ -24,7 +24,7 @@ from geometry.orientation import orient_outward
 from geometry.resources import check_memory
 
 from .errors import TilingError
-from .paving import _check_counts, _check_map
+from .checks import check_counts, check_map
 from geometry.tolerances import COINCIDENT, ON_DOMAIN
 from geometry.numbers import is_integer
 
@@ -85,10 +85,10 @@ def pave_polygons(D: BSpline, tile: PolygonTile, counts):
     """
     import pyvista as pv
 
-    _check_map(D)  # the check every builder shares: a trivariate, not folded
+    check_map(D)  # the check every builder shares: a trivariate, not folded
     if not isinstance(tile, PolygonTile):
         raise TilingError(f"tile must be a tiling.polygonal.PolygonTile, got {type(tile).__name__}")
-    counts = _check_counts(counts, 3, "counts")
+    counts = check_counts(counts, 3, "counts")
     n_cells = int(np.prod(counts))
     check_memory(n_cells * len(tile.points) * 200.0, f"the polygonal paving ({n_cells:,} cells)", TilingError,
                  "lower the counts")

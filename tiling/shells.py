@@ -34,7 +34,7 @@ from geometry.errors import show
 from geometry.faces import FACE_AXIS, FACE_NAMES
 from geometry.trimmed import join_curves
 
-from .caps import _covered, _surfaces, _wall_plane, trimmed_regions, wall_loops
+from .caps import wall_covered, surface_patches, wall_plane, trimmed_regions, wall_loops
 from .errors import TilingError
 from .seal import SealedTile, inner_box
 from .tile import Tile
@@ -52,7 +52,7 @@ def _rectangle() -> BSpline:
 
 def _outward_wall(k: int, s: int) -> BSpline:
     """The wall x_k = s of the unit cell, its normal (S_u x S_v) pointing out of the cell."""
-    plane = _wall_plane(k, s)
+    plane = wall_plane(k, s)
     cp = plane.control_points
     normal = np.cross(cp[1, 0] - cp[0, 0], cp[0, 1] - cp[0, 0])
     return plane if normal[k] * (2 * s - 1) > 0 else plane.reverse(0)
@@ -62,11 +62,11 @@ def shelled_variant(tile: Tile, sides, thickness: float) -> SealedTile:
     """``tile`` (a surface tile) squeezed away from ``sides`` by ``thickness`` and shelled there (see the
     module notes): its patches squeezed, then one outer wall patch per side; ``caps`` the trimmed inner
     planes; ``seal`` is ``"shell"``."""
-    surfaces = _surfaces(tile, "shell")
+    surfaces = surface_patches(tile, "shell")
     sides = sorted(set(sides), key=FACE_NAMES.index)
     inner = inner_box(sides, thickness, "shell")
     for side in sides:
-        if _covered(tile, surfaces, *FACE_AXIS[side]):
+        if wall_covered(tile, surfaces, *FACE_AXIS[side]):
             raise TilingError(f"tile {show(tile.name)}: one of its surfaces lies in the wall {side}, so a shell there "
                               "would double it; shell a tile whose surfaces open onto the cell walls (e.g. "
                               "library.hollow_cross())")
@@ -76,7 +76,7 @@ def shelled_variant(tile: Tile, sides, thickness: float) -> SealedTile:
     caps = []
     for side in sides:
         curves, seglists = wall_loops(tile, surfaces, side)
-        inner = _wall_plane(*FACE_AXIS[side]).affine(A, b)  # the squeezed wall: the layer's inner face
+        inner = wall_plane(*FACE_AXIS[side]).affine(A, b)  # the squeezed wall: the layer's inner face
         caps += trimmed_regions(tile, side, inner, [_rectangle()] + curves, [None] + seglists)
     out = SealedTile(patches + walls, name=f"{tile.name} (shell {'+'.join(sides)})")
     out.seal_patches = tuple(range(len(patches), len(patches) + len(walls)))

@@ -91,10 +91,10 @@ class CellComplex:
 
     def edge_images(self) -> np.ndarray:
         """Image lengths (N, 3) of the longest edge of each cell per direction (chords, model units)."""
-        return _edge_lengths(self.outer, self.boxes)
+        return edge_lengths(self.outer, self.boxes)
 
 
-def _edge_lengths(D, boxes) -> np.ndarray:
+def edge_lengths(D, boxes) -> np.ndarray:
     lo, hi = boxes[:, :, 0], boxes[:, :, 1]
     corners = lo[:, None, :] + _CORNERS[None, :, :] * (hi - lo)[:, None, :]  # (N, 8, 3)
     x = D.evaluate(corners.reshape(-1, 3))[:, :3].reshape(len(boxes), 8, 3)
@@ -132,12 +132,12 @@ def topo_subdiv(D: BSpline, epsilon: float, *, directions=(0, 1, 2), max_rounds:
     idx = np.stack([g.ravel() for g in grids], 1)
     boxes = np.stack([np.stack([spans[k][idx[:, k]], spans[k][idx[:, k] + 1]], 1) for k in range(3)], 1)
     # a lower bound of the final count: along each allowed direction, the chord of the whole domain / epsilon
-    whole = _edge_lengths(D, D.domain[None].astype(float))[0]
+    whole = edge_lengths(D, D.domain[None].astype(float))[0]
     estimate = float(np.prod(np.where(allowed, np.maximum(whole / epsilon, 1.0), 1.0)))
     check_memory(estimate * _BYTES_PER_CELL, f"the subdivision for epsilon={show(epsilon)} (at least "
                  f"{estimate:.3g} cells)", TilingError, "raise epsilon")
     for rounds in range(max_rounds + 1):
-        lengths = np.where(allowed, _edge_lengths(D, boxes), -np.inf)
+        lengths = np.where(allowed, edge_lengths(D, boxes), -np.inf)
         axis = np.argmax(lengths, axis=1)
         split = lengths[np.arange(len(boxes)), axis] >= epsilon  # Algorithm 1, line 3: stop when below
         if not split.any():
@@ -157,7 +157,7 @@ def topo_subdiv(D: BSpline, epsilon: float, *, directions=(0, 1, 2), max_rounds:
     # a deterministic order: lexicographic by box corner (w fastest)
     order = np.lexsort((boxes[:, 2, 0], boxes[:, 1, 0], boxes[:, 0, 0]))
     boxes = boxes[order]
-    longest = np.where(allowed, _edge_lengths(D, boxes), 0.0).max(axis=1)
+    longest = np.where(allowed, edge_lengths(D, boxes), 0.0).max(axis=1)
     return CellComplex(D, float(epsilon), boxes, longest, classify_faces(boxes, D.domain), rounds)
 
 

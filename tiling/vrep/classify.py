@@ -29,7 +29,7 @@ from geometry.resources import check_memory
 from geometry.faces import FACE_NAMES
 
 from ..errors import TilingError
-from ..paving import _cells
+from ..checks import parameter_cells
 from .model import Primitive, VModel
 
 __all__ = ["Classification", "classify", "OUTSIDE", "INTERSECTING", "INSIDE", "TO_BE_BRIDGED", "MARGIN"]
@@ -60,7 +60,7 @@ class Classification:
 
 
 def _cell_boxes(prim: Primitive):
-    cells = [_cells(prim.D, k, prim.counts[k]) for k in range(3)]
+    cells = [parameter_cells(prim.D, k, prim.counts[k]) for k in range(3)]
     shape = tuple(len(c) for c in cells)
     idx = np.stack(np.meshgrid(*[np.arange(n) for n in shape], indexing="ij"), -1).reshape(-1, 3)
     boxes = np.stack([cells[k][idx[:, k]] for k in range(3)], 1)  # (N, 3, 2)

@@ -25,7 +25,7 @@ from geometry.faces import FACE_NAMES
 from geometry.inversion import box_gaps, invert, invert_nearest
 
 from ..errors import TilingError
-from ..paving import _check_budget
+from ..checks import check_budget
 from ..tile import Tile, refuse_trimmed
 from geometry.tolerances import COINCIDENT
 from geometry.numbers import is_integer, is_real
@@ -63,7 +63,7 @@ class Primitive:
                               f"span in u, v, w), got {show(c)}")
         self.counts = tuple(int(n) for n in c)
         spans = np.prod([len(self.D.breakpoints(k)) - 1 for k in range(3)])
-        _check_budget(float(np.prod(self.counts, dtype=float)) * spans, self.tile,
+        check_budget(float(np.prod(self.counts, dtype=float)) * spans, self.tile,
                       f"the paving of primitive {show(self.name)}", "lower its counts")
         if not (isinstance(self.priority, (int, np.integer)) and not isinstance(self.priority, bool)):
             raise TilingError(f"primitive {show(self.name)}: priority must be an integer, got {show(self.priority)}")
