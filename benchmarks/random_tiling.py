@@ -11,7 +11,7 @@ thread).  Each variant runs in a fresh subprocess so that its peak memory
 on their own as "imports MiB") is its own.  Build = coefficients, trees and
 connectivity; surface = sampling, flying edges, snapping onto the exact zero
 set and mapping through D.  The build includes the certificate on the spline
-(tiling.implicit_certify); "pieces r=24/48" count the surface's pieces at
+(tiling.implicit.certify); "pieces r=24/48" count the surface's pieces at
 finer samplings, which the certificate promises to equal "components".
 Writes benchmarks/out/random_tiling.json and, with renders into
 benchmarks/out/figures (docs/ with --figures): random_duck.png (Fig. 14

@@ -22,7 +22,7 @@ import numpy as np
 from geometry import BSpline, primitives
 from geometry.io import offscreen_plotter, save_screenshot
 from tiling import library, regular
-from tiling.cylinders import through_cylinders
+from tiling.members.cylinders import through_cylinders
 from tiling.export import boundary_splines, render_png, watertightness, write_iges
 
 from _common import figures_dir

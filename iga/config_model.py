@@ -19,7 +19,7 @@ from geometry.errors import show
 from geometry.faces import FACE_NAMES
 from tiling.errors import TilingError
 from tiling.library import TILES
-from tiling.polygonal import PolygonTile, beam_lattice
+from tiling.members.polygons import PolygonTile, beam_lattice
 
 from .config_checks import (boolean as _bool, choice as _choice, fail as _fail, integer as _int, ints as _ints,
                             kwargs as _kwargs, number as _number, string as _str, table as _table)

@@ -21,7 +21,7 @@ import tiling
 from geometry import BSpline, load, reduced_model
 from tiling.library import TILES
 from tiling.materials import graded_channel
-from tiling.polygonal import PolygonTile
+from tiling.members.polygons import PolygonTile
 from tiling.vrep import Primitive, vrep_microstructure
 
 from .config_model import POLYGON_TILES

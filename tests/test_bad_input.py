@@ -1023,7 +1023,7 @@ def test_an_elastic_solution_at_no_points_gives_empty_arrays_and_solver_advice_n
 
 
 def _polygon_with(polygons):
-    from tiling.polygonal import PolygonTile
+    from tiling.members.polygons import PolygonTile
 
     return PolygonTile(np.array([[0.1, 0.1, 0.5], [0.9, 0.1, 0.5], [0.9, 0.9, 0.5], [0.1, 0.9, 0.5]]), polygons)
 
@@ -1095,7 +1095,7 @@ RAW = [
          ProblemError, r"spans must be an integer in \[1, 500\]"),
     case("macro_map table as a dict", lambda t: __import__("iga").macro_map(_graded_map(), {"a": 1}, "t"),
          ProblemError, r"macro_map needs an EffectiveTable"),
-    case("clip_walls of None", lambda t: __import__("tiling.clipping").clipping.clip_walls(None), TilingError,
+    case("clip_walls of None", lambda t: __import__("tiling.sealing.clipping").sealing.clipping.clip_walls(None), TilingError,
          r"clip_walls needs a list of walls .* got None"),
     case("export_gismo of an elastic problem", lambda t: __import__("iga.gismo").gismo.export_gismo(
         __import__("iga").ElasticityProblem(cube(), 1e9, 0.3), t / "e.xml"), ProblemError,
@@ -1262,7 +1262,7 @@ def test_shells_orient_the_cavity_inwards_and_open_tubes_consistently():
 
 def test_implicit_and_polygon_surfaces_face_outwards_under_any_map():
     from geometry.orientation import orientation_check
-    from tiling.polygonal import PolygonTile, pave_polygons
+    from tiling.members.polygons import PolygonTile, pave_polygons
 
     cube = PolygonTile(np.array([[i, j, k] for i in (0.2, 0.8) for j in (0.2, 0.8) for k in (0.2, 0.8)]),
                        polygons=[[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]],

@@ -8,8 +8,8 @@ from geometry import primitives
 from geometry.faces import FACE_NAMES
 from iga import HeatProblem
 from tiling import TilingError
-from tiling.branching import bifurcation, bifurcation_tiles, smooth_levels
-from tiling.topo import topo_subdiv
+from tiling.branching.paving import bifurcation, bifurcation_tiles, smooth_levels
+from tiling.branching.subdivision import topo_subdiv
 
 AFFINE = primitives.box((2.0, 1.0, 3.0))
 
@@ -111,7 +111,7 @@ def test_bifurcation_patch_test(kind):
     assert s.info["constraints"]["branch_rows"] > 0 and s.info["constraints"]["identity_pairs"] > 0
     assert sum(i.kind == "branch" for i in ms.interfaces) > 0
     # tiles per layer follow the levels: (split x, split y)^level cells per layer
-    sx, sy = tiling.branching.SPLITS[kind]
+    sx, sy = tiling.branching.paving.SPLITS[kind]
     assert ms.n_tiles == sum((sx * sy) ** v for v in ms.info["levels"])
 
 
@@ -190,7 +190,7 @@ def test_bifurcation_bad_input(duck):
 
 
 # ------------------------------------------------------------------ implicit bifurcation (Section 5.1)
-from tiling.implicit_branching import implicit_bifurcation, merge_pieces  # noqa: E402
+from tiling.branching.implicit import implicit_bifurcation, merge_pieces  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -214,7 +214,7 @@ def test_implicit_bifurcation_is_closed_connected_and_exact(implicit_duck, duck)
 
 def test_the_cells_edge_restrictions_equal_their_fields_along_the_edges(implicit_duck):
     # the restrictions of all cells, computed together in the cells' unit cubes, against each cell's own field
-    from tiling.implicit_surface import EdgeSplines
+    from tiling.implicit.surface import EdgeSplines
 
     s, rng = implicit_duck, np.random.default_rng(5)
     boxes = s.cells.boxes
@@ -336,7 +336,7 @@ def test_user_bifurcation_tiles(duck):
 def test_face_classification_by_sweep_equals_all_pairs_on_an_adaptive_subdivision():
     from geometry.faces import FACE_NAMES
     from geometry.tolerances import ON_DOMAIN
-    from tiling.topo import classify_faces, topo_subdiv
+    from tiling.branching.subdivision import classify_faces, topo_subdiv
 
     from geometry import primitives as pr
 

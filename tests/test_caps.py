@@ -10,7 +10,7 @@ from geometry.trimmed import join_curves
 from iga import HeatProblem
 from tiling import TilingError
 from tiling import library as L
-from tiling.caps import surface_caps
+from tiling.sealing.caps import surface_caps
 
 TWISTED = pr.twisted(pr.box((1.0, 1.0, 1.0), degrees=(2, 2, 2)), 0.4, axis_point=(0.5, 0.5))
 

@@ -8,7 +8,7 @@ import tiling
 from geometry import BSpline, primitives as pr
 from tiling import TilingError
 from tiling import library as L
-from tiling.clipping import clip_polygon, clip_walls
+from tiling.sealing.clipping import clip_polygon, clip_walls
 from tiling.export import boundary_splines, watertightness
 
 TWISTED = pr.twisted(pr.box((3.0, 1.0, 2.0), degrees=(2, 2, 2)), 0.3, axis_point=(1.5, 0.5))

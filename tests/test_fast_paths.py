@@ -268,9 +268,9 @@ def test_amg_rejects_a_non_positive_diagonal():
 
 
 def test_compiled_box_verdicts_equal_numpy_path(monkeypatch):
-    # the certificate's kernel (tiling._certify_kernels): bounds and monotonicity bits of split sub-boxes
+    # the certificate's kernel (tiling.implicit._certify_kernels): bounds and monotonicity bits of split sub-boxes
     from tiling import implicit_boxes as ib
-    from tiling.implicit import _global_knots
+    from tiling.implicit.structure import _global_knots
     knots = [_global_knots(0.0, c, c, 3, 6) for c in (2, 1, 1)]
     G = np.random.default_rng(6).uniform(-0.3, 0.3, tuple(len(U) - 4 for U in knots))
     grid = ib.box_grid(knots, 3, (2, 1, 1), 1)

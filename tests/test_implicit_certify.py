@@ -1,4 +1,4 @@
-"""Connectivity of random implicit structures certified on the spline (tiling.implicit_certify).
+"""Connectivity of random implicit structures certified on the spline (tiling.implicit.certify).
 
 The certificate's parts are checked against direct evaluation of the field
 at random points and against a brute-force labelling of a fine sampling;
@@ -14,8 +14,9 @@ from scipy.sparse.csgraph import connected_components
 
 import tiling
 from geometry import SplineFunction, primitives
-from tiling import implicit_boxes as ib, implicit_certify as ic
-from tiling.implicit import _global_knots
+from tiling.implicit import boxes as ib
+from tiling.implicit import certify as ic
+from tiling.implicit.structure import _global_knots
 from tiling.export import mesh_watertightness
 
 

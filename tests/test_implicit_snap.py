@@ -7,8 +7,8 @@ from scipy import ndimage
 
 from geometry import SplineFunction
 from geometry import knots as kn
-from tiling.implicit_checks import cells_ok, faces_ok
-from tiling.implicit_surface import EdgeSplines, _bracketed_newton
+from tiling.implicit.checks import cells_ok, faces_ok
+from tiling.implicit.surface import EdgeSplines, _bracketed_newton
 
 
 def _field(rng, knots_w):

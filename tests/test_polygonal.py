@@ -6,7 +6,7 @@ import pytest
 import tiling
 from geometry import BSpline, primitives as pr
 from tiling import TilingError
-from tiling.polygonal import PolygonTile, beam_lattice, pave_polygons
+from tiling.members.polygons import PolygonTile, beam_lattice, pave_polygons
 
 
 def _map():

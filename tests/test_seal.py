@@ -8,7 +8,7 @@ from geometry import MultiPatch, primitives as pr
 from iga import HeatProblem
 from tiling import TilingError
 from tiling import library as L
-from tiling.seal import sealed_variant
+from tiling.sealing.plates import sealed_variant
 
 from helpers import surface_area
 

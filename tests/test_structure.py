@@ -138,7 +138,7 @@ def test_no_import_cycle_inside_a_package(pkg):
 
 
 def test_no_public_name_shadows_a_module_of_its_package():
-    """``import tiling.branching as m`` must give the module: a function of the same name would replace it."""
+    """``import tiling.branching.paving as m`` must give the module: a function of the same name would replace it."""
     import importlib
     import pkgutil
     import types
@@ -235,3 +235,17 @@ def test_cached_results_are_read_only_and_clear_caches_empties_them():
     clear_caches()
     assert len(cell_splines._unit_basis.cache) == 0 and len(bz.binomials.cache) == 0
     assert np.array_equal(cell_splines._unit_basis(U.tobytes(), 2, x.tobytes()), B)  # recomputed, the same
+
+
+MODULES_AT_TOP = 15
+# packages already cut into rooms by concept; geometry (49 modules at its top) and iga (58) are next
+CUT_BY_CONCEPT = ("tiling", "solvers")
+
+
+@pytest.mark.parametrize("pkg", CUT_BY_CONCEPT)
+def test_a_package_folder_holds_at_most_fifteen_modules_at_its_top(pkg):
+    """A newcomer places a module by its folder: concepts get sub-packages (tiling.implicit, tiling.sealing,
+    tiling.branching, tiling.members, tiling.vrep), each folder at most ~15 modules."""
+    for folder in [ROOT / pkg] + [d for d in (ROOT / pkg).rglob("*") if d.is_dir() and (d / "__init__.py").exists()]:
+        mods = [p.name for p in folder.glob("*.py") if p.name != "__init__.py"]
+        assert len(mods) <= MODULES_AT_TOP, f"{folder.relative_to(ROOT)} has {len(mods)} modules: {sorted(mods)}"

@@ -7,7 +7,7 @@ from scipy.spatial import cKDTree
 
 from geometry import BSpline, TrimmedSurface, primitives
 from tiling import Tile, TilingError, compose_levels, graded, hierarchical, library, regular
-from tiling.cylinders import through_cylinders, through_cylinders_area
+from tiling.members.cylinders import through_cylinders, through_cylinders_area
 from tiling.export import boundary_splines, write_iges
 from helpers import opencascade
 

@@ -14,14 +14,14 @@ from .errors import TilingError
 from .tile import BranchFace, Tile, discontinuity_branches
 from .microstructure import Interface, Microstructure, PlacedPatch
 from .paving import hierarchical, regular
-from .implicit import ImplicitStructure, canonical_tubes, random_implicit
-from .topo import CellComplex, topo_subdiv
-from .branching import bifurcation, bifurcation_tiles
-from .implicit_branching import BifurcationStructure, implicit_bifurcation
-from .polygonal import PolygonTile, pave_polygons
+from tiling.implicit.structure import ImplicitStructure, canonical_tubes, random_implicit
+from tiling.branching.subdivision import CellComplex, topo_subdiv
+from tiling.branching.paving import bifurcation, bifurcation_tiles
+from tiling.branching.implicit import BifurcationStructure, implicit_bifurcation
+from tiling.members.polygons import PolygonTile, pave_polygons
 from .levels import compose_levels
 from .graded_layers import graded
-from .struts import round_struts
+from tiling.members.struts import round_struts
 from . import library
 
 __all__ = ["TilingError", "Tile", "BranchFace", "discontinuity_branches", "Microstructure", "PlacedPatch",

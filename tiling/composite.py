@@ -24,7 +24,7 @@ from geometry.offset import Offset, offset
 from .errors import TilingError
 from .microstructure import Microstructure
 from .checks import check_counts
-from .struts import round_struts
+from tiling.members.struts import round_struts
 from .tile import Tile
 from geometry.numbers import is_real
 

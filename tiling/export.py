@@ -8,7 +8,7 @@ on their own grids and curve tiles as polylines, through the exact chain rule
 ``D(A T + b)``.  Everything is welded into one ``pyvista.PolyData`` of
 triangles (and lines) in physical space.
 
-:func:`watertightness` (:mod:`tiling.watertight`, re-exported here) reports the
+:func:`watertightness` (:mod:`tiling.sealing.watertight`, re-exported here) reports the
 open and non-manifold edges, the components and the Euler characteristic of
 that surface, and the pinch lines of a tile's own geometry.
 """
@@ -31,9 +31,9 @@ from geometry.io import atomic_write, offscreen_plotter, save_screenshot
 from geometry.sampling import piece_boxes, sample_axes, sampled_mesh, weld
 
 from .errors import TilingError
-from .rims import conforming_axes
-from .trimmed_members import composed_trimmed
-from .watertight import mesh_watertightness, pinch_lines, pinched
+from tiling.sealing.rims import conforming_axes
+from tiling.members.trimmed import composed_trimmed
+from tiling.sealing.watertight import mesh_watertightness, pinch_lines, pinched
 
 if TYPE_CHECKING:  # annotations only: the Microstructure's own surface() calls into this module
     from .microstructure import Microstructure
@@ -138,7 +138,7 @@ def surface(ms: Microstructure, samples: int = 4):
 
 def _drawn(ms) -> list:
     """What the ``patch`` numbers of :func:`surface` stand for: the placed patches, then the placed surfaces of
-    the trimmed members (:class:`tiling.trimmed_members.PlacedTrimmed`)."""
+    the trimmed members (:class:`tiling.members.trimmed.PlacedTrimmed`)."""
     return list(ms.patches) + [m.placed for m in getattr(ms, "trimmed", [])]
 
 
@@ -428,7 +428,7 @@ def write_iges(path, ms: Microstructure, units: str = "m") -> Path:
 
 
 def watertightness(ms: Microstructure, samples: int = 4) -> dict:
-    """Closedness of the boundary surface of ``ms`` (triangles only; :mod:`tiling.watertight`).
+    """Closedness of the boundary surface of ``ms`` (triangles only; :mod:`tiling.sealing.watertight`).
 
     Returns {"closed": no open edge, "manifold": no non-manifold edge,
     "open_edges", "nonmanifold_edges", "components", "euler_characteristic",

@@ -20,13 +20,13 @@ from geometry import progress, reduce_model
 from geometry.errors import show
 from geometry.faces import FACE_NAMES
 
-from .caps import PlacedCap
+from tiling.sealing.caps import PlacedCap
 from .errors import TilingError
 from .microstructure import Microstructure, PlacedPatch
 from .checks import check_counts
 from .paving import regular
 from .tile import Tile
-from .trimmed_members import PlacedTrimmed
+from tiling.members.trimmed import PlacedTrimmed
 
 __all__ = ["compose_levels"]
 

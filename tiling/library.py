@@ -19,9 +19,9 @@
 ``struts(kind)``     straight beam axes, body-centred (``bcc``) or ``cubic``, for round-strut lattices
 ``bent_cross()``     the cross at degrees (3, 3, 2) with bent insides (Massarwi et al. 2018, Fig. 10)
 ``through_cylinders()`` three concentric trimmed through-cylinders, six trimmed
-                     surfaces (Elber 2017, Fig. 7; :mod:`tiling.cylinders`)
+                     surfaces (Elber 2017, Fig. 7; :mod:`tiling.members.cylinders`)
 ``oblique_tubes()``  square tubes along (1, 0, 1/2), cut by the cell's planes: walls
-                     that cross the cell boundary obliquely (:mod:`tiling.clipping`)
+                     that cross the cell boundary obliquely (:mod:`tiling.sealing.clipping`)
 ==================== =====================================================
 
 Discontinuity tiles use a C0 knot at w = 0.4 below which both sides of every
@@ -39,8 +39,8 @@ import numpy as np
 from geometry import BSpline, knots as kn, primitives as pr
 
 from .errors import TilingError
-from .clipping import clip_walls
-from .cylinders import through_cylinders
+from tiling.sealing.clipping import clip_walls
+from tiling.members.cylinders import through_cylinders
 from .tile import BranchFace, Tile, discontinuity_branches
 from geometry.errors import show
 from geometry.tolerances import ON_DOMAIN
@@ -262,7 +262,7 @@ def helix(turns: float = 2.0, radius: float = 0.3, n: int = 16) -> Tile:
 
 
 def struts(kind: str = "bcc") -> Tile:
-    """Straight beam axes (degree-1 curves) for round-strut lattices (:func:`tiling.struts.round_struts`).
+    """Straight beam axes (degree-1 curves) for round-strut lattices (:func:`tiling.members.struts.round_struts`).
 
     ``"bcc"``: the eight half-diagonals from the cell's centre to its corners (body-centred
     cubic); ``"cubic"``: the six segments from the centre to the face centres, so that
@@ -289,7 +289,7 @@ def stitch(amplitude: float = 0.35, n: int = 12) -> Tile:
 def oblique_tubes(width: float = 0.16) -> Tile:
     """Square tubes of side ``width`` along (1, 0, 1/2), periodic in x and z (the lines z = 1/4 + x/2 + j/2
     through the cell: three pieces of tube per cell), their planar walls cut by the cell's six planes
-    (:func:`tiling.clipping.clip_walls`): they cross the walls x = 0, x = 1, z = 0 and z = 1 obliquely, and
+    (:func:`tiling.sealing.clipping.clip_walls`): they cross the walls x = 0, x = 1, z = 0 and z = 1 obliquely, and
     neighbouring cells' pieces meet edge to edge.  Sealed with ``seal="cap"``: the Boolean variant of
     Elber 2017, Section 2 (cut by the planes, the cut capped), the tube walls' angles kept."""
     if not (is_real(width) and 0 < width < 0.3):

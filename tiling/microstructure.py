@@ -51,9 +51,9 @@ TOL = COINCIDENT  # tile walls on a cell face, relative to the tile's size
 class Microstructure(MultiPatch):
     """Result of a paving: patches, interfaces, tags (see module docs), plus the map, tiles and a name.
 
-    ``caps``: the trimmed planar caps of capped surface tiles (:class:`tiling.caps.PlacedCap`), part of the
+    ``caps``: the trimmed planar caps of capped surface tiles (:class:`tiling.sealing.caps.PlacedCap`), part of the
     boundary surface and of the IGES export.  ``trimmed``: the placed trimmed members of the tiles
-    (:class:`tiling.trimmed_members.PlacedTrimmed`), likewise.
+    (:class:`tiling.members.trimmed.PlacedTrimmed`), likewise.
     """
 
     def __init__(self, outer: BSpline, patches: list, interfaces: list, tags: dict, tiles: list, name: str = "",

@@ -19,10 +19,10 @@ from geometry.resources import bulk_build
 from .checks import check_budget, check_counts, check_map, check_spans, parameter_cells
 from .errors import TilingError
 from .microstructure import Microstructure, PlacedPatch
-from .caps import PlacedCap, capped_variant
-from .shells import shelled_variant
-from .trimmed_members import place_trimmed
-from .seal import SealedTile, seal_layout, sealed_variant
+from tiling.sealing.caps import PlacedCap, capped_variant
+from tiling.sealing.shells import shelled_variant
+from tiling.members.trimmed import place_trimmed
+from tiling.sealing.plates import SealedTile, seal_layout, sealed_variant
 from .tile import Tile, refuse_trimmed
 from .topology import grid_interfaces, seams
 from geometry.errors import SplineError
@@ -52,13 +52,13 @@ def regular(D: BSpline, tile: Tile, counts, variants: dict | None = None, name: 
     -1 (at the min boundary of D's domain), 0 (interior), +1 (at the max
     boundary) to a sealed boundary tile (Elber 2017, Sections 2-3); tiles whose key is
     missing use ``tile``.  ``seal="cap"`` builds those variants itself
-    (:func:`tiling.seal.sealed_variant`: trivariate plates of ``thickness``, a
+    (:func:`tiling.sealing.plates.sealed_variant`: trivariate plates of ``thickness``, a
     fraction of a cell, conforming to the tiles) on ``seal_sides`` of D's
     domain (default all six; a cell alone in a direction is sealed on both
     sides); ``seal="shell"`` seals all six.  The plates' free faces are tagged
     ``cap`` (or ``shell``), and the heat model includes the plates.  A
     surface tile is capped by planar trimmed surfaces over its boundary
-    curves instead (:mod:`tiling.caps`; ``Microstructure.caps``).
+    curves instead (:mod:`tiling.sealing.caps`; ``Microstructure.caps``).
 
     >>> from geometry import primitives
     >>> from tiling import library
@@ -276,7 +276,7 @@ def hierarchical(D: BSpline, tile: Tile, counts, levels: int, scale: float | Non
     domain it touches (``seal_sides``, default all six; every cell spans D's
     w range, so ``wmin`` is under the base and ``wmax`` over the last level)
     with plates of ``thickness`` (a fraction of the cell) that conform to the
-    tiles of every level (:func:`tiling.seal.seal_layout`; refinement
+    tiles of every level (:func:`tiling.sealing.plates.seal_layout`; refinement
     interfaces where a plate meets part of a face).  The hierarchy of a
     sealed cell is squeezed out of the layers.  Faces on a sealed wall must
     be axis-aligned rectangles per continuous piece: the tapered fins of the

@@ -113,7 +113,7 @@ class Tile:
     name : label used in messages and exports
     trimmed : list of geometry.TrimmedSurface, tile members paved and
         composed with the patches, their loops carried unaltered
-        (:class:`tiling.trimmed_members.PlacedTrimmed`)
+        (:class:`tiling.members.trimmed.PlacedTrimmed`)
     """
 
     patches: list

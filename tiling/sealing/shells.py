@@ -3,13 +3,13 @@ item 2, Fig. 9(c, d)).
 
 A surface tile placed against D's boundary is squeezed into the cell minus a
 layer of ``thickness`` (a fraction of the cell) on each sealed side, as the
-volumetric seal does (:mod:`tiling.seal`).  On each sealed side the layer is
+volumetric seal does (:mod:`tiling.sealing.plates`).  On each sealed side the layer is
 bounded by two planes with opposite orientations: the outer plane, the whole
 cell wall (a bilinear surface patch, normal pointing out of D), and the
 inner plane, the layer's inner face, trimmed by the squeezed tile's boundary
 curves on that wall with reversed orientation: its loops are the cell's
 rectangle and the tile's openings as holes (and, where openings nest, the
-islands between them), built like caps (:func:`tiling.caps.trimmed_regions`)
+islands between them), built like caps (:func:`tiling.sealing.caps.trimmed_regions`)
 with the rectangle as the outermost loop.  The paper closes each tile's
 shell by four planar side strips into a box; in a paving those strips would
 stand between neighbouring shells as double inner walls, so they are left
@@ -34,10 +34,10 @@ from geometry.errors import show
 from geometry.faces import FACE_AXIS, FACE_NAMES
 from geometry.trimmed import join_curves
 
-from .caps import wall_covered, surface_patches, wall_plane, trimmed_regions, wall_loops
-from .errors import TilingError
-from .seal import SealedTile, inner_box
-from .tile import Tile
+from tiling.sealing.caps import wall_covered, surface_patches, wall_plane, trimmed_regions, wall_loops
+from tiling.errors import TilingError
+from tiling.sealing.plates import SealedTile, inner_box
+from tiling.tile import Tile
 
 __all__ = ["shelled_variant"]
 

@@ -23,8 +23,8 @@ from geometry.errors import show
 from geometry.orientation import orient_outward
 from geometry.resources import check_memory
 
-from .errors import TilingError
-from .checks import check_counts, check_map
+from tiling.errors import TilingError
+from tiling.checks import check_counts, check_map
 from geometry.tolerances import COINCIDENT, ON_DOMAIN
 from geometry.numbers import is_integer
 
@@ -87,7 +87,7 @@ def pave_polygons(D: BSpline, tile: PolygonTile, counts):
 
     check_map(D)  # the check every builder shares: a trivariate, not folded
     if not isinstance(tile, PolygonTile):
-        raise TilingError(f"tile must be a tiling.polygonal.PolygonTile, got {type(tile).__name__}")
+        raise TilingError(f"tile must be a tiling.members.polygons.PolygonTile, got {type(tile).__name__}")
     counts = check_counts(counts, 3, "counts")
     n_cells = int(np.prod(counts))
     check_memory(n_cells * len(tile.points) * 200.0, f"the polygonal paving ({n_cells:,} cells)", TilingError,

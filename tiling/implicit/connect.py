@@ -29,7 +29,7 @@ from scipy.sparse.csgraph import connected_components, depth_first_tree, dijkstr
 from geometry import knots as kn
 from geometry import progress
 
-from .errors import TilingError
+from tiling.errors import TilingError
 
 __all__ = ["Builder", "cell_knots", "grid_graph", "spanning_trees", "connect_faces", "connect_cells",
            "open_cavities", "trace"]

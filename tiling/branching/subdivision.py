@@ -28,7 +28,7 @@ from geometry.faces import FACE_NAMES
 from geometry.ranges import concatenated_ranges
 from geometry.resources import check_memory
 
-from .errors import TilingError
+from tiling.errors import TilingError
 from geometry.tolerances import ON_DOMAIN
 from geometry.numbers import is_real
 

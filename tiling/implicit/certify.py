@@ -1,6 +1,6 @@
 """Connectivity of random implicit structures certified on the spline itself, not on samples.
 
-The sampled steps of :mod:`tiling.implicit_connect` make the structure
+The sampled steps of :mod:`tiling.implicit.connect` make the structure
 connected on the samples of the build resolution; between samples the
 field can still dip below zero (a neck that parts at a finer sampling) or
 rise above it (an island no sample hit), and a finer ``surface(r)`` then
@@ -9,7 +9,7 @@ shows more components.  This module proves connectivity on F itself.
 Every knot span of the global field is split into ``per_span`` parts per
 direction; on each sub-box F is one polynomial with Bernstein coefficients
 (convex combinations of the B-spline coefficients supporting the box;
-:mod:`tiling.implicit_boxes`), so
+:mod:`tiling.implicit.boxes`), so
 
 * all coefficients > 0: F > 0 on the closed box (a *positive* box, P);
   all < 0: F < 0 on it (*negative*, N); otherwise *mixed*;
@@ -62,8 +62,8 @@ from scipy.sparse.csgraph import breadth_first_order, dijkstra
 
 from geometry.ranges import concatenated_ranges
 
-from .implicit_boxes import BAND, BoxGrid, classify, judge, judge_children, sign_at
-from .implicit_connect import BRIDGE, grid_graph, trace
+from tiling.implicit.boxes import BAND, BoxGrid, classify, judge, judge_children, sign_at
+from tiling.implicit.connect import BRIDGE, grid_graph, trace
 
 __all__ = ["Certifier", "MARGIN"]
 

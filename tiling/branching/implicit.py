@@ -26,7 +26,7 @@ are one component and its voids reach the cell's boundary; where a random
 draw breaks that, its amplitude is halved (down to the canonical pattern).
 The draws are made face by face and cell by cell as before; the halving
 rounds check all faces, then all cells, at once
-(:mod:`tiling.implicit_checks`).  The whole inside region is then one
+(:mod:`tiling.implicit.checks`).  The whole inside region is then one
 component and, capped, the outside one too: the surface is closed and
 connected.
 """
@@ -45,12 +45,12 @@ from geometry import knots as kn
 from geometry.errors import check_seed, show
 from geometry.faces import FACE_NAMES
 
-from .errors import TilingError
-from .cell_splines import boolean_sum, grid_values, merge_pieces, scalar_surface
-from .implicit_checks import cells_ok, faces_ok
-from .implicit_surface import EdgeSplines, SurfaceOutputs, zero_surface
-from .checks import check_map
-from .topo import CellComplex, topo_subdiv
+from tiling.errors import TilingError
+from tiling.cell_splines import boolean_sum, grid_values, merge_pieces, scalar_surface
+from tiling.implicit.checks import cells_ok, faces_ok
+from tiling.implicit.surface import EdgeSplines, SurfaceOutputs, zero_surface
+from tiling.checks import check_map
+from tiling.branching.subdivision import CellComplex, topo_subdiv
 from geometry.tolerances import ON_DOMAIN
 from geometry.numbers import is_flag, is_integer, is_real
 
@@ -129,7 +129,7 @@ class BifurcationStructure(SurfaceOutputs):
         return axes, _sample(self.cells.boxes, self.fields, axes)
 
     def surface(self, resolution: int | None = None, snap: bool = True):
-        """The zero set mapped through D, one welded ``pyvista.PolyData`` (:mod:`tiling.implicit_surface`)."""
+        """The zero set mapped through D, one welded ``pyvista.PolyData`` (:mod:`tiling.implicit.surface`)."""
         axes, F = self.sample(resolution)
         scale = max(float(np.abs(f.coefficients).max()) for f in self.fields)
         return zero_surface(axes, F, self.outer, self.evaluate, snap_vertices=snap, scale=scale, stats=self.stats,
@@ -269,7 +269,7 @@ def _unit_faces(cells, degree, controls, alpha, cap, rng, radius, axes, windows,
 
 def _halved_faces(p0, todo, alpha, degree):
     """Each face of ``todo`` ((key, noise, sample lines)) as (key, coefficients, halvings): Eq. 6's draw, its
-    amplitude halved until the face passes :func:`tiling.implicit_checks.faces_ok` (all faces a round)."""
+    amplitude halved until the face passes :func:`tiling.implicit.checks.faces_ok` (all faces a round)."""
     n = len(todo)
     if not n:
         return []
@@ -367,7 +367,7 @@ def _interior_grevilles(knots: tuple, degrees: tuple) -> np.ndarray:
 def _random_interiors(bases, noises, alpha, subs, stats, boxes):
     """Eq. 6 on the interior coefficients of every cell's field ``bases[i]`` (its draw ``noises[i]``), the
     amplitude halved until the cell's samples on its sample lines ``subs[i]`` (three arrays) pass
-    :func:`tiling.implicit_checks.cells_ok` (all cells a round).  Returns the fields and their samples."""
+    :func:`tiling.implicit.checks.cells_ok` (all cells a round).  Returns the fields and their samples."""
     n = len(bases)
     fields, samples, halvings = [None] * n, [None] * n, np.zeros(n, int)
     inner = (slice(1, -1),) * 3

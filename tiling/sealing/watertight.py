@@ -20,7 +20,7 @@ from scipy.spatial import cKDTree
 from geometry.faces import FACE_NAMES, face_name, parse_slot_face
 
 if TYPE_CHECKING:
-    from .microstructure import Microstructure
+    from tiling.microstructure import Microstructure
 
 __all__ = ["mesh_watertightness", "pinch_lines", "pinched"]
 

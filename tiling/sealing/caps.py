@@ -27,9 +27,9 @@ from geometry.faces import FACE_AXIS, FACE_NAMES
 from geometry.multipatch import PlacedPatch
 from geometry.trimmed import inside_polyline, join_curves, loop_polyline
 
-from .errors import TilingError
-from .seal import SealedTile
-from .tile import Tile
+from tiling.errors import TilingError
+from tiling.sealing.plates import SealedTile
+from tiling.tile import Tile
 from geometry.tolerances import COINCIDENT
 
 __all__ = ["Cap", "PlacedCap", "surface_caps", "capped_variant", "wall_loops", "trimmed_regions"]
@@ -43,7 +43,7 @@ class Cap:
     """A cap on the cell wall ``side``: ``trimmed`` is the wall plane (tile coordinates, parameters = the wall's
     two axes in order) with its loops; ``segments[i]`` lists, for loop i, the tile's boundary curves it joins
     as (patch in tile, edge name, reversed), curve j running over the loop's parameters [j, j + 1], or is
-    None for a loop that is no tile edge (a shell's cell rectangle, :mod:`tiling.shells`)."""
+    None for a loop that is no tile edge (a shell's cell rectangle, :mod:`tiling.sealing.shells`)."""
 
     side: str
     trimmed: TrimmedSurface
@@ -205,7 +205,7 @@ def trimmed_regions(tile: Tile, side: str, plane: BSpline, curves: list, seglist
 
 
 def capped_variant(tile: Tile, sides):
-    """``tile`` with trimmed caps on ``sides`` (a :class:`tiling.seal.SealedTile` whose ``caps`` are set)."""
+    """``tile`` with trimmed caps on ``sides`` (a :class:`tiling.sealing.plates.SealedTile` whose ``caps`` are set)."""
     caps = surface_caps(tile, sides)
     out = SealedTile(list(tile.patches), name=f"{tile.name} (cap {'+'.join(sorted(frozenset(sides)))})")
     out.caps = tuple(caps)

@@ -8,7 +8,7 @@ convex hull property), and the signs of their differences along x_k bound
 dF/dx_k: all positive, F rises strictly along +x_k on the box.  A box can be
 split further (``split`` children per direction, by the same change of
 basis) where the bounds are too loose.  The certificate of random implicit
-structures (:mod:`tiling.implicit_certify`) reads these verdicts.
+structures (:mod:`tiling.implicit.certify`) reads these verdicts.
 """
 
 from __future__ import annotations
@@ -118,7 +118,7 @@ def judge_children(G: np.ndarray, grid: BoxGrid, boxes: np.ndarray, children: np
     if _fast.AVAILABLE:
         from geometry.compile_lock import locked
 
-        from ._certify_kernels import judge_rows
+        from tiling.implicit._certify_kernels import judge_rows
 
         locked(judge_rows)(np.ascontiguousarray(G, dtype=float), boxes, children, *grid.first, *A, BAND, low, high,
                            mono)

@@ -22,8 +22,8 @@ from geometry.multipatch import PlacedPatch
 from geometry.sweep import kinks, points_and_tangents, sweep
 from geometry.trimmed import join_curves, reversed_curve
 
-from .errors import TilingError
-from .microstructure import Microstructure
+from tiling.errors import TilingError
+from tiling.microstructure import Microstructure
 from geometry.numbers import is_real
 
 __all__ = ["round_struts", "StrutReport"]

@@ -26,7 +26,7 @@ with the tiles.  Plates are tagged ``cap`` (or ``shell``).  Layouts are
 built once per (tile, sealed sides) and cached: a paving of 10^4 cells
 builds at most 27 (3^3 positions; with one cell in a direction both sides
 are sealed).  Surface tiles are capped by trimmed planes instead
-(:mod:`tiling.caps`).
+(:mod:`tiling.sealing.caps`).
 """
 
 from __future__ import annotations
@@ -40,8 +40,8 @@ from geometry import knots as kn
 from geometry.errors import show
 from geometry.faces import FACE_AXIS, FACE_NAMES
 
-from .errors import TilingError
-from .tile import Tile
+from tiling.errors import TilingError
+from tiling.tile import Tile
 from geometry.tolerances import COINCIDENT, ON_DOMAIN, SAME_KNOT
 from geometry.numbers import is_real
 

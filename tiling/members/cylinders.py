@@ -30,8 +30,8 @@ from geometry.errors import show
 from geometry.primitives import arc
 from geometry.trimmed import join_curves, reversed_curve
 
-from .errors import TilingError
-from .tile import Tile
+from tiling.errors import TilingError
+from tiling.tile import Tile
 from geometry.numbers import is_real
 
 __all__ = ["through_cylinders", "through_cylinders_area"]

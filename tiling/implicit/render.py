@@ -13,7 +13,7 @@ import numpy as np
 from geometry.errors import show
 from geometry.io import offscreen_plotter, save_screenshot
 
-from .errors import TilingError
+from tiling.errors import TilingError
 
 __all__ = ["tree_lines", "render_png"]
 

@@ -4,7 +4,7 @@ One pass per (box, child): the box's (d+1)^3 supporting coefficients are
 carried to Bernstein form direction by direction (sum factorisation, 3 (d+1)^4
 products), and the minimum, maximum and the signs of the differences along
 each direction are read off without storing the coefficients.  The NumPy path
-of :mod:`tiling.implicit_certify` computes the same from stored arrays.
+of :mod:`tiling.implicit.certify` computes the same from stored arrays.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Layered bifurcation tilings with parametric tiles (Massarwi et al. 2018, Section 5.2, Figs. 8, 15, 17).
 
 D's parameter domain is cut into layers along the growth ``direction``
-(Algorithm 1 restricted to that direction, :func:`tiling.topo.topo_subdiv`);
+(Algorithm 1 restricted to that direction, :func:`tiling.branching.subdivision.topo_subdiv`);
 every layer is a grid of cells across it whose size is halved (1-2 along the
 first cross direction; 1-4a along both; 1-4b quartered along the first) per
 *level*, the smallest level whose cells' edge images stay below ``epsilon``.
@@ -32,11 +32,11 @@ from geometry import BSpline, knots as kn
 from geometry.sampling import sample_axes
 from geometry.errors import show
 
-from .errors import TilingError
-from .microstructure import Microstructure, PlacedPatch
-from .checks import check_budget, check_map, check_spans
-from .tile import Tile, refuse_trimmed
-from .topo import edge_lengths, topo_subdiv
+from tiling.errors import TilingError
+from tiling.microstructure import Microstructure, PlacedPatch
+from tiling.checks import check_budget, check_map, check_spans
+from tiling.tile import Tile, refuse_trimmed
+from tiling.branching.subdivision import edge_lengths, topo_subdiv
 from geometry.tolerances import ON_DOMAIN, SNAP
 from geometry.numbers import is_flag, is_integer, is_real
 

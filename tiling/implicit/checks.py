@@ -1,5 +1,5 @@
 """Connectivity checks of sampled implicit faces and cells, many at once (the halving rounds of
-:mod:`tiling.implicit_branching`; Massarwi et al. 2018, Section 5.1).
+:mod:`tiling.branching.implicit`; Massarwi et al. 2018, Section 5.1).
 
 * a face (2-D samples) passes when its inside samples (f > 0) are one
   component holding the face's centre sample and its outside samples

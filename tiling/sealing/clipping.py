@@ -3,7 +3,7 @@
 
 Elber 2017 closes boundary tiles by "Boolean set operations with the six
 planes u = u_min, ..., w = w_max"; squeezing a tile into the cell minus a
-layer (:mod:`tiling.seal`, :mod:`tiling.shells`) changes the angles of
+layer (:mod:`tiling.sealing.plates`, :mod:`tiling.sealing.shells`) changes the angles of
 walls that cross the cell boundary obliquely.  :func:`clip_walls` takes the
 walls of a periodic pattern as planar patches of any extent (parallelograms
 that may reach far beyond the cell) and intersects each with the cell: the
@@ -14,7 +14,7 @@ odd triangle as a quad with one collapsed edge, the pole a sphere also has).
 The polygon's edges stay whole, so the pieces of one wall, of neighbouring
 walls and of neighbouring cells meet edge to edge and weld.  The result is
 an ordinary surface tile inside the cell: its boundary curves on a wall are
-the cut segments, which the caps (:mod:`tiling.caps`, ``seal="cap"``) chain
+the cut segments, which the caps (:mod:`tiling.sealing.caps`, ``seal="cap"``) chain
 into the loops of the planar trimmed surfaces that close the cut, the other
 half of the Boolean operation.
 
@@ -31,8 +31,8 @@ from geometry import BSpline
 from geometry.errors import show
 from geometry.tolerances import COINCIDENT
 
-from .errors import TilingError
-from .tile import Tile
+from tiling.errors import TilingError
+from tiling.tile import Tile
 
 __all__ = ["clip_walls", "clip_polygon"]
 

@@ -17,9 +17,9 @@ import numpy as np
 
 from geometry import knots as kn
 
-from .errors import TilingError
-from .export import mesh_watertightness, write_mesh
-from .implicit_render import render_png
+from tiling.errors import TilingError
+from tiling.export import mesh_watertightness, write_mesh
+from tiling.implicit.render import render_png
 from geometry.tolerances import ON_DOMAIN
 
 __all__ = ["zero_surface", "snap", "EdgeSplines", "SurfaceOutputs"]
@@ -33,7 +33,7 @@ class SurfaceOutputs:
         return mesh_watertightness(self.surface(resolution))
 
     def render_png(self, path, **options):
-        """Offscreen picture of the surface (and spanning trees, where any) (:func:`tiling.implicit_render.render_png`)."""
+        """Offscreen picture of the surface (and spanning trees, where any) (:func:`tiling.implicit.render.render_png`)."""
         return render_png(self, path, **options)
 
     def write(self, path, resolution: int | None = None):

@@ -10,7 +10,7 @@ All cells together form one global B-spline F over D's domain: neighbouring
 cells share their boundary layer of coefficients, which is C0 (Eq. 7; knots
 of multiplicity d at cell boundaries), and with ``continuity="C1"`` the first
 inner layers on both sides are placed symmetrically about it (Eq. 8).  The
-connectivity steps (:mod:`tiling.implicit_connect`) then work on that one
+connectivity steps (:mod:`tiling.implicit.connect`) then work on that one
 coefficient array, repeated until none has work left:
 
 * inter-cell (Section 4.2.1): ``connectivity`` edge-disjoint spanning trees
@@ -30,7 +30,7 @@ coefficient array, repeated until none has work left:
   surface is closed by D's boundary where f > 0.
 
 These steps work on the samples of the build ``resolution``.  Once they
-hold, the certificate of :mod:`tiling.implicit_certify` checks the spline
+hold, the certificate of :mod:`tiling.implicit.certify` checks the spline
 itself (Bernstein bounds of sub-boxes at least as fine as the samples): the
 inside and the outside (or a shell's voids) are each connected, every tree
 face has a pair of positive boxes across it, and no critical value of F lies
@@ -54,13 +54,13 @@ from geometry import knots as kn
 from geometry.errors import check_seed, show
 from geometry.resources import check_memory
 
-from .errors import TilingError
-from .checks import check_counts, check_map
-from .implicit_surface import EdgeSplines, SurfaceOutputs, zero_surface
-from .implicit_connect import (Builder, cell_knots, connect_cells, connect_faces, grid_graph, open_cavities,
+from tiling.errors import TilingError
+from tiling.checks import check_counts, check_map
+from tiling.implicit.surface import EdgeSplines, SurfaceOutputs, zero_surface
+from tiling.implicit.connect import (Builder, cell_knots, connect_cells, connect_faces, grid_graph, open_cavities,
                                spanning_trees)
-from .implicit_boxes import box_grid
-from .implicit_certify import Certifier
+from tiling.implicit.boxes import box_grid
+from tiling.implicit.certify import Certifier
 from geometry.tolerances import SAME_KNOT
 from geometry.numbers import is_flag, is_integer, is_real
 
@@ -177,7 +177,7 @@ class ImplicitStructure(SurfaceOutputs):
         return self.sample(resolution)[1]
 
     def surface(self, resolution: int | None = None, close: bool | None = None, snap: bool = True):
-        """The zero set mapped exactly through D, one welded ``pyvista.PolyData`` (:mod:`tiling.implicit_surface`).
+        """The zero set mapped exactly through D, one welded ``pyvista.PolyData`` (:mod:`tiling.implicit.surface`).
 
         The field is sampled on the global grid (``resolution`` intervals per
         cell and direction), contoured at 0 in parameter space (VTK flying
@@ -313,7 +313,7 @@ def random_implicit(D: BSpline, counts, *, degree: int = 3, controls: int = 8, a
                             int(resolution), *_materials(materials, B, cells, knots, D))
     # The steps interact (C1 symmetry moves lines of a face, filling a pocket may start an island, a cell's
     # steps may fill a face): repeat them all until one round changes nothing.
-    # The certificate on the spline (tiling.implicit_certify) runs once the sampled steps hold.
+    # The certificate on the spline (tiling.implicit.certify) runs once the sampled steps hold.
     certifier = Certifier(box_grid([_global_knots(0.0, c, c, degree, controls) for c in counts], degree, counts,
                                    per_span), B.G.shape)
     for _ in range(100):
