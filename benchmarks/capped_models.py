@@ -41,7 +41,7 @@ def run(case: str, png: bool) -> dict:
 
     import tiling
     from geometry import compose
-    from geometry.shapes import duck
+    from geometry.shapes.examples import duck
     from tiling import library as L
 
     t0 = time.perf_counter()
@@ -70,7 +70,7 @@ def run(case: str, png: bool) -> dict:
            "euler of tube graph": 2 - 2 * (tubes - nodes + 1),
            "peak MiB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, **extra}
     if png:
-        from geometry.io import offscreen_plotter, save_screenshot
+        from geometry.io.files import offscreen_plotter, save_screenshot
 
         pl = offscreen_plotter((1100, 900))
         pl.add_mesh(mesh, color="#d9b38c", smooth_shading=True, split_sharp_edges=True)

@@ -5,7 +5,7 @@
 The cross tile (seven trivariates) at degrees (3, 3, 2), its inside bent so
 that it is not affine, paved 1 x 1 x 2 into a curved map of degrees
 (1, 1, 2): composed patches of degrees (12, 12, 8).  Each is reduced to
-degree 2 and 3 (geometry.reduction): deviation (reported on 17^3 points per
+degree 2 and 3 (geometry.composition.reduction): deviation (reported on 17^3 points per
 piece, and measured at 10^4 random points), control points before and after,
 time; then steady heat with a manufactured temperature on the exact and on
 the reduced models (L2 errors, time).  Writes benchmarks/out/degree_reduction.json.
@@ -21,7 +21,7 @@ from _common import print_table, save_json
 
 import tiling
 from geometry import BSpline, MultiPatch, primitives as pr
-from geometry.reduction import reduce_model
+from geometry.composition.reduction import reduce_model
 from iga import HeatProblem
 from tiling import library as L
 

@@ -49,7 +49,7 @@ def compare(quick: bool, repeats: int = 5) -> list[dict]:
     ``ElasticityProblem.assemble``: volume and surface terms) and solved once; assembly times are the best
     run's (the first loads the compiled kernels, and at these sizes single timings vary by 2x)."""
     from iga import ElasticityProblem, HeatProblem
-    from iga.elastic_volume import ELASTIC_TERMS  # coefficient terms per Gauss point of the six computed blocks
+    from iga.elasticity.volume import ELASTIC_TERMS  # coefficient terms per Gauss point of the six computed blocks
 
     rows = []
     for name, model, elevate in _models(quick):
@@ -112,7 +112,7 @@ def ring(png: bool) -> dict:
                                "work error": s.info["work"]["relative_error"]}
     if png:
         from iga import write_vtu
-        from iga.pipeline import render_temperature
+        from iga.app.pipeline import render_temperature
 
         vtu = write_vtu(out_dir() / "elastic_ring_fig12.vtu", s, samples=2)
         render_temperature(vtu, DOCS / "elastic_ring_fig12.png", "von Mises stress (E = 1)", scalars="von_mises",

@@ -3,7 +3,7 @@
     python benchmarks/fig4_knot.py [--repeat 3] [--no-png]
 
 The map: a tricubic trivariate of lengths (4, 4, 50), a square section of side 0.5 carried along 50
-points of a trefoil knot by rotation-minimising frames (:func:`geometry.sweep.frames`); the paper builds
+points of a trefoil knot by rotation-minimising frames (:func:`geometry.shapes.sweep.frames`); the paper builds
 its knot by a sweep and a volumetric Boolean sum, with the same degrees and lengths.  The tile (Fig.
 4(a)): four bicubic surfaces, each the algebraic sum of a quarter turn of a helix (4 cubic spans) and a
 circle of radius 0.12 (6 cubic spans), so each tube shifts by one opening from bottom to top.  Paved
@@ -40,7 +40,7 @@ def trefoil(n: int = 50) -> np.ndarray:
 def knot_map(half_side: float = 0.25):
     """The tricubic knot trivariate of lengths (4, 4, 50)."""
     from geometry import BSpline, knots as kn
-    from geometry.sweep import frames
+    from geometry.shapes.sweep import frames
 
     axis = BSpline((3,), [kn.uniform_knots(3, 47)], trefoil(50))
     v = kn.greville(axis.knots[0], 3)

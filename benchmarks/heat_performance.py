@@ -19,7 +19,7 @@ interleaved, each allocation of one disturbs the other's reuse of freed
 memory (at 1M unknowns both became 30% slower and the first floor paid
 for fresh pages).  The JSON keeps every run.
 
-``--malloc retain`` (default) applies :func:`iga.memory.retain_freed_memory`
+``--malloc retain`` (default) applies :func:`iga.app.memory.retain_freed_memory`
 in the case's process, as the ``iga`` CLI does; ``default`` keeps glibc's
 behaviour; ``both`` runs every case both ways.  ``--numpy`` disables the
 compiled (numba) assembly and elimination, to measure the NumPy/SciPy path.
@@ -45,13 +45,14 @@ SIZES = {"30k": 31, "110k": 48, "475k": 78, "1M": 100}  # (N + p) per direction,
 def run_case(p: int, n_per_dir: int, tol: float, malloc: str = "retain", repeat: int = 5,
              numpy_only: bool = False) -> dict:
     if malloc == "retain":
-        from iga.memory import retain_freed_memory
+        from iga.app.memory import retain_freed_memory
 
         retain_freed_memory()
     import scipy.sparse as sp
 
     from geometry import primitives as pr
-    from iga import HeatProblem, fast_assembly
+    from iga import HeatProblem
+    from iga.assembly import compiled as fast_assembly
 
     if numpy_only:
         fast_assembly.AVAILABLE = False
@@ -96,7 +97,7 @@ def main(argv=None):
     ap.add_argument("--million", action="store_true", help="add 1M unknowns at p = 2")
     ap.add_argument("--tol", type=float, default=1e-8)
     ap.add_argument("--malloc", choices=("retain", "default", "both"), default="retain",
-                    help="allocator setting per case (see iga.memory)")
+                    help="allocator setting per case (see iga.app.memory)")
     ap.add_argument("--repeat", type=int, default=5, help="warm assemblies per case (median reported)")
     ap.add_argument("--numpy", action="store_true", help="disable the compiled (numba) assembly and elimination")
     ap.add_argument("--case", help=argparse.SUPPRESS)  # internal: "p,n" run in this process

@@ -13,7 +13,7 @@ from math import pi
 import numpy as np
 
 from geometry import BSpline, primitives as pr
-from iga.pipeline import circular_heat_sink_map, vertical_heat_sink_map
+from iga.app.pipeline import circular_heat_sink_map, vertical_heat_sink_map
 
 
 def circular_map() -> BSpline:

@@ -36,7 +36,7 @@ class MatrixFree:
     """K x = sum_kl B_k^T (G_kl * (B_l x)) with B_l = the tensor basis with the derivative in direction l."""
 
     def __init__(self, problem):
-        from geometry.chain import patch_geometry_grid
+        from geometry.patches.chain import patch_geometry_grid
 
         space = problem.spaces[0]
         self.shape = space.shape

@@ -40,7 +40,7 @@ def main(argv=None):
     ap.add_argument("--repeat", type=int, default=4, help="warm assemblies (median reported)")
     args = ap.parse_args(argv)
     from iga import HeatProblem
-    from iga.memory import retain_freed_memory
+    from iga.app.memory import retain_freed_memory
 
     retain_freed_memory()
     m = model(int(v) for v in args.tiles.split(","))

@@ -41,8 +41,8 @@ def run_case(case: str, size: str) -> None:
     import tiling
     from geometry import primitives as pr
     from iga import HeatProblem
-    from iga.distributed import load_petsc, world
-    from iga.pipeline import heat_sink_config, run_pipeline
+    from iga.distributed.solve import load_petsc, world
+    from iga.app.pipeline import heat_sink_config, run_pipeline
     from tiling import library as L
 
     w = world()
@@ -208,7 +208,7 @@ def main():
             ranks = [int(v) for v in sys.argv[i + 1].split(",")]
         if a == "--repeat":
             repeat = int(sys.argv[i + 1])
-    from iga.distributed import launch_env, mpiexec as find_mpiexec
+    from iga.distributed.solve import launch_env, mpiexec as find_mpiexec
 
     mpiexec = find_mpiexec()  # a virtual environment's own, else the one on PATH
     if mpiexec is None:

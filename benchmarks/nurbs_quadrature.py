@@ -1,10 +1,10 @@
 """Exactness of the NURBS basis on the exact annulus against the Gauss points added per direction.
 
-The NURBS basis R = w N / W (iga.rational) holds every affine field of x, but its integrands are rational, so
+The NURBS basis R = w N / W (iga.discretisation.rational) holds every affine field of x, but its integrands are rational, so
 the Galerkin solution reproduces a linear temperature only as well as the Gauss rule integrates them.  This
 prints, per refinement of the exact quarter annulus (degree 2 along the arc, and elevated to 3), the largest
 error of a linear temperature held on the boundary against the Gauss points added to p + 1, and the number
-the toolkit adds (iga.rational.rational_quadrature_extra, from W's variation over an element); the patch
+the toolkit adds (iga.discretisation.rational.rational_quadrature_extra, from W's variation over an element); the patch
 tests ask for 1e-9.  It also prints, for the polynomial basis that a composed rational patch keeps (a cross
 lattice in the same annulus), the stress of a free thermal expansion by refinement: it converges, it is not
 zero.
@@ -18,7 +18,8 @@ import numpy as np
 
 import tiling
 from geometry import primitives as pr
-from iga import ElasticityProblem, HeatProblem, discretisation
+from iga import ElasticityProblem, HeatProblem
+from iga.discretisation import setting as discretisation
 from tiling import library as L
 
 G = np.array([3.0, -2.0, 5.0])

@@ -21,7 +21,7 @@ benchmarks behind the rows and prints one table of measured figures beside the t
 * ``first``: the first ``solve()`` of the 110k cube in a process against the third (target: at most
   0.5 s more);
 * ``memory``: not a target but the machine: how fast a fresh process writes 512 MiB it never touched
-  before, on NumPy's transparent huge pages and on small pages (:func:`iga.memory.streamed_empty`, which
+  before, on NumPy's transparent huge pages and on small pages (:func:`iga.app.memory.streamed_empty`, which
   the heat operator's arrays take), against writing them again.  On this Firecracker VM the first
   write costs 0.3-0.4 GB/s on huge pages, about 2 GB/s on small ones and 11-21 GB/s again
   (docs/performance.md): read the cold rows beside this one;
@@ -80,7 +80,7 @@ print(json.dumps({"best s": min(times)}))
 TOUCH = """
 import json, time
 import numpy as np
-from iga.memory import streamed_empty
+from iga.app.memory import streamed_empty
 n = 512 * 2**20 // 8
 t = time.perf_counter(); a = np.empty(n); a.fill(1.0); huge = time.perf_counter() - t
 t = time.perf_counter(); a.fill(2.0); again = time.perf_counter() - t

@@ -68,7 +68,7 @@ def _problem(case: str):
 
 
 def run_one(case: str, method: str) -> dict:
-    from iga.memory import retain_freed_memory
+    from iga.app.memory import retain_freed_memory
 
     retain_freed_memory()
     problem = _problem(case)

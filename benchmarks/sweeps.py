@@ -14,8 +14,9 @@ import time
 
 import numpy as np
 
-from geometry import primitives, shapes
-from geometry.sweep import section_error
+from geometry import primitives
+from geometry.shapes import examples as shapes
+from geometry.shapes.sweep import section_error
 from tiling import library, regular, round_struts
 from tiling.export import render_png, watertightness
 

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from geometry import BSpline, primitives
-from geometry.io import offscreen_plotter, save_screenshot
+from geometry.io.files import offscreen_plotter, save_screenshot
 from tiling import library, regular
 from tiling.members.cylinders import through_cylinders
 from tiling.export import boundary_splines, render_png, watertightness, write_iges

@@ -70,8 +70,8 @@ def main():
                         ("T max", ".2f")])
     save_json("vrep_heat.json", row)
     if not args.no_png:
-        from iga.pipeline import render_temperature
-        from iga.vtu import write_vtu
+        from iga.app.pipeline import render_temperature
+        from iga.io.vtu import write_vtu
         from _common import out_dir
 
         vtu = write_vtu(out_dir() / "vrep_winged_duck_heat.vtu", s, samples=2)

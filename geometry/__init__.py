@@ -15,13 +15,13 @@ from .errors import SplineError, ToolkitError
 # base exception and the progress display) must not pull in the whole spline stack
 _LAZY = {
     "FACE_AXIS": "faces", "FACE_NAMES": "faces", "SplineFunction": "spline", "BSpline": "bspline",
-    "multiply": "products", "save": "io", "load": "io", "save_all": "io", "load_all": "io",
-    "compose": "composition", "compose_many": "composition", "compose_placed": "composition",
-    "map_points": "composition", "result_degrees": "composition", "TrimmedSurface": "trimmed",
-    "reduce_degree": "reduction", "reduce_model": "reduction", "reduced_model": "reduction", "check_regular": "regularity",
-    "RegularityResult": "regularity", "invert": "inversion", "Interface": "multipatch",
-    "MultiPatch": "multipatch", "PlacedPatch": "multipatch", "detect_interfaces": "multipatch",
-    "scale_bounds": "scale", "ScaleBounds": "scale",
+    "multiply": "composition.products", "save": "io.files", "load": "io.files", "save_all": "io.files", "load_all": "io.files",
+    "compose": "composition.core", "compose_many": "composition.core", "compose_placed": "composition.core",
+    "map_points": "composition.core", "result_degrees": "composition.core", "TrimmedSurface": "shapes.trimmed",
+    "reduce_degree": "composition.reduction", "reduce_model": "composition.reduction", "reduced_model": "composition.reduction", "check_regular": "maps.regularity",
+    "RegularityResult": "maps.regularity", "invert": "maps.inversion", "Interface": "patches.multipatch",
+    "MultiPatch": "patches.multipatch", "PlacedPatch": "patches.multipatch", "detect_interfaces": "patches.multipatch",
+    "scale_bounds": "maps.scale", "ScaleBounds": "maps.scale",
 }
 _MODULES = {"faces", "knots", "bernstein", "primitives"}
 

@@ -23,8 +23,8 @@ import numpy as np
 
 from .cache import memo
 
-from . import _fast
-from .compile_lock import locked
+from geometry.compiled import _fast
+from geometry.compiled.lock import locked
 from .knots import bernstein_elevation
 
 #: multiplications from which a product runs in the compiled kernel (where numba is installed): below, the
@@ -60,7 +60,7 @@ def multiply(a: np.ndarray, b: np.ndarray, ndim: int, compiled: bool | None = No
     ``a``: (..., p_1+1, ..., p_d+1), ``b``: (..., q_1+1, ..., q_d+1) ->
     (..., p_1+q_1+1, ..., p_d+q_d+1).
 
-    ``compiled``: in the direct loops of :func:`geometry._bernstein_kernels.product3`
+    ``compiled``: in the direct loops of :func:`geometry.compiled._bernstein_kernels.product3`
     (numba, d <= 3); by default when numba is installed and the product takes
     at least :data:`COMPILED_MACS` multiplications (so that small analyses
     never import numba).  Otherwise in NumPy: the convolution of binomially
@@ -162,7 +162,7 @@ def _weights(shape: tuple, inverse: bool) -> np.ndarray:
 
 def _product_compiled(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Bernstein products a (B, Ca, pa...) x b (B, Cb, pb...) -> (B, Ca, Cb, r...) in the compiled kernel."""
-    from ._bernstein_kernels import product3
+    from geometry.compiled._bernstein_kernels import product3
 
     swap = a.shape[-1] > b.shape[-1]  # the longer last axis innermost: the loop the compiler vectorises
     if swap:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import SplineError
-from .regularity_net import element_windows, window_extremes
+from geometry.maps.sign_net import element_windows, window_extremes
 from .spline import SplineFunction
 from .errors import show
 

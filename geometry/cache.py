@@ -115,6 +115,12 @@ class PerObject:
             value = self._items[obj] = _freeze(make())
             return value
 
+    def __contains__(self, obj) -> bool:
+        return obj in self._items
+
+    def __len__(self) -> int:
+        return len(self._items)
+
     def peek(self, obj, default=None):
         """The stored value for ``obj`` without making one."""
         return self._items.get(obj, default)

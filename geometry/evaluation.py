@@ -4,7 +4,7 @@
 :class:`geometry.SplineFunction` (which holds the data and the exact
 structural operations).  Scattered points go to SciPy's ``NdBSpline`` on the
 homogeneous coefficients, or for many points of a trivariate to the compiled
-kernel of :mod:`geometry._fast` (values and first derivatives in one pass);
+kernel of :mod:`geometry.compiled._fast` (values and first derivatives in one pass);
 rational derivatives follow from the Leibniz rule (quotient rule).  Tensor
 grids use one sparse basis matrix per direction (sum factorisation).
 Parameters are checked: outside the domain (beyond a relative 1e-12) or
@@ -19,7 +19,7 @@ from math import comb
 import numpy as np
 from scipy.interpolate import NdBSpline
 
-from . import _fast
+from geometry.compiled import _fast
 from . import knots as kn
 from .errors import SplineError
 from .tolerances import ON_DOMAIN, ROUNDOFF
@@ -113,7 +113,7 @@ class SplineEvaluation:
 
     def _value_jacobian(self, params, values: bool, checked: bool = False, compiled: bool | None = None):
         """``checked``: ``params`` is already a float (N, d) array inside the domain (an inner loop that clips
-        its own iterates, :func:`geometry.inversion.invert`): the 35 us of checks per call are skipped.
+        its own iterates, :func:`geometry.maps.inversion.invert`): the 35 us of checks per call are skipped.
         ``compiled``: None takes the compiled kernel for many points; True for any number (a caller that runs
         compiled kernels anyway, so the import is paid); False never."""
         x = params if checked else self._check_params(params)

@@ -19,8 +19,8 @@ from . import knots as kn
 from .bspline import BSpline
 from .errors import SplineError
 from .faces import FACE_AXIS, FACE_NAMES
-from .products import multiply
-from .shapes import with_channels, cylinder, duck  # example shapes live in their own module
+from geometry.composition.products import multiply
+from geometry.shapes.examples import with_channels, cylinder, duck  # example shapes live in their own module
 from .spline import SplineFunction
 from .errors import show
 from .tolerances import ON_DOMAIN

@@ -9,13 +9,13 @@ Public names: :class:`HeatProblem`, :class:`Solution`, :class:`ElasticityProblem
 
 from .errors import ProblemError, SingularProblemError
 from .expressions import Expression
-from .problem import HeatProblem
-from .elasticity import ElasticityProblem
-from .elastic_solution import ElasticSolution
-from .homogenize import effective_conductivity, effective_stiffness
-from .macro import EffectiveTable, effective_table, macro_map
-from .solution import Solution
-from .vtu import write_pieces, write_vtu
+from iga.heat.problem import HeatProblem
+from iga.elasticity.problem import ElasticityProblem
+from iga.elasticity.solution import ElasticSolution
+from iga.homogenisation.cells import effective_conductivity, effective_stiffness
+from iga.homogenisation.macro import EffectiveTable, effective_table, macro_map
+from iga.heat.solution import Solution
+from iga.io.vtu import write_pieces, write_vtu
 
 __all__ = ["ProblemError", "SingularProblemError", "HeatProblem", "Solution", "ElasticityProblem", "ElasticSolution",
            "effective_conductivity", "effective_stiffness", "EffectiveTable", "effective_table", "macro_map",

@@ -12,7 +12,7 @@ configuration is checked, into a syntax tree that holds nothing else (no names
 but these, no attributes, no indexing, no other calls), so a configuration
 file can say no more than a formula; :class:`Expression` then evaluates it on
 whole point arrays, as the problems' callables are.  The same tree is written
-in G+Smo's expression syntax (exprtk) for :func:`iga.gismo.export_gismo`, and
+in G+Smo's expression syntax (exprtk) for :func:`iga.io.gismo.export_gismo`, and
 read back from it.
 """
 

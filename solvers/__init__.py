@@ -25,7 +25,7 @@ Built-in backends
 ``gmg-cg``   conjugate gradients preconditioned by a geometric multigrid V-cycle (:mod:`solvers.multigrid`);
              needs the option ``prolongations`` (sparse matrices, finest level first).
 ``petsc``    PETSc's CG with GAMG (or hypre) when petsc4py is installed (extra ``[mpi]``); under
-             ``mpiexec`` :mod:`iga.distributed` assembles and solves across the ranks.
+             ``mpiexec`` :mod:`iga.distributed.solve` assembles and solves across the ranks.
 ``auto``     ``direct`` up to :data:`AUTO_DIRECT_LIMIT` unknowns; above, ``fd-cg`` when a ``kronecker``
              option is given, else ``amg-cg``.
 """

@@ -1,6 +1,6 @@
 """Geometric multigrid with given prolongations: Galerkin coarse operators, Chebyshev-Jacobi smoothing.
 
-The caller (for splines: :mod:`iga.multilevel`, whose prolongations are the
+The caller (for splines: :mod:`iga.discretisation.multilevel`, whose prolongations are the
 knot-insertion refinement matrices of the nested spline spaces) hands in the
 prolongations ``P_l`` from level l + 1 (coarser) to level l; the coarse
 operators are the Galerkin products A_{l+1} = P_l^T A_l P_l, so the

@@ -24,10 +24,10 @@ import tiling
 from geometry import BSpline, MultiPatch, SplineError, ToolkitError, check_regular, compose, compose_many, invert
 from geometry import knots as kn
 from geometry import primitives as pr
-from geometry.io import load, save
+from geometry.io.files import load, save
 from iga import HeatProblem, ProblemError, SingularProblemError, write_vtu
-from iga.config import validate
-from iga.pipeline import heat_sink_config, run_pipeline
+from iga.app.config import validate
+from iga.app.pipeline import heat_sink_config, run_pipeline
 from solvers import SolverError
 from tiling import BranchFace, Tile, TilingError
 from tiling import library as L
@@ -293,9 +293,9 @@ TILING = [
          TilingError, r"deformation map is singular"),
     case("hierarchy scale string", lambda t: tiling.hierarchical(pr.box(), L.heat_sink_t2(), (1, 1), 2, scale="0.5"),
          TilingError, r"scale must be a positive number .* got '0\.5' \(str\)"),
-    case("reduced degree float", lambda t: __import__("geometry.reduction").reduction.reduce_degree(
+    case("reduced degree float", lambda t: __import__("geometry.composition.reduction").reduction.reduce_degree(
         pr.box(degrees=(3, 3, 3)), 2.0), SplineError, r"integer 2 or 3 .* got 2\.0"),
-    case("reduce a list", lambda t: __import__("geometry.reduction").reduction.reduce_model([pr.box()]), SplineError,
+    case("reduce a list", lambda t: __import__("geometry.composition.reduction").reduction.reduce_model([pr.box()]), SplineError,
          r"takes a multi-patch model .* got list"),
     case("tile outside cube", lambda t: Tile([pr.box().translate([0.5, 0, 0])]), TilingError,
          r"tile 'tile' patch 0 leaves the unit cube"),
@@ -642,7 +642,7 @@ def test_files(fn, exc, match, tmp_path):
 
 
 def test_full_disk_leaves_nothing(tmp_path, monkeypatch):
-    import geometry.io as gio
+    import geometry.io.files as gio
 
     def full(*a, **k):
         raise OSError(28, "No space left on device")
@@ -792,7 +792,7 @@ RESOURCES = [
 
 def _bent_disc():
     """A disc trimmed from a curved quadratic sheet (z = 0.3 u^2), loop an exact NURBS circle."""
-    from geometry.trimmed import TrimmedSurface
+    from geometry.shapes.trimmed import TrimmedSurface
 
     w = np.array([1, np.sqrt(0.5)] * 4 + [1])
     pts = np.array([[1, 0], [1, 1], [0, 1], [-1, 1], [-1, 0], [-1, -1], [0, -1], [1, -1], [1, 0]], float) * 0.3
@@ -1066,7 +1066,7 @@ def _graded_map():
 
 
 def _gismo_with_index(tmp_path, index):
-    from geometry.gismo_xml import read_gismo, write_gismo
+    from geometry.io.gismo import read_gismo, write_gismo
 
     path = write_gismo(tmp_path / "box.xml", [cube()])
     text = path.read_text()
@@ -1076,7 +1076,7 @@ def _gismo_with_index(tmp_path, index):
 
 
 def _describe(tmp_path, text, name="s.json"):
-    from iga.describe import describe
+    from iga.io.describe import describe
 
     path = tmp_path / name
     path.write_text(text)
@@ -1097,7 +1097,7 @@ RAW = [
          ProblemError, r"macro_map needs an EffectiveTable"),
     case("clip_walls of None", lambda t: __import__("tiling.sealing.clipping").sealing.clipping.clip_walls(None), TilingError,
          r"clip_walls needs a list of walls .* got None"),
-    case("export_gismo of an elastic problem", lambda t: __import__("iga.gismo").gismo.export_gismo(
+    case("export_gismo of an elastic problem", lambda t: __import__("iga.io.gismo").gismo.export_gismo(
         __import__("iga").ElasticityProblem(cube(), 1e9, 0.3), t / "e.xml"), ProblemError,
         r"G\+Smo export writes heat problems \(iga.HeatProblem\), not ElasticityProblem"),
     case("write_pieces without a communicator", lambda t: __import__("iga").write_pieces(t / "a.pvtu", solved(), None),
@@ -1152,7 +1152,7 @@ def test_warnings_reach_command_line_users_as_one_line(capsys, monkeypatch):
     # Python's "file.py:251: GismoExtensionWarning" and its source line
     import warnings
 
-    from iga import cli
+    from iga.app import cli
 
     def warn(args):
         warnings.warn("the G+Smo file carries extensions", UserWarning, stacklevel=2)
@@ -1217,7 +1217,7 @@ def _mirrored(D: BSpline) -> BSpline:
 
 def _gauss_volume(ms) -> float:
     """The volume of a volumetric paving by the problem's Gauss rule (no surface involved)."""
-    from iga.fields import integrate_fields
+    from iga.discretisation.fields import integrate_fields
 
     prob = HeatProblem(ms)
     return integrate_fields(prob, lambda i: np.zeros((1,) + prob.spaces[i].shape), 1,
@@ -1228,7 +1228,7 @@ def _gauss_volume(ms) -> float:
 def test_capped_surfaces_are_oriented_outwards_and_enclose_the_solids_volume(mirror, tmp_path):
     import pyvista as pv
 
-    from geometry.orientation import orientation_check
+    from geometry.shapes.orientation import orientation_check
 
     D = pr.box((1.0, 1.0, 1.0), degrees=(2, 2, 2))
     D = _mirrored(D) if mirror else D
@@ -1243,7 +1243,7 @@ def test_capped_surfaces_are_oriented_outwards_and_enclose_the_solids_volume(mir
 
 
 def test_shells_orient_the_cavity_inwards_and_open_tubes_consistently():
-    from geometry.orientation import orientation_check, orient_outward
+    from geometry.shapes.orientation import orientation_check, orient_outward
 
     twisted = pr.twisted(pr.box((1.0, 1.0, 1.0), degrees=(2, 2, 2)), 0.4, axis_point=(0.5, 0.5))
     shell = tiling.regular(_mirrored(twisted), L.hollow_cross(), (2, 1, 1), seal="shell", thickness=0.15).surface(2)
@@ -1261,7 +1261,7 @@ def test_shells_orient_the_cavity_inwards_and_open_tubes_consistently():
 
 
 def test_implicit_and_polygon_surfaces_face_outwards_under_any_map():
-    from geometry.orientation import orientation_check
+    from geometry.shapes.orientation import orientation_check
     from tiling.members.polygons import PolygonTile, pave_polygons
 
     cube = PolygonTile(np.array([[i, j, k] for i in (0.2, 0.8) for j in (0.2, 0.8) for k in (0.2, 0.8)]),
@@ -1288,8 +1288,8 @@ def _quarter_arc():
 
 
 def test_tubes_and_offsets_past_a_radius_of_curvature_are_refused_with_the_bound():
-    from geometry.offset import offset
-    from geometry.sweep import sweep
+    from geometry.shapes.offset import offset
+    from geometry.shapes.sweep import sweep
 
     arc, cyl = _quarter_arc()
     rng = np.random.default_rng(4)

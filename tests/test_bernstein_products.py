@@ -1,4 +1,4 @@
-"""The compiled Bernstein product (geometry._bernstein_kernels) and the high-degree composition built on it."""
+"""The compiled Bernstein product (geometry.compiled._bernstein_kernels) and the high-degree composition built on it."""
 
 import numpy as np
 import pytest

@@ -5,8 +5,8 @@ import pytest
 
 import tiling
 from geometry import BSpline, compose, primitives as pr
-from geometry.triangulate import fill_rings
-from geometry.trimmed import join_curves
+from geometry.shapes.triangulate import fill_rings
+from geometry.shapes.trimmed import join_curves
 from iga import HeatProblem
 from tiling import TilingError
 from tiling import library as L

@@ -195,7 +195,7 @@ def test_compose_many_matches_compose_and_batches_pieces():
 
 @pytest.mark.kernel_sensitive
 def test_batches_composed_on_several_cores_equal_the_serial_composition(monkeypatch):
-    from geometry import composition
+    from geometry.composition import core as composition
 
     rng = np.random.default_rng(8)
     outer = random_outer(rng, (2, 2, 2), rational=True, spans=2)
@@ -276,7 +276,7 @@ def test_identity_box_and_annulus_are_regular():
 
 
 def test_nearly_separable_maps_are_decided_by_diagonal_dominance_exactly():
-    from geometry import regularity_net as N
+    from geometry.maps import sign_net as N
 
     rng = np.random.default_rng(12)
     decided = 0
@@ -304,8 +304,8 @@ def test_nearly_separable_maps_are_decided_by_diagonal_dominance_exactly():
 
 
 def test_stacked_net_signs_and_batched_proofs_equal_each_spline_alone():
-    from geometry import regularity_net as N
-    from geometry.regularity import check_regular_many
+    from geometry.maps import sign_net as N
+    from geometry.maps.regularity import check_regular_many
 
     rng = np.random.default_rng(21)
     degs, knots = (2, 1, 3), [kn.uniform_knots(2, 3), kn.uniform_knots(1, 2), kn.uniform_knots(3, 2)]

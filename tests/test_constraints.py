@@ -6,12 +6,12 @@ import pytest
 from geometry import BSpline
 from geometry import primitives as pr
 from geometry.faces import face_knots, nested_refinement
-from geometry.multipatch import Interface, MultiPatch
+from geometry.patches.multipatch import Interface, MultiPatch
 from iga import HeatProblem
-from iga.constraints import (branch_rows, class_expressions, equivalence_classes, identity_pairs,
+from iga.discretisation.constraints import (branch_rows, class_expressions, equivalence_classes, identity_pairs,
                              plane_pairs, prolongation)
 from iga.errors import ProblemError
-from iga.space import make_space
+from iga.discretisation.space import make_space
 
 FULL = ((0.0, 1.0), (0.0, 1.0))
 

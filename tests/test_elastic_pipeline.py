@@ -7,9 +7,9 @@ import sys
 import numpy as np
 import pytest
 
-from iga.config import validate
+from iga.app.config import validate
 from iga.errors import ProblemError
-from iga.pipeline import run_pipeline
+from iga.app.pipeline import run_pipeline
 
 
 def _cfg(**physics):

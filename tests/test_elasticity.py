@@ -391,7 +391,7 @@ def test_amg_aggregates_by_node_and_stays_within_twice_heats_iterations_on_a_lat
 
 
 def test_thermal_stress_of_the_graded_demo_sink_balances_and_is_symmetric():
-    from iga.pipeline import vertical_heat_sink_map
+    from iga.app.pipeline import vertical_heat_sink_map
     from tiling.materials import graded_channel
 
     D = vertical_heat_sink_map()
@@ -418,8 +418,8 @@ def _dense_elastic_stiffness(problem):
     K^{ab} = sum_q w |det J| (lambda d_a N_i d_b N_j + mu d_b N_i d_a N_j + mu delta_ab grad N_i . grad N_j)."""
     from scipy.interpolate import BSpline as SciBSpline
 
-    from geometry.chain import patch_geometry_grid
-    from iga.elastic_forms import lame
+    from geometry.patches.chain import patch_geometry_grid
+    from iga.elasticity.forms import lame
 
     space = problem.spaces[0]
     tables = []
@@ -445,7 +445,8 @@ def _dense_elastic_stiffness(problem):
 
 @pytest.mark.parametrize("compiled", [False, True])
 def test_the_block_assembly_equals_plain_quadrature_with_scipy_basis_functions(compiled, monkeypatch):
-    from iga import elastic_volume, fast_assembly
+    from iga.elasticity import volume as elastic_volume
+    from iga.assembly import compiled as fast_assembly
 
     if compiled and not fast_assembly.AVAILABLE:
         pytest.skip("numba is not installed")
@@ -462,7 +463,8 @@ def test_the_block_assembly_equals_plain_quadrature_with_scipy_basis_functions(c
 def test_the_compiled_assembly_of_batched_patches_equals_the_numpy_one(monkeypatch):
     """Several patches per compiled batch (a lattice of cross tiles, patches sharing spaces): their rows,
     columns and the lower blocks' copies land where the NumPy path puts them, whatever each patch's offset."""
-    from iga import elastic_volume, fast_assembly
+    from iga.elasticity import volume as elastic_volume
+    from iga.assembly import compiled as fast_assembly
 
     if not fast_assembly.AVAILABLE:
         pytest.skip("numba is not installed")
@@ -483,9 +485,9 @@ def test_the_compiled_assembly_of_batched_patches_equals_the_numpy_one(monkeypat
 def test_the_component_major_operator_is_the_block_matrix_of_its_patches():
     import scipy.sparse as sp
 
-    from iga.assembly import CSRPattern
+    from iga.assembly.tensor import CSRPattern
     from iga.errors import ProblemError
-    from iga.vector_csr import VectorCSR
+    from iga.assembly.vector_csr import VectorCSR
 
     rng = np.random.default_rng(3)
     # four patches, two patterns; 0, 2 and 3 written together, at uneven steps (no strided view)
@@ -518,7 +520,8 @@ def test_the_component_major_operator_is_the_block_matrix_of_its_patches():
 
 
 def test_the_compiled_elastic_blocks_equal_the_numpy_ones_on_batches_of_patches(monkeypatch):
-    from iga import elastic_volume, fast_assembly
+    from iga.elasticity import volume as elastic_volume
+    from iga.assembly import compiled as fast_assembly
 
     if not fast_assembly.AVAILABLE:
         pytest.skip("numba is not installed")

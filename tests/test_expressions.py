@@ -6,7 +6,7 @@ import pytest
 
 from iga import ProblemError
 from iga.expressions import Expression, VectorExpression
-from iga.pipeline import run_pipeline
+from iga.app.pipeline import run_pipeline
 
 
 def test_formulas_evaluate_as_numpy_does_at_random_points():
@@ -174,7 +174,7 @@ def test_a_heat_problem_with_formula_conditions_goes_to_gismo_and_back(tmp_path)
 
     from geometry import primitives as pr
     from iga import HeatProblem
-    from iga.gismo import export_gismo, problem_from_gismo
+    from iga.io.gismo import export_gismo, problem_from_gismo
 
     box = pr.twisted(pr.box(degrees=(2, 2, 2), elements=(2, 2, 2)), 0.3, axis_point=(0.5, 0.5))
     p = (HeatProblem(box, conductivity=Expression("1 + x ** 2"), source=Expression("10 * sin(pi * x) * y"))
@@ -210,7 +210,7 @@ def test_scripts_give_vector_values_as_lists_of_numbers_and_formulas():
 
 
 def test_materials_take_formulas_as_tables_where_a_string_is_a_channel(tmp_path):
-    from iga.config import validate
+    from iga.app.config import validate
 
     # k = 1 + 100 x and T = ln(1 + 100 x) / ln 4: k dT/dx is constant, so div(k grad T) = 0 in any geometry;
     # T on every free face of the lattice (a formula too) makes it the solution, up to discretisation error

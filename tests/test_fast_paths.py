@@ -6,15 +6,17 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 import solvers
-from geometry import MultiPatch, _fast, primitives as pr
-from iga import HeatProblem, ProblemError, fast_assembly
-from iga import system as system_module
-from iga.assembly import load_form, pattern, stiffness_data
-from geometry.chain import grid_values_derivs_slabs
+from geometry import MultiPatch, primitives as pr
+from geometry.compiled import _fast
+from iga import HeatProblem, ProblemError
+from iga.assembly import compiled as fast_assembly
+from iga.discretisation import system as system_module
+from iga.assembly.tensor import load_form, pattern, stiffness_data
+from geometry.patches.chain import grid_values_derivs_slabs
 from iga.manufactured import quarter_annulus
-from iga.coefficients import TENSOR_PAIRS as _PAIRS
-from iga.system import eliminate as _eliminate
-from iga.space import make_space
+from iga.heat.coefficients import TENSOR_PAIRS as _PAIRS
+from iga.discretisation.system import eliminate as _eliminate
+from iga.discretisation.space import make_space
 from solvers.amg import AMGPreconditioner, spectral_radius
 
 from helpers import random_knots, random_spline
@@ -84,7 +86,7 @@ def test_compiled_grid_geometry_equals_direct_evaluation():
 @pytest.mark.parametrize("axis", range(3))
 def test_compiled_face_grid_equals_direct_evaluation(axis, monkeypatch):
     # large face grids (one point in one direction) are evaluated by the compiled kernel too
-    from geometry import chain as geometry_eval
+    from geometry.patches import chain as geometry_eval
 
     rng = np.random.default_rng(axis)
     S = random_spline(rng, 3, degrees=(3, 1, 2), rational=True, channels=("k",))
@@ -130,7 +132,7 @@ def test_compiled_heat_assembly_equals_numpy_assembly(case, monkeypatch):
         # constant k and f on patches without placement or map: the fused geometry-metric kernel takes the
         # B-spline patch with curved, non-uniform geometry; the NURBS patch with a channel (not needed, dropped
         # from the coefficients), twice (two patches, one spline), is its own geometry, so it is analysed in the
-        # NURBS basis, whose first- and zero-order terms the NumPy forms assemble on both runs (iga.rational)
+        # NURBS basis, whose first- and zero-order terms the NumPy forms assemble on both runs (iga.discretisation.rational)
         from geometry import BSpline
 
         rng = np.random.default_rng(7)
@@ -269,7 +271,7 @@ def test_amg_rejects_a_non_positive_diagonal():
 
 def test_compiled_box_verdicts_equal_numpy_path(monkeypatch):
     # the certificate's kernel (tiling.implicit._certify_kernels): bounds and monotonicity bits of split sub-boxes
-    from tiling import implicit_boxes as ib
+    from tiling.implicit import boxes as ib
     from tiling.implicit.structure import _global_knots
     knots = [_global_knots(0.0, c, c, 3, 6) for c in (2, 1, 1)]
     G = np.random.default_rng(6).uniform(-0.3, 0.3, tuple(len(U) - 4 for U in knots))
@@ -285,8 +287,8 @@ def test_compiled_box_verdicts_equal_numpy_path(monkeypatch):
 
 
 def test_one_component_layout_is_the_block_diagonal_of_its_patches_strided_or_indexed():
-    from iga.assembly import CSRPattern
-    from iga.vector_csr import VectorCSR
+    from iga.assembly.tensor import CSRPattern
+    from iga.assembly.vector_csr import VectorCSR
 
     rng = np.random.default_rng(5)
     sizes = (40, 25, 40, 40, 25, 40)
@@ -353,7 +355,7 @@ def test_the_stiffness_of_some_patches_is_their_rows_of_the_whole(compiled, monk
 
 
 def test_a_boundary_mass_inside_the_pattern_is_added_in_place_and_one_outside_is_not_lost():
-    from iga.assembly import add_within
+    from iga.assembly.tensor import add_within
 
     rng = np.random.default_rng(11)
     K = (sp.random(60, 60, density=0.15, random_state=1, format="csr") + sp.eye(60, format="csr")).tocsr()

@@ -9,11 +9,11 @@ import pytest
 import tiling
 from geometry import BSpline, SplineError, primitives as pr
 from geometry.faces import FACE_AXIS
-from geometry.gismo_xml import GismoCondition, interface_maps, read_gismo, write_gismo
-from geometry.iges import write_iges
+from geometry.io.gismo import GismoCondition, interface_maps, read_gismo, write_gismo
+from geometry.io.iges import write_iges
 from helpers import opencascade, read_own_iges as _read_own_iges, random_spline
 from iga import HeatProblem, ProblemError
-from iga.gismo import export_gismo, load_gismo, problem_from_gismo
+from iga.io.gismo import export_gismo, load_gismo, problem_from_gismo
 from tiling import library as L
 
 AFFINE = pr.box((2.0, 1.0, 1.5))
@@ -74,7 +74,7 @@ def test_heat_problem_export_reimport_gives_the_same_solution(tmp_path):
     ms = tiling.hierarchical(AFFINE, L.fractal(), (2, 1), 3)  # identity and branch interfaces
     ms.tags["cool"] = [f for f in ms.tags["boundary"] if f not in set(ms.tags["branch-in"])]
     p = HeatProblem(ms, conductivity=205.0, degree=3).neumann("branch-in", 1515.8).robin("cool", 5.0, 30.0)
-    from iga.gismo import GismoExtensionWarning
+    from iga.io.gismo import GismoExtensionWarning
 
     with pytest.warns(GismoExtensionWarning, match="12 branch interfaces"):
         path = export_gismo(p, tmp_path / "sink.xml")
@@ -200,7 +200,7 @@ def test_gismo_file_opens_in_pygismo(tmp_path):
 
 
 def test_iga_info_reads_gismo_and_npz(tmp_path):
-    from geometry.io import save_all
+    from geometry.io.files import save_all
 
     path = write_gismo(tmp_path / "m.xml", [pr.box(), pr.box(origin=(1, 0, 0))],
                        [((0, "umax"), (1, "umin"), False, (False, False))],
@@ -221,7 +221,7 @@ def test_iga_info_reads_gismo_and_npz(tmp_path):
 
 def test_iga_info_describes_every_file_the_toolkit_writes(tmp_path):
     import tiling
-    from geometry.iges import write_iges
+    from geometry.io.iges import write_iges
     from iga import HeatProblem, write_vtu
     from tiling import library as L
     from tiling.export import boundary_splines, write_surfaces

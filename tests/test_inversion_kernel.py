@@ -1,11 +1,12 @@
-"""The compiled point inversion (geometry._newton_kernels) against the NumPy iterations it replaces, and against
+"""The compiled point inversion (geometry.compiled._newton_kernels) against the NumPy iterations it replaces, and against
 direct evaluation: the same distances, memberships and foot points, on polynomial and rational trivariates and
 on their boundary surfaces, plain and damped."""
 
 import numpy as np
 import pytest
 
-from geometry import _fast, inversion
+from geometry.compiled import _fast
+from geometry.maps import inversion
 from geometry import primitives as pr
 from geometry.faces import FACE_NAMES
 
@@ -94,7 +95,7 @@ def test_without_numba_the_kernel_request_takes_the_numpy_iterations(monkeypatch
 
 
 def test_v_model_classification_is_the_same_with_the_compiled_inversion_and_without(monkeypatch):
-    from geometry.shapes import cylinder
+    from geometry.shapes.examples import cylinder
     from tiling import library as L
     from tiling.vrep import Primitive, classify
 

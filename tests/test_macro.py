@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from geometry import MultiPatch, primitives as pr
-from geometry.multipatch import detect_interfaces
+from geometry.patches.multipatch import detect_interfaces
 from iga import HeatProblem, ProblemError, effective_conductivity, effective_table, macro_map
 from tiling import TilingError, graded, library as L
 from tiling.materials import graded_channel

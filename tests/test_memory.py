@@ -1,4 +1,4 @@
-"""iga.memory: the pages of streamed arrays (read back from the kernel's own account, /proc/self/smaps)."""
+"""iga.app.memory: the pages of streamed arrays (read back from the kernel's own account, /proc/self/smaps)."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import sys
 import numpy as np
 import pytest
 
-from iga.memory import streamed_empty
-from iga.vector_csr import VectorCSR
+from iga.app.memory import streamed_empty
+from iga.assembly.vector_csr import VectorCSR
 
 
 def _vm_flags(a: np.ndarray) -> list[str]:
@@ -72,7 +72,7 @@ def _malloc_info() -> tuple[int, int]:
 
 @linux
 def test_returned_memory_gives_large_arrays_their_own_mappings_again():
-    from iga.memory import retain_freed_memory, return_freed_memory
+    from iga.app.memory import retain_freed_memory, return_freed_memory
 
     # each array is larger than the whole heap, so no free block of the heap can serve it: it either grows the
     # heap or gets a mapping of its own, whatever the tests before left in this process

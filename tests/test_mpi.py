@@ -18,7 +18,7 @@ import solvers
 import tiling
 from geometry import primitives as pr
 from iga import HeatProblem
-from iga.distributed import launch_env, mpiexec
+from iga.distributed.solve import launch_env, mpiexec
 from tiling import library as L
 
 petsc4py = pytest.importorskip("petsc4py", reason="petsc4py is not installed (extra [mpi]); the PETSc backend and "
@@ -37,7 +37,7 @@ SCRIPT = textwrap.dedent("""
     import tiling
     from geometry import primitives as pr
     from iga import HeatProblem
-    from iga.distributed import is_root
+    from iga.distributed.solve import is_root
     from tiling import library as L
 
     kind, out = sys.argv[1], sys.argv[2]
@@ -94,7 +94,7 @@ def test_the_serial_petsc_backend_solves_like_the_direct_solver():
                                               ("sink", 4, "per rank"), ("slot", 2, "replicated"),
                                               ("apart-robin", 2, "per rank"), ("ring", 3, "per rank")])
 def test_ranks_give_the_serial_temperatures(tmp_path, kind, ranks, route):
-    """Each rank builds the constraints its patches read (iga.rank_constraints), except where Dirichlet slot
+    """Each rank builds the constraints its patches read (iga.distributed.rank_constraints), except where Dirichlet slot
     faces tie unknowns of the whole model together (the replicated route): temperatures, fluxes, the
     unknowns counted and the components found equal the serial solve's."""
     out = _mpi(tmp_path, ranks, kind, tmp_path / "mpi.json")
@@ -266,7 +266,7 @@ def test_a_distributed_solve_loads_petsc_with_freed_arrays_returned():
                         "arena ordblks smblks hblks hblkhd usmblks fsmblks uordblks fordblks keepcost".split()]
         libc = ctypes.CDLL(ctypes.util.find_library("c"))
         libc.mallinfo2.restype = Info
-        from iga.distributed import load_petsc
+        from iga.distributed.solve import load_petsc
         load_petsc()
         info = libc.mallinfo2()
         a = np.ones((info.arena >> 3) + (6 << 20))  # larger than the heap: no free block of it can serve it

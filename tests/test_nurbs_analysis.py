@@ -1,4 +1,4 @@
-"""Analysis on exact NURBS patches uses the NURBS basis (iga.rational), so it is exact where IGA is exact.
+"""Analysis on exact NURBS patches uses the NURBS basis (iga.discretisation.rational), so it is exact where IGA is exact.
 
 A patch whose geometry is its own rational spline (the exact annulus) holds every affine field of x in its
 basis R = w N / W: a linear temperature and an affine displacement are reproduced and a free thermal expansion
@@ -12,7 +12,7 @@ import pytest
 
 import tiling
 from geometry import primitives as pr
-from geometry.inversion import invert
+from geometry.maps.inversion import invert
 from iga import ElasticityProblem, HeatProblem
 from tiling import library as L
 
@@ -118,7 +118,7 @@ def test_sectors_whose_weights_differ_by_one_factor_glue_and_unequal_weights_are
     # equal control values; weights that differ along a shared face would not glue, and are refused
     from geometry import BSpline
     from iga import ProblemError
-    from iga.constraints import _refuse_unequal_weights
+    from iga.discretisation.constraints import _refuse_unequal_weights
 
     a = pr.annulus(0.5, 1.0, 0.4, angle=np.pi / 2, start=0.0, exact=True)
     b = pr.annulus(0.5, 1.0, 0.4, angle=np.pi / 2, start=np.pi / 2, exact=True)

@@ -4,9 +4,10 @@ volume, stitches), measured at 10^4 random points."""
 import numpy as np
 import pytest
 
-from geometry import SplineError, check_regular, primitives, shapes
-from geometry.offset import exact_offset, offset
-from geometry.sweep import section_error
+from geometry import SplineError, check_regular, primitives
+from geometry.shapes import examples as shapes
+from geometry.shapes.offset import exact_offset, offset
+from geometry.shapes.sweep import section_error
 from tiling import TilingError, library
 from tiling.composite import stitched_strip
 from tiling.export import watertightness

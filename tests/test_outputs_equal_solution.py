@@ -16,7 +16,7 @@ import tiling
 from geometry import primitives as pr
 from helpers import vtk_cell_values
 from iga import ElasticityProblem, HeatProblem, write_vtu
-from iga.maps import vertical_heat_sink_map
+from iga.app.maps import vertical_heat_sink_map
 from tiling import library as L
 
 G = np.array([100.0, -50.0, 200.0])
@@ -88,7 +88,7 @@ def test_every_written_temperature_equals_the_solution(tmp_path, kind):
 def test_the_elastic_vtu_equals_the_elastic_solution_on_a_lidded_hierarchy(tmp_path, side):
     # a stress-free expansion (a uniform temperature rise on a body held by a 3-2-1 set of pins): zero stress
     # everywhere; the VTU once showed 15 MPa von Mises at the lid's seams where the solution has none
-    from iga.vtu import sampled_grid
+    from iga.io.vtu import sampled_grid
 
     ms = _sink(seal="cap", seal_sides=(side,))
     E = 70e9

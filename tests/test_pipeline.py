@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from iga import ProblemError
-from iga.pipeline import heat_sink_config, run_pipeline
+from iga.app.pipeline import heat_sink_config, run_pipeline
 
 REDUCED = """
 [map]

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 from iga import HeatProblem
-from iga.config import validate
+from iga.app.config import validate
 from iga.errors import ProblemError
-from iga.pipeline import run_pipeline
+from iga.app.pipeline import run_pipeline
 
 
 def _out(tmp_path, name="o", **kw):

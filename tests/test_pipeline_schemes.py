@@ -4,9 +4,9 @@ import json
 
 import pytest
 
-from iga.config import validate
+from iga.app.config import validate
 from iga.errors import ProblemError
-from iga.pipeline import run_pipeline
+from iga.app.pipeline import run_pipeline
 
 
 def _bif(**paving):
@@ -61,8 +61,8 @@ def test_exports_by_name_are_written_and_read_back(tmp_path):
 
     import meshio
 
-    from geometry.gismo_xml import read_gismo
-    from iga.describe import describe
+    from geometry.io.gismo import read_gismo
+    from iga.io.describe import describe
 
     cfg = {"map": {"primitive": "box", "args": {"size": [2.0, 1.0, 1.0]}}, "tile": {"library": "cross"},
            "paving": {"scheme": "regular", "counts": [2, 1, 1]}, "material": {"conductivity": 5.0},

@@ -9,8 +9,8 @@ import solvers
 import tiling
 from geometry import primitives as pr
 from iga import HeatProblem, ProblemError
-from iga.multilevel import coarsen_knots, kronecker_sum, prolongations
-from iga.system import eliminate
+from iga.discretisation.multilevel import coarsen_knots, kronecker_sum, prolongations
+from iga.discretisation.system import eliminate
 from solvers import SolverError
 from solvers.kronecker import BlockFastDiagonalization, FastDiagonalization, KroneckerSum
 from solvers.multigrid import Multigrid

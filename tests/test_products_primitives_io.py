@@ -158,7 +158,7 @@ def test_cli_help_and_info(tmp_path):
 def test_point_inversion_recovers_parameters_and_reuses_its_start_grid_while_the_spline_lives():
     import gc
 
-    from geometry import inversion
+    from geometry.maps import inversion
 
     rng = np.random.default_rng(7)
     D = pr.twisted(pr.box((1.0, 2.0, 1.0), degrees=(2, 2, 2), elements=(3, 2, 2)), 0.6, axis_point=(0.5, 1.0))
@@ -186,8 +186,8 @@ def test_point_inversion_recovers_parameters_and_reuses_its_start_grid_while_the
 
 
 def test_element_boxes_hold_every_element_and_outside_points_stop_inverting_once_they_stall():
-    from geometry import inversion
-    from geometry.shapes import cylinder
+    from geometry.maps import inversion
+    from geometry.shapes.examples import cylinder
 
     rng = np.random.default_rng(4)
     D = cylinder(1.0, 4.0, 0)
@@ -223,7 +223,7 @@ def test_element_boxes_hold_every_element_and_outside_points_stop_inverting_once
 
 @pytest.mark.parametrize("allow_zeros,depth", [(False, 9), (True, 6)])
 def test_regularity_proofs_together_equal_the_proofs_alone(allow_zeros, depth):
-    from geometry.regularity import check_regular, check_regular_many
+    from geometry.maps.regularity import check_regular, check_regular_many
     from helpers import random_spline as rs
 
     rng = np.random.default_rng(11)

@@ -1,4 +1,4 @@
-"""Each rank's constraints (iga.rank_constraints) against the whole model's, without MPI: for every rank of
+"""Each rank's constraints (iga.distributed.rank_constraints) against the whole model's, without MPI: for every rank of
 a partition, the rows of its own DOFs equal the serial prolongation's, with the columns matched by their
 classes' smallest DOF (the key every rank numbers them by)."""
 
@@ -9,9 +9,9 @@ import scipy.sparse as sp
 import tiling
 from geometry import primitives as pr
 from iga import HeatProblem
-from iga.constraints import prolongation
-from iga.distributed import partition
-from iga.rank_constraints import class_keys, rank_constraints, ranges
+from iga.discretisation.constraints import prolongation
+from iga.distributed.solve import partition
+from iga.distributed.rank_constraints import class_keys, rank_constraints, ranges
 from tiling import library as L
 
 
@@ -78,7 +78,7 @@ def test_a_lattice_closure_is_two_layers_and_a_fraction_of_the_model():
 
 
 class _TwoRanks:
-    """The part of an MPI communicator :func:`iga.rank_setup.together` uses, as rank ``rank`` of two whose
+    """The part of an MPI communicator :func:`iga.distributed.rank_setup.together` uses, as rank ``rank`` of two whose
     other rank reports ``other``."""
 
     def __init__(self, rank, other):
@@ -93,7 +93,7 @@ class _TwoRanks:
 
 def test_an_error_on_one_rank_is_raised_on_every_rank():
     from iga.errors import ProblemError
-    from iga.rank_setup import together
+    from iga.distributed.rank_setup import together
 
     def fails():
         raise ProblemError("two Dirichlet conditions at odds")

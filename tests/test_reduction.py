@@ -5,7 +5,7 @@ import pytest
 
 import tiling
 from geometry import BSpline, MultiPatch, SplineError, compose, primitives as pr
-from geometry.reduction import reduce_degree, reduce_model
+from geometry.composition.reduction import reduce_degree, reduce_model
 from iga import HeatProblem
 from tiling import library as L
 
@@ -101,7 +101,7 @@ def test_reduction_bad_input():
 
 def _t2_sink():
     """The vertical T2 sink with its patches at the degree Eq. 7 gives them, 12: its box map is affine, so the
-    composition keeps the tiles' degree 2 (geometry/compose_affine.py); elevated, the same functions with the
+    composition keeps the tiles' degree 2 (geometry/composition/affine.py); elevated, the same functions with the
     same continuity, as a curved map would leave them (the reduction then has work to do)."""
     ms = tiling.hierarchical(pr.box((0.06, 0.06, 0.03), degrees=(2, 2, 2)), L.heat_sink_t2(), (2, 2), levels=2)
     for P, V in zip(ms.patches, ms.compose_all()):
@@ -140,7 +140,7 @@ def test_a_reduced_hierarchy_keeps_its_topology_and_tags_and_solves_as_the_origi
     assert sols[1].flux("exterior") == pytest.approx(sols[0].flux("exterior"), rel=1e-9)
     assert sols[1].info["components"]["count"] == 1 and sols[1].info["balance"]["relative_error"] < 1e-10
     # a curved map: the reduction is an approximation; its branch sides are reported apart by what it moved
-    from iga.maps import circular_heat_sink_map
+    from iga.app.maps import circular_heat_sink_map
 
     sink = tiling.hierarchical(circular_heat_sink_map(), L.heat_sink_t1(), (4, 1), levels=2)
     red, report = reduced_model(sink, 3)

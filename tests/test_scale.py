@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from geometry import SplineError, primitives
-from geometry.scale import scale_bounds
+from geometry.maps.scale import scale_bounds
 from tiling import library, regular
 
 

@@ -148,7 +148,7 @@ def _sealed_config(**paving):
 
 
 def test_pipeline_with_a_sealed_paving(tmp_path):
-    from iga.pipeline import run_pipeline
+    from iga.app.pipeline import run_pipeline
 
     summary = run_pipeline(_sealed_config(seal="cap", seal_sides=["wmax"], thickness=0.15), tmp_path)
     assert summary["energy_balance_error"] < 1e-9 and summary["temperature_C"]["max"] > 20.0
@@ -157,7 +157,7 @@ def test_pipeline_with_a_sealed_paving(tmp_path):
 
 
 def test_pipeline_with_a_capped_hierarchy(tmp_path):
-    from iga.pipeline import run_pipeline
+    from iga.app.pipeline import run_pipeline
 
     cfg = _sealed_config()
     cfg["map"]["args"]["size"] = [0.06, 0.06, 0.03]
@@ -174,7 +174,7 @@ def test_pipeline_with_a_capped_hierarchy(tmp_path):
     (dict(seal="cap", seal_sides=["top"]), "paving.seal_sides"), (dict(seal="cap", thickness=0.7), "paving.thickness")])
 def test_pipeline_seal_errors_name_the_key(tmp_path, paving, match):
     from iga import ProblemError
-    from iga.pipeline import run_pipeline
+    from iga.app.pipeline import run_pipeline
 
     with pytest.raises(ProblemError, match=match):
         run_pipeline(_sealed_config(**paving), tmp_path)

@@ -5,12 +5,12 @@ import pytest
 
 import tiling
 from geometry import primitives as pr
-from geometry.chain import patch_geometry_points, gradient_and_det
+from geometry.patches.chain import patch_geometry_points, gradient_and_det
 from helpers import decode_appended_vtu, surface_gauss
 from iga import HeatProblem, write_vtu
-from iga.config import validate
-from iga.pipeline import heat_sink_config
-from iga.pipeline_build import build, build_maps
+from iga.app.config import validate
+from iga.app.pipeline import heat_sink_config
+from iga.app.pipeline_build import build, build_maps
 from tiling import library as L
 
 
@@ -144,7 +144,7 @@ def test_a_floating_piece_is_refused_and_pieces_are_reported():
     ms.interfaces.remove(cut[0])  # the bond between the two tiles
     with pytest.raises(SingularProblemError, match="falls apart into 2 connected pieces and 1 of them float"):
         HeatProblem(ms).dirichlet("umin", 0.0).neumann("umax", 1.0).solve()
-    from iga.components import IdleComponentWarning
+    from iga.discretisation.components import IdleComponentWarning
 
     with pytest.warns(IdleComponentWarning, match="2 of the model's 2 connected pieces carry no heat"):
         sol = HeatProblem(ms).dirichlet("umin", 0.0).robin("umax", 1.0, 1.0).solve()
@@ -157,7 +157,7 @@ def test_a_floating_piece_is_refused_and_pieces_are_reported():
 
 def test_no_heat_path_between_conditions_is_told_and_the_balance_is_scaled():
     """The regular paving of the fractal tile joins no wall to the opposite one (Massarwi et al. 2018 Fig. 3)."""
-    from iga.components import IdleComponentWarning
+    from iga.discretisation.components import IdleComponentWarning
 
     ms = tiling.regular(pr.box(), L.fractal(), (2, 2, 2))
     with pytest.warns(IdleComponentWarning, match="no heat path joins conditions of different values"):
@@ -210,7 +210,7 @@ def test_opencascade_rereads_the_iges_with_every_area(which, tmp_path):
     by the degree, reaches about 4e-6 on the circular sink's degree-12 surfaces and 7e-5 on the curved
     degree-2 ones of the vertical sink, whose box map is affine: exact to 3e-16 on its flat faces)."""
     gmsh = pytest.importorskip("gmsh")
-    from geometry.iges import write_iges
+    from geometry.io.iges import write_iges
     from tiling.export import boundary_splines
 
     ms = _vrep_union() if which == "vrep union" else _demo_problem(which).model
@@ -243,7 +243,7 @@ def test_opencascade_rereads_the_iges_with_every_area(which, tmp_path):
 
 def test_iges_strings_that_would_corrupt_the_records_are_refused(tmp_path):
     from geometry import SplineError
-    from geometry.iges import write_iges
+    from geometry.io.iges import write_iges
 
     s = pr.box().boundary("umin")
     for kw, match in (({"name": "a\nb"}, "name 'a\\\\nb' holds"), ({"author": "Zoë"}, "author 'Zoë' holds 'ë'")):
@@ -262,9 +262,9 @@ def test_gismo_round_trip_of_the_graded_sink_with_robin_on_exterior(tmp_path):
     (pygismo) sees every patch, identity interface and side condition, and the export names what it cannot."""
     import re
 
-    from geometry.gismo_xml import read_gismo
+    from geometry.io.gismo import read_gismo
     from iga import ProblemError
-    from iga.gismo import GismoExtensionWarning, export_gismo, problem_from_gismo
+    from iga.io.gismo import GismoExtensionWarning, export_gismo, problem_from_gismo
 
     p = _demo_problem("vertical")
     p.conditions.clear()
@@ -319,7 +319,7 @@ _GEO = ('<Geometry type="TensorBSpline3" id="{id}"><Basis type="TensorBSplineBas
 ])
 def test_gismo_reader_names_the_file_element_and_attribute(text, match, tmp_path):
     from geometry import SplineError
-    from geometry.gismo_xml import read_gismo
+    from geometry.io.gismo import read_gismo
 
     path = tmp_path / "bad.xml"
     path.write_text(text)
@@ -330,7 +330,7 @@ def test_gismo_reader_names_the_file_element_and_attribute(text, match, tmp_path
 def test_vtu_samples_chosen_from_a_geometric_tolerance_meet_it_per_direction(tmp_path):
     import pyvista as pv
 
-    from geometry.sampling import chord_samples
+    from geometry.patches.sampling import chord_samples
 
     ms = tiling.regular(pr.annulus(0.5, 1.0, 0.3, angle=np.pi), L.cross(), (2, 1, 1))  # curved along u only
     sol = HeatProblem(ms).dirichlet("vmin", 1.0).dirichlet("vmax", 0.0).solve()
@@ -368,8 +368,8 @@ def test_pinch_lines_of_a_tile_are_named_and_explain_its_non_manifold_edges():
 
 def test_the_contact_check_finds_the_same_pairs_whatever_its_chunks(monkeypatch):
     """The free faces are sampled in chunks (bounded transients); pairs across chunks are still found."""
-    import geometry.contact as contact
-    from geometry.multipatch import free_face_mask
+    import geometry.patches.contact as contact
+    from geometry.patches.multipatch import free_face_mask
 
     ms = tiling.regular(pr.box((2.0, 1.0, 1.0)), L.cross(), (3, 2, 2))
     cut = [i for i in ms.interfaces if ms.patches[i.a[0]].tile != ms.patches[i.b[0]].tile][:4]
@@ -385,8 +385,8 @@ def test_the_contact_check_finds_the_same_pairs_whatever_its_chunks(monkeypatch)
 
 def test_face_points_take_keys_as_tuples_or_as_an_index_array():
     from geometry.faces import FACE_NAMES
-    from geometry.multipatch import FACE_SAMPLES
-    from geometry.placed_points import face_points
+    from geometry.patches.multipatch import FACE_SAMPLES
+    from geometry.patches.placed_points import face_points
 
     ms = tiling.regular(pr.twisted(pr.box(degrees=(2, 2, 2)), 0.3, axis_point=(0.5, 0.5)), L.cross(), (2, 2, 1))
     rng = np.random.default_rng(3)

@@ -78,7 +78,7 @@ def test_shell_bad_input():
 def test_fill_rings_keeps_every_vertex_of_a_straight_side():
     """Regression: earcut drops ring vertices between collinear neighbours, so the shell's inner rectangles
     (8 samples per straight side) met their neighbours in T-junctions; every ring vertex is used now."""
-    from geometry.triangulate import fill_rings
+    from geometry.shapes.triangulate import fill_rings
 
     t = np.linspace(0.0, 4.0, 33)[:-1]
     side = np.floor(t).astype(int)

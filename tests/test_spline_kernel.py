@@ -241,7 +241,7 @@ def test_invalid_operations_raise_spline_error():
 @pytest.mark.parametrize("seed", range(4))
 def test_compiled_scattered_evaluation_matches_scipy(seed):
     pytest.importorskip("numba", reason="the compiled kernel needs numba (the test extra installs it)")
-    from geometry import _fast
+    from geometry.compiled import _fast
     rng = np.random.default_rng(seed)
     s = random_spline(rng, 3, rational=seed % 2 == 1, channels=("k",) * (seed % 2), max_p=4)
     n = _fast.MIN_POINTS + 7

@@ -31,7 +31,7 @@ def test_a_memory_budget_holds_inside_its_block_only_and_not_in_other_threads():
 
 def test_a_pipeline_limit_is_gone_after_the_run(tmp_path):
     from iga.errors import ToolkitError
-    from iga.pipeline import heat_sink_config, run_pipeline
+    from iga.app.pipeline import heat_sink_config, run_pipeline
 
     cfg = {**heat_sink_config("vertical", levels=1, out=str(tmp_path / "out")), "limits": {"max_memory_gib": 1e-6}}
     with pytest.raises(ToolkitError, match="more than the 1e-06 GiB"):
@@ -87,7 +87,7 @@ def test_one_definition_of_the_same_space():
 
 
 def test_block_assembly_names_offsets_that_do_not_match_the_spaces():
-    from iga.assembly import block_diagonal_csr
+    from iga.assembly.tensor import block_diagonal_csr
     from iga.errors import ProblemError
 
     class Pattern:  # what block_diagonal_csr reads of a CSR pattern

@@ -5,11 +5,12 @@ lattices in the duck and helical fibres."""
 import numpy as np
 import pytest
 
-from geometry import BSpline, SplineError, primitives, shapes
-from geometry.sweep import circle, frames, section_error, sweep
+from geometry import BSpline, SplineError, primitives
+from geometry.shapes import examples as shapes
+from geometry.shapes.sweep import circle, frames, section_error, sweep
 from tiling import Microstructure, TilingError, library, regular, round_struts
 from tiling.export import watertightness
-from geometry.multipatch import PlacedPatch
+from geometry.patches.multipatch import PlacedPatch
 from helpers import opencascade, surface_area
 
 ARC = BSpline((3,), [[0, 0, 0, 0, 0.5, 1, 1, 1, 1]],

@@ -8,7 +8,7 @@ from geometry import primitives as pr
 from iga import HeatProblem
 from iga.errors import ProblemError
 from iga.model import as_model, tag_faces
-from iga.pipeline import run_pipeline
+from iga.app.pipeline import run_pipeline
 from tiling import library as L
 
 

@@ -131,7 +131,7 @@ def test_regular_cross_paving_interfaces_and_free_faces():
 
 
 def test_free_faces_are_the_faces_no_interface_glues_slot_and_branch_faces_included():
-    from geometry.multipatch import free_face_mask, free_faces
+    from geometry.patches.multipatch import free_face_mask, free_faces
 
     D = pr.box((2.0, 1.0, 1.0))
     models = [tiling.regular(D, L.cross(), (2, 2, 1), seal="cap"), tiling.hierarchical(D, L.heat_sink_t2(), (2, 1), 3)]

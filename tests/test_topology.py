@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from geometry import MultiPatch, primitives as pr
-from geometry.multipatch import detect_interfaces
+from geometry.patches.multipatch import detect_interfaces
 from iga import HeatProblem
-from iga.maps import circular_heat_sink_map, vertical_heat_sink_map
+from iga.app.maps import circular_heat_sink_map, vertical_heat_sink_map
 from tiling import library as L, regular, hierarchical
 from tiling.topology import seams
 
@@ -77,10 +77,10 @@ def test_pavings_and_user_lists_couple_at_every_length_scale(size):
 
 
 def test_face_points_of_many_faces_equal_each_face_alone():
-    """geometry.placed_points.face_points batches faces by spline, face and sample set: its points equal those
+    """geometry.patches.placed_points.face_points batches faces by spline, face and sample set: its points equal those
     of every face evaluated alone (placed through its map), whichever way the sample sets are given."""
-    from geometry.multipatch import FACE_SAMPLES, ORIENTATIONS, _oriented_samples
-    from geometry.placed_points import face_points
+    from geometry.patches.multipatch import FACE_SAMPLES, ORIENTATIONS, _oriented_samples
+    from geometry.patches.placed_points import face_points
 
     ms = regular(pr.twisted(pr.box((2.0, 1.0, 1.0)), 0.4), L.cross(), (2, 2, 2))
     keys = [(i, f) for i in range(0, len(ms.patches), 3) for f in ("umin", "vmax", "wmax")]
@@ -98,7 +98,7 @@ def test_face_points_of_many_faces_equal_each_face_alone():
 
 
 def test_the_geometric_search_names_faces_that_touch_without_conforming():
-    from geometry.multipatch import PlacedPatch
+    from geometry.patches.multipatch import PlacedPatch
 
     # three unit boxes in a row along u: the 1st and 2nd share a face of equal corners but different knots
     # (the 2nd refined along v), the 2nd and 3rd one whose middle differs (the 3rd's control point moved), and a

@@ -6,8 +6,8 @@ from numpy.polynomial.legendre import leggauss
 
 from geometry import BSpline, SplineError, compose, primitives as pr
 from geometry import knots as kn
-from geometry.iges import write_iges
-from geometry.trimmed import TrimmedSurface, reversed_curve
+from geometry.io.iges import write_iges
+from geometry.shapes.trimmed import TrimmedSurface, reversed_curve
 from helpers import read_own_iges as _read_own_iges
 
 

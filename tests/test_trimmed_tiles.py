@@ -189,8 +189,8 @@ def test_the_members_weld_along_their_shared_curves_into_one_network_open_only_o
 
 
 def test_stitching_closes_two_samplings_of_one_edge():
-    from geometry.stitch import stitch_boundaries
-    from geometry.sampling import weld
+    from geometry.shapes.stitch import stitch_boundaries
+    from geometry.patches.sampling import weld
 
     # two unit squares side by side, the shared edge x = 1 split in 3 on the left and in 4 on the right
     def strip(x0, n):
@@ -218,7 +218,7 @@ def test_stitching_closes_two_samplings_of_one_edge():
 def test_members_sampling_a_shared_edge_differently_are_stitched():
     """Two trimmed planes meeting along x = 0.8, z = 0.5 (an L), whose loops break that edge at different
     points: their own samplings differ, and the stitched mesh is open only on the L's outer rim."""
-    from geometry.trimmed import join_curves
+    from geometry.shapes.trimmed import join_curves
     from tiling.export import surface
 
     def plane(corners):  # a bilinear plane (corners in order) with a polygon loop in its parameters

@@ -5,7 +5,7 @@ import pytest
 
 import tiling
 from geometry import primitives as pr
-from geometry.shapes import cylinder
+from geometry.shapes.examples import cylinder
 from tiling import TilingError
 from tiling import library as L
 from helpers import face_params
@@ -71,7 +71,7 @@ def test_a_subtraction_keeps_no_tile_inside_the_subtracted_primitives():
     # bridges end on the trimming surface (their far section is snapped onto it through A's map): they enter
     # the subtracted primitives by at most a second-order sliver, 0.1% of the cylinders' diameter
     from geometry.faces import FACE_NAMES
-    from geometry.inversion import invert
+    from geometry.maps.inversion import invert
 
     pts = points(ms.patches[first_bridge:])
     for Q in (B, C):
@@ -157,7 +157,7 @@ def test_distance_to_a_primitive_is_the_distance_to_its_boundary_and_within_agre
 def test_the_nearest_boundary_surface_is_the_one_every_inversion_would_choose(damped):
     from geometry.errors import SplineError
     from geometry.faces import FACE_NAMES
-    from geometry.inversion import invert, invert_nearest
+    from geometry.maps.inversion import invert, invert_nearest
 
     _, B, _ = _cylinders()
     faces = [B.D.boundary(f) for f in FACE_NAMES]
@@ -230,9 +230,9 @@ def test_bridges_start_g1_at_their_tiles_and_end_orthogonal_on_the_trimming_surf
     """Every bridge (in map parameters, or rebuilt in space where D's knot lines cut it) is glued to its tile by
     an identity interface, its face equal to the tile's point by point and G1 across it, and ends on the
     trimming surface, orthogonal to it."""
-    from geometry.chain import patch_geometry_points
+    from geometry.patches.chain import patch_geometry_points
     from geometry.faces import FACE_AXIS, FACE_NAMES
-    from geometry.inversion import invert
+    from geometry.maps.inversion import invert
 
     A, B, C = _cylinders()
     res = vrep_microstructure(A - B)
@@ -310,7 +310,7 @@ def test_v_cells_name_their_primitives_owner_and_trimming_surfaces():
 
 def test_the_primitives_materials_reach_the_patches():
     from geometry import BSpline
-    from geometry.chain import patch_geometry_points
+    from geometry.patches.chain import patch_geometry_points
 
     def with_k(D, k):
         cp = np.concatenate([D.control_points, np.full(D.control_points.shape[:-1] + (1,), k)], -1)
@@ -358,8 +358,8 @@ def test_a_v_model_with_bridges_across_knot_lines_composes_exactly_and_exports_t
     """(A u B) - C: some bridges to C cross knot lines of their map; rebuilt in space, every patch composes into
     one exact B-spline (compose_all), every bridge's composed spline equals its chain-rule evaluation at random
     points, and the boundary goes to IGES."""
-    from geometry.chain import patch_geometry_points
-    from geometry.iges import write_iges
+    from geometry.patches.chain import patch_geometry_points
+    from geometry.io.iges import write_iges
     from tiling.export import boundary_splines
     from tiling.vrep.spatial import crosses_knot_lines
 

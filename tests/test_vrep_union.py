@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 from geometry.faces import FACE_AXIS
-from geometry.multipatch import ORIENTATIONS
+from geometry.patches.multipatch import ORIENTATIONS
 from geometry.primitives import box
-from geometry.regularity import check_regular
+from geometry.maps.regularity import check_regular
 from iga import HeatProblem
 from tiling import library as L
 from tiling.errors import TilingError
@@ -53,7 +53,7 @@ def _volume_face(G, face, st):
 
 def _distance_to(points, surface):
     """Largest distance from points to a surface (point inversion)."""
-    from geometry.inversion import invert
+    from geometry.maps.inversion import invert
 
     return float(invert(surface, points).distance.max())
 
@@ -287,7 +287,7 @@ def test_orientations_follow_the_interface_convention():
 
 @pytest.mark.parametrize("which", ["cylinders", "duck"])
 def test_subtraction_v_models_are_heat_models(which):
-    from geometry.shapes import cylinder, duck
+    from geometry.shapes.examples import cylinder, duck
 
     if which == "cylinders":
         from tiling.vrep.examples import cylinders
@@ -363,7 +363,7 @@ def test_a_small_fold_that_depth_8_leaves_undecided_is_refused_before_assembly()
     # check, which missed it; the proof is now tried deeper where undecided and names the fold
     from pathlib import Path
 
-    from geometry import io
+    from geometry.io import files as io
     from iga import ProblemError
 
     G = io.load(Path(__file__).parent / "data" / "folded_fork_arm.npz")

@@ -12,7 +12,7 @@ from geometry.errors import show
 from geometry.grouping import ObjectIndex
 from geometry.numbers import is_integer
 from geometry.resources import check_memory
-from geometry.sampling import sample_axes
+from geometry.patches.sampling import sample_axes
 from geometry.tolerances import COINCIDENT
 
 from .errors import TilingError

@@ -2,7 +2,7 @@
 
 The chain of the paper: a strip of the surface's domain is composed into the surface (for a
 rectangle of the domain that is its exact sub-patch), "offset a bit to yield some real
-thickness" (:func:`geometry.offset.offset`, within a stated tolerance), a ruled trivariate is
+thickness" (:func:`geometry.shapes.offset.offset`, within a stated tolerance), a ruled trivariate is
 formed between the strip and its offset (:func:`geometry.primitives.ruled`, exact), and that
 trivariate is paved with stitch tiles.  With a curve tile and a radius the stitches are swept
 with circular sections along their composed axes (:func:`tiling.round_struts`), which is what
@@ -16,10 +16,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from geometry import BSpline, check_regular, primitives
-from geometry.composition import compose_curves
+from geometry.composition.core import compose_curves
 from geometry.errors import SplineError, show
-from geometry.multipatch import PlacedPatch
-from geometry.offset import Offset, offset
+from geometry.patches.multipatch import PlacedPatch
+from geometry.shapes.offset import Offset, offset
 
 from .errors import TilingError
 from .microstructure import Microstructure
@@ -33,7 +33,7 @@ __all__ = ["StitchedStrip", "stitched_strip"]
 
 @dataclass
 class StitchedStrip:
-    """One strip of a Fig. 8 composite: ``strip`` (the exact sub-surface), ``offset`` (:class:`geometry.offset.Offset`,
+    """One strip of a Fig. 8 composite: ``strip`` (the exact sub-surface), ``offset`` (:class:`geometry.shapes.offset.Offset`,
     with its measured error), ``volume`` (the ruled trivariate between them) and ``stitches`` (the paving of the
     volume: composed tiles, or round struts when a radius was given)."""
 

@@ -1,7 +1,7 @@
 """The boundary surface of a micro-structure, its watertightness, and its export (VTU / OBJ / STL / PLY).
 
 Trivariate patches are sampled on conforming grids and welded into one
-volume mesh (:func:`geometry.sampling.sampled_mesh`: matching sample points
+volume mesh (:func:`geometry.patches.sampling.sampled_mesh`: matching sample points
 on every interface, both sides of open discontinuity planes, coinciding
 points merged); its boundary is extracted by VTK.  Surface tiles are sampled
 on their own grids and curve tiles as polylines, through the exact chain rule
@@ -24,11 +24,11 @@ import numpy as np
 from geometry import Interface, MultiPatch, compose_many
 from geometry.faces import FACE_AXIS, FACE_NAMES, face_name, parse_slot_face
 from geometry.errors import SplineError
-from geometry.iges import write_iges as _write_iges
-from geometry.placed_points import IDENTITY, placements
-from geometry.orientation import orient_outward
-from geometry.io import atomic_write, offscreen_plotter, save_screenshot
-from geometry.sampling import piece_boxes, sample_axes, sampled_mesh, weld
+from geometry.io.iges import write_iges as _write_iges
+from geometry.patches.placed_points import IDENTITY, placements
+from geometry.shapes.orientation import orient_outward
+from geometry.io.files import atomic_write, offscreen_plotter, save_screenshot
+from geometry.patches.sampling import piece_boxes, sample_axes, sampled_mesh, weld
 
 from .errors import TilingError
 from tiling.sealing.rims import conforming_axes
@@ -157,11 +157,11 @@ def _trimmed_triangles(ms, samples: int) -> list:
 
     A tile's members are tessellated once in tile coordinates (chord tolerance 0.08 / samples^2 of the unit
     cell: a quarter circle of radius 0.25 gets about ``samples`` chords, as a patch's element does), their
-    shared trimming curves stitched (:func:`geometry.stitch.stitch_boundaries`: each side takes the other's
+    shared trimming curves stitched (:func:`geometry.shapes.stitch.stitch_boundaries`: each side takes the other's
     samples, so they weld), and the tile's mesh is mapped per placement; member j of the micro-structure's
     ``trimmed`` is drawn as patch ``len(ms.patches) + j``."""
     from geometry.grouping import ObjectIndex
-    from geometry.stitch import stitch_boundaries
+    from geometry.shapes.stitch import stitch_boundaries
 
     tol = 0.08 / samples ** 2
     same = ObjectIndex()
@@ -206,7 +206,7 @@ def _edge_params(s, edge: str, samples: int) -> np.ndarray:
 
 def _cap_triangles(ms: Microstructure, pc, samples: int):
     """Physical points and triangles of a trimmed cap whose loop points are its tile's edge samples."""
-    from geometry.triangulate import fill_rings
+    from geometry.shapes.triangulate import fill_rings
 
     k, _ = FACE_AXIS[pc.cap.side]
     rest = [j for j in range(3) if j != k]

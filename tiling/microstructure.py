@@ -32,15 +32,15 @@ import scipy.sparse as sp
 from geometry import BSpline
 from geometry.errors import SplineError
 from geometry.faces import FACE_NAMES, discontinuity_slots, face_knots, nested_refinement
-from geometry.contact import unglued_contacts
-from geometry.multipatch import (Interface, MultiPatch, PlacedPatch, detect_interfaces, free_face_mask, free_faces,
+from geometry.patches.contact import unglued_contacts
+from geometry.patches.multipatch import (Interface, MultiPatch, PlacedPatch, detect_interfaces, free_face_mask, free_faces,
                                  tile_corners)
 
 from . import export
 from .errors import TilingError
 from geometry.errors import show
 from geometry.grouping import ObjectIndex
-from geometry.scale import scale_bounds
+from geometry.maps.scale import scale_bounds
 from geometry.tolerances import COINCIDENT
 
 __all__ = ["Microstructure", "PlacedPatch", "Interface", "branch_refinement"]
@@ -135,7 +135,7 @@ class Microstructure(MultiPatch):
 
     def scale_bounds(self, subdivide: int = 2):
         """Guaranteed bounds on how much the map stretches each placed tile
-        (:func:`geometry.scale.scale_bounds` over :meth:`tile_boxes`; ``.tiles`` names the tile of each row).
+        (:func:`geometry.maps.scale.scale_bounds` over :meth:`tile_boxes`; ``.tiles`` names the tile of each row).
 
         ``lower`` / ``upper``: the smallest and largest scale factor (singular value of
         the map's Jacobian, model units per parameter unit) on each tile's box,
@@ -218,7 +218,7 @@ def _tags(outer, placed, interfaces, root_faces, leaf_faces=(), mask=None, corne
     """Tags of the free faces (module notes): every trivariate face no interface glues, by the domain face
     all its corners lie on (``internal`` if none), in patch then face order; one array pass over the faces
     instead of a set lookup per face (the 65k patches of a 21^3 cross lattice: 0.36 -> 0.21 s).  ``corners``:
-    the :func:`geometry.placed_points.tile_corners` of ``placed``, when the caller has them."""
+    the :func:`geometry.patches.placed_points.tile_corners` of ``placed``, when the caller has them."""
     dom = outer.domain
     scale = float(np.abs(dom).max()) + 1.0
     pidx, fc = tile_corners(placed) if corners is None else corners

@@ -29,7 +29,7 @@ from geometry.errors import SplineError
 from geometry.faces import FACE_NAMES
 from geometry.errors import show
 from geometry.grouping import ObjectIndex
-from geometry.placed_points import IDENTITY
+from geometry.patches.placed_points import IDENTITY
 from geometry.numbers import is_integer, is_real
 
 

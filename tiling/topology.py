@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from geometry import BSpline
-from geometry.multipatch import Interface, PlacedPatch, detect_interfaces
+from geometry.patches.multipatch import Interface, PlacedPatch, detect_interfaces
 from geometry.tolerances import COINCIDENT, model_size
 
 __all__ = ["seams", "grid_interfaces", "layout_pairs"]

@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from geometry import BSpline, knots as kn
-from geometry.sampling import sample_axes
+from geometry.patches.sampling import sample_axes
 from geometry.errors import show
 
 from tiling.errors import TilingError

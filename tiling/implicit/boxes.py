@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import comb
 
-from geometry import _fast
+from geometry.compiled import _fast
 from geometry import knots as kn
 
 __all__ = ["BoxGrid", "box_grid", "judge", "judge_children", "classify", "sign_at", "BAND"]
@@ -116,7 +116,7 @@ def judge_children(G: np.ndarray, grid: BoxGrid, boxes: np.ndarray, children: np
     L = len(boxes)
     low, high, mono = np.empty(L), np.empty(L), np.empty(L, np.uint8)
     if _fast.AVAILABLE:
-        from geometry.compile_lock import locked
+        from geometry.compiled.lock import locked
 
         from tiling.implicit._certify_kernels import judge_rows
 

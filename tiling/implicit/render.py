@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from geometry.errors import show
-from geometry.io import offscreen_plotter, save_screenshot
+from geometry.io.files import offscreen_plotter, save_screenshot
 
 from tiling.errors import TilingError
 

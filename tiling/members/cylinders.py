@@ -28,7 +28,7 @@ import numpy as np
 from geometry import BSpline, TrimmedSurface
 from geometry.errors import show
 from geometry.primitives import arc
-from geometry.trimmed import join_curves, reversed_curve
+from geometry.shapes.trimmed import join_curves, reversed_curve
 
 from tiling.errors import TilingError
 from tiling.tile import Tile

@@ -20,7 +20,7 @@ import numpy as np
 
 from geometry import BSpline, map_points
 from geometry.errors import show
-from geometry.orientation import orient_outward
+from geometry.shapes.orientation import orient_outward
 from geometry.resources import check_memory
 
 from tiling.errors import TilingError

@@ -4,7 +4,7 @@ Elber 2017 (Section 4, Fig. 10) and Massarwi et al. 2018 (Section 1): composing 
 beam with a round section into a map distorts the section; composing only the axis
 curves (exact, :func:`geometry.compose`) and sweeping a circle along the deformed
 axes keeps every section a circle, within the sweep's tolerance
-(:func:`geometry.sweep.sweep`).  Each strut becomes a capsule (tube and two exact
+(:func:`geometry.shapes.sweep.sweep`).  Each strut becomes a capsule (tube and two exact
 hemispheres), a closed surface; struts meeting at a lattice node end in the same sphere
 there, so the lattice is a union of closed shells that overlap at the nodes (what
 slicers for additive manufacturing take; no Boolean union is formed).
@@ -18,9 +18,9 @@ import numpy as np
 
 from geometry import BSpline
 from geometry.errors import SplineError, show
-from geometry.multipatch import PlacedPatch
-from geometry.sweep import kinks, points_and_tangents, sweep
-from geometry.trimmed import join_curves, reversed_curve
+from geometry.patches.multipatch import PlacedPatch
+from geometry.shapes.sweep import kinks, points_and_tangents, sweep
+from geometry.shapes.trimmed import join_curves, reversed_curve
 
 from tiling.errors import TilingError
 from tiling.microstructure import Microstructure
@@ -31,7 +31,7 @@ __all__ = ["round_struts", "StrutReport"]
 
 @dataclass
 class StrutReport:
-    """What :func:`round_struts` built: ``sweeps`` (one :class:`geometry.sweep.Sweep` per strut piece),
+    """What :func:`round_struts` built: ``sweeps`` (one :class:`geometry.shapes.sweep.Sweep` per strut piece),
     ``radius`` and ``tolerance`` (model units) and ``error``, the largest measured sweep error."""
 
     sweeps: list

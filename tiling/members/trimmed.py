@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from geometry import TrimmedSurface, compose_placed
-from geometry.multipatch import PlacedPatch
+from geometry.patches.multipatch import PlacedPatch
 
 __all__ = ["PlacedTrimmed", "place_trimmed", "composed_trimmed"]
 

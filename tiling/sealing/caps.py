@@ -11,7 +11,7 @@ composed with it: the wall plane exactly through D, the loops unaltered
 (Elber 2017, Fig. 7), so the cap's boundary is exactly the image of the
 tile's boundary curves.  In :func:`tiling.export.surface` a cap is
 triangulated with the very sample points of the tile's edges on its loops
-(:func:`geometry.triangulate.fill_rings` keeps them), so caps weld to the
+(:func:`geometry.shapes.triangulate.fill_rings` keeps them), so caps weld to the
 tile into a watertight surface.
 """
 
@@ -24,8 +24,8 @@ import numpy as np
 from geometry import BSpline, TrimmedSurface
 from geometry.errors import SplineError, show
 from geometry.faces import FACE_AXIS, FACE_NAMES
-from geometry.multipatch import PlacedPatch
-from geometry.trimmed import inside_polyline, join_curves, loop_polyline
+from geometry.patches.multipatch import PlacedPatch
+from geometry.shapes.trimmed import inside_polyline, join_curves, loop_polyline
 
 from tiling.errors import TilingError
 from tiling.sealing.plates import SealedTile

@@ -12,8 +12,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from geometry.grouping import ObjectIndex
-from geometry.placed_points import placements
-from geometry.sampling import sample_axes
+from geometry.patches.placed_points import placements
+from geometry.patches.sampling import sample_axes
 
 __all__ = ["conforming_axes"]
 

@@ -32,7 +32,7 @@ import numpy as np
 from geometry import BSpline
 from geometry.errors import show
 from geometry.faces import FACE_AXIS, FACE_NAMES
-from geometry.trimmed import join_curves
+from geometry.shapes.trimmed import join_curves
 
 from tiling.sealing.caps import wall_covered, surface_patches, wall_plane, trimmed_regions, wall_loops
 from tiling.errors import TilingError

@@ -26,7 +26,7 @@ from geometry import progress
 from geometry.primitives import box
 from geometry.errors import show
 from geometry.faces import FACE_AXIS, FACE_NAMES
-from geometry.multipatch import face_points, tile_corners
+from geometry.patches.multipatch import face_points, tile_corners
 
 from ..errors import TilingError
 from ..microstructure import Microstructure, PlacedPatch

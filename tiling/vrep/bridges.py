@@ -37,7 +37,7 @@ import numpy as np
 
 from geometry import BSpline
 from geometry.faces import FACE_AXIS, FACE_NAMES
-from geometry.inversion import invert, invert_nearest
+from geometry.maps.inversion import invert, invert_nearest
 
 from ..errors import TilingError
 from .report import SurfaceCounts

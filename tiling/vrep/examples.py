@@ -16,7 +16,7 @@ on the maps as channels where a model is meant for heat analysis.
 from __future__ import annotations
 
 from geometry.primitives import box
-from geometry.shapes import cylinder, duck
+from geometry.shapes.examples import cylinder, duck
 
 from .. import library as L
 from .model import Primitive, VModel
@@ -44,7 +44,7 @@ def cylinders(counts=(1, 1, 12)):
 
 
 def winged_duck(body=(10, 10, 12), wing=(10, 20, 1), k_body: float = 205.0, k_wing: float = 54.0) -> VModel:
-    """(body | left wing | right wing) - hole: the duck (2.1 long, :func:`geometry.shapes.duck`, 1 x 1 x 5
+    """(body | left wing | right wing) - hole: the duck (2.1 long, :func:`geometry.shapes.examples.duck`, 1 x 1 x 5
     knot spans) paved ``body`` tiles per span; two 0.6 x 1.1 x 0.12 wings (biquadratic boxes) entering the body
     0.3 deep, paved ``wing`` per span, priorities 3 and 2 over the body's 1; a hole of radius 0.09 through the
     body near the tail.  Channels ``k`` per primitive."""

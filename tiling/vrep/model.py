@@ -22,7 +22,7 @@ import numpy as np
 from geometry import BSpline
 from geometry.errors import show
 from geometry.faces import FACE_NAMES
-from geometry.inversion import box_gaps, invert, invert_nearest
+from geometry.maps.inversion import box_gaps, invert, invert_nearest
 
 from ..errors import TilingError
 from ..checks import check_budget

@@ -22,7 +22,7 @@ import numpy as np
 
 from geometry import BSpline
 from geometry.faces import FACE_AXIS
-from geometry.inversion import invert_nearest
+from geometry.maps.inversion import invert_nearest
 from geometry.tolerances import COINCIDENT
 
 from .tubes import Face, face_of, face_space, hermite_tube, tube_space

@@ -39,8 +39,8 @@ from geometry import BSpline
 from geometry import knots as kn
 from geometry.spline import SplineFunction
 from geometry.faces import FACE_AXIS
-from geometry.multipatch import ORIENTATIONS, PlacedPatch
-from geometry.regularity import prove_one_signed_many
+from geometry.patches.multipatch import ORIENTATIONS, PlacedPatch
+from geometry.maps.regularity import prove_one_signed_many
 from geometry.cache import BoundedCache
 
 from ..errors import TilingError
@@ -128,7 +128,7 @@ def face_of(P: PlacedPatch, face: str, key=None) -> Face:
     C = P.composed
     if C.is_rational:
         raise TilingError(f"patch face {key}: union bridges join polynomial faces; the composed patch is rational "
-                          "(a rational map or tile); use a polynomial map such as geometry.shapes.cylinder")
+                          "(a rational map or tile); use a polynomial map such as geometry.shapes.examples.cylinder")
     k, s = FACE_AXIS[face]
     cp = C.control_points
     F = np.take(cp, -1 if s else 0, axis=k)
@@ -368,8 +368,8 @@ _GRID = np.stack(np.meshgrid(*([np.linspace(0.0, 1.0, 6)] * 2 + [np.linspace(0.0
 def is_regular(G) -> bool:
     """Whether the trivariate G's Jacobian keeps one sign: a 6 x 6 x 9 sample screen (ends included) rejects
     samples of both signs at once; otherwise the exact Bernstein proof decides, the one
-    :func:`iga.regularity.prove_regular` runs on every patch before the analysis assembles
-    (:func:`geometry.regularity.prove_one_signed`; undecided counts as regular there and here).  The screen
+    :func:`iga.discretisation.regularity.prove_regular` runs on every patch before the analysis assembles
+    (:func:`geometry.maps.regularity.prove_one_signed`; undecided counts as regular there and here).  The screen
     alone is not a proof: a trimming-surface bridge of the duck minus a hole had all its samples of one sign
     (within a factor 10 of each other) and a fold near one face."""
     return are_regular([G])[0]
@@ -377,7 +377,7 @@ def is_regular(G) -> bool:
 
 def are_regular(Gs) -> list[bool]:
     """:func:`is_regular` of each of the trivariates ``Gs``, the exact proofs of those the screen passes run
-    together (:func:`geometry.regularity.prove_one_signed_many`: the tubes of a union share their degrees)."""
+    together (:func:`geometry.maps.regularity.prove_one_signed_many`: the tubes of a union share their degrees)."""
     screened = []
     for G in Gs:
         dom = G.domain

@@ -22,7 +22,7 @@ import numpy as np
 from geometry import BSpline
 from geometry.errors import show
 from geometry.faces import FACE_AXIS, FACE_NAMES
-from geometry.multipatch import PlacedPatch, face_points, tile_corners
+from geometry.patches.multipatch import PlacedPatch, face_points, tile_corners
 
 from ..errors import TilingError
 from .matching import unbalanced_match
@@ -326,7 +326,7 @@ def _same_face_spaces(placed, q_faces, p_faces, q_name, p_name) -> None:
 
 def _compose(placed, keys) -> None:
     """Compose the patches of ``keys`` that are not yet, in one batch per tile patch and map."""
-    from geometry.composition import compose_many
+    from geometry.composition.core import compose_many
 
     same = ObjectIndex()
     groups: dict = {}

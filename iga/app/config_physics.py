@@ -1,0 +1,103 @@
+"""The [physics] section of a pipeline with its [[support]] and [[load]] tables (the elastic analyses)."""
+
+from __future__ import annotations
+
+from geometry.errors import show
+
+from iga.app.config_checks import choice as _choice, fail as _fail, formula as _formula, formula_table as _formula_table
+from iga.app.config_checks import number as _number, string as _str
+from iga.app.config_checks import table as _table, tag as _tag
+from iga.errors import ProblemError
+
+__all__ = ["PHYSICS", "physics"]
+
+PHYSICS = ("heat", "elasticity", "thermo-elastic", "none")
+
+
+def _material_value(v, where, lo=None, hi=None):
+    """A number (checked against (lo, hi)), a channel name or ``{formula = "..."}`` (checked where evaluated)."""
+    if isinstance(v, dict):
+        return _formula_table(v, where)
+    return _str(v, where) if isinstance(v, str) else _number(v, where, lo=lo, hi=hi)
+
+
+def physics(config, surface: str | None = None) -> dict:
+    """The checked [physics] section with its [[support]] and [[load]] tables (elastic kinds).
+
+    ``surface``: why the configured model has no volume (e.g. "the random implicit structure is a surface (the
+    boundary of an implicit solid)"), or None for a volumetric model; such a model takes no analysis."""
+    t = _table(config.get("physics", {}), "physics", {"kind", "youngs", "poisson", "expansion", "reference",
+                                                      "hold_rigid"})
+    kind = _choice(t.get("kind", "none" if surface and "bc" not in config else "heat"), "physics.kind", PHYSICS)
+    out = {"kind": kind}
+    if surface and kind != "none":
+        raise ProblemError(f"{surface}, not a volumetric B-spline model: heat and elasticity need trivariate "
+                           "patches; drop [[bc]] and [physics] (kind = \"none\"), and write the surface with [output] "
+                           "exports = [\"stl\"]")
+    if kind in ("none", "heat"):  # no elastic keys; 'none' takes no conditions at all
+        sections = ("bc", "support", "load") if kind == "none" else ("support", "load")
+        why = ("needs an analysis; physics.kind = 'none' builds and exports the model only" if kind == "none" else
+               "applies to physics.kind = 'elasticity' or 'thermo-elastic'; the heat problem takes [[bc]]")
+        for sec in sections:
+            if sec in config:
+                raise ProblemError(f"config section {sec} {why}")
+        extra = sorted(set(t) - {"kind"})
+        if extra:
+            _fail(f"physics.{extra[0]}", "applies to an analysis, not to physics.kind = 'none'" if kind == "none"
+                  else "applies to physics.kind = 'elasticity' or 'thermo-elastic'")
+        return out
+    for key in ("youngs", "poisson") + (("expansion",) if kind == "thermo-elastic" else ()):
+        if key not in t:
+            raise ProblemError(f"config section physics (kind {kind!r}) needs {key!r} (a number or a channel name)")
+    out["youngs"] = _material_value(t["youngs"], "physics.youngs", lo=0)
+    out["poisson"] = _material_value(t["poisson"], "physics.poisson", lo=-1, hi=0.5)
+    if kind == "thermo-elastic":
+        out["expansion"] = _material_value(t["expansion"], "physics.expansion")
+        out["reference"] = _number(t.get("reference", 20.0), "physics.reference")
+    elif "expansion" in t or "reference" in t:
+        _fail("physics.expansion", "applies to physics.kind = 'thermo-elastic'")
+    hold = t.get("hold_rigid", False)
+    if not isinstance(hold, bool):
+        _fail("physics.hold_rigid", f"must be true or false, got {show(hold)}")
+    out["hold_rigid"] = hold
+    sup = config.get("support", [])
+    sup = sup if isinstance(sup, list) else [sup]
+    out["support"] = [_support(s, f"support[{i}]") for i, s in enumerate(sup)]
+    loads = config.get("load", [])
+    loads = loads if isinstance(loads, list) else [loads]
+    out["load"] = [_load(x, f"load[{i}]") for i, x in enumerate(loads)]
+    if out["support"] and hold:
+        _fail("physics.hold_rigid", "holds a body without [[support]] tables against rigid motion; with supports "
+              "the 3-2-1 pins would add supports of their own: drop one or the other")
+    if not out["support"] and not hold:
+        raise ProblemError("an elastic analysis needs [[support]] tables (tag, value, components) or "
+                           "physics.hold_rigid = true; without them the body is free to move")
+    return out
+
+
+def _vector(v, where, broadcast: bool):
+    """Three numbers or formulas of x, y, z (:mod:`iga.expressions`), or with ``broadcast`` one for all three
+    (:class:`iga.elasticity.data.VectorField` takes either)."""
+    if broadcast and not isinstance(v, list):
+        return _formula(v, where)
+    if not (isinstance(v, list) and len(v) == 3):
+        _fail(where, f"must be {'a number, a formula or ' if broadcast else ''}a list of three numbers or formulas, "
+              f"got {show(v)}")
+    return [_formula(x, f"{where}[{i}]") for i, x in enumerate(v)]
+
+
+def _support(v, where) -> dict:
+    t = _table(v, where, {"tag", "value", "components"}, ("tag",))
+    comps = t.get("components", "xyz")
+    if not (isinstance(comps, str) and comps and set(comps) <= set("xyz") and len(set(comps)) == len(comps)):
+        _fail(f"{where}.components", f"must be distinct letters of 'xyz' (e.g. 'z'), got {show(comps)}")
+    return {"tag": _tag(t["tag"], f"{where}.tag"), "value": _vector(t.get("value", 0.0), f"{where}.value", True),
+            "components": comps}
+
+
+def _load(v, where) -> dict:
+    t = _table(v, where, {"kind", "tag", "value"}, ("kind", "tag", "value"))
+    kind = _choice(t["kind"], f"{where}.kind", ("traction", "pressure"))
+    where_value = f"{where}.value"
+    value = _formula(t["value"], where_value) if kind == "pressure" else _vector(t["value"], where_value, False)
+    return {"kind": kind, "tag": _tag(t["tag"], f"{where}.tag"), "value": value}

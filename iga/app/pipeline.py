@@ -1,0 +1,389 @@
+"""End-to-end pipeline: map -> tile -> paving -> materials -> heat problem -> outputs.
+
+Used by ``iga run CONFIG.toml`` and by ``iga demo heat-sink`` (a built-in
+configuration).  The configuration is checked whole by :func:`iga.app.config.validate`
+before any work starts; the paving and the analysis then check their memory
+estimates, and the probes are located in the model before the solve.
+Outputs go to ``[output] dir`` (relative to the configuration file): the
+sampled VTU, optionally the exact Bezier VTU, a PNG render and
+``summary.json``; each is written atomically, and a failed run leaves no
+output folder it created behind.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from geometry import resources
+from geometry import progress as display
+from geometry.io.iges import write_iges
+from geometry.io.files import atomic_write, offscreen_plotter, save_screenshot
+from tiling.export import boundary_splines, mesh_watertightness, write_mesh, write_surfaces
+
+from iga.app.config import validate
+from iga.app.config_model import surface_reason
+from iga.app.pipeline_build import build, build_maps
+from iga.errors import ProblemError
+from iga.io.gismo import export_gismo
+from iga.discretisation.locate import Locator
+from iga.app.maps import MAPS, circular_heat_sink_map, vertical_heat_sink_map
+from iga.distributed import solve as distributed
+from iga.heat.problem import HeatProblem
+from iga.tags import as_expression
+from iga.io.vtu import write_pieces, write_vtu
+from geometry.errors import show
+
+__all__ = ["run_pipeline", "heat_sink_config", "circular_heat_sink_map", "vertical_heat_sink_map", "MAPS"]
+
+
+def heat_sink_config(variant: str = "circular", levels: int | None = None, refine: int = 0,
+                     out: str = "heat-sink-out", stress: bool = False) -> dict:
+    """The heat-sink analysis of Massarwi et al. 2018 (Section 8, Figs. 11 and 18) as a pipeline configuration.
+
+    Aluminium (205 W/(m K)) at the heated face graded to stainless steel
+    (54 W/(m K)) away from it; inlet flux 1515.8 W/m^2 on the inner ring
+    (circular) or the bottom face (vertical); convection h = 5 W/(m^2 K) to
+    air at 30 C on every other external face.  ``stress``: the thermal stress too (thermo-elastic), with
+    E, nu and alpha graded like the conductivity: aluminium (69 GPa, 0.33, 23e-6 1/K) at the heated face to
+    stainless steel (193 GPa, 0.29, 17.3e-6 1/K) away from it; free to expand, held only against rigid
+    motion (:meth:`iga.ElasticityProblem.hold_rigid`), stress free at 20 C.
+    """
+    if variant not in ("circular", "vertical"):
+        raise ProblemError(f"variant must be 'circular' or 'vertical', got {show(variant)}")
+    circ = variant == "circular"
+    grading = [{"channel": "k", "near": 205.0, "far": 54.0, "face": "wmin"}]
+    if stress:
+        grading += [{"channel": c, "near": a, "far": b, "face": "wmin"}
+                    for c, a, b in (("E", 69e9, 193e9), ("nu", 0.33, 0.29), ("alpha", 23e-6, 17.3e-6))]
+    cfg = {
+        "map": {"primitive": "circular_heat_sink" if circ else "vertical_heat_sink", "grading": grading},
+        "tile": {"library": "heat_sink_t1" if circ else "heat_sink_t2"},
+        "paving": {"scheme": "hierarchical", "counts": [4, 1] if circ else [4, 4],
+                   "levels": levels if levels is not None else (3 if circ else 2), "scale": 0.5},
+        "material": {"conductivity": "k"},
+        "bc": [{"kind": "neumann", "tag": "branch-in", "value": 1515.8},
+               {"kind": "robin", "tag": "exterior", "h": 5.0, "ambient": 30.0}],
+        "solver": {"method": "auto", "tol": 1e-10, "refine": refine},
+        "output": {"dir": out, "name": "heat_sink", "vtu": True, "png": True},
+    }
+    if stress:
+        cfg["physics"] = {"kind": "thermo-elastic", "youngs": "E", "poisson": "nu", "expansion": "alpha",
+                          "reference": 20.0, "hold_rigid": True}
+    return cfg
+
+
+def render_temperature(vtu_path: Path, png_path: Path, title: str = "temperature (C)", scalars: str = "temperature",
+                       warp: float | None = None, cmap: str = "inferno", fmt: str = "%.2f",
+                       above: float | None = None):
+    """Offscreen render of a written .vtu coloured by ``scalars`` (a point array), with a scalar bar (atomic);
+    ``warp``: the surface moved by that factor times its ``displacement`` array (an elastic solution);
+    ``above``: colour by the rise of ``scalars`` above this value on a logarithmic scale (from 1e-3 of the
+    largest rise), so that a part that stays near the ambient temperature still shows its gradient."""
+    import pyvista as pv
+
+    mesh = pv.read(vtu_path).extract_surface(algorithm="dataset_surface")
+    log = above is not None
+    if log:
+        rise = np.asarray(mesh.point_data[scalars], float) - above
+        top = float(rise.max())
+        mesh.point_data[f"{scalars} rise"] = np.clip(rise, 1e-3 * top, None)
+        scalars, fmt = f"{scalars} rise", "%.3g"
+    if warp is not None:
+        mesh = mesh.warp_by_vector("displacement", factor=warp)
+    pl = offscreen_plotter((1200, 850))
+    pl.add_mesh(mesh, scalars=scalars, cmap=cmap, smooth_shading=True, split_sharp_edges=True, ambient=0.3,
+                log_scale=log, scalar_bar_args={"title": title, "vertical": True, "fmt": fmt, "position_x": 0.86,
+                                 "position_y": 0.12, "width": 0.08, "height": 0.7, "title_font_size": 18,
+                                 "label_font_size": 16})
+    save_screenshot(pl, png_path, ProblemError, "iso", 0.85)  # zoom out: room for the scalar bar beside the model
+
+
+def _read_volume(path: Path) -> float:
+    """The volume of a written sampled VTU (its hexahedra, as VTK and ParaView integrate them)."""
+    import pyvista as pv
+
+    return float(pv.read(path).volume)
+
+
+def _volumes(exact: float, mesh: float | None) -> dict:
+    """The model's volume (Gauss rule on the exact geometry) and the sampled VTU's, with its relative error."""
+    out = {"exact": exact}
+    if mesh is not None:
+        out.update({"vtu": mesh, "vtu_relative_error": mesh / exact - 1.0})
+    return out
+
+
+def _output_folder(path: Path) -> bool:
+    """Create the output folder; returns whether it was created (so a failed run can remove it)."""
+    if path.exists() and not path.is_dir():
+        raise ProblemError(f"output.dir {path} exists and is not a folder; choose another output folder")
+    created = not path.exists()
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ProblemError(f"cannot create output folder {path}: {exc.strerror}") from None
+    return created
+
+
+def run_pipeline(config: dict, base_dir: str | Path = ".", progress: bool | None = None) -> dict:
+    """Run a configured pipeline; returns the summary (also written as ``summary.json``).
+
+    ``progress``: stage lines and bars on stderr (None: leave the current
+    setting of :mod:`geometry.progress`, off unless an application turned it on).
+    """
+    cfg = validate(config, base_dir)
+    out = cfg["output"]["path"]
+    created = False
+    root = distributed.is_root()  # under mpiexec rank 0 alone prints and writes
+    try:
+        with (resources.memory_budget(cfg["limits"]["max_memory_gib"]),
+              display.enabled((display.active() if progress is None else progress) and root)):
+            created = _output_folder(out) if root else False
+            return _run(cfg, out, root)
+    except BaseException:
+        if created and out.is_dir() and not any(out.iterdir()):
+            out.rmdir()  # a failed run leaves no empty folder behind
+        raise
+
+
+def _heat_problem(cfg: dict, ms) -> HeatProblem:
+    """The configured heat problem on the model ``ms`` with its boundary conditions."""
+    mat, scfg = cfg["material"], cfg["solver"]
+    prob = HeatProblem(ms, conductivity=mat["conductivity"], source=mat["source"], refine=scfg["refine"],
+                       degree_elevation=scfg["degree_elevation"], degree=scfg["degree"],
+                       quadrature_extra=scfg["quadrature_extra"])
+    for bc in cfg["bc"]:
+        if bc["kind"] == "dirichlet":
+            prob.dirichlet(bc["tag"], bc["value"])
+        elif bc["kind"] == "neumann":
+            prob.neumann(bc["tag"], bc["value"])
+        else:
+            prob.robin(bc["tag"], bc["h"], bc["ambient"])
+    return prob
+
+
+def _write_outputs(ocfg: dict, out: Path, sol, stages) -> tuple[dict, float | None]:
+    """The VTU files and the picture asked for; returns ({kind: path}, volume of the sampled mesh or None)."""
+    files = {}
+    stages.start("VTU output")
+    name = ocfg["name"]
+    vtu = out / f"{name}.vtu"
+    mesh_volume = None
+    world = distributed.solve_world(sol.problem)
+    if world and ocfg.get("pieces"):  # a distributed solve: every rank writes its patches, rank 0 the .pvtu index
+        vtu = write_pieces(out / f"{name}.pvtu", sol, world[0], samples=ocfg["samples"], tolerance=ocfg["tolerance"])
+        files["vtu"] = str(vtu)
+        mesh_volume = _read_volume(vtu) if ocfg["vtu"] else None
+    elif ocfg["vtu"]:
+        write_vtu(vtu, sol, samples=ocfg["samples"], tolerance=ocfg["tolerance"])
+        files["vtu"] = str(vtu)
+        mesh_volume = _read_volume(vtu)  # what ParaView's Integrate Variables will show
+    if ocfg["bezier"]:  # exact Bezier hexahedra (VTK 79) beside the sampled file
+        exact = out / f"{name}_bezier.vtu"
+        write_vtu(exact, sol, cells="bezier")
+        files["bezier_vtu"] = str(exact)
+    stages.done()
+    stages.start("render")
+    if ocfg["png"]:
+        render_temperature(vtu, out / f"{name}.png")
+        files["png"] = str(out / f"{name}.png")
+    stages.done()
+    return files, mesh_volume
+
+
+def render_mesh(mesh, png_path: Path, scalars: str | None = None, title: str | None = None):
+    """Offscreen render of a surface ``mesh`` (triangles and lines), plain or coloured by ``scalars`` (atomic)."""
+    pl = offscreen_plotter((1200, 850))
+    if scalars is None:
+        pl.add_mesh(mesh, color="#c9a66b", smooth_shading=True, line_width=2, ambient=0.3)
+    else:
+        pl.add_mesh(mesh, scalars=scalars, cmap="viridis", smooth_shading=True, line_width=2, ambient=0.3,
+                    scalar_bar_args={"title": title or scalars, "vertical": True, "position_x": 0.86})
+    save_screenshot(pl, png_path, ProblemError, "iso", 0.85)
+
+
+def _surface_outputs(built, out: Path, ocfg: dict, stages, root: bool) -> dict:
+    """The outputs of a model without volume (an implicit structure, a polygon paving, a paving of surface or curve
+    tiles): its mesh as ``NAME.vtp`` (with ``vtu``) and the exports, a render, and the summary of the
+    construction and of the surface's closedness."""
+    stages.start("surface output")
+    files, mesh, s = {}, built.mesh, built.structure
+    if root:
+        names = (["vtp"] if ocfg["vtu"] else []) + [k for k in ocfg["exports"]
+                                                    if k not in ("iges",) and (k != "vtp" or not ocfg["vtu"])]
+        for kind in names:
+            files[kind] = str(write_mesh(out / f"{ocfg['name']}.{kind}", mesh))
+        if "iges" in ocfg["exports"]:  # surface and curve tiles: their exact B-spline geometry
+            files["iges"] = str(write_iges(out / f"{ocfg['name']}.igs", boundary_splines(s), name=ocfg["name"]))
+        if ocfg["png"]:
+            png = out / f"{ocfg['name']}.png"
+            if hasattr(s, "render_png"):
+                s.render_png(png, color_by="w")
+            else:
+                render_mesh(mesh, png, "w" if "w" in mesh.point_data else None)
+            files["png"] = str(png)
+    w = {**mesh_watertightness(mesh), "lines": int(mesh.n_lines)}  # (no triangles: not closed, 0 components)
+    stages.done()
+    n = len(s.cells) if hasattr(s, "cells") else int(np.prod(s.counts)) if hasattr(s, "counts") else \
+        getattr(s, "n_tiles", built.info.get("tiles", 0))
+    return {"tiles": n, "levels": getattr(s, "levels", 1), "interfaces": len(getattr(s, "interfaces", [])),
+            "surface": {k: bool(v) if isinstance(v, (bool, np.bool_)) else int(v) if isinstance(v, np.integer) else v
+                        for k, v in w.items()},
+            "construction": {k: v for k, v in getattr(s, "stats", {}).items() if isinstance(v, (int, float, str))},
+            **built.info, "files": files, "peak_memory_MiB": resources.peak_memory_mib()}
+
+
+def _exports(ocfg: dict, out: Path, ms, problem) -> dict:
+    """The exports named in ``[output] exports``: the boundary surface as STL/OBJ/PLY/VTP, the exact boundary as
+    IGES, the heat problem as G+Smo XML; {name: path}."""
+    files = {}
+    for kind in ocfg["exports"]:
+        path = out / f"{ocfg['name']}.{'igs' if kind == 'iges' else 'xml' if kind == 'gismo' else kind}"
+        if kind in ("stl", "obj", "ply", "vtp"):
+            write_surfaces(path, ms)
+        elif kind == "iges":
+            write_iges(path, boundary_splines(ms), name=ocfg["name"])
+        elif problem is not None:
+            export_gismo(problem, path)
+        else:  # validation refuses this; kept as a message should it be reached another way
+            raise ProblemError("output.exports 'gismo' writes the heat problem; give physics.kind = 'heat'")
+        files[kind] = str(path)
+    return files
+
+
+def _counts(ms) -> dict:
+    """Tiles, patches, levels and interfaces of the micro-structure a model came from."""
+    return {"tiles": ms.n_tiles, "patches": len(ms.patches), "levels": ms.levels,
+            "tiles_per_level": ms.tiles_per_level(), "interfaces": len(ms.interfaces)}
+
+
+def _summary(cfg, prob, sol, trange, mesh_volume, probes, files, analysis_peak) -> dict:
+    """The run's summary (``summary.json``) of the heat analysis, counts and timings left to the caller."""
+    bal = sol.info["balance"]
+    return {
+        "dofs": prob.ndof, "unknowns": sol.info["free_dofs"],
+        "temperature_C": {"min": trange[0], "max": trange[1], "mean": sol.mean_temperature()},
+        "inflow_W": bal["inflow_W"], "outflow_W": bal["outflow_W"], "energy_balance_error": bal["relative_error"],
+        # the field's energy against the loads' and supports' work (Solution.energy_balance): independent of the
+        # heat-flow balance above, which sums consistent flows
+        "energy_identity": sol.energy_balance().as_dict(),
+        "connected_pieces": sol.info["components"]["count"],
+        "flux_W": {as_expression(bc["tag"]): sol.flux(bc["tag"]) for bc in cfg["bc"]},
+        "solver": sol.info["solver"],
+        "volume_m3": _volumes(sol.volume(), mesh_volume),
+        "analysis_peak_memory_MiB": analysis_peak,
+        "peak_memory_MiB": resources.peak_memory_mib(),
+        "probes": {"points": probes.tolist(), "temperature_C": sol.probe(probes).tolist() if len(probes) else []},
+        "files": files,
+    }
+
+
+def _heat_stage(cfg, model, out: Path, ocfg: dict, stages):
+    """The heat analysis, its VTU files, picture and exports; returns (summary, solution, extra timings)."""
+    scfg = cfg["solver"]
+    stages.start("assembly and solve")
+    prob = _heat_problem(cfg, model)
+    probes = np.asarray(ocfg["probes"], float).reshape(-1, 3)
+    if len(probes):  # before the solve: a probe outside the model is a configuration error
+        Locator(prob.model)(probes, what="output.probes")
+    sol = prob.solve(solver=scfg["method"], tol=scfg["tol"], maxiter=scfg["maxiter"])
+    stages.done(f"({prob.ndof} DOFs, {sol.info['free_dofs']} unknowns)")
+    # high-water mark of the analysis alone (map, tiling, assembly, solve), before VTK is loaded for output
+    analysis_peak = resources.peak_memory_mib()
+    files, mesh_volume = _write_outputs(ocfg, out, sol, stages)
+    files.update(_exports(ocfg, out, model, prob))
+    t0 = time.perf_counter()
+    tmin, tmax = sol.temperature_range(ocfg["samples"])
+    summary = _summary(cfg, prob, sol, (tmin, tmax), mesh_volume, probes, files, analysis_peak)
+    return summary, sol, {"statistics": time.perf_counter() - t0, **{f"iga.{k}": v for k, v in prob.timings.items()}}
+
+
+def _run(cfg: dict, out: Path, root: bool = True) -> dict:
+    ocfg, kind = cfg["output"], cfg["physics"]["kind"]
+    # another MPI rank assembles and solves its share and writes its VTU piece; rank 0 writes the rest
+    ocfg = {**ocfg, "pieces": ocfg["vtu"]} if root else {**ocfg, "pieces": ocfg["vtu"], "vtu": False, "bezier": False,
+                                                           "png": False}
+    heat, elastic = kind in ("heat", "thermo-elastic"), kind in ("elasticity", "thermo-elastic")
+    surface = surface_reason(cfg) is not None
+    stages = display.Stages(4 if surface else 3 + 3 * heat + 2 * elastic + (kind == "none"))
+    stages.start("deformation map")
+    maps = build_maps(cfg)
+    stages.done(f"({len(maps)} primitives)" if isinstance(maps, dict) else
+                f"(degrees {maps.degrees}, channels {list(maps.channels)})")
+    stages.start("tiling")
+    built = build(cfg, maps)
+    model, ms = built.model, built.structure
+    stages.done(f"({built.mesh.n_cells} cells, a surface)" if surface else
+                f"({ms.n_tiles} tiles, {len(ms.interfaces)} interfaces)")
+    summary, sol, timings = {}, None, {}
+    if surface:
+        summary = _surface_outputs(built, out, ocfg, stages, root)
+    elif heat:
+        summary, sol, timings = _heat_stage(cfg, model, out, ocfg, stages)
+        summary = {**_counts(ms), **built.info, **summary}
+    else:
+        summary = {**_counts(ms), **built.info, "files": _exports(ocfg, out, model, None), "peak_memory_MiB": None}
+        if kind == "none" and ocfg["vtu"] and root:  # the model alone: its geometry and channels
+            stages.start("VTU output")
+            vtu = out / f"{ocfg['name']}.vtu"
+            write_vtu(vtu, model, samples=ocfg["samples"], tolerance=ocfg["tolerance"])
+            summary["files"]["vtu"] = str(vtu)
+            stages.done()
+    if elastic:
+        summary["elasticity"] = _elastic_stage(cfg, model, sol, out, ocfg, stages)
+        summary["files"].update(summary["elasticity"].pop("files"))
+        summary["peak_memory_MiB"] = resources.peak_memory_mib()
+    stages.start("summary")
+    summary["timings_s"] = {**stages.timings, **timings}
+    if root:
+        atomic_write(out / "summary.json", lambda tmp: Path(tmp).write_text(json.dumps(summary, indent=2)),
+                     ".json", ProblemError)
+    stages.done()
+    return summary
+
+
+def _elastic_stage(cfg, ms, heat_solution, out: Path, ocfg: dict, stages) -> dict:
+    """The elastic (or thermo-elastic, on the heat solution) analysis of the [physics] section, its stress VTU
+    and render; returns its summary (with its files)."""
+    from iga.elasticity.problem import ElasticityProblem
+    from iga.io.vtu import sampled_grid, save_grid
+
+    ph, scfg = cfg["physics"], cfg["solver"]
+    stages.start("elastic analysis")
+    p = ElasticityProblem(ms, ph["youngs"], ph["poisson"], degree_elevation=scfg["degree_elevation"],
+                          refine=scfg["refine"], degree=scfg["degree"], quadrature_extra=scfg["quadrature_extra"])
+    for s in ph["support"]:
+        p.dirichlet(s["tag"], s["value"], s["components"])
+    for ld in ph["load"]:
+        (p.traction if ld["kind"] == "traction" else p.pressure)(ld["tag"], ld["value"])
+    if ph["hold_rigid"]:
+        p.hold_rigid()
+    if ph["kind"] == "thermo-elastic":
+        p.thermal(heat_solution, ph["expansion"], ph["reference"])
+    es = p.solve(solver=scfg["method"], tol=scfg["tol"], maxiter=scfg["maxiter"])
+    stages.done(f"({es.info['dofs']} DOFs, {es.info['free_dofs']} unknowns)")
+    stages.start("stress output")
+    grid = sampled_grid(ms, es, ocfg["samples"], ocfg["tolerance"])
+    files = {}
+    if ocfg["vtu"]:
+        vtu = out / f"{ocfg['name']}_stress.vtu"
+        atomic_write(vtu, lambda tmp: save_grid(grid, tmp), ".vtu", ProblemError)
+        files["stress_vtu"] = str(vtu)
+        if ocfg["png"]:
+            umax = float(np.abs(grid.point_data["displacement"]).max())
+            size = float(np.ptp(grid.points, axis=0).max())
+            warp = 0.05 * size / umax if umax > 0 else None  # the deformation shown at 5% of the model's size
+            render_temperature(vtu, out / f"{ocfg['name']}_stress.png", "von Mises stress (Pa)", scalars="von_mises",
+                               warp=warp, cmap="viridis", fmt="%.3g")
+            files["stress_png"] = str(out / f"{ocfg['name']}_stress.png")
+    stages.done()
+    return {"dofs": es.info["dofs"], "unknowns": es.info["free_dofs"], "solver": es.info["solver"],
+            "max_displacement_m": float(np.linalg.norm(grid.point_data["displacement"], axis=1).max()),
+            "max_von_mises_Pa": float(grid.point_data["von_mises"].max()),
+            "reactions_N": {as_expression(s["tag"]): es.reaction(s["tag"]).tolist() for s in ph["support"]},
+            "applied_N": es.info["applied_N"], "work": es.info["work"],
+            "timings_s": {k: float(v) for k, v in es.info["timings"].items()}, "files": files}

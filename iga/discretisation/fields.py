@@ -1,0 +1,99 @@
+"""Values and physical gradients of solution fields (one or several components per basis function) on
+tensor grids of points, and their integrals by the problem's Gauss rule: shared by the heat and the elastic
+solutions and by the VTU sampling."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from geometry.patches.chain import gradient_and_det, patches_geometry_derivs
+from geometry.grouping import ObjectIndex
+
+from iga.errors import ProblemError
+from iga.discretisation.faces import chunks
+
+__all__ = ["grid_fields", "integrate_fields", "GaussPoints"]
+
+
+def grid_fields(U: np.ndarray, tables, D, weights=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Values (P N, c), physical gradients (P N, c, 3) and det J (P N,) of coefficient blocks U (P, c) + shape.
+
+    ``tables``: per direction (values, derivatives), each (points, n) of the 1-D basis at that direction's
+    grid points; ``D``: the geometry's parameter derivatives at the P N grid points (C order per patch);
+    ``weights``: the NURBS weights (shape) where the patches are analysed in the NURBS basis
+    (:mod:`iga.discretisation.rational`): U then holds NURBS control values, the field sum w_i U_i N_i / W.
+    """
+    def on_grid(block):  # values (P N,) and parameter derivatives (P N, 3) of coefficient blocks (P,) + shape
+        v = np.einsum("pabc,ia,jb,kc->pijk", block, tables[0][0], tables[1][0], tables[2][0], optimize=True)
+        dv = np.stack([np.einsum("pabc,ia,jb,kc->pijk", block, *(tables[d][int(d == k)] for d in range(3)),
+                                 optimize=True).reshape(-1) for k in range(3)], -1)
+        return v.reshape(-1), dv
+
+    W = dW = None
+    if weights is not None:
+        W, dW = on_grid(np.broadcast_to(weights, (U.shape[0],) + weights.shape))
+    vals, grads, det = [], [], None
+    for a in range(U.shape[1]):
+        v, dxi = on_grid(U[:, a] if weights is None else U[:, a] * weights)
+        if W is not None:  # T = phi / W, dT = (dphi - T dW) / W
+            v = v / W
+            dxi = (dxi - v[:, None] * dW) / W[:, None]
+        vals.append(v)
+        g, det = gradient_and_det(D, dxi)
+        grads.append(g)
+    return np.stack(vals, 1), np.stack(grads, 1), det
+
+
+def integrate_fields(prob, coefficients, components: int, fn, context: bool = False):
+    """Sum over the model of int fn(x (N, 3), values (N, c), grads (N, c, 3)) dV by the problem's Gauss rule.
+
+    ``coefficients(i)``: patch i's coefficient block (c,) + space shape; patches sharing a tile spline and
+    a space are evaluated together.  ``fn`` returns (N,) (a float is returned) or (N, k) (k integrals from one
+    pass, an array (k,)).  ``context``: ``fn`` takes a fourth argument, a :class:`GaussPoints` with the
+    channels at the points and the patches and parameters they belong to (materials and thermal strains
+    evaluated where the field is).
+    """
+    same = ObjectIndex()  # patches share splines and maps: group by object
+    groups: dict = {}
+    for i, s in enumerate(prob.spaces):
+        groups.setdefault((s.key(), same(prob.model.patches[i].spline)), []).append(i)
+    total = 0.0
+    for members in groups.values():
+        space = prob.spaces[members[0]]
+        tables = [np.swapaxes(d.B[:, :, :-1], 1, 2) for d in space.dirs]  # (2, nq, n): values and derivatives
+        w = np.einsum("i,j,k->ijk", *[d.qw for d in space.dirs]).ravel()
+        params = np.stack(np.meshgrid(*space.qaxes, indexing="ij"), -1).reshape(-1, 3) if context else None
+        for chunk in chunks(members, components * space.nq_total):
+            x, D, chans = patches_geometry_derivs([prob.model.patches[i] for i in chunk], space.qaxes)
+            vals, grads, det = grid_fields(np.stack([coefficients(i) for i in chunk]), tables, D,
+                                           _weights(prob, chunk[0]))
+            if not np.all(np.isfinite(grads)):
+                raise ProblemError(f"patches {chunk[0]}..{chunk[-1]}: the geometry Jacobian is singular at a Gauss "
+                                   "point; the model is degenerate there")
+            wv = np.broadcast_to(w, (len(chunk), len(w))).reshape(-1) * np.abs(det)
+            args = (x.reshape(-1, 3), vals, grads)
+            if context:
+                args += (GaussPoints(x, {c: np.reshape(v, -1) for c, v in chans.items()}, chans, list(chunk),
+                                     params),)
+            total = total + np.tensordot(wv, np.asarray(fn(*args), float), axes=(0, 0))
+    return float(total) if np.ndim(total) == 0 else np.asarray(total)
+
+
+class GaussPoints:
+    """Where an integrand of :func:`integrate_fields` is evaluated: ``x`` (P, n, 3) points of the patches
+    ``patches`` (P of them), ``chans`` {name: (P n,)} flat channels, ``by_patch`` {name: (P, n)}, and
+    ``params`` (n, 3) the Gauss points in every one of those patches' parameters."""
+
+    def __init__(self, x, chans, by_patch, patches, params):
+        self.x, self.chans, self.by_patch, self.patches, self.params = x, chans, by_patch, patches, params
+
+    def per_patch(self, fn) -> np.ndarray:
+        """``fn(patch, x (n, 3), params (n, 3), chans {name: (n,)}) -> (n,)`` of every patch, concatenated."""
+        return np.concatenate([fn(pi, self.x[j], self.params, {c: v[j] for c, v in self.by_patch.items()})
+                               for j, pi in enumerate(self.patches)])
+
+
+def _weights(prob, pi):
+    """The NURBS weights of patch ``pi``'s space where it is analysed in the NURBS basis, else None."""
+    w = getattr(prob, "weights", None)
+    return None if w is None else w[pi]

@@ -1,0 +1,354 @@
+"""Small-strain linear elasticity and thermal stress (Elber 2017, Section 3 and Fig. 12).
+
+Units are the user's, consistently: with lengths in m, Young's modulus in
+Pa, tractions and pressures in Pa, body forces in N/m^3 and expansion
+coefficients in 1/K, displacements are in m, stresses in Pa and forces in N.
+
+:class:`ElasticityProblem` uses what the heat analysis uses: the same
+discretisation (:mod:`iga.discretisation.setting`: regularity proof, the tile's own
+basis per patch), the same interface constraints for every displacement
+component (:func:`iga.elasticity.volume.vector_constraints`), the same Dirichlet
+projection per component and the same reduced solve (:mod:`iga.discretisation.system`);
+the volume forms are those of :mod:`iga.elasticity.forms`.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from geometry.errors import show
+from solvers.indexing import complement
+
+from iga.heat.coefficients import ScalarField, is_number
+from iga.discretisation.components import dof_labels
+from iga.discretisation.constraints import needs_constraints, prolongation
+from iga.discretisation.setting import Discretisation, count
+from iga.elasticity.solution import ElasticSolution
+from iga.elasticity.volume import ElasticVolume, vector_constraints
+from iga.errors import ProblemError
+from iga.discretisation.multilevel import elastic_kronecker_sums, owners_of
+from iga.heat.forms import boundary_load
+from iga.model import tag_faces
+from iga.elasticity.rigid import free_modes, greville_points, rigid_modes
+from iga.discretisation.system import solve_system
+from iga.tags import as_expression, check_expression, condition_faces, mentions_rest
+from iga.elasticity.data import VectorField, component_field, merge_dirichlet, pin_dofs
+
+__all__ = ["ElasticityProblem"]
+
+_AXES = "xyz"
+
+
+@dataclass
+class _Support:
+    tag: str
+    value: VectorField
+    components: tuple
+
+
+@dataclass
+class _Load:
+    tag: str
+    kind: str  # "traction" or "pressure"
+    value: object  # VectorField (traction) or ScalarField (pressure)
+
+
+class ElasticityProblem:
+    """Linear elasticity of an isotropic, possibly graded material on a patch, a list of patches or a
+    micro-structure (every model :class:`iga.HeatProblem` takes).
+
+    Parameters
+    ----------
+    model : BSpline, list of BSpline, or a model such as ``tiling.Microstructure``
+    youngs : Young's modulus E in Pa: a number, a channel name or a callable ``E(x (N, 3)) -> (N,)``; > 0
+    poisson : Poisson's ratio nu in (-1, 0.5): a number, a channel name or a callable
+    degree_elevation, refine, quadrature_extra, degree, bases : the analysis spaces, as for
+        :class:`iga.HeatProblem`
+
+    Example: a unit cube stretched by 1e-3 along x with the sides free to slide is in uniaxial stress.
+
+    >>> from geometry import primitives
+    >>> p = ElasticityProblem(primitives.box(), youngs=200e9, poisson=0.3)
+    >>> s = (p.dirichlet("umin", 0.0, components="x").dirichlet("umax", 1e-3, components="x")
+    ...       .dirichlet("vmin", 0.0, components="y").dirichlet("wmin", 0.0, components="z").solve())
+    >>> round(float(s.stress(np.array([[0.5, 0.5, 0.5]]))[0, 0, 0]) / 1e6, 6)  # MPa: E x strain
+    200.0
+    """
+
+    def __init__(self, model, youngs, poisson, degree_elevation=0, refine: int = 0, quadrature_extra: int = 0,
+                 degree=None, bases=None):
+        d = Discretisation(model, degree_elevation, refine, quadrature_extra, degree, bases, components=3)
+        self.disc = d
+        self.model, self.spaces, self.offsets, self.ndof = d.model, d.spaces, d.offsets, d.ndof
+        self.faces, self.timings, self.regularity = d.faces, d.timings, d.regularity
+        self.weights = d.weights  # NURBS basis where a patch is its own rational geometry (iga.discretisation.rational)
+        self.youngs = ScalarField(youngs, "Young's modulus", positive=True, model=self.model)
+        self.poisson = ScalarField(poisson, "Poisson's ratio", model=self.model)
+        if self.poisson.constant is not None and not -1.0 < self.poisson.constant < 0.5:
+            raise ProblemError(f"Poisson's ratio must lie in (-1, 0.5), got {show(poisson)}")
+        self.supports: list[_Support] = []
+        self.loads: list[_Load] = []
+        self.body = None
+        self.thermal_strain = None
+        self.constraint_stats: dict = {}
+        self.rigid_hold = False
+
+    # ------------------------------------------------------------ conditions
+    def tag_faces(self, tag) -> list:
+        """The faces of a tag or tag expression of this problem; ``rest``: every free face that no support or
+        load without ``rest`` covers (:mod:`iga.tags`)."""
+        if not mentions_rest(self.model, tag):
+            return tag_faces(self.model, tag)
+        covered = {f for c in self.supports + self.loads if not mentions_rest(self.model, c.tag)
+                   for f in tag_faces(self.model, c.tag)}
+        return tag_faces(self.model, tag, [f for f in self.model.tags.get("boundary", []) if f not in covered])
+
+    def _faces_of(self, tag: str, what: str) -> list:
+        if mentions_rest(self.model, tag):
+            check_expression(self.model, tag)  # its faces are known once every condition is
+            return []
+        faces = tag_faces(self.model, tag)
+        if not faces:
+            raise ProblemError(f"{what}: tag {show(tag)} has no faces in this model (every face it named is glued to "
+                               f"a neighbour or absent); choose another tag from {sorted(self.model.tags)[:20]}")
+        return faces
+
+    def dirichlet(self, tag: str, value=0.0, components: str = "xyz") -> "ElasticityProblem":
+        """Prescribed displacement (m) on ``tag``: a number (every component held to it), three numbers, or a
+        callable ``u(x (N, 3)) -> (N, 3)``; only ``components`` (a string of x, y, z) are prescribed, the
+        others stay free ("held vertically, free to slide" is ``components="z"``)."""
+        tag = as_expression(tag)
+        self._faces_of(tag, "dirichlet")
+        if not (isinstance(components, str) and components and set(components) <= set(_AXES)
+                and len(set(components)) == len(components)):
+            raise ProblemError(f"components must be a string of distinct letters from 'xyz' (e.g. 'z' or 'xy'), got "
+                               f"{show(components)}")
+        field = VectorField(value, f"displacement on {show(tag)}", broadcast=True)
+        self.supports.append(_Support(tag, field, tuple(_AXES.index(c) for c in components)))
+        return self
+
+    def traction(self, tag: str, t) -> "ElasticityProblem":
+        """Surface traction (Pa) on ``tag``: three numbers or a callable ``t(x (N, 3)) -> (N, 3)``."""
+        tag = as_expression(tag)
+        self._faces_of(tag, "traction")
+        self.loads.append(_Load(tag, "traction", VectorField(t, f"traction on {show(tag)}")))
+        return self
+
+    def pressure(self, tag: str, p) -> "ElasticityProblem":
+        """Pressure (Pa) on ``tag``, pushing along the inward normal (traction -p n): a number or callable."""
+        tag = as_expression(tag)
+        self._faces_of(tag, "pressure")
+        self.loads.append(_Load(tag, "pressure", ScalarField(p, f"pressure on {show(tag)}", channels=False)))
+        return self
+
+    def body_force(self, f) -> "ElasticityProblem":
+        """Body force density (N/m^3): three numbers or a callable ``f(x (N, 3)) -> (N, 3)``."""
+        self.body = VectorField(f, "body force")
+        return self
+
+    def thermal(self, temperature, expansion, reference=0.0) -> "ElasticityProblem":
+        """Thermal strain alpha (T - T_ref) I: ``temperature`` a heat :class:`iga.Solution` on this model, a
+        number or a callable of x (K or C); ``expansion`` alpha (1/K) a number, channel name or callable;
+        ``reference`` T_ref, the temperature of the unstressed body."""
+        from iga.elasticity.thermal import thermal_strain
+
+        self.thermal_strain = thermal_strain(self, temperature, expansion, reference)
+        return self
+
+    def hold_rigid(self) -> "ElasticityProblem":
+        """Hold the body against rigid motion only (free to expand): the 3-2-1 rule at three patch corners (where
+        the spline interpolates its control point) far apart: all of A, two components of B across AB, one of
+        C across the plane ABC.  Statically determinate, so a free thermal expansion stays stress free.  It holds a
+        body that has no displacement condition: with one, :meth:`solve` refuses it (the pins would be supports
+        too)."""
+        self.rigid_hold = True
+        return self
+
+    def _three_two_one(self, points: np.ndarray) -> list:
+        """Per component, the scalar DOFs the 3-2-1 rule prescribes (to zero)."""
+        corners = []
+        for pi, space in enumerate(self.spaces):
+            shape = space.shape
+            for i in (0, shape[0] - 1):
+                for j in (0, shape[1] - 1):
+                    for k in (0, shape[2] - 1):
+                        corners.append(int(self.offsets[pi] + (i * shape[1] + j) * shape[2] + k))
+        corners = np.unique(corners)
+        x = points[corners]
+        a = corners[np.argmin(x.sum(1))]
+        b = corners[np.argmax(np.linalg.norm(x - points[a], axis=1))]
+        ab = points[b] - points[a]
+        ab /= np.linalg.norm(ab)
+        off = np.linalg.norm(np.cross(x - points[a], ab), axis=1)
+        c = corners[np.argmax(off)]
+        normal = np.cross(ab, points[c] - points[a])
+        if not np.linalg.norm(normal) > 1e-9 * np.ptp(points, axis=0).max():
+            raise ProblemError("hold_rigid needs a body that is not flat along a line: no three patch corners span a "
+                               "plane")
+        across = np.argsort(np.abs(ab))[:2]  # the two axes least along AB
+        out = [[a], [a], [a]]
+        for comp in across:
+            out[comp].append(b)
+        out[int(np.argmax(np.abs(normal)))].append(c)
+        return [np.array(o, np.int64) for o in out]
+
+    # ------------------------------------------------------------------ solve
+    def _loads(self, f: np.ndarray, supports: list) -> tuple[dict, dict]:
+        """Add the traction and pressure loads to f; returns ({tag: applied force (N, (3,))}, {tag: its moment
+        about the origin (N m, (3,))}).  ``supports``: the
+        :meth:`_support_faces`; a load on a component they prescribe on the same face is refused (it would only
+        change the reaction there)."""
+        n, applied, moments = self.ndof, {}, {}  # moments about the origin (N m): hold_rigid's loads must balance
+        for load in self.loads:
+            keys = condition_faces(self.tag_faces(load.tag), load.tag)
+            fds = self.faces(keys)
+            force = np.zeros(3)
+            for fd in fds:
+                if load.kind == "traction":
+                    t = load.value.values(fd.x, f"patch {fd.patch} face {fd.face}")
+                else:
+                    t = -load.value.values(fd.x, fd.chans, f"patch {fd.patch} face {fd.face}")[:, None] * fd.normal
+                _refuse_held_load(load, fd, t, supports)
+                for a in range(3):
+                    f[a * n : (a + 1) * n] += boundary_load([fd], [t[:, a] * fd.dAw], n)
+                force += (t * fd.dAw[:, None]).sum(0)
+                moments[load.tag] = moments.get(load.tag, 0.0) + (np.cross(fd.x, t) * fd.dAw[:, None]).sum(0)
+            applied[load.tag] = applied.get(load.tag, 0.0) + force
+        return applied, moments
+
+    def _support_faces(self) -> list:
+        """Per component, {(patch, face): (field, where)}; a component prescribed twice on one face is refused."""
+        out = [{}, {}, {}]
+        owner = [{}, {}, {}]
+        for s in self.supports:
+            for key in condition_faces(self.tag_faces(s.tag), s.tag):
+                for a in s.components:
+                    if key in out[a]:
+                        raise ProblemError(f"patch {key[0]} face {key[1]}: displacement component {_AXES[a]} is "
+                                           f"prescribed by tags {show(owner[a][key])} and {show(s.tag)}; give each "
+                                           "component of a face one condition")
+                    out[a][key] = (component_field(s.value, a), f"the faces tagged {show(s.tag)}")
+                    owner[a][key] = s.tag
+        return out
+
+    def _solver_options(self, solver: str, constraints, dd, B) -> dict:
+        """The rigid modes for AMG (its near-nullspace) and each unknown's place in its node (3 node +
+        component, for aggregation by node); for one unconstrained patch with a Dirichlet side per component,
+        one Kronecker sum per component (block fast diagonalization: ``fd-cg``, and ``auto``)."""
+        options = {}
+        if solver in ("auto", "amg-cg"):  # rigid modes, and node-major 3 x 3 blocks aggregated by node
+            nred = B.shape[0] // 3
+            unknowns = np.arange(3 * nred)
+            options = {"near_nullspace": B, "node_slots": 3 * (unknowns % nred) + unknowns // nred}
+        if solver in ("auto", "fd-cg"):
+            ks = None if constraints is not None else \
+                elastic_kronecker_sums(self, complement(3 * self.ndof, dd.dofs))
+            if ks is None and solver == "fd-cg":
+                raise ProblemError("solver 'fd-cg' (block fast diagonalization) needs one unconstrained trivariate "
+                                   "patch with Dirichlet conditions on whole sides, at least one for every "
+                                   "displacement component; use 'amg-cg' for this problem")
+            if ks is not None:
+                options["kronecker"] = ks
+        return options
+
+    def assemble(self, supports: list | None = None):
+        """(K, f, book): the stiffness (3 ndof x 3 ndof CSR, component-major: unknown a ndof + i is component a
+        of DOF i; N/m), the load vector (N: body force, thermal strain, tractions and pressures) and
+        {"work": {"body": int f dV (N, (3,))}, "applied": {tag: resultant (N, (3,))}, "moments": {tag: moment about
+        the origin (N m, (3,))}}; sets
+        ``timings["assembly"]`` (s).  :meth:`solve` calls it with the :meth:`_support_faces` it resolved."""
+        supports = self._support_faces() if supports is None else supports
+        t0 = time.perf_counter()
+        K, f, work = ElasticVolume(self.disc).assemble(self.youngs, self.poisson, self.body, self.thermal_strain)
+        applied, moments = self._loads(f, supports)
+        self.timings["assembly"] = time.perf_counter() - t0
+        return K, f, {"work": work, "applied": applied, "moments": moments}
+
+    def solve(self, solver: str = "auto", tol: float = 1e-10, maxiter: int | None = None) -> ElasticSolution:
+        """Assemble, apply the conditions, refuse free rigid motions, solve; returns an :class:`ElasticSolution`."""
+        if not (is_number(tol) and 0 < tol < 1):
+            raise ProblemError(f"tol must be a number in (0, 1), got {show(tol)}")
+        if maxiter is not None:
+            count("maxiter", maxiter, 1)
+        supports = self._support_faces()
+        if self.rigid_hold and any(supports):
+            tags = sorted({show(sup.tag) for sup in self.supports})
+            raise ProblemError(f"hold_rigid pins three corners against rigid motion only, but displacement conditions "
+                               f"on {', '.join(tags)} already hold the body: the pins would add supports (and "
+                               "reactions) of their own; use either the conditions or hold_rigid")
+        K, f, book = self.assemble(supports)
+        work, applied = book["work"], book["applied"]
+        if self.rigid_hold:
+            _refuse_net_load(applied, work["body"], book["moments"])
+        t1 = time.perf_counter()
+        scalar = prolongation(self.model, self.spaces, self.offsets, self.weights) \
+            if needs_constraints(self.model, self.spaces) \
+            else None
+        self.constraint_stats = dict(scalar.stats) if scalar is not None else {}
+        constraints = vector_constraints(scalar, self.ndof)
+        dd = merge_dirichlet(self.faces, supports, self.ndof, scalar)
+        points = greville_points(self.model, self.spaces, self.offsets)
+        held = [np.unique(np.concatenate([fd.dofs for fd in self.faces(list(sup))])) if sup
+                else np.zeros(0, np.int64) for sup in supports]
+        if self.rigid_hold:
+            pins = self._three_two_one(points)
+            dd = pin_dofs(dd, pins, self.ndof, scalar)
+            held = [np.union1d(h, p) for h, p in zip(held, pins)]
+        pieces, labels = dof_labels(self, None if scalar is None else scalar.P)
+        free_modes(points, labels, held, pieces)
+        B = rigid_modes(points)  # at the DOFs; a reduced unknown reads them at one DOF it owns
+        if constraints is not None:
+            B = B[owners_of(constraints.dof_master)]
+        t2 = time.perf_counter()
+        options = self._solver_options(solver, constraints, dd, B)
+        # K is consumed: the work balance reads the displacement field and the load vector, not K
+        res = solve_system(K, f, constraints, dd, solver, tol, maxiter, options)
+        del K
+        self.timings.update({"constraints": t2 - t1,
+                             "solve": res.info.setup_s + res.info.solve_s})
+        self.reduced_dofs = res.reduced
+        return ElasticSolution(self, res, f, dd, work, applied)
+
+
+def _refuse_net_load(applied: dict, body: np.ndarray, moments: dict) -> None:
+    """Under :meth:`ElasticityProblem.hold_rigid` the loads must balance: its three pins hold rigid motion only,
+    so a net force or moment would be carried by them alone (point reactions, a stress singularity the solution
+    does not report).  Refused naming the net force and each load's share (or the net moment of the tractions),
+    beyond 1e-9 of the loads' size."""
+    forces = [np.asarray(v, float) for v in applied.values()] + [np.asarray(body, float)]
+    net = np.sum(forces, axis=0)
+    size = sum(float(np.linalg.norm(v)) for v in forces)
+    if size > 0 and np.linalg.norm(net) > 1e-9 * size:
+        shares = ", ".join(f"{show(tag)} {np.round(np.asarray(v, float), 6).tolist()} N" for tag, v in applied.items())
+        if np.any(body):
+            shares += f", body force {np.round(np.asarray(body, float), 6).tolist()} N"
+        raise ProblemError(f"hold_rigid holds the body against rigid motion only, but its loads add up to a net force "
+                           f"of {np.round(net, 6).tolist()} N ({shares}), which the three pins would carry alone; "
+                           "support the body with displacement conditions instead, or balance the loads")
+    if not np.any(body) and moments:
+        M = np.sum([np.asarray(v, float) for v in moments.values()], axis=0)
+        msize = sum(float(np.linalg.norm(v)) for v in moments.values())
+        if msize > 0 and np.linalg.norm(M) > 1e-9 * msize:
+            raise ProblemError(f"hold_rigid holds the body against rigid motion only, but its loads add up to a net "
+                               f"moment of {np.round(M, 6).tolist()} N m about the origin, which the three pins would "
+                               "carry alone; support the body with displacement conditions instead, or balance the "
+                               "loads")
+
+
+def _refuse_held_load(load, fd, t: np.ndarray, supports: list) -> None:
+    """A traction or pressure ``t`` (N, 3) on face ``fd`` with a component that a displacement condition prescribes
+    on that face raises :class:`ProblemError`: it would only change the reaction there."""
+    key = (fd.patch, fd.face)
+    size = float(np.abs(t).max()) if t.size else 0.0
+    # beyond round-off: a pressure on a face normal to x, held in y, has normals with 1e-17 y components
+    held = [a for a in range(3) if key in supports[a] and np.abs(t[:, a]).max(initial=0.0) > 1e-9 * size]
+    if held:
+        a = held[0]
+        article = "an" if a == 0 else "a"  # an x, a y, a z
+        raise ProblemError(f"the {load.kind} on {show(load.tag)} has {article} {_AXES[a]} component on patch "
+                           f"{fd.patch} face {fd.face}, where the displacement condition on {supports[a][key][1]} "
+                           f"prescribes {_AXES[a]}: a load on a prescribed component only changes the reaction; drop "
+                           "it there or free that component (dirichlet(..., components=...))")

@@ -1,0 +1,91 @@
+"""Rigid-body motions a set of displacement conditions leaves free (refused before an elastic solve).
+
+A rigid motion u(x) = t + w x (x - x0) does no work against the stiffness,
+so each connected piece of a model needs Dirichlet components that stop all
+six (three translations, three rotations).  The six modes are sampled at the
+Greville points of the analysis spaces (exact for the linear functions the
+spaces reproduce; close enough elsewhere to count the modes), restricted to
+the prescribed DOFs of a piece; the rank deficit of that restriction is the
+number of free modes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from geometry import knots as kn
+from geometry.patches.chain import patches_geometry_derivs
+from geometry.grouping import ObjectIndex
+
+from iga.errors import SingularProblemError
+
+__all__ = ["greville_points", "rigid_modes", "free_modes"]
+
+MODE_NAMES = ("translation along x", "translation along y", "translation along z",
+              "rotation about x", "rotation about y", "rotation about z")
+
+
+def greville_points(model, spaces, offsets) -> np.ndarray:
+    """Physical points (ndof, 3) of every scalar DOF: its patch's image of the Greville abscissae (one batched
+    evaluation per group of patches sharing a tile spline and a space)."""
+    out = np.empty((int(offsets[-1]), 3))
+    same = ObjectIndex()
+    groups: dict = {}
+    for i, s in enumerate(spaces):
+        groups.setdefault((s.key(), same(model.patches[i].spline)), []).append(i)
+    for members in groups.values():
+        space = spaces[members[0]]
+        axes = [kn.greville(d.knots, d.degree) for d in space.dirs]
+        x, _, _ = patches_geometry_derivs([model.patches[i] for i in members], axes)
+        for j, i in enumerate(members):
+            out[offsets[i] : offsets[i + 1]] = x[j]
+    return out
+
+
+def rigid_modes(x: np.ndarray, centre=None, size: float | None = None) -> np.ndarray:
+    """The six rigid modes (3 N, 6) at points x (N, 3), component-major; rotations about ``centre`` scaled by
+    1 / ``size`` so that all six are of unit magnitude."""
+    centre = x.mean(0) if centre is None else centre
+    y = x - centre
+    size = size or max(float(np.abs(y).max()), 1e-300)
+    y = y / size
+    n = len(x)
+    B = np.zeros((3, n, 6))
+    for a in range(3):
+        B[a, :, a] = 1.0
+    for k, w in enumerate(np.eye(3)):  # w x y for the unit axis w
+        B[:, :, 3 + k] = np.cross(np.broadcast_to(w, y.shape), y).T
+    return B.reshape(3 * n, 6)
+
+
+def free_modes(points: np.ndarray, labels: np.ndarray, prescribed: list, pieces: int) -> None:
+    """Refuse a piece whose prescribed displacement components leave a rigid motion free.
+
+    ``points`` (ndof, 3) the DOF points; ``labels`` (ndof,) the connected piece of each scalar DOF;
+    ``prescribed``: per component a (0, 1, 2) the scalar DOFs with component a prescribed.
+    """
+    for piece in range(pieces):
+        own = labels == piece
+        x = points[own]
+        centre, size = x.mean(0), max(float(np.ptp(x, axis=0).max()), 1e-300)
+        rows = []
+        for a in range(3):
+            dofs = prescribed[a][own[prescribed[a]]] if len(prescribed[a]) else prescribed[a]
+            if len(dofs):
+                rows.append(rigid_modes(points[dofs], centre, size).reshape(3, len(dofs), 6)[a])
+        B = np.concatenate(rows) if rows else np.zeros((0, 6))
+        sv = np.linalg.svd(B, compute_uv=False) if len(B) else np.zeros(0)
+        rank = int(np.sum(sv > 1e-8 * max(sv.max(initial=0.0), 1e-300)))
+        if rank == 6:
+            continue
+        pure = [MODE_NAMES[m] for m in range(6) if np.linalg.norm(B[:, m]) <= 1e-8 * max(np.sqrt(len(B)), 1.0)]
+        named = ", ".join(pure) if pure else "combined motions (rotations about axes through the held points)"
+        extra = 6 - rank - len(pure)
+        if pure and extra > 0:
+            named += f" and {extra} combined motion{'s' if extra > 1 else ''}"
+        where = (f"piece {piece} of {pieces} (the one holding scalar DOF {int(np.flatnonzero(own)[0])})" if pieces > 1
+                 else "the model")
+        raise SingularProblemError(
+            f"the displacement conditions leave {6 - rank} rigid-body motion{'s' if 6 - rank > 1 else ''} of "
+            f"{where} free: {named}; hold more components (dirichlet(tag, value, components=...)) so that no "
+            "translation or rotation is free")

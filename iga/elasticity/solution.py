@@ -1,0 +1,213 @@
+"""Post-processing of a solved elastic problem: displacement, strain, stress, reactions, energy, errors."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from geometry import SplineFunction
+from geometry.patches.chain import patch_geometry_points
+
+from iga.elasticity.forms import lame
+from iga.errors import ProblemError
+from iga.discretisation.fields import integrate_fields
+from iga.discretisation.locate import Locator
+from iga.heat.solution import EnergyBalance, check_reference, field_spline, physical_gradient, reference_values
+
+__all__ = ["ElasticSolution"]
+
+
+class ElasticSolution:
+    """Displacement field of an :class:`iga.ElasticityProblem`.
+
+    Attributes
+    ----------
+    u : (3 ndof,) coefficients, component-major (x block, y block, z block)
+    info : dict with DOF counts, constraints, solver diagnostics, timings and the work balance
+    """
+
+    def __init__(self, problem, res, f, dd, work, applied):
+        self.problem = problem
+        self.u = res.u
+        self._splines: dict = {}
+        self._locator = Locator(problem.model)
+        self._applied = applied
+        total = np.asarray(dd.G[res.reaction_dofs].sum(axis=1)).ravel() if dd.G is not None else np.zeros(0)
+        safe = np.where(total != 0, total, 1.0)
+        Gd = dd.G[res.reaction_dofs].toarray() if dd.G is not None else np.zeros((len(res.reaction_dofs), 0))
+        self._face_forces = {}  # (component, (patch, face)) -> support force on the body (N)
+        for j, key in enumerate(dd.keys):
+            self._face_forces[key] = float(np.sum(res.reaction * Gd[:, j] / safe))
+        self._f = f
+        self._reaction, self._prescribed = res.reaction, res.prescribed
+        balance, energy = self._work_and_energy()
+        self.info = {
+            "dofs": 3 * problem.ndof,
+            "free_dofs": int(problem.reduced_dofs),
+            "constraints": dict(problem.constraint_stats),
+            "patches": len(problem.model.patches),
+            "solver": res.info.as_dict(),
+            "timings": dict(problem.timings),
+            "work": {"external_J": balance.external, "internal_J": balance.internal, "strain_energy_J": energy,
+                     "relative_error": balance.relative_error, "thermal": problem.thermal_strain is not None},
+            "applied_N": {tag: v.tolist() for tag, v in applied.items()},
+            "body_force_N": work["body"].tolist(),
+        }
+
+    def __repr__(self) -> str:
+        return (f"ElasticSolution({self.info['patches']} patches, {self.info['dofs']} DOFs, {self.info['free_dofs']} "
+                f"unknowns, {self.info['solver']['method']}; strain energy {self.info['work']['strain_energy_J']:.4g} J, "
+                f"work balance error {self.info['work']['relative_error']:.1e})")
+
+    # ---------------------------------------------------------------- fields
+    def displacement_spline(self, pi: int) -> SplineFunction:
+        """The displacement on patch ``pi`` as a 3-component spline over the patch parameters."""
+        if pi not in self._splines:
+            prob = self.problem
+            space, o, n = prob.spaces[pi], prob.offsets, prob.ndof
+            coef = np.stack([self.u[a * n + o[pi] : a * n + o[pi + 1]].reshape(space.shape) for a in range(3)], -1)
+            self._splines[pi] = field_spline(space, coef, prob.weights[pi])
+        return self._splines[pi]
+
+    def evaluate(self, pi: int, params):
+        """Displacement (N, 3), its gradient (N, 3, 3) (``[n, a, k] = d u_a / d x_k``), x (N, 3) and channels at
+        parameters of patch ``pi``."""
+        params = np.asarray(params, float)
+        U = self.displacement_spline(pi)
+        val = U.evaluate(params)
+        dxi = U.jacobian(params)  # (N, 3 components, 3 parameters)
+        x, J, chans = patch_geometry_points(self.problem.model.patches[pi], params)
+        grad = np.stack([physical_gradient(J, dxi[:, a, :], f"patch {pi}", params) for a in range(3)], 1)
+        return val, grad, x, chans
+
+    def _at_points(self, points, fn, tail=()):
+        """``fn(patch, params) -> (n,) + tail`` at physical points (N, 3), located; (0,) + tail for no points."""
+        points = np.asarray(points, float)
+        if points.size == 0:
+            return np.zeros((0,) + tuple(tail))
+        where, params = self._locator(points, 1e-10)
+        out = None
+        for pi in np.unique(where):
+            sel = where == pi
+            v = fn(int(pi), params[sel])
+            if out is None:
+                out = np.empty((len(where),) + v.shape[1:])
+            out[sel] = v
+        return out
+
+    def _stress_at(self, pi, params):
+        u, grad, x, chans = self.evaluate(pi, params)
+        eps = 0.5 * (grad + np.transpose(grad, (0, 2, 1)))
+        prob = self.problem
+        lam, mu = lame(prob.youngs.values(x, chans, f"patch {pi}"), prob.poisson.values(x, chans, f"patch {pi}"),
+                       f"patch {pi}")
+        tr = np.trace(eps, axis1=1, axis2=2)
+        if prob.thermal_strain is not None:
+            tr = tr - 3 * prob.thermal_strain(pi, x, params, chans)
+            eps = eps - (prob.thermal_strain(pi, x, params, chans))[:, None, None] * np.eye(3)
+        return lam[:, None, None] * tr[:, None, None] * np.eye(3) + 2 * mu[:, None, None] * eps
+
+    def displacement(self, points) -> np.ndarray:
+        """Displacement (N, 3) in m at physical points (N, 3)."""
+        return self._at_points(points, lambda pi, p: self.displacement_spline(pi).evaluate(p), (3,))
+
+    def strain(self, points) -> np.ndarray:
+        """Total small strain sym(grad u) (N, 3, 3) at physical points."""
+        def eps(pi, p):
+            g = self.evaluate(pi, p)[1]
+            return 0.5 * (g + np.transpose(g, (0, 2, 1)))
+        return self._at_points(points, eps, (3, 3))
+
+    def stress(self, points) -> np.ndarray:
+        """Cauchy stress (N, 3, 3) in Pa at physical points (thermal strain taken off the total)."""
+        return self._at_points(points, self._stress_at, (3, 3))
+
+    def von_mises(self, points) -> np.ndarray:
+        """Von Mises equivalent stress (N,) in Pa at physical points."""
+        return _von_mises(self.stress(points))
+
+    # ------------------------------------------------------------ reactions
+    def reaction(self, tag: str) -> np.ndarray:
+        """Force (3,) in N that the supports on the faces tagged ``tag`` exert on the body (the consistent
+        residual of the prescribed unknowns, split among faces by their share of int N_i dA)."""
+        faces = set(self.problem.tag_faces(tag))
+        if not faces:
+            raise ProblemError(f"tag {tag!r} has no faces in this model")
+        out = np.zeros(3)
+        for (a, key), v in self._face_forces.items():
+            if key in faces:
+                out[a] += v
+        return out
+
+    # ------------------------------------------------------------ integrals
+    def integrate(self, fn) -> float:
+        """Sum over the model of int fn(x, u, grad u) dV by the problem's Gauss rule; ``fn(x (N, 3), u (N, 3),
+        grad (N, 3, 3)) -> (N,)`` (:func:`iga.discretisation.fields.integrate_fields`)."""
+        prob = self.problem
+        n, o = prob.ndof, prob.offsets
+        return integrate_fields(prob, lambda i: np.stack([self.u[a * n + o[i]:a * n + o[i + 1]].reshape(
+            prob.spaces[i].shape) for a in range(3)]), 3, fn)
+
+    def strain_energy(self) -> float:
+        """Elastic strain energy (J): 1/2 int (eps - eps_th) : C : (eps - eps_th) dV, the thermal strain taken
+        off (a free thermal expansion stores none), by the problem's Gauss rule."""
+        return self.info["work"]["strain_energy_J"]
+
+    def work_balance(self) -> EnergyBalance:
+        """The virtual work of the solution on itself, its two sides computed independently (J).
+
+        ``internal``: int sigma : eps(u) dV, the stresses and strains evaluated from the displacement at the Gauss
+        points as post-processing does (materials, thermal strain); ``external``: the work of the loads, u . f
+        less the thermal part of f (body forces, tractions and pressures, as assembled into the load vector),
+        plus the supports' work r . u_D (the consistent reactions on the prescribed unknowns times their
+        values).  A displacement that does not satisfy the discrete equations, or a stiffness that differs from
+        the field's own stresses, shows as a relative error above round-off (relative to the larger side and
+        to int eps : C : eps dV, so that a stress-free expansion, where both sides vanish, is measured
+        against the energy its strain would have).  ``None`` figures after a distributed solve.
+        """
+        return self._work_and_energy()[0]
+
+    def _work_and_energy(self) -> tuple[EnergyBalance, float]:
+        """(the work balance, the strain energy with the thermal strain removed) from one pass over the Gauss
+        points."""
+        prob = self.problem
+        n, o = prob.ndof, prob.offsets
+
+        def densities(x, u, g, at):
+            where = f"patches {at.patches[0]}..{at.patches[-1]}"
+            lam, mu = lame(prob.youngs.values(x, at.chans, where), prob.poisson.values(x, at.chans, where), where)
+            eps = 0.5 * (g + np.transpose(g, (0, 2, 1)))
+            tr = np.trace(eps, axis1=1, axis2=2)
+            th = at.per_patch(prob.thermal_strain) if prob.thermal_strain is not None else np.zeros(len(x))
+            mech = eps - th[:, None, None] * np.eye(3)
+            tr_mech = tr - 3 * th
+            sig_eps = lam * tr_mech * tr + 2 * mu * np.sum(mech * eps, axis=(1, 2))
+            energy = 0.5 * (lam * tr_mech**2 + 2 * mu * np.sum(mech * mech, axis=(1, 2)))
+            thermal_load = (3 * lam + 2 * mu) * th * tr  # C eps_th : eps(u), the thermal part of u . f
+            total = lam * tr**2 + 2 * mu * np.sum(eps * eps, axis=(1, 2))  # eps : C : eps, the scale
+            return np.stack([sig_eps, energy, thermal_load, total], 1)
+
+        internal, energy, thermal_load, total = integrate_fields(
+            prob, lambda i: np.stack([self.u[a * n + o[i]:a * n + o[i + 1]].reshape(prob.spaces[i].shape)
+                                      for a in range(3)]), 3, densities, context=True)
+        if self._prescribed is None:
+            return EnergyBalance(float(internal), None, None), float(energy)
+        external = float(self.u @ self._f) - float(thermal_load) + float(self._reaction @ self._prescribed)
+        scale = max(abs(internal), abs(external), abs(total), 1e-300)
+        return EnergyBalance(float(internal), external, float(abs(internal - external) / scale)), float(energy)
+
+    def l2_error(self, exact) -> float:
+        """|| u - exact ||_L2 (m^{5/2}); ``exact(x (N, 3)) -> (N, 3)``."""
+        check_reference(exact, "exact")
+        return float(np.sqrt(self.integrate(
+            lambda x, u, g: np.sum((u - reference_values(exact, x, (3,), "exact")) ** 2, axis=1))))
+
+    def h1_error(self, exact_grad) -> float:
+        """| u - exact |_H1 (gradient seminorm); ``exact_grad(x) -> (N, 3, 3)`` with ``[n, a, k] = d u_a/d x_k``."""
+        check_reference(exact_grad, "exact_grad")
+        return float(np.sqrt(self.integrate(
+            lambda x, u, g: np.sum((g - reference_values(exact_grad, x, (3, 3), "exact_grad")) ** 2, axis=(1, 2)))))
+
+
+def _von_mises(S: np.ndarray) -> np.ndarray:
+    dev = S - np.trace(S, axis1=1, axis2=2)[:, None, None] / 3 * np.eye(3)
+    return np.sqrt(1.5 * np.sum(dev * dev, axis=(1, 2)))

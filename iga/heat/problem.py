@@ -1,0 +1,300 @@
+"""Steady heat conduction: -div(K grad T) = f with Dirichlet, Neumann and Robin faces.
+
+Units are the user's, consistently: with lengths in m, conductivity in
+W/(m K), sources in W/m^3, fluxes in W/m^2 and film coefficients in
+W/(m^2 K), temperatures are in K (or degrees C) and heat flows in W.
+
+:class:`HeatProblem` composes the weak form (:mod:`iga.heat.forms`; Massarwi et al.
+2018, Eq. 9) from its pieces: the diffusion and source forms over the volume
+(:class:`iga.heat.volume.VolumeAssembler`), the Neumann and Robin forms over faces
+(:class:`iga.discretisation.faces.FaceQuadrature`), the Dirichlet data by L2 projection
+(:mod:`iga.discretisation.dirichlet`), and the interface constraints and the reduced solve
+(:mod:`iga.discretisation.constraints`, :mod:`iga.discretisation.system`).  Each patch uses its own B-spline
+basis (Massarwi et al. 2018, Remark 2), optionally elevated and refined.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+
+from iga.heat.coefficients import Conductivity, ScalarField, is_number
+from iga.discretisation.components import analyse_components
+from iga.discretisation.constraints import needs_constraints, prolongation
+from iga.discretisation.dirichlet import project_dirichlet
+from iga.discretisation.setting import Discretisation, count
+from iga.errors import ProblemError, SingularProblemError
+from iga.discretisation.faces import FaceData
+from iga.assembly.tensor import add_within
+from iga.heat.forms import boundary_load, boundary_mass
+from iga.model import tag_faces
+from iga.distributed.rank_setup import rank_setup
+from iga.tags import as_expression, check_expression, condition_faces, mentions_rest
+from iga.heat.solution import Solution
+from iga.distributed import solve as distributed
+from iga.discretisation.multilevel import solver_options
+from iga.discretisation.system import solve_system
+from geometry.errors import show
+
+__all__ = ["HeatProblem"]
+
+
+@dataclass
+class _Condition:
+    kind: str  # "dirichlet", "neumann" or "robin"
+    tag: str
+    value: ScalarField  # temperature, inward flux or ambient temperature
+    h: ScalarField | None = None  # film coefficient (Robin)
+
+
+_count = count
+
+
+class HeatProblem:
+    """Steady heat transfer on a trivariate patch, a list of patches or a micro-structure.
+
+    Parameters
+    ----------
+    model : BSpline, list of BSpline (conforming shared faces are coupled), or a
+        model such as ``tiling.Microstructure``
+    conductivity : W/(m K): a number, a channel name, a callable ``k(x (N, 3)) -> (N,)``,
+        a constant symmetric positive definite 3 x 3 matrix, six channel names
+        (xx, yy, zz, xy, xz, yz) or a callable returning (N, 3, 3); must be positive (definite)
+    source : W/m^3: a number, a channel name or a callable ``f(x) -> (N,)``
+    degree_elevation, refine : applied to every patch's solution space
+        (degree + ``degree_elevation``, an int or one per direction, then
+        ``refine`` rounds of knot-span bisection)
+    degree : optional solution degrees (int or three) replacing patch degree +
+        elevation; continuity at each knot is kept, capped at C^(p-1)
+    quadrature_extra : Gauss points per element and direction beyond ``p + 1``
+    bases : optional per patch ``(knots, degrees)`` of the solution basis before elevation and
+        refinement, instead of the patch geometry's own (a file of composed geometry analysed in the
+        tiles' bases, :func:`iga.io.gismo.problem_from_gismo`); same parameter domains
+
+    Boundary conditions refer to the model's tags (``umin`` .. ``wmax``,
+    ``boundary``, and for micro-structures ``branch-in``, ``internal`` and user
+    tags); faces with no condition are insulated.
+
+    Example: a unit cube between 0 and 1 degree has a linear temperature.
+
+    >>> import numpy as np
+    >>> from geometry import primitives
+    >>> problem = HeatProblem(primitives.box(degrees=(2, 2, 2)), conductivity=3.0)
+    >>> solution = problem.dirichlet("umin", 0.0).dirichlet("umax", 1.0).solve()
+    >>> round(float(solution.probe(np.array([[0.25, 0.5, 0.5]]))[0]), 12)
+    0.25
+    >>> round(solution.flux("umax"), 9)  # W, outward: 3 W/(m K) x 1 K/m x 1 m^2 flows in
+    -3.0
+    """
+
+    def __init__(self, model, conductivity=1.0, source=0.0, degree_elevation=0, refine: int = 0,
+                 quadrature_extra: int = 0, degree=None, bases=None):
+        d = Discretisation(model, degree_elevation, refine, quadrature_extra, degree, bases)
+        self.model, self.bases, self.regularity, self.space_args = d.model, d.bases, d.regularity, d.space_args
+        self.estimate, self.spaces, self.offsets, self.ndof = d.estimate, d.spaces, d.offsets, d.ndof
+        self.volume, self.faces, self.timings = d.volume, d.faces, d.timings
+        self.weights = d.weights  # NURBS basis where a patch is its own rational geometry (iga.discretisation.rational)
+        self.conductivity = Conductivity(conductivity, self.model)
+        self.source = ScalarField(source, "source", model=self.model)
+        self.conditions: list[_Condition] = []
+        self.constraint_stats: dict = {}
+        self.reduced_dofs = None
+        self.partition = None  # under mpiexec: the MPI rank of every patch in the last solve (iga.distributed.solve)
+        self.components, self.idle_components = [], []  # the coupled pieces of the last solve (iga.discretisation.components)
+
+    # ------------------------------------------------------------ conditions
+    def _condition(self, kind, tag, value, h=None) -> "HeatProblem":
+        tag = as_expression(tag)
+        if mentions_rest(self.model, tag):
+            check_expression(self.model, tag)  # its faces are known once every condition is
+        elif not tag_faces(self.model, tag):
+            raise ProblemError(f"tag {show(tag)} has no faces in this model (every face it named is glued to a "
+                               f"neighbour or absent); choose another tag from {sorted(self.model.tags)[:20]}")
+        what = {"dirichlet": "Dirichlet value", "neumann": "Neumann flux", "robin": "ambient temperature"}[kind]
+        field = ScalarField(value, f"{what} on {show(tag)}", model=self.model, channels=False)
+        self.conditions.append(_Condition(kind, tag, field, h))
+        return self
+
+    def dirichlet(self, tag: str, value=0.0) -> "HeatProblem":
+        """Prescribed temperature on the faces tagged ``tag`` (number or callable of x)."""
+        return self._condition("dirichlet", tag, value)
+
+    def neumann(self, tag: str, flux) -> "HeatProblem":
+        """Inward heat flux q (W/m^2; q > 0 heats the body) on the faces tagged ``tag``."""
+        return self._condition("neumann", tag, flux)
+
+    def robin(self, tag: str, h, ambient) -> "HeatProblem":
+        """Convection -k dT/dn = h (T - ambient) on ``tag``; h in W/(m^2 K), must be > 0."""
+        hh = ScalarField(h, f"film coefficient h on {show(tag)}", positive=True, model=self.model, channels=False)
+        return self._condition("robin", tag, ambient, hh)
+
+    # --------------------------------------------------------------- assembly
+    def face_data(self, pi: int, face: str) -> FaceData:
+        """Geometry and DOFs of one patch face at its Gauss points (see :class:`iga.discretisation.faces.FaceQuadrature`)."""
+        return self.faces([(pi, face)])[0]
+
+    def faces_data(self, keys) -> list[FaceData]:
+        """Geometry and DOFs of patch faces ``[(patch, face), ...]`` at their Gauss points (cached)."""
+        return self.faces(keys)
+
+    def _field_on(self, field: ScalarField, fds, tag) -> list[np.ndarray]:
+        """A scalar field evaluated on several faces at once -> one (N_f,) array per face."""
+        if not fds:
+            return []
+        return _per_face(self._flat_field_on(field, fds, tag), fds)
+
+    @staticmethod
+    def _flat_field_on(field: ScalarField, fds, tag) -> np.ndarray:
+        """A scalar field on several faces at once, their Gauss points one after the other (sum N_f,)."""
+        ends = np.cumsum([len(fd.x) for fd in fds])
+        constant = field.constant
+        if constant is not None and np.ndim(constant) == 0:  # a number (checked when given): nothing to gather
+            v = np.full(int(ends[-1]), float(constant))
+        else:
+            x = np.concatenate([fd.x for fd in fds])
+            common = [c for c in fds[0].chans if all(c in fd.chans for fd in fds)]
+            chans = {c: np.concatenate([fd.chans[c] for fd in fds]) for c in common}
+            where = f"the faces tagged {show(tag)} (e.g. patch {fds[0].patch} face {fds[0].face})"
+            v = field.values(x, chans, where)
+        return v
+
+    def tag_faces(self, tag) -> list:
+        """The faces of a tag or tag expression of this problem; ``rest``: every free face that no condition
+        without ``rest`` covers (:mod:`iga.tags`)."""
+        if not mentions_rest(self.model, tag):
+            return tag_faces(self.model, tag)
+        covered = {f for c in self.conditions if not mentions_rest(self.model, c.tag)
+                   for f in tag_faces(self.model, c.tag)}
+        rest = [f for f in self.model.tags.get("boundary", []) if f not in covered]
+        return tag_faces(self.model, tag, rest)
+
+    def _faces_by_kind(self):
+        """{kind: {(patch, face): condition}}; one condition per face and kind, and Dirichlet faces alone."""
+        out = {"dirichlet": {}, "neumann": {}, "robin": {}}
+        for c in self.conditions:
+            for key in condition_faces(self.tag_faces(c.tag), c.tag):
+                other = out[c.kind].get(key)
+                if other is not None:
+                    raise ProblemError(
+                        f"patch {key[0]} face {key[1]} has two {c.kind} conditions (tags {show(other.tag)} and "
+                        f"{show(c.tag)}); give each face one condition of each kind")
+                out[c.kind][key] = c
+        clash = set(out["dirichlet"]) & (set(out["neumann"]) | set(out["robin"]))
+        if clash:
+            key = sorted(clash)[0]
+            d = out["dirichlet"][key]
+            o = out["neumann"].get(key) or out["robin"][key]
+            way = (f"e.g. {o.kind} on {show(f'{o.tag} - {d.tag}')} or on 'rest' (every free face no other condition "
+                   "covers)") if o.tag != d.tag else "one tag cannot carry both"
+            raise ProblemError(
+                f"patch {key[0]} face {key[1]} has a Dirichlet condition (tag {show(d.tag)}) and a {o.kind} condition "
+                f"(tag {show(o.tag)}); give each face one kind: {way}")
+        return out
+
+    def assemble(self, patches=None):
+        """Assemble ``a(T, v) = l(v)``: (K, f, bookkeeping dict); only ``patches`` (a set: one MPI rank's share)
+        when given: their volumes and their Neumann and Robin faces (the bookkeeping holds those faces; the
+        Dirichlet faces are all kept, as every rank projects the Dirichlet data)."""
+        by_kind = self._faces_by_kind()
+        if patches is not None:  # a rank's faces only: their Gauss-point data is not replicated
+            for kind in ("neumann", "robin"):
+                by_kind[kind] = {key: c for key, c in by_kind[kind].items() if key[0] in patches}
+        t0 = time.perf_counter()
+        K, f, source_total = self.volume.assemble(self.conductivity, self.source, patches)
+        t1 = time.perf_counter()
+        self.faces([key for faces in by_kind.values() for key in faces])  # all at once: grouped by space
+        neumann, robin = {}, {}
+        for key, c in by_kind["neumann"].items():
+            neumann.setdefault(c.tag, []).append(key)
+        for key, c in by_kind["robin"].items():
+            robin.setdefault(c.tag, []).append(key)
+        book = {"neumann": {}, "robin": {}, "dirichlet": {k: (c.value, f"the faces tagged {show(c.tag)}")
+                                                           for k, c in by_kind["dirichlet"].items()},
+                "source": source_total}
+        for tag, keys in neumann.items():  # + int_F q v
+            c, fds = by_kind["neumann"][keys[0]], self.faces(keys)
+            qs = self._field_on(c.value, fds, tag)
+            f += boundary_load(fds, [q * fd.dAw for q, fd in zip(qs, fds)], self.ndof, patches)
+            book["neumann"].update(zip(keys, qs))
+        robin_fds, robin_h = [], []
+        for tag, keys in robin.items():  # + int_F h T v on the left, + int_F h T_inf v on the right
+            c, fds = by_kind["robin"][keys[0]], self.faces(keys)
+            # on all faces at once (one array each, sliced per face): 136k faces on the winged duck
+            h, T = self._flat_field_on(c.h, fds, tag), self._flat_field_on(c.value, fds, tag)
+            hA = h * np.concatenate([fd.dAw for fd in fds])
+            robin_fds += fds
+            robin_h += _per_face(hA, fds)
+            f += boundary_load(fds, _per_face(hA * T, fds), self.ndof, patches)
+            book["robin"].update(zip(keys, zip(_per_face(h, fds), _per_face(T, fds))))
+        if robin_fds:
+            K = add_within(K, boundary_mass(robin_fds, robin_h, self.ndof, patches))  # in place: no copy of K
+        self.timings["assembly_volume"] = t1 - t0
+        self.timings["assembly_faces"] = time.perf_counter() - t1
+        return K, f, book
+
+    def _needs_constraints(self) -> bool:
+        """Interfaces, or patches with full-multiplicity (discontinuity) knots, need a prolongation."""
+        return needs_constraints(self.model, self.spaces)
+
+    # ------------------------------------------------------------------ solve
+    def solve(self, solver: str = "auto", tol: float = 1e-10, maxiter: int | None = None):
+        """Assemble, apply the conditions, solve; returns a :class:`iga.Solution`.
+
+        ``solver``: a name from :func:`solvers.backends`; ``tol``: relative
+        residual of iterative solvers (0 < tol < 1); ``maxiter``: their iteration limit.
+        """
+        if not (is_number(tol) and 0 < tol < 1):
+            raise ProblemError(f"tol must be a number in (0, 1), got {show(tol)}")
+        if maxiter is not None:
+            _count("maxiter", maxiter, 1)
+        kinds = {c.kind for c in self.conditions}
+        if not ({"dirichlet", "robin"} & kinds):
+            raise SingularProblemError(
+                "the heat problem has no Dirichlet or Robin condition, so its temperature is only defined up to a "
+                "constant (the system is singular); add problem.dirichlet(tag, T) or problem.robin(tag, h, T_inf)"
+            )
+        world = distributed.world() if solver == "petsc" else None  # (comm, rank, size) under mpiexec
+        part = self.partition = distributed.partition(self, world[2]) if world else None  # rank of each patch
+        K, f, book = self.assemble(None if part is None else set(np.flatnonzero(part == world[1]).tolist()))
+        if world:  # each rank integrated the source over its own patches
+            book["source"] = world[0].allreduce(book["source"])
+        t0 = time.perf_counter()
+        rc = dd = None
+        if world and self._needs_constraints():  # each rank builds the constraints its patches read
+            constraints, dd, rc = rank_setup(self, world, part, book)
+        else:
+            constraints = (prolongation(self.model, self.spaces, self.offsets, self.weights)
+                           if self._needs_constraints() else None)
+        if dd is None:
+            self.constraint_stats = dict(constraints.stats) if constraints is not None else {}
+            self.components, self.idle_components = analyse_components(self, constraints, self._faces_by_kind(),
+                                                                        book["source"])
+            dd = project_dirichlet(self.faces, book["dirichlet"], self.ndof, constraints)
+        self.timings["constraints"] = time.perf_counter() - t0
+        t0, options = time.perf_counter(), solver_options(self, solver, constraints, dd, book)
+        self.timings["solver_structure"] = time.perf_counter() - t0  # Kronecker factors, multigrid levels
+        if world:  # K handed over: the solve releases it once its reduced matrix is built
+            system, K, f = [K, f], None, None
+            res = distributed.solve_system(system, constraints, dd, tol, maxiter, part, world[0], self.offsets,
+                                           rc=rc)
+        else:
+            res = solve_system(K, f, constraints, dd, solver, tol, maxiter, options)
+        if rc is None:  # (a rank's own constraints counted the prescribed unknowns across the ranks)
+            self.constraint_stats["prescribed"] = int(len(dd.dofs))
+        self.constraint_stats["induced_rank"] = res.induced_rank
+        self.timings["solve"] = res.info.setup_s + res.info.solve_s
+        self.reduced_dofs = res.reduced
+        Gd = dd.G[res.reaction_dofs].toarray() if dd.G is not None else np.zeros((len(res.reaction_dofs), 0))
+        integrals = {key: Gd[:, j] for j, key in enumerate(dd.keys)}
+        return Solution(self, res.u, book, res.reaction_dofs, res.reaction, integrals, res.info,
+                        loads=None if world else f, prescribed=res.prescribed)
+
+
+def _per_face(values: np.ndarray, fds) -> list[np.ndarray]:
+    """Views of ``values`` (the faces' Gauss points one after the other, first axis) per face: slicing, as
+    np.split pays a swapaxes per piece (0.2 s for the winged duck's 136k faces)."""
+    ends = np.cumsum([len(fd.x) for fd in fds]).tolist()
+    return [values[a:b] for a, b in zip([0] + ends[:-1], ends)]

@@ -1,0 +1,337 @@
+"""Post-processing of a solved heat problem: probes, fluxes, energy balance, errors."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from geometry import SplineFunction
+
+from iga.heat.coefficients import tensor_matrix, user_values
+from iga.errors import ProblemError
+from iga.discretisation.fields import integrate_fields
+from geometry.patches.chain import patch_geometry_points
+from geometry.patches.sampling import sample_axes
+from iga.discretisation.locate import Locator
+from geometry.tolerances import SINGULAR
+
+
+@dataclass(frozen=True)
+class EnergyBalance:
+    """Two independently computed sides of an energy identity and their relative difference (None where a
+    distributed solve cannot compute them); see :meth:`Solution.energy_balance` and
+    :meth:`iga.ElasticSolution.work_balance`."""
+
+    internal: float | None
+    external: float | None
+    relative_error: float | None
+
+    def as_dict(self) -> dict:
+        return {"internal": self.internal, "external": self.external, "relative_error": self.relative_error}
+
+
+class Solution:
+    """Temperature field of a :class:`iga.HeatProblem`.
+
+    Attributes
+    ----------
+    u : (ndof,) all coefficients (patch blocks in order)
+    info : dict with DOF counts, solver diagnostics (method, iterations,
+        residual), timings (s) and the energy balance
+    """
+
+    def __init__(self, problem, u, book, dirichlet_dofs, reaction, dirichlet_integrals, solver_info, loads=None,
+                 prescribed=None):
+        self.problem = problem
+        self.u = u
+        self._book = book
+        self._loads = loads  # the load vector f (ndof,): source, Neumann and Robin h T_inf; None when distributed
+        self._prescribed = prescribed  # the prescribed unknowns' values (reaction . prescribed: the supports' part)
+        # consistent boundary fluxes: the residual K u - f on the prescribed (reduced) unknowns
+        self._reaction = np.asarray(reaction, float)
+        self._dirichlet_dofs = dirichlet_dofs
+        self._dirichlet_integrals = dirichlet_integrals
+        self._splines = {}
+        self._locator = Locator(problem.model)
+        # both combine figures across the ranks of a distributed solve: computed once, here, by every rank
+        self.face_flows = self._face_flows()
+        self._scale = self._flow_scale()
+        self.info = {
+            "dofs": problem.ndof,
+            "free_dofs": int(problem.reduced_dofs),
+            "constraints": dict(getattr(problem, "constraint_stats", {})),
+            "patches": len(problem.model.patches),
+            "solver": solver_info.as_dict(),
+            "timings": dict(problem.timings),
+            "balance": self.balance(),
+            "components": _components_info(problem),
+        }
+
+    def __repr__(self) -> str:
+        b = self.info["balance"]
+        return (f"Solution({self.info['patches']} patches, {self.info['dofs']} DOFs, {self.info['free_dofs']} "
+                f"unknowns, {self.info['solver']['method']}; inflow {b['inflow_W']:.4g} W, balance error "
+                f"{b['relative_error']:.1e})")
+
+    # ---------------------------------------------------------------- fields
+    def temperature_spline(self, pi: int) -> SplineFunction:
+        """The temperature on patch ``pi`` as a scalar spline over the patch parameters (kept for the probes
+        that ask again)."""
+        if pi not in self._splines:
+            self._splines[pi] = self._spline(pi)
+        return self._splines[pi]
+
+    def _spline(self, pi: int) -> SplineFunction:
+        space = self.problem.spaces[pi]
+        o = self.problem.offsets
+        coef = self.u[o[pi] : o[pi + 1]].reshape(space.shape + (1,))
+        return field_spline(space, coef, self.problem.weights[pi])
+
+    def evaluate(self, pi: int, params):
+        """Temperature (N,), gradient (N, 3) in physical space, and x (N, 3) at parameters of patch ``pi``."""
+        params = np.asarray(params, float)
+        T = self.temperature_spline(pi)
+        val = T.evaluate(params)[:, 0]
+        dxi = T.jacobian(params)[:, 0, :]
+        x, J, chans = patch_geometry_points(self.problem.model.patches[pi], params)
+        return val, physical_gradient(J, dxi, f"patch {pi}", params), x, chans
+
+    def conductivity_at(self, x, chans, pi):
+        """Conductivity at points x (N, 3) of patch ``pi``: (N,) isotropic or (N, 6) tensor components."""
+        return self.problem.conductivity.values(x, chans, f"patch {pi}")
+
+    def heat_flux(self, pi: int, params) -> np.ndarray:
+        """Heat flux vector q = -K grad T (W/m^2) at parameters of patch ``pi``, (N, 3)."""
+        _, grad, x, chans = self.evaluate(pi, params)
+        return flux_vector(self.conductivity_at(x, chans, pi), grad)
+
+    # ----------------------------------------------------------------- probes
+    def locate(self, points, tol: float = 1e-10):
+        """Point inversion: (patch index (N,), parameters (N, 3)) of physical points (N, 3) (:class:`iga.discretisation.locate.Locator`)."""
+        return self._locator(points, tol)
+
+    def probe(self, points) -> np.ndarray:
+        """Temperature at physical points (N, 3) -> (N,)."""
+        where, params = self.locate(points)
+        out = np.empty(len(where))
+        for pi in np.unique(where):
+            sel = where == pi
+            out[sel] = self.temperature_spline(int(pi)).evaluate(params[sel])[:, 0]
+        return out
+
+    # ----------------------------------------------------------------- fluxes
+    def _face_flows(self) -> dict:
+        """Outward heat flow (W) through every face that carries a condition."""
+        prob, book = self.problem, self._book
+        flows = {}
+        for key, q in book["neumann"].items():
+            flows[key] = flows.get(key, 0.0) - float(np.sum(q * prob.face_data(*key).dAw))
+        for key, (h, Tinf) in book["robin"].items():
+            fd = prob.face_data(*key)
+            flows[key] = flows.get(key, 0.0) + float(np.sum(h * (fd.trace(self.u) - Tinf) * fd.dAw))
+        dirichlet = {}
+        if self._dirichlet_integrals:
+            # split each prescribed unknown's reaction among the faces by their share of int N_i dA
+            total = sum(self._dirichlet_integrals.values())
+            safe = np.where(total != 0, total, 1.0)
+            for key, integ in self._dirichlet_integrals.items():
+                dirichlet[key] = -float(np.sum(self._reaction * integ / safe))
+        comm = self._comm()
+        if comm is not None:
+            # each rank holds its own Neumann and Robin faces (disjoint): every rank gets all; a rank's reaction
+            # is its rows' part, and the flows are linear in it: the ranks' Dirichlet flows add up per face
+            for part in comm.allgather(flows):
+                flows.update(part)
+            summed: dict = {}
+            for part in comm.allgather(dirichlet):
+                for key, v in part.items():
+                    summed[key] = summed.get(key, 0.0) + v
+            dirichlet = summed
+        for key, v in dirichlet.items():
+            flows[key] = flows.get(key, 0.0) + v
+        return flows
+
+    def _comm(self):
+        """The MPI communicator of a distributed solve (:mod:`iga.distributed.solve`), None for a serial one."""
+        from iga.distributed.solve import solve_world
+
+        w = solve_world(self.problem)
+        return None if w is None else w[0]
+
+    def flux(self, tag: str) -> float:
+        """Heat flow through the faces tagged ``tag`` in W, outward positive.
+
+        Dirichlet faces use the consistent reaction (residual) flux, Neumann
+        faces the prescribed flux, Robin faces h (T - T_inf); insulated faces
+        contribute nothing.
+        """
+        faces = set(self.problem.tag_faces(tag))
+        return float(sum(self.face_flows.get(f, 0.0) for f in faces))
+
+    def balance(self) -> dict:
+        """Global energy balance: inflow + sources = outflow (W), and the relative error."""
+        flows = np.array(list(self.face_flows.values())) if self.face_flows else np.zeros(0)
+        src = self._book["source"]
+        inflow = float(-flows[flows < 0].sum()) + max(src, 0.0)
+        outflow = float(flows[flows > 0].sum()) + max(-src, 0.0)
+        scale = max(inflow, outflow, abs(src), self._scale, 1e-300)
+        return {"inflow_W": inflow, "outflow_W": outflow, "source_W": src,
+                "relative_error": abs(inflow - outflow) / scale, "reference_flow_W": scale}
+
+    def energy_balance(self) -> "EnergyBalance":
+        """The energy identity a(T, T) = l(T) + r . T_D, its two sides computed independently.
+
+        ``internal``: int K grad T . grad T dV (the temperature's gradient and the conductivity evaluated at the
+        Gauss points, as post-processing does) + sum over Robin faces of int h T^2 dA; ``external``: T . f (the
+        load vector of sources, Neumann fluxes and Robin h T_inf, as assembled) + r . T_D (the consistent
+        reactions on the prescribed unknowns times their values).  Both are in W K.  A solution that does not
+        satisfy the discrete equations, or a stiffness that differs from the field's own energy (an assembly
+        kernel, a constraint, a material read differently), shows as a relative error above round-off.  Unlike
+        the heat-flow balance (:meth:`balance`), which sums the consistent flows and so measures the solve's
+        residual only, this compares the field with the loads.  Serial solves only (a distributed solve keeps
+        no global load vector): ``None`` figures there.
+        """
+        prob = self.problem
+        if self._loads is None or self._prescribed is None:
+            return EnergyBalance(None, None, None)
+
+        def density(x, T, g, at):
+            K = prob.conductivity.values(x, at.chans, f"patches {at.patches[0]}..{at.patches[-1]}")
+            return -np.sum(flux_vector(K, g[:, 0]) * g[:, 0], axis=1)
+
+        internal = integrate_fields(prob, lambda i: self.u[prob.offsets[i]:prob.offsets[i + 1]].reshape(
+            (1,) + prob.spaces[i].shape), 1, density, context=True)
+        for key, (h, _) in self._book["robin"].items():
+            fd = prob.face_data(*key)
+            internal += float(np.sum(h * fd.trace(self.u) ** 2 * fd.dAw))
+        external = float(self.u @ self._loads) + float(self._reaction @ self._prescribed)
+        scale = max(abs(internal), abs(external), 1e-300)
+        return EnergyBalance(float(internal), external, float(abs(internal - external) / scale))
+
+    def _flow_scale(self) -> float:
+        """A heat flow (W) the model could carry: k A dT / L over the faces with conditions.
+
+        k the largest conductivity on those faces, A their area, dT the span of
+        the temperature coefficients, L the size of the faces' bounding box.
+        The balance error is relative to the larger of this and the measured
+        flows, so a model through which no heat flows does not divide two
+        round-off numbers.
+        """
+        prob = self.problem
+        keys = [k for kind in ("neumann", "robin", "dirichlet") for k in self._book[kind]]
+        comm = self._comm()
+        if comm is not None:  # the faces of this rank's patches; the figures are combined over the ranks
+            mine = set(np.flatnonzero(prob.partition == comm.Get_rank()).tolist())
+            keys = [k for k in dict.fromkeys(keys) if k[0] in mine]
+        k_ref, area, lo, hi, ok = 0.0, 0.0, np.full(3, np.inf), np.full(3, -np.inf), True
+        if keys and len(self.u):
+            fds = prob.faces(keys)
+            x = np.concatenate([fd.x for fd in fds])
+            try:
+                k = np.concatenate(prob._field_on(prob.conductivity, fds, "any condition"))
+                k_ref = float(np.abs(k).max()) if k.size else 0.0
+            except ProblemError:  # a channel that only some faces carry: no scale from the conductivity
+                ok = False
+            area = float(sum(fd.dAw.sum() for fd in fds))
+            lo, hi = x.min(axis=0), x.max(axis=0)
+        if comm is not None:
+            parts = comm.allgather((k_ref, area, lo, hi, ok))
+            k_ref, area, ok = max(p[0] for p in parts), sum(p[1] for p in parts), all(p[4] for p in parts)
+            lo, hi = np.min([p[2] for p in parts], axis=0), np.max([p[3] for p in parts], axis=0)
+        size = float((hi - lo).max()) if np.all(np.isfinite(lo)) else 0.0
+        dT = float(np.ptp(self.u)) if len(self.u) else 0.0
+        return k_ref * area * dT / size if ok and size > 0 else 0.0
+
+    # ------------------------------------------------------------ integrals
+    def integrate(self, fn) -> float:
+        """Sum over the model of int fn(x, T, grad T) dV, by the problem's Gauss rule.
+
+        ``fn(x (N, 3), T (N,), grad (N, 3)) -> (N,)``; patches sharing a tile
+        spline and a space are evaluated together (:func:`iga.discretisation.fields.integrate_fields`).
+        """
+        prob = self.problem
+        return integrate_fields(
+            prob, lambda i: self.u[prob.offsets[i]:prob.offsets[i + 1]].reshape((1,) + prob.spaces[i].shape), 1,
+            lambda x, v, g: fn(x, v[:, 0], g[:, 0]))
+
+    def volume(self) -> float:
+        """Volume of the model (m^3), by the problem's Gauss rule."""
+        return self.integrate(lambda x, T, g: np.ones(len(T)))
+
+    def mean_temperature(self) -> float:
+        """Volume average of the temperature: int T dV / int dV."""
+        return self.integrate(lambda x, T, g: T) / self.volume()
+
+    def temperature_range(self, samples: int = 3) -> tuple[float, float]:
+        """Minimum and maximum of the temperature over a sampling of every patch.
+
+        Every Bezier element of each temperature space is sampled at
+        ``samples + 1`` points per direction (its ends included), the grid of
+        :func:`iga.write_vtu`.
+        """
+        lo, hi = np.inf, -np.inf
+        for pi in range(len(self.problem.model.patches)):  # not kept: one spline per patch of the model
+            T = self._splines[pi] if pi in self._splines else self._spline(pi)
+            axes = sample_axes(T.knots, samples)
+            v = T.evaluate_grid(axes)
+            lo, hi = min(lo, float(v.min())), max(hi, float(v.max()))
+        return lo, hi
+
+    def l2_error(self, exact) -> float:
+        """|| T - exact ||_L2 over the model; ``exact(x (N, 3)) -> (N,)``."""
+        check_reference(exact, "exact")
+        return float(np.sqrt(self.integrate(lambda x, T, g: (T - reference_values(exact, x, (), "exact")) ** 2)))
+
+    def h1_error(self, exact_grad) -> float:
+        """| T - exact |_H1 (gradient seminorm); ``exact_grad(x) -> (N, 3)``."""
+        check_reference(exact_grad, "exact_grad")
+        return float(np.sqrt(self.integrate(
+            lambda x, T, g: np.sum((g - reference_values(exact_grad, x, (3,), "exact_grad")) ** 2, axis=1))))
+
+
+def check_reference(fn, what: str) -> None:
+    """A user's exact solution or gradient must be a callable of x (N, 3)."""
+    if not callable(fn):
+        raise ProblemError(f"{what} must be a callable of the points x (N, 3), got a {type(fn).__name__}")
+
+
+def reference_values(fn, x: np.ndarray, tail: tuple, what: str) -> np.ndarray:
+    """``fn(x)`` of a user's exact solution or gradient as an (N,) + ``tail`` float array (a number stands for
+    every point), checked as :func:`iga.heat.coefficients.user_values` checks material callables."""
+    return user_values(fn, x, tail, what, "the model", constant=True)
+
+
+def physical_gradient(J: np.ndarray, dxi: np.ndarray, where: str, params=None) -> np.ndarray:
+    """grad T = J^-T dT/dxi (N, 3); :class:`ProblemError` where the geometry Jacobian J (N, 3, 3) is singular."""
+    det = np.linalg.det(J)
+    scale = np.abs(J).max(axis=(1, 2)) ** 3
+    bad = ~(np.abs(det) > 0.1 * SINGULAR * scale)
+    if bad.any():
+        i = int(np.argmax(bad))
+        at = f" at parameters {np.round(params[i], 6).tolist()}" if params is not None else ""
+        raise ProblemError(f"{where}: the geometry Jacobian is singular{at} (a degenerate point: collapsed edge or "
+                           "fold), so the gradient and the heat flux are undefined there")
+    return np.linalg.solve(np.transpose(J, (0, 2, 1)), dxi[:, :, None])[:, :, 0]
+
+
+def flux_vector(K: np.ndarray, grad: np.ndarray) -> np.ndarray:
+    """Heat flux -K grad T (N, 3) for conductivity K (N,) or (N, 6) tensor components and gradients (N, 3)."""
+    if K.ndim == 1:
+        return -K[:, None] * grad
+    return -np.einsum("nij,nj->ni", tensor_matrix(K), grad)
+
+
+def _components_info(problem) -> dict:
+    """The coupled pieces of a solved problem for ``Solution.info`` (:mod:`iga.discretisation.components`): the count, the
+    idle ones, and the first ten with their DOFs, patches and the tags of the conditions on them."""
+    comps = getattr(problem, "components", [])
+    return {"count": len(comps), "idle": len(getattr(problem, "idle_components", [])),
+            "pieces": [c.as_dict() for c in comps[:10]]}
+
+
+def field_spline(space, coef: np.ndarray, weights=None) -> SplineFunction:
+    """A solution field on one patch as a spline over its parameters: ``coef`` (space.shape + (c,)) the
+    coefficients; with the NURBS weights of :mod:`iga.discretisation.rational` (``weights``) the NURBS function of those
+    weights, ``coef`` its control values."""
+    return SplineFunction([d.degree for d in space.dirs], [d.knots for d in space.dirs], coef, weights=weights)

@@ -1,0 +1,139 @@
+"""Graded macro models: effective tensors tabulated over a tile family's parameter, as conductivity fields.
+
+A lattice graded along a parameter p (the arm width of :func:`tiling.library.cross`, varying across the part)
+is, far from its boundaries, a continuum whose conductivity at x is the effective tensor K_eff(p(x)) of the
+tile with the local p (first-order homogenisation; :mod:`iga.homogenisation.cells`).  :func:`effective_table` solves the
+cell problems on a grid of parameter values and interpolates every tensor component by a cubic spline in p
+(:class:`scipy.interpolate.CubicSpline`, not-a-knot); :func:`macro_map` writes the interpolated tensor into
+six conductivity channels of the deformation map, from the map's own channel of p, for one
+:class:`iga.HeatProblem` on the map alone: a macro model, at a fraction of the unknowns of the full lattice.
+
+The tensor is the cell's, in the tile's frame: exact where the map takes every cell to a scaled rigid motion of
+the unit cube and the tensor is isotropic (the cubic cross tile, K_eff = k_eff I); where cells are stretched,
+the conductivity along the stretch keeps its cell value to first order (its conducting path scales with the
+cell), which the comparison with the full lattice measures (``tests/test_macro.py``,
+``benchmarks/homogenization.py``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from geometry import BSpline
+from geometry.errors import ToolkitError, show
+from geometry.numbers import is_integer
+from geometry.resources import check_memory
+from tiling.materials import interpolate_channel
+
+from iga.heat.coefficients import TENSOR_PAIRS
+from iga.errors import ProblemError
+from iga.homogenisation.cells import effective_conductivity
+
+__all__ = ["EffectiveTable", "effective_table", "macro_map"]
+
+
+@dataclass
+class EffectiveTable:
+    """Effective conductivity tensors ``tensors`` (n, 3, 3) (units of the conductivity) at the family's parameter
+    values ``values`` (n,), increasing; ``name`` labels the family in messages."""
+
+    values: np.ndarray
+    tensors: np.ndarray
+    name: str = "tile family"
+
+    def __post_init__(self):
+        from scipy.interpolate import CubicSpline
+
+        comps = np.stack([self.tensors[:, r, s] for r, s in TENSOR_PAIRS], axis=1)  # (n, 6)
+        self._spline = CubicSpline(self.values, comps, axis=0, bc_type="not-a-knot" if len(self.values) > 3
+                                   else "natural")
+
+    def components(self, p) -> np.ndarray:
+        """The interpolated tensor components (N, 6) in the order (xx, yy, zz, xy, xz, yz) at parameters p (N,);
+        a parameter outside the table is refused (no extrapolation)."""
+        p = np.asarray(p, float).reshape(-1)
+        lo, hi = float(self.values[0]), float(self.values[-1])
+        bad = ~((p >= lo - 1e-12 * max(1.0, abs(lo))) & (p <= hi + 1e-12 * max(1.0, abs(hi))))
+        if bad.any():
+            raise ProblemError(f"parameter {p[bad][0]:g} lies outside the table of {self.name} ([{lo:g}, {hi:g}]); "
+                               "tabulate the range the model uses (effective_table(family, values))")
+        return self._spline(np.clip(p, lo, hi))
+
+    def tensor(self, p) -> np.ndarray:
+        """The interpolated tensors (N, 3, 3) at parameters p (N,)."""
+        c = self.components(p)
+        out = np.empty((len(c), 3, 3))
+        for j, (r, s) in enumerate(TENSOR_PAIRS):
+            out[:, r, s] = out[:, s, r] = c[:, j]
+        return out
+
+
+def effective_table(family, values, conductivity=1.0, degree_elevation: int = 1, refine: int = 0,
+                    name: str | None = None) -> EffectiveTable:
+    """:func:`iga.effective_conductivity` of ``family(p)`` (a tile) at every p of ``values`` (>= 2 increasing
+    numbers), as an :class:`EffectiveTable`; ``conductivity``, ``degree_elevation``, ``refine`` as there."""
+    v = np.asarray(values, float).reshape(-1) if np.ndim(values) else np.array([])
+    if len(v) < 2 or not np.all(np.isfinite(v)) or np.any(np.diff(v) <= 0):
+        raise ProblemError(f"effective_table needs at least two increasing finite parameter values, got "
+                           f"{show(values)}")
+    if not callable(family):
+        raise ProblemError(f"effective_table: family must be a callable p -> tile (e.g. tiling.library.cross), got "
+                           f"{show(family)}")
+    tensors = np.stack([effective_conductivity(_member(family, float(p)), conductivity, degree_elevation, refine)
+                        for p in v])
+    return EffectiveTable(v, tensors, name or getattr(family, "__name__", "tile family"))
+
+
+def _member(family, p: float):
+    """``family(p)``, a user's callable: what it raises is reported as the project's error naming it and p."""
+    try:
+        return family(p)
+    except ToolkitError:
+        raise
+    except Exception as exc:  # the user's code: any exception, reported with its own words
+        raise ProblemError(f"effective_table: the family {show(getattr(family, '__name__', family))} failed at "
+                           f"p = {p:g}: {type(exc).__name__}: {exc}") from None
+
+
+#: knot spans per direction at most for macro_map (the six channels on the refined map: 8 GiB at 500^3)
+_MAX_SPANS = 500
+
+
+def macro_map(D: BSpline, table: EffectiveTable, parameter: str, spans: int = 8, prefix: str = "K"):
+    """The map D with six conductivity channels ``K_xx`` .. ``K_yz`` (:data:`iga.heat.coefficients.TENSOR_PAIRS`
+    order) from the table at D's channel ``parameter``; returns (map, the six channel names) for
+    ``HeatProblem(map, conductivity=names)``.
+
+    D is first refined (knot insertion, exact) to at least ``spans`` knot spans per direction, so that its
+    spline space can carry the interpolated tensor (a quasi-interpolant at the Greville points).
+    """
+    if not isinstance(D, BSpline) or D.dim != 3:
+        raise ProblemError(f"macro_map needs a trivariate geometry.BSpline map, got {show(D)}")
+    if not isinstance(table, EffectiveTable):
+        raise ProblemError(f"macro_map needs an EffectiveTable (iga.effective_table(family, values)) as its table, "
+                           f"got {show(table)}")
+    if not (is_integer(spans) and 1 <= spans <= _MAX_SPANS):
+        raise ProblemError(f"macro_map: spans must be an integer in [1, {_MAX_SPANS}] (knot spans per direction of "
+                           f"the refined map), got {show(spans)}")
+    need = float(np.prod([max(spans, len(D.breakpoints(k)) - 1) + D.degrees[k] for k in range(3)]))
+    check_memory(need * 8 * (D.control_points.shape[-1] + 6) * 4, f"the macro map at {spans} spans per direction",
+                 ProblemError, "lower spans")
+    if not isinstance(parameter, str) or parameter not in D.channels:
+        raise ProblemError(f"macro_map: {show(parameter)} is not a channel of the map (its channels: "
+                           f"{list(D.channels)}); grade the parameter onto it (tiling.materials.graded_channel)")
+    for k in range(3):
+        b = D.breakpoints(k)
+        n = len(b) - 1
+        if n < spans:
+            per = int(np.ceil(spans / n))
+            t = np.linspace(0.0, 1.0, per + 1)[1:-1]
+            new = (b[:-1, None] + np.diff(b)[:, None] * t[None]).ravel()
+            D = D.insert_knots(k, new)[0] if len(new) else D
+    idx = 3 + list(D.channels).index(parameter)
+    names = tuple(f"{prefix}_{'xyz'[r]}{'xyz'[s]}" for r, s in TENSOR_PAIRS)
+    base, out = D, D
+    for j, ch in enumerate(names):  # (every channel on the same Greville grid of the refined map)
+        out = interpolate_channel(out, ch, lambda x, j=j: table.components(base.evaluate(x)[:, idx])[:, j])
+    return out, names

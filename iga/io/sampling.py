@@ -1,0 +1,138 @@
+"""Solution fields on the model's sample grids (:mod:`geometry.patches.sampling`): the temperature, heat flux and
+conductivity of a heat solution; the displacement, stress, von Mises stress and material of an elastic one."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from geometry.patches.sampling import piece_basis
+
+from iga.heat.coefficients import tensor_matrix
+from iga.elasticity.forms import lame
+from iga.errors import ProblemError
+from iga.discretisation.fields import grid_fields
+
+__all__ = ["temperature_fields", "displacement_fields", "corrector_fields"]
+
+
+def temperature_fields(solution):
+    """The ``fields`` hook of :func:`geometry.patches.sampling.sample_model` for a solution: temperature, heat flux
+    (W/m^2) and conductivity at the sample points."""
+    def hook(members, pax, x, D, chans, out):
+        return _temperature_fields(solution, members, pax, x, D, chans, out)
+
+    return hook
+
+
+def _temperature_fields(solution, members, pax, x, D, chans, out: dict) -> np.ndarray:
+    """Temperature, heat flux and conductivity (P, N[, c]) of patches sharing a space, on a piece's grid.
+
+    The fields go into ``out``; returns the Jacobian determinants (P N,) computed on the way.
+    """
+    prob = solution.problem
+    space = prob.spaces[members[0]]
+    B = [piece_basis(d, a) for d, a in zip(space.dirs, pax)]  # per direction: (values, derivatives)
+    U = np.stack([solution.u[prob.offsets[i] : prob.offsets[i + 1]].reshape((1,) + space.shape) for i in members])
+    T, grad, det = grid_fields(U, B, D, prob.weights[members[0]])
+    P, N = x.shape[:2]
+    T = T[:, 0].reshape(P, N)
+    grad = _limits(grad, members, pax, lambda pi, p: solution.evaluate(pi, p)[1][:, None, :], prob)[:, 0]
+    flat = {c: np.reshape(v, -1) for c, v in chans.items()}
+    K = prob.conductivity.values(x.reshape(-1, 3), flat, f"patches {members[0]}..{members[-1]}")
+    flux = -K[:, None] * grad if K.ndim == 1 else -np.einsum("nij,nj->ni", tensor_matrix(K), grad)
+    cond = K if K.ndim == 1 else tensor_matrix(K).reshape(-1, 9)
+    out.update({"temperature": T, "heat_flux": flux.reshape(P, N, 3),
+                "conductivity": cond.reshape((P, N) + cond.shape[1:])})
+    return det
+
+
+def displacement_fields(solution):
+    """The ``fields`` hook for an :class:`iga.ElasticSolution`: displacement (m), stress (Pa, six components
+    xx, yy, zz, xy, xz, yz), von Mises stress (Pa), Young's modulus and Poisson's ratio at the sample points."""
+    def hook(members, pax, x, D, chans, out):
+        return _displacement_fields(solution, members, pax, x, D, chans, out)
+
+    return hook
+
+
+def _displacement_fields(solution, members, pax, x, D, chans, out: dict) -> np.ndarray:
+    prob = solution.problem
+    space, n = prob.spaces[members[0]], prob.ndof
+    B = [piece_basis(d, a) for d, a in zip(space.dirs, pax)]
+    P, N = x.shape[:2]
+    o = prob.offsets
+    U = np.stack([np.stack([solution.u[a * n + o[i] : a * n + o[i + 1]].reshape(space.shape) for a in range(3)])
+                  for i in members])
+    u, grad, det = grid_fields(U, B, D, prob.weights[members[0]])
+    grad = _limits(grad, members, pax, lambda pi, p: solution.evaluate(pi, p)[1], prob)
+    flat = {c: np.reshape(v, -1) for c, v in chans.items()}
+    xs = x.reshape(-1, 3)
+    where = f"patches {members[0]}..{members[-1]}"
+    E, nu = prob.youngs.values(xs, flat, where), prob.poisson.values(xs, flat, where)
+    lam, mu = lame(E, nu, where)
+    eps = 0.5 * (grad + np.transpose(grad, (0, 2, 1)))
+    if prob.thermal_strain is not None:
+        params = np.stack(np.meshgrid(*pax, indexing="ij"), -1).reshape(-1, 3)
+        th = np.concatenate([prob.thermal_strain(i, x[j], params, {c: v[j] for c, v in chans.items()})
+                             for j, i in enumerate(members)])
+        eps = eps - th[:, None, None] * np.eye(3)
+    S = lam[:, None, None] * np.trace(eps, axis1=1, axis2=2)[:, None, None] * np.eye(3) + 2 * mu[:, None, None] * eps
+    voigt = np.stack([S[:, 0, 0], S[:, 1, 1], S[:, 2, 2], S[:, 0, 1], S[:, 0, 2], S[:, 1, 2]], 1)
+    dev = S - np.trace(S, axis1=1, axis2=2)[:, None, None] / 3 * np.eye(3)
+    out.update({"displacement": u.reshape(P, N, 3), "stress": voigt.reshape(P, N, 6),
+                "von_mises": np.sqrt(1.5 * np.sum(dev * dev, axis=(1, 2))).reshape(P, N),
+                "youngs_modulus": E.reshape(P, N), "poisson_ratio": nu.reshape(P, N)})
+    return det
+
+
+def corrector_fields(prob, chi: np.ndarray):
+    """The ``fields`` hook of the periodic cell problems (:mod:`iga.homogenisation.cells`): the correctors ``chi`` (ndof,
+    3), one column per macroscopic gradient e_j (m), and the cell's heat flux for a unit gradient along x, y,
+    z: ``cell_flux_x`` = -k (grad chi_x + e_x) .. (W/m^2 per K/m), and the conductivity."""
+    def hook(members, pax, x, D, chans, out):
+        space = prob.spaces[members[0]]
+        B = [piece_basis(d, a) for d, a in zip(space.dirs, pax)]
+        o = prob.offsets
+        U = np.stack([np.stack([chi[o[i]:o[i + 1], j].reshape(space.shape) for j in range(3)]) for i in members])
+        val, grad, det = grid_fields(U, B, D, prob.weights[members[0]])
+        grad[~np.all(np.isfinite(grad), axis=(1, 2))] = np.nan  # a collapsed point: no gradient (not a zero)
+        P, N = x.shape[:2]
+        flat = {c: np.reshape(v, -1) for c, v in chans.items()}
+        K = prob.conductivity.values(x.reshape(-1, 3), flat, f"patches {members[0]}..{members[-1]}")
+        Km = K[:, None, None] * np.eye(3) if K.ndim == 1 else tensor_matrix(K)
+        out["corrector"] = val.reshape(P, N, 3)
+        for j, name in enumerate("xyz"):
+            out[f"cell_flux_{name}"] = -np.einsum("nij,nj->ni", Km, grad[:, j] + np.eye(3)[j]).reshape(P, N, 3)
+        out["conductivity"] = (K if K.ndim == 1 else K[:, 0]).reshape(P, N)
+        return det
+
+    return hook
+
+
+#: how far (a fraction of the patch's parameter box) a sample on a collapsed edge or face is moved inwards to
+#: take its gradient's limit
+_INWARD = 1e-6
+
+
+def _limits(grad: np.ndarray, members, pax, grad_at, prob) -> np.ndarray:
+    """Gradients (P N, c, 3) with those at degenerate samples (a collapsed edge or face, where det J = 0 and the
+    grid's gradient is not finite) replaced by their limit from inside: ``grad_at(patch, params (n, 3))`` at
+    the sample moved towards the patch's centre by :data:`_INWARD` of its box.  Where that is singular too the
+    gradient is NaN: written as not-a-number, never as a zero (the heat flux at a wedge's collapsed face is
+    not 0)."""
+    bad = ~np.all(np.isfinite(grad), axis=(1, 2))
+    if not bad.any():
+        return grad
+    grid = np.stack(np.meshgrid(*pax, indexing="ij"), -1).reshape(-1, 3)
+    N = len(grid)
+    for j, pi in enumerate(members):
+        rows = np.flatnonzero(bad[j * N:(j + 1) * N])
+        if not len(rows):
+            continue
+        dom = np.array([[d.knots[0], d.knots[-1]] for d in prob.spaces[pi].dirs])
+        inside = grid[rows] + _INWARD * (dom.mean(axis=1) - grid[rows])
+        try:
+            grad[j * N + rows] = grad_at(pi, inside)
+        except ProblemError:  # singular there too: no limit to write
+            grad[j * N + rows] = np.nan
+    return grad

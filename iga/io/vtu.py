@@ -1,0 +1,224 @@
+"""VTU export (ParaView / VTK) of models and solutions.
+
+``cells="linear"``: every patch sampled on conforming grids of linear
+hexahedra (VTK type 12) and welded into one mesh without internal faces
+(:mod:`iga.io.sampling`).  Point data: ``temperature`` (with a heat solution),
+``heat_flux`` (W/m^2, vector), ``conductivity`` (a scalar, or the 3 x 3 tensor);
+``displacement`` (m, vector: ParaView's Warp By Vector), ``stress`` (Pa, xx, yy, zz,
+xy, xz, yz), ``von_mises`` (Pa), ``youngs_modulus`` and ``poisson_ratio`` (with an
+elastic solution); and every channel of the tiles and the deformation map; cell data: ``patch``,
+``tile`` and ``level`` (filter by level in ParaView with Threshold).
+
+``cells="bezier"``: one exact rational Bezier hexahedron (VTK type 79) per
+element (:mod:`iga.io.vtu_bezier`).
+
+Files are written by VTK's XML writer with raw appended binary data and zlib
+compression (which meshio, VTK, ParaView and pyvista all read; VTK's LZ4 is
+faster but meshio cannot decode it), to a temporary name renamed into place
+(atomic).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from geometry.grouping import ObjectIndex
+from geometry.io.files import atomic_write, check_folder
+from geometry.resources import check_memory
+from geometry.patches.sampling import chord_samples, sampled_mesh
+
+from iga.errors import ProblemError
+from iga.model import as_model
+from iga.elasticity.solution import ElasticSolution
+from iga.io.sampling import displacement_fields, temperature_fields
+from iga.heat.solution import Solution
+from iga.io.vtu_bezier import bezier_grid
+from geometry.errors import show
+from geometry.numbers import is_integer, is_real
+
+__all__ = ["write_vtu", "write_pieces", "save_grid"]
+
+
+def save_grid(grid, path) -> None:
+    """Write a pyvista/VTK unstructured grid as XML (.vtu) with appended raw binary data, zlib-compressed."""
+    import vtk
+
+    writer = vtk.vtkXMLUnstructuredGridWriter()
+    writer.SetFileName(str(path))
+    writer.SetInputData(grid)
+    writer.SetDataModeToAppended()
+    writer.EncodeAppendedDataOff()
+    writer.SetCompressorTypeToZLib()  # zlib: every mainstream reader has it (meshio has no LZ4 decoder)
+    if not writer.Write():
+        raise OSError(f"VTK could not write {path}")
+
+
+def write_vtu(path, solution_or_model, samples: int = 3, cells: str = "linear", tolerance: float | None = None) -> Path:
+    """Write one ``.vtu`` file with every patch of a model or solution.
+
+    Parameters
+    ----------
+    path : output file (``.vtu``); its folder must exist and be writable
+    solution_or_model : :class:`iga.Solution`, :class:`iga.ElasticSolution`, or anything
+        :func:`iga.model.as_model` accepts
+    samples : subdivisions of every element per direction (>= 1), for ``cells="linear"``
+    tolerance : with ``cells="linear"``, the largest distance (model units) of the written cells from the exact
+        geometry: the samples per element are chosen per patch and direction to meet it (up to 32), instead of
+        ``samples``
+    cells : ``"linear"`` (sampled linear hexahedra, with heat flux) or ``"bezier"``: one exact
+        rational Bezier hexahedron (VTK type 79) per element, geometry and temperature exact
+        (:mod:`iga.io.vtu_bezier`; composes every patch, so heavier for large models)
+
+    >>> import pyvista as pv, tempfile, os
+    >>> from geometry import primitives
+    >>> from iga import HeatProblem
+    >>> sol = HeatProblem(primitives.box()).dirichlet("umin", 0.0).dirichlet("umax", 1.0).solve()
+    >>> path = write_vtu(os.path.join(tempfile.mkdtemp(), "cube.vtu"), sol, samples=2)
+    >>> grid = pv.read(path)
+    >>> grid.n_cells, round(float(grid.point_data["temperature"].max()), 12)
+    (8, 1.0)
+    """
+    if not is_integer(samples) or samples < 1:
+        raise ProblemError(f"samples must be a positive integer, got {show(samples)}")
+    if tolerance is not None and not (is_real(tolerance)
+                                      and np.isfinite(tolerance) and tolerance > 0):
+        raise ProblemError(f"tolerance must be a positive length (model units), got {show(tolerance)}")
+    if cells not in ("linear", "bezier"):
+        raise ProblemError(f"cells must be 'linear' or 'bezier', got {show(cells)}")
+    path = Path(path)
+    if path.suffix.lower() != ".vtu":
+        raise ProblemError(f"cannot write {path.name}: VTU files end in .vtu")
+    check_folder(path, ProblemError)  # before sampling: fail fast on a bad output path
+    sol = solution_or_model if isinstance(solution_or_model, (Solution, ElasticSolution)) else None
+    model = sol.problem.model if sol is not None else as_model(solution_or_model)
+    if cells == "bezier":
+        grid = bezier_grid(sol, model)
+    else:
+        grid = sampled_grid(model, sol, samples, tolerance)
+    return atomic_write(path, lambda tmp: save_grid(grid, tmp), ".vtu", ProblemError)
+
+
+#: bytes per written point while a grid is sampled, welded and handed to VTK (coordinates, fields, their
+#: temporaries, cells): a bound for the size check before sampling
+_BYTES_PER_POINT = 400
+
+
+def _check_sampling(model, basis_of, knots_of, samples, patches) -> None:
+    """Refuse a sampling whose points would not fit the memory budget, before any is made: the user's
+    ``samples`` (one count, or per patch and direction) times each patch's elements.  ``basis_of(pi)``: the
+    object whose knots patch ``pi`` samples (its space or spline, shared by many patches: elements are
+    counted once per object), ``knots_of(obj)`` its knot vectors."""
+    chosen = range(len(model.patches)) if patches is None else patches
+    same, elements = ObjectIndex(), {}
+    total = 0.0
+    for pi in chosen:
+        key = same(basis_of(pi))
+        if key not in elements:
+            elements[key] = [len(np.unique(U)) - 1 for U in knots_of(basis_of(pi))]
+        s = samples[pi] if isinstance(samples, list) else samples
+        per = [int(s)] * 3 if np.ndim(s) == 0 else [int(v) for v in s]
+        total += float(np.prod([e * n + 1 for e, n in zip(elements[key], per)]))
+    check_memory(total * _BYTES_PER_POINT, f"the sampled VTU grid ({total:,.0f} points)", ProblemError,
+                 "lower samples (subdivisions per element) or use a tolerance")
+
+
+def sampled_grid(model, solution=None, samples: int = 3, tolerance: float | None = None, patches=None):
+    """The welded linear-hexahedron grid (a ``pyvista.UnstructuredGrid``) of a model or solution; with
+    ``tolerance`` the samples per patch and direction that keep the cells within it of the exact geometry;
+    ``patches``: only those (their samples still conform with every neighbour's).  The grid's size is checked
+    against the memory budget before it is sampled."""
+    if solution is None:
+        if tolerance is not None:
+            samples = chord_samples(model, lambda pi: model.patches[pi].spline.knots, tolerance)
+        _check_sampling(model, lambda pi: model.patches[pi].spline, lambda s: s.knots, samples, patches)
+        return sampled_mesh(model, samples, patches=patches)
+    prob = solution.problem
+    if tolerance is not None:
+        samples = chord_samples(model, lambda pi: [d.knots for d in prob.spaces[pi].dirs], tolerance)
+    _check_sampling(model, lambda pi: prob.spaces[pi], lambda s: [d.knots for d in s.dirs], samples, patches)
+    fields = displacement_fields(solution) if isinstance(solution, ElasticSolution) else temperature_fields(solution)
+    return sampled_mesh(model, samples, knots_of=lambda pi: [d.knots for d in prob.spaces[pi].dirs],
+                        spaces_key=lambda pi: prob.spaces[pi].key(), fields=fields, patches=patches)
+
+
+_XML_TYPES = {"f": "Float", "i": "Int", "u": "UInt", "b": "UInt"}
+
+
+def write_pieces(path, solution, comm, samples: int = 3, tolerance: float | None = None) -> Path:
+    """Under ``mpiexec``: every rank writes the patches it solved as ``STEM_RANK.vtu``, rank 0 the ``.pvtu`` that
+    ParaView opens as one dataset; returns the ``.pvtu`` path (on every rank).
+
+    ``solution`` comes from a distributed solve (its problem's ``partition`` gives each patch's rank); the
+    pieces are sampled on the whole model's conforming grids, so points on a rank boundary appear in both
+    pieces at the same place (ParaView's Merge Blocks or Clean welds them into the serial file's points).
+    Continuous fields (temperature, channels) are equal there; fields the serial file averages over the
+    patches at a point (the heat flux, discontinuous across patches) are averaged by each piece over its
+    own patches, so at a rank boundary the two pieces hold each side's value.
+
+    Each piece is written by VTK's writer, atomically; the ``.pvtu`` (a short XML index of the pieces and
+    their arrays) is written by rank 0 once every piece is in place: VTK's parallel writer lists the other
+    ranks' pieces only when VTK itself is built with MPI, which pip's is not.  If any rank cannot write its
+    piece, every rank removes its own, no index is written, and every rank raises :class:`ProblemError`.
+    """
+    import xml.etree.ElementTree as ET
+
+    if not isinstance(solution, (Solution, ElasticSolution)):
+        raise ProblemError(f"write_pieces writes a solution (iga.Solution or iga.ElasticSolution) of a distributed "
+                           f"solve, got a {type(solution).__name__}; write a model with write_vtu")
+    if not all(hasattr(comm, name) for name in ("Get_rank", "Get_size", "allreduce", "Barrier")):
+        raise ProblemError(f"write_pieces needs the MPI communicator of the solve (e.g. mpi4py's MPI.COMM_WORLD), got "
+                           f"{show(comm)}; write a serial solution with write_vtu")
+    path = Path(path)
+    if path.suffix.lower() != ".pvtu":
+        raise ProblemError(f"cannot write {path.name}: parallel VTU files end in .pvtu")
+    check_folder(path, ProblemError)
+    part = getattr(solution.problem, "partition", None)
+    rank, size = comm.Get_rank(), comm.Get_size()
+    if part is None or len(part) != len(solution.problem.model.patches) or part.max() >= size:
+        raise ProblemError("write_pieces needs the solution of a distributed solve (solver='petsc' under mpiexec "
+                           f"with {size} ranks); use write_vtu for a serial one")
+    model = solution.problem.model
+    piece = path.with_name(f"{path.stem}_{rank}.vtu")
+    failure, grid = None, None
+    try:  # sampling too: a rank that fails anywhere must still reach the collective below, or the others wait
+        mine = np.flatnonzero(part == rank)
+        if not len(mine):
+            raise ProblemError(f"rank {rank} of {size} solved no patch ({len(part)} patches on {size} ranks): it has "
+                               f"no piece to write; run with at most as many ranks as patches")
+        grid = sampled_grid(model, solution, samples, tolerance, patches=mine)
+        atomic_write(piece, lambda tmp: save_grid(grid, tmp), ".vtu", ProblemError)
+    except ProblemError as err:
+        failure = err
+    written = comm.allreduce(0 if failure else 1)  # every rank's piece is in place before the index names it
+    if written != size:
+        piece.unlink(missing_ok=True)
+        raise failure or ProblemError(f"{size - written} of {size} ranks could not write their pieces of "
+                                      f"{path.name} (see their errors); no piece and no index is left")
+    if rank == 0:
+        root = ET.Element("VTKFile", type="PUnstructuredGrid", version="0.1", byte_order="LittleEndian",
+                          header_type="UInt32", compressor="vtkZLibDataCompressor")
+        ugrid = ET.SubElement(root, "PUnstructuredGrid", GhostLevel="0")
+        for tag, data in (("PPointData", grid.point_data), ("PCellData", grid.cell_data)):
+            arrays = ET.SubElement(ugrid, tag)
+            for name in data.keys():
+                _array(arrays, name, np.asarray(data[name]))
+        _array(ET.SubElement(ugrid, "PPoints"), "Points", np.asarray(grid.points))
+        for r in range(size):
+            ET.SubElement(ugrid, "Piece", Source=f"{path.stem}_{r}.vtu")
+        atomic_write(path, lambda tmp: ET.ElementTree(root).write(tmp, xml_declaration=True, encoding="utf-8"),
+                     ".pvtu", ProblemError)
+    comm.Barrier()  # the index exists when any rank returns
+    return path
+
+
+def _array(parent, name: str, values: np.ndarray) -> None:
+    """A ``PDataArray`` entry: VTK's XML type name (Float64, Int64, UInt8, ...) and the components."""
+    import xml.etree.ElementTree as ET
+
+    kind = _XML_TYPES[values.dtype.kind]
+    attrs = {"type": f"{kind}{8 * values.dtype.itemsize}", "Name": name}
+    if values.ndim > 1:
+        attrs["NumberOfComponents"] = str(int(np.prod(values.shape[1:])))
+    ET.SubElement(parent, "PDataArray", **attrs)
