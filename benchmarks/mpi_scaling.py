@@ -69,7 +69,7 @@ def run_case(case: str, size: str) -> None:
         t_model = time.perf_counter() - t0
         s = prob.solve(solver="petsc", tol=1e-8)
         t_all = time.perf_counter() - t0
-        tm, info, dofs, unknowns = prob.timings, s.info["solver"], prob.ndof, int(prob.reduced_dofs)
+        tm, info, dofs, unknowns = s.record.timings, s.info["solver"], prob.ndof, int(s.record.reduced_dofs)
     row = {"case": case, "floor": size == "floor", "ranks": ranks, "dofs": dofs, "unknowns": unknowns,
            "iterations": info["iterations"], "model s": t_model,
            "assembly s": tm["assembly_volume"] + tm["assembly_faces"], "constraints s": tm["constraints"],

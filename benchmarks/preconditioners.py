@@ -77,8 +77,8 @@ def run_one(case: str, method: str) -> dict:
     wall = time.perf_counter() - t0
     info = s.info["solver"]
     np.save(out_dir() / f"_u_{case.replace(':', '_')}_{method}.npy", s.u)
-    structure = problem.timings.get("solver_structure", 0.0)  # Kronecker factors / multigrid levels (iga side)
-    return {"case": case, "method": method, "dofs": int(problem.reduced_dofs), "iterations": info["iterations"],
+    structure = s.record.timings.get("solver_structure", 0.0)  # Kronecker factors / multigrid levels (iga side)
+    return {"case": case, "method": method, "dofs": int(s.record.reduced_dofs), "iterations": info["iterations"],
             "structure s": structure, "setup s": info["setup_s"], "iterate s": info["solve_s"],
             "solve s": structure + info["setup_s"] + info["solve_s"],
             "wall s": wall, "levels": info.get("mg_levels", ""),

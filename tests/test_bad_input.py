@@ -1185,7 +1185,7 @@ def test_a_rank_without_patches_fails_its_piece_without_leaving_the_others_waiti
             pass
 
     sol = HeatProblem(lattice()).dirichlet("umin", 0.0).dirichlet("umax", 1.0).solve()
-    sol.problem.partition = np.zeros(len(sol.problem.model.patches), int)  # every patch on rank 0
+    sol.record.partition = np.zeros(len(sol.problem.model.patches), int)  # every patch on rank 0
     comm = Comm()
     with pytest.raises(ProblemError, match=r"rank 1 of 2 solved no patch \(14 patches on 2 ranks\)"):
         write_pieces(tmp_path / "a.pvtu", sol, comm)

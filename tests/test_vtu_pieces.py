@@ -47,12 +47,12 @@ def test_pieces_welded_give_the_serial_file(solved, tmp_path, size):
     import pyvista as pv
 
     n = len(solved.problem.model.patches)
-    solved.problem.partition = np.arange(n) * size // n  # consecutive blocks of patches, as the RCM cut makes
+    solved.record.partition = np.arange(n) * size // n  # consecutive blocks of patches, as the RCM cut makes
     try:
         for rank in reversed(range(size)):  # rank 0 last: it writes the index once every piece is there
             path = write_pieces(tmp_path / "sink.pvtu", solved, _Ranks(rank, size), samples=2)
     finally:
-        solved.problem.partition = None
+        solved.record.partition = None
     assert sorted(p.name for p in tmp_path.glob("sink_*.vtu")) == [f"sink_{r}.vtu" for r in range(size)]
     pieces = [meshio.read(tmp_path / f"sink_{r}.vtu") for r in range(size)]  # a second reader, piece by piece
     serial = pv.read(write_vtu(tmp_path / "serial.vtu", solved, samples=2))
@@ -88,10 +88,10 @@ def test_a_rank_that_cannot_write_leaves_no_piece_and_no_index(solved, tmp_path)
             return value * self.size - 1  # one other rank reports that its piece could not be written
 
     n = len(solved.problem.model.patches)
-    solved.problem.partition = np.arange(n) * 2 // n
+    solved.record.partition = np.arange(n) * 2 // n
     try:
         with pytest.raises(ProblemError, match=r"1 of 2 ranks could not write their pieces of sink\.pvtu"):
             write_pieces(tmp_path / "sink.pvtu", solved, _OtherRankFailed(0, 2), samples=1)
     finally:
-        solved.problem.partition = None
+        solved.record.partition = None
     assert not list(tmp_path.iterdir())  # this rank's piece removed, no index

@@ -35,11 +35,12 @@ def together(comm, fn):
     return out
 
 
-def rank_setup(problem, world, part, book):
+def rank_setup(problem, world, part, book, record):
     """(constraints, Dirichlet data, :class:`iga.distributed.rank_constraints.RankConstraints`) of this rank's patches in
     its closure numbering, or (the whole model's constraints, Dirichlet data, None), of a
     :class:`iga.HeatProblem` about to be solved on ``world`` = (comm, rank, size), ``part`` the rank of every
-    patch, ``book`` its assembly's bookkeeping; sets the problem's components and constraint counts."""
+    patch, ``book`` its assembly's bookkeeping; sets the components and constraint counts of ``record``
+    (:class:`iga.discretisation.problem.SolveRecord`)."""
     from mpi4py import MPI
 
     comm, rank, _ = world
@@ -58,15 +59,15 @@ def rank_setup(problem, world, part, book):
     by_kind = problem._faces_by_kind()
     if comm.allreduce(len(dd.slave_rows)):
         constraints = prolongation(problem.model, problem.spaces, problem.offsets)
-        problem.constraint_stats = dict(constraints.stats)
-        problem.components, problem.idle_components = analyse_components(problem, constraints, by_kind,
-                                                                          book["source"])
+        record.constraint_stats = dict(constraints.stats)
+        record.components, record.idle_components = analyse_components(problem, constraints, by_kind,
+                                                                        book["source"])
         return constraints, project_dirichlet(problem.faces, book["dirichlet"], problem.ndof, constraints), None
-    problem.components, problem.idle_components = rank_components(problem, rc, by_kind, book["source"], comm)
+    record.components, record.idle_components = rank_components(problem, rc, by_kind, book["source"], comm)
     stats = rc.constraints.stats
     keys = rc.keys()[dd.dofs]
     mine = int(np.count_nonzero(part[np.searchsorted(problem.offsets, keys, side="right") - 1] == rank))
-    problem.constraint_stats = {  # the prescribed unknowns counted once, by the owner of their key
+    record.constraint_stats = {  # the prescribed unknowns counted once, by the owner of their key
         "closure_patches_max": comm.allreduce(stats["closure_patches"], op=MPI.MAX),
         "closure_layers_max": comm.allreduce(stats["closure_layers"], op=MPI.MAX),
         "prescribed": comm.allreduce(mine)}

@@ -25,7 +25,8 @@ from solvers.indexing import complement
 from iga.heat.coefficients import ScalarField, is_number
 from iga.discretisation.components import dof_labels
 from iga.discretisation.constraints import needs_constraints, prolongation
-from iga.discretisation.setting import Discretisation, count
+from iga.discretisation.problem import Problem, SolveRecord
+from iga.discretisation.setting import count
 from iga.elasticity.solution import ElasticSolution
 from iga.elasticity.volume import ElasticVolume, vector_constraints
 from iga.errors import ProblemError
@@ -34,7 +35,7 @@ from iga.heat.forms import boundary_load
 from iga.model import tag_faces
 from iga.elasticity.rigid import free_modes, greville_points, rigid_modes
 from iga.discretisation.system import solve_system
-from iga.tags import as_expression, check_expression, condition_faces, mentions_rest
+from iga.tags import as_expression, condition_faces, mentions_rest
 from iga.elasticity.data import VectorField, component_field, merge_dirichlet, pin_dofs
 
 __all__ = ["ElasticityProblem"]
@@ -56,7 +57,7 @@ class _Load:
     value: object  # VectorField (traction) or ScalarField (pressure)
 
 
-class ElasticityProblem:
+class ElasticityProblem(Problem):
     """Linear elasticity of an isotropic, possibly graded material on a patch, a list of patches or a
     micro-structure (every model :class:`iga.HeatProblem` takes).
 
@@ -80,11 +81,7 @@ class ElasticityProblem:
 
     def __init__(self, model, youngs, poisson, degree_elevation=0, refine: int = 0, quadrature_extra: int = 0,
                  degree=None, bases=None):
-        d = Discretisation(model, degree_elevation, refine, quadrature_extra, degree, bases, components=3)
-        self.disc = d
-        self.model, self.spaces, self.offsets, self.ndof = d.model, d.spaces, d.offsets, d.ndof
-        self.faces, self.timings, self.regularity = d.faces, d.timings, d.regularity
-        self.weights = d.weights  # NURBS basis where a patch is its own rational geometry (iga.discretisation.rational)
+        super().__init__(model, degree_elevation, refine, quadrature_extra, degree, bases, components=3)
         self.youngs = ScalarField(youngs, "Young's modulus", positive=True, model=self.model)
         self.poisson = ScalarField(poisson, "Poisson's ratio", model=self.model)
         if self.poisson.constant is not None and not -1.0 < self.poisson.constant < 0.5:
@@ -93,7 +90,6 @@ class ElasticityProblem:
         self.loads: list[_Load] = []
         self.body = None
         self.thermal_strain = None
-        self.constraint_stats: dict = {}
         self.rigid_hold = False
 
     # ------------------------------------------------------------ conditions
@@ -106,22 +102,12 @@ class ElasticityProblem:
                    for f in tag_faces(self.model, c.tag)}
         return tag_faces(self.model, tag, [f for f in self.model.tags.get("boundary", []) if f not in covered])
 
-    def _faces_of(self, tag: str, what: str) -> list:
-        if mentions_rest(self.model, tag):
-            check_expression(self.model, tag)  # its faces are known once every condition is
-            return []
-        faces = tag_faces(self.model, tag)
-        if not faces:
-            raise ProblemError(f"{what}: tag {show(tag)} has no faces in this model (every face it named is glued to "
-                               f"a neighbour or absent); choose another tag from {sorted(self.model.tags)[:20]}")
-        return faces
-
     def dirichlet(self, tag: str, value=0.0, components: str = "xyz") -> "ElasticityProblem":
         """Prescribed displacement (m) on ``tag``: a number (every component held to it), three numbers, or a
         callable ``u(x (N, 3)) -> (N, 3)``; only ``components`` (a string of x, y, z) are prescribed, the
         others stay free ("held vertically, free to slide" is ``components="z"``)."""
         tag = as_expression(tag)
-        self._faces_of(tag, "dirichlet")
+        self.faces_of(tag, "dirichlet")
         if not (isinstance(components, str) and components and set(components) <= set(_AXES)
                 and len(set(components)) == len(components)):
             raise ProblemError(f"components must be a string of distinct letters from 'xyz' (e.g. 'z' or 'xy'), got "
@@ -133,14 +119,14 @@ class ElasticityProblem:
     def traction(self, tag: str, t) -> "ElasticityProblem":
         """Surface traction (Pa) on ``tag``: three numbers or a callable ``t(x (N, 3)) -> (N, 3)``."""
         tag = as_expression(tag)
-        self._faces_of(tag, "traction")
+        self.faces_of(tag, "traction")
         self.loads.append(_Load(tag, "traction", VectorField(t, f"traction on {show(tag)}")))
         return self
 
     def pressure(self, tag: str, p) -> "ElasticityProblem":
         """Pressure (Pa) on ``tag``, pushing along the inward normal (traction -p n): a number or callable."""
         tag = as_expression(tag)
-        self._faces_of(tag, "pressure")
+        self.faces_of(tag, "pressure")
         self.loads.append(_Load(tag, "pressure", ScalarField(p, f"pressure on {show(tag)}", channels=False)))
         return self
 
@@ -258,14 +244,14 @@ class ElasticityProblem:
         """(K, f, book): the stiffness (3 ndof x 3 ndof CSR, component-major: unknown a ndof + i is component a
         of DOF i; N/m), the load vector (N: body force, thermal strain, tractions and pressures) and
         {"work": {"body": int f dV (N, (3,))}, "applied": {tag: resultant (N, (3,))}, "moments": {tag: moment about
-        the origin (N m, (3,))}}; sets
-        ``timings["assembly"]`` (s).  :meth:`solve` calls it with the :meth:`_support_faces` it resolved."""
+        the origin (N m, (3,))}, "timings": {"assembly": s}}.  :meth:`solve` calls it with the
+        :meth:`_support_faces` it resolved."""
         supports = self._support_faces() if supports is None else supports
         t0 = time.perf_counter()
         K, f, work = ElasticVolume(self.disc).assemble(self.youngs, self.poisson, self.body, self.thermal_strain)
         applied, moments = self._loads(f, supports)
-        self.timings["assembly"] = time.perf_counter() - t0
-        return K, f, {"work": work, "applied": applied, "moments": moments}
+        return K, f, {"work": work, "applied": applied, "moments": moments,
+                      "timings": {"assembly": time.perf_counter() - t0}}
 
     def solve(self, solver: str = "auto", tol: float = 1e-10, maxiter: int | None = None) -> ElasticSolution:
         """Assemble, apply the conditions, refuse free rigid motions, solve; returns an :class:`ElasticSolution`."""
@@ -287,7 +273,8 @@ class ElasticityProblem:
         scalar = prolongation(self.model, self.spaces, self.offsets, self.weights) \
             if needs_constraints(self.model, self.spaces) \
             else None
-        self.constraint_stats = dict(scalar.stats) if scalar is not None else {}
+        record = SolveRecord(constraint_stats=dict(scalar.stats) if scalar is not None else {},
+                             timings={**self.timings, **book["timings"]})
         constraints = vector_constraints(scalar, self.ndof)
         dd = merge_dirichlet(self.faces, supports, self.ndof, scalar)
         points = greville_points(self.model, self.spaces, self.offsets)
@@ -307,10 +294,9 @@ class ElasticityProblem:
         # K is consumed: the work balance reads the displacement field and the load vector, not K
         res = solve_system(K, f, constraints, dd, solver, tol, maxiter, options)
         del K
-        self.timings.update({"constraints": t2 - t1,
-                             "solve": res.info.setup_s + res.info.solve_s})
-        self.reduced_dofs = res.reduced
-        return ElasticSolution(self, res, f, dd, work, applied)
+        record.timings.update({"constraints": t2 - t1, "solve": res.info.setup_s + res.info.solve_s})
+        record.reduced_dofs = int(res.reduced)
+        return ElasticSolution(self, res, f, dd, work, applied, record)
 
 
 def _refuse_net_load(applied: dict, body: np.ndarray, moments: dict) -> None:

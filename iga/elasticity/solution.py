@@ -9,6 +9,7 @@ from geometry.patches.chain import patch_geometry_points
 
 from iga.elasticity.forms import lame
 from iga.errors import ProblemError
+from iga.discretisation.problem import SolveRecord
 from iga.discretisation.fields import integrate_fields
 from iga.discretisation.locate import Locator
 from iga.heat.solution import EnergyBalance, check_reference, field_spline, physical_gradient, reference_values
@@ -25,8 +26,10 @@ class ElasticSolution:
     info : dict with DOF counts, constraints, solver diagnostics, timings and the work balance
     """
 
-    def __init__(self, problem, res, f, dd, work, applied):
+    def __init__(self, problem, res, f, dd, work, applied, record=None):
         self.problem = problem
+        self.record = SolveRecord(reduced_dofs=int(res.reduced), timings=dict(problem.timings)) \
+            if record is None else record  # what the solve found (iga.discretisation.problem)
         self.u = res.u
         self._splines: dict = {}
         self._locator = Locator(problem.model)
@@ -42,11 +45,11 @@ class ElasticSolution:
         balance, energy = self._work_and_energy()
         self.info = {
             "dofs": 3 * problem.ndof,
-            "free_dofs": int(problem.reduced_dofs),
-            "constraints": dict(problem.constraint_stats),
+            "free_dofs": int(self.record.reduced_dofs),
+            "constraints": dict(self.record.constraint_stats),
             "patches": len(problem.model.patches),
             "solver": res.info.as_dict(),
-            "timings": dict(problem.timings),
+            "timings": dict(self.record.timings),
             "work": {"external_J": balance.external, "internal_J": balance.internal, "strain_energy_J": energy,
                      "relative_error": balance.relative_error, "thermal": problem.thermal_strain is not None},
             "applied_N": {tag: v.tolist() for tag, v in applied.items()},

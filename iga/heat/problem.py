@@ -25,14 +25,15 @@ from iga.heat.coefficients import Conductivity, ScalarField, is_number
 from iga.discretisation.components import analyse_components
 from iga.discretisation.constraints import needs_constraints, prolongation
 from iga.discretisation.dirichlet import project_dirichlet
-from iga.discretisation.setting import Discretisation, count
+from iga.discretisation.problem import Problem, SolveRecord
+from iga.discretisation.setting import count
 from iga.errors import ProblemError, SingularProblemError
 from iga.discretisation.faces import FaceData
 from iga.assembly.tensor import add_within
 from iga.heat.forms import boundary_load, boundary_mass
 from iga.model import tag_faces
 from iga.distributed.rank_setup import rank_setup
-from iga.tags import as_expression, check_expression, condition_faces, mentions_rest
+from iga.tags import as_expression, condition_faces, mentions_rest
 from iga.heat.solution import Solution
 from iga.distributed import solve as distributed
 from iga.discretisation.multilevel import solver_options
@@ -53,7 +54,7 @@ class _Condition:
 _count = count
 
 
-class HeatProblem:
+class HeatProblem(Problem):
     """Steady heat transfer on a trivariate patch, a list of patches or a micro-structure.
 
     Parameters
@@ -92,27 +93,15 @@ class HeatProblem:
 
     def __init__(self, model, conductivity=1.0, source=0.0, degree_elevation=0, refine: int = 0,
                  quadrature_extra: int = 0, degree=None, bases=None):
-        d = Discretisation(model, degree_elevation, refine, quadrature_extra, degree, bases)
-        self.model, self.bases, self.regularity, self.space_args = d.model, d.bases, d.regularity, d.space_args
-        self.estimate, self.spaces, self.offsets, self.ndof = d.estimate, d.spaces, d.offsets, d.ndof
-        self.volume, self.faces, self.timings = d.volume, d.faces, d.timings
-        self.weights = d.weights  # NURBS basis where a patch is its own rational geometry (iga.discretisation.rational)
+        super().__init__(model, degree_elevation, refine, quadrature_extra, degree, bases)
         self.conductivity = Conductivity(conductivity, self.model)
         self.source = ScalarField(source, "source", model=self.model)
         self.conditions: list[_Condition] = []
-        self.constraint_stats: dict = {}
-        self.reduced_dofs = None
-        self.partition = None  # under mpiexec: the MPI rank of every patch in the last solve (iga.distributed.solve)
-        self.components, self.idle_components = [], []  # the coupled pieces of the last solve (iga.discretisation.components)
 
     # ------------------------------------------------------------ conditions
     def _condition(self, kind, tag, value, h=None) -> "HeatProblem":
         tag = as_expression(tag)
-        if mentions_rest(self.model, tag):
-            check_expression(self.model, tag)  # its faces are known once every condition is
-        elif not tag_faces(self.model, tag):
-            raise ProblemError(f"tag {show(tag)} has no faces in this model (every face it named is glued to a "
-                               f"neighbour or absent); choose another tag from {sorted(self.model.tags)[:20]}")
+        self.faces_of(tag, kind)
         what = {"dirichlet": "Dirichlet value", "neumann": "Neumann flux", "robin": "ambient temperature"}[kind]
         field = ScalarField(value, f"{what} on {show(tag)}", model=self.model, channels=False)
         self.conditions.append(_Condition(kind, tag, field, h))
@@ -231,8 +220,7 @@ class HeatProblem:
             book["robin"].update(zip(keys, zip(_per_face(h, fds), _per_face(T, fds))))
         if robin_fds:
             K = add_within(K, boundary_mass(robin_fds, robin_h, self.ndof, patches))  # in place: no copy of K
-        self.timings["assembly_volume"] = t1 - t0
-        self.timings["assembly_faces"] = time.perf_counter() - t1
+        book["timings"] = {"assembly_volume": t1 - t0, "assembly_faces": time.perf_counter() - t1}
         return K, f, book
 
     def _needs_constraints(self) -> bool:
@@ -257,25 +245,27 @@ class HeatProblem:
                 "constant (the system is singular); add problem.dirichlet(tag, T) or problem.robin(tag, h, T_inf)"
             )
         world = distributed.world() if solver == "petsc" else None  # (comm, rank, size) under mpiexec
-        part = self.partition = distributed.partition(self, world[2]) if world else None  # rank of each patch
+        record = SolveRecord(partition=distributed.partition(self, world[2]) if world else None)
+        part = record.partition  # rank of each patch
         K, f, book = self.assemble(None if part is None else set(np.flatnonzero(part == world[1]).tolist()))
+        record.timings = {**self.timings, **book["timings"]}
         if world:  # each rank integrated the source over its own patches
             book["source"] = world[0].allreduce(book["source"])
         t0 = time.perf_counter()
         rc = dd = None
         if world and self._needs_constraints():  # each rank builds the constraints its patches read
-            constraints, dd, rc = rank_setup(self, world, part, book)
+            constraints, dd, rc = rank_setup(self, world, part, book, record)
         else:
             constraints = (prolongation(self.model, self.spaces, self.offsets, self.weights)
                            if self._needs_constraints() else None)
         if dd is None:
-            self.constraint_stats = dict(constraints.stats) if constraints is not None else {}
-            self.components, self.idle_components = analyse_components(self, constraints, self._faces_by_kind(),
-                                                                        book["source"])
+            record.constraint_stats = dict(constraints.stats) if constraints is not None else {}
+            record.components, record.idle_components = analyse_components(self, constraints,
+                                                                            self._faces_by_kind(), book["source"])
             dd = project_dirichlet(self.faces, book["dirichlet"], self.ndof, constraints)
-        self.timings["constraints"] = time.perf_counter() - t0
+        record.timings["constraints"] = time.perf_counter() - t0
         t0, options = time.perf_counter(), solver_options(self, solver, constraints, dd, book)
-        self.timings["solver_structure"] = time.perf_counter() - t0  # Kronecker factors, multigrid levels
+        record.timings["solver_structure"] = time.perf_counter() - t0  # Kronecker factors, multigrid levels
         if world:  # K handed over: the solve releases it once its reduced matrix is built
             system, K, f = [K, f], None, None
             res = distributed.solve_system(system, constraints, dd, tol, maxiter, part, world[0], self.offsets,
@@ -283,14 +273,14 @@ class HeatProblem:
         else:
             res = solve_system(K, f, constraints, dd, solver, tol, maxiter, options)
         if rc is None:  # (a rank's own constraints counted the prescribed unknowns across the ranks)
-            self.constraint_stats["prescribed"] = int(len(dd.dofs))
-        self.constraint_stats["induced_rank"] = res.induced_rank
-        self.timings["solve"] = res.info.setup_s + res.info.solve_s
-        self.reduced_dofs = res.reduced
+            record.constraint_stats["prescribed"] = int(len(dd.dofs))
+        record.constraint_stats["induced_rank"] = res.induced_rank
+        record.timings["solve"] = res.info.setup_s + res.info.solve_s
+        record.reduced_dofs = int(res.reduced)
         Gd = dd.G[res.reaction_dofs].toarray() if dd.G is not None else np.zeros((len(res.reaction_dofs), 0))
         integrals = {key: Gd[:, j] for j, key in enumerate(dd.keys)}
         return Solution(self, res.u, book, res.reaction_dofs, res.reaction, integrals, res.info,
-                        loads=None if world else f, prescribed=res.prescribed)
+                        loads=None if world else f, prescribed=res.prescribed, record=record)
 
 
 def _per_face(values: np.ndarray, fds) -> list[np.ndarray]:

@@ -14,6 +14,7 @@ from iga.discretisation.fields import integrate_fields
 from geometry.patches.chain import patch_geometry_points
 from geometry.patches.sampling import sample_axes
 from iga.discretisation.locate import Locator
+from iga.discretisation.problem import SolveRecord
 from geometry.tolerances import SINGULAR
 
 
@@ -42,8 +43,9 @@ class Solution:
     """
 
     def __init__(self, problem, u, book, dirichlet_dofs, reaction, dirichlet_integrals, solver_info, loads=None,
-                 prescribed=None):
+                 prescribed=None, record=None):
         self.problem = problem
+        self.record = SolveRecord(reduced_dofs=len(u), timings=dict(problem.timings)) if record is None else record
         self.u = u
         self._book = book
         self._loads = loads  # the load vector f (ndof,): source, Neumann and Robin h T_inf; None when distributed
@@ -59,13 +61,13 @@ class Solution:
         self._scale = self._flow_scale()
         self.info = {
             "dofs": problem.ndof,
-            "free_dofs": int(problem.reduced_dofs),
-            "constraints": dict(getattr(problem, "constraint_stats", {})),
+            "free_dofs": int(self.record.reduced_dofs),
+            "constraints": dict(self.record.constraint_stats),
             "patches": len(problem.model.patches),
             "solver": solver_info.as_dict(),
-            "timings": dict(problem.timings),
+            "timings": dict(self.record.timings),
             "balance": self.balance(),
-            "components": _components_info(problem),
+            "components": _components_info(self.record),
         }
 
     def __repr__(self) -> str:
@@ -222,7 +224,7 @@ class Solution:
         keys = [k for kind in ("neumann", "robin", "dirichlet") for k in self._book[kind]]
         comm = self._comm()
         if comm is not None:  # the faces of this rank's patches; the figures are combined over the ranks
-            mine = set(np.flatnonzero(prob.partition == comm.Get_rank()).tolist())
+            mine = set(np.flatnonzero(self.record.partition == comm.Get_rank()).tolist())
             keys = [k for k in dict.fromkeys(keys) if k[0] in mine]
         k_ref, area, lo, hi, ok = 0.0, 0.0, np.full(3, np.inf), np.full(3, -np.inf), True
         if keys and len(self.u):
@@ -322,12 +324,11 @@ def flux_vector(K: np.ndarray, grad: np.ndarray) -> np.ndarray:
     return -np.einsum("nij,nj->ni", tensor_matrix(K), grad)
 
 
-def _components_info(problem) -> dict:
-    """The coupled pieces of a solved problem for ``Solution.info`` (:mod:`iga.discretisation.components`): the count, the
-    idle ones, and the first ten with their DOFs, patches and the tags of the conditions on them."""
-    comps = getattr(problem, "components", [])
-    return {"count": len(comps), "idle": len(getattr(problem, "idle_components", [])),
-            "pieces": [c.as_dict() for c in comps[:10]]}
+def _components_info(record) -> dict:
+    """The coupled pieces a solve found for ``Solution.info`` (:mod:`iga.discretisation.components`): the count,
+    the idle ones, and the first ten with their DOFs, patches and the tags of the conditions on them."""
+    return {"count": len(record.components), "idle": len(record.idle_components),
+            "pieces": [c.as_dict() for c in record.components[:10]]}
 
 
 def field_spline(space, coef: np.ndarray, weights=None) -> SplineFunction:

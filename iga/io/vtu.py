@@ -150,7 +150,7 @@ def write_pieces(path, solution, comm, samples: int = 3, tolerance: float | None
     """Under ``mpiexec``: every rank writes the patches it solved as ``STEM_RANK.vtu``, rank 0 the ``.pvtu`` that
     ParaView opens as one dataset; returns the ``.pvtu`` path (on every rank).
 
-    ``solution`` comes from a distributed solve (its problem's ``partition`` gives each patch's rank); the
+    ``solution`` comes from a distributed solve (its ``record.partition`` gives each patch's rank); the
     pieces are sampled on the whole model's conforming grids, so points on a rank boundary appear in both
     pieces at the same place (ParaView's Merge Blocks or Clean welds them into the serial file's points).
     Continuous fields (temperature, channels) are equal there; fields the serial file averages over the
@@ -174,7 +174,7 @@ def write_pieces(path, solution, comm, samples: int = 3, tolerance: float | None
     if path.suffix.lower() != ".pvtu":
         raise ProblemError(f"cannot write {path.name}: parallel VTU files end in .pvtu")
     check_folder(path, ProblemError)
-    part = getattr(solution.problem, "partition", None)
+    part = solution.record.partition
     rank, size = comm.Get_rank(), comm.Get_size()
     if part is None or len(part) != len(solution.problem.model.patches) or part.max() >= size:
         raise ProblemError("write_pieces needs the solution of a distributed solve (solver='petsc' under mpiexec "
