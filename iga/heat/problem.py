@@ -223,6 +223,14 @@ class HeatProblem(Problem):
         book["timings"] = {"assembly_volume": t1 - t0, "assembly_faces": time.perf_counter() - t1}
         return K, f, book
 
+    def mass(self, capacity=1.0):
+        """The heat capacity matrix M (CSR, ndof x ndof, J/K): int rho c N_i N_j dV over the model, for the
+        volumetric heat capacity ``capacity`` rho c in J/(m^3 K) (a number, a channel name or a callable of x,
+        as the conductivity).  ``u @ M @ v`` is int rho c u v dV for fields with coefficients u and v; for u = v = 1
+        everywhere ``M.sum()`` is the heat capacity of the whole model (J/K).  The rows are those of the
+        unconstrained patch DOFs, as :meth:`assemble`'s (interface constraints act on both sides later)."""
+        return self.volume.mass(ScalarField(capacity, "heat capacity", positive=True, model=self.model))
+
     def _needs_constraints(self) -> bool:
         """Interfaces, or patches with full-multiplicity (discontinuity) knots, need a prolongation."""
         return needs_constraints(self.model, self.spaces)

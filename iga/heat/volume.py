@@ -170,26 +170,78 @@ class VolumeAssembler:
                 yield planes, np.broadcast_to(C[:, None], (6, P, n)), np.broadcast_to(L, (P, n))
             checked_det(np.array([lo, hi]), where)
             return
-        w_rest = np.multiply.outer(space.dirs[1].qw, space.dirs[2].qw).ravel()  # weights of one plane
-        slabs = patches_geometry_derivs_slabs(patches, space.qaxes,
-                                              _COMPILED_SLAB_POINTS if compiled else _NUMPY_SLAB_POINTS,
-                                              rows_multiple=space.dirs[0].g, compiled=compiled)
-        for planes, x, D, chans in slabs:
-            n = x.shape[1]
-            flat = {ch: np.reshape(v, -1) for ch, v in chans.items()}
-            xs = x.reshape(-1, 3)
+        for planes, xs, D, flat, wv in _geometry_slabs(patches, space, compiled):
             kval = conductivity.values(xs, flat, where)
             fval = source.values(xs, flat, where)
-            w = np.multiply.outer(space.dirs[0].qw[planes], w_rest).ravel()
-            wv = np.broadcast_to(w, (P, n)).reshape(-1)
             if compiled:
                 C, L, det = fast_assembly.metric_fields(D, kval, fval, wv)
             else:
                 C, L, det = diffusion(D, kval, fval, wv)
             a, b = checked_det(det, where)
             lo, hi = min(lo, a), max(hi, b)
-            yield planes, C.reshape(6, P, n), L.reshape(P, n)
+            yield planes, C.reshape(6, P, -1), L.reshape(P, -1)
         checked_det(np.array([lo, hi]), where)
+
+    def mass(self, coefficient, patches=None):
+        """M (CSR, ndof x ndof): int c N_i N_j dV, the zero-order (mass) form, for ``coefficient`` c (a
+        :class:`iga.heat.coefficients.ScalarField`; the volumetric heat capacity rho c in J/(m^3 K) makes M
+        the heat capacity matrix in J/K per unit of the coefficients).  ``patches`` as in :meth:`assemble`.
+
+        One term of the sum-factorised vocabulary (:func:`iga.assembly.tensor.banded_form`): the coefficient
+        field c |det J| w on the Gauss grid, no derivative on either side; in the NURBS basis
+        (:mod:`iga.discretisation.rational`) the field is divided by the weight function squared and the
+        entries scaled by w_i w_j."""
+        n = len(self.spaces)
+        chosen = np.ones(n, bool) if patches is None else np.isin(np.arange(n), np.fromiter(patches, np.int64))
+        M = VectorCSR(self.offsets, self.nnz * chosen, components=1)
+        M.skip(np.flatnonzero(~chosen))
+        groups = [[i for i in g if chosen[i]] for g in self.groups.values()]
+        for group in (g for g in groups if g):
+            for members in chunks(group, _weight(self.spaces[group[0]], len(group), False)):
+                space = self.spaces[members[0]]
+                F = self._mass_field(members, space, coefficient)
+                rational = self.weights[members[0]] is not None
+                if rational:
+                    W, _ = weight_fields(self.model.patches[members[0]].spline, space, len(members))
+                    F /= W ** 2
+                pat = pattern(space)
+                data = banded_to_csr_data(space, banded_form(space, [(F, ((0, 0),) * space.dim)]), pat)
+                if rational:
+                    data *= nurbs_scale(pat, self.weights[members[0]].reshape(-1))
+                M.put(members, pat, {(0, 0): data})
+        return M.matrix()
+
+    def _mass_field(self, members, space, coefficient) -> np.ndarray:
+        """c |det J| w on the Gauss grid of patches ``members``: (P,) + qshape."""
+        patches = [self.model.patches[i] for i in members]
+        where = f"patch {members[0]}" if len(members) == 1 else f"patches {members[0]}..{members[-1]}"
+        F = np.empty((len(members), space.nq_total))
+        rest = space.nq_total // space.dirs[0].nq
+        lo, hi = np.inf, -np.inf
+        for planes, xs, D, flat, wv in _geometry_slabs(patches, space, False):
+            Du, Dv, Dw = (d.reshape(-1, 3) for d in D)
+            det = np.einsum("ij,ij->i", Du, np.cross(Dv, Dw))
+            a, b = checked_det(det, where)
+            lo, hi = min(lo, a), max(hi, b)
+            c = np.broadcast_to(coefficient.values(xs, flat, where), det.shape)
+            F[:, planes.start * rest: planes.stop * rest] = (c * np.abs(det) * wv).reshape(len(members), -1)
+        checked_det(np.array([lo, hi]), where)
+        return F.reshape((len(members),) + space.qshape)
+
+
+def _geometry_slabs(patches, space, compiled: bool):
+    """The geometry of ``patches`` (one tile spline, one space) on their Gauss grid, by slabs of whole elements:
+    yields (planes (slice of axis 0), x (P n, 3), [dx/du, dx/dv, dx/dw] each (P, n, 3), channels {name: (P n,)},
+    quadrature weights (P n,))."""
+    w_rest = np.multiply.outer(space.dirs[1].qw, space.dirs[2].qw).ravel()  # weights of one plane
+    slabs = patches_geometry_derivs_slabs(patches, space.qaxes,
+                                          _COMPILED_SLAB_POINTS if compiled else _NUMPY_SLAB_POINTS,
+                                          rows_multiple=space.dirs[0].g, compiled=compiled)
+    for planes, x, D, chans in slabs:
+        n = x.shape[1]
+        w = np.multiply.outer(space.dirs[0].qw[planes], w_rest).ravel()
+        yield (planes, x.reshape(-1, 3), D, {ch: np.reshape(v, -1) for ch, v in chans.items()},
+               np.broadcast_to(w, (len(patches), n)).reshape(-1))
 
 
 
