@@ -293,9 +293,9 @@ TILING = [
          TilingError, r"deformation map is singular"),
     case("hierarchy scale string", lambda t: tiling.hierarchical(pr.box(), L.heat_sink_t2(), (1, 1), 2, scale="0.5"),
          TilingError, r"scale must be a positive number .* got '0\.5' \(str\)"),
-    case("reduced degree float", lambda t: __import__("geometry.composition.reduction").reduction.reduce_degree(
+    case("reduced degree float", lambda t: __import__("geometry.composition.reduction").composition.reduction.reduce_degree(
         pr.box(degrees=(3, 3, 3)), 2.0), SplineError, r"integer 2 or 3 .* got 2\.0"),
-    case("reduce a list", lambda t: __import__("geometry.composition.reduction").reduction.reduce_model([pr.box()]), SplineError,
+    case("reduce a list", lambda t: __import__("geometry.composition.reduction").composition.reduction.reduce_model([pr.box()]), SplineError,
          r"takes a multi-patch model .* got list"),
     case("tile outside cube", lambda t: Tile([pr.box().translate([0.5, 0, 0])]), TilingError,
          r"tile 'tile' patch 0 leaves the unit cube"),
@@ -782,7 +782,7 @@ RESOURCES = [
                                                    progress=False), ProblemError, r"the analysis"),
     case("tessellation 1e-9", lambda t: _bent_disc().tessellate(1e-9), SplineError,
          r"tessellation at tolerance 1e-09 needs at least about [\d,]+ triangles \(estimated"),
-    case("scale bounds pieces", lambda t: __import__("geometry").scale.scale_bounds(
+    case("scale bounds pieces", lambda t: __import__("geometry").scale_bounds(
         _fine_box(), np.tile(_fine_box().domain, (20000, 1, 1)), subdivide=8), SplineError,
          r"scale bounds of 20,000 boxes over 512 elements cut into 8\^3 sub-boxes .* needs about"),
     case("elastic samples", lambda t: write_vtu(t / "e.vtu", _elastic_solution(), samples=100000), ProblemError,
@@ -1097,7 +1097,7 @@ RAW = [
          ProblemError, r"macro_map needs an EffectiveTable"),
     case("clip_walls of None", lambda t: __import__("tiling.sealing.clipping").sealing.clipping.clip_walls(None), TilingError,
          r"clip_walls needs a list of walls .* got None"),
-    case("export_gismo of an elastic problem", lambda t: __import__("iga.io.gismo").gismo.export_gismo(
+    case("export_gismo of an elastic problem", lambda t: __import__("iga.io.gismo").io.gismo.export_gismo(
         __import__("iga").ElasticityProblem(cube(), 1e9, 0.3), t / "e.xml"), ProblemError,
         r"G\+Smo export writes heat problems \(iga.HeatProblem\), not ElasticityProblem"),
     case("write_pieces without a communicator", lambda t: __import__("iga").write_pieces(t / "a.pvtu", solved(), None),
