@@ -204,13 +204,15 @@ def test_the_analysis_degree_and_extra_quadrature_are_configured(tmp_path):
         validate({**cfg, "solver": {"quadrature_extra": -1}}, tmp_path)
 
 
-def test_every_complete_toml_example_of_the_readme_runs_as_written(tmp_path):
-    """The README's pipeline examples, read by tomllib as a user would paste them (pictures and VTU off)."""
+def test_every_complete_toml_example_of_the_documentation_runs_as_written(tmp_path):
+    """The pipeline examples of the README and docs/, read by tomllib as a user would paste them (pictures and
+    VTU off)."""
     import re
     import tomllib
     from pathlib import Path
 
-    text = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    root = Path(__file__).resolve().parents[1]
+    text = "\n".join(p.read_text() for p in [root / "README.md", *sorted((root / "docs").glob("*.md"))])
     ran = 0
     for i, block in enumerate(re.findall(r"```toml\n(.*?)```", text, re.S)):
         cfg = tomllib.loads(block)

@@ -1,0 +1,49 @@
+"""The README as a guide: short, the two commands first, its script runs as written, every link leads to a file,
+and it speaks of the software, not of how it was made."""
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+README = (ROOT / "README.md").read_text()
+COMMANDS = ['python -m pip install -e . && iga demo heat-sink --out heat-sink-out',
+            'python -m pip install -e ".[test]" && python -m pytest -q -n auto --dist worksteal']
+# words of a development log: issue numbers, dated runs, numbered sessions or rounds of changes
+NARRATION = re.compile(r"issue #\d|\b20\d\d-\d\d-\d\d\b|\bsession\b|\b(sixth|seventh|eighth|ninth|tenth|eleventh|"
+                       r"twelfth) (session|round)|rounds? of changes", re.I)
+
+
+def test_the_readme_is_short_and_starts_with_the_two_commands():
+    lines = README.splitlines()
+    assert len(lines) <= 200, f"README.md has {len(lines)} lines"
+    first = re.search(r"```bash\n(.*?)```", README, re.S)
+    assert first is not None and first.start() < README.index("\n## ")
+    assert first.group(1).strip().splitlines() == COMMANDS
+    ci = (ROOT / ".ci" / "run").read_text().strip().splitlines()
+    assert ci[-1] == COMMANDS[1]  # .ci/run runs exactly the README's test command
+
+
+def test_every_python_block_of_the_readme_runs_as_written(tmp_path):
+    blocks = re.findall(r"```python\n(.*?)```", README, re.S)
+    assert blocks
+    for i, code in enumerate(blocks):
+        run = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+        assert run.returncode == 0, f"README block {i}:\n{run.stderr[-2000:]}"
+    assert (tmp_path / "sink.vtu").stat().st_size > 0  # the script wrote what it says
+
+
+def test_every_relative_link_of_the_readme_and_docs_leads_to_a_file():
+    pages = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+    missing = []
+    for page in pages:
+        for target in re.findall(r"\]\(([^)#\s]+)(?:#[^)]*)?\)", page.read_text()):
+            if "://" not in target and not (page.parent / target).exists():
+                missing.append(f"{page.relative_to(ROOT)} -> {target}")
+    assert not missing, missing
+
+
+def test_the_readme_speaks_of_the_software_not_of_its_making():
+    found = [line for line in README.splitlines() if NARRATION.search(line)]
+    assert not found, found
