@@ -44,6 +44,8 @@ def test_every_relative_link_of_the_readme_and_docs_leads_to_a_file():
     assert not missing, missing
 
 
-def test_the_readme_speaks_of_the_software_not_of_its_making():
-    found = [line for line in README.splitlines() if NARRATION.search(line)]
+def test_the_readme_and_docs_speak_of_the_software_not_of_its_making():
+    found = [f"{page.relative_to(ROOT)}: {line.strip()[:80]}"
+             for page in [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+             for line in page.read_text().splitlines() if NARRATION.search(line)]
     assert not found, found
