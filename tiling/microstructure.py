@@ -53,7 +53,8 @@ class Microstructure(MultiPatch):
 
     ``caps``: the trimmed planar caps of capped surface tiles (:class:`tiling.sealing.caps.PlacedCap`), part of the
     boundary surface and of the IGES export.  ``trimmed``: the placed trimmed members of the tiles
-    (:class:`tiling.members.trimmed.PlacedTrimmed`), likewise.
+    (:class:`tiling.members.trimmed.PlacedTrimmed`), likewise.  ``info``: what the builder chose (a graded
+    paving's parameter per layer, a bifurcation's levels); ``struts``: the sweeps of :func:`tiling.round_struts`.
     """
 
     def __init__(self, outer: BSpline, patches: list, interfaces: list, tags: dict, tiles: list, name: str = "",
@@ -64,6 +65,10 @@ class Microstructure(MultiPatch):
         self.name = name
         self.caps: list = []  # set by pavings that cap surface tiles
         self.trimmed: list = []  # set by pavings of tiles with trimmed members
+        #: what the builder chose, for reports: ``graded`` the parameter per layer; ``bifurcation`` the levels,
+        #: layers, tile and growth direction
+        self.info: dict = {}
+        self.struts = None  # round_struts: the tiling.members.struts.StrutReport of its sweeps
 
     def __repr__(self):
         return (f"Microstructure({show(self.name)}: {len(self.patches)} patches, {self.n_tiles} tiles, "

@@ -10,6 +10,7 @@ parameter box where its Jacobian vanishes (:func:`geometry.check_regular`).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -77,11 +78,24 @@ def regular(D: BSpline, tile: Tile, counts, variants: dict | None = None, name: 
     return ms
 
 
+class Placements(NamedTuple):
+    """What :func:`regular_placements` places: the placed patches, the tiles (C order over the cells), the seal
+    links between plates and tiles, the placed caps, the sealed variants by the sides they seal, and the
+    placed trimmed members."""
+
+    placed: list
+    tiles: list
+    links: list
+    caps: list
+    sealed: dict
+    trimmed: list
+
+
 def regular_placements(D: BSpline, tile: Tile, counts, variants: dict | None = None, seal: str | None = None,
-                       thickness: float = SEAL_THICKNESS, seal_sides=None):
-    """The placements of :func:`regular` without the interface search: (placed patches, tiles, seal links, caps,
-    sealed variants by sides, placed trimmed members).  Tiles are numbered in C order over the cells; for
-    callers that keep a subset of them and build one micro-structure from several pavings (:mod:`tiling.vrep`)."""
+                       thickness: float = SEAL_THICKNESS, seal_sides=None) -> Placements:
+    """The placements of :func:`regular` without the interface search (:class:`Placements`).  Tiles are
+    numbered in C order over the cells; for callers that keep a subset of them and build one micro-structure
+    from several pavings (:mod:`tiling.vrep`)."""
     check_map(D)
     if not isinstance(tile, Tile):
         raise TilingError(f"tile must be a tiling.Tile, got {type(tile).__name__}")
@@ -125,7 +139,7 @@ def regular_placements(D: BSpline, tile: Tile, counts, variants: dict | None = N
                          for c in getattr(t, "caps", ())]
                 trimmed += place_trimmed(t, M, D, tid)
     check_spans(D, placed + [m.placed for m in trimmed])
-    return placed, tiles, links, caps, sealed, trimmed
+    return Placements(placed, tiles, links, caps, sealed, trimmed)
 
 
 def grid_identity(D: BSpline, tiles: list, shape: tuple):

@@ -139,7 +139,8 @@ def _keep_tiles(model, samples, margin, bridges: bool, timings: dict) -> _Kept:
         timings[f"classify {prim.name}"] = t1 - t0
         if not len(cls.kept):  # nothing of this primitive stays (e.g. a lower priority inside an intersection)
             continue
-        paved, paved_tiles = regular_placements(prim.D, prim.tile, prim.counts)[:2]
+        paving = regular_placements(prim.D, prim.tile, prim.counts)
+        paved, paved_tiles = paving.placed, paving.tiles
         timings[f"pave {prim.name}"] = time.perf_counter() - t1
         keep = set(cls.kept.tolist())
         anchors = {}
