@@ -25,6 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from geometry.errors import SplineError
+
 __all__ = ["orient_outward", "orientation_check", "OrientationCheck", "FLAT"]
 
 FLAT = 1e-6
@@ -100,10 +102,12 @@ def _vertex_graph(edges, n_points):
 
 
 def orient_outward(mesh):
-    """``mesh`` (a ``pyvista.PolyData`` of polygons, lines allowed) with every sheet consistent and outward.
+    """``mesh`` (a ``pyvista.PolyData`` of polygons only: merge lines and vertices afterwards) with every sheet
+    consistent and outward.
 
     Cells keep their order, points and data; only the order of the vertices of
-    some polygons is reversed.  See the module docstring for the rule.
+    some polygons is reversed.  See the module docstring for the rule.  The nesting test runs once per closed
+    sheet that contains another sheet's bounding box (a handful on the toolkit's surfaces).
     """
     import pyvista as pv
     from scipy.sparse.csgraph import connected_components
@@ -112,7 +116,7 @@ def orient_outward(mesh):
     if len(offsets) < 2:
         return mesh
     if mesh.n_lines or mesh.n_verts:
-        raise ValueError("orient_outward takes polygons only; merge lines and vertices afterwards")
+        raise SplineError("orient_outward takes polygons only; merge lines and vertices afterwards")
     consistent = mesh.compute_normals(cell_normals=True, point_normals=False, split_vertices=False,
                                       consistent_normals=True, auto_orient_normals=False,
                                       non_manifold_traversal=True)
