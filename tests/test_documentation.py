@@ -31,7 +31,7 @@ def test_every_python_block_of_the_readme_runs_as_written(tmp_path):
     for i, code in enumerate(blocks):
         run = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=300)
         assert run.returncode == 0, f"README block {i}:\n{run.stderr[-2000:]}"
-    assert (tmp_path / "sink.vtu").stat().st_size > 0  # the script wrote what it says
+    assert (tmp_path / "sink.vtu").stat().st_size > 0 and (tmp_path / "sink.png").stat().st_size > 0
 
 
 def test_every_relative_link_of_the_readme_and_docs_leads_to_a_file():

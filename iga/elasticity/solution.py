@@ -62,6 +62,25 @@ class ElasticSolution:
                 f"work balance error {self.info['work']['relative_error']:.1e})")
 
     # ---------------------------------------------------------------- fields
+    def to_pyvista(self, samples: int = 3, tolerance: float | None = None):
+        """The sampled grid of :func:`iga.write_vtu` as a ``pyvista.UnstructuredGrid`` (displacement in m,
+        stress and von Mises in Pa, the channels, patch and level), without writing a file."""
+        from iga.io.vtu import sampled_grid
+
+        return sampled_grid(self.problem.model, self, samples, tolerance)
+
+    def plot(self, field: str = "von_mises", screenshot=None, warp: float | None = None, title: str | None = None,
+             samples: int = 3):
+        """Draw ``field`` (``von_mises``, ``displacement``, ...) on the sampled grid, deformed by ``warp``
+        times the displacement when given, titled with the case (patches, unknowns, work balance) and the
+        field's range; ``screenshot``: a ``.png`` written off screen (returned), else the window is shown."""
+        from iga.io.pictures import count, plot_field
+
+        case = title or (f"elasticity: {count(self.info['patches'], 'patch')}, "
+                         f"{count(self.info['free_dofs'], 'unknown')}"
+                         + (f", displacement x {warp:g}" if warp is not None else ""))
+        return plot_field(self.to_pyvista(samples), field, case, screenshot, warp)
+
     def displacement_spline(self, pi: int) -> SplineFunction:
         """The displacement on patch ``pi`` as a 3-component spline over the patch parameters."""
         if pi not in self._splines:

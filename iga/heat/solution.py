@@ -76,6 +76,25 @@ class Solution:
                 f"unknowns, {self.info['solver']['method']}; inflow {b['inflow_W']:.4g} W, balance error "
                 f"{b['relative_error']:.1e})")
 
+    # ---------------------------------------------------------------- pictures
+    def to_pyvista(self, samples: int = 3, tolerance: float | None = None):
+        """The sampled grid of :func:`iga.write_vtu` as a ``pyvista.UnstructuredGrid`` (temperature in C, heat
+        flux in W/m^2, the channels, patch and level), without writing a file."""
+        from iga.io.vtu import sampled_grid
+
+        return sampled_grid(self.problem.model, self, samples, tolerance)
+
+    def plot(self, field: str = "temperature", screenshot=None, title: str | None = None, samples: int = 3):
+        """Draw ``field`` (``temperature`` or ``heat_flux``) on the sampled grid, titled with the case
+        (patches, unknowns, heat in) and the field's range; ``screenshot``: a ``.png`` written off screen
+        (returned), else the window is shown (:func:`iga.io.pictures.plot_field`)."""
+        from iga.io.pictures import count, plot_field
+
+        b = self.info["balance"]
+        case = title or (f"heat: {count(self.info['patches'], 'patch')}, "
+                         f"{count(self.info['free_dofs'], 'unknown')}, {b['inflow_W']:.4g} W in")
+        return plot_field(self.to_pyvista(samples), field, case, screenshot)
+
     # ---------------------------------------------------------------- fields
     def temperature_spline(self, pi: int) -> SplineFunction:
         """The temperature on patch ``pi`` as a scalar spline over the patch parameters (kept for the probes

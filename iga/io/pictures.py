@@ -1,0 +1,77 @@
+"""Results at hand in scripts and notebooks: a solution as a ``pyvista`` grid, and a picture of it that states
+its case.
+
+:func:`plot_field` draws one point array of a sampled grid (:func:`iga.io.vtu.sampled_grid`) with a title, the
+array's range and units on the scalar bar, optionally warped by a displacement; it writes a PNG off screen
+(no display needed) or shows the window.  A narrow range is said in the title: a colour map stretched over
+0.2 K looks like a strong gradient unless the picture says how small it is.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from geometry.errors import show
+from geometry.io.files import offscreen_plotter, save_screenshot
+from geometry.numbers import is_real
+from iga.errors import ProblemError
+
+__all__ = ["plot_field", "count", "UNITS"]
+
+#: units of the arrays the toolkit writes (for the scalar bar)
+UNITS = {"temperature": "C", "heat_flux": "W/m^2", "displacement": "m", "von_mises": "Pa", "stress": "Pa"}
+
+
+def plot_field(grid, field: str, title: str, screenshot=None, warp=None, window=(1200, 850)):
+    """Draw point array ``field`` of ``grid`` (vectors by their magnitude) titled ``title``; ``warp``: a
+    factor for the ``displacement`` array (the deformed shape); ``screenshot``: a ``.png`` path written off
+    screen (returned), else the window is shown (returns None)."""
+    if field not in grid.point_data:
+        raise ProblemError(f"plot: no field {show(field)}; this result has {sorted(grid.point_data.keys())}")
+    if screenshot is not None and Path(screenshot).suffix.lower() != ".png":
+        raise ProblemError(f"plot: screenshot {show(str(screenshot))} must be a .png path")
+    if warp is not None:
+        if not (is_real(warp) and np.isfinite(warp)):
+            raise ProblemError(f"plot: warp must be a finite factor, got {show(warp)}")
+        if "displacement" not in grid.point_data:
+            raise ProblemError("plot: warp needs a displacement field (an elastic solution)")
+        grid = grid.warp_by_vector("displacement", factor=float(warp))
+    values = np.asarray(grid.point_data[field], float)
+    magnitude = np.linalg.norm(values, axis=1) if values.ndim == 2 else values
+    finite = magnitude[np.isfinite(magnitude)]
+    lo, hi = (float(finite.min()), float(finite.max())) if finite.size else (0.0, 0.0)
+    unit = UNITS.get(field, "")
+    label = f"{field}{' magnitude' if values.ndim == 2 else ''} ({unit})" if unit else field
+    span = hi - lo
+    scale = max(abs(lo), abs(hi), 1e-300)
+    note = f"{field} {lo:.6g} .. {hi:.6g} {unit}".strip()
+    if span < 0.05 * scale:  # a narrow range fills the colour map: say how narrow
+        note += f" (a range of {span:.3g} {unit})".replace(" )", ")")
+    fmt = "%.3g"
+    if 0 < span and scale < 1e4:  # enough decimals that the bar's five labels differ
+        fmt = f"%.{max(0, int(np.ceil(-np.log10(span / 4))) + 1)}f"
+    grid = grid.copy(deep=False)
+    grid.point_data["_shown"] = magnitude
+    pl = offscreen_plotter(window) if screenshot is not None else _window(window)
+    pl.add_mesh(grid, scalars="_shown", cmap="viridis", clim=(lo, hi if hi > lo else lo + 1.0),
+                scalar_bar_args={"title": label, "vertical": True, "position_x": 0.86, "fmt": fmt})
+    pl.add_text(f"{title}\n{note}", position="upper_left", font_size=11, color="black")
+    if screenshot is None:
+        pl.set_background("white")
+        pl.show()
+        return None
+    return save_screenshot(pl, screenshot, ProblemError, "iso", 0.85)
+
+
+def count(n: int, noun: str) -> str:
+    """``n`` with its noun, singular or plural (``1 patch``, ``3 patches``)."""
+    plural = noun + ("es" if noun.endswith(("s", "h", "x")) else "s")
+    return f"{n:,} {noun if n == 1 else plural}"
+
+
+def _window(window):
+    import pyvista as pv
+
+    return pv.Plotter(window_size=list(window), lighting="three lights")
