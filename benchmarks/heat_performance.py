@@ -63,7 +63,7 @@ def run_case(p: int, n_per_dir: int, tol: float, malloc: str = "retain", repeat:
     sol = prob.solve(solver="amg-cg", tol=tol)
     total = time.perf_counter() - t
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024**2  # GiB (Linux reports KiB)
-    info, tm = sol.info["solver"], prob.timings
+    info, tm = sol.info["solver"], sol.record.timings
     cold = tm["assembly_volume"] + tm["assembly_faces"]
     del sol
     times = []
