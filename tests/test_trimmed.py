@@ -158,6 +158,10 @@ def test_a_tolerance_floating_point_cannot_meet_is_refused_at_once():
         disc.tessellate(1e-13)
     with pytest.raises(SplineError, match=r"needs at least about [\d,]+ triangles \(estimated .*more than max_triangles = 50;"):
         disc.tessellate(1e-6, max_triangles=50)
+    # the estimate is a lower bound (it passes 6,000 here); the fill itself stops when it would make more
+    with pytest.raises(SplineError, match=r"needs more than 6,000 triangles \(filling the rings needs more"):
+        disc.tessellate(1e-5, max_triangles=6000)
+    assert disc.tessellate(1e-5, max_triangles=20000).n_cells > 6000
 
 
 def test_a_loop_that_runs_back_along_itself_is_told_it_encloses_no_area():

@@ -31,9 +31,10 @@ def _rotate(tris: np.ndarray, flags: np.ndarray, mids: np.ndarray, shift: np.nda
     return (np.take_along_axis(tris, idx, 1), np.take_along_axis(flags, idx, 1), np.take_along_axis(mids, idx, 1))
 
 
-def fill_rings(rings, max_edge: float, max_passes: int = 40):
+def fill_rings(rings, max_edge: float, max_passes: int = 40, max_triangles: int | None = None):
     """Triangulate the region bounded by ``rings`` (list of (n_i, 2) vertex arrays, the first the outer
-    boundary, the others holes; a ring does not repeat its first point).
+    boundary, the others holes; a ring does not repeat its first point).  ``max_triangles``: refuse
+    (:class:`SplineError`, "more than N triangles") as soon as a refinement pass would exceed it.
 
     Returns ``(points (N, 2), triangles (T, 3))``; the ring vertices come first, in order and unchanged.
     Interior edges are at most ``max_edge`` long (same units as the points; use at least the longest ring
@@ -91,6 +92,9 @@ def fill_rings(rings, max_edge: float, max_passes: int = 40):
         out += [np.stack([t[:, 0], m[:, 0], m[:, 2]], 1), np.stack([m[:, 0], t[:, 1], m[:, 1]], 1),
                 np.stack([m[:, 2], m[:, 1], t[:, 2]], 1), np.stack([m[:, 0], m[:, 1], m[:, 2]], 1)]
         tris = np.concatenate(out)
+        if max_triangles is not None and len(tris) > max_triangles:
+            raise SplineError(f"filling the rings needs more than {max_triangles:,} triangles at edges of "
+                              f"{max_edge:.3g}")
     # valid and conforming; only edges fanning out of a ring vertex may still be longer
     return pts, delaunay_flips(pts, tris, fixed)
 
@@ -149,14 +153,18 @@ def delaunay_flips(pts: np.ndarray, tris: np.ndarray, fixed: np.ndarray, max_pas
     if flip_back:
         tris = tris[:, ::-1].copy()
     scale = float(np.ptp(pts, axis=0).max()) or 1.0
+    # Lawson's active set: only an edge of a triangle changed in the last pass, or a violating edge that lost
+    # the last pass's contest, can need a flip; the others keep their verdict
+    active = np.ones(len(tris), bool)
     for _ in range(max_passes):
         e0, e1, opp = tris, np.roll(tris, -1, axis=1), np.roll(tris, -2, axis=1)  # edge k = (k, k+1), opposite k+2
         codes = (np.minimum(e0, e1) * big + np.maximum(e0, e1)).ravel()
         order = np.argsort(codes, kind="stable")
         sc = codes[order]
         pair = np.flatnonzero(sc[1:] == sc[:-1])
-        free = ~np.isin(sc[pair], fixed)
-        pair = pair[free]
+        pair = pair[active[order[pair] // 3] | active[order[pair + 1] // 3]]
+        pos = np.minimum(np.searchsorted(fixed, sc[pair]), max(len(fixed) - 1, 0))
+        pair = pair[fixed[pos] != sc[pair]] if len(fixed) else pair
         if not len(pair):
             break
         i1, i2 = order[pair], order[pair + 1]
@@ -174,8 +182,12 @@ def delaunay_flips(pts: np.ndarray, tris: np.ndarray, fixed: np.ndarray, max_pas
         best = np.full(len(tris), -1, np.int64)
         np.maximum.at(best, t1[cand], rank)
         np.maximum.at(best, t2[cand], rank)
-        win = cand[(best[t1[cand]] == rank) & (best[t2[cand]] == rank)]
+        won = (best[t1[cand]] == rank) & (best[t2[cand]] == rank)
+        win = cand[won]
         tris[t1[win]], tris[t2[win]] = new1[win], new2[win]
+        active = np.zeros(len(tris), bool)
+        active[t1[cand]] = True  # the flipped pairs and the violating edges that lost this pass's contest
+        active[t2[cand]] = True
     return tris[:, ::-1].copy() if flip_back else tris
 
 

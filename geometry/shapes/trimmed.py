@@ -352,7 +352,13 @@ class TrimmedSurface:
                          "raise the tolerance")
             samples = [self._sample_loop(c, tolerance, max_triangles, h, None if k == 0 else samples[j])
                        for j, c in enumerate(self.loops)]
-            uv, tris = fill_rings([c.evaluate(t[:-1, None])[:, :2] for c, t in zip(self.loops, samples)], h)
+            try:
+                uv, tris = fill_rings([c.evaluate(t[:-1, None])[:, :2] for c, t in zip(self.loops, samples)], h,
+                                      max_triangles=max_triangles)
+            except SplineError as exc:
+                raise SplineError(f"the tessellation at tolerance {show(tolerance)} needs more than "
+                                  f"{max_triangles:,} triangles ({exc}); raise the tolerance or max_triangles"
+                                  ) from None
             X = S.evaluate(uv)[:, :3]
             edges = np.unique(np.sort(np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]]), 1), axis=0)
             mid = S.evaluate(0.5 * (uv[edges[:, 0]] + uv[edges[:, 1]]))[:, :3]
