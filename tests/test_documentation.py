@@ -6,6 +6,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text()
 COMMANDS = ['python -m pip install -e . && iga demo heat-sink --out heat-sink-out',
@@ -25,13 +27,20 @@ def test_the_readme_is_short_and_starts_with_the_two_commands():
     assert ci[-1] == COMMANDS[1]  # .ci/run runs exactly the README's test command
 
 
-def test_every_python_block_of_the_readme_runs_as_written(tmp_path):
-    blocks = re.findall(r"```python\n(.*?)```", README, re.S)
-    assert blocks
-    for i, code in enumerate(blocks):
-        run = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=300)
-        assert run.returncode == 0, f"README block {i}:\n{run.stderr[-2000:]}"
-    assert (tmp_path / "sink.vtu").stat().st_size > 0 and (tmp_path / "sink.png").stat().st_size > 0
+def _python_blocks():
+    """(page, index, code) of every Python block of the README and the docs pages."""
+    pages = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+    return [pytest.param(code, id=f"{page.stem}-{i}") for page in pages
+            for i, code in enumerate(re.findall(r"```python\n(.*?)```", page.read_text(), re.S))]
+
+
+@pytest.mark.parametrize("code", _python_blocks())
+def test_every_python_block_of_the_readme_and_docs_runs_as_written(code, tmp_path):
+    run = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr[-2000:]
+    written = [p for p in tmp_path.iterdir() if p.stat().st_size > 0]
+    for name in re.findall(r"""["']([\w.-]+\.(?:vtu|png|stl|xml|igs))["']""", code):
+        assert tmp_path / name in written, f"{name} was not written"  # the block wrote what it says
 
 
 def test_every_relative_link_of_the_readme_and_docs_leads_to_a_file():
