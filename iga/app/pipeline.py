@@ -22,6 +22,7 @@ from geometry import resources
 from geometry import progress as display
 from geometry.io.iges import write_iges
 from geometry.io.files import atomic_write, offscreen_plotter, save_screenshot
+from iga.io.pictures import UNITS, count, range_note
 from tiling.export import boundary_splines, mesh_watertightness, write_mesh, write_surfaces
 
 from iga.app.config import validate
@@ -78,11 +79,12 @@ def heat_sink_config(variant: str = "circular", levels: int | None = None, refin
 
 def render_temperature(vtu_path: Path, png_path: Path, title: str = "temperature (C)", scalars: str = "temperature",
                        warp: float | None = None, cmap: str = "inferno", fmt: str = "%.2f",
-                       above: float | None = None):
+                       above: float | None = None, caption: str | None = None):
     """Offscreen render of a written .vtu coloured by ``scalars`` (a point array), with a scalar bar (atomic);
     ``warp``: the surface moved by that factor times its ``displacement`` array (an elastic solution);
     ``above``: colour by the rise of ``scalars`` above this value on a logarithmic scale (from 1e-3 of the
-    largest rise), so that a part that stays near the ambient temperature still shows its gradient."""
+    largest rise), so that a part that stays near the ambient temperature still shows its gradient;
+    ``caption``: the case, written in the upper left above the shown array's range."""
     import pyvista as pv
 
     mesh = pv.read(vtu_path).extract_surface(algorithm="dataset_surface")
@@ -95,6 +97,11 @@ def render_temperature(vtu_path: Path, png_path: Path, title: str = "temperature
     if warp is not None:
         mesh = mesh.warp_by_vector("displacement", factor=warp)
     pl = offscreen_plotter((1200, 850))
+    if caption is not None:
+        shown = np.asarray(mesh.point_data[scalars], float)
+        unit = "K" if log else UNITS.get(scalars, "")
+        pl.add_text(f"{caption}\n{range_note(scalars, float(shown.min()), float(shown.max()), unit)}",
+                    position="upper_left", font_size=11, color="black")
     pl.add_mesh(mesh, scalars=scalars, cmap=cmap, smooth_shading=True, split_sharp_edges=True, ambient=0.3,
                 log_scale=log, scalar_bar_args={"title": title, "vertical": True, "fmt": fmt, "position_x": 0.86,
                                  "position_y": 0.12, "width": 0.08, "height": 0.7, "title_font_size": 18,
@@ -189,7 +196,9 @@ def _write_outputs(ocfg: dict, out: Path, sol, stages) -> tuple[dict, float | No
     stages.done()
     stages.start("render")
     if ocfg["png"]:
-        render_temperature(vtu, out / f"{name}.png")
+        b = sol.info["balance"]
+        render_temperature(vtu, out / f"{name}.png", caption=f"{name}: {count(sol.info['patches'], 'patch')}, "
+                           f"{count(sol.info['free_dofs'], 'unknown')}, {b['inflow_W']:.4g} W in")
         files["png"] = str(out / f"{name}.png")
     stages.done()
     return files, mesh_volume

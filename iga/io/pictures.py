@@ -18,7 +18,7 @@ from geometry.io.files import offscreen_plotter, save_screenshot
 from geometry.numbers import is_real
 from iga.errors import ProblemError
 
-__all__ = ["plot_field", "count", "UNITS"]
+__all__ = ["plot_field", "range_note", "count", "UNITS"]
 
 #: units of the arrays the toolkit writes (for the scalar bar)
 UNITS = {"temperature": "C", "heat_flux": "W/m^2", "displacement": "m", "von_mises": "Pa", "stress": "Pa"}
@@ -46,9 +46,7 @@ def plot_field(grid, field: str, title: str, screenshot=None, warp=None, window=
     label = f"{field}{' magnitude' if values.ndim == 2 else ''} ({unit})" if unit else field
     span = hi - lo
     scale = max(abs(lo), abs(hi), 1e-300)
-    note = f"{field} {lo:.6g} .. {hi:.6g} {unit}".strip()
-    if span < 0.05 * scale:  # a narrow range fills the colour map: say how narrow
-        note += f" (a range of {span:.3g} {unit})".replace(" )", ")")
+    note = range_note(field, lo, hi, unit)
     fmt = "%.3g"
     if 0 < span and scale < 1e4:  # enough decimals that the bar's five labels differ
         fmt = f"%.{max(0, int(np.ceil(-np.log10(span / 4))) + 1)}f"
@@ -63,6 +61,15 @@ def plot_field(grid, field: str, title: str, screenshot=None, warp=None, window=
         pl.show()
         return None
     return save_screenshot(pl, screenshot, ProblemError, "iso", 0.85)
+
+
+def range_note(field: str, lo: float, hi: float, unit: str = "") -> str:
+    """``field lo .. hi unit``, with the width said in words where it is under 5% of the values (a colour map
+    stretched over 0.2 K looks like a strong gradient)."""
+    note = f"{field} {lo:.6g} .. {hi:.6g} {unit}".strip()
+    if hi - lo < 0.05 * max(abs(lo), abs(hi), 1e-300):
+        note += f" (a range of {hi - lo:.3g} {unit})".replace(" )", ")")
+    return note
 
 
 def count(n: int, noun: str) -> str:
