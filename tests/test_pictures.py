@@ -66,3 +66,17 @@ def test_the_title_says_how_narrow_the_range_is():
         pictures.offscreen_plotter, pictures.save_screenshot = orig, orig_save
     assert texts[0] == "temperature (C)"
     assert texts[1].startswith("a sink\ntemperature 40.66 .. 40.88 C (a range of 0.22 C)")
+
+
+def test_a_microstructure_draws_itself_titled(tmp_path):
+    import pyvista as pv
+    import tiling
+    from tiling import TilingError
+    from tiling import library as L
+
+    ms = tiling.regular(pr.box(degrees=(2, 2, 2)), L.cross(), (2, 1, 1))
+    png = ms.plot(screenshot=tmp_path / "ms.png", samples=2)
+    assert pv.read(png).dimensions[:2] == (1000, 800)
+    with pytest.raises(TilingError, match=r"color_by must be one of \['level', 'patch', 'tile'\], got 'colour'"):
+        ms.plot(screenshot=tmp_path / "x.png", color_by="colour")
+    assert not (tmp_path / "x.png").exists()

@@ -42,7 +42,7 @@ from geometry.grouping import ObjectIndex
 from geometry.numbers import is_integer, is_real
 
 __all__ = ["surface", "watertightness", "pinch_lines", "mesh_watertightness", "write_surfaces", "write_mesh",
-           "render_png",
+           "render_png", "draw",
            "boundary_splines", "continuous_pieces", "slot_surfaces", "write_iges",
            "samples_for_tolerance"]
 
@@ -288,14 +288,23 @@ def _save(mesh, tmp, suffix):
 
 
 def render_png(ms: Microstructure, path, samples: int = 6, color_by: str = "level", window=(1000, 800),
-               camera: str = "iso") -> Path:
-    """Offscreen pyvista render of the boundary, coloured by ``level``, ``tile`` or ``patch``."""
+               camera: str = "iso", title: str | None = None) -> Path:
+    """Offscreen pyvista render of the boundary, coloured by ``level``, ``tile`` or ``patch``; ``title``
+    (default: the structure's name, tiles, patches and levels) in the upper left."""
+    return save_screenshot(draw(ms, offscreen_plotter(window), samples, color_by, title), path, TilingError, camera)
+
+
+def draw(ms: Microstructure, pl, samples: int = 6, color_by: str = "level", title: str | None = None):
+    """``pl`` (a ``pyvista.Plotter``) with the boundary of ``ms`` coloured by ``color_by`` and the title added."""
     drawn = _drawn(ms)
     attr = {"level": [p.level for p in drawn], "tile": [p.tile for p in drawn], "patch": list(range(len(drawn)))}
     if color_by not in attr:
         raise TilingError(f"color_by must be one of {sorted(attr)}, got {show(color_by)}")
     mesh = surface(ms, samples)
-    pl = offscreen_plotter(window)
+    levels = ms.levels
+    pl.add_text(title if title is not None else
+                f"{ms.name or 'micro-structure'}: {ms.n_tiles:,} tiles, {len(ms.patches):,} patches"
+                + (f", {levels} levels" if levels > 1 else ""), position="upper_left", font_size=11, color="black")
     tris = mesh.extract_cells_by_type(5)
     if tris.n_cells:
         tris.cell_data[color_by] = np.asarray(attr[color_by])[tris.cell_data["patch"]]
@@ -311,7 +320,7 @@ def render_png(ms: Microstructure, path, samples: int = 6, color_by: str = "leve
     if lines.n_cells:
         size = float(np.ptp(np.asarray(lines.points), axis=0).max())
         pl.add_mesh(lines.extract_surface(algorithm="dataset_surface").tube(radius=0.01 * size), color="darkred")
-    return save_screenshot(pl, path, TilingError, camera)
+    return pl
 
 
 def boundary_splines(ms: Microstructure) -> list:

@@ -114,6 +114,19 @@ class Microstructure(MultiPatch):
             samples = export.samples_for_tolerance(self, tolerance)
         return export.surface(self, samples)
 
+    def plot(self, screenshot=None, samples: int = 6, color_by: str = "level", title: str | None = None):
+        """Draw the boundary coloured by ``level``, ``tile`` or ``patch``, titled with the name, tiles, patches
+        and levels (:func:`tiling.export.render_png`); ``screenshot``: a ``.png`` written off screen (returned), else
+        the window is shown."""
+        if screenshot is not None:
+            return export.render_png(self, screenshot, samples, color_by, title=title)
+        import pyvista as pv
+
+        pl = export.draw(self, pv.Plotter(window_size=[1000, 800], lighting="three lights"), samples, color_by, title)
+        pl.set_background("white")
+        pl.show()
+        return None
+
     def tile_boxes(self) -> tuple[np.ndarray, np.ndarray]:
         """Each placed tile's box in the map's parameter domain: ``(tiles (K,), boxes (K, 3, 2))``.
 

@@ -65,9 +65,10 @@ class ElasticSolution:
     def to_pyvista(self, samples: int = 3, tolerance: float | None = None):
         """The sampled grid of :func:`iga.write_vtu` as a ``pyvista.UnstructuredGrid`` (displacement in m,
         stress and von Mises in Pa, the channels, patch and level), without writing a file."""
-        from iga.io.vtu import sampled_grid
+        from iga.io.grids import sample_grid
+        from iga.io.sampling import displacement_fields
 
-        return sampled_grid(self.problem.model, self, samples, tolerance)
+        return sample_grid(self.problem.model, samples, tolerance, None, self.problem, displacement_fields(self))
 
     def plot(self, field: str = "von_mises", screenshot=None, warp: float | None = None, title: str | None = None,
              samples: int = 3):

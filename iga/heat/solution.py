@@ -80,9 +80,10 @@ class Solution:
     def to_pyvista(self, samples: int = 3, tolerance: float | None = None):
         """The sampled grid of :func:`iga.write_vtu` as a ``pyvista.UnstructuredGrid`` (temperature in C, heat
         flux in W/m^2, the channels, patch and level), without writing a file."""
-        from iga.io.vtu import sampled_grid
+        from iga.io.grids import sample_grid
+        from iga.io.sampling import temperature_fields
 
-        return sampled_grid(self.problem.model, self, samples, tolerance)
+        return sample_grid(self.problem.model, samples, tolerance, None, self.problem, temperature_fields(self))
 
     def plot(self, field: str = "temperature", screenshot=None, title: str | None = None, samples: int = 3):
         """Draw ``field`` (``temperature`` or ``heat_flux``) on the sampled grid, titled with the case

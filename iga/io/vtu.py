@@ -24,16 +24,14 @@ from pathlib import Path
 
 import numpy as np
 
-from geometry.grouping import ObjectIndex
 from geometry.io.files import atomic_write, check_folder
-from geometry.resources import check_memory
-from geometry.patches.sampling import chord_samples, sampled_mesh
 
 from iga.errors import ProblemError
 from iga.model import as_model
 from iga.elasticity.solution import ElasticSolution
 from iga.io.sampling import displacement_fields, temperature_fields
 from iga.heat.solution import Solution
+from iga.io.grids import sample_grid
 from iga.io.vtu_bezier import bezier_grid
 from geometry.errors import show
 from geometry.numbers import is_integer, is_real
@@ -100,47 +98,13 @@ def write_vtu(path, solution_or_model, samples: int = 3, cells: str = "linear", 
     return atomic_write(path, lambda tmp: save_grid(grid, tmp), ".vtu", ProblemError)
 
 
-#: bytes per written point while a grid is sampled, welded and handed to VTK (coordinates, fields, their
-#: temporaries, cells): a bound for the size check before sampling
-_BYTES_PER_POINT = 400
-
-
-def _check_sampling(model, basis_of, knots_of, samples, patches) -> None:
-    """Refuse a sampling whose points would not fit the memory budget, before any is made: the user's
-    ``samples`` (one count, or per patch and direction) times each patch's elements.  ``basis_of(pi)``: the
-    object whose knots patch ``pi`` samples (its space or spline, shared by many patches: elements are
-    counted once per object), ``knots_of(obj)`` its knot vectors."""
-    chosen = range(len(model.patches)) if patches is None else patches
-    same, elements = ObjectIndex(), {}
-    total = 0.0
-    for pi in chosen:
-        key = same(basis_of(pi))
-        if key not in elements:
-            elements[key] = [len(np.unique(U)) - 1 for U in knots_of(basis_of(pi))]
-        s = samples[pi] if isinstance(samples, list) else samples
-        per = [int(s)] * 3 if np.ndim(s) == 0 else [int(v) for v in s]
-        total += float(np.prod([e * n + 1 for e, n in zip(elements[key], per)]))
-    check_memory(total * _BYTES_PER_POINT, f"the sampled VTU grid ({total:,.0f} points)", ProblemError,
-                 "lower samples (subdivisions per element) or use a tolerance")
-
-
 def sampled_grid(model, solution=None, samples: int = 3, tolerance: float | None = None, patches=None):
-    """The welded linear-hexahedron grid (a ``pyvista.UnstructuredGrid``) of a model or solution; with
-    ``tolerance`` the samples per patch and direction that keep the cells within it of the exact geometry;
-    ``patches``: only those (their samples still conform with every neighbour's).  The grid's size is checked
-    against the memory budget before it is sampled."""
+    """The welded linear-hexahedron grid (a ``pyvista.UnstructuredGrid``) of a model or solution
+    (:func:`iga.io.grids.sample_grid` with the solution's fields)."""
     if solution is None:
-        if tolerance is not None:
-            samples = chord_samples(model, lambda pi: model.patches[pi].spline.knots, tolerance)
-        _check_sampling(model, lambda pi: model.patches[pi].spline, lambda s: s.knots, samples, patches)
-        return sampled_mesh(model, samples, patches=patches)
-    prob = solution.problem
-    if tolerance is not None:
-        samples = chord_samples(model, lambda pi: [d.knots for d in prob.spaces[pi].dirs], tolerance)
-    _check_sampling(model, lambda pi: prob.spaces[pi], lambda s: [d.knots for d in s.dirs], samples, patches)
+        return sample_grid(model, samples, tolerance, patches)
     fields = displacement_fields(solution) if isinstance(solution, ElasticSolution) else temperature_fields(solution)
-    return sampled_mesh(model, samples, knots_of=lambda pi: [d.knots for d in prob.spaces[pi].dirs],
-                        spaces_key=lambda pi: prob.spaces[pi].key(), fields=fields, patches=patches)
+    return sample_grid(model, samples, tolerance, patches, solution.problem, fields)
 
 
 _XML_TYPES = {"f": "Float", "i": "Int", "u": "UInt", "b": "UInt"}
