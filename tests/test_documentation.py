@@ -28,7 +28,7 @@ def test_the_readme_is_short_and_starts_with_the_two_commands():
 
 
 def _python_blocks():
-    """(page, index, code) of every Python block of the README and the docs pages."""
+    """Every Python block of the README and the docs pages, as a parameter named by its page and index."""
     pages = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
     return [pytest.param(code, id=f"{page.stem}-{i}") for page in pages
             for i, code in enumerate(re.findall(r"```python\n(.*?)```", page.read_text(), re.S))]

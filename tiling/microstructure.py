@@ -40,6 +40,7 @@ from . import export
 from .errors import TilingError
 from geometry.errors import show
 from geometry.grouping import ObjectIndex
+from geometry.io.files import window_plotter
 from geometry.maps.scale import scale_bounds
 from geometry.tolerances import COINCIDENT
 
@@ -120,9 +121,7 @@ class Microstructure(MultiPatch):
         the window is shown."""
         if screenshot is not None:
             return export.render_png(self, screenshot, samples, color_by, title=title)
-        import pyvista as pv
-
-        pl = export.draw(self, pv.Plotter(window_size=[1000, 800], lighting="three lights"), samples, color_by, title)
+        pl = export.draw(self, window_plotter(), samples, color_by, title)
         pl.set_background("white")
         pl.show()
         return None

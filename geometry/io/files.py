@@ -32,7 +32,7 @@ from geometry.errors import show
 FORMAT = "iga-toolkit-splines"
 VERSION = 1
 
-__all__ = ["save", "load", "save_all", "load_all", "atomic_write", "check_folder", "offscreen_plotter",
+__all__ = ["save", "load", "save_all", "load_all", "atomic_write", "check_folder", "offscreen_plotter", "window_plotter",
            "save_screenshot"]
 
 
@@ -214,6 +214,13 @@ def offscreen_plotter(window=(1000, 800)):
 
     pv.vtk_verbosity("off")
     return pv.Plotter(off_screen=True, window_size=list(window), lighting="three lights")
+
+
+def window_plotter(window=(1000, 800)):
+    """A ``pyvista.Plotter`` for a window on screen, lit as :func:`offscreen_plotter`'s (``pl.show()`` opens it)."""
+    import pyvista as pv
+
+    return pv.Plotter(window_size=list(window), lighting="three lights")
 
 
 def save_screenshot(pl, path, error=SplineError, camera="iso", zoom: float = 1.0) -> Path:

@@ -30,6 +30,7 @@ import numpy as np
 from geometry.bspline import BSpline
 from geometry.composition.core import compose
 from geometry.errors import SplineError, show
+from geometry.patches.sampling import sample_axes
 from geometry.resources import check_memory
 from geometry.tolerances import ON_DOMAIN, ROUNDOFF, SNAP
 from geometry.numbers import is_real
@@ -78,17 +79,11 @@ def join_curves(curves, tol: float = 1e-9) -> BSpline:
     return BSpline((p,), [np.concatenate(knots)], np.concatenate(pts), np.concatenate(wts) if rational else None)
 
 
-def _trial_axes(spline, direction: int, per_span: int = 8) -> np.ndarray:
-    """Parameters of ``per_span`` equal steps in every knot span of one direction."""
-    b = spline.breakpoints(direction)
-    return np.unique(np.concatenate([np.linspace(x, y, per_span + 1) for x, y in zip(b[:-1], b[1:])]))
-
-
 def _chord_step(S, tol: float) -> float:
     """The parameter-plane edge length at which the chord error of the surface ``S`` meets ``tol`` (model
     units): the worst midpoint deviation of the edges of a trial grid (8 steps per knot span; along u, v and
     both diagonals) divided by their squared length, as the error falls with h^2.  Infinite on a plane."""
-    u, v = _trial_axes(S, 0), _trial_axes(S, 1)
+    u, v = sample_axes(S.knots, 8)
     uu, vv = np.meshgrid(u, v, indexing="ij")
     P = np.stack([uu, vv], -1)
     X = S.evaluate(P.reshape(-1, 2))[:, :3].reshape(P.shape[:2] + (3,))
@@ -108,7 +103,7 @@ def _chord_step(S, tol: float) -> float:
 def _ring_estimate(S, c, tol: float) -> float:
     """How many samples the loop ``c`` needs for chord error ``tol`` in space: its image's midpoint
     deviations on a trial sampling (8 steps per knot span), scaled as h^2."""
-    t = _trial_axes(c, 0)
+    t = sample_axes(c.knots, 8)[0]
     x = S.evaluate(c.evaluate(t[:, None])[:, :2])[:, :3]
     mid = S.evaluate(c.evaluate((0.5 * (t[:-1] + t[1:]))[:, None])[:, :2])[:, :3]
     dev = np.linalg.norm(mid - 0.5 * (x[:-1] + x[1:]), axis=1)

@@ -29,7 +29,7 @@ from iga.heat.forms import diffusion
 from iga.discretisation.rational import (nurbs_scale, own_rational, rational_form, rational_load, stiffness_half_terms,
                        weight_coefficients, weight_fields)
 from geometry import progress
-from geometry.patches.chain import patches_geometry_derivs_slabs
+from geometry.patches.chain import gradient_and_det, patches_geometry_derivs_slabs
 
 from iga.discretisation.jacobians import checked_det
 from iga.assembly.vector_csr import VectorCSR, pattern_nnz
@@ -219,8 +219,7 @@ class VolumeAssembler:
         rest = space.nq_total // space.dirs[0].nq
         lo, hi = np.inf, -np.inf
         for planes, xs, D, flat, wv in _geometry_slabs(patches, space, False):
-            Du, Dv, Dw = (d.reshape(-1, 3) for d in D)
-            det = np.einsum("ij,ij->i", Du, np.cross(Dv, Dw))
+            _, det = gradient_and_det(D, None)
             a, b = checked_det(det, where)
             lo, hi = min(lo, a), max(hi, b)
             c = np.broadcast_to(coefficient.values(xs, flat, where), det.shape)

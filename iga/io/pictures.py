@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from geometry.errors import show
-from geometry.io.files import offscreen_plotter, save_screenshot
+from geometry.io.files import offscreen_plotter, save_screenshot, window_plotter
 from geometry.numbers import is_real
 from iga.errors import ProblemError
 
@@ -52,7 +52,7 @@ def plot_field(grid, field: str, title: str, screenshot=None, warp=None, window=
         fmt = f"%.{max(0, int(np.ceil(-np.log10(span / 4))) + 1)}f"
     grid = grid.copy(deep=False)
     grid.point_data["_shown"] = magnitude
-    pl = offscreen_plotter(window) if screenshot is not None else _window(window)
+    pl = offscreen_plotter(window) if screenshot is not None else window_plotter(window)
     pl.add_mesh(grid, scalars="_shown", cmap="viridis", clim=(lo, hi if hi > lo else lo + 1.0),
                 scalar_bar_args={"title": label, "vertical": True, "position_x": 0.86, "fmt": fmt})
     pl.add_text(f"{title}\n{note}", position="upper_left", font_size=11, color="black")
@@ -76,9 +76,3 @@ def count(n: int, noun: str) -> str:
     """``n`` with its noun, singular or plural (``1 patch``, ``3 patches``)."""
     plural = noun + ("es" if noun.endswith(("s", "h", "x")) else "s")
     return f"{n:,} {noun if n == 1 else plural}"
-
-
-def _window(window):
-    import pyvista as pv
-
-    return pv.Plotter(window_size=list(window), lighting="three lights")
