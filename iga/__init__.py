@@ -1,6 +1,7 @@
 """Isogeometric analysis on micro-structures: spaces, assembly, heat problem, VTU export.
 
-Public names: :class:`HeatProblem`, :class:`Solution`, :class:`ElasticityProblem`, :class:`ElasticSolution`,
+Public names: :class:`HeatProblem`, :class:`Solution`, :class:`TransientHeatProblem` (with
+:class:`TransientSolution` and :class:`TransientState`), :class:`ElasticityProblem`, :class:`ElasticSolution`,
 :func:`effective_conductivity`, :func:`effective_stiffness`, :func:`effective_table` and :func:`macro_map`
 (graded macro models), :func:`write_vtu`, :func:`write_pieces` (one VTU piece per MPI rank and a ``.pvtu``),
 :class:`Expression` (a formula of the position, for values that G+Smo export writes),
@@ -15,8 +16,11 @@ from iga.elasticity.solution import ElasticSolution
 from iga.homogenisation.cells import effective_conductivity, effective_stiffness
 from iga.homogenisation.macro import EffectiveTable, effective_table, macro_map
 from iga.heat.solution import Solution
+from iga.heat.transient import TransientHeatProblem
+from iga.heat.transient_solution import TransientSolution, TransientState
 from iga.io.vtu import write_pieces, write_vtu
 
 __all__ = ["ProblemError", "SingularProblemError", "HeatProblem", "Solution", "ElasticityProblem", "ElasticSolution",
            "effective_conductivity", "effective_stiffness", "EffectiveTable", "effective_table", "macro_map",
-           "write_vtu", "write_pieces", "Expression"]
+           "write_vtu", "write_pieces", "Expression", "TransientHeatProblem", "TransientSolution",
+           "TransientState"]

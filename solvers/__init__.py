@@ -34,48 +34,25 @@ from __future__ import annotations
 
 import importlib.util
 import time
-from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from . import clusters
+from .info import SolveInfo
+from .krylov import factorise, preconditioned_cg, relative_residual
+from .prepared import PreparedSolver, prepare
 from .errors import SolverError
-from geometry import progress
 from geometry.errors import show
 from geometry.numbers import is_flag, is_integer, is_real
 
-__all__ = ["SolverError", "SolveInfo", "solve", "register", "backends", "AUTO_DIRECT_LIMIT"]
+__all__ = ["SolverError", "SolveInfo", "solve", "register", "backends", "AUTO_DIRECT_LIMIT", "prepare",
+           "PreparedSolver"]
 
 #: Above this many unknowns ``auto`` uses AMG-CG: SuperLU fills in badly on 3-D IGA matrices
 #: (docs/performance.md).
 AUTO_DIRECT_LIMIT = 2_000
-
-
-@dataclass
-class SolveInfo:
-    """Diagnostics of one solve.
-
-    method : backend name actually used
-    iterations : Krylov iterations (0 for direct)
-    residual : final relative residual ||b - A x|| / ||b||
-    setup_s, solve_s : seconds spent in factorisation/hierarchy set-up and in the solve
-    extra : backend-specific details (e.g. AMG levels and operator complexity)
-    """
-
-    method: str
-    iterations: int
-    residual: float
-    setup_s: float
-    solve_s: float
-    extra: dict = field(default_factory=dict)
-
-    def as_dict(self) -> dict:
-        """The diagnostics as a plain dictionary (for JSON summaries)."""
-        return {"method": self.method, "iterations": self.iterations, "residual": self.residual,
-                "setup_s": self.setup_s, "solve_s": self.solve_s, **self.extra}
 
 
 _BACKENDS: dict[str, Callable] = {}
@@ -103,83 +80,17 @@ def backends() -> list[str]:
     return sorted(_BACKENDS) + ["auto"]
 
 
-def _residual(A, x, b) -> float:
-    nb = np.linalg.norm(b)
-    return float(np.linalg.norm(b - A @ x) / (nb if nb > 0 else 1.0))
-
-
 @register("direct")
 def _direct(A, b, tol, maxiter, **options):
     t0 = time.perf_counter()
-    try:
-        from sksparse.cholmod import cholesky  # optional, much faster for SPD systems
-
-        try:
-            factor = cholesky(sp.csc_matrix(A))
-            t1 = time.perf_counter()
-            x = factor(b)
-            name = "direct (CHOLMOD)"
-        except Exception as exc:  # CholmodNotPositiveDefiniteError and friends
-            raise SolverError(f"CHOLMOD factorisation failed ({exc}); the matrix is singular or indefinite") from None
-    except ImportError:
-        try:
-            lu = spla.splu(sp.csc_matrix(A))
-        except RuntimeError as exc:  # "Factor is exactly singular"
-            raise SolverError(
-                f"the system matrix is singular ({exc}): the conditions leave the solution undetermined (a heat "
-                "problem needs a Dirichlet or Robin condition on every connected piece, an elastic one supports "
-                "against every rigid motion of every piece)"
-            ) from None
-        t1 = time.perf_counter()
-        x = lu.solve(b)
-        name = "direct (SuperLU)"
+    solve_factored, name = factorise(A)
+    t1 = time.perf_counter()
+    x = solve_factored(b)
     t2 = time.perf_counter()
-    res = _residual(A, x, b)
+    res = relative_residual(A, x, b)
     if not np.all(np.isfinite(x)) or res > max(1e-6, 1e3 * tol):
         raise SolverError(f"direct solve is inaccurate: relative residual {res:.2e} (matrix nearly singular)")
     return x, SolveInfo(name, 0, res, t1 - t0, t2 - t1)
-
-
-def _krylov(A, b, M, tol, maxiter, name, t_setup, extra):
-    """CG on ``A`` (a sparse matrix or a LinearOperator computing its product) preconditioned by ``M``."""
-    it = [0]
-    # no total: CG stops at the tolerance, long before maxiter, so a bar to maxiter would show a false ETA
-    bar = progress.bar(None, total=None, desc=name, unit="it", min_items=0) if progress.active() else None
-
-    def count(_):
-        it[0] += 1
-        if bar is not None:
-            bar.update(1)
-
-    t1 = time.perf_counter()
-    try:
-        with np.errstate(all="ignore"):  # a singular system shows up as non-finite values, reported below
-            x, _flag = spla.cg(A, b, rtol=tol, atol=0.0, maxiter=maxiter, M=M, callback=count)
-    finally:
-        if bar is not None:
-            bar.close()
-    t2 = time.perf_counter()
-    res = _residual(A, x, b)
-    if not np.all(np.isfinite(x)):
-        raise SolverError(
-            f"{name} broke down with non-finite values after {it[0]} iterations (residual undefined): "
-            "the matrix is singular or indefinite: the conditions leave the solution undetermined (a heat problem "
-            "needs a Dirichlet or Robin condition on every connected piece, an elastic one supports against every "
-            "rigid motion of every piece)"
-        )
-    if res > 10 * tol and _flag == 0:  # CG's own residual converged, the true one did not: rounding
-        raise SolverError(
-            f"{name} stopped at its tolerance after {it[0]} iterations, but the true relative residual is "
-            f"{res:.2e} (tolerance {tol:.0e}): the system is too ill-conditioned for that tolerance (very thin "
-            "or stiff features); loosen tol (e.g. 1e-8) or use solver='direct'"
-        )
-    if res > 10 * tol:  # judged by the true residual: an iteration limit reached after convergence is no failure
-        raise SolverError(
-            f"{name} did not converge: relative residual {res:.2e} after {it[0]} iterations "
-            f"(tolerance {tol:.0e}); the system may be singular (too few boundary conditions?) "
-            "or need more iterations (maxiter)"
-        )
-    return x, SolveInfo(name, it[0], res, t_setup, t2 - t1, extra)
 
 
 @register("amg-cg", options=("near_nullspace", "node_slots", "block_theta"))
@@ -193,7 +104,7 @@ def _amg_cg(A, b, tol, maxiter, **options):
                           near_nullspace=options.get("near_nullspace"), node_slots=options.get("node_slots"),
                           block_theta=options.get("block_theta", clusters.THETA))
     setup = time.perf_counter() - t0
-    return _krylov(M.system_operator(), b, M.operator(), tol, maxiter, "amg-cg", setup, M.info)
+    return preconditioned_cg(M.system_operator(), b, M.operator(), tol, maxiter, "amg-cg", setup, M.info)
 
 
 @register("fd-cg", options=("kronecker",))
@@ -208,7 +119,7 @@ def _fd_cg(A, b, tol, maxiter, **options):
                           "iga.HeatProblem.solve and iga.ElasticityProblem.solve supply it for single patches")
     t0 = time.perf_counter()
     M = BlockFastDiagonalization(ks, A) if blocks else FastDiagonalization(ks, A)
-    return _krylov(A, b, M.operator(), tol, maxiter, "fd-cg", time.perf_counter() - t0, {})
+    return preconditioned_cg(A, b, M.operator(), tol, maxiter, "fd-cg", time.perf_counter() - t0, {})
 
 
 @register("gmg-cg", options=("prolongations",))
@@ -221,7 +132,7 @@ def _gmg_cg(A, b, tol, maxiter, **options):
                           "first); iga.HeatProblem.solve supplies the spline refinement matrices")
     t0 = time.perf_counter()
     M = Multigrid(A, P)
-    return _krylov(A, b, M.operator(), tol, maxiter, "gmg-cg", time.perf_counter() - t0, M.info)
+    return preconditioned_cg(A, b, M.operator(), tol, maxiter, "gmg-cg", time.perf_counter() - t0, M.info)
 
 
 @register("petsc", options=("pc", "petsc_options"))
@@ -230,7 +141,7 @@ def _petsc(A, b, tol, maxiter, **options):
 
     x, its, reason, setup, solve_s = serial(A, b, tol, maxiter, options.get("pc", "gamg"),
                                             options.get("petsc_options"))
-    res = _residual(A, x, b)
+    res = relative_residual(A, x, b)
     if reason < 0 or not np.all(np.isfinite(x)) or res > 10 * tol:
         raise SolverError(f"PETSc CG did not converge (reason {reason}): relative residual {res:.2e} after {its} "
                           "iterations; the system may be singular (too few boundary conditions?) or need more "
@@ -245,7 +156,7 @@ def _jacobi_cg(A, b, tol, maxiter, **options):
     if np.any(d <= 0):
         raise SolverError("Jacobi-CG needs a positive diagonal; the matrix is not positive definite")
     M = sp.diags(1.0 / d)
-    return _krylov(A, b, M, tol, maxiter, "cg", time.perf_counter() - t0, {})
+    return preconditioned_cg(A, b, M, tol, maxiter, "cg", time.perf_counter() - t0, {})
 
 
 def solve(A, b, method: str = "auto", tol: float = 1e-10, maxiter: int | None = None, **options):
@@ -305,3 +216,4 @@ def solve(A, b, method: str = "auto", tol: float = 1e-10, maxiter: int | None = 
     if not np.any(b):
         return np.zeros(n), SolveInfo(method, 0, 0.0, 0.0, 0.0)
     return _BACKENDS[method](A, b, tol, maxiter, **options)
+

@@ -163,3 +163,40 @@ def test_preconditioner_bad_input():
         solvers.solve(A, np.ones(8), method="gmg-cg", prolongations=[sp.identity(3, format="csr")])
     with pytest.raises(SolverError, match="positive"):
         KroneckerSum([np.eye(2)], [np.eye(2)], [-1.0])
+
+
+@pytest.mark.parametrize("method", ["direct", "amg-cg", "cg", "auto"])
+def test_a_prepared_solver_solves_many_right_hand_sides_as_single_solves_do(method):
+    problem = HeatProblem(pr.twisted(pr.box(degrees=(2, 2, 2)), 0.4, axis_point=(0.5, 0.5)), refine=2)
+    problem.dirichlet("umin", 0.0)
+    A, _, free, _ = _reduced(problem)
+    A = (A + 50.0 * problem.mass(1.0)[free][:, free]).tocsr()  # a step matrix M / dt + K
+    solve = solvers.prepare(A, method, tol=1e-11)
+    rng = np.random.default_rng(5)
+    x_prev = None
+    for _ in range(3):
+        b = rng.standard_normal(A.shape[0])
+        x, info = solve(b, x_prev)
+        reference, _ = solvers.solve(A, b, method="direct")
+        assert np.abs(x - reference).max() <= 1e-8 * np.abs(reference).max()
+        assert info.setup_s == 0.0 and info.method == solve.name
+        x_prev = x
+    # started from the solution, an iterative solver stops at once; a factorisation is applied as before
+    _, again = solve(b, x)
+    assert again.iterations <= 1
+    with pytest.raises(SolverError, match="right-hand side must have shape"):
+        solve(np.ones(3))
+    with pytest.raises(SolverError, match="non-finite"):
+        solve(np.full(A.shape[0], np.nan))
+
+
+def test_a_prepared_solver_refuses_what_it_cannot_prepare():
+    A = sp.diags([1.0, 2.0, 3.0]).tocsr()
+    with pytest.raises(SolverError, match="prepared solver is one of"):
+        solvers.prepare(A, "fd-cg")
+    with pytest.raises(SolverError, match="tol"):
+        solvers.prepare(A, "cg", tol=2.0)
+    with pytest.raises(SolverError, match="square"):
+        solvers.prepare(np.eye(3))
+    with pytest.raises(SolverError, match="positive diagonal"):
+        solvers.prepare(sp.diags([1.0, -2.0, 3.0]).tocsr(), "cg")

@@ -1,18 +1,20 @@
 """Values and physical gradients of solution fields (one or several components per basis function) on
-tensor grids of points, and their integrals by the problem's Gauss rule: shared by the heat and the elastic
-solutions and by the VTU sampling."""
+tensor grids of points, a patch's field as a spline, and their integrals by the problem's Gauss rule: shared by
+the heat and the elastic solutions and by the VTU sampling."""
 
 from __future__ import annotations
 
 import numpy as np
 
+from geometry import SplineFunction
 from geometry.patches.chain import gradient_and_det, patches_geometry_derivs
+from geometry.tolerances import SINGULAR
 from geometry.grouping import ObjectIndex
 
 from iga.errors import ProblemError
 from iga.discretisation.faces import chunks
 
-__all__ = ["grid_fields", "integrate_fields", "GaussPoints"]
+__all__ = ["grid_fields", "integrate_fields", "GaussPoints", "field_spline", "physical_gradient"]
 
 
 def grid_fields(U: np.ndarray, tables, D, weights=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -97,3 +99,23 @@ def _weights(prob, pi):
     """The NURBS weights of patch ``pi``'s space where it is analysed in the NURBS basis, else None."""
     w = getattr(prob, "weights", None)
     return None if w is None else w[pi]
+
+
+def physical_gradient(J: np.ndarray, dxi: np.ndarray, where: str, params=None) -> np.ndarray:
+    """grad T = J^-T dT/dxi (N, 3); :class:`ProblemError` where the geometry Jacobian J (N, 3, 3) is singular."""
+    det = np.linalg.det(J)
+    scale = np.abs(J).max(axis=(1, 2)) ** 3
+    bad = ~(np.abs(det) > 0.1 * SINGULAR * scale)
+    if bad.any():
+        i = int(np.argmax(bad))
+        at = f" at parameters {np.round(params[i], 6).tolist()}" if params is not None else ""
+        raise ProblemError(f"{where}: the geometry Jacobian is singular{at} (a degenerate point: collapsed edge or "
+                           "fold), so the gradient and the heat flux are undefined there")
+    return np.linalg.solve(np.transpose(J, (0, 2, 1)), dxi[:, :, None])[:, :, 0]
+
+
+def field_spline(space, coef: np.ndarray, weights=None) -> SplineFunction:
+    """A solution field on one patch as a spline over its parameters: ``coef`` (space.shape + (c,)) the
+    coefficients; with the NURBS weights of :mod:`iga.discretisation.rational` (``weights``) the NURBS function of those
+    weights, ``coef`` its control values."""
+    return SplineFunction([d.degree for d in space.dirs], [d.knots for d in space.dirs], coef, weights=weights)

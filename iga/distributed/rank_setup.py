@@ -56,7 +56,7 @@ def rank_setup(problem, world, part, book, record):
                                      len(rc.rows), rc.constraints)
 
     rc, dd = together(comm, local)
-    by_kind = problem._faces_by_kind()
+    by_kind = problem.faces_by_kind()
     if comm.allreduce(len(dd.slave_rows)):
         constraints = prolongation(problem.model, problem.spaces, problem.offsets)
         record.constraint_stats = dict(constraints.stats)

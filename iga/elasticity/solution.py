@@ -12,7 +12,8 @@ from iga.errors import ProblemError
 from iga.discretisation.problem import SolveRecord
 from iga.discretisation.fields import integrate_fields
 from iga.discretisation.locate import Locator
-from iga.heat.solution import EnergyBalance, check_reference, field_spline, physical_gradient, reference_values
+from iga.discretisation.fields import field_spline, physical_gradient
+from iga.heat.solution import EnergyBalance, check_reference, reference_values
 
 __all__ = ["ElasticSolution"]
 

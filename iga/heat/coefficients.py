@@ -12,6 +12,7 @@ the pair order of the stiffness kernels.
 
 from __future__ import annotations
 
+import inspect
 
 import numpy as np
 
@@ -22,7 +23,7 @@ from iga.expressions import Expression
 from geometry.errors import show
 from geometry.tolerances import ON_DOMAIN
 
-__all__ = ["ScalarField", "Conductivity", "is_number", "TENSOR_PAIRS", "tensor_matrix"]
+__all__ = ["ScalarField", "Conductivity", "is_number", "TENSOR_PAIRS", "tensor_matrix", "takes_time", "at_time"]
 
 #: component order of symmetric tensors and of the six stiffness coefficient fields
 TENSOR_PAIRS = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
@@ -211,3 +212,22 @@ class Conductivity:
             K6 = np.stack([v[:, r, s] for r, s in TENSOR_PAIRS], axis=1)
         _check_spd(K6, x, where)
         return K6
+
+
+def takes_time(fn) -> bool:
+    """Whether ``fn`` is a callable of (x, t): two required positional parameters (a formula or a callable of
+    x alone is not)."""
+    if not callable(fn) or isinstance(fn, (str, Expression)):
+        return False
+    try:
+        params = inspect.signature(fn).parameters.values()
+    except (TypeError, ValueError):  # a builtin without a signature: a callable of x
+        return False
+    positional = (inspect.Parameter.POSITIONAL_ONLY, inspect.Parameter.POSITIONAL_OR_KEYWORD)
+    return sum(p.kind in positional and p.default is p.empty for p in params) >= 2
+
+
+def at_time(fn, t: float, what: str, model=None, positive: bool = False, channels: bool = True) -> ScalarField:
+    """The scalar field x -> ``fn(x, t)`` at the time ``t`` (s), checked as any field (``what`` names it)."""
+    return ScalarField(lambda x: fn(x, t), f"{what} at t = {t:g} s", positive=positive, model=model,
+                       channels=channels)

@@ -16,7 +16,6 @@ basis (Massarwi et al. 2018, Remark 2), optionally elevated and refined.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -30,7 +29,7 @@ from iga.discretisation.setting import count
 from iga.errors import ProblemError, SingularProblemError
 from iga.discretisation.faces import FaceData
 from iga.assembly.tensor import add_within
-from iga.heat.forms import boundary_load, boundary_mass
+from iga.heat.conditions import Condition, face_terms, face_values
 from iga.model import tag_faces
 from iga.distributed.rank_setup import rank_setup
 from iga.tags import as_expression, condition_faces, mentions_rest
@@ -41,14 +40,6 @@ from iga.discretisation.system import solve_system
 from geometry.errors import show
 
 __all__ = ["HeatProblem"]
-
-
-@dataclass
-class _Condition:
-    kind: str  # "dirichlet", "neumann" or "robin"
-    tag: str
-    value: ScalarField  # temperature, inward flux or ambient temperature
-    h: ScalarField | None = None  # film coefficient (Robin)
 
 
 _count = count
@@ -96,7 +87,7 @@ class HeatProblem(Problem):
         super().__init__(model, degree_elevation, refine, quadrature_extra, degree, bases)
         self.conductivity = Conductivity(conductivity, self.model)
         self.source = ScalarField(source, "source", model=self.model)
-        self.conditions: list[_Condition] = []
+        self.conditions: list[Condition] = []
 
     # ------------------------------------------------------------ conditions
     def _condition(self, kind, tag, value, h=None) -> "HeatProblem":
@@ -104,7 +95,7 @@ class HeatProblem(Problem):
         self.faces_of(tag, kind)
         what = {"dirichlet": "Dirichlet value", "neumann": "Neumann flux", "robin": "ambient temperature"}[kind]
         field = ScalarField(value, f"{what} on {show(tag)}", model=self.model, channels=False)
-        self.conditions.append(_Condition(kind, tag, field, h))
+        self.conditions.append(Condition(kind, tag, field, h))
         return self
 
     def dirichlet(self, tag: str, value=0.0) -> "HeatProblem":
@@ -129,26 +120,10 @@ class HeatProblem(Problem):
         """Geometry and DOFs of patch faces ``[(patch, face), ...]`` at their Gauss points (cached)."""
         return self.faces(keys)
 
-    def _field_on(self, field: ScalarField, fds, tag) -> list[np.ndarray]:
-        """A scalar field evaluated on several faces at once -> one (N_f,) array per face."""
-        if not fds:
-            return []
-        return _per_face(self._flat_field_on(field, fds, tag), fds)
-
-    @staticmethod
-    def _flat_field_on(field: ScalarField, fds, tag) -> np.ndarray:
-        """A scalar field on several faces at once, their Gauss points one after the other (sum N_f,)."""
-        ends = np.cumsum([len(fd.x) for fd in fds])
-        constant = field.constant
-        if constant is not None and np.ndim(constant) == 0:  # a number (checked when given): nothing to gather
-            v = np.full(int(ends[-1]), float(constant))
-        else:
-            x = np.concatenate([fd.x for fd in fds])
-            common = [c for c in fds[0].chans if all(c in fd.chans for fd in fds)]
-            chans = {c: np.concatenate([fd.chans[c] for fd in fds]) for c in common}
-            where = f"the faces tagged {show(tag)} (e.g. patch {fds[0].patch} face {fds[0].face})"
-            v = field.values(x, chans, where)
-        return v
+    def field_on(self, field: ScalarField, fds, tag) -> list[np.ndarray]:
+        """A scalar field evaluated on several faces at once -> one (N_f,) array per face
+        (:func:`iga.heat.conditions.face_values`)."""
+        return face_values(field, fds, tag)
 
     def tag_faces(self, tag) -> list:
         """The faces of a tag or tag expression of this problem; ``rest``: every free face that no condition
@@ -160,7 +135,7 @@ class HeatProblem(Problem):
         rest = [f for f in self.model.tags.get("boundary", []) if f not in covered]
         return tag_faces(self.model, tag, rest)
 
-    def _faces_by_kind(self):
+    def faces_by_kind(self):
         """{kind: {(patch, face): condition}}; one condition per face and kind, and Dirichlet faces alone."""
         out = {"dirichlet": {}, "neumann": {}, "robin": {}}
         for c in self.conditions:
@@ -187,41 +162,24 @@ class HeatProblem(Problem):
         """Assemble ``a(T, v) = l(v)``: (K, f, bookkeeping dict); only ``patches`` (a set: one MPI rank's share)
         when given: their volumes and their Neumann and Robin faces (the bookkeeping holds those faces; the
         Dirichlet faces are all kept, as every rank projects the Dirichlet data)."""
-        by_kind = self._faces_by_kind()
+        by_kind = self.faces_by_kind()
         if patches is not None:  # a rank's faces only: their Gauss-point data is not replicated
             for kind in ("neumann", "robin"):
                 by_kind[kind] = {key: c for key, c in by_kind[kind].items() if key[0] in patches}
         t0 = time.perf_counter()
         K, f, source_total = self.volume.assemble(self.conductivity, self.source, patches)
         t1 = time.perf_counter()
-        self.faces([key for faces in by_kind.values() for key in faces])  # all at once: grouped by space
-        neumann, robin = {}, {}
-        for key, c in by_kind["neumann"].items():
-            neumann.setdefault(c.tag, []).append(key)
-        for key, c in by_kind["robin"].items():
-            robin.setdefault(c.tag, []).append(key)
-        book = {"neumann": {}, "robin": {}, "dirichlet": {k: (c.value, f"the faces tagged {show(c.tag)}")
-                                                           for k, c in by_kind["dirichlet"].items()},
-                "source": source_total}
-        for tag, keys in neumann.items():  # + int_F q v
-            c, fds = by_kind["neumann"][keys[0]], self.faces(keys)
-            qs = self._field_on(c.value, fds, tag)
-            f += boundary_load(fds, [q * fd.dAw for q, fd in zip(qs, fds)], self.ndof, patches)
-            book["neumann"].update(zip(keys, qs))
-        robin_fds, robin_h = [], []
-        for tag, keys in robin.items():  # + int_F h T v on the left, + int_F h T_inf v on the right
-            c, fds = by_kind["robin"][keys[0]], self.faces(keys)
-            # on all faces at once (one array each, sliced per face): 136k faces on the winged duck
-            h, T = self._flat_field_on(c.h, fds, tag), self._flat_field_on(c.value, fds, tag)
-            hA = h * np.concatenate([fd.dAw for fd in fds])
-            robin_fds += fds
-            robin_h += _per_face(hA, fds)
-            f += boundary_load(fds, _per_face(hA * T, fds), self.ndof, patches)
-            book["robin"].update(zip(keys, zip(_per_face(h, fds), _per_face(T, fds))))
-        if robin_fds:
-            K = add_within(K, boundary_mass(robin_fds, robin_h, self.ndof, patches))  # in place: no copy of K
+        loads, robin_mass, book = self.face_terms(by_kind, patches)
+        f += loads
+        if robin_mass is not None:
+            K = add_within(K, robin_mass)  # in place: no copy of K
+        book["source"] = source_total
         book["timings"] = {"assembly_volume": t1 - t0, "assembly_faces": time.perf_counter() - t1}
         return K, f, book
+
+    def face_terms(self, by_kind, patches=None):
+        """The face forms of the conditions ``by_kind`` (:func:`iga.heat.conditions.face_terms`)."""
+        return face_terms(self, by_kind, patches)
 
     def mass(self, capacity=1.0):
         """The heat capacity matrix M (CSR, ndof x ndof, J/K): int rho c N_i N_j dV over the model, for the
@@ -269,7 +227,7 @@ class HeatProblem(Problem):
         if dd is None:
             record.constraint_stats = dict(constraints.stats) if constraints is not None else {}
             record.components, record.idle_components = analyse_components(self, constraints,
-                                                                            self._faces_by_kind(), book["source"])
+                                                                            self.faces_by_kind(), book["source"])
             dd = project_dirichlet(self.faces, book["dirichlet"], self.ndof, constraints)
         record.timings["constraints"] = time.perf_counter() - t0
         t0, options = time.perf_counter(), solver_options(self, solver, constraints, dd, book)
@@ -289,10 +247,3 @@ class HeatProblem(Problem):
         integrals = {key: Gd[:, j] for j, key in enumerate(dd.keys)}
         return Solution(self, res.u, book, res.reaction_dofs, res.reaction, integrals, res.info,
                         loads=None if world else f, prescribed=res.prescribed, record=record)
-
-
-def _per_face(values: np.ndarray, fds) -> list[np.ndarray]:
-    """Views of ``values`` (the faces' Gauss points one after the other, first axis) per face: slicing, as
-    np.split pays a swapaxes per piece (0.2 s for the winged duck's 136k faces)."""
-    ends = np.cumsum([len(fd.x) for fd in fds]).tolist()
-    return [values[a:b] for a, b in zip([0] + ends[:-1], ends)]

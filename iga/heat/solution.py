@@ -10,12 +10,11 @@ from geometry import SplineFunction
 
 from iga.heat.coefficients import tensor_matrix, user_values
 from iga.errors import ProblemError
-from iga.discretisation.fields import integrate_fields
+from iga.discretisation.fields import field_spline, integrate_fields, physical_gradient
 from geometry.patches.chain import patch_geometry_points
 from geometry.patches.sampling import sample_axes
 from iga.discretisation.locate import Locator
 from iga.discretisation.problem import SolveRecord
-from geometry.tolerances import SINGULAR
 
 
 @dataclass(frozen=True)
@@ -251,7 +250,7 @@ class Solution:
             fds = prob.faces(keys)
             x = np.concatenate([fd.x for fd in fds])
             try:
-                k = np.concatenate(prob._field_on(prob.conductivity, fds, "any condition"))
+                k = np.concatenate(prob.field_on(prob.conductivity, fds, "any condition"))
                 k_ref = float(np.abs(k).max()) if k.size else 0.0
             except ProblemError:  # a channel that only some faces carry: no scale from the conductivity
                 ok = False
@@ -324,19 +323,6 @@ def reference_values(fn, x: np.ndarray, tail: tuple, what: str) -> np.ndarray:
     return user_values(fn, x, tail, what, "the model", constant=True)
 
 
-def physical_gradient(J: np.ndarray, dxi: np.ndarray, where: str, params=None) -> np.ndarray:
-    """grad T = J^-T dT/dxi (N, 3); :class:`ProblemError` where the geometry Jacobian J (N, 3, 3) is singular."""
-    det = np.linalg.det(J)
-    scale = np.abs(J).max(axis=(1, 2)) ** 3
-    bad = ~(np.abs(det) > 0.1 * SINGULAR * scale)
-    if bad.any():
-        i = int(np.argmax(bad))
-        at = f" at parameters {np.round(params[i], 6).tolist()}" if params is not None else ""
-        raise ProblemError(f"{where}: the geometry Jacobian is singular{at} (a degenerate point: collapsed edge or "
-                           "fold), so the gradient and the heat flux are undefined there")
-    return np.linalg.solve(np.transpose(J, (0, 2, 1)), dxi[:, :, None])[:, :, 0]
-
-
 def flux_vector(K: np.ndarray, grad: np.ndarray) -> np.ndarray:
     """Heat flux -K grad T (N, 3) for conductivity K (N,) or (N, 6) tensor components and gradients (N, 3)."""
     if K.ndim == 1:
@@ -349,10 +335,3 @@ def _components_info(record) -> dict:
     the idle ones, and the first ten with their DOFs, patches and the tags of the conditions on them."""
     return {"count": len(record.components), "idle": len(record.idle_components),
             "pieces": [c.as_dict() for c in record.components[:10]]}
-
-
-def field_spline(space, coef: np.ndarray, weights=None) -> SplineFunction:
-    """A solution field on one patch as a spline over its parameters: ``coef`` (space.shape + (c,)) the
-    coefficients; with the NURBS weights of :mod:`iga.discretisation.rational` (``weights``) the NURBS function of those
-    weights, ``coef`` its control values."""
-    return SplineFunction([d.degree for d in space.dirs], [d.knots for d in space.dirs], coef, weights=weights)

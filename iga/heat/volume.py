@@ -199,7 +199,7 @@ class VolumeAssembler:
         for group in (g for g in groups if g):
             for members in chunks(group, _weight(self.spaces[group[0]], len(group), False)):
                 space = self.spaces[members[0]]
-                F = self._mass_field(members, space, coefficient)
+                F = self._weighted_field(members, space, coefficient)
                 rational = self.weights[members[0]] is not None
                 if rational:
                     W, _ = weight_fields(self.model.patches[members[0]].spline, space, len(members))
@@ -211,7 +211,31 @@ class VolumeAssembler:
                 M.put(members, pat, {(0, 0): data})
         return M.matrix()
 
-    def _mass_field(self, members, space, coefficient) -> np.ndarray:
+    def load(self, source, patches=None) -> tuple[np.ndarray, float]:
+        """(f, total): the load vector f_i = int s N_i dV (ndof,) of the volumetric ``source`` s (a
+        :class:`iga.heat.coefficients.ScalarField`, W/m^3 for heat) and its integral int s dV (W), without the
+        stiffness; for a source that changes while the stiffness does not (a transient source).  ``patches`` as
+        in :meth:`assemble`; the same Gauss rule and NURBS basis as :meth:`assemble`'s load."""
+        f = np.zeros(self.ndof)
+        total = 0.0
+        n = len(self.spaces)
+        chosen = np.ones(n, bool) if patches is None else np.isin(np.arange(n), np.fromiter(patches, np.int64))
+        for group in ([i for i in g if chosen[i]] for g in self.groups.values()):
+            if not group:
+                continue
+            for members in chunks(group, _weight(self.spaces[group[0]], len(group), False)):
+                space = self.spaces[members[0]]
+                L = self._weighted_field(members, space, source)
+                total += float(L.sum())
+                if self.weights[members[0]] is not None:  # the NURBS basis: N / W, scaled by the weights
+                    W, _ = weight_fields(self.model.patches[members[0]].spline, space, len(members))
+                    loads = load_form(space, rational_load(L, W)) * self.weights[members[0]]
+                else:
+                    loads = load_form(space, L)
+                f[_rows(self.offsets, members)] += loads.reshape(-1)
+        return f, total
+
+    def _weighted_field(self, members, space, coefficient) -> np.ndarray:
         """c |det J| w on the Gauss grid of patches ``members``: (P,) + qshape."""
         patches = [self.model.patches[i] for i in members]
         where = f"patch {members[0]}" if len(members) == 1 else f"patches {members[0]}..{members[-1]}"

@@ -11,38 +11,54 @@ from iga.heat.coefficients import tensor_matrix
 from iga.elasticity.forms import lame
 from iga.errors import ProblemError
 from iga.discretisation.fields import grid_fields
+from iga.discretisation.fields import field_spline, physical_gradient
+from geometry.patches.chain import patch_geometry_points
 
-__all__ = ["temperature_fields", "displacement_fields", "corrector_fields"]
+__all__ = ["temperature_fields", "temperature_frames", "displacement_fields", "corrector_fields"]
 
 
 def temperature_fields(solution):
     """The ``fields`` hook of :func:`geometry.patches.sampling.sample_model` for a solution: temperature, heat flux
     (W/m^2) and conductivity at the sample points."""
+    return temperature_frames(solution.problem, solution.u[None], [""])
+
+
+def temperature_frames(problem, U: np.ndarray, suffixes):
+    """The ``fields`` hook for several temperature fields of ``problem`` at once (the frames of a transient
+    solution): ``U`` (c, ndof) their coefficients, ``suffixes`` (c names) appended to ``temperature`` and
+    ``heat_flux`` for each; the geometry is sampled once for all of them."""
     def hook(members, pax, x, D, chans, out):
-        return _temperature_fields(solution, members, pax, x, D, chans, out)
+        return _temperature_fields(problem, U, suffixes, members, pax, x, D, chans, out)
 
     return hook
 
 
-def _temperature_fields(solution, members, pax, x, D, chans, out: dict) -> np.ndarray:
-    """Temperature, heat flux and conductivity (P, N[, c]) of patches sharing a space, on a piece's grid.
-
-    The fields go into ``out``; returns the Jacobian determinants (P N,) computed on the way.
-    """
-    prob = solution.problem
+def _temperature_fields(prob, U, suffixes, members, pax, x, D, chans, out: dict) -> np.ndarray:
+    """Temperatures, heat fluxes and the conductivity (P, N[, 3]) of patches sharing a space, on a piece's grid,
+    for the coefficient rows of ``U``.  The fields go into ``out``; returns the Jacobian determinants (P N,)
+    computed on the way."""
     space = prob.spaces[members[0]]
+    c = len(U)
     B = [piece_basis(d, a) for d, a in zip(space.dirs, pax)]  # per direction: (values, derivatives)
-    U = np.stack([solution.u[prob.offsets[i] : prob.offsets[i + 1]].reshape((1,) + space.shape) for i in members])
-    T, grad, det = grid_fields(U, B, D, prob.weights[members[0]])
+    blocks = np.stack([U[:, prob.offsets[i]:prob.offsets[i + 1]].reshape((c,) + space.shape) for i in members])
+    T, grad, det = grid_fields(blocks, B, D, prob.weights[members[0]])
     P, N = x.shape[:2]
-    T = T[:, 0].reshape(P, N)
-    grad = _limits(grad, members, pax, lambda pi, p: solution.evaluate(pi, p)[1][:, None, :], prob)[:, 0]
-    flat = {c: np.reshape(v, -1) for c, v in chans.items()}
+
+    def grad_at(pi, params):  # (n, c, 3): every field's physical gradient at parameters of patch pi
+        coef = np.moveaxis(U[:, prob.offsets[pi]:prob.offsets[pi + 1]].reshape((c,) + space.shape), 0, -1)
+        dxi = field_spline(space, coef, prob.weights[pi]).jacobian(params)
+        J = patch_geometry_points(prob.model.patches[pi], params)[1]
+        return np.stack([physical_gradient(J, dxi[:, a], f"patch {pi}", params) for a in range(c)], 1)
+
+    grad = _limits(grad, members, pax, grad_at, prob)
+    flat = {ch: np.reshape(v, -1) for ch, v in chans.items()}
     K = prob.conductivity.values(x.reshape(-1, 3), flat, f"patches {members[0]}..{members[-1]}")
-    flux = -K[:, None] * grad if K.ndim == 1 else -np.einsum("nij,nj->ni", tensor_matrix(K), grad)
+    for a, suffix in enumerate(suffixes):
+        flux = -K[:, None] * grad[:, a] if K.ndim == 1 else -np.einsum("nij,nj->ni", tensor_matrix(K), grad[:, a])
+        out[f"temperature{suffix}"] = T[:, a].reshape(P, N)
+        out[f"heat_flux{suffix}"] = flux.reshape(P, N, 3)
     cond = K if K.ndim == 1 else tensor_matrix(K).reshape(-1, 9)
-    out.update({"temperature": T, "heat_flux": flux.reshape(P, N, 3),
-                "conductivity": cond.reshape((P, N) + cond.shape[1:])})
+    out["conductivity"] = cond.reshape((P, N) + cond.shape[1:])
     return det
 
 

@@ -1,0 +1,353 @@
+"""Time steps of ``M du/dt + K u = f(t)`` with the constraints and Dirichlet data ``u = P_f x + g(t)``.
+
+Each scheme is written for the full coefficient vector and projected by ``P_f^T``, so Dirichlet values that
+change in time enter as in any unconstrained code, and the interface constraints hold at every step:
+
+* theta method: ``(M / h + theta K) u1 = M u0 / h - (1 - theta) (K u0 - f0) + theta f1``; backward Euler
+  (theta = 1, order 1) and Crank-Nicolson (theta = 1/2, order 2);
+* BDF2 with variable steps (ratio w = h_n / h_(n-1)): ``M (a0 u1 + a1 u0 + a2 u_-1) / h + K u1 = f1`` with
+  a0 = (1 + 2w) / (1 + w), a1 = -(1 + w), a2 = w^2 / (1 + w) (order 2); its first step is Crank-Nicolson
+  (order 2 as well: a backward Euler start made the error of the decaying mode of the tests 3x larger; the
+  modes an inconsistent start leaves undamped in that one step are damped by the BDF2 steps after it).
+
+The matrix of a step, ``c_M M_r + c_K K_r`` (reduced), is the same for every step of one size: it is prepared
+once (:func:`solvers.prepare`: a factorisation, or an AMG hierarchy whose CG starts from the extrapolated
+state) and kept while the size is used (the last two sizes are kept).
+
+Adaptive steps control the local error of each step, estimated from divided differences of the last states
+(a variable-step form of the schemes' leading error terms: h^2/2 |u''| for backward Euler, h^3/12 |u'''| for
+Crank-Nicolson, (1 + w)^2 / (1 + 2w) h^3 |u'''| / 6 for BDF2), in the largest coefficient (K).  A step above
+the tolerance is taken again shorter; the size grows (at most x2) only when the estimate allows 25% more, and
+otherwise stays, so the prepared solver is reused.  The tolerance bounds each step's error, not the end's: on
+a dissipative problem the error at the end is at most the sum of the steps' errors (the tests measure it
+below steps x tol).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+import solvers
+from geometry import progress
+from geometry.resources import check_memory, memory_limit
+from solvers.prepared import factor_bytes
+
+from iga.discretisation.constraints import owners_of, prolongation
+from iga.discretisation.dirichlet import project_dirichlet
+from iga.discretisation.system import reduction
+from iga.errors import ProblemError
+from iga.heat.coefficients import ScalarField, at_time
+
+__all__ = ["TimeStepper", "StepRecord"]
+
+#: a step's size may grow to this factor of the last one (and is cut to no less than 1/5 on a rejection)
+_GROW, _SHRINK = 2.0, 0.2
+#: mass-like systems (the initial projection and rate, solved once or twice) are factorised up to this many
+#: unknowns and solved by Jacobi-CG above (a few dozen iterations: the scaled mass matrix is well conditioned)
+_MASS_DIRECT = 20_000
+#: safety factor on the step size the error estimate proposes; sizes within [1, _KEEP) of it stay unchanged
+_SAFETY, _KEEP = 0.9, 1.25
+
+
+@dataclass
+class StepRecord:
+    """What a transient solve did: steps taken and rejected, the prepared solvers (one per step size used),
+    iterations of the linear solves, the largest local error estimate accepted (K; None for fixed steps),
+    and seconds per stage (``setup``: assembly, constraints and the initial state; ``steps``)."""
+
+    method: str
+    steps: int = 0
+    rejected: int = 0
+    prepared: int = 0
+    iterations: int = 0
+    solver: str = ""
+    largest_estimate: float | None = None
+    timings: dict = field(default_factory=dict)
+
+
+class TimeStepper:
+    """The stepping of one :class:`iga.heat.transient.TransientHeatProblem` with one scheme (``theta`` in
+    [1/2, 1], or None for BDF2)."""
+
+    def __init__(self, problem, method: str, theta: float | None, solver: str, solver_tol: float):
+        t_start = time.perf_counter()
+        self.problem, self.method, self.theta = problem, method, theta
+        self.solver, self.solver_tol = solver, solver_tol
+        p = problem
+        self.K, f, book = p.assemble()
+        self.M = p.volume.mass(p.capacity)
+        self.constraints = prolongation(p.model, p.spaces, p.offsets, p.weights) if p._needs_constraints() else None
+        self.P = sp.identity(p.ndof, format="csr") if self.constraints is None else self.constraints.P
+        self._static = None if p.changes_in_time else (f, book)
+        self._volume, self._recent = None, {}
+        if p.changes_in_time:  # the volume source's load, kept when it is constant in time
+            self._volume = None if p.timed_source is not None else p.volume.load(p.source)
+        t0 = p.start[0]
+        f0, book0 = self.loads(t0)
+        dd = self.dirichlet(book0)
+        self.Pf, offset0, self.reaction_dofs, _ = reduction(self.constraints, dd, p.ndof)
+        self._offset = None if p.changes_in_time else offset0
+        self.dirichlet_data = dd
+        Pf = self.Pf
+        self.Kr = _project(self.K, Pf)
+        self.Mr = _project(self.M, Pf)
+        self._prepared: dict = {}
+        self._mass = None
+        self.record = StepRecord(method=method)
+        u0, self.x_start = self._initial(offset0)
+        self.record.timings["setup"] = time.perf_counter() - t_start
+        self.first = (t0, u0, f0, offset0)
+
+    # ----------------------------------------------------------------- data in time
+    def loads(self, t: float):
+        """(f (ndof,), bookkeeping of :meth:`iga.HeatProblem.face_terms` with ``source``) at time ``t``."""
+        if self._static is not None:
+            return self._static
+        if t in self._recent:
+            return self._recent[t]
+        p = self.problem
+        f_faces, _, book = p.face_terms(p.conditions_at(t))
+        if p.timed_source is not None:
+            f_vol, total = p.volume.load(at_time(p.timed_source, t, "source", p.model))
+        else:
+            f_vol, total = self._volume
+        book["source"] = total
+        if len(self._recent) >= 3:  # a step reads its two ends: the last few times are kept
+            self._recent.pop(next(iter(self._recent)))
+        self._recent[t] = (f_vol + f_faces, book)
+        return self._recent[t]
+
+    def dirichlet(self, book):
+        """The projected Dirichlet data of a bookkeeping (:func:`iga.discretisation.dirichlet.project_dirichlet`)."""
+        p = self.problem
+        return project_dirichlet(p.faces, book["dirichlet"], p.ndof, self.constraints)
+
+    def offset(self, book) -> np.ndarray:
+        """g(t): the prescribed part of u at the time of ``book`` (zero rows where nothing is prescribed)."""
+        if self._offset is not None:  # nothing changes in time
+            return self._offset
+        return reduction(self.constraints, self.dirichlet(book), self.problem.ndof)[1]
+
+    def _initial(self, offset0: np.ndarray):
+        """(u, x) at the start: a steady solution's coefficients, or the projection of a number or callable
+        weighted by the capacity (the heat content int rho c T0 dV is kept) with the Dirichlet values of the
+        start time."""
+        p = self.problem
+        spec = p.start[1]
+        if hasattr(spec, "problem"):  # a steady Solution of this model and space (checked by initial())
+            u = np.array(spec.u, float)
+            G = self.Pf.T @ self.Pf  # each column of Pf spreads one unknown: x = (Pf^T Pf)^-1 Pf^T (u - g)
+            return u, solvers.prepare(sp.csr_matrix(G), "direct" if G.shape[0] <= _MASS_DIRECT else "cg",
+                                      1e-13)(np.asarray(self.Pf.T @ (u - offset0)))[0]
+        T0 = ScalarField(spec, "initial temperature", model=p.model, channels=False)
+        b, _ = p.volume.load(_Product(T0, p.capacity))
+        x = self._mass_solve(self.Pf.T @ (b - self.M @ offset0))
+        return self.Pf @ x + offset0, x
+
+    # ----------------------------------------------------------------- one step
+    def _solver(self, cM: float, cK: float):
+        """The prepared solver of cM M_r + cK K_r (kept for the last two step sizes)."""
+        key = (cM, cK)
+        if key not in self._prepared:
+            if len(self._prepared) >= 2:
+                self._prepared.pop(next(iter(self._prepared)))
+            A = (cM * self.Mr + cK * self.Kr).tocsr()
+            method = self.solver
+            if method == "auto" and factor_bytes(A.shape[0]) > 0.25 * memory_limit():  # factors too large
+                method = "amg-cg"
+            self._prepared[key] = solvers.prepare(A, method, self.solver_tol)
+            self.record.prepared += 1
+            self.record.solver = self._prepared[key].name
+        return self._prepared[key]
+
+    def step(self, h: float, t1: float, hist: list) -> tuple:
+        """One step of size ``h`` to ``t1`` from ``hist`` (the last states, newest last: (t, u, v, x, h)):
+        returns (u1, v1 (du/dt at t1), x1 (reduced unknowns))."""
+        t0, u0, v0, x0, h0 = hist[-1]
+        f1, book1 = self.loads(t1)
+        g1 = self.offset(book1)
+        M, K = self.M, self.K
+        bdf2 = self.theta is None and len(hist) >= 2
+        if bdf2:
+            w = h / h0
+            a0, a1, a2 = (1 + 2 * w) / (1 + w), -(1 + w), w * w / (1 + w)
+            um1 = hist[-2][1]
+            cM, cK = a0 / h, 1.0
+            rhs = f1 - M @ ((a1 * u0 + a2 * um1) / h)
+        else:
+            th = 0.5 if self.theta is None else self.theta
+            f0, _ = self.loads(t0)
+            cM, cK = 1.0 / h, th
+            rhs = M @ (u0 / h) + th * f1
+            if th < 1:
+                rhs -= (1 - th) * (K @ u0 - f0)
+        rhs -= cM * (M @ g1) + cK * (K @ g1)
+        guess = x0 if len(hist) < 2 or hist[-2][3] is None else x0 + (x0 - hist[-2][3]) * (h / h0)
+        x1, info = self._solver(cM, cK)(self.Pf.T @ rhs, guess)
+        self.record.iterations += int(info.iterations)
+        u1 = self.Pf @ x1 + g1
+        if bdf2:
+            v1 = (a0 * u1 + a1 * u0 + a2 * um1) / h
+        else:
+            v1 = ((u1 - u0) / h - (1 - th) * v0) / th
+        return u1, v1, x1
+
+    def _estimate(self, hist: list) -> float | None:
+        """The local error (K) of the newest step in ``hist``, or None before enough steps exist."""
+        order = 1 if self.theta == 1.0 else 2
+        if len(hist) < order + 2:
+            return None
+        ts = [s[0] for s in hist[-(order + 2):]]
+        xs = [s[3] for s in hist[-(order + 2):]]
+        dd = _divided_difference(ts, xs)  # u^(order+1) / (order+1)!
+        h = ts[-1] - ts[-2]
+        if order == 1:  # h^2 / 2 |u''| = h^2 |DD2|
+            c = h * h
+        elif self.theta is not None:  # Crank-Nicolson: h^3 / 12 |u'''| = h^3 / 2 |DD3|
+            c = 0.5 * h ** 3
+        else:  # BDF2: (1 + w)^2 / (1 + 2w) h^3 / 6 |u'''| = (1 + w)^2 / (1 + 2w) h^3 |DD3|
+            w = h / (ts[-2] - ts[-3])
+            c = (1 + w) ** 2 / (1 + 2 * w) * h ** 3
+        return float(c * np.abs(dd).max()) if len(dd) else 0.0
+
+    # ----------------------------------------------------------------- the loop
+    def run(self, t_end: float, dt: float | None, tol: float | None, keep: int, max_steps: int, on_step=None):
+        """Step to ``t_end``; returns the :class:`iga.heat.transient_solution.TransientSolution`.
+        ``on_step(n, t, seconds)``: called after each accepted step (its number, time and wall time)."""
+        from iga.heat.transient_solution import TransientSolution
+
+        t_start = time.perf_counter()
+        t0, u0, f0, g0 = self.first
+        span = t_end - t0
+        h = dt if dt is not None else 1e-4 * span
+        x0 = self.x_start
+        v0 = self._initial_rate(t0, u0, f0, g0, h)
+        hist = [(t0, u0, v0, x0, h)]
+        kept = [(t0, u0, v0)]
+        if dt is not None and tol is None:  # the kept states' memory, before the first step
+            self._check_kept(int(np.ceil(span / dt)) // keep + 2, keep)
+        n = 0
+        bar = progress.bar(None, total=None, desc=f"{self.method} steps", unit="step", min_items=0) \
+            if progress.active() else None
+        try:
+            while t_end - hist[-1][0] > 1e-12 * span:
+                t = hist[-1][0]
+                h, t1 = _landing(t, h, t_end, span, tol is not None)
+                if n >= max_steps:
+                    raise ProblemError(f"the transient solve took {max_steps} steps and reached t = {t:g} s of "
+                                       f"{t_end:g} s; raise max_steps, loosen tol or take a larger dt")
+                clock = time.perf_counter()
+                u1, v1, x1 = self.step(h, t1, hist)
+                hist.append((t1, u1, v1, x1, h))
+                est = self._estimate(hist) if tol is not None else None
+                if est is not None and est > tol:  # rejected: again, shorter
+                    hist.pop()
+                    self.record.rejected += 1
+                    h *= max(_SHRINK, _SAFETY * (tol / est) ** (1.0 / (self._order() + 1)))
+                    continue
+                n += 1
+                if est is not None:
+                    self.record.largest_estimate = max(self.record.largest_estimate or 0.0, est)
+                    proposal = h * min(_GROW, _SAFETY * (tol / max(est, 1e-300)) ** (1.0 / (self._order() + 1)))
+                    if proposal >= _KEEP * h:  # grown only by a margin (else kept: its solver is reused)
+                        h = proposal
+                hist = hist[-4:]
+                if n % keep == 0:
+                    kept.append(hist[-1][:3])
+                    if len(kept) & (len(kept) - 1) == 0:  # adaptive steps: checked as the count doubles
+                        self._check_kept(2 * len(kept), keep)
+                if bar is not None:
+                    bar.update(1)
+                if on_step is not None:
+                    on_step(n, hist[-1][0], time.perf_counter() - clock)
+        finally:
+            if bar is not None:
+                bar.close()
+        if kept[-1][0] != hist[-1][0]:
+            kept.append(hist[-1][:3])
+        self.record.steps = n
+        self.record.timings["steps"] = time.perf_counter() - t_start
+        return TransientSolution(self, kept)
+
+    def _check_kept(self, count: int, keep: int) -> None:
+        """Refuse before ``count`` kept states (u and du/dt, 16 bytes per coefficient) exceed the memory budget."""
+        check_memory(16.0 * self.problem.ndof * count, f"keeping {count} states of the transient solve",
+                     ProblemError, hint=f"keep fewer (keep={keep * max(2, count // 1000)} keeps every "
+                     f"{keep * max(2, count // 1000)}-th step)")
+
+    def _order(self) -> int:
+        return 1 if self.theta == 1.0 else 2
+
+    def _initial_rate(self, t0, u0, f0, g0, h) -> np.ndarray:
+        """du/dt at the start: M v0 = f0 - K u0 on the free unknowns, the Dirichlet values' rate (a difference
+        over the first step) on the prescribed ones."""
+        rhs = f0 - self.K @ u0
+        gdot = (self.offset(self.loads(t0 + h)[1]) - g0) / h if self.problem.changes_in_time else 0.0 * g0
+        return self.Pf @ self._mass_solve(self.Pf.T @ (rhs - self.M @ gdot)) + gdot
+
+    def _mass_solve(self, b: np.ndarray) -> np.ndarray:
+        """x with M_r x = b (the initial projection and rate), M_r prepared once: factorised up to
+        :data:`_MASS_DIRECT` unknowns, Jacobi-CG to 1e-13 above (a mass matrix is
+        well conditioned once its diagonal is scaled)."""
+        if self._mass is None:
+            method = "direct" if self.Mr.shape[0] <= _MASS_DIRECT else "cg"
+            self._mass = solvers.prepare(self.Mr, method, 1e-13)
+        return self._mass(np.asarray(b, float))[0]
+
+    # ----------------------------------------------------------------- a state's flows
+    def reaction(self, t: float, u: np.ndarray, v: np.ndarray):
+        """(reaction on the prescribed unknowns, their values or None, f (ndof,), bookkeeping) at a kept state:
+        the consistent boundary flow ``P^T (M v + K u - f)`` that the steady solve reports as ``K u - f``."""
+        f, book = self.loads(t)
+        r = self.P.T @ (self.M @ v + self.K @ u - f)
+        dofs = self.reaction_dofs
+        if self.constraints is None:
+            prescribed = u[dofs]
+        else:
+            owner = owners_of(self.constraints.dof_master, self.P.shape[1])[dofs]
+            prescribed = u[owner] if np.all(owner >= 0) else None
+        return r[dofs], prescribed, f, book
+
+
+def _landing(t: float, h: float, t_end: float, span: float, adaptive: bool) -> tuple[float, float]:
+    """(h, t1): the step from ``t`` and its end, landing on ``t_end``: a step within rounding of the rest
+    keeps its size (and its prepared solver) and ends exactly there; with adaptive steps, a rest shorter than
+    two steps is taken in two equal ones rather than a step and a sliver."""
+    rest = t_end - t
+    if abs(rest - h) <= 1e-9 * span:
+        return h, t_end
+    if adaptive and h < rest < 2 * h:
+        return 0.5 * rest, t + 0.5 * rest
+    if rest < h:
+        return rest, t_end
+    return h, t + h
+
+
+def _project(A, Pf) -> sp.csr_matrix:
+    """Pf^T A Pf for a symmetric A, as CSR (the steady solve's product, :func:`iga.discretisation.system.solve_system`)."""
+    C = (A @ Pf).T @ Pf
+    return sp.csr_matrix((C.data, C.indices, C.indptr), shape=C.shape)
+
+
+class _Product:
+    """The product of two scalar fields, evaluated as one (``values(x, chans, where)``)."""
+
+    kind, constant = "callable", None
+
+    def __init__(self, a, b):
+        self.a, self.b = a, b
+
+    def values(self, x, chans, where) -> np.ndarray:
+        return self.a.values(x, chans, where) * self.b.values(x, chans, where)
+
+
+def _divided_difference(ts, xs) -> np.ndarray:
+    """The highest divided difference of states ``xs`` at times ``ts`` (len k + 1 gives the k-th)."""
+    table = [np.asarray(x, float) for x in xs]
+    for k in range(1, len(ts)):
+        table = [(table[i + 1] - table[i]) / (ts[i + k] - ts[i]) for i in range(len(table) - 1)]
+    return table[0]
