@@ -218,3 +218,32 @@ def test_bad_materials_and_a_missing_start_are_refused():
     with pytest.raises(ProblemError, match="source at t = 0.5"):
         TransientHeatProblem(pr.box(), source=lambda x, t: np.full(len(x), np.nan if t > 0.4 else 1.0)).dirichlet(
             "umin", 0.0).initial(0.0).solve(1.0, 0.5)
+
+
+@pytest.mark.parametrize("name", ["NURBS annulus", "paved crosses"])
+def test_the_probe_matrix_evaluates_as_the_solutions_probe(name):
+    model = pr.annulus(0.5, 1.0, 0.3, np.pi / 2) if name == "NURBS annulus" else _crosses()
+    steady = HeatProblem(model, source=lambda x: 1.0 + x[:, 0], degree_elevation=1).dirichlet("umin", 0.0)
+    steady = steady.robin("umax", 3.0, 1.0).solve(solver="direct")
+    problem = TransientHeatProblem(model, degree_elevation=1)
+    rng = np.random.default_rng(11)
+    lo, hi = np.array(steady.to_pyvista(samples=1).bounds).reshape(3, 2).T
+    candidates = rng.uniform(lo, hi, (400, 3))
+    inside = candidates[np.asarray(steady.to_pyvista(samples=2).find_containing_cell(candidates)) >= 0][:25]
+    assert len(inside) >= 10
+    E = problem.probe_matrix(inside)
+    assert np.abs(E @ steady.u - steady.probe(inside)).max() < 1e-11
+    assert np.allclose(np.asarray(E.sum(axis=1)).ravel(), 1.0)  # the basis sums to one at every point
+
+
+def test_a_solve_stops_when_its_condition_holds():
+    problem = TransientHeatProblem(_bar(), conductivity=K_BAR, capacity=RC_BAR).dirichlet("umin", 0.0)
+    problem.dirichlet("umax", 0.0).initial(_mode)
+    middle = problem.probe_matrix(np.array([[0.5, 0.1, 0.1]]))
+    history = problem.solve(10.0, 0.01, until=lambda t, u: (middle @ u)[0] < 0.5)
+    stop = np.log(2.0) / DECAY  # the mode halves at ln 2 / rate
+    assert history.record.stopped == history.times[-1]
+    assert stop <= history.times[-1] < stop + 0.01 + 1e-12
+    assert history.probe(np.array([[0.5, 0.1, 0.1]]))[-2, 0] >= 0.5
+    with pytest.raises(ProblemError, match="until must be a callable"):
+        problem.solve(1.0, 0.1, until=0.5)

@@ -155,6 +155,12 @@ def hollow_box() -> Tile:
     return Tile([cube.boundary(f) for f in ("umin", "umax", "vmin", "vmax", "wmin", "wmax")], name="hollow_box")
 
 
+def cube() -> Tile:
+    """The solid unit cell, one trilinear block: a paving of it is the map's domain cut into cells (a solid
+    part, or a macro model whose cells carry a channel)."""
+    return Tile([pr.box()], name="cube")
+
+
 def cross(arm: float = 0.3) -> Tile:
     """Seven trilinear blocks: centre [a, b]^3 (b - a = ``arm``) and six arms to the cell faces."""
     if not 0 < arm < 1:
@@ -310,6 +316,6 @@ def oblique_tubes(width: float = 0.16) -> Tile:
 
 
 #: the built-in tiles by name (what ``[tile] library = ...`` of a pipeline may name)
-TILES = {f.__name__: f for f in (heat_sink_t1, heat_sink_t2, skinned_branching, fractal, hollow_box, cross, helix,
+TILES = {f.__name__: f for f in (heat_sink_t1, heat_sink_t2, skinned_branching, fractal, hollow_box, cube, cross, helix,
                                  bent_cross, hollow_cross, graded_cross, struts, stitch, through_cylinders,
                                  oblique_tubes)}

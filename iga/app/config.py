@@ -16,9 +16,11 @@ folder.  The schema (README, "Pipelines")::
     [[primitive]]  name, map, tile, counts, priority        (scheme "vrep")
     [second_level] tile, counts, degree, seal               (optional)
     [reduce]   degree, check                                (optional)
-    [material] conductivity = number | channel | {formula} | 6 channels | 3 x 3 matrix, source = number | formula
+    [material] conductivity = number | channel | {formula} | 6 channels | 3 x 3 matrix, source = number | formula,
+               capacity = number | channel | {formula}                      (transient-heat)
     [[bc]]     kind = "dirichlet" | "neumann" | "robin", tag, value | (h, ambient): numbers or formulas of x, y, z
     [physics]  kind, youngs, poisson, expansion, reference, hold_rigid; [[support]], [[load]]
+    [time]     end, step | tolerance, method, theta, initial, every, fraction, max_steps   (iga.app.config_time)
     [solver]   method, tol, maxiter, refine, degree_elevation, degree, quadrature_extra
     [output]   dir, name, vtu, bezier, png, samples | tolerance, probes, exports
     [limits]   max_memory_gib
@@ -35,13 +37,14 @@ from iga.app.config_checks import (boolean as _bool, choice as _choice, fail as 
 from iga.app.config_model import (NO_MAP, NO_TILE, map_section, paving_section, polygon_tile, primitives, reduce_section,
                            second_level, surface_reason, tile_section)
 from iga.app.config_physics import physics as _physics
+from iga.app.config_time import capacity, time_section
 from iga.errors import ProblemError
 from geometry.errors import show
 
 __all__ = ["validate", "SECTIONS", "OUTPUT_DEFAULTS"]
 
 SECTIONS = ("map", "tile", "paving", "primitive", "second_level", "reduce", "material", "bc", "physics", "support",
-            "load", "solver", "output", "limits")
+            "load", "time", "solver", "output", "limits")
 OUTPUT_DEFAULTS = {"dir": "out", "name": "result", "vtu": True, "bezier": False, "png": True, "samples": 3,
                    "tolerance": None, "probes": [], "exports": []}
 EXPORTS = ("stl", "obj", "ply", "vtp", "iges", "gismo")
@@ -194,7 +197,7 @@ def validate(config, base_dir=".") -> dict:
     if surface and cfg["reduce"]:
         raise ProblemError(f"config section reduce approximates trivariates; {surface}")
     physics = cfg["physics"] = _physics(config, surface)
-    if physics["kind"] in ("heat", "thermo-elastic") and "bc" not in config:
+    if physics["kind"] in ("heat", "thermo-elastic", "transient-heat") and "bc" not in config:
         raise ProblemError("missing required config section 'bc' (the heat problem's conditions)")
     if physics["kind"] == "elasticity" and "bc" in config:
         raise ProblemError("config section bc holds heat conditions; physics.kind = 'elasticity' takes [[support]] "
@@ -203,15 +206,17 @@ def validate(config, base_dir=".") -> dict:
         raise ProblemError("config section material holds the heat problem's conductivity and source; physics.kind = "
                            "'elasticity' takes its materials in [physics] (youngs, poisson): drop [material], or "
                            "use kind = 'thermo-elastic'")
-    mat = _table(config.get("material", {}), "material", {"conductivity", "source"})
+    mat = _table(config.get("material", {}), "material", {"conductivity", "source", "capacity"})
     cfg["material"] = {"conductivity": _conductivity(mat.get("conductivity", 1.0), "material.conductivity"),
-                       "source": _formula(mat.get("source", 0.0), "material.source")}
+                       "source": _formula(mat.get("source", 0.0), "material.source"),
+                       "capacity": capacity(mat, physics["kind"])}
     bcs = config.get("bc", [])
     bcs = bcs if isinstance(bcs, list) else [bcs]
-    if not bcs and physics["kind"] in ("heat", "thermo-elastic"):
+    if not bcs and physics["kind"] in ("heat", "thermo-elastic", "transient-heat"):
         raise ProblemError("config section bc is empty; give at least one [[bc]] table")
     cfg["bc"] = [_bc(b, f"bc[{i}]") for i, b in enumerate(bcs)]
     cfg["solver"] = _solver(config.get("solver", {}))
+    cfg["time"] = time_section(config, physics["kind"], cfg["solver"]["method"])
     cfg["output"] = _output(config.get("output", {}), Path(base_dir))
     if physics["kind"] == "elasticity":  # outputs of the temperature: the same rule as elastic keys in a heat run
         given = config.get("output", {}) if isinstance(config.get("output", {}), dict) else {}

@@ -11,7 +11,7 @@ from iga.errors import ProblemError
 
 __all__ = ["PHYSICS", "physics"]
 
-PHYSICS = ("heat", "elasticity", "thermo-elastic", "none")
+PHYSICS = ("heat", "transient-heat", "elasticity", "thermo-elastic", "none")
 
 
 def _material_value(v, where, lo=None, hi=None):
@@ -34,7 +34,7 @@ def physics(config, surface: str | None = None) -> dict:
         raise ProblemError(f"{surface}, not a volumetric B-spline model: heat and elasticity need trivariate "
                            "patches; drop [[bc]] and [physics] (kind = \"none\"), and write the surface with [output] "
                            "exports = [\"stl\"]")
-    if kind in ("none", "heat"):  # no elastic keys; 'none' takes no conditions at all
+    if kind in ("none", "heat", "transient-heat"):  # no elastic keys; 'none' takes no conditions at all
         sections = ("bc", "support", "load") if kind == "none" else ("support", "load")
         why = ("needs an analysis; physics.kind = 'none' builds and exports the model only" if kind == "none" else
                "applies to physics.kind = 'elasticity' or 'thermo-elastic'; the heat problem takes [[bc]]")

@@ -22,7 +22,9 @@ from geometry import resources
 from geometry import progress as display
 from geometry.io.iges import write_iges
 from geometry.io.files import atomic_write, offscreen_plotter, save_screenshot
-from iga.io.pictures import UNITS, count, range_note
+from iga.io.pictures import count, render_temperature
+from iga.app.problems import heat_problem
+from iga.app.pipeline_transient import transient_stage
 from tiling.export import boundary_splines, mesh_watertightness, write_mesh, write_surfaces
 
 from iga.app.config import validate
@@ -33,16 +35,16 @@ from iga.io.gismo import export_gismo
 from iga.discretisation.locate import Locator
 from iga.app.maps import MAPS, circular_heat_sink_map, vertical_heat_sink_map
 from iga.distributed import solve as distributed
-from iga.heat.problem import HeatProblem
 from iga.tags import as_expression
 from iga.io.vtu import write_pieces, write_vtu
 from geometry.errors import show
 
-__all__ = ["run_pipeline", "heat_sink_config", "circular_heat_sink_map", "vertical_heat_sink_map", "MAPS"]
+__all__ = ["run_pipeline", "heat_sink_config", "circular_heat_sink_map", "vertical_heat_sink_map", "MAPS",
+           "render_temperature"]
 
 
 def heat_sink_config(variant: str = "circular", levels: int | None = None, refine: int = 0,
-                     out: str = "heat-sink-out", stress: bool = False) -> dict:
+                     out: str = "heat-sink-out", stress: bool = False, transient: bool = False) -> dict:
     """The heat-sink analysis of Massarwi et al. 2018 (Section 8, Figs. 11 and 18) as a pipeline configuration.
 
     Aluminium (205 W/(m K)) at the heated face graded to stainless steel
@@ -51,8 +53,13 @@ def heat_sink_config(variant: str = "circular", levels: int | None = None, refin
     air at 30 C on every other external face.  ``stress``: the thermal stress too (thermo-elastic), with
     E, nu and alpha graded like the conductivity: aluminium (69 GPa, 0.33, 23e-6 1/K) at the heated face to
     stainless steel (193 GPa, 0.29, 17.3e-6 1/K) away from it; free to expand, held only against rigid
-    motion (:meth:`iga.ElasticityProblem.hold_rigid`), stress free at 20 C.
+    motion (:meth:`iga.ElasticityProblem.hold_rigid`), stress free at 20 C.  ``transient``: the sink switched on
+    in air at 20 C, starting at 20 C (rho c 2.4e6 J/(m^3 K), aluminium), stepped by adaptive BDF2 (1e-3 K a
+    step) until its hottest point has risen by 95% of its steady rise; a ParaView series and the warm-up
+    curve.
     """
+    if transient and stress:
+        raise ProblemError("the transient demo computes no stress; drop --stress or --transient")
     if variant not in ("circular", "vertical"):
         raise ProblemError(f"variant must be 'circular' or 'vertical', got {show(variant)}")
     circ = variant == "circular"
@@ -71,42 +78,17 @@ def heat_sink_config(variant: str = "circular", levels: int | None = None, refin
         "solver": {"method": "auto", "tol": 1e-10, "refine": refine},
         "output": {"dir": out, "name": "heat_sink", "vtu": True, "png": True},
     }
+    if transient:
+        cfg["bc"][1]["ambient"] = 20.0
+        cfg["material"]["capacity"] = 2.4e6
+        cfg["physics"] = {"kind": "transient-heat"}
+        # 1e-3 K a step: the 95% time within 0.3% of the converged one (58.7, 59.39, 59.55 min at 1e-2, 1e-3,
+        # 1e-4 K: 38, 67, 126 steps)
+        cfg["time"] = {"end": "steady", "tolerance": 1e-3, "initial": 20.0, "fraction": 0.95}
     if stress:
         cfg["physics"] = {"kind": "thermo-elastic", "youngs": "E", "poisson": "nu", "expansion": "alpha",
                           "reference": 20.0, "hold_rigid": True}
     return cfg
-
-
-def render_temperature(vtu_path: Path, png_path: Path, title: str = "temperature (C)", scalars: str = "temperature",
-                       warp: float | None = None, cmap: str = "inferno", fmt: str = "%.2f",
-                       above: float | None = None, caption: str | None = None):
-    """Offscreen render of a written .vtu coloured by ``scalars`` (a point array), with a scalar bar (atomic);
-    ``warp``: the surface moved by that factor times its ``displacement`` array (an elastic solution);
-    ``above``: colour by the rise of ``scalars`` above this value on a logarithmic scale (from 1e-3 of the
-    largest rise), so that a part that stays near the ambient temperature still shows its gradient;
-    ``caption``: the case, written in the upper left above the shown array's range."""
-    import pyvista as pv
-
-    mesh = pv.read(vtu_path).extract_surface(algorithm="dataset_surface")
-    log = above is not None
-    if log:
-        rise = np.asarray(mesh.point_data[scalars], float) - above
-        top = float(rise.max())
-        mesh.point_data[f"{scalars} rise"] = np.clip(rise, 1e-3 * top, None)
-        scalars, fmt = f"{scalars} rise", "%.3g"
-    if warp is not None:
-        mesh = mesh.warp_by_vector("displacement", factor=warp)
-    pl = offscreen_plotter((1200, 850))
-    if caption is not None:
-        shown = np.asarray(mesh.point_data[scalars], float)
-        unit = "K" if log else UNITS.get(scalars, "")
-        pl.add_text(f"{caption}\n{range_note(scalars, float(shown.min()), float(shown.max()), unit)}",
-                    position="upper_left", font_size=11, color="black")
-    pl.add_mesh(mesh, scalars=scalars, cmap=cmap, smooth_shading=True, split_sharp_edges=True, ambient=0.3,
-                log_scale=log, scalar_bar_args={"title": title, "vertical": True, "fmt": fmt, "position_x": 0.86,
-                                 "position_y": 0.12, "width": 0.08, "height": 0.7, "title_font_size": 18,
-                                 "label_font_size": 16})
-    save_screenshot(pl, png_path, ProblemError, "iso", 0.85)  # zoom out: room for the scalar bar beside the model
 
 
 def _read_volume(path: Path) -> float:
@@ -155,22 +137,6 @@ def run_pipeline(config: dict, base_dir: str | Path = ".", progress: bool | None
         if created and out.is_dir() and not any(out.iterdir()):
             out.rmdir()  # a failed run leaves no empty folder behind
         raise
-
-
-def _heat_problem(cfg: dict, ms) -> HeatProblem:
-    """The configured heat problem on the model ``ms`` with its boundary conditions."""
-    mat, scfg = cfg["material"], cfg["solver"]
-    prob = HeatProblem(ms, conductivity=mat["conductivity"], source=mat["source"], refine=scfg["refine"],
-                       degree_elevation=scfg["degree_elevation"], degree=scfg["degree"],
-                       quadrature_extra=scfg["quadrature_extra"])
-    for bc in cfg["bc"]:
-        if bc["kind"] == "dirichlet":
-            prob.dirichlet(bc["tag"], bc["value"])
-        elif bc["kind"] == "neumann":
-            prob.neumann(bc["tag"], bc["value"])
-        else:
-            prob.robin(bc["tag"], bc["h"], bc["ambient"])
-    return prob
 
 
 def _write_outputs(ocfg: dict, out: Path, sol, stages) -> tuple[dict, float | None]:
@@ -295,7 +261,7 @@ def _heat_stage(cfg, model, out: Path, ocfg: dict, stages):
     """The heat analysis, its VTU files, picture and exports; returns (summary, solution, extra timings)."""
     scfg = cfg["solver"]
     stages.start("assembly and solve")
-    prob = _heat_problem(cfg, model)
+    prob = heat_problem(cfg, model)
     probes = np.asarray(ocfg["probes"], float).reshape(-1, 3)
     if len(probes):  # before the solve: a probe outside the model is a configuration error
         Locator(prob.model)(probes, what="output.probes")
@@ -317,8 +283,10 @@ def _run(cfg: dict, out: Path, root: bool = True) -> dict:
     ocfg = {**ocfg, "pieces": ocfg["vtu"]} if root else {**ocfg, "pieces": ocfg["vtu"], "vtu": False, "bezier": False,
                                                            "png": False}
     heat, elastic = kind in ("heat", "thermo-elastic"), kind in ("elasticity", "thermo-elastic")
+    transient = kind == "transient-heat"
     surface = surface_reason(cfg) is not None
-    stages = display.Stages(4 if surface else 3 + 3 * heat + 2 * elastic + (kind == "none"))
+    stages = display.Stages(4 if surface else 3 + 3 * heat + 2 * elastic + (kind == "none")
+                            + (3 + (cfg["time"]["end"] == "steady") if transient else 0))
     stages.start("deformation map")
     maps = build_maps(cfg)
     stages.done(f"({len(maps)} primitives)" if isinstance(maps, dict) else
@@ -331,8 +299,9 @@ def _run(cfg: dict, out: Path, root: bool = True) -> dict:
     summary, sol, timings = {}, None, {}
     if surface:
         summary = _surface_outputs(built, out, ocfg, stages, root)
-    elif heat:
-        summary, sol, timings = _heat_stage(cfg, model, out, ocfg, stages)
+    elif heat or transient:
+        stage = transient_stage if transient else _heat_stage
+        summary, sol, timings = stage(cfg, model, out, ocfg, stages)
         summary = {**_counts(ms), **built.info, **summary}
     else:
         summary = {**_counts(ms), **built.info, "files": _exports(ocfg, out, model, None), "peak_memory_MiB": None}

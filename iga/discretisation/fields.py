@@ -14,7 +14,7 @@ from geometry.grouping import ObjectIndex
 from iga.errors import ProblemError
 from iga.discretisation.faces import chunks
 
-__all__ = ["grid_fields", "integrate_fields", "GaussPoints", "field_spline", "physical_gradient"]
+__all__ = ["grid_fields", "integrate_fields", "GaussPoints", "field_spline", "physical_gradient", "evaluation_matrix"]
 
 
 def grid_fields(U: np.ndarray, tables, D, weights=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -119,3 +119,39 @@ def field_spline(space, coef: np.ndarray, weights=None) -> SplineFunction:
     coefficients; with the NURBS weights of :mod:`iga.discretisation.rational` (``weights``) the NURBS function of those
     weights, ``coef`` its control values."""
     return SplineFunction([d.degree for d in space.dirs], [d.knots for d in space.dirs], coef, weights=weights)
+
+
+def evaluation_matrix(problem, where: np.ndarray, params: np.ndarray):
+    """The sparse matrix E (N, ndof) with ``E @ u`` the field of coefficients u (ndof,) at N points: patch
+    ``where`` (N,) and parameters ``params`` (N, 3) of each (:class:`iga.discretisation.locate.Locator`).  Each
+    row holds the point's tensor-product basis values (the NURBS basis where the patch is analysed in it,
+    :mod:`iga.discretisation.rational`), so a field's time series at fixed points is one product with its
+    states."""
+    import scipy.sparse as sp
+
+    from geometry import knots as kn
+
+    where, params = np.asarray(where, int), np.asarray(params, float)
+    rows, cols, vals = [], [], []
+    for pi in np.unique(where):
+        sel = np.flatnonzero(where == pi)
+        space = problem.spaces[int(pi)]
+        idx, val = np.zeros((len(sel), 1), np.int64), np.ones((len(sel), 1))
+        for d, dir_ in enumerate(space.dirs):  # the tensor product, one direction after the other (C order)
+            spans, ders = kn.basis_functions(dir_.knots, dir_.degree, params[sel, d], 0)
+            first = spans - dir_.degree
+            local = first[:, None] + np.arange(dir_.degree + 1)
+            idx = (idx[:, :, None] * space.shape[d] + local[:, None, :]).reshape(len(sel), -1)
+            val = (val[:, :, None] * ders[:, 0, None, :]).reshape(len(sel), -1)
+        w = problem.weights[int(pi)]
+        if w is not None:  # R_i = w_i N_i / sum_j w_j N_j
+            wv = w.reshape(-1)[idx] * val
+            val = wv / wv.sum(axis=1, keepdims=True)
+        rows.append(np.repeat(sel, idx.shape[1]))
+        cols.append((idx + problem.offsets[int(pi)]).reshape(-1))
+        vals.append(val.reshape(-1))
+    n = len(where)
+    if not rows:
+        return sp.csr_matrix((n, problem.ndof))
+    return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                         shape=(n, problem.ndof))

@@ -36,6 +36,7 @@ from geometry import progress
 from geometry.resources import check_memory, memory_limit
 from solvers.prepared import factor_bytes
 
+from iga.discretisation.components import model_components
 from iga.discretisation.constraints import owners_of, prolongation
 from iga.discretisation.dirichlet import project_dirichlet
 from iga.discretisation.system import reduction
@@ -56,8 +57,8 @@ _SAFETY, _KEEP = 0.9, 1.25
 @dataclass
 class StepRecord:
     """What a transient solve did: steps taken and rejected, the prepared solvers (one per step size used),
-    iterations of the linear solves, the largest local error estimate accepted (K; None for fixed steps),
-    and seconds per stage (``setup``: assembly, constraints and the initial state; ``steps``)."""
+    iterations of the linear solves, the largest local error estimate accepted (K; None for fixed steps), where
+    an ``until`` condition stopped it, and seconds per stage (``setup``: assembly, constraints and the initial state; ``steps``)."""
 
     method: str
     steps: int = 0
@@ -66,6 +67,8 @@ class StepRecord:
     iterations: int = 0
     solver: str = ""
     largest_estimate: float | None = None
+    #: the time at which the solve's ``until`` condition held and the run stopped, None if it ran to the end
+    stopped: float | None = None
     timings: dict = field(default_factory=dict)
 
 
@@ -82,6 +85,8 @@ class TimeStepper:
         self.M = p.volume.mass(p.capacity)
         self.constraints = prolongation(p.model, p.spaces, p.offsets, p.weights) if p._needs_constraints() else None
         self.P = sp.identity(p.ndof, format="csr") if self.constraints is None else self.constraints.P
+        # the coupled pieces (for the states' info; a transient piece needs no condition: its capacity holds it)
+        self.components = model_components(p, None if self.constraints is None else self.P, p.faces_by_kind())
         self._static = None if p.changes_in_time else (f, book)
         self._volume, self._recent = None, {}
         if p.changes_in_time:  # the volume source's load, kept when it is constant in time
@@ -215,9 +220,11 @@ class TimeStepper:
         return float(c * np.abs(dd).max()) if len(dd) else 0.0
 
     # ----------------------------------------------------------------- the loop
-    def run(self, t_end: float, dt: float | None, tol: float | None, keep: int, max_steps: int, on_step=None):
+    def run(self, t_end: float, dt: float | None, tol: float | None, keep: int, max_steps: int, on_step=None,
+            until=None):
         """Step to ``t_end``; returns the :class:`iga.heat.transient_solution.TransientSolution`.
-        ``on_step(n, t, seconds)``: called after each accepted step (its number, time and wall time)."""
+        ``on_step(n, t, seconds)``: called after each accepted step (its number, time and wall time);
+        ``until(t, u)``: the run stops after the first step for which it is true (``record.stopped``)."""
         from iga.heat.transient_solution import TransientSolution
 
         t_start = time.perf_counter()
@@ -226,6 +233,9 @@ class TimeStepper:
         h = dt if dt is not None else 1e-4 * span
         x0 = self.x_start
         v0 = self._initial_rate(t0, u0, f0, g0, h)
+        if dt is None:  # the first step changes no temperature by more than tol at the initial rate
+            rate = float(np.abs(self.Pf.T @ v0).max()) if len(x0) else 0.0
+            h = min(h, tol / rate) if rate > 0 else h
         hist = [(t0, u0, v0, x0, h)]
         kept = [(t0, u0, v0)]
         if dt is not None and tol is None:  # the kept states' memory, before the first step
@@ -264,6 +274,9 @@ class TimeStepper:
                     bar.update(1)
                 if on_step is not None:
                     on_step(n, hist[-1][0], time.perf_counter() - clock)
+                if until is not None and until(hist[-1][0], u1):
+                    self.record.stopped = float(hist[-1][0])
+                    break
         finally:
             if bar is not None:
                 bar.close()

@@ -30,6 +30,8 @@ import numpy as np
 
 from geometry.errors import show
 
+from iga.discretisation.fields import evaluation_matrix
+from iga.discretisation.locate import Locator
 from iga.errors import ProblemError
 from iga.heat.coefficients import ScalarField, at_time, is_number, takes_time
 from iga.heat.problem import HeatProblem
@@ -145,17 +147,20 @@ class TransientHeatProblem(HeatProblem):
     # ------------------------------------------------------------------ solve
     def solve(self, t_end: float, dt: float | None = None, method: str = "bdf2", tol: float | None = None,
               theta: float | None = None, solver: str = "auto", solver_tol: float = 1e-10, keep: int = 1,
-              max_steps: int = 100_000):
+              max_steps: int = 100_000, until=None):
         """Step from the initial state to ``t_end`` (s); returns a
         :class:`iga.heat.transient_solution.TransientSolution`.
 
         ``dt``: the step (s); with ``tol`` (K, the local error allowed per step) the steps adapt to it and
-        ``dt`` is the first one (default 1e-4 of the interval).  ``method``: ``"bdf2"`` (order 2, damps
+        ``dt`` is the first one (default: the step over which the initial rate changes no coefficient by more
+        than ``tol``, at most 1e-4 of the interval).  ``method``: ``"bdf2"`` (order 2, damps
         stiff modes), ``"crank-nicolson"`` (order 2, undamped), ``"backward-euler"`` (order 1) or ``"theta"``
         with ``theta`` in [1/2, 1].  ``solver``: ``auto``, ``direct``, ``amg-cg`` or ``cg`` (prepared once
         per step size, :func:`solvers.prepare`), ``solver_tol`` the relative residual of the iterative ones.
         ``keep``: every ``keep``-th step is kept (and the last), for :meth:`at`, probes and the ParaView
-        series; ``max_steps``: the most steps taken before the solve is refused as too fine.
+        series; ``max_steps``: the most steps taken before the solve is refused as too fine; ``until(t, u)``:
+        a callable of the time (s) and the coefficients (ndof,) after each step; the solve stops at the first
+        step where it is true (``record.stopped``), e.g. when a probe (:meth:`probe_matrix`) reaches a value.
         """
         if self.start is None:
             raise ProblemError("the transient problem has no initial temperature; call problem.initial(T0) (a "
@@ -181,5 +186,13 @@ class TransientHeatProblem(HeatProblem):
         for name, value, low in (("keep", keep, 1), ("max_steps", max_steps, 1)):
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
                 raise ProblemError(f"{name} must be an integer >= {low}, got {show(value)}")
+        if until is not None and not callable(until):
+            raise ProblemError(f"until must be a callable of (t, u) returning True to stop, got {show(until)}")
         return TimeStepper(self, method, theta if method == "theta" else SCHEMES[method], solver,
-                           solver_tol).run(float(t_end), dt, tol, int(keep), int(max_steps))
+                           solver_tol).run(float(t_end), dt, tol, int(keep), int(max_steps), until=until)
+
+    def probe_matrix(self, points):
+        """The sparse matrix E (N, ndof) with ``E @ u`` the temperatures at physical points (N, 3) for
+        coefficients u (:func:`iga.discretisation.fields.evaluation_matrix`): for ``until`` conditions."""
+        where, params = Locator(self.model)(np.asarray(points, float), what="probe points")
+        return evaluation_matrix(self, where, params)

@@ -24,8 +24,9 @@ from geometry.resources import check_memory
 from solvers.info import SolveInfo
 
 from iga.discretisation.locate import Locator
+from iga.discretisation.problem import SolveRecord
 from iga.errors import ProblemError
-from iga.discretisation.fields import field_spline
+from iga.discretisation.fields import evaluation_matrix
 from iga.heat.solution import Solution
 
 __all__ = ["TransientSolution", "TransientState"]
@@ -51,15 +52,13 @@ class TransientState(Solution):
                 f"{b['relative_error']:.1e})")
 
     def balance(self) -> dict:
-        """Energy balance at this time: inflow + sources = outflow + stored heat rate (W), and its relative
-        error (against the larger of the flows and the model's reference flow)."""
+        """Energy balance at this time (W): ``inflow_W`` (through faces, and a positive source) = ``outflow_W``
+        (through faces, and a negative source) + ``stored_W`` (the heat stored per second), and the relative
+        error of that identity (against the larger of the flows and the model's reference flow)."""
         b = super().balance()
         stored = self.stored_W
-        inflow = b["inflow_W"] + max(-stored, 0.0)
-        outflow = b["outflow_W"] + max(stored, 0.0)
-        scale = max(inflow, outflow, b["reference_flow_W"], 1e-300)
-        return {**b, "inflow_W": inflow, "outflow_W": outflow, "stored_W": stored,
-                "relative_error": abs(inflow - outflow) / scale}
+        scale = max(b["inflow_W"], b["outflow_W"], abs(stored), b["reference_flow_W"], 1e-300)
+        return {**b, "stored_W": stored, "relative_error": abs(b["inflow_W"] - b["outflow_W"] - stored) / scale}
 
 
 class TransientSolution:
@@ -120,8 +119,11 @@ class TransientSolution:
         info = SolveInfo(r.solver, r.iterations, 0.0, r.timings.get("setup", 0.0), r.timings.get("steps", 0.0),
                          {"time_scheme": r.method, "steps": r.steps, "rejected": r.rejected})
         Mv = s.M @ v
+        record = SolveRecord(components=s.components, reduced_dofs=int(s.Pf.shape[1]),
+                             constraint_stats=dict(s.constraints.stats) if s.constraints is not None else {},
+                             timings={**self.problem.timings, **r.timings})
         return TransientState(self.problem, u, book, s.reaction_dofs, reaction, integrals, info, f - Mv,
-                              prescribed, None, float(t), float(Mv.sum()))
+                              prescribed, record, float(t), float(Mv.sum()))
 
     @property
     def final(self) -> TransientState:
@@ -132,14 +134,7 @@ class TransientSolution:
     def probe(self, points) -> np.ndarray:
         """Temperatures at physical points (N, 3) at every kept time: (n times, N)."""
         where, params = self._locator(np.asarray(points, float), 1e-10)
-        prob = self.problem
-        out = np.empty((len(self.times), len(where)))
-        for pi in np.unique(where):
-            sel = where == pi
-            space = prob.spaces[int(pi)]
-            coef = np.moveaxis(self._U[:, prob.offsets[pi]:prob.offsets[pi + 1]].reshape((-1,) + space.shape), 0, -1)
-            out[:, sel] = field_spline(space, coef, prob.weights[int(pi)]).evaluate(params[sel]).T
-        return out
+        return (evaluation_matrix(self.problem, where, params) @ self._U.T).T
 
     def heat_content(self) -> np.ndarray:
         """int rho c T dV (J, relative to T = 0) at every kept time: (n,)."""

@@ -18,7 +18,7 @@ from geometry.io.files import offscreen_plotter, save_screenshot, window_plotter
 from geometry.numbers import is_real
 from iga.errors import ProblemError
 
-__all__ = ["plot_field", "range_note", "count", "UNITS"]
+__all__ = ["plot_field", "range_note", "count", "UNITS", "render_temperature"]
 
 #: units of the arrays the toolkit writes (for the scalar bar)
 UNITS = {"temperature": "C", "heat_flux": "W/m^2", "displacement": "m", "von_mises": "Pa", "stress": "Pa"}
@@ -76,3 +76,35 @@ def count(n: int, noun: str) -> str:
     """``n`` with its noun, singular or plural (``1 patch``, ``3 patches``)."""
     plural = noun + ("es" if noun.endswith(("s", "h", "x")) else "s")
     return f"{n:,} {noun if n == 1 else plural}"
+
+
+def render_temperature(vtu_path: Path, png_path: Path, title: str = "temperature (C)", scalars: str = "temperature",
+                       warp: float | None = None, cmap: str = "inferno", fmt: str = "%.2f",
+                       above: float | None = None, caption: str | None = None):
+    """Offscreen render of a written .vtu coloured by ``scalars`` (a point array), with a scalar bar (atomic);
+    ``warp``: the surface moved by that factor times its ``displacement`` array (an elastic solution);
+    ``above``: colour by the rise of ``scalars`` above this value on a logarithmic scale (from 1e-3 of the
+    largest rise), so that a part that stays near the ambient temperature still shows its gradient;
+    ``caption``: the case, written in the upper left above the shown array's range."""
+    import pyvista as pv
+
+    mesh = pv.read(vtu_path).extract_surface(algorithm="dataset_surface")
+    log = above is not None
+    if log:
+        rise = np.asarray(mesh.point_data[scalars], float) - above
+        top = float(rise.max())
+        mesh.point_data[f"{scalars} rise"] = np.clip(rise, 1e-3 * top, None)
+        scalars, fmt = f"{scalars} rise", "%.3g"
+    if warp is not None:
+        mesh = mesh.warp_by_vector("displacement", factor=warp)
+    pl = offscreen_plotter((1200, 850))
+    if caption is not None:
+        shown = np.asarray(mesh.point_data[scalars], float)
+        unit = "K" if log else UNITS.get(scalars, "")
+        pl.add_text(f"{caption}\n{range_note(scalars, float(shown.min()), float(shown.max()), unit)}",
+                    position="upper_left", font_size=11, color="black")
+    pl.add_mesh(mesh, scalars=scalars, cmap=cmap, smooth_shading=True, split_sharp_edges=True, ambient=0.3,
+                log_scale=log, scalar_bar_args={"title": title, "vertical": True, "fmt": fmt, "position_x": 0.86,
+                                 "position_y": 0.12, "width": 0.08, "height": 0.7, "title_font_size": 18,
+                                 "label_font_size": 16})
+    save_screenshot(pl, png_path, ProblemError, "iso", 0.85)  # zoom out: room for the scalar bar beside the model
