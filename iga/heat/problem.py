@@ -170,7 +170,8 @@ class HeatProblem(Problem):
         K, f, source_total = self.volume.assemble(self.conductivity, self.source, patches)
         t1 = time.perf_counter()
         loads, robin_mass, book = self.face_terms(by_kind, patches)
-        f += loads
+        if by_kind["neumann"] or by_kind["robin"]:  # (a zero vector otherwise: nothing to add)
+            f += loads
         if robin_mass is not None:
             K = add_within(K, robin_mass)  # in place: no copy of K
         book["source"] = source_total
