@@ -879,6 +879,7 @@ CLI = [
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name, args, toml, match", CLI, ids=[c[0] for c in CLI])
 def test_command_line_errors_are_one_line(name, args, toml, match, tmp_path):
     out = _cli(tmp_path, *args, toml=toml)
@@ -1242,6 +1243,7 @@ def test_capped_surfaces_are_oriented_outwards_and_enclose_the_solids_volume(mir
         assert c.signed_volume == pytest.approx(solid, rel=rel) and solid > 0.2
 
 
+@pytest.mark.slow
 def test_shells_orient_the_cavity_inwards_and_open_tubes_consistently():
     from geometry.shapes.orientation import orientation_check, orient_outward
 

@@ -289,6 +289,7 @@ def test_implicit_bifurcation_reproducible_and_bad_input(duck):
         a.evaluate(np.array([[0.5, 0.5, 1.5]]))
 
 
+@pytest.mark.slow
 @pytest.mark.kernel_sensitive
 def test_bicubic_surface_bifurcation_tiles(duck):
     t = bifurcation_tiles("1-4b", surfaces=True)

@@ -31,6 +31,7 @@ def _second_kernel() -> dict:
     return {"OPENBLAS_NUM_THREADS": "1"}
 
 
+@pytest.mark.slow
 @pytest.mark.long
 def test_kernel_sensitive_tests_pass_under_a_second_blas_kernel():
     change = _second_kernel()

@@ -90,6 +90,7 @@ def test_a_capped_hollow_lattice_is_one_closed_surface(D, counts):
     assert w["euler_characteristic"] == _euler_of_tube_graph(n, tubes)
 
 
+@pytest.mark.slow
 def test_two_level_capped_structure_is_one_closed_surface():
     first = tiling.regular(TWISTED, L.cross(), (1, 1, 1))  # 7 blocks, 6 interfaces
     ms = tiling.compose_levels(first, L.hollow_cross(), (2, 2, 2), seal="cap")

@@ -65,6 +65,7 @@ def test_clip_polygon_against_a_direct_half_space_test():
         assert np.array_equal(inside[margin], in_poly[margin])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("counts", [(1, 1, 1), (3, 1, 2), (3, 2, 3)])  # (3, 2, 3): cells sealed on y alone
 def test_boolean_sealed_oblique_tubes_are_closed_one_sphere_per_tube(counts):
     ms = tiling.regular(TWISTED, L.oblique_tubes(), counts, seal="cap")
@@ -95,6 +96,7 @@ def test_clip_walls_bad_input():
         L.oblique_tubes(0.5)
 
 
+@pytest.mark.slow
 def test_the_boolean_sealed_tubes_go_to_iges_and_opencascade_reads_every_face_with_our_area(tmp_path):
     from helpers import opencascade, surface_area
     from tiling.export import write_iges

@@ -129,6 +129,7 @@ def test_thin_element_layers_are_relaxed_together(monkeypatch):
         assert np.abs(s.u - u).max() <= 1e-7 * np.abs(u).max()
 
 
+@pytest.mark.slow
 def test_thin_layers_under_elasticity_are_relaxed_by_node(monkeypatch):
     from iga import ElasticityProblem
 

@@ -414,6 +414,7 @@ def test_axis_aligned_boxes_compose_to_the_restricted_map(rational):
     assert rel_err(rot.evaluate(xi), ref) < 1e-12
 
 
+@pytest.mark.slow
 @pytest.mark.long
 def test_walls_on_knot_planes_flat_placements_and_split_curves_compose_exactly():
     import tiling

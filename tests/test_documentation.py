@@ -11,7 +11,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text()
 COMMANDS = ['python -m pip install -e . && iga demo heat-sink --out heat-sink-out',
-            'python -m pip install -e ".[test]" && python -m pytest -q -n auto --dist worksteal']
+            'python -m pip install -e ".[test]" && python -m pytest -q -n auto --dist worksteal -m "slow or not slow"']
 # words of a development log: issue numbers, dated runs, numbered sessions or rounds of changes
 NARRATION = re.compile(r"issue #\d|\b20\d\d-\d\d-\d\d\b|\bsession\b|\b(sixth|seventh|eighth|ninth|tenth|eleventh|"
                        r"twelfth) (session|round)|rounds? of changes", re.I)
@@ -34,6 +34,7 @@ def _python_blocks():
             for i, code in enumerate(re.findall(r"```python\n(.*?)```", page.read_text(), re.S))]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("code", _python_blocks())
 def test_every_python_block_of_the_readme_and_docs_runs_as_written(code, tmp_path):
     run = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=300)

@@ -63,6 +63,7 @@ def test_a_heat_pipeline_refuses_elastic_tables():
         validate(cfg)
 
 
+@pytest.mark.slow
 def test_the_demo_adds_the_thermal_stress_of_the_graded_sink(tmp_path):
     import meshio
 

@@ -37,6 +37,7 @@ def _inside_points(s, n=40):
     return np.concatenate([patches[i].image(rng.uniform(0.05, 0.95, (1, 3)))[:, :3] for i in idx])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("which", ["hierarchy", "bifurcation", "capped"])
 def test_an_affine_displacement_is_reproduced_on_every_kind_of_micro_structure(which):
     box = pr.box((2.0, 1.0, 1.5), degrees=(1, 1, 1))
@@ -53,6 +54,7 @@ def test_an_affine_displacement_is_reproduced_on_every_kind_of_micro_structure(w
     assert glue["identity_pairs"] + glue["branch_rows"] > 0
 
 
+@pytest.mark.slow
 @pytest.mark.long
 def test_an_affine_field_is_reproduced_across_v_rep_union_bridges_with_forks():
     # the union bridges are isoparametric along their length (analysis degree = their Hermite geometry's,
@@ -145,6 +147,7 @@ def test_manufactured_solution_converges_at_the_optimal_rates_on_a_curved_patch(
     assert l2[-1] > p + 1 - 0.3 and h1[-1] > p - 0.3, (l2, h1)
 
 
+@pytest.mark.slow
 @pytest.mark.long
 def test_lames_thick_cylinder_under_internal_pressure():
     a, c, p, E, nu = 0.5, 1.0, 1e6, 200e9, 0.3
@@ -348,6 +351,7 @@ def test_a_cantilever_of_square_section_bends_as_timoshenko_beam_theory_says():
     assert np.allclose(s.reaction("umin"), [0.0, 0.0, P], rtol=1e-9, atol=1e-12)  # the clamp carries the load
 
 
+@pytest.mark.slow
 def test_amg_with_the_rigid_modes_keeps_its_iterations_flat_under_refinement():
     # measured 14, 16, 15 (AMG, 1e-8; 44 with the constants only as near-nullspace)
     its, fd, u = [], [], []

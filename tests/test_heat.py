@@ -94,6 +94,7 @@ def convergence(p, levels):
     return np.log2(e[:-1] / e[1:])  # rates per refinement, columns L2, H1
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("p, levels", [(1, (3, 4, 5)), (2, (2, 3, 4)), (3, (3, 4, 5))])
 def test_optimal_convergence_rates_on_curved_patch(p, levels):
     rates = convergence(p, levels)
@@ -115,6 +116,7 @@ def test_energy_balance_neumann_in_robin_out():
     assert np.all(T > 30.0)
 
 
+@pytest.mark.slow
 def test_energy_balance_dirichlet_in_robin_out_with_source():
     a = pr.annulus(0.5, 1.0, 1.0, elements=(2, 2, 2))
     s = (HeatProblem(a, conductivity=lambda x: 1 + x[:, 2], source=3.0, refine=1)

@@ -116,6 +116,7 @@ def test_effective_stiffness_of_a_solid_a_laminate_and_the_cubic_cross():
     assert 0 < C[3, 3] < C[0, 0] < 0.216 * (lam + 2 * mu) / E  # below the Voigt bound of the solid fraction
 
 
+@pytest.mark.slow
 def test_the_homogenize_command_prints_the_tensors_and_names_bad_arguments():
     import subprocess
     import sys
@@ -130,6 +131,7 @@ def test_the_homogenize_command_prints_the_tensors_and_names_bad_arguments():
     assert bad.returncode == 1 and "does not take ['width']" in bad.stderr and "Traceback" not in bad.stderr
 
 
+@pytest.mark.slow
 def test_the_cell_fields_are_written_and_average_to_the_effective_flux(tmp_path):
     """The cell fields as VTU (the correctors and the cell's heat flux for unit macroscopic gradients): in a
     laminate across x the flux for a gradient along x is one constant, -K_xx, at every written point; in the cross
@@ -160,6 +162,7 @@ def test_the_cell_fields_are_written_and_average_to_the_effective_flux(tmp_path)
     assert bad.returncode == 1 and "ending in .vtu" in bad.stderr
 
 
+@pytest.mark.slow
 def test_a_tile_without_mirror_symmetry_shows_an_o_1_over_n_boundary_layer():
     """Scale separation: the bent cross (bowed arms) between two plates conducts K_eff (1 + c / n): the
     difference halves with every doubling of n (the mirror-symmetric cross has none: c = 0)."""

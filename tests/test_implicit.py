@@ -33,6 +33,7 @@ def _face_points(s, a, k, rng, n=200):
     return x
 
 
+@pytest.mark.slow
 @pytest.mark.kernel_sensitive
 def test_same_seed_gives_identical_mesh_and_another_seed_does_not(duck):
     kw = dict(alpha=0.6, continuity="C1", connectivity=1, cap=True)
@@ -64,6 +65,7 @@ def test_alpha_zero_gives_the_canonical_tiling(duck):
     assert np.array_equal(s.cell_coefficients((1, 0, 0)), user.coefficients[..., 0])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("controls, cap, connectivity, continuity", [(6, False, 1, "C1"), (8, True, 2, "C1"),
                                                                     (8, True, 1, "C0"), (6, False, 2, "C0")])
 def test_alpha_zero_does_not_depend_on_the_seed(duck, controls, cap, connectivity, continuity):
@@ -117,6 +119,7 @@ def test_continuity_across_every_shared_cell_face(duck, continuity):
         assert np.allclose(s.field.evaluate(x), s.cell_field(cell).evaluate(x), atol=1e-12)
 
 
+@pytest.mark.slow
 def test_c0_structures_are_generally_not_c1(duck):
     rng = np.random.default_rng(1)
     s = random_implicit(duck, (2, 1, 1), alpha=0.9, seed=2, continuity="C0")
@@ -125,6 +128,7 @@ def test_c0_structures_are_generally_not_c1(duck):
     assert np.abs(jump).max() > 1e-3
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("continuity,seed", [("C0", 0), ("C0", 3), ("C1", 1), ("C1", 2)])
 def test_capped_connectivity_one_is_a_closed_single_solid(duck, continuity, seed):
     s = random_implicit(duck, (3, 3, 4), alpha=0.7, seed=seed, continuity=continuity, connectivity=1, cap=True)
@@ -141,6 +145,7 @@ def test_capped_connectivity_one_is_a_closed_single_solid(duck, continuity, seed
     assert np.abs(s.field.evaluate(np.c_[raw["u"], raw["v"], raw["w"]])).max() > 1e-6
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("connectivity", [1, 2])
 def test_tree_faces_have_a_non_empty_zero_set(duck, connectivity):
     s = random_implicit(duck, (3, 3, 3), alpha=0.9, seed=11, connectivity=connectivity)
@@ -275,6 +280,7 @@ def test_exported_from_tiling():
     assert tiling.random_implicit is random_implicit and "ImplicitStructure" in tiling.__all__
 
 
+@pytest.mark.slow
 def test_uncapped_solid_is_one_region_without_enclosed_voids(duck):
     """Open structures: the sampled solid is one 6-connected region and every void reaches D's boundary."""
     from scipy import ndimage

@@ -127,6 +127,7 @@ def _components(s, r, close, shipped=False):
     return len(np.unique(label[tri[:, 0]]))  # components that hold a triangle
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [pytest.param(0, marks=pytest.mark.kernel_sensitive), 1, 2, 3, 4])
 def test_one_surface_at_every_sampling_on_a_443_grid(duck, seed):
     s = tiling.random_implicit(duck, (4, 4, 3), alpha=0.5, seed=seed, cap=True)
@@ -134,6 +135,7 @@ def test_one_surface_at_every_sampling_on_a_443_grid(duck, seed):
     assert [_components(s, r, close=False, shipped=r == 12) for r in (12, 24, 48)] == [1, 1, 1]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", range(5))
 def test_uncapped_structures_are_certified_and_one_solid_at_the_build_sampling(duck, seed):
     # Uncapped, the zero set meets D's boundary; where it grazes a face, a sheet of the solid along the face can
@@ -156,6 +158,7 @@ def _bent_box():
     return BSpline(D.degrees, D.knots, cp)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [1, pytest.param(7, marks=pytest.mark.kernel_sensitive)])
 def test_c1_capped_structures_whose_held_faces_carry_islands_build_certified(seed):
     # With C1, an island of samples on a spanning-tree face whose coefficients are held cannot be bridged from
@@ -169,6 +172,7 @@ def test_c1_capped_structures_whose_held_faces_carry_islands_build_certified(see
     assert _components(s, 12, close=False, shipped=False) == 1
 
 
+@pytest.mark.slow
 @pytest.mark.long
 @pytest.mark.parametrize("seed", range(5))
 def test_fig14_duck_capped_is_one_surface_at_every_sampling(duck, seed):

@@ -70,6 +70,7 @@ def test_interface_maps_send_every_corner_where_our_orientation_does(a_face, b_f
                         assert (b_par[rb[0]], b_par[rb[1]]) == ours
 
 
+@pytest.mark.slow
 def test_heat_problem_export_reimport_gives_the_same_solution(tmp_path):
     ms = tiling.hierarchical(AFFINE, L.fractal(), (2, 1), 3)  # identity and branch interfaces
     ms.tags["cool"] = [f for f in ms.tags["boundary"] if f not in set(ms.tags["branch-in"])]
@@ -199,6 +200,7 @@ def test_gismo_file_opens_in_pygismo(tmp_path):
         assert np.abs(mp.patch(i).eval(x) - s.evaluate(x.T)[:, :3].T).max() < 1e-13
 
 
+@pytest.mark.slow
 def test_iga_info_reads_gismo_and_npz(tmp_path):
     from geometry.io.files import save_all
 
@@ -219,6 +221,7 @@ def test_iga_info_reads_gismo_and_npz(tmp_path):
     assert out.returncode == 1 and "cannot read x.stl as a mesh" in out.stderr and "Traceback" not in out.stderr
 
 
+@pytest.mark.slow
 def test_iga_info_describes_every_file_the_toolkit_writes(tmp_path):
     import tiling
     from geometry.io.iges import write_iges

@@ -94,6 +94,7 @@ def test_without_numba_the_kernel_request_takes_the_numpy_iterations(monkeypatch
     assert np.array_equal(same.params, slow.params) and np.array_equal(same.distance, slow.distance)
 
 
+@pytest.mark.slow
 def test_v_model_classification_is_the_same_with_the_compiled_inversion_and_without(monkeypatch):
     from geometry.shapes.examples import cylinder
     from tiling import library as L

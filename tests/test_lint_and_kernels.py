@@ -17,6 +17,7 @@ def test_ruff_finds_nothing():
     assert out.returncode == 0, out.stdout + out.stderr
 
 
+@pytest.mark.slow
 @pytest.mark.long
 def test_compiled_kernels_as_plain_python():
     # numba compiles the kernels and privatises variables inside prange loops; run as plain Python

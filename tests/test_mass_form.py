@@ -16,6 +16,7 @@ def _field_integral(problem, coefficients, fn):
         (1,) + problem.spaces[i].shape), 1, lambda x, v, g: fn(x, v[:, 0]))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name, model, volume", [
     ("twisted box", pr.twisted(pr.box((2.0, 1.0, 0.5), degrees=(2, 2, 2)), 0.6, axis_point=(1.0, 0.5)), None),
     ("NURBS annulus", pr.annulus(0.5, 1.0, 0.3, np.pi / 2), 0.3 * np.pi / 4 * (1.0 - 0.25)),

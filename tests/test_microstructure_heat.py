@@ -87,6 +87,7 @@ def test_patch_test_on_discontinuity_hierarchies(make, levels):
     assert s.info["constraints"]["c0_pairs"] > 0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("refine", [0, 1])
 def test_patch_test_on_the_skinned_fig2_hierarchy(refine):
     # the Fig. 2 tile's slots reach its base: a child's slot faces (Dirichlet) meet the parent's
@@ -137,6 +138,7 @@ def test_identity_constraints_equal_the_merged_single_patch():
     assert np.abs(a.probe(x) - b.probe(x)).max() < 1e-10 * np.abs(b.probe(x)).max()
 
 
+@pytest.mark.slow
 def test_cross_paving_converges_to_a_refined_reference():
     ms = tiling.regular(AFFINE, L.cross(), (3, 3, 3))
     f = lambda x: 1.0 + 0 * x[:, 0]  # noqa: E731

@@ -51,6 +51,7 @@ def test_offset_of_a_cylinder_is_the_coaxial_cylinder():
         offset(side, 0.1, 1e-15)
 
 
+@pytest.mark.slow
 @pytest.mark.long
 def test_fig8_chain_strip_offset_ruled_volume_and_round_stitches():
     tol = 1e-5

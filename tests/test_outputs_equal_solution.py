@@ -67,6 +67,7 @@ def _linear(x):
     return 10.0 + np.asarray(x) @ G
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", list(MODELS))
 def test_every_written_temperature_equals_the_solution(tmp_path, kind):
     ms = MODELS[kind]()
@@ -84,6 +85,7 @@ def test_every_written_temperature_equals_the_solution(tmp_path, kind):
     assert np.abs(tb - sol.probe(xb)).max() <= 1e-9 * span, kind
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("side", ["wmax", "wmin"])
 def test_the_elastic_vtu_equals_the_elastic_solution_on_a_lidded_hierarchy(tmp_path, side):
     # a stress-free expansion (a uniform temperature rise on a body held by a 3-2-1 set of pins): zero stress

@@ -52,6 +52,7 @@ probes = [[0.0, 0.0205, 0.01]]
 """
 
 
+@pytest.mark.slow
 def test_iga_run_reduced_heat_sink(tmp_path):
     import pyvista as pv
 
@@ -126,6 +127,7 @@ def test_config_errors_name_the_key(tmp_path):
     assert out.returncode == 1 and "map.primitive" in out.stderr and "Traceback" not in out.stderr
 
 
+@pytest.mark.slow
 def test_demo_command_reduced(tmp_path):
     import pyvista as pv
 
@@ -157,6 +159,7 @@ def test_progress_lines_when_asked(tmp_path, capsys):
     assert capsys.readouterr().err == ""
 
 
+@pytest.mark.slow
 def test_summary_statistics_without_vtu_are_temperatures_and_a_volume_mean(tmp_path):
     import pyvista as pv
 

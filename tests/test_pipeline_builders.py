@@ -99,6 +99,7 @@ def test_a_polygon_lattice_is_paved_to_its_mesh_and_takes_no_analysis(tmp_path):
     assert s["mesh"]["facets"] == 8 and set(s["files"]) == {"stl"}
 
 
+@pytest.mark.slow
 def test_surface_and_curve_tiles_run_to_their_exports_and_refuse_an_analysis(tmp_path):
     import meshio
     import pyvista as pv
@@ -135,6 +136,7 @@ def test_surface_and_curve_tiles_run_to_their_exports_and_refuse_an_analysis(tmp
         validate({**helix, "output": _out(tmp_path, "h", bezier=True)}, tmp_path)
 
 
+@pytest.mark.slow
 def test_a_two_level_structure_runs_from_a_pipeline_as_in_python(tmp_path):
     import tiling
     from geometry.primitives import box
@@ -204,6 +206,7 @@ def test_the_analysis_degree_and_extra_quadrature_are_configured(tmp_path):
         validate({**cfg, "solver": {"quadrature_extra": -1}}, tmp_path)
 
 
+@pytest.mark.slow
 def test_every_complete_toml_example_of_the_documentation_runs_as_written(tmp_path):
     """The pipeline examples of the README and docs/, read by tomllib as a user would paste them (pictures and
     VTU off)."""
@@ -246,6 +249,7 @@ def test_vrep_subtractions_and_intersections_run_as_in_python(expression, tmp_pa
     assert s["temperature_C"]["mean"] == pytest.approx(sol.mean_temperature(), rel=1e-8)
 
 
+@pytest.mark.slow
 def test_iga_run_reports_a_surface_or_a_lattice_of_lines(tmp_path):
     """From the command line: a polygon lattice (lines only) and a capped hollow lattice (triangles) run to their
     surface and report it in one line (20 cell edges and 4 diagonals per cell: 28 lines)."""

@@ -83,6 +83,7 @@ def test_fast_diagonalization_iterations_do_not_grow_with_degree_or_size_on_a_cu
     assert max(its.values()) <= 1.5 * min(its.values()) and max(its.values()) < 20
 
 
+@pytest.mark.slow
 def test_multigrid_contraction_does_not_depend_on_the_refinement_level():
     rates = []
     for n in (10, 20, 40):

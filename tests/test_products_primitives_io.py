@@ -143,6 +143,7 @@ def test_save_load_errors(tmp_path):
         geometry.load(tmp_path / "other.npz")
 
 
+@pytest.mark.slow
 def test_cli_help_and_info(tmp_path):
     out = subprocess.run([sys.executable, "-m", "iga", "--help"], capture_output=True, text=True)
     assert out.returncode == 0

@@ -126,6 +126,7 @@ def test_discontinuities_survive_the_reduction():
             assert np.abs(V.evaluate(x)[:, :3] - R.evaluate(x)[:, :3]).max() < 1e-12
 
 
+@pytest.mark.slow
 def test_a_reduced_hierarchy_keeps_its_topology_and_tags_and_solves_as_the_original():
     from geometry import reduced_model
 

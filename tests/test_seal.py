@@ -40,6 +40,7 @@ def test_a_variant_glues_every_sealed_tile_face_to_one_plate():
     assert vol == pytest.approx(layer, rel=1e-12)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seal,sides,refine", [("cap", ("wmax", "umin"), 1), ("shell", None, 0)])
 def test_patch_test_with_seal_plates(seal, sides, refine):
     ms = tiling.regular(AFFINE, L.cross(), (3, 2, 2) if refine else (2, 1, 2), seal=seal, seal_sides=sides)
@@ -64,6 +65,7 @@ def test_heat_through_the_cap_balances_and_matches_the_cap_area():
     assert s.flux("wmin") == pytest.approx(800.0 * area, rel=1e-8)
 
 
+@pytest.mark.slow
 def test_a_shelled_lattice_is_closed_with_its_inner_void():
     twisted = pr.twisted(pr.box((1.0, 1.0, 1.0), degrees=(2, 2, 2)), 0.3, axis_point=(0.5, 0.5))
     ms = tiling.regular(twisted, L.cross(), (2, 2, 2), seal="shell", thickness=0.15)
@@ -86,6 +88,7 @@ def test_one_cell_is_sealed_on_both_sides():
 SINK = pr.box((0.06, 0.06, 0.03))
 
 
+@pytest.mark.slow
 def test_a_hierarchy_capped_on_top_and_bottom_passes_the_patch_test_and_is_closed():
     # the lid meets 16 fin tops and the slots between them: refinement interfaces where a plate meets part of a
     # fin's face, identity where it meets a whole one
@@ -180,6 +183,7 @@ def test_pipeline_seal_errors_name_the_key(tmp_path, paving, match):
         run_pipeline(_sealed_config(**paving), tmp_path)
 
 
+@pytest.mark.slow
 def test_surface_to_a_tolerance():
     D = pr.twisted(pr.box((1.0, 1.0, 1.0), degrees=(2, 2, 2)), 0.5, axis_point=(0.5, 0.5))
     ms = tiling.regular(D, L.cross(), (2, 2, 2))

@@ -62,6 +62,7 @@ def test_bezier_vtu_arrays_decode_with_a_second_reader(tmp_path):
     assert np.array_equal(arrays["HigherOrderDegrees"].reshape(-1, 3), grid.cell_data["HigherOrderDegrees"])
 
 
+@pytest.mark.slow
 def test_every_boundary_point_of_the_demo_sinks_can_be_probed(demo, tmp_path):
     """Slot walls included: the points on either side of a discontinuity plane are found on their own side."""
     import pyvista as pv
@@ -177,6 +178,7 @@ def _area_and_volume_flux(s):
     return float(np.sum(np.linalg.norm(n, axis=1) * W)), float(np.sum(np.einsum("ni,ni->n", s.evaluate(g)[:, :3], n) * W))
 
 
+@pytest.mark.slow
 def test_the_iges_boundary_of_the_demo_sinks_is_closed_continuous_and_outward(demo):
     """Slot walls included and every side cut at its C^-1 knots: the surfaces bound the solid, so the divergence
     theorem over them gives its volume (Massarwi et al. 2018: a precise, watertight model)."""
@@ -203,6 +205,7 @@ def _vrep_union():
     return vrep_microstructure(A | B).microstructure
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("which", ["circular", "vertical", "vrep union"])
 def test_opencascade_rereads_the_iges_with_every_area(which, tmp_path):
     """gmsh's OpenCASCADE reads every surface back: the same surfaces (points and areas, integrated on the
@@ -256,6 +259,7 @@ def test_iges_strings_that_would_corrupt_the_records_are_refused(tmp_path):
 
 
 # ------------------------------------------------------------------ G+Smo XML
+@pytest.mark.slow
 def test_gismo_round_trip_of_the_graded_sink_with_robin_on_exterior(tmp_path):
     """The README's T2 sink (conductivity graded as the channel k), Robin on every exterior face, slot walls
     included: read back, the same temperatures at the bases the exported problem used; G+Smo's own reader

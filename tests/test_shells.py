@@ -55,6 +55,7 @@ def test_the_layer_is_bounded_by_outward_walls_and_trimmed_inner_planes_of_the_e
         assert np.dot(np.cross(J[:, 0], J[:, 1]), x - centre) > 0
 
 
+@pytest.mark.slow
 def test_the_shell_goes_to_iges_and_opencascade_reads_every_face_with_our_area(tmp_path):
     ms = tiling.regular(TWISTED, L.hollow_cross(), (2, 1, 1), seal="shell", thickness=0.15)
     ours = boundary_splines(ms)

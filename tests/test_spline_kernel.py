@@ -68,6 +68,7 @@ def test_derivatives_against_finite_differences(seed, dim, rational):
         assert np.abs(D[a][~near] - fdm[~near]).max() < 1e-3 * max(1, np.abs(fdm).max())
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("dim", [1, 2, 3])
 @pytest.mark.parametrize("rational", [False, True])
 @pytest.mark.parametrize("p", [1, 2, 3, 4, 5])

@@ -73,6 +73,7 @@ def test_a_capsule_is_one_closed_surface_of_genus_zero():
     assert rep["closed"] and rep["manifold"] and rep["components"] == 1 and rep["euler_characteristic"] == 2
 
 
+@pytest.mark.slow
 def test_round_strut_lattice_in_the_duck():
     D = shapes.duck()
     lattice = regular(D, library.struts("bcc"), (2, 2, 1))

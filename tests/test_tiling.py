@@ -222,6 +222,7 @@ def test_graded_conductivity_is_exact_in_parameter_mode_and_usable_by_analysis()
     assert np.abs(C(y)[:, 3] - (205 * (1 - w) + 54 * w)).max() < 1e-9
 
 
+@pytest.mark.slow
 def test_surface_export_and_watertightness(tmp_path):
     from geometry import PlacedPatch
     from tiling.export import watertightness, write_surfaces

@@ -57,6 +57,7 @@ def test_a_pipeline_run_equals_the_python_api_and_writes_its_series(tmp_path):
     assert (tmp_path / "bar_history.png").stat().st_size > 10_000 and (tmp_path / "bar.png").is_file()
 
 
+@pytest.mark.slow
 def test_a_run_to_the_steady_state_reports_when_the_hottest_point_settled(tmp_path):
     time = {"end": "steady", "tolerance": 1e-5, "fraction": 0.9}
     s = run_pipeline(_bar_config(tmp_path, time, probes=()), tmp_path)
@@ -77,6 +78,7 @@ def test_a_run_to_the_steady_state_reports_when_the_hottest_point_settled(tmp_pa
     assert tr["hottest_C"][-1] >= 0.9 * tr["steady_hottest_C"] > tr["hottest_C"][-2]
 
 
+@pytest.mark.slow
 def test_the_demo_follows_the_sink_warming_up(tmp_path):
     out = subprocess.run([sys.executable, "-m", "iga", "demo", "heat-sink", "--variant", "vertical", "--levels",
                           "1", "--transient", "--out", str(tmp_path / "demo")], capture_output=True, text=True)

@@ -96,6 +96,7 @@ def test_paved_4_4_2_in_a_bent_map_composes_every_member_exactly_with_its_loops_
     assert np.all(lo >= box.min(0) - 0.5) and np.all(hi <= box.max(0) + 0.5)
 
 
+@pytest.mark.slow
 def test_the_fig7_paving_goes_to_iges_and_opencascade_reads_the_trimmed_faces(tmp_path, tile):
     """A second reader: gmsh's OpenCASCADE import gives 192 trimmed faces, each our composed surface point for
     point, bounded by our loops' images, with our areas (within OpenCASCADE's own area integration)."""

@@ -52,6 +52,7 @@ def test_classification_agrees_with_brute_force_membership(op):
             assert np.all(inside.any(axis=1) & ~inside.all(axis=1))
 
 
+@pytest.mark.slow
 @pytest.mark.kernel_sensitive
 def test_a_subtraction_keeps_no_tile_inside_the_subtracted_primitives():
     A, B, C = _cylinders()
@@ -81,6 +82,7 @@ def test_a_subtraction_keeps_no_tile_inside_the_subtracted_primitives():
             assert depth.max() < 2e-3
 
 
+@pytest.mark.slow
 def test_union_tiles_each_v_cell_from_the_primitive_of_highest_priority():
     A, B, C = _cylinders((2, 2, 4))
     res = vrep_microstructure(A | B | C)
@@ -225,6 +227,7 @@ def _oriented(st, swap, flip):
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.kernel_sensitive
 def test_bridges_start_g1_at_their_tiles_and_end_orthogonal_on_the_trimming_surface():
     """Every bridge (in map parameters, or rebuilt in space where D's knot lines cut it) is glued to its tile by
@@ -273,6 +276,7 @@ def _bridge_objects(model):
     return build_bridges(model, cls.primitive, cls, ms.patches, ms.tags[f"anchor:{cls.primitive.name}"])[0]
 
 
+@pytest.mark.slow
 @pytest.mark.kernel_sensitive
 def test_colliding_bridges_are_separated_or_eliminated():
     from tiling.vrep.bridges import _snap, axis_samples, resolve_collisions
@@ -352,6 +356,7 @@ def test_v_models_and_primitives_print_as_their_expression():
     assert repr(m.primitives()[0]).startswith("Primitive('body': tile 'cross' x (10, 10, 12), priority 1")
 
 
+@pytest.mark.slow
 @pytest.mark.kernel_sensitive
 @pytest.mark.long
 def test_a_v_model_with_bridges_across_knot_lines_composes_exactly_and_exports_to_iges(tmp_path):

@@ -220,6 +220,7 @@ def test_displaced_tubes_are_quintics_with_fixed_ends(tubed):
     assert np.abs(5 * d0 - 3 * c0).max() < 1e-12
 
 
+@pytest.mark.slow
 def test_manufactured_solution_converges_across_bifurcations(forked):
     ms = forked.microstructure
     T = lambda x: np.sin(x[:, 0]) * np.cos(0.7 * x[:, 1]) * np.exp(0.3 * x[:, 2])  # noqa: E731
@@ -285,6 +286,7 @@ def test_orientations_follow_the_interface_convention():
         assert np.abs(orient(S, o).evaluate(corners) - S.evaluate(corners)[corner_index(o)]).max() < 1e-14
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("which", ["cylinders", "duck"])
 def test_subtraction_v_models_are_heat_models(which):
     from geometry.shapes.examples import cylinder, duck
@@ -313,6 +315,7 @@ def test_subtraction_v_models_are_heat_models(which):
     assert abs(s.flux("bridge")) > 0.01 * s.info["balance"]["inflow_W"]  # the heat does reach the bridges
 
 
+@pytest.mark.slow
 @pytest.mark.kernel_sensitive
 def test_a_linear_temperature_is_reproduced_on_every_patch_of_a_box_minus_a_box():
     # the trimming-surface bridges are composed through the affine map like the tiles, in their own (cubic
@@ -333,6 +336,7 @@ def test_a_linear_temperature_is_reproduced_on_every_patch_of_a_box_minus_a_box(
         assert np.abs(T - 10.0 - y @ g).max() < 1e-9 * 20 and np.abs(grad - g).max() < 1e-7 * 3, i
 
 
+@pytest.mark.slow
 @pytest.mark.kernel_sensitive
 def test_tubes_that_the_collision_repulsion_folds_are_given_up():
     # Hong and Elber 2021 Fig. 6 (benchmarks/vrep.py's case): 29 tube collisions, repelled or eliminated;

@@ -219,6 +219,36 @@ class _Formatter(argparse.ArgumentDefaultsHelpFormatter):
         return action.help if action.default is None else super()._get_help_string(action)
 
 
+def _add_demo(sub) -> None:
+    """The ``demo`` command and its ``heat-sink`` demonstration."""
+    demo = sub.add_parser("demo", help="run a built-in demonstration (heat-sink)",
+                          description="Run a built-in demonstration; 'iga demo heat-sink --help' lists its options.")
+    demo.set_defaults(func=lambda _: demo.print_help() or 0)
+    demos = demo.add_subparsers(dest="name", metavar="NAME")
+    hs = demos.add_parser(
+        "heat-sink", help="the hierarchical heat sink of Massarwi et al. 2018 (Section 8)", formatter_class=_Formatter,
+        description="Build the hierarchical heat sink of Massarwi et al. 2018 (Section 8, Figs. 11 and 18), solve "
+        "steady heat transfer (inlet flux 1515.8 W/m^2 on the heated face, convection h = 5 W/(m^2 K) to air "
+        "at 30 C elsewhere, conductivity graded from aluminium to steel) and write heat_sink.vtu, heat_sink.png "
+        "and summary.json into --out.")
+    hs.add_argument("--out", default="heat-sink-out", help="output folder (created if missing)")
+    hs.add_argument("--variant", choices=["circular", "vertical"], default="circular",
+                    help="circular: tile T1 around a twisted ring; vertical: tile T2 on a box")
+    hs.add_argument("--levels", type=int, default=None,
+                    help="hierarchy levels (default: the paper's, 3 circular, 2 vertical)")
+    hs.add_argument("--refine", type=int, default=0, help="uniform h-refinement rounds of every tile space")
+    hs.add_argument("--stress", action="store_true",
+                    help="add the thermal stress of the graded sink (aluminium to steel; free to expand): a stress "
+                         "VTU and a von Mises picture")
+    hs.add_argument("--transient", action="store_true",
+                    help="switch the sink on in air at 20 C and follow it warming up (rho c 2.4e6 J/(m^3 K), "
+                         "adaptive BDF2) until its hottest point reaches 95%% of its steady rise: a ParaView time "
+                         "series (heat_sink.pvd) and the warm-up curve (heat_sink_history.png)")
+    hs.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,
+                    help="no progress display on stderr (as 'iga --quiet demo ...')")
+    hs.set_defaults(func=_cmd_demo)
+
+
 def _add_homogenize(sub) -> None:
     hom = sub.add_parser("homogenize", help="effective conductivity (and stiffness) of a library tile",
                          formatter_class=_Formatter,
@@ -286,32 +316,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--max-memory", type=float, metavar="GIB", default=None,
                         help="memory budget in GiB for the size checks (default: the memory available now)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    demo = sub.add_parser("demo", help="run a built-in demonstration (heat-sink)",
-                          description="Run a built-in demonstration; 'iga demo heat-sink --help' lists its options.")
-    demo.set_defaults(func=lambda _: demo.print_help() or 0)
-    demos = demo.add_subparsers(dest="name", metavar="NAME")
-    hs = demos.add_parser(
-        "heat-sink", help="the hierarchical heat sink of Massarwi et al. 2018 (Section 8)", formatter_class=_Formatter,
-        description="Build the hierarchical heat sink of Massarwi et al. 2018 (Section 8, Figs. 11 and 18), solve "
-        "steady heat transfer (inlet flux 1515.8 W/m^2 on the heated face, convection h = 5 W/(m^2 K) to air "
-        "at 30 C elsewhere, conductivity graded from aluminium to steel) and write heat_sink.vtu, heat_sink.png "
-        "and summary.json into --out.")
-    hs.add_argument("--out", default="heat-sink-out", help="output folder (created if missing)")
-    hs.add_argument("--variant", choices=["circular", "vertical"], default="circular",
-                    help="circular: tile T1 around a twisted ring; vertical: tile T2 on a box")
-    hs.add_argument("--levels", type=int, default=None,
-                    help="hierarchy levels (default: the paper's, 3 circular, 2 vertical)")
-    hs.add_argument("--refine", type=int, default=0, help="uniform h-refinement rounds of every tile space")
-    hs.add_argument("--stress", action="store_true",
-                    help="add the thermal stress of the graded sink (aluminium to steel; free to expand): a stress "
-                         "VTU and a von Mises picture")
-    hs.add_argument("--transient", action="store_true",
-                    help="switch the sink on in air at 20 C and follow it warming up (rho c 2.4e6 J/(m^3 K), "
-                         "adaptive BDF2) until its hottest point reaches 95%% of its steady rise: a ParaView time "
-                         "series (heat_sink.pvd) and the warm-up curve (heat_sink_history.png)")
-    hs.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,
-                    help="no progress display on stderr (as 'iga --quiet demo ...')")
-    hs.set_defaults(func=_cmd_demo)
+    _add_demo(sub)
     run = sub.add_parser(
         "run", help="run a pipeline described in a TOML file", formatter_class=_Formatter,
         description="Run a pipeline (deformation map, tile, paving, materials, boundary conditions, solver, "

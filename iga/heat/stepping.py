@@ -256,15 +256,13 @@ class TimeStepper:
                 est = self._estimate(hist) if tol is not None else None
                 if est is not None and est > tol:  # rejected: again, shorter
                     hist.pop()
-                    self.record.rejected += 1
-                    h *= max(_SHRINK, _SAFETY * (tol / est) ** (1.0 / (self._order() + 1)))
+                    h = self._shorter(h, est, tol, t, span, max_steps)
                     continue
                 n += 1
                 if est is not None:
                     self.record.largest_estimate = max(self.record.largest_estimate or 0.0, est)
                     proposal = h * min(_GROW, _SAFETY * (tol / max(est, 1e-300)) ** (1.0 / (self._order() + 1)))
-                    if proposal >= _KEEP * h:  # grown only by a margin (else kept: its solver is reused)
-                        h = proposal
+                    h = proposal if proposal >= _KEEP * h else h  # grown by a margin only: its solver is reused
                 hist = hist[-4:]
                 if n % keep == 0:
                     kept.append(hist[-1][:3])
@@ -285,6 +283,17 @@ class TimeStepper:
         self.record.steps = n
         self.record.timings["steps"] = time.perf_counter() - t_start
         return TransientSolution(self, kept)
+
+    def _shorter(self, h: float, est: float, tol: float, t: float, span: float, max_steps: int) -> float:
+        """The step after a rejected one of size ``h`` (its estimate ``est`` above ``tol``); refused once the
+        step has shrunk to nothing or the rejections exceed ``max_steps``."""
+        self.record.rejected += 1
+        h *= max(_SHRINK, _SAFETY * (tol / est) ** (1.0 / (self._order() + 1)))
+        if h < 1e-12 * span or self.record.rejected > max_steps:
+            raise ProblemError(f"the transient solve cannot meet tol = {tol:g} K at t = {t:g} s (the step shrank "
+                               f"to {h:.3g} s after {self.record.rejected} rejected steps); loosen tol, or check "
+                               "the data for a jump in time")
+        return h
 
     def _check_kept(self, count: int, keep: int) -> None:
         """Refuse before ``count`` kept states (u and du/dt, 16 bytes per coefficient) exceed the memory budget."""
