@@ -18,7 +18,8 @@ folder.  The schema (README, "Pipelines")::
     [reduce]   degree, check                                (optional)
     [material] conductivity = number | channel | {formula} | 6 channels | 3 x 3 matrix, source = number | formula,
                capacity = number | channel | {formula}                      (transient-heat)
-    [[bc]]     kind = "dirichlet" | "neumann" | "robin", tag, value | (h, ambient): numbers or formulas of x, y, z
+    [[bc]]     kind = "dirichlet" | "neumann" | "robin" | "radiation", tag, value | (h, ambient) |
+               (emissivity, ambient, scale = "K" | "C"): numbers or formulas of x, y, z
     [physics]  kind, youngs, poisson, expansion, reference, hold_rigid; [[support]], [[load]]
     [time]     end, step | tolerance, method, theta, initial, every, fraction, max_steps   (iga.app.config_time)
     [solver]   method, tol, maxiter, refine, degree_elevation, degree, quadrature_extra
@@ -54,10 +55,26 @@ SOLVER_DEFAULTS = {"method": "auto", "tol": 1e-10, "maxiter": None, "refine": 0,
 
 
 def _bc(v, where) -> dict:
-    t = _table(v, where, {"kind", "tag", "value", "h", "ambient"}, ("kind", "tag"))
-    kind = _choice(t["kind"], f"{where}.kind", ("dirichlet", "neumann", "robin"))
+    t = _table(v, where, {"kind", "tag", "value", "h", "ambient", "emissivity", "scale"}, ("kind", "tag"))
+    kind = _choice(t["kind"], f"{where}.kind", ("dirichlet", "neumann", "robin", "radiation"))
     out = {"kind": kind, "tag": _tag(t["tag"], f"{where}.tag")}
-    if kind == "robin":
+    if kind != "radiation":
+        extra = sorted(set(t) & {"emissivity", "scale"})
+        if extra:
+            _fail(f"{where}.{extra[0]}", "applies to a radiation condition (kind = 'radiation')")
+    if kind == "radiation":
+        for key in ("emissivity", "ambient"):
+            if key not in t:
+                raise ProblemError(f"config {where} (radiation) needs keys 'emissivity' and 'ambient'")
+        extra = sorted(set(t) & {"value", "h"})
+        if extra:
+            _fail(f"{where}.{extra[0]}", "a radiation condition takes 'emissivity', 'ambient' and 'scale'")
+        out["emissivity"] = _formula(t["emissivity"], f"{where}.emissivity", lo=None)
+        if isinstance(out["emissivity"], float) and not 0 <= out["emissivity"] <= 1:
+            _fail(f"{where}.emissivity", f"must lie in [0, 1], got {show(t['emissivity'])}")
+        out["ambient"] = _formula(t["ambient"], f"{where}.ambient")
+        out["scale"] = _choice(t.get("scale", "K"), f"{where}.scale", ("K", "C"))
+    elif kind == "robin":
         for key in ("h", "ambient"):
             if key not in t:
                 raise ProblemError(f"config {where} (robin) needs keys 'h' and 'ambient'")

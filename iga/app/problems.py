@@ -19,6 +19,8 @@ def heat_problem(cfg: dict, ms, cls=HeatProblem, **extra):
             prob.dirichlet(bc["tag"], bc["value"])
         elif bc["kind"] == "neumann":
             prob.neumann(bc["tag"], bc["value"])
+        elif bc["kind"] == "radiation":
+            prob.radiation(bc["tag"], bc["emissivity"], bc["ambient"], bc["scale"])
         else:
             prob.robin(bc["tag"], bc["h"], bc["ambient"])
     return prob

@@ -148,7 +148,7 @@ def analyse_components(problem, constraints, faces_by_kind: dict, source_W: floa
 
 def check_components(comps: list[Component], has_source: bool) -> list[Component]:
     """Refuse floating components; warn about idle ones (module notes).  Returns the idle components."""
-    floating = [c for c in comps if not ({"dirichlet", "robin"} & set(c.conditions))]
+    floating = [c for c in comps if not ({"dirichlet", "robin", "radiation"} & set(c.conditions))]
     if floating:
         c = floating[0]
         touched = ", ".join(f"{k} on {show(t)}" for k, ts in c.conditions.items() for t in ts) or "no condition"

@@ -29,7 +29,7 @@ class SolveRecord:
     ``partition``: the MPI rank of every patch (``None`` in a serial solve); ``components`` and
     ``idle_components``: the coupled pieces (:mod:`iga.discretisation.components`); ``constraint_stats``:
     counts of the constraints and prescribed unknowns; ``reduced_dofs``: the unknowns solved for;
-    ``timings``: seconds per stage, the discretisation's and the solve's.
+    ``timings``: seconds per stage, the discretisation's and the solve's; ``newton``: Newton's residuals.
     """
 
     partition: np.ndarray | None = None
@@ -38,6 +38,8 @@ class SolveRecord:
     constraint_stats: dict = field(default_factory=dict)
     reduced_dofs: int = 0
     timings: dict = field(default_factory=dict)
+    #: the reduced residual norms of Newton's iterations (a nonlinear problem: radiation), else empty
+    newton: list = field(default_factory=list)
 
 
 class Problem:

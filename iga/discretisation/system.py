@@ -22,7 +22,7 @@ from iga.assembly import compiled as fast_assembly
 from iga.discretisation.constraints import induced_elimination, owners_of
 from iga.errors import ProblemError
 
-__all__ = ["eliminate", "solve_system", "SystemSolution", "reduction"]
+__all__ = ["eliminate", "solve_system", "SystemSolution", "reduction", "project_symmetric"]
 
 _IN_PLACE_NNZ = 1 << 22  # in-place Dirichlet elimination (numba) from this many matrix entries
 
@@ -69,6 +69,13 @@ class SystemSolution:
     #: the reduced unknowns' values on ``reaction_dofs`` (the supports' work is reaction . prescribed); None
     #: where a distributed solve does not gather them
     prescribed: np.ndarray | None = None
+
+
+def project_symmetric(A, Pf) -> sp.csr_matrix:
+    """Pf^T A Pf for a symmetric A, as CSR: (A Pf)^T Pf, whose CSC arrays are the result's CSR arrays (no
+    (nfree x ndof) intermediate Pf^T A and no format conversion)."""
+    C = (A @ Pf).T @ Pf
+    return sp.csr_matrix((C.data, C.indices, C.indptr), shape=C.shape)
 
 
 def reduction(constraints, dirichlet, ndof: int):
@@ -137,11 +144,7 @@ def solve_system(K, f, constraints, dirichlet, solver="auto", tol=1e-10, maxiter
         del K
     else:
         Pf, offset, reaction_dofs, induced = reduction(constraints, dirichlet, K.shape[0])
-        # K is symmetric: (K Pf)^T Pf = Pf^T K Pf, and the CSC arrays of that product are A's CSR arrays (no
-        # (nfree x ndof) intermediate Pf^T K and no format conversion of the result; 10-30% of this product)
-        C = (K @ Pf).T @ Pf
-        A = sp.csr_matrix((C.data, C.indices, C.indptr), shape=C.shape)
-        del C
+        A = project_symmetric(K, Pf)  # (10-30% faster than Pf^T K Pf)
         rhs = Pf.T @ (f - K @ offset)
     options = dict(options or {})
     for key in ("near_nullspace", "node_slots"):  # per reduced unknown (nred, ...): restricted to the free ones

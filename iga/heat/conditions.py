@@ -9,6 +9,7 @@ import numpy as np
 
 from geometry.errors import show
 
+from iga.errors import ProblemError
 from iga.heat.coefficients import ScalarField
 from iga.heat.forms import boundary_load, boundary_mass
 
@@ -19,10 +20,12 @@ __all__ = ["Condition", "face_terms", "face_values", "flat_values", "per_face"]
 class Condition:
     """One boundary condition: its kind, the tag (expression) of its faces, its value and film coefficient."""
 
-    kind: str  # "dirichlet", "neumann" or "robin"
+    kind: str  # "dirichlet", "neumann", "robin" or "radiation"
     tag: str
     value: ScalarField  # temperature, inward flux or ambient temperature
-    h: ScalarField | None = None  # film coefficient (Robin)
+    h: ScalarField | None = None  # film coefficient (Robin) or emissivity (radiation)
+    #: radiation: added to the problem's temperatures to make them absolute (273.15 for degrees Celsius)
+    offset: float = 0.0
     #: a value that changes in time, a callable of (x, t) (:class:`iga.heat.transient.TransientHeatProblem`);
     #: ``value`` then stands for it at no particular time
     timed: object = None
@@ -31,8 +34,9 @@ class Condition:
 def face_terms(problem, by_kind, patches=None):
     """The face forms of the conditions ``by_kind`` ({kind: {(patch, face): condition}}, as
     :meth:`iga.HeatProblem.faces_by_kind` gives them) of ``problem``: (load (ndof,): + int_F q v over
-    Neumann faces and + int_F h T_inf v over Robin faces; the Robin mass int_F h T v (CSR) or None; bookkeeping {"neumann": {face: q},
-    "robin": {face: (h, T_inf)}, "dirichlet": {face: (value, description)}} at the faces' Gauss points).
+    Neumann faces and + int_F h T_inf v over Robin faces; the Robin mass int_F h T v (CSR) or None;
+    bookkeeping {"neumann": {face: q}, "robin": {face: (h, T_inf)}, "radiation": {face: (emissivity,
+    T_amb, offset)}, "dirichlet": {face: (value, description)}} at the faces' Gauss points).
     ``patches``: only the Neumann and Robin faces of these patches (an MPI rank's)."""
     problem.faces([key for faces in by_kind.values() for key in faces])  # all at once: grouped by space
     neumann, robin = {}, {}
@@ -59,6 +63,20 @@ def face_terms(problem, by_kind, patches=None):
         f += boundary_load(fds, per_face(hA * T, fds), problem.ndof, patches)
         book["robin"].update(zip(keys, zip(per_face(h, fds), per_face(T, fds))))
     mass = boundary_mass(robin_fds, robin_h, problem.ndof, patches) if robin_fds else None
+    book["radiation"] = {}  # nonlinear: the emissivity and ambient at the Gauss points (iga.heat.radiation)
+    radiation: dict = {}
+    for key, c in by_kind.get("radiation", {}).items():
+        radiation.setdefault(c.tag, []).append(key)
+    for tag, keys in radiation.items():
+        c, fds = by_kind["radiation"][keys[0]], problem.faces(keys)
+        eps, T = flat_values(c.h, fds, tag), flat_values(c.value, fds, tag)
+        if np.any(eps < 0) or np.any(eps > 1):
+            raise ProblemError(f"the emissivity on {show(tag)} must lie in [0, 1], but reaches "
+                               f"{eps.min() if eps.min() < 0 else eps.max():g}")
+        if np.any(T + c.offset < 0):
+            raise ProblemError(f"the ambient temperature of the radiation on {show(tag)} is below absolute zero "
+                               f"({T.min() + c.offset:g} K); for degrees Celsius pass scale='C' to radiation()")
+        book["radiation"].update(zip(keys, zip(per_face(eps, fds), per_face(T, fds), [c.offset] * len(keys))))
     return f, mass, book
 
 

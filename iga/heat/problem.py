@@ -30,6 +30,7 @@ from iga.errors import ProblemError, SingularProblemError
 from iga.discretisation.faces import FaceData
 from iga.assembly.tensor import add_within
 from iga.heat.conditions import Condition, face_terms, face_values
+from iga.heat.radiation import RadiationFaces, solve_radiation
 from iga.model import tag_faces
 from iga.distributed.rank_setup import rank_setup
 from iga.tags import as_expression, condition_faces, mentions_rest
@@ -93,7 +94,8 @@ class HeatProblem(Problem):
     def _condition(self, kind, tag, value, h=None) -> "HeatProblem":
         tag = as_expression(tag)
         self.faces_of(tag, kind)
-        what = {"dirichlet": "Dirichlet value", "neumann": "Neumann flux", "robin": "ambient temperature"}[kind]
+        what = {"dirichlet": "Dirichlet value", "neumann": "Neumann flux", "robin": "ambient temperature",
+                "radiation": "radiation's ambient temperature"}[kind]
         field = ScalarField(value, f"{what} on {show(tag)}", model=self.model, channels=False)
         self.conditions.append(Condition(kind, tag, field, h))
         return self
@@ -105,6 +107,22 @@ class HeatProblem(Problem):
     def neumann(self, tag: str, flux) -> "HeatProblem":
         """Inward heat flux q (W/m^2; q > 0 heats the body) on the faces tagged ``tag``."""
         return self._condition("neumann", tag, flux)
+
+    def radiation(self, tag: str, emissivity, ambient, scale: str = "K") -> "HeatProblem":
+        """Radiation from the faces tagged ``tag`` to surroundings at ``ambient``: an outward flux
+        sigma eps (T^4 - T_amb^4) W/m^2 (Stefan-Boltzmann), with the emissivity eps in [0, 1] (a number or a
+        callable of x).  ``scale``: the problem's temperatures are in ``"K"`` or ``"C"`` (then 273.15 is
+        added before the fourth power).  Makes the problem nonlinear: :meth:`solve` runs Newton's method
+        (:mod:`iga.heat.radiation`) and reports its residuals in ``info["newton"]``.  A face may radiate and
+        convect (Robin) at once."""
+        if scale not in ("K", "C"):
+            raise ProblemError(f"scale must be 'K' or 'C' (the unit of the problem's temperatures), got {show(scale)}")
+        eps = ScalarField(emissivity, f"emissivity on {show(tag)}", model=self.model, channels=False)
+        if eps.constant is not None and not 0 <= eps.constant <= 1:
+            raise ProblemError(f"the emissivity on {show(tag)} must lie in [0, 1], got {show(emissivity)}")
+        self._condition("radiation", tag, ambient, eps)
+        self.conditions[-1].offset = 273.15 if scale == "C" else 0.0
+        return self
 
     def robin(self, tag: str, h, ambient) -> "HeatProblem":
         """Convection -k dT/dn = h (T - ambient) on ``tag``; h in W/(m^2 K), must be > 0."""
@@ -137,7 +155,7 @@ class HeatProblem(Problem):
 
     def faces_by_kind(self):
         """{kind: {(patch, face): condition}}; one condition per face and kind, and Dirichlet faces alone."""
-        out = {"dirichlet": {}, "neumann": {}, "robin": {}}
+        out = {"dirichlet": {}, "neumann": {}, "robin": {}, "radiation": {}}
         for c in self.conditions:
             for key in condition_faces(self.tag_faces(c.tag), c.tag):
                 other = out[c.kind].get(key)
@@ -146,11 +164,11 @@ class HeatProblem(Problem):
                         f"patch {key[0]} face {key[1]} has two {c.kind} conditions (tags {show(other.tag)} and "
                         f"{show(c.tag)}); give each face one condition of each kind")
                 out[c.kind][key] = c
-        clash = set(out["dirichlet"]) & (set(out["neumann"]) | set(out["robin"]))
+        clash = set(out["dirichlet"]) & (set(out["neumann"]) | set(out["robin"]) | set(out["radiation"]))
         if clash:
             key = sorted(clash)[0]
             d = out["dirichlet"][key]
-            o = out["neumann"].get(key) or out["robin"][key]
+            o = out["neumann"].get(key) or out["robin"].get(key) or out["radiation"][key]
             way = (f"e.g. {o.kind} on {show(f'{o.tag} - {d.tag}')} or on 'rest' (every free face no other condition "
                    "covers)") if o.tag != d.tag else "one tag cannot carry both"
             raise ProblemError(
@@ -206,10 +224,11 @@ class HeatProblem(Problem):
         if maxiter is not None:
             _count("maxiter", maxiter, 1)
         kinds = {c.kind for c in self.conditions}
-        if not ({"dirichlet", "robin"} & kinds):
+        if not ({"dirichlet", "robin", "radiation"} & kinds):
             raise SingularProblemError(
-                "the heat problem has no Dirichlet or Robin condition, so its temperature is only defined up to a "
-                "constant (the system is singular); add problem.dirichlet(tag, T) or problem.robin(tag, h, T_inf)"
+                "the heat problem has no Dirichlet, Robin or radiation condition, so its temperature is only defined "
+                "up to a constant (the system is singular); add problem.dirichlet(tag, T) or problem.robin(tag, h, "
+                "T_inf)"
             )
         world = distributed.world() if solver == "petsc" else None  # (comm, rank, size) under mpiexec
         record = SolveRecord(partition=distributed.partition(self, world[2]) if world else None)
@@ -233,7 +252,13 @@ class HeatProblem(Problem):
         record.timings["constraints"] = time.perf_counter() - t0
         t0, options = time.perf_counter(), solver_options(self, solver, constraints, dd, book)
         record.timings["solver_structure"] = time.perf_counter() - t0  # Kronecker factors, multigrid levels
-        if world:  # K handed over: the solve releases it once its reduced matrix is built
+        if book["radiation"]:
+            if world:
+                raise ProblemError("radiation is solved serially; drop solver='petsc' (or the radiation) under mpiexec")
+            res, record.newton = solve_radiation(self, K, f, constraints, dd, RadiationFaces.of(self, book), solver,
+                                                 tol, maxiter)
+            f = None  # the loads alone do not balance a radiating field (no energy identity)
+        elif world:  # K handed over: the solve releases it once its reduced matrix is built
             system, K, f = [K, f], None, None
             res = distributed.solve_system(system, constraints, dd, tol, maxiter, part, world[0], self.offsets,
                                            rc=rc)

@@ -9,6 +9,7 @@ import numpy as np
 from geometry import SplineFunction
 
 from iga.heat.coefficients import tensor_matrix, user_values
+from iga.heat.radiation import RadiationFaces
 from iga.errors import ProblemError
 from iga.discretisation.fields import field_spline, integrate_fields, physical_gradient
 from geometry.patches.chain import patch_geometry_points
@@ -68,6 +69,8 @@ class Solution:
             "balance": self.balance(),
             "components": _components_info(self.record),
         }
+        if self.record.newton:  # a nonlinear solve: Newton's reduced residual norms, iteration by iteration
+            self.info["newton"] = list(self.record.newton)
 
     def __repr__(self) -> str:
         b = self.info["balance"]
@@ -151,6 +154,10 @@ class Solution:
         for key, (h, Tinf) in book["robin"].items():
             fd = prob.face_data(*key)
             flows[key] = flows.get(key, 0.0) + float(np.sum(h * (fd.trace(self.u) - Tinf) * fd.dAw))
+        if book.get("radiation"):  # sigma eps (T^4 - T_amb^4), outward
+            faces = RadiationFaces.of(prob, book)
+            for key, flow in zip(book["radiation"], faces.flows(self.u)):
+                flows[key] = flows.get(key, 0.0) + flow
         dirichlet = {}
         if self._dirichlet_integrals:
             # split each prescribed unknown's reaction among the faces by their share of int N_i dA
@@ -240,7 +247,7 @@ class Solution:
         round-off numbers.
         """
         prob = self.problem
-        keys = [k for kind in ("neumann", "robin", "dirichlet") for k in self._book[kind]]
+        keys = [k for kind in ("neumann", "robin", "radiation", "dirichlet") for k in self._book.get(kind, {})]
         comm = self._comm()
         if comm is not None:  # the faces of this rank's patches; the figures are combined over the ranks
             mine = set(np.flatnonzero(self.record.partition == comm.Get_rank()).tolist())

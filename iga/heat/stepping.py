@@ -39,7 +39,7 @@ from solvers.prepared import factor_bytes
 from iga.discretisation.components import model_components
 from iga.discretisation.constraints import owners_of, prolongation
 from iga.discretisation.dirichlet import project_dirichlet
-from iga.discretisation.system import reduction
+from iga.discretisation.system import project_symmetric, reduction
 from iga.errors import ProblemError
 from iga.heat.coefficients import ScalarField, at_time
 
@@ -98,8 +98,8 @@ class TimeStepper:
         self._offset = None if p.changes_in_time else offset0
         self.dirichlet_data = dd
         Pf = self.Pf
-        self.Kr = _project(self.K, Pf)
-        self.Mr = _project(self.M, Pf)
+        self.Kr = project_symmetric(self.K, Pf)
+        self.Mr = project_symmetric(self.M, Pf)
         self._prepared: dict = {}
         self._mass = None
         self.record = StepRecord(method=method)
@@ -347,12 +347,6 @@ def _landing(t: float, h: float, t_end: float, span: float, adaptive: bool) -> t
     if rest < h:
         return rest, t_end
     return h, t + h
-
-
-def _project(A, Pf) -> sp.csr_matrix:
-    """Pf^T A Pf for a symmetric A, as CSR (the steady solve's product, :func:`iga.discretisation.system.solve_system`)."""
-    C = (A @ Pf).T @ Pf
-    return sp.csr_matrix((C.data, C.indices, C.indptr), shape=C.shape)
 
 
 class _Product:

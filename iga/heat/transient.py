@@ -95,6 +95,14 @@ class TransientHeatProblem(HeatProblem):
                                "change every step); give a number or a callable of x in W/(m^2 K)")
         return super().robin(tag, h, ambient)
 
+    def radiation(self, tag, emissivity, ambient, scale="K"):
+        """Not available in time: radiation makes every step nonlinear, and the transient solve steps the linear
+        problem only; refused (use :class:`iga.HeatProblem` for a steady radiating part, or a Robin condition
+        with the radiative film coefficient 4 sigma eps T^3 about the expected temperature)."""
+        raise ProblemError("radiation is not yet available in transient solves (each step would be nonlinear); "
+                           "solve the steady problem with HeatProblem(...).radiation(...), or approximate it by "
+                           "robin(tag, 4 * 5.67e-8 * eps * T**3, ambient) about the expected temperature T (K)")
+
     def conditions_at(self, t: float) -> dict:
         """The conditions by kind and face (as :meth:`iga.HeatProblem.faces_by_kind`) with the values of those
         that change in time taken at ``t`` (s)."""

@@ -106,6 +106,9 @@ def export_gismo(problem, path, strict: bool = False) -> Path:
     sides = [f for f in model.tags.get("boundary", []) if f[1] in FACE_NAMES]
     conditions, slot_conditions = [], []
     for j, c in enumerate(problem.conditions):
+        if c.kind not in _KINDS:  # radiation: G+Smo's XML boundary conditions are linear
+            raise ProblemError(f"the {c.kind} condition on {show(c.tag)} has no G+Smo XML form (its boundary "
+                               "conditions are Dirichlet, Neumann and Robin); export the problem without it")
         faces = problem.tag_faces(c.tag)
         expr = _expression(c.value, f"the {c.kind} value on {show(c.tag)}")
         coef = _expression(c.h, f"the film coefficient on {show(c.tag)}") if c.h is not None else None
