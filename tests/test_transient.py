@@ -247,3 +247,26 @@ def test_a_solve_stops_when_its_condition_holds():
     assert history.probe(np.array([[0.5, 0.1, 0.1]]))[-2, 0] >= 0.5
     with pytest.raises(ProblemError, match="until must be a callable"):
         problem.solve(1.0, 0.1, until=0.5)
+
+
+def test_the_thermal_stress_of_a_transient_state_at_a_chosen_time():
+    # an insulated block with a uniform source warms uniformly, T = 20 + f t / (rho c): held only against rigid
+    # motion it expands freely, u = alpha (T - 20) (x - x_A) about its pinned corner, and carries no stress
+    from iga import ElasticityProblem
+
+    block = pr.box((0.2, 0.1, 0.05), degrees=(2, 2, 1))
+    problem = TransientHeatProblem(block, conductivity=3.0, capacity=2e6, source=4e5).initial(20.0)
+    history = problem.solve(10.0, 2.5)
+    state = history.at(5.0)
+    assert np.allclose(state.probe(np.array([[0.1, 0.05, 0.02]])), 20.0 + 4e5 * 5.0 / 2e6, atol=1e-10)
+    alpha = 1.2e-5
+    s = ElasticityProblem(block, youngs=7e10, poisson=0.3).thermal(state, alpha, 20.0).hold_rigid().solve()
+    points = np.random.default_rng(4).uniform([0, 0, 0], [0.2, 0.1, 0.05], (10, 3))
+    u = s.displacement(points)
+    strain = alpha * 4e5 * 5.0 / 2e6
+    gradient = np.linalg.lstsq(np.c_[points, np.ones(10)], u, rcond=None)[0][:3]
+    assert np.abs(np.c_[points, np.ones(10)] @ np.linalg.lstsq(np.c_[points, np.ones(10)], u, rcond=None)[0]
+                  - u).max() < 1e-12  # affine
+    # its symmetric part is the free thermal strain (the skew part a rigid rotation the 3-2-1 pins leave)
+    assert np.allclose(0.5 * (gradient + gradient.T), strain * np.eye(3), atol=1e-12)
+    assert np.abs(s.von_mises(points)).max() < 1e-6 * 7e10 * strain
