@@ -73,9 +73,37 @@ def test_bad_radiation_input_is_refused_with_the_fix(call, match):
         call(problem)
 
 
-def test_a_transient_solve_refuses_radiation_instead_of_leaving_it_out():
-    with pytest.raises(ProblemError, match="not yet available in transient"):
-        TransientHeatProblem(pr.box()).radiation("umax", 0.5, 300.0)
+@pytest.mark.slow
+@pytest.mark.parametrize("method, order", [("bdf2", 2), ("backward-euler", 1)])
+def test_a_thin_plate_cools_by_radiation_as_the_lumped_closed_form(method, order):
+    # rho c L dT/dt = -sigma eps T^4 (conduction across the plate far faster: Biot number 2e-6), so
+    # T(t) = (T0^-3 + 3 sigma eps t / (rho c L))^(-1/3)
+    rc, thick, eps, T0, t_end = 2e6, 0.01, 0.8, 1000.0, 300.0
+    exact = (T0 ** -3 + 3 * SIGMA * eps * t_end / (rc * thick)) ** (-1 / 3)
+    errors = []
+    for dt in (20.0, 10.0, 5.0):
+        plate = pr.box((0.05, 0.05, thick), degrees=(1, 1, 1))
+        problem = TransientHeatProblem(plate, conductivity=1e6, capacity=rc).radiation("wmax", eps, 0.0)
+        history = problem.initial(T0).solve(t_end, dt, method=method)
+        errors.append(abs(history.probe(np.array([[0.02, 0.02, 0.005]]))[-1, 0] - exact))
+        assert history.record.newton and max(history.record.newton[-1:]) <= 1e-10
+        state = history.at(t_end)  # the radiated heat is the heat lost from store
+        assert state.flux("wmax") == pytest.approx(-state.stored_W, rel=1e-7)
+    rates = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
+    assert np.all(np.abs(rates - order) < 0.15), (errors, rates)
+
+
+@pytest.mark.slow
+def test_a_radiating_transient_settles_to_the_steady_radiating_state():
+    bar = pr.box((0.5, 0.1, 0.1), degrees=(2, 1, 1))
+    steady = HeatProblem(bar, conductivity=2.0).dirichlet("umin", 1000.0).radiation("umax", 0.9, 300.0).solve()
+    problem = TransientHeatProblem(steady.problem.model, conductivity=2.0, capacity=1e5)
+    problem.dirichlet("umin", 1000.0).radiation("umax", 0.9, lambda x, t: 300.0 + 0 * x[:, 0] + 0 * t)
+    history = problem.initial(300.0).solve(5e5, tol=1e-3)
+    assert np.abs(history.final.u - steady.u).max() < 1e-8 * 1000.0
+    assert history.final.balance()["relative_error"] < 1e-9
+    with pytest.raises(ProblemError, match="emissivity .* must not depend on time"):
+        problem.radiation("umax", lambda x, t: 0.5, 300.0)
 
 
 def test_a_pipeline_radiates_as_the_python_api_does_and_gismo_export_refuses_it(tmp_path):

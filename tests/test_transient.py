@@ -149,6 +149,7 @@ def test_states_between_kept_times_are_interpolated_and_outside_refused():
         history.at(0.2)
 
 
+@pytest.mark.slow
 def test_the_paraview_series_holds_the_kept_states(tmp_path):
     import meshio
     import pyvista as pv

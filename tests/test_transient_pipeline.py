@@ -31,6 +31,7 @@ def _bar_problem(ms):
     return problem.neumann("umin", Q).robin("umax", H, 0.0).initial(0.0)
 
 
+@pytest.mark.slow
 def test_a_pipeline_run_equals_the_python_api_and_writes_its_series(tmp_path):
     import pyvista as pv
 

@@ -42,6 +42,7 @@ from iga.discretisation.dirichlet import project_dirichlet
 from iga.discretisation.system import project_symmetric, reduction
 from iga.errors import ProblemError
 from iga.heat.coefficients import ScalarField, at_time
+from iga.heat.radiation import RadiationFaces
 
 __all__ = ["TimeStepper", "StepRecord"]
 
@@ -67,6 +68,8 @@ class StepRecord:
     iterations: int = 0
     solver: str = ""
     largest_estimate: float | None = None
+    #: Newton's relative residuals, iteration after iteration over the steps (radiating faces), else empty
+    newton: list = field(default_factory=list)
     #: the time at which the solve's ``until`` condition held and the run stopped, None if it ran to the end
     stopped: float | None = None
     timings: dict = field(default_factory=dict)
@@ -161,13 +164,22 @@ class TimeStepper:
             if len(self._prepared) >= 2:
                 self._prepared.pop(next(iter(self._prepared)))
             A = (cM * self.Mr + cK * self.Kr).tocsr()
-            method = self.solver
-            if method == "auto" and factor_bytes(A.shape[0]) > 0.25 * memory_limit():  # factors too large
-                method = "amg-cg"
-            self._prepared[key] = solvers.prepare(A, method, self.solver_tol)
+            self._prepared[key] = solvers.prepare(A, self._method(A), self.solver_tol)
             self.record.prepared += 1
             self.record.solver = self._prepared[key].name
         return self._prepared[key]
+
+    def _method(self, A) -> str:
+        """The solver of a step matrix: the one asked for; ``auto`` factorises where the factors fit a quarter
+        of the memory budget (:func:`solvers.prepared.factor_bytes`) and uses AMG-CG otherwise."""
+        if self.solver == "auto" and factor_bytes(A.shape[0]) > 0.25 * memory_limit():
+            return "amg-cg"
+        return self.solver
+
+    def radiated(self, u: np.ndarray, book) -> np.ndarray | float:
+        """F(u) (ndof,): the heat radiated away through each function at the time of ``book`` (0 without
+        radiation; :mod:`iga.heat.radiation`)."""
+        return RadiationFaces.of(self.problem, book).load(u, self.problem.ndof) if book["radiation"] else 0.0
 
     def step(self, h: float, t1: float, hist: list) -> tuple:
         """One step of size ``h`` to ``t1`` from ``hist`` (the last states, newest last: (t, u, v, x, h)):
@@ -185,21 +197,43 @@ class TimeStepper:
             rhs = f1 - M @ ((a1 * u0 + a2 * um1) / h)
         else:
             th = 0.5 if self.theta is None else self.theta
-            f0, _ = self.loads(t0)
+            f0, book0 = self.loads(t0)
             cM, cK = 1.0 / h, th
             rhs = M @ (u0 / h) + th * f1
             if th < 1:
-                rhs -= (1 - th) * (K @ u0 - f0)
-        rhs -= cM * (M @ g1) + cK * (K @ g1)
+                rhs -= (1 - th) * (K @ u0 - f0 + self.radiated(u0, book0))
         guess = x0 if len(hist) < 2 or hist[-2][3] is None else x0 + (x0 - hist[-2][3]) * (h / h0)
-        x1, info = self._solver(cM, cK)(self.Pf.T @ rhs, guess)
-        self.record.iterations += int(info.iterations)
+        if book1["radiation"]:  # cM M u1 + cK (K u1 + F(u1)) = rhs: Newton's method from the guess
+            x1 = self._newton(cM, cK, rhs, g1, book1, guess)
+        else:
+            x1, info = self._solver(cM, cK)(self.Pf.T @ (rhs - cM * (M @ g1) - cK * (K @ g1)), guess)
+            self.record.iterations += int(info.iterations)
         u1 = self.Pf @ x1 + g1
         if bdf2:
             v1 = (a0 * u1 + a1 * u0 + a2 * um1) / h
         else:
             v1 = ((u1 - u0) / h - (1 - th) * v0) / th
         return u1, v1, x1
+
+    def _newton(self, cM: float, cK: float, rhs: np.ndarray, g1: np.ndarray, book, x: np.ndarray) -> np.ndarray:
+        """The reduced unknowns of a radiating step, cM M u + cK (K u + F(u)) = rhs with u = Pf x + g1, by
+        Newton's method from ``x`` (the tangent of F, :meth:`iga.heat.radiation.RadiationFaces.tangent`, changes
+        every iteration, so its matrix is solved afresh); converged at ``solver_tol`` (at most 1e-11) of the right-hand side."""
+        faces, n, Pf = RadiationFaces.of(self.problem, book), self.problem.ndof, self.Pf
+        A = cM * self.M + cK * self.K
+        scale = max(float(np.linalg.norm(Pf.T @ rhs)), 1e-300)
+        for _ in range(50):
+            u = Pf @ x + g1
+            r = np.asarray(Pf.T @ (A @ u + cK * faces.load(u, n) - rhs))
+            self.record.newton.append(float(np.linalg.norm(r)) / scale)
+            if self.record.newton[-1] <= min(self.solver_tol, 1e-11):  # (the flows are small against rhs)
+                return x
+            J = (cM * self.Mr + cK * (self.Kr + project_symmetric(faces.tangent(u, n), Pf))).tocsr()
+            dx, info = solvers.prepare(J, self._method(J), self.solver_tol)(-r)
+            self.record.iterations += int(info.iterations)
+            x = x + dx
+        raise ProblemError(f"Newton's method for the radiation did not converge in a step (relative residuals "
+                           f"{[f'{v:.1e}' for v in self.record.newton[-4:]]}); take shorter steps (dt or tol)")
 
     def _estimate(self, hist: list) -> float | None:
         """The local error (K) of the newest step in ``hist``, or None before enough steps exist."""
@@ -307,7 +341,7 @@ class TimeStepper:
     def _initial_rate(self, t0, u0, f0, g0, h) -> np.ndarray:
         """du/dt at the start: M v0 = f0 - K u0 on the free unknowns, the Dirichlet values' rate (a difference
         over the first step) on the prescribed ones."""
-        rhs = f0 - self.K @ u0
+        rhs = f0 - self.K @ u0 - self.radiated(u0, self.loads(t0)[1])
         gdot = (self.offset(self.loads(t0 + h)[1]) - g0) / h if self.problem.changes_in_time else 0.0 * g0
         return self.Pf @ self._mass_solve(self.Pf.T @ (rhs - self.M @ gdot)) + gdot
 
@@ -325,7 +359,7 @@ class TimeStepper:
         """(reaction on the prescribed unknowns, their values or None, f (ndof,), bookkeeping) at a kept state:
         the consistent boundary flow ``P^T (M v + K u - f)`` that the steady solve reports as ``K u - f``."""
         f, book = self.loads(t)
-        r = self.P.T @ (self.M @ v + self.K @ u - f)
+        r = self.P.T @ (self.M @ v + self.K @ u - f + self.radiated(u, book))
         dofs = self.reaction_dofs
         if self.constraints is None:
             prescribed = u[dofs]

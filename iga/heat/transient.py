@@ -95,13 +95,13 @@ class TransientHeatProblem(HeatProblem):
                                "change every step); give a number or a callable of x in W/(m^2 K)")
         return super().robin(tag, h, ambient)
 
-    def radiation(self, tag, emissivity, ambient, scale="K"):
-        """Not available in time: radiation makes every step nonlinear, and the transient solve steps the linear
-        problem only; refused (use :class:`iga.HeatProblem` for a steady radiating part, or a Robin condition
-        with the radiative film coefficient 4 sigma eps T^3 about the expected temperature)."""
-        raise ProblemError("radiation is not yet available in transient solves (each step would be nonlinear); "
-                           "solve the steady problem with HeatProblem(...).radiation(...), or approximate it by "
-                           "robin(tag, 4 * 5.67e-8 * eps * T**3, ambient) about the expected temperature T (K)")
+    def radiation(self, tag: str, emissivity, ambient, scale: str = "K") -> "TransientHeatProblem":
+        """Radiation as :meth:`iga.HeatProblem.radiation` (the ambient may be a callable of (x, t), the
+        emissivity is constant in time); every step is then solved by Newton's method."""
+        if takes_time(emissivity):
+            raise ProblemError(f"the emissivity on {show(tag)} must not depend on time; give a number or a "
+                               "callable of x")
+        return super().radiation(tag, emissivity, ambient, scale)
 
     def conditions_at(self, t: float) -> dict:
         """The conditions by kind and face (as :meth:`iga.HeatProblem.faces_by_kind`) with the values of those
@@ -114,9 +114,9 @@ class TransientHeatProblem(HeatProblem):
                     continue
                 if id(c) not in now:  # one field per condition, shared by its faces
                     what = {"dirichlet": "Dirichlet value", "neumann": "Neumann flux",
-                            "robin": "ambient temperature"}[c.kind]
+                            "robin": "ambient temperature", "radiation": "radiation's ambient temperature"}[c.kind]
                     now[id(c)] = type(c)(c.kind, c.tag, at_time(c.timed, t, f"{what} on {show(c.tag)}",
-                                                                 channels=False), c.h)
+                                                                 channels=False), c.h, offset=c.offset)
                 faces[key] = now[id(c)]
         return by_kind
 

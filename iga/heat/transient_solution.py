@@ -122,7 +122,8 @@ class TransientSolution:
         record = SolveRecord(components=s.components, reduced_dofs=int(s.Pf.shape[1]),
                              constraint_stats=dict(s.constraints.stats) if s.constraints is not None else {},
                              timings={**self.problem.timings, **r.timings})
-        return TransientState(self.problem, u, book, s.reaction_dofs, reaction, integrals, info, f - Mv,
+        loads = None if book["radiation"] else f - Mv  # (a radiating field has no linear energy identity)
+        return TransientState(self.problem, u, book, s.reaction_dofs, reaction, integrals, info, loads,
                               prescribed, record, float(t), float(Mv.sum()))
 
     @property
