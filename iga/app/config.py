@@ -16,7 +16,8 @@ folder.  The schema (README, "Pipelines")::
     [[primitive]]  name, map, tile, counts, priority        (scheme "vrep")
     [second_level] tile, counts, degree, seal               (optional)
     [reduce]   degree, check                                (optional)
-    [material] conductivity = number | channel | {formula} | 6 channels | 3 x 3 matrix, source = number | formula,
+    [material] conductivity = number | channel | {formula} | 6 channels | 3 x 3 matrix | [[T, k], ...] table,
+               source = number | formula,
                capacity = number | channel | {formula}                      (transient-heat)
     [[bc]]     kind = "dirichlet" | "neumann" | "robin" | "radiation", tag, value | (h, ambient) |
                (emissivity, ambient, scale = "K" | "C"): numbers or formulas of x, y, z
@@ -99,6 +100,12 @@ def _conductivity(v, where):
         return list(v)
     if isinstance(v, list) and len(v) == 3 and all(isinstance(r, list) and len(r) == 3 for r in v):
         return [[_number(x, f"{where}[{i}][{j}]") for j, x in enumerate(r)] for i, r in enumerate(v)]
+    if isinstance(v, list) and len(v) >= 2 and all(isinstance(r, list) and len(r) == 2 for r in v):
+        # a table of (T, k) rows: the conductivity depends on the temperature (steady heat, by Newton)
+        rows = [[_number(x, f"{where}[{i}][{j}]") for j, x in enumerate(r)] for i, r in enumerate(v)]
+        if any(b[0] <= a[0] for a, b in zip(rows, rows[1:])) or any(r[1] <= 0 for r in rows):
+            _fail(where, "a table of [T, k] rows needs strictly increasing T and positive k")
+        return rows
     return _number(v, where, lo=0)
 
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 import inspect
 
 import numpy as np
+from scipy.interpolate import PchipInterpolator
 
 from geometry.numbers import is_real
 
@@ -160,6 +161,27 @@ class Conductivity:
         self.K6 = None  # constant tensor components (6,)
         self.channels = None  # six channel names
         self.callable = None
+        #: k(x (N, 3), T (N,)) -> (N,) where the conductivity depends on the temperature, else None
+        self.of_temperature = None
+        self.table = None  # (T, k) rows of a tabulated k(T)
+        if takes_time(spec):  # two arguments: k(x, T)
+            self.of_temperature = spec
+            return
+        table = _table(spec)
+        if table is not None:
+            self.table = table
+            pchip = PchipInterpolator(table[:, 0], table[:, 1])
+            lo, hi = table[0, 0], table[-1, 0]
+
+            def k_of_T(x, T, pchip=pchip):
+                if np.any(T < lo) or np.any(T > hi):
+                    bad = T[(T < lo) | (T > hi)][0]
+                    raise ProblemError(f"the temperature reaches {bad:g}, outside the conductivity table's range "
+                                       f"[{lo:g}, {hi:g}]; extend the table")
+                return pchip(T)
+
+            self.of_temperature = k_of_T
+            return
         if isinstance(spec, (list, tuple)) and len(spec) == 6 and all(isinstance(c, str) for c in spec):
             _check_channels(spec, model, "conductivity")
             self.tensor, self.channels = True, tuple(spec)
@@ -184,6 +206,24 @@ class Conductivity:
             return
         self.scalar = ScalarField(spec, "conductivity", positive=True, model=model)
 
+    def at_temperature(self, x: np.ndarray, T: np.ndarray, where: str, derivative: bool = False):
+        """k(x, T) (N,) of a temperature-dependent conductivity, checked positive and finite; with
+        ``derivative`` also dk/dT (N,): the table's interpolant's own, or a central difference of the callable
+        (step 1e-6 (|T| + 1))."""
+        k = _call_T(self.of_temperature, x, T, where)
+        if np.any(k <= 0):
+            i = int(np.argmin(k))
+            raise ProblemError(f"the conductivity k(T) is {k[i]:g} (not positive) at T = {T[i]:g}, x = "
+                               f"{np.round(x[i], 6).tolist()} on {where}: the temperatures reached leave the "
+                               "range where k(T) is positive")
+        if not derivative:
+            return k
+        if self.table is not None:
+            return k, PchipInterpolator(self.table[:, 0], self.table[:, 1]).derivative()(T)
+        step = 1e-6 * (np.abs(T) + 1.0)
+        up, down = _call_T(self.of_temperature, x, T + step, where), _call_T(self.of_temperature, x, T - step, where)
+        return k, (up - down) / (2 * step)
+
     @property
     def constant(self):
         """A number (isotropic) or the (6,) tensor components when constant, else None."""
@@ -191,9 +231,15 @@ class Conductivity:
             return self.K6
         return self.scalar.constant if self.scalar is not None else None
 
-    def values(self, x: np.ndarray, chans: dict, where: str) -> np.ndarray:
-        """Conductivity at points x (N, 3): (N,) isotropic, (N, 6) tensor components (xx, yy, zz, xy, xz, yz)."""
+    def values(self, x: np.ndarray, chans: dict, where: str, T: np.ndarray | None = None) -> np.ndarray:
+        """Conductivity at points x (N, 3): (N,) isotropic, (N, 6) tensor components (xx, yy, zz, xy, xz, yz);
+        ``T`` (N,): the temperature there, which a temperature-dependent conductivity needs."""
         n = len(x)
+        if self.of_temperature is not None:
+            if T is None:
+                raise ProblemError(f"the conductivity depends on the temperature, which is not known on {where} "
+                                   "here (a linear assembly or a quantity before the solve)")
+            return self.at_temperature(x, np.asarray(T, float), where)
         if self.scalar is not None:
             return self.scalar.values(x, chans, where)
         if self.K6 is not None:
@@ -231,3 +277,36 @@ def at_time(fn, t: float, what: str, model=None, positive: bool = False, channel
     """The scalar field x -> ``fn(x, t)`` at the time ``t`` (s), checked as any field (``what`` names it)."""
     return ScalarField(lambda x: fn(x, t), f"{what} at t = {t:g} s", positive=positive, model=model,
                        channels=channels)
+
+
+def _table(spec) -> np.ndarray | None:
+    """A conductivity table: rows (T, k) with increasing T and positive k, as an (n, 2) array; None when
+    ``spec`` is not a table of pairs (a 3 x 3 matrix or six channel names are not)."""
+    if isinstance(spec, (str, Expression)) or callable(spec) or is_number(spec):
+        return None
+    try:
+        a = np.asarray(spec, float)
+    except (TypeError, ValueError):
+        return None
+    if a.ndim != 2 or a.shape[1] != 2 or a.shape[0] < 2:
+        return None
+    if not np.all(np.isfinite(a)) or np.any(np.diff(a[:, 0]) <= 0) or np.any(a[:, 1] <= 0):
+        raise ProblemError(f"a conductivity table holds rows (T, k) with strictly increasing T and positive, "
+                           f"finite k; got {a.tolist()}")
+    return a
+
+
+def _call_T(fn, x, T, where) -> np.ndarray:
+    """k = fn(x, T) as an (N,) float array, the user's failure or shape named."""
+    try:
+        k = np.asarray(fn(x, T), float)
+    except ProblemError:
+        raise
+    except Exception as exc:  # the user's callable
+        raise ProblemError(f"the conductivity k(x, T) failed on {where}: {type(exc).__name__}: {exc}") from None
+    if k.shape == ():
+        k = np.full(len(x), float(k))
+    if k.shape != (len(x),) or not np.all(np.isfinite(k)):
+        raise ProblemError(f"the conductivity k(x, T) must return {len(x)} finite values on {where}, got shape "
+                           f"{k.shape}")
+    return k

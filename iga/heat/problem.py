@@ -31,6 +31,7 @@ from iga.discretisation.faces import FaceData
 from iga.assembly.tensor import add_within
 from iga.heat.conditions import Condition, face_terms, face_values
 from iga.heat.radiation import RadiationFaces, solve_radiation
+from iga.heat.nonlinear import solve_temperature_dependent
 from iga.model import tag_faces
 from iga.distributed.rank_setup import rank_setup
 from iga.tags import as_expression, condition_faces, mentions_rest
@@ -55,7 +56,9 @@ class HeatProblem(Problem):
         model such as ``tiling.Microstructure``
     conductivity : W/(m K): a number, a channel name, a callable ``k(x (N, 3)) -> (N,)``,
         a constant symmetric positive definite 3 x 3 matrix, six channel names
-        (xx, yy, zz, xy, xz, yz) or a callable returning (N, 3, 3); must be positive (definite)
+        (xx, yy, zz, xy, xz, yz) or a callable returning (N, 3, 3); must be positive (definite).
+        Temperature-dependent: a callable ``k(x, T)`` (T (N,) the temperature) or a table of rows
+        (T, k) (interpolated monotonically, PCHIP); the solve is then Newton's (:mod:`iga.heat.nonlinear`)
     source : W/m^3: a number, a channel name or a callable ``f(x) -> (N,)``
     degree_elevation, refine : applied to every patch's solution space
         (degree + ``degree_elevation``, an int or one per direction, then
@@ -230,6 +233,11 @@ class HeatProblem(Problem):
                 "up to a constant (the system is singular); add problem.dirichlet(tag, T) or problem.robin(tag, h, "
                 "T_inf)"
             )
+        if self.conductivity.of_temperature is not None:  # k(T): Newton on the unsymmetric tangent
+            if solver == "petsc":
+                raise ProblemError("a temperature-dependent conductivity is solved serially (Newton with a "
+                                   "sparse LU); drop solver='petsc'")
+            return solve_temperature_dependent(self, tol)
         world = distributed.world() if solver == "petsc" else None  # (comm, rank, size) under mpiexec
         record = SolveRecord(partition=distributed.partition(self, world[2]) if world else None)
         part = record.partition  # rank of each patch

@@ -121,14 +121,15 @@ class Solution:
         x, J, chans = patch_geometry_points(self.problem.model.patches[pi], params)
         return val, physical_gradient(J, dxi, f"patch {pi}", params), x, chans
 
-    def conductivity_at(self, x, chans, pi):
-        """Conductivity at points x (N, 3) of patch ``pi``: (N,) isotropic or (N, 6) tensor components."""
-        return self.problem.conductivity.values(x, chans, f"patch {pi}")
+    def conductivity_at(self, x, chans, pi, T=None):
+        """Conductivity at points x (N, 3) of patch ``pi``: (N,) isotropic or (N, 6) tensor components; ``T``
+        (N,) the temperature there (a temperature-dependent conductivity needs it)."""
+        return self.problem.conductivity.values(x, chans, f"patch {pi}", T)
 
     def heat_flux(self, pi: int, params) -> np.ndarray:
         """Heat flux vector q = -K grad T (W/m^2) at parameters of patch ``pi``, (N, 3)."""
-        _, grad, x, chans = self.evaluate(pi, params)
-        return flux_vector(self.conductivity_at(x, chans, pi), grad)
+        T, grad, x, chans = self.evaluate(pi, params)
+        return flux_vector(self.conductivity_at(x, chans, pi, T), grad)
 
     # ----------------------------------------------------------------- probes
     def locate(self, points, tol: float = 1e-10):
@@ -225,7 +226,7 @@ class Solution:
             return EnergyBalance(None, None, None)
 
         def density(x, T, g, at):
-            K = prob.conductivity.values(x, at.chans, f"patches {at.patches[0]}..{at.patches[-1]}")
+            K = prob.conductivity.values(x, at.chans, f"patches {at.patches[0]}..{at.patches[-1]}", T[:, 0])
             return -np.sum(flux_vector(K, g[:, 0]) * g[:, 0], axis=1)
 
         internal = integrate_fields(prob, lambda i: self.u[prob.offsets[i]:prob.offsets[i + 1]].reshape(

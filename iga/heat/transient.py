@@ -62,12 +62,13 @@ class TransientHeatProblem(HeatProblem):
 
     def __init__(self, model, conductivity=1.0, capacity=1.0, source=0.0, degree_elevation=0, refine: int = 0,
                  quadrature_extra: int = 0, degree=None, bases=None):
-        if takes_time(conductivity):
-            raise ProblemError("conductivity must not depend on time (got a callable of (x, t)); give a number, a "
-                               "channel, a callable of x or a tensor")
         timed = takes_time(source)
         super().__init__(model, conductivity, 0.0 if timed else source, degree_elevation, refine,
                          quadrature_extra, degree, bases)
+        if self.conductivity.of_temperature is not None:
+            raise ProblemError("a conductivity of (x, T) or a table of (T, k) is solved in steady problems only "
+                               "(HeatProblem); a transient solve needs a conductivity constant in time and "
+                               "temperature: a number, a channel, a callable of x or a tensor")
         if takes_time(capacity):
             raise ProblemError("capacity must not depend on time (got a callable of (x, t)); give a number, a "
                                "channel or a callable of x in J/(m^3 K)")

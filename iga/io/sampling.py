@@ -52,8 +52,9 @@ def _temperature_fields(prob, U, suffixes, members, pax, x, D, chans, out: dict)
 
     grad = _limits(grad, members, pax, grad_at, prob)
     flat = {ch: np.reshape(v, -1) for ch, v in chans.items()}
-    K = prob.conductivity.values(x.reshape(-1, 3), flat, f"patches {members[0]}..{members[-1]}")
-    for a, suffix in enumerate(suffixes):
+    where = f"patches {members[0]}..{members[-1]}"
+    for a, suffix in enumerate(suffixes):  # (a temperature-dependent conductivity: each field's own)
+        K = prob.conductivity.values(x.reshape(-1, 3), flat, where, T[:, a])
         flux = -K[:, None] * grad[:, a] if K.ndim == 1 else -np.einsum("nij,nj->ni", tensor_matrix(K), grad[:, a])
         out[f"temperature{suffix}"] = T[:, a].reshape(P, N)
         out[f"heat_flux{suffix}"] = flux.reshape(P, N, 3)
