@@ -3,7 +3,7 @@ tracked pictures; the benchmarks by themselves write theirs to ``benchmarks/out/
 
     python benchmarks/make_figures.py [--only NAME[,NAME...]]
 
-Runs the demo (both heat sinks and the circular sink's thermal stress) and the picture-producing
+Runs the demo (both heat sinks, the circular sink's thermal stress and its warm-up) and the picture-producing
 benchmarks with ``--figures``; each in its own process, one after another (minutes in all).
 """
 
@@ -21,10 +21,10 @@ BENCHMARKS = ("tile_gallery", "bifurcation", "capped_models", "random_tiling", "
               "sweeps", "trimmed_tiles", "fig4_knot")
 
 
-def _demo(variant: str, stress: bool, picture: str, source: str) -> None:
+def _demo(variant: str, option: str | None, picture: str, source: str) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         cmd = [sys.executable, "-m", "iga", "--quiet", "demo", "heat-sink", "--variant", variant, "--out", tmp]
-        subprocess.run(cmd + (["--stress"] if stress else []), check=True)
+        subprocess.run(cmd + ([option] if option else []), check=True)
         shutil.copyfile(Path(tmp) / source, DOCS / picture)
     print(f"docs/{picture}")
 
@@ -33,9 +33,11 @@ def main() -> int:
     only = None
     if "--only" in sys.argv:
         only = set(sys.argv[sys.argv.index("--only") + 1].split(","))
-    jobs = {"heat_sink_circular": lambda: _demo("circular", False, "heat_sink_circular.png", "heat_sink.png"),
-            "heat_sink_vertical": lambda: _demo("vertical", False, "heat_sink_vertical.png", "heat_sink.png"),
-            "heat_sink_stress": lambda: _demo("circular", True, "heat_sink_stress.png", "heat_sink_stress.png")}
+    jobs = {"heat_sink_circular": lambda: _demo("circular", None, "heat_sink_circular.png", "heat_sink.png"),
+            "heat_sink_vertical": lambda: _demo("vertical", None, "heat_sink_vertical.png", "heat_sink.png"),
+            "heat_sink_stress": lambda: _demo("circular", "--stress", "heat_sink_stress.png", "heat_sink_stress.png"),
+            "heat_sink_warm_up": lambda: _demo("circular", "--transient", "heat_sink_warm_up.png",
+                                               "heat_sink_history.png")}
     for name in BENCHMARKS:
         jobs[name] = lambda name=name: subprocess.run([sys.executable, str(HERE / f"{name}.py"), "--figures"],
                                                       check=True, cwd=HERE)

@@ -156,7 +156,8 @@ def _plot_history(history, ocfg: dict, path: Path, watch) -> Path:
                    label=f"{100 * (watch['target_C'] - watch['start_C']) / (watch['steady_C'] - watch['start_C']):.0f}"
                          f"% of the rise at {settle:.3g} {unit}")
     ax.set(xlabel=f"time ({unit})", ylabel="temperature (C)" if len(points) else "J",
-           title=f"{ocfg['name']}: {history.record.method}, {history.record.steps} steps")
+           title=f"{ocfg['name']}: {count(history.problem.ndof, 'unknown')}, {history.record.method} in "
+                 f"{count(history.record.steps, 'step')}")
     ax.legend()
     fig.tight_layout()
     return atomic_write(path, lambda tmp: fig.savefig(tmp, format="png", dpi=110), ".png", ProblemError)
