@@ -424,7 +424,7 @@ HEAT = [
     case("robin ambient nan", lambda t: HeatProblem(cube()).robin("umin", 5.0, float("nan")), ProblemError,
          r"ambient temperature on 'umin' .* got nan"),
     case("singular problem", lambda t: HeatProblem(cube()).neumann("umin", 1.0).solve(), SingularProblemError,
-         r"no Dirichlet or Robin condition"),
+         r"no Dirichlet, Robin or radiation condition"),
     case("unknown solver", lambda t: HeatProblem(cube()).dirichlet("umin", 0.0).solve(solver="gauss"), SolverError,
          r"unknown solver 'gauss'"),
     case("tol zero", lambda t: HeatProblem(cube()).dirichlet("umin", 0.0).solve(tol=0.0), ProblemError,

@@ -84,11 +84,29 @@ def test_bad_temperature_dependent_conductivities_are_refused(conductivity, matc
         _bar_solution(2, 4, conductivity)
 
 
+@pytest.mark.slow
+def test_a_transient_with_k_of_t_settles_on_the_steady_newton_state_and_converges_in_time():
+    bar = pr.box((LENGTH, 0.1, 0.1), degrees=(2, 1, 1), elements=(8, 1, 1))
+    k = lambda x, T: K0 * (1 + BETA * T)  # noqa: E731
+    steady = HeatProblem(bar, conductivity=k).dirichlet("umin", T_A).dirichlet("umax", T_B).solve()
+
+    def transient():
+        problem = TransientHeatProblem(steady.problem.model, conductivity=k, capacity=3.0)
+        problem.dirichlet("umin", T_A).dirichlet("umax", T_B)
+        return problem.initial(lambda x: T_A + (T_B - T_A) * x[:, 0] / LENGTH)  # meets the ends' values
+
+    history = transient().solve(20.0, tol=1e-3)
+    assert np.abs(history.final.u - steady.u).max() < 1e-8 * T_B
+    assert history.at(float(history.times[5])).balance()["relative_error"] < 1e-9 and history.record.newton
+    # order 2 in time (BDF2), against a reference of steps 4 times finer than the finest
+    middle = np.array([[0.5, 0.05, 0.05]])
+    reference = transient().solve(0.2, 0.2 / 128).probe(middle)[-1, 0]
+    errors = [abs(transient().solve(0.2, dt).probe(middle)[-1, 0] - reference) for dt in (0.2 / 8, 0.2 / 16, 0.2 / 32)]
+    rates = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
+    assert np.all(np.abs(rates - 2) < 0.3), (errors, rates)
+
+
 def test_where_k_of_t_is_not_available_it_is_refused():
-    with pytest.raises(ProblemError, match="steady"):
-        TransientHeatProblem(pr.box(), conductivity=lambda x, T: 1.0 + 0 * T)
-    with pytest.raises(ProblemError, match="steady"):
-        TransientHeatProblem(pr.box(), conductivity=[[0.0, 1.0], [100.0, 2.0]])
     with pytest.raises(ProblemError, match="NURBS basis"):
         HeatProblem(pr.annulus(0.5, 1.0, 0.3, np.pi / 2), conductivity=lambda x, T: 1.0 + 0 * T).dirichlet(
             "umin", 0.0).dirichlet("umax", 1.0).solve()

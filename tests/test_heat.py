@@ -184,7 +184,7 @@ def test_bad_input_raises_project_errors(tmp_path):
         HeatProblem(a, conductivity="k")
     with pytest.raises(ProblemError, match="conductivity must be positive"):
         HeatProblem(a, conductivity=lambda x: x[:, 2] - 0.5).dirichlet("vmin", 1.0).solve()
-    with pytest.raises(SingularProblemError, match="no Dirichlet or Robin"):
+    with pytest.raises(SingularProblemError, match="no Dirichlet, Robin or radiation"):
         HeatProblem(a).neumann("vmin", 1.0).solve()
     assert issubclass(SingularProblemError, solvers.SolverError) and issubclass(SingularProblemError, ProblemError)
     s = HeatProblem(a).dirichlet("vmin", 1.0).solve()

@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
 import solvers
 from geometry import progress
@@ -42,6 +43,7 @@ from iga.discretisation.dirichlet import project_dirichlet
 from iga.discretisation.system import project_symmetric, reduction
 from iga.errors import ProblemError
 from iga.heat.coefficients import ScalarField, at_time
+from iga.heat.nonlinear import tangent_forms
 from iga.heat.radiation import RadiationFaces
 
 __all__ = ["TimeStepper", "StepRecord"]
@@ -84,7 +86,15 @@ class TimeStepper:
         self.problem, self.method, self.theta = problem, method, theta
         self.solver, self.solver_tol = solver, solver_tol
         p = problem
-        self.K, f, book = p.assemble()
+        #: k(T): the diffusion form changes with the temperature (iga.heat.nonlinear); K holds the Robin mass only
+        self.k_of_T = p.conductivity.of_temperature is not None
+        if self.k_of_T:
+            f_vol, total = p.volume.load(p.source)
+            loads, robin, book = p.face_terms(p.faces_by_kind())
+            f, book["source"] = f_vol + loads, total
+            self.K = robin if robin is not None else sp.csr_matrix((p.ndof, p.ndof))
+        else:
+            self.K, f, book = p.assemble()
         self.M = p.volume.mass(p.capacity)
         self.constraints = prolongation(p.model, p.spaces, p.offsets, p.weights) if p._needs_constraints() else None
         self.P = sp.identity(p.ndof, format="csr") if self.constraints is None else self.constraints.P
@@ -176,10 +186,26 @@ class TimeStepper:
             return "amg-cg"
         return self.solver
 
-    def radiated(self, u: np.ndarray, book) -> np.ndarray | float:
-        """F(u) (ndof,): the heat radiated away through each function at the time of ``book`` (0 without
-        radiation; :mod:`iga.heat.radiation`)."""
-        return RadiationFaces.of(self.problem, book).load(u, self.problem.ndof) if book["radiation"] else 0.0
+    def operator(self, u: np.ndarray, book) -> np.ndarray:
+        """A(u) (ndof,) with M du/dt + A(u) = f: K u (diffusion and Robin), the diffusion with k at the
+        temperature u (k(T), :func:`iga.heat.nonlinear.tangent_forms`) and the heat radiated away at the time of
+        ``book`` (:mod:`iga.heat.radiation`)."""
+        out = self.K @ u
+        if self.k_of_T:
+            out = out + tangent_forms(self.problem, u, derivative=False)[0] @ u
+        if book["radiation"]:
+            out = out + RadiationFaces.of(self.problem, book).load(u, self.problem.ndof)
+        return out
+
+    def tangent(self, u: np.ndarray, book):
+        """dA/du (CSR): K, the k(T) diffusion and its first-order term, and the radiation's tangent."""
+        J = self.K
+        if self.k_of_T:
+            Kt, Ct = tangent_forms(self.problem, u)
+            J = J + Kt + Ct
+        if book["radiation"]:
+            J = J + RadiationFaces.of(self.problem, book).tangent(u, self.problem.ndof)
+        return J.tocsr()
 
     def step(self, h: float, t1: float, hist: list) -> tuple:
         """One step of size ``h`` to ``t1`` from ``hist`` (the last states, newest last: (t, u, v, x, h)):
@@ -201,9 +227,9 @@ class TimeStepper:
             cM, cK = 1.0 / h, th
             rhs = M @ (u0 / h) + th * f1
             if th < 1:
-                rhs -= (1 - th) * (K @ u0 - f0 + self.radiated(u0, book0))
+                rhs -= (1 - th) * (self.operator(u0, book0) - f0)
         guess = x0 if len(hist) < 2 or hist[-2][3] is None else x0 + (x0 - hist[-2][3]) * (h / h0)
-        if book1["radiation"]:  # cM M u1 + cK (K u1 + F(u1)) = rhs: Newton's method from the guess
+        if book1["radiation"] or self.k_of_T:  # cM M u1 + cK A(u1) = rhs: Newton's method from the guess
             x1 = self._newton(cM, cK, rhs, g1, book1, guess)
         else:
             x1, info = self._solver(cM, cK)(self.Pf.T @ (rhs - cM * (M @ g1) - cK * (K @ g1)), guess)
@@ -216,21 +242,24 @@ class TimeStepper:
         return u1, v1, x1
 
     def _newton(self, cM: float, cK: float, rhs: np.ndarray, g1: np.ndarray, book, x: np.ndarray) -> np.ndarray:
-        """The reduced unknowns of a radiating step, cM M u + cK (K u + F(u)) = rhs with u = Pf x + g1, by
-        Newton's method from ``x`` (the tangent of F, :meth:`iga.heat.radiation.RadiationFaces.tangent`, changes
-        every iteration, so its matrix is solved afresh); converged at ``solver_tol`` (at most 1e-11) of the right-hand side."""
-        faces, n, Pf = RadiationFaces.of(self.problem, book), self.problem.ndof, self.Pf
-        A = cM * self.M + cK * self.K
+        """The reduced unknowns of a nonlinear step, cM M u + cK A(u) = rhs with u = Pf x + g1, by Newton's
+        method from ``x``; the tangent (:meth:`tangent`) changes every iteration, so its matrix is solved
+        afresh: by the step's solver where it is symmetric (radiation), by a sparse LU where k(T) makes it
+        unsymmetric.  Converged at ``solver_tol`` (at most 1e-11) of the right-hand side."""
+        Pf = self.Pf
         scale = max(float(np.linalg.norm(Pf.T @ rhs)), 1e-300)
         for _ in range(50):
             u = Pf @ x + g1
-            r = np.asarray(Pf.T @ (A @ u + cK * faces.load(u, n) - rhs))
+            r = np.asarray(Pf.T @ (cM * (self.M @ u) + cK * self.operator(u, book) - rhs))
             self.record.newton.append(float(np.linalg.norm(r)) / scale)
             if self.record.newton[-1] <= min(self.solver_tol, 1e-11):  # (the flows are small against rhs)
                 return x
-            J = (cM * self.Mr + cK * (self.Kr + project_symmetric(faces.tangent(u, n), Pf))).tocsr()
-            dx, info = solvers.prepare(J, self._method(J), self.solver_tol)(-r)
-            self.record.iterations += int(info.iterations)
+            J = (Pf.T @ ((cM * self.M + cK * self.tangent(u, book)) @ Pf)).tocsr()
+            if self.k_of_T:
+                dx = spla.splu(J.tocsc()).solve(-r)
+            else:
+                dx, info = solvers.prepare(J, self._method(J), self.solver_tol)(-r)
+                self.record.iterations += int(info.iterations)
             x = x + dx
         raise ProblemError(f"Newton's method for the radiation did not converge in a step (relative residuals "
                            f"{[f'{v:.1e}' for v in self.record.newton[-4:]]}); take shorter steps (dt or tol)")
@@ -341,7 +370,7 @@ class TimeStepper:
     def _initial_rate(self, t0, u0, f0, g0, h) -> np.ndarray:
         """du/dt at the start: M v0 = f0 - K u0 on the free unknowns, the Dirichlet values' rate (a difference
         over the first step) on the prescribed ones."""
-        rhs = f0 - self.K @ u0 - self.radiated(u0, self.loads(t0)[1])
+        rhs = f0 - self.operator(u0, self.loads(t0)[1])
         gdot = (self.offset(self.loads(t0 + h)[1]) - g0) / h if self.problem.changes_in_time else 0.0 * g0
         return self.Pf @ self._mass_solve(self.Pf.T @ (rhs - self.M @ gdot)) + gdot
 
@@ -359,7 +388,7 @@ class TimeStepper:
         """(reaction on the prescribed unknowns, their values or None, f (ndof,), bookkeeping) at a kept state:
         the consistent boundary flow ``P^T (M v + K u - f)`` that the steady solve reports as ``K u - f``."""
         f, book = self.loads(t)
-        r = self.P.T @ (self.M @ v + self.K @ u - f + self.radiated(u, book))
+        r = self.P.T @ (self.M @ v + self.operator(u, book) - f)
         dofs = self.reaction_dofs
         if self.constraints is None:
             prescribed = u[dofs]

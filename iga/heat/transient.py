@@ -50,7 +50,8 @@ class TransientHeatProblem(HeatProblem):
     Parameters
     ----------
     model, conductivity, degree_elevation, refine, quadrature_extra, degree, bases : as :class:`iga.HeatProblem`
-        (the conductivity in W/(m K), constant in time)
+        (the conductivity in W/(m K), constant in time; a k(x, T) or a (T, k) table makes every step a
+        Newton solve)
     capacity : the volumetric heat capacity rho c in J/(m^3 K) (density times specific heat; steel about
         3.5e6, aluminium 2.4e6): a number, a channel name or a callable of x; must be positive
     source : W/m^3: a number, a channel name, a callable of x, or a callable of (x, t)
@@ -65,10 +66,7 @@ class TransientHeatProblem(HeatProblem):
         timed = takes_time(source)
         super().__init__(model, conductivity, 0.0 if timed else source, degree_elevation, refine,
                          quadrature_extra, degree, bases)
-        if self.conductivity.of_temperature is not None:
-            raise ProblemError("a conductivity of (x, T) or a table of (T, k) is solved in steady problems only "
-                               "(HeatProblem); a transient solve needs a conductivity constant in time and "
-                               "temperature: a number, a channel, a callable of x or a tensor")
+
         if takes_time(capacity):
             raise ProblemError("capacity must not depend on time (got a callable of (x, t)); give a number, a "
                                "channel or a callable of x in J/(m^3 K)")
