@@ -3,6 +3,8 @@ against closed forms (a thin plate radiating to 0 K; a bar held at one end, whos
 a scalar equation found independently by bracketing), quadratic convergence measured, temperatures in K and C,
 a radiating micro-structure's balance, and the refusals."""
 
+import json
+
 import numpy as np
 import pytest
 from scipy.optimize import brentq
@@ -127,3 +129,18 @@ def test_a_pipeline_radiates_as_the_python_api_does_and_gismo_export_refuses_it(
     problem = HeatProblem(pr.box()).dirichlet("umin", 300.0).radiation("umax", 0.5, 300.0)
     with pytest.raises(ProblemError, match="no G\\+Smo XML form"):
         export_gismo(problem, tmp_path / "p.xml")
+
+
+def test_iga_run_prints_the_newton_iterations_of_a_radiating_pipeline(tmp_path, capsys):
+    from iga.app.cli import main
+
+    (tmp_path / "bar.toml").write_text(
+        '[map]\nprimitive = "box"\nargs = {size = [0.5, 0.1, 0.1], degrees = [2, 1, 1]}\n[tile]\nlibrary = "cube"\n'
+        '[paving]\nscheme = "regular"\ncounts = [1, 1, 1]\n[material]\nconductivity = 2.0\n'
+        '[[bc]]\nkind = "dirichlet"\ntag = "umin"\nvalue = 1000.0\n'
+        '[[bc]]\nkind = "radiation"\ntag = "umax"\nemissivity = 0.9\nambient = 300.0\n'
+        '[output]\nvtu = false\npng = false\n')
+    assert main(["--quiet", "run", str(tmp_path / "bar.toml")]) == 0
+    out = capsys.readouterr().out
+    n = json.loads((tmp_path / "out" / "summary.json").read_text())["solver"]["newton_iterations"]
+    assert n >= 3 and f"Newton: {n} iterations" in out

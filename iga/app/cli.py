@@ -79,6 +79,12 @@ def _transient_lines(args, s: dict) -> int:
     return 0
 
 
+def _newton_note(s: dict) -> str:
+    """``; Newton: n iterations`` for a nonlinear run (radiation, k(T)), else nothing."""
+    n = (s.get("solver") or {}).get("newton_iterations")
+    return f"; Newton: {n} iterations" if n is not None else ""
+
+
 def _elastic_line(e: dict) -> str:
     return (f"elasticity: {e['dofs']} DOFs; largest displacement {e['max_displacement_m']:.3g} m, von Mises up to "
             f"{e['max_von_mises_Pa']:.3g} Pa; work balance error {e['work']['relative_error']:.1e}")
@@ -109,7 +115,7 @@ def _cmd_run(args) -> int:
     if "temperature_C" in s:
         t = s["temperature_C"]
         print(f"{_plural(s['tiles'], 'tile')}, {s['dofs']} DOFs; temperature {t['min']:.3f} .. {t['max']:.3f}; "
-              f"balance error {s['energy_balance_error']:.1e}; {where}")
+              f"balance error {s['energy_balance_error']:.1e}{_newton_note(s)}; {where}")
     if "elasticity" in s:
         print(f"{_plural(s['tiles'], 'tile')}, {_elastic_line(s['elasticity'])}; {where}")
     if "temperature_C" not in s and "elasticity" not in s:  # a model without analysis (physics.kind = 'none')
