@@ -48,3 +48,29 @@ def test_heat_and_elasticity_refuse_a_tag_without_faces_in_the_same_words():
         except ProblemError as exc:
             messages.append(str(exc))
     assert len(messages) == 2 and messages[0] == messages[1]
+
+
+def test_solution_info_is_typed_and_reads_as_the_dictionaries_did():
+    import json
+
+    from iga import ElasticityProblem
+    from iga.discretisation.records import ElasticInfo, HeatBalance, SolutionInfo
+    from solvers import SolveInfo
+
+    box = pr.box(degrees=(2, 2, 2))
+    heat = HeatProblem(box, conductivity=3.0).dirichlet("umin", 0.0).dirichlet("umax", 1.0).solve()
+    info = heat.info
+    assert isinstance(info, SolutionInfo) and isinstance(info.balance, HeatBalance)
+    assert isinstance(info.solver, SolveInfo) and info.solver.method == info["solver"]["method"]
+    assert info.balance.inflow_W == info["balance"]["inflow_W"] == pytest.approx(3.0, rel=1e-12)
+    assert set(info) == {"dofs", "free_dofs", "constraints", "patches", "solver", "timings", "balance",
+                         "components", "newton"} and info.newton == []
+    assert json.loads(json.dumps(info.as_dict()))["balance"]["inflow_W"] == info.balance.inflow_W
+    with pytest.raises(KeyError):
+        info["no such field"]
+    with pytest.raises(AttributeError):
+        info.dofs = 1  # frozen: a solution's record is not edited afterwards
+    elastic = ElasticityProblem(box, youngs=1.0, poisson=0.3).dirichlet("umin", 0.0).traction(
+        "umax", [1.0, 0.0, 0.0]).solve()
+    assert isinstance(elastic.info, ElasticInfo) and elastic.info.work.strain_energy_J > 0
+    assert elastic.info["work"]["strain_energy_J"] == elastic.info.work.strain_energy_J

@@ -212,8 +212,6 @@ def test_bad_materials_and_a_missing_start_are_refused():
             0.0).solve(1.0, 0.5)
     with pytest.raises(ProblemError, match="capacity must not depend on time"):
         TransientHeatProblem(pr.box(), capacity=lambda x, t: 1.0)
-    with pytest.raises(ProblemError, match="steady problems only"):
-        TransientHeatProblem(pr.box(), conductivity=lambda x, t: 1.0)
     with pytest.raises(ProblemError, match="no initial temperature"):
         TransientHeatProblem(pr.box()).dirichlet("umin", 0.0).solve(1.0, 0.5)
     with pytest.raises(ProblemError, match="source at t = 0.5"):

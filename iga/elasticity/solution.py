@@ -13,6 +13,7 @@ from iga.discretisation.problem import SolveRecord
 from iga.discretisation.fields import integrate_fields
 from iga.discretisation.locate import Locator
 from iga.discretisation.fields import field_spline, physical_gradient
+from iga.discretisation.records import ElasticInfo, WorkBalance
 from iga.heat.solution import EnergyBalance, check_reference, reference_values
 
 __all__ = ["ElasticSolution"]
@@ -44,18 +45,13 @@ class ElasticSolution:
         self._f = f
         self._reaction, self._prescribed = res.reaction, res.prescribed
         balance, energy = self._work_and_energy()
-        self.info = {
-            "dofs": 3 * problem.ndof,
-            "free_dofs": int(self.record.reduced_dofs),
-            "constraints": dict(self.record.constraint_stats),
-            "patches": len(problem.model.patches),
-            "solver": res.info.as_dict(),
-            "timings": dict(self.record.timings),
-            "work": {"external_J": balance.external, "internal_J": balance.internal, "strain_energy_J": energy,
-                     "relative_error": balance.relative_error, "thermal": problem.thermal_strain is not None},
-            "applied_N": {tag: v.tolist() for tag, v in applied.items()},
-            "body_force_N": work["body"].tolist(),
-        }
+        self.info = ElasticInfo(
+            dofs=3 * problem.ndof, free_dofs=int(self.record.reduced_dofs),
+            constraints=dict(self.record.constraint_stats), patches=len(problem.model.patches), solver=res.info,
+            timings=dict(self.record.timings),
+            work=WorkBalance(balance.external, balance.internal, energy, balance.relative_error,
+                             problem.thermal_strain is not None),
+            applied_N={tag: v.tolist() for tag, v in applied.items()}, body_force_N=work["body"].tolist())
 
     def __repr__(self) -> str:
         return (f"ElasticSolution({self.info['patches']} patches, {self.info['dofs']} DOFs, {self.info['free_dofs']} "

@@ -16,6 +16,7 @@ from geometry.patches.chain import patch_geometry_points
 from geometry.patches.sampling import sample_axes
 from iga.discretisation.locate import Locator
 from iga.discretisation.problem import SolveRecord
+from iga.discretisation.records import HeatBalance, SolutionInfo
 
 
 @dataclass(frozen=True)
@@ -38,8 +39,8 @@ class Solution:
     Attributes
     ----------
     u : (ndof,) all coefficients (patch blocks in order)
-    info : dict with DOF counts, solver diagnostics (method, iterations,
-        residual), timings (s) and the energy balance
+    info : :class:`iga.discretisation.records.SolutionInfo`: DOF counts, the solver's report (method,
+        iterations, residual), timings (s), the energy balance; read by attribute or by key
     """
 
     def __init__(self, problem, u, book, dirichlet_dofs, reaction, dirichlet_integrals, solver_info, loads=None,
@@ -59,18 +60,11 @@ class Solution:
         # both combine figures across the ranks of a distributed solve: computed once, here, by every rank
         self.face_flows = self._face_flows()
         self._scale = self._flow_scale()
-        self.info = {
-            "dofs": problem.ndof,
-            "free_dofs": int(self.record.reduced_dofs),
-            "constraints": dict(self.record.constraint_stats),
-            "patches": len(problem.model.patches),
-            "solver": solver_info.as_dict(),
-            "timings": dict(self.record.timings),
-            "balance": self.balance(),
-            "components": _components_info(self.record),
-        }
-        if self.record.newton:  # a nonlinear solve: Newton's reduced residual norms, iteration by iteration
-            self.info["newton"] = list(self.record.newton)
+        self.info = SolutionInfo(
+            dofs=problem.ndof, free_dofs=int(self.record.reduced_dofs),
+            constraints=dict(self.record.constraint_stats), patches=len(problem.model.patches),
+            solver=solver_info, timings=dict(self.record.timings), balance=self.balance(),
+            components=_components_info(self.record), newton=list(self.record.newton))
 
     def __repr__(self) -> str:
         b = self.info["balance"]
@@ -198,15 +192,15 @@ class Solution:
         faces = set(self.problem.tag_faces(tag))
         return float(sum(self.face_flows.get(f, 0.0) for f in faces))
 
-    def balance(self) -> dict:
-        """Global energy balance: inflow + sources = outflow (W), and the relative error."""
+    def balance(self) -> HeatBalance:
+        """Global energy balance: inflow + sources = outflow (W), and the relative error
+        (:class:`iga.discretisation.records.HeatBalance`; read by attribute or by key)."""
         flows = np.array(list(self.face_flows.values())) if self.face_flows else np.zeros(0)
         src = self._book["source"]
         inflow = float(-flows[flows < 0].sum()) + max(src, 0.0)
         outflow = float(flows[flows > 0].sum()) + max(-src, 0.0)
         scale = max(inflow, outflow, abs(src), self._scale, 1e-300)
-        return {"inflow_W": inflow, "outflow_W": outflow, "source_W": src,
-                "relative_error": abs(inflow - outflow) / scale, "reference_flow_W": scale}
+        return HeatBalance(inflow, outflow, src, abs(inflow - outflow) / scale, scale)
 
     def energy_balance(self) -> "EnergyBalance":
         """The energy identity a(T, T) = l(T) + r . T_D, its two sides computed independently.

@@ -10,6 +10,7 @@ residual ``M du/dt + K u - f`` and the balance counts the heat stored, ``int rho
 from __future__ import annotations
 
 import shutil
+from dataclasses import replace
 import tempfile
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
@@ -25,6 +26,7 @@ from solvers.info import SolveInfo
 
 from iga.discretisation.locate import Locator
 from iga.discretisation.problem import SolveRecord
+from iga.discretisation.records import HeatBalance
 from iga.errors import ProblemError
 from iga.discretisation.fields import evaluation_matrix
 from iga.heat.solution import Solution
@@ -51,14 +53,14 @@ class TransientState(Solution):
                 f"inflow {b['inflow_W']:.4g} W, stored {self.stored_W:.4g} W, balance error "
                 f"{b['relative_error']:.1e})")
 
-    def balance(self) -> dict:
+    def balance(self) -> HeatBalance:
         """Energy balance at this time (W): ``inflow_W`` (through faces, and a positive source) = ``outflow_W``
         (through faces, and a negative source) + ``stored_W`` (the heat stored per second), and the relative
         error of that identity (against the larger of the flows and the model's reference flow)."""
         b = super().balance()
         stored = self.stored_W
-        scale = max(b["inflow_W"], b["outflow_W"], abs(stored), b["reference_flow_W"], 1e-300)
-        return {**b, "stored_W": stored, "relative_error": abs(b["inflow_W"] - b["outflow_W"] - stored) / scale}
+        scale = max(b.inflow_W, b.outflow_W, abs(stored), b.reference_flow_W, 1e-300)
+        return replace(b, stored_W=stored, relative_error=abs(b.inflow_W - b.outflow_W - stored) / scale)
 
 
 class TransientSolution:
