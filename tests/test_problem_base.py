@@ -54,7 +54,7 @@ def test_solution_info_is_typed_and_reads_as_the_dictionaries_did():
     import json
 
     from iga import ElasticityProblem
-    from iga.discretisation.records import ElasticInfo, HeatBalance, SolutionInfo
+    from iga.discretisation.problem import ElasticInfo, HeatBalance, SolutionInfo
     from solvers import SolveInfo
 
     box = pr.box(degrees=(2, 2, 2))

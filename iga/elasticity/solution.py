@@ -13,7 +13,7 @@ from iga.discretisation.problem import SolveRecord
 from iga.discretisation.fields import integrate_fields
 from iga.discretisation.locate import Locator
 from iga.discretisation.fields import field_spline, physical_gradient
-from iga.discretisation.records import ElasticInfo, WorkBalance
+from iga.discretisation.problem import ElasticInfo, WorkBalance
 from iga.heat.solution import EnergyBalance, check_reference, reference_values
 
 __all__ = ["ElasticSolution"]

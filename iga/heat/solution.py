@@ -16,7 +16,7 @@ from geometry.patches.chain import patch_geometry_points
 from geometry.patches.sampling import sample_axes
 from iga.discretisation.locate import Locator
 from iga.discretisation.problem import SolveRecord
-from iga.discretisation.records import HeatBalance, SolutionInfo
+from iga.discretisation.problem import HeatBalance, SolutionInfo
 
 
 @dataclass(frozen=True)
@@ -39,7 +39,7 @@ class Solution:
     Attributes
     ----------
     u : (ndof,) all coefficients (patch blocks in order)
-    info : :class:`iga.discretisation.records.SolutionInfo`: DOF counts, the solver's report (method,
+    info : :class:`iga.discretisation.problem.SolutionInfo`: DOF counts, the solver's report (method,
         iterations, residual), timings (s), the energy balance; read by attribute or by key
     """
 
@@ -194,7 +194,7 @@ class Solution:
 
     def balance(self) -> HeatBalance:
         """Global energy balance: inflow + sources = outflow (W), and the relative error
-        (:class:`iga.discretisation.records.HeatBalance`; read by attribute or by key)."""
+        (:class:`iga.discretisation.problem.HeatBalance`; read by attribute or by key)."""
         flows = np.array(list(self.face_flows.values())) if self.face_flows else np.zeros(0)
         src = self._book["source"]
         inflow = float(-flows[flows < 0].sum()) + max(src, 0.0)

@@ -26,7 +26,7 @@ from solvers.info import SolveInfo
 
 from iga.discretisation.locate import Locator
 from iga.discretisation.problem import SolveRecord
-from iga.discretisation.records import HeatBalance
+from iga.discretisation.problem import HeatBalance
 from iga.errors import ProblemError
 from iga.discretisation.fields import evaluation_matrix
 from iga.heat.solution import Solution
