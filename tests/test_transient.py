@@ -188,6 +188,7 @@ def test_the_paraview_series_holds_the_kept_states(tmp_path):
     (lambda p: p.solve(-1.0, 0.1), "t_end must be a time after the start"),
     (lambda p: p.solve(float("nan"), 0.1), "t_end must be a time after the start"),
     (lambda p: p.solve(1.0), "give the step dt"),
+    (lambda p: p.solve(), "give the end time"),
     (lambda p: p.solve(1.0, 0.1, method="rk4"), "unknown time scheme"),
     (lambda p: p.solve(1.0, 0.1, method="theta", theta=0.3), "theta in"),
     (lambda p: p.solve(1.0, 0.1, tol=-1.0), "tol must be a positive"),

@@ -345,6 +345,8 @@ class TimeStepper:
             kept.append(hist[-1][:3])
         self.record.steps = n
         self.record.timings["steps"] = time.perf_counter() - t_start
+        self._prepared.clear()  # the factors are not kept with the result (1.7 GB at 349k unknowns)
+        self._mass = None
         return TransientSolution(self, kept)
 
     def _shorter(self, h: float, est: float, tol: float, t: float, span: float, max_steps: int) -> float:

@@ -66,7 +66,6 @@ class TransientHeatProblem(HeatProblem):
         timed = takes_time(source)
         super().__init__(model, conductivity, 0.0 if timed else source, degree_elevation, refine,
                          quadrature_extra, degree, bases)
-
         if takes_time(capacity):
             raise ProblemError("capacity must not depend on time (got a callable of (x, t)); give a number, a "
                                "channel or a callable of x in J/(m^3 K)")
@@ -152,7 +151,7 @@ class TransientHeatProblem(HeatProblem):
         return self
 
     # ------------------------------------------------------------------ solve
-    def solve(self, t_end: float, dt: float | None = None, method: str = "bdf2", tol: float | None = None,
+    def solve(self, t_end: float | None = None, dt: float | None = None, method: str = "bdf2", tol: float | None = None,
               theta: float | None = None, solver: str = "auto", solver_tol: float = 1e-10, keep: int = 1,
               max_steps: int = 100_000, until=None):
         """Step from the initial state to ``t_end`` (s); returns a
@@ -173,6 +172,9 @@ class TransientHeatProblem(HeatProblem):
             raise ProblemError("the transient problem has no initial temperature; call problem.initial(T0) (a "
                                "number, a callable of x or a steady Solution) before solve")
         t0 = self.start[0]
+        if t_end is None:
+            raise ProblemError("give the end time t_end (s) of the transient solve (a steady state is "
+                               "HeatProblem(...).solve(), or t_end with until= to stop when it is reached)")
         if not (is_number(t_end) and np.isfinite(t_end)) or t_end <= t0:
             raise ProblemError(f"t_end must be a time after the start ({t0:g} s), got {show(t_end)}")
         if dt is not None and not (is_number(dt) and np.isfinite(dt) and dt > 0):

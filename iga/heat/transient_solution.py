@@ -25,8 +25,7 @@ from geometry.resources import check_memory
 from solvers.info import SolveInfo
 
 from iga.discretisation.locate import Locator
-from iga.discretisation.problem import SolveRecord
-from iga.discretisation.problem import HeatBalance
+from iga.discretisation.problem import HeatBalance, SolveRecord
 from iga.errors import ProblemError
 from iga.discretisation.fields import evaluation_matrix
 from iga.heat.solution import Solution
