@@ -3,6 +3,9 @@
 ``isinstance(v, (int, float))`` refuses NumPy's scalars (``np.int64(1)`` as a radius: "must be a positive
 length, got 1") and takes ``True`` as 1 (a bool is an int); the checks of the toolkit ask these helpers
 instead, so a value is judged by what it is, whichever library made it.
+
+:data:`TINY` is the one floor of a scale that is divided by: ``x / max(scale, TINY)`` where the scale may be
+exactly zero (nothing flows, nothing moves), so the ratio stays finite and 0 / 0 reads as 0.
 """
 
 from __future__ import annotations
@@ -11,7 +14,10 @@ from numbers import Integral, Real
 
 import numpy as np
 
-__all__ = ["is_real", "is_integer", "is_flag"]
+__all__ = ["is_real", "is_integer", "is_flag", "TINY"]
+
+#: the floor of a divisor that may be exactly zero (the smallest normal double is 2.2e-308)
+TINY = 1e-300
 
 
 def is_real(v) -> bool:

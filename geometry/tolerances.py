@@ -18,6 +18,7 @@ are not modelling accuracies.
 from __future__ import annotations
 
 import numpy as np
+from geometry.numbers import TINY
 
 __all__ = ["COINCIDENT", "INTERFACE", "CONTACT", "ON_DOMAIN", "SAME_KNOT", "SAME_SAMPLE", "SNAP", "ROUNDOFF",
            "RANK", "CONSISTENT", "SINGULAR", "same_knots", "same_space", "model_size"]
@@ -76,7 +77,7 @@ def model_size(points) -> float:
     if not len(pts):
         return 1.0
     extent = float(np.ptp(pts, axis=0).max())
-    return max(extent, 1e-6 * float(np.abs(pts).max()), 1e-300)
+    return max(extent, 1e-6 * float(np.abs(pts).max()), TINY)
 
 
 def same_knots(U, V) -> bool:

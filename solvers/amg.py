@@ -54,7 +54,7 @@ import scipy.sparse.linalg as spla
 from . import clusters
 from .errors import SolverError
 from .indexing import complement
-from geometry.numbers import is_real
+from geometry.numbers import TINY, is_real
 
 
 def _near_nullspace(near_nullspace, n: int) -> np.ndarray:
@@ -106,7 +106,7 @@ def spectral_radius(A, steps: int = 15) -> float:
         w -= alpha * v
         alphas.append(alpha)
         beta = float(np.linalg.norm(w))
-        if beta <= 1e-12 * max(abs(alpha), 1e-300):  # Lanczos breakdown: an invariant subspace
+        if beta <= 1e-12 * max(abs(alpha), TINY):  # Lanczos breakdown: an invariant subspace
             break
         betas.append(beta)
         v_prev, v = v, w / beta

@@ -1,6 +1,7 @@
 """The shape of the code base: module sizes, one-way imports between packages, no import cycles inside one."""
 
 import ast
+import re
 from pathlib import Path
 
 import pytest
@@ -248,3 +249,11 @@ def test_a_package_folder_holds_at_most_fifteen_modules_at_its_top(pkg):
     for folder in [ROOT / pkg] + [d for d in (ROOT / pkg).rglob("*") if d.is_dir() and (d / "__init__.py").exists()]:
         mods = [p.name for p in folder.glob("*.py") if p.name != "__init__.py"]
         assert len(mods) <= MODULES_AT_TOP, f"{folder.relative_to(ROOT)} has {len(mods)} modules: {sorted(mods)}"
+
+
+def test_a_zero_divisor_is_guarded_by_the_one_named_floor():
+    """``max(scale, TINY)`` (geometry.numbers.TINY), not a literal 1e-300 repeated across the library."""
+    found = [f"{path.relative_to(ROOT)}:{i}" for pkg in PACKAGES for path in _modules(pkg)
+             if path.name != "numbers.py"
+             for i, line in enumerate(path.read_text().splitlines(), 1) if re.search(r"(?<![\w.])1e-300\b", line)]
+    assert not found, f"literal 1e-300 guards (use geometry.numbers.TINY): {found}"

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from geometry.numbers import TINY
 from geometry import BSpline, TrimmedSurface
 from geometry.errors import SplineError, show
 from geometry.faces import FACE_AXIS, FACE_NAMES
@@ -171,7 +172,7 @@ class Tile:
         o1, a1, b1, n1 = _face_frame(self, bf, what)
         n0 = -n0  # the branch-in face's inward direction is where the tile grows
         h_in = 1.0  # tile height along the growth direction (unit cube)
-        ratio = np.sqrt(np.linalg.norm(np.cross(a1, b1)) / max(np.linalg.norm(np.cross(a0, b0)), 1e-300))
+        ratio = np.sqrt(np.linalg.norm(np.cross(a1, b1)) / max(np.linalg.norm(np.cross(a0, b0)), TINY))
         height = (self.scale if self.scale is not None else ratio) * h_in
         S = np.column_stack([a0, b0, n0 * h_in])
         T = np.column_stack([a1, b1, n1 * height])

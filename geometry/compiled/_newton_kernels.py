@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from geometry.numbers import TINY
 from geometry.compiled._fast_kernels import span_basis, span_basis_d1, find_span
 
 
@@ -101,7 +102,7 @@ def _gauss_newton_step(J, r, t, lo, hi, d, projected, roundoff, A, Af, g, step):
                 s += J[c, i] * J[c, k]
             A[i, k] = s
         trace += A[i, i]
-    reg = roundoff * (trace + 1e-300)
+    reg = roundoff * (trace + TINY)
     for i in range(d):
         A[i, i] += reg
     for i in range(d):

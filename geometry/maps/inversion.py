@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from geometry.numbers import TINY
 from geometry.cache import PerObject
 from scipy.spatial import cKDTree
 
@@ -157,7 +158,7 @@ def _gauss_newton_step(J: np.ndarray, r: np.ndarray, t: np.ndarray, domain: np.n
     A = JT @ J
     g = (JT @ r[:, :, None])[:, :, 0]
     # a rank-deficient normal matrix (degenerate point) gets a tiny regularisation instead of a LinAlgError
-    reg = ROUNDOFF * (np.trace(A, axis1=1, axis2=2) + 1e-300)
+    reg = ROUNDOFF * (np.trace(A, axis1=1, axis2=2) + TINY)
     eye = np.eye(A.shape[1])
     A = A + reg[:, None, None] * eye
     step = np.linalg.solve(A, g[:, :, None])[:, :, 0]
@@ -280,7 +281,7 @@ def invert_nearest(splines, points, tol: float = 1e-10, damped: bool = False,
     gap = box_gaps(pts, boxes)  # (N, splines)
     # the splines' size: ties are decided with the margin COINCIDENT x size (a stated margin, so every CPU
     # kernel makes the same choice), and a box gap needs twice that of slack against a distance
-    size = max(float(np.max(boxes[:, :, 1].max(0) - boxes[:, :, 0].min(0))), 1e-300)
+    size = max(float(np.max(boxes[:, :, 1].max(0) - boxes[:, :, 0].min(0))), TINY)
     margin = COINCIDENT * size
     slack = 2 * margin
     which, params = np.full(n, len(splines)), np.zeros((n, d))

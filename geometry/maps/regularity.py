@@ -26,6 +26,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from geometry.numbers import TINY
 from geometry.cache import PerObject
 
 from geometry import bernstein as bz
@@ -249,7 +250,7 @@ def _in_own_plane(surface):
     if P.ndim < 2 or P.shape[-1] != 3:
         return surface  # plane coordinates only
     P = P.reshape(-1, 3)
-    size = max(float(np.ptp(P, axis=0).max()), 1e-300)
+    size = max(float(np.ptp(P, axis=0).max()), TINY)
     if np.ptp(P[:, 2]) <= 1e-12 * size:
         return surface
     c = P.mean(axis=0)
@@ -301,7 +302,7 @@ def _prove_kind(splines, d: int, rational: bool, max_depth: int, allow_zeros: bo
     pos, neg, zero = (_by_owner(decided[k], S, d) for k in range(3))
     und = _by_owner([undecided], S, d)
     return [_verdict([pos[o]], [neg[o]], [zero[o]], und[o], (float(lo[o]), float(hi[o])),
-                     max(abs(lo[o]), abs(hi[o]), 1e-300), int(depth[o]), d) for o in range(S)]
+                     max(abs(lo[o]), abs(hi[o]), TINY), int(depth[o]), d) for o in range(S)]
 
 
 def _same_knots(splines) -> list[list[int]]:

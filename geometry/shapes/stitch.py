@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.spatial import cKDTree
+from geometry.numbers import TINY
 
 __all__ = ["stitch_boundaries"]
 
@@ -54,7 +55,7 @@ def stitch_boundaries(points: np.ndarray, tris: np.ndarray, part: np.ndarray, to
         e = np.repeat(np.arange(len(a)), [len(x) for x in near])
         v = verts[np.fromiter((k for x in near for k in x), dtype=np.int64, count=len(e))]
         d = points[b[e]] - points[a[e]]
-        s = np.einsum("ij,ij->i", points[v] - points[a[e]], d) / np.maximum(np.einsum("ij,ij->i", d, d), 1e-300)
+        s = np.einsum("ij,ij->i", points[v] - points[a[e]], d) / np.maximum(np.einsum("ij,ij->i", d, d), TINY)
         off = np.linalg.norm(points[a[e]] + s[:, None] * d - points[v], axis=1)
         length = np.linalg.norm(d, axis=1)
         ok = ((part[v] != part[a[e]]) & (off <= tolerance) & (s * length > same)

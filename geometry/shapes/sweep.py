@@ -30,7 +30,7 @@ from geometry.bspline import BSpline
 from geometry.errors import SplineError, show
 from geometry.shapes.fitting import c0_joints, evaluate, interpolate, span_nodes
 from geometry.primitives import arc
-from geometry.numbers import is_real
+from geometry.numbers import TINY, is_real
 
 __all__ = ["Sweep", "sweep", "circle", "frames", "section_error", "kinks", "points_and_tangents"]
 
@@ -125,7 +125,7 @@ def points_and_tangents(curve: BSpline, v) -> tuple[np.ndarray, np.ndarray]:
 def _reflection(v):
     """Householder reflections I - 2 v v^T / |v|^2 (n, 3, 3); the identity where v vanishes."""
     c = np.einsum("ni,ni->n", v, v)
-    scale = np.where(c > 1e-300, 2.0 / np.where(c > 1e-300, c, 1.0), 0.0)
+    scale = np.where(c > TINY, 2.0 / np.where(c > TINY, c, 1.0), 0.0)
     return np.eye(3)[None] - scale[:, None, None] * v[:, :, None] * v[:, None, :]
 
 
@@ -254,7 +254,7 @@ def _check_bend(axis: BSpline, section: BSpline) -> None:
     d = axis.derivatives(v[:, None], 2)
     d1, d2 = d[(1,)][:, :3], d[(2,)][:, :3]
     speed = np.linalg.norm(d1, axis=1)
-    curvature = np.linalg.norm(np.cross(d1, d2), axis=1) / np.maximum(speed, 1e-300) ** 3
+    curvature = np.linalg.norm(np.cross(d1, d2), axis=1) / np.maximum(speed, TINY) ** 3
     t = np.linspace(*section.domain[0], 257)[:-1, None]
     reach = float(np.linalg.norm(section.evaluate(t)[:, :2], axis=1).max())
     i = int(np.argmax(curvature))

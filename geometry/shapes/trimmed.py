@@ -33,7 +33,7 @@ from geometry.errors import SplineError, show
 from geometry.patches.sampling import sample_axes
 from geometry.resources import check_memory
 from geometry.tolerances import ON_DOMAIN, ROUNDOFF, SNAP
-from geometry.numbers import is_real
+from geometry.numbers import TINY, is_real
 
 __all__ = ["TrimmedSurface", "reversed_curve", "join_curves", "loop_polyline", "inside_polyline"]
 
@@ -132,7 +132,7 @@ def _crossings(p: np.ndarray, q: np.ndarray, same: bool) -> bool:
     b0, b1 = q[:-1], q[1:]
     ma, mb = 0.5 * (a0 + a1), 0.5 * (b0 + b1)
     reach = 0.5 * (np.linalg.norm(a1 - a0, axis=1).max() + np.linalg.norm(b1 - b0, axis=1).max()) * (1 + 1e-9)
-    pairs = cKDTree(ma).query_ball_tree(cKDTree(mb), reach + 1e-300)
+    pairs = cKDTree(ma).query_ball_tree(cKDTree(mb), reach + TINY)
     i = np.repeat(np.arange(len(pairs)), [len(x) for x in pairs])
     j = np.fromiter((k for x in pairs for k in x), dtype=np.int64, count=len(i))
     if same:  # neighbouring segments share an end; the first and last close the loop

@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from geometry.numbers import TINY
 from geometry import progress, resources
 from tiling.library import TILES
 from geometry.errors import ToolkitError
@@ -171,7 +172,7 @@ def _cmd_homogenize(args) -> int:
     if args.youngs is not None:
         nu = 0.3 if args.poisson is None else args.poisson
         c = effective_stiffness(tile, args.youngs, nu, refine=args.refine, diagnostics=True)
-        scale = 10.0 ** np.floor(np.log10(max(np.abs(c.tensor).max(), 1e-300)))
+        scale = 10.0 ** np.floor(np.log10(max(np.abs(c.tensor).max(), TINY)))
         print(f"effective stiffness (E = {args.youngs:g}, nu = {nu:g}; Voigt xx yy zz yz xz xy, "
               f"engineering shears) in units of {scale:g} Pa, symmetry error {c.symmetry_error:.1e}:")
         print(np.round(c.tensor / scale, 6) + 0.0)

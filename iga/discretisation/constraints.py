@@ -40,6 +40,7 @@ import scipy.sparse as sp
 from scipy.linalg import qr, solve_triangular
 from scipy.sparse.csgraph import connected_components
 
+from geometry.numbers import TINY
 from geometry.errors import SplineError
 from geometry.faces import FACE_AXIS, discontinuity_slots, nested_refinement, slot_face_id
 from geometry.grouping import ObjectIndex
@@ -412,7 +413,7 @@ def induced_elimination(C: sp.spmatrix, rhs: np.ndarray, tol: float = RANK):
         y = rhs[rows[rows_b]]
         Q, R, perm = qr(A, mode="economic", pivoting=True)
         d = np.abs(np.diag(R))
-        r = int(np.sum(d > tol * max(d[0], 1e-300))) if len(d) else 0
+        r = int(np.sum(d > tol * max(d[0], TINY))) if len(d) else 0
         if r == 0:
             continue
         piv, rest = perm[:r], perm[r:]

@@ -18,6 +18,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from geometry.numbers import TINY
 from iga.heat.forms import boundary_load, boundary_load_columns, boundary_mass
 from geometry.grouping import ObjectIndex
 
@@ -94,7 +95,7 @@ def project_dirichlet(faces, dirichlet: dict, ndof: int, constraints=None) -> Di
     # DOFs whose functions have no trace on the faces (e.g. masked parts of slot faces) are not prescribed
     cand = np.unique(np.concatenate([fd.dofs for fd in fds]))
     diag = M.diagonal()[cand]
-    dofs = cand[diag > ROUNDOFF * max(diag.max(), 1e-300)]
+    dofs = cand[diag > ROUNDOFF * max(diag.max(), TINY)]
     vals = _solve_mass(M[dofs][:, dofs].tocsc(), rhs[dofs])
     slave_rows, slave_vals, slave_faces, master_faces = empty, np.zeros(0), [], {}
     if constraints is not None:
@@ -130,7 +131,7 @@ def _refuse_overlaps(dofs, vals, group, inside) -> None:
     unknown takes the mean of their values: the usual reading of data that jump along an edge."""
     if not len(dofs):
         return
-    scale = max(float(np.abs(vals).max()), 1e-300)
+    scale = max(float(np.abs(vals).max()), TINY)
     lo = np.full(group.max() + 1, np.inf)
     hi = np.full(group.max() + 1, -np.inf)
     np.minimum.at(lo, group, vals)

@@ -16,6 +16,7 @@ import numpy as np
 import scipy.sparse as sp
 
 import solvers
+from geometry.numbers import TINY
 from solvers.indexing import complement
 
 from iga.assembly import compiled as fast_assembly
@@ -109,7 +110,7 @@ def _refuse_conflicts(residual: np.ndarray, rhs: np.ndarray, dirichlet, Ps, dofs
     faces = dirichlet.slave_faces
     if not len(residual) or not faces:
         return
-    bad = np.flatnonzero(np.abs(residual) > 1e-8 * max(float(np.abs(rhs).max()), 1e-300))
+    bad = np.flatnonzero(np.abs(residual) > 1e-8 * max(float(np.abs(rhs).max()), TINY))
     Ps = sp.csr_matrix(Ps)
     names: set = set()
     for i in bad:

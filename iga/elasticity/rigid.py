@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from geometry.numbers import TINY
 from geometry import knots as kn
 from geometry.patches.chain import patches_geometry_derivs
 from geometry.grouping import ObjectIndex
@@ -47,7 +48,7 @@ def rigid_modes(x: np.ndarray, centre=None, size: float | None = None) -> np.nda
     1 / ``size`` so that all six are of unit magnitude."""
     centre = x.mean(0) if centre is None else centre
     y = x - centre
-    size = size or max(float(np.abs(y).max()), 1e-300)
+    size = size or max(float(np.abs(y).max()), TINY)
     y = y / size
     n = len(x)
     B = np.zeros((3, n, 6))
@@ -67,7 +68,7 @@ def free_modes(points: np.ndarray, labels: np.ndarray, prescribed: list, pieces:
     for piece in range(pieces):
         own = labels == piece
         x = points[own]
-        centre, size = x.mean(0), max(float(np.ptp(x, axis=0).max()), 1e-300)
+        centre, size = x.mean(0), max(float(np.ptp(x, axis=0).max()), TINY)
         rows = []
         for a in range(3):
             dofs = prescribed[a][own[prescribed[a]]] if len(prescribed[a]) else prescribed[a]
@@ -75,7 +76,7 @@ def free_modes(points: np.ndarray, labels: np.ndarray, prescribed: list, pieces:
                 rows.append(rigid_modes(points[dofs], centre, size).reshape(3, len(dofs), 6)[a])
         B = np.concatenate(rows) if rows else np.zeros((0, 6))
         sv = np.linalg.svd(B, compute_uv=False) if len(B) else np.zeros(0)
-        rank = int(np.sum(sv > 1e-8 * max(sv.max(initial=0.0), 1e-300)))
+        rank = int(np.sum(sv > 1e-8 * max(sv.max(initial=0.0), TINY)))
         if rank == 6:
             continue
         pure = [MODE_NAMES[m] for m in range(6) if np.linalg.norm(B[:, m]) <= 1e-8 * max(np.sqrt(len(B)), 1.0)]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from geometry.numbers import TINY
 from geometry import SplineFunction
 from geometry.patches.chain import patch_geometry_points
 
@@ -212,7 +213,7 @@ class ElasticSolution:
         if self._prescribed is None:
             return EnergyBalance(float(internal), None, None), float(energy)
         external = float(self.u @ self._f) - float(thermal_load) + float(self._reaction @ self._prescribed)
-        scale = max(abs(internal), abs(external), abs(total), 1e-300)
+        scale = max(abs(internal), abs(external), abs(total), TINY)
         return EnergyBalance(float(internal), external, float(abs(internal - external) / scale)), float(energy)
 
     def l2_error(self, exact) -> float:

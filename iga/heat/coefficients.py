@@ -17,7 +17,7 @@ import inspect
 import numpy as np
 from scipy.interpolate import PchipInterpolator
 
-from geometry.numbers import is_real
+from geometry.numbers import TINY, is_real
 
 from iga.errors import ProblemError
 from iga.expressions import Expression
@@ -253,7 +253,7 @@ class Conductivity:
             if v.shape != (n, 3, 3):
                 raise ProblemError(f"conductivity callable must return shape ({n},) or ({n}, 3, 3) for x of shape "
                                    f"({n}, 3), got {v.shape}")
-            if not np.allclose(v, np.transpose(v, (0, 2, 1)), rtol=ON_DOMAIN, atol=1e-300):
+            if not np.allclose(v, np.transpose(v, (0, 2, 1)), rtol=ON_DOMAIN, atol=TINY):
                 raise ProblemError(f"conductivity callable returned non-symmetric tensors on {where}")
             K6 = np.stack([v[:, r, s] for r, s in TENSOR_PAIRS], axis=1)
         _check_spd(K6, x, where)

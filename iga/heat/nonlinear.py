@@ -24,6 +24,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from geometry.numbers import TINY
 from geometry.grouping import ObjectIndex
 from geometry.patches.chain import patches_geometry_derivs
 
@@ -106,7 +107,7 @@ def solve_conductivity(problem, f, robin, constraints, dirichlet, faces, tol: fl
 
     u = _start(problem, offset, Pf, f, R0, faces, dirichlet)
     R, r = residual(u)
-    scale = max(float(np.linalg.norm(Pf.T @ f)), float(np.linalg.norm(r)), 1e-300)
+    scale = max(float(np.linalg.norm(Pf.T @ f)), float(np.linalg.norm(r)), TINY)
     history = [float(np.linalg.norm(r))]
     while history[-1] > 1e-14 * scale:
         if len(history) > max_newton:

@@ -22,6 +22,7 @@ import scipy.sparse as sp
 
 import solvers
 
+from geometry.numbers import TINY
 from iga.discretisation.constraints import owners_of
 from iga.discretisation.system import SystemSolution, project_symmetric, reduction
 from iga.errors import ProblemError
@@ -107,7 +108,7 @@ def solve_radiation(problem, K, f, constraints, dirichlet, faces: RadiationFaces
         return R, np.asarray(Pf.T @ R)
 
     R, r = reduced_residual(u)
-    scale = max(float(np.linalg.norm(Pf.T @ f)), float(np.linalg.norm(Pf.T @ np.abs(faces.load(u, n)))), 1e-300)
+    scale = max(float(np.linalg.norm(Pf.T @ f)), float(np.linalg.norm(Pf.T @ np.abs(faces.load(u, n)))), TINY)
     history = [float(np.linalg.norm(r))]
     iterations = 0
     while history[-1] > max(tol, 1e-13) * scale:

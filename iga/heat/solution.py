@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from geometry.numbers import TINY
 from geometry import SplineFunction
 
 from iga.heat.coefficients import tensor_matrix, user_values
@@ -199,7 +200,7 @@ class Solution:
         src = self._book["source"]
         inflow = float(-flows[flows < 0].sum()) + max(src, 0.0)
         outflow = float(flows[flows > 0].sum()) + max(-src, 0.0)
-        scale = max(inflow, outflow, abs(src), self._scale, 1e-300)
+        scale = max(inflow, outflow, abs(src), self._scale, TINY)
         return HeatBalance(inflow, outflow, src, abs(inflow - outflow) / scale, scale)
 
     def energy_balance(self) -> "EnergyBalance":
@@ -229,7 +230,7 @@ class Solution:
             fd = prob.face_data(*key)
             internal += float(np.sum(h * fd.trace(self.u) ** 2 * fd.dAw))
         external = float(self.u @ self._loads) + float(self._reaction @ self._prescribed)
-        scale = max(abs(internal), abs(external), 1e-300)
+        scale = max(abs(internal), abs(external), TINY)
         return EnergyBalance(float(internal), external, float(abs(internal - external) / scale))
 
     def _flow_scale(self) -> float:

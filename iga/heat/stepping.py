@@ -33,6 +33,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 import solvers
+from geometry.numbers import TINY
 from geometry import progress
 from geometry.resources import check_memory, memory_limit
 from solvers.prepared import factor_bytes
@@ -247,7 +248,7 @@ class TimeStepper:
         afresh: by the step's solver where it is symmetric (radiation), by a sparse LU where k(T) makes it
         unsymmetric.  Converged at ``solver_tol`` (at most 1e-11) of the right-hand side."""
         Pf = self.Pf
-        scale = max(float(np.linalg.norm(Pf.T @ rhs)), 1e-300)
+        scale = max(float(np.linalg.norm(Pf.T @ rhs)), TINY)
         for _ in range(50):
             u = Pf @ x + g1
             r = np.asarray(Pf.T @ (cM * (self.M @ u) + cK * self.operator(u, book) - rhs))
@@ -324,7 +325,7 @@ class TimeStepper:
                 n += 1
                 if est is not None:
                     self.record.largest_estimate = max(self.record.largest_estimate or 0.0, est)
-                    proposal = h * min(_GROW, _SAFETY * (tol / max(est, 1e-300)) ** (1.0 / (self._order() + 1)))
+                    proposal = h * min(_GROW, _SAFETY * (tol / max(est, TINY)) ** (1.0 / (self._order() + 1)))
                     h = proposal if proposal >= _KEEP * h else h  # grown by a margin only: its solver is reused
                 hist = hist[-4:]
                 if n % keep == 0:

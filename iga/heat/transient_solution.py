@@ -19,7 +19,7 @@ import numpy as np
 
 from geometry.errors import show
 from geometry.io.files import atomic_write, check_folder
-from geometry.numbers import is_integer, is_real
+from geometry.numbers import TINY, is_integer, is_real
 from geometry.resources import check_memory
 
 from solvers.info import SolveInfo
@@ -58,7 +58,7 @@ class TransientState(Solution):
         error of that identity (against the larger of the flows and the model's reference flow)."""
         b = super().balance()
         stored = self.stored_W
-        scale = max(b.inflow_W, b.outflow_W, abs(stored), b.reference_flow_W, 1e-300)
+        scale = max(b.inflow_W, b.outflow_W, abs(stored), b.reference_flow_W, TINY)
         return replace(b, stored_W=stored, relative_error=abs(b.inflow_W - b.outflow_W - stored) / scale)
 
 

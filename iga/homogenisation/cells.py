@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
+from geometry.numbers import TINY
 from geometry import BSpline
 from geometry.patches.chain import patches_geometry_derivs_slabs
 from geometry.errors import SplineError, show
@@ -168,7 +169,7 @@ def effective_conductivity(tile, conductivity=1.0, degree_elevation: int = 1, re
     lu = sp.linalg.splu(Ak)
     X[keep] = lu.solve(-np.ascontiguousarray(Br[keep]))
     Keff = total_k * np.eye(3) + Br.T @ X  # K_ij = int k delta_ij + b_i(chi_j)  (the unit cell: |Y| = 1)
-    sym = float(np.abs(Keff - Keff.T).max() / max(np.abs(Keff).max(), 1e-300))
+    sym = float(np.abs(Keff - Keff.T).max() / max(np.abs(Keff).max(), TINY))
     out = Effective(0.5 * (Keff + Keff.T), volume, sym, int(A.shape[0]),
                     sum(i.kind == "identity" for i in model.interfaces), _condition(Ak, lu) if diagnostics else
                     float("nan"), prob, P @ X)
@@ -252,7 +253,7 @@ def effective_stiffness(tile, youngs, poisson, degree_elevation: int = 1, refine
     lu = sp.linalg.splu(Ak)
     X[keep] = lu.solve(-Br[keep])
     C = mean + Br.T @ X
-    sym = float(np.abs(C - C.T).max() / max(np.abs(C).max(), 1e-300))
+    sym = float(np.abs(C - C.T).max() / max(np.abs(C).max(), TINY))
     out = Effective(0.5 * (C + C.T), volume, sym, int(A.shape[0]), sum(i.kind == "identity" for i in model.interfaces),
                     _condition(Ak, lu) if diagnostics else float("nan"))
     return out if diagnostics else out.tensor

@@ -15,7 +15,7 @@ import numpy as np
 
 from geometry.errors import show
 from geometry.io.files import offscreen_plotter, save_screenshot, window_plotter
-from geometry.numbers import is_real
+from geometry.numbers import TINY, is_real
 from iga.errors import ProblemError
 
 __all__ = ["plot_field", "range_note", "count", "UNITS", "render_temperature"]
@@ -45,7 +45,7 @@ def plot_field(grid, field: str, title: str, screenshot=None, warp=None, window=
     unit = UNITS.get(field, "")
     label = f"{field}{' magnitude' if values.ndim == 2 else ''} ({unit})" if unit else field
     span = hi - lo
-    scale = max(abs(lo), abs(hi), 1e-300)
+    scale = max(abs(lo), abs(hi), TINY)
     note = range_note(field, lo, hi, unit)
     fmt = "%.3g"
     if 0 < span and scale < 1e4:  # enough decimals that the bar's five labels differ
@@ -67,7 +67,7 @@ def range_note(field: str, lo: float, hi: float, unit: str = "") -> str:
     """``field lo .. hi unit``, with the width said in words where it is under 5% of the values (a colour map
     stretched over 0.2 K looks like a strong gradient)."""
     note = f"{field} {lo:.6g} .. {hi:.6g} {unit}".strip()
-    if hi - lo < 0.05 * max(abs(lo), abs(hi), 1e-300):
+    if hi - lo < 0.05 * max(abs(lo), abs(hi), TINY):
         note += f" (a range of {hi - lo:.3g} {unit})".replace(" )", ")")
     return note
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from geometry.numbers import TINY
 from geometry import knots as kn
 
 from tiling.errors import TilingError
@@ -169,7 +170,7 @@ def _edges_at_samples(near, idx, ax, lower, axes, dom, at) -> None:
             hi = idx[near].copy()
             hi[:, k] = np.clip(j, 0, len(axes[k]) - 1)
             fh = at(hi, h)
-            score = np.where(valid & (fg * fh < 0), np.abs(fg) / (np.abs(fg - fh) + 1e-300), np.inf)
+            score = np.where(valid & (fg * fh < 0), np.abs(fg) / (np.abs(fg - fh) + TINY), np.inf)
             better = score < best
             best[better], pick[better] = score[better], (k, sgn)
     found = np.isfinite(best)

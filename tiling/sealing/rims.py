@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from geometry.numbers import TINY
 from geometry.grouping import ObjectIndex
 from geometry.patches.placed_points import placements
 from geometry.patches.sampling import sample_axes
@@ -61,7 +62,7 @@ def _conform(patches, surf, axes, rounds) -> None:
         keep = owner[q] != np.array([e[0] for e in edges])[edge[seg]]
         seg, q = seg[keep], q[keep]
         ab = b[seg] - a[seg]
-        s_ = np.clip(np.sum((pts[q] - a[seg]) * ab, axis=1) / np.maximum(np.sum(ab * ab, axis=1), 1e-300), 0, 1)
+        s_ = np.clip(np.sum((pts[q] - a[seg]) * ab, axis=1) / np.maximum(np.sum(ab * ab, axis=1), TINY), 0, 1)
         on = np.linalg.norm(pts[q] - (a[seg] + s_[:, None] * ab), axis=1) <= 1e-10 * scale
         seg, s_ = seg[on], s_[on]
         param = t0[seg] + s_ * (t1[seg] - t0[seg])

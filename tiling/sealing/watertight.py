@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.spatial import cKDTree
 
+from geometry.numbers import TINY
 from geometry.faces import FACE_NAMES, face_name, parse_slot_face
 
 if TYPE_CHECKING:
@@ -69,7 +70,7 @@ def pinch_lines(ms: Microstructure, n: int = 9) -> list[dict]:
                     x[:, d], x[:, rest[m]] = v, at
                     x[:, rest[1 - m]] = rect[1 - m][0] + t * (rect[1 - m][1] - rect[1 - m][0])
                     sides = [_one_sided(P, d, v, s_, x) for s_ in (-1, 1)]
-                    size = max(float(np.ptp(sides[0], axis=0).max()), 1e-300)
+                    size = max(float(np.ptp(sides[0], axis=0).max()), TINY)
                     if np.abs(sides[0] - sides[1]).max() <= 1e-9 * size:
                         out.append({"patch": int(i), "slot": fid[:-1], "face": face, "points": sides[0]})
     return out

@@ -41,7 +41,7 @@ from .tubes import are_regular, bridge_patch
 from .union import boundary_faces, bridge_union, shared_faces, union_anchors
 from geometry.grouping import ObjectIndex
 from geometry.tolerances import COINCIDENT, ON_DOMAIN
-from geometry.numbers import is_integer, is_real
+from geometry.numbers import TINY, is_integer, is_real
 
 __all__ = ["VResult", "vrep_microstructure"]
 
@@ -295,7 +295,7 @@ def _anchor_faces(placed, offset: int, cls: Classification, anchors: dict, tile_
         net = P.spline.points @ P.placement[:, :3].T + P.placement[:, 3]  # the control net in the map's domain
         sides = {f: np.take(net, -1 if FACE_AXIS[f][1] else 0, axis=FACE_AXIS[f][0]).reshape(-1, 3)
                  for f in FACE_NAMES}
-        tol = COINCIDENT * max(float(np.ptp(box, axis=1).max()), 1e-300) + ON_DOMAIN
+        tol = COINCIDENT * max(float(np.ptp(box, axis=1).max()), TINY) + ON_DOMAIN
         for cell_face in faces:
             k, s = FACE_AXIS[cell_face]
             out += [(offset + j, f) for f, pts in sides.items() if np.abs(pts[:, k] - box[k, s]).max() < tol]

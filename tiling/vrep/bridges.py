@@ -35,6 +35,7 @@ from functools import partial
 
 import numpy as np
 
+from geometry.numbers import TINY
 from geometry import BSpline
 from geometry.faces import FACE_AXIS, FACE_NAMES
 from geometry.maps.inversion import invert, invert_nearest
@@ -185,8 +186,8 @@ def _targets(model, prim, faces: list, geo: list):
     dist = np.stack([v.distance for v in invs])  # (faces, anchors)
     pts = np.stack([G.evaluate(v.params)[:, :3] for G, v in zip(faces, invs)])
     away = pts - M[None]
-    away /= np.maximum(np.linalg.norm(away, axis=2), 1e-300)[..., None]
-    eps = 1e-3 * max(float(np.ptp(D.points.reshape(-1, 3), axis=0).max()), 1e-300)
+    away /= np.maximum(np.linalg.norm(away, axis=2), TINY)[..., None]
+    eps = 1e-3 * max(float(np.ptp(D.points.reshape(-1, 3), axis=0).max()), TINY)
     ends = model.territory(prim, (pts + eps * away).reshape(-1, 3)).reshape(dist.shape)
     order = np.argsort(dist, axis=0)
     choice = np.array([next((g for g in order[:, i] if not ends[g, i]), order[0, i]) for i in range(len(geo))])
@@ -239,7 +240,7 @@ def build_bridges(model, prim, cls, placed, anchors, beta: float = 0.5) -> tuple
             continue
         spline = BSpline(fs.degrees + (3,), list(fs.knots) + [np.array([0, 0, 0, 0, 1, 1, 1, 1.0])],
                          np.zeros(F.shape[:2] + (4, 3)))
-        lam = beta * L / max(float(np.linalg.norm((F - T1).mean((0, 1)))), 1e-300)
+        lam = beta * L / max(float(np.linalg.norm((F - T1).mean((0, 1)))), TINY)
         b = Bridge(spline, D, pi, face, axis, 0.0, F - C, np.stack([F, F + lam * (F - T1)]), owner[choice[i]],
                    float(beta))
         ring = D.evaluate(F.reshape(-1, 3))[:, :3]

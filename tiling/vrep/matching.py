@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
+from geometry.numbers import TINY
 
 from ..errors import TilingError
 
@@ -33,7 +34,7 @@ __all__ = ["edge_weights", "hungarian", "geom_filter", "unbalanced_match", "Matc
 
 def _angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     na, nb = np.linalg.norm(a, axis=-1), np.linalg.norm(b, axis=-1)
-    c = np.sum(a * b, axis=-1) / np.maximum(na * nb, 1e-300)
+    c = np.sum(a * b, axis=-1) / np.maximum(na * nb, TINY)
     return np.arccos(np.clip(c, -1.0, 1.0))
 
 

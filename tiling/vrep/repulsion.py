@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
+from geometry.numbers import TINY
 
 __all__ = ["Collisions", "closest", "cross3", "direction", "step", "repel"]
 
@@ -58,9 +59,9 @@ def direction(pa: np.ndarray, pb: np.ndarray, ia: int, ib: int) -> np.ndarray:
     ta = pa[min(ia + 1, len(pa) - 1)] - pa[max(ia - 1, 0)]
     tb = pb[min(ib + 1, len(pb) - 1)] - pb[max(ib - 1, 0)]
     v = cross3(ta, tb)
-    if np.linalg.norm(v) < 1e-12 * max(np.linalg.norm(ta) * np.linalg.norm(tb), 1e-300):
+    if np.linalg.norm(v) < 1e-12 * max(np.linalg.norm(ta) * np.linalg.norm(tb), TINY):
         v = pa[ia] - pb[ib]
-    v = v / max(np.linalg.norm(v), 1e-300)
+    v = v / max(np.linalg.norm(v), TINY)
     return -v if np.dot(v, pa[ia] - pb[ib]) < 0 else v
 
 

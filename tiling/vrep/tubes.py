@@ -35,6 +35,7 @@ from functools import cached_property
 import numpy as np
 from scipy.special import comb
 
+from geometry.numbers import TINY
 from geometry import BSpline
 from geometry import knots as kn
 from geometry.spline import SplineFunction
@@ -87,14 +88,14 @@ class Face:
         """Unit normal at the centre, pointing out of the tile (along ``out``)."""
         J = self._at_centre[1]
         n = cross3(J[:, 0], J[:, 1])
-        n /= max(np.linalg.norm(n), 1e-300)
+        n /= max(np.linalg.norm(n), TINY)
         return n if np.dot(n, self.direction) >= 0 else -n
 
     @cached_property
     def direction(self) -> np.ndarray:
         """Unit mean outward cross direction (the tile's dT/dw across the face)."""
         d = self.out.points.reshape(-1, 3).mean(0)
-        return d / max(np.linalg.norm(d), 1e-300)
+        return d / max(np.linalg.norm(d), TINY)
 
     @cached_property
     def width(self) -> float:
@@ -256,7 +257,7 @@ def _common(surfs: list) -> list:
 def direction_field(f: Face, phi: float) -> BSpline:
     """The outward field of a face, unit on average, blended by ``phi`` with the central normal (Fig. 9)."""
     d = f.out.points
-    scale = max(float(np.linalg.norm(d.reshape(-1, 3).mean(0))), 1e-300)
+    scale = max(float(np.linalg.norm(d.reshape(-1, 3).mean(0))), TINY)
     v = (1 - phi) * d / scale + phi * f.normal
     return _net(f.out.degrees, f.out.knots, v)
 
@@ -420,7 +421,7 @@ def tube_space(t: Tube) -> list:
     along the tube the analysis is isoparametric and an affine field is reproduced."""
     p = max(max(d for _, d in t.a.space), t.geometry.degrees[2])
     length = float(np.linalg.norm(t.b.centre - t.a.centre))
-    n = int(np.clip(round(length / max(2 * t.radius, 1e-300)), 1, 4))
+    n = int(np.clip(round(length / max(2 * t.radius, TINY)), 1, 4))
     return [t.a.space[0], t.a.space[1], uniform_space(p, n)]
 
 

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from geometry.numbers import TINY
 from geometry import BSpline
 from geometry.errors import show
 from geometry.faces import FACE_AXIS, FACE_NAMES
@@ -84,7 +85,7 @@ def _centres_and_directions(placed, keys):
         x, J = D.value_and_jacobian(np.clip(mid[js], D.domain[:, 0], D.domain[:, 1]))
         cen[js] = x[:, :3]
         out[js] = np.einsum("nij,nj->ni", J[:, :3, :], out[js])
-    return cen, out / np.maximum(np.linalg.norm(out, axis=1), 1e-300)[:, None]
+    return cen, out / np.maximum(np.linalg.norm(out, axis=1), TINY)[:, None]
 
 
 def _tile_normal(T, face):
