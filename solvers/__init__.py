@@ -26,7 +26,8 @@ Built-in backends
              needs the option ``prolongations`` (sparse matrices, finest level first).
 ``petsc``    PETSc's CG with GAMG (or hypre) when petsc4py is installed (extra ``[mpi]``); under
              ``mpiexec`` :mod:`iga.distributed.solve` assembles and solves across the ranks.
-``auto``     ``direct`` up to :data:`AUTO_DIRECT_LIMIT` unknowns; above, ``fd-cg`` when a ``kronecker``
+``auto``     ``direct`` up to :data:`AUTO_DIRECT_LIMIT` unknowns (or the option ``direct_limit``); above,
+             ``fd-cg`` when a ``kronecker``
              option is given, else ``amg-cg``.
 """
 
@@ -50,8 +51,8 @@ from geometry.numbers import is_flag, is_integer, is_real
 __all__ = ["SolverError", "SolveInfo", "solve", "register", "backends", "AUTO_DIRECT_LIMIT", "prepare",
            "PreparedSolver"]
 
-#: Above this many unknowns ``auto`` uses AMG-CG: SuperLU fills in badly on 3-D IGA matrices
-#: (docs/performance.md).
+#: Above this many unknowns ``auto`` leaves the direct solver: SuperLU fills in badly on one 3-D IGA patch
+#: (docs/performance.md).  A caller whose system fills in less passes its own ``direct_limit``.
 AUTO_DIRECT_LIMIT = 2_000
 
 
@@ -196,9 +197,11 @@ def solve(A, b, method: str = "auto", tol: float = 1e-10, maxiter: int | None = 
     if maxiter is not None and not (is_integer(maxiter)
                                     and maxiter >= 1):
         raise SolverError(f"maxiter must be an integer >= 1, got {show(maxiter)}")
+    limit = options.pop("direct_limit", AUTO_DIRECT_LIMIT)
+    if not is_integer(limit) or limit < 0:
+        raise SolverError(f"direct_limit must be a number of unknowns (an integer >= 0), got {show(limit)}")
     if method == "auto":
-        method = "direct" if n <= AUTO_DIRECT_LIMIT else ("fd-cg" if options.get("kronecker") is not None
-                                                          else "amg-cg")
+        method = "direct" if n <= limit else ("fd-cg" if options.get("kronecker") is not None else "amg-cg")
         # the spline structure is offered to auto; the method it picks takes what it uses
         options = {k: v for k, v in options.items() if k in _OPTIONS[method] or k not in ("kronecker", "prolongations", "near_nullspace", "node_slots")}
     if not is_flag(options.get("overwrite_a", False)):

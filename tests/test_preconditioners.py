@@ -201,3 +201,16 @@ def test_a_prepared_solver_refuses_what_it_cannot_prepare():
         solvers.prepare(np.eye(3))
     with pytest.raises(SolverError, match="positive diagonal"):
         solvers.prepare(sp.diags([1.0, -2.0, 3.0]).tocsr(), "cg")
+
+
+def test_auto_factorises_coupled_patches_further_than_one_patch():
+    import iga.discretisation.multilevel as ml
+
+    model = tiling.regular(pr.box(degrees=(2, 2, 2)), L.cross(), (3, 3, 2))
+    s = HeatProblem(model, degree_elevation=1, refine=1).dirichlet("wmin", 0.0).dirichlet("wmax", 1.0).solve()
+    assert solvers.AUTO_DIRECT_LIMIT < s.info.free_dofs <= ml.MULTIPATCH_DIRECT_LIMIT
+    assert s.info.solver.method.startswith("direct")  # coupled patches: factorised
+    one = HeatProblem(pr.box(degrees=(2, 2, 2)), refine=4).dirichlet("umin", 0.0).dirichlet("umax", 1.0).solve()
+    assert one.info.free_dofs > solvers.AUTO_DIRECT_LIMIT and one.info.solver.method == "fd-cg"  # one patch
+    with pytest.raises(SolverError, match="direct_limit"):
+        solvers.solve(sp.identity(3, format="csr"), np.ones(3), direct_limit=-1)

@@ -30,7 +30,7 @@ from iga.discretisation.setting import count
 from iga.elasticity.solution import ElasticSolution
 from iga.elasticity.volume import ElasticVolume, vector_constraints
 from iga.errors import ProblemError
-from iga.discretisation.multilevel import elastic_kronecker_sums, owners_of
+from iga.discretisation.multilevel import direct_limit, elastic_kronecker_sums, owners_of
 from iga.heat.forms import boundary_load
 from iga.model import tag_faces
 from iga.elasticity.rigid import free_modes, greville_points, rigid_modes
@@ -238,6 +238,8 @@ class ElasticityProblem(Problem):
                                    "displacement component; use 'amg-cg' for this problem")
             if ks is not None:
                 options["kronecker"] = ks
+            else:
+                options.update(direct_limit(constraints, solver))
         return options
 
     def assemble(self, supports: list | None = None):
