@@ -28,7 +28,8 @@ from iga.model import tag_faces
 from iga.tags import check_expression, mentions_rest
 from solvers.info import SolveInfo
 
-__all__ = ["Problem", "SolveRecord", "Record", "HeatBalance", "WorkBalance", "SolutionInfo", "ElasticInfo"]
+__all__ = ["Problem", "SolveRecord", "Record", "HeatBalance", "WorkBalance", "SolveSummary", "SolutionInfo",
+           "ElasticInfo"]
 
 
 @dataclass
@@ -143,10 +144,9 @@ class WorkBalance(Record):
 
 
 @dataclass(frozen=True, eq=False)
-class SolutionInfo(Record):
-    """What a heat solve found: DOFs and the unknowns solved for, constraint counts, patches, the linear
-    solver's report (:class:`solvers.SolveInfo`), seconds per stage, the :class:`HeatBalance`, the coupled
-    pieces (count, idle, the first ten), and Newton's reduced residuals (nonlinear problems; else empty)."""
+class SolveSummary(Record):
+    """What every solve reports: DOFs and the unknowns solved for, constraint counts, patches, the linear
+    solver's report (:class:`solvers.SolveInfo`) and seconds per stage."""
 
     dofs: int
     free_dofs: int
@@ -154,23 +154,23 @@ class SolutionInfo(Record):
     patches: int
     solver: SolveInfo
     timings: dict
+
+
+@dataclass(frozen=True, eq=False)
+class SolutionInfo(SolveSummary):
+    """What a heat solve found (:class:`SolveSummary`'s fields first): the :class:`HeatBalance`, the coupled
+    pieces (count, idle, the first ten), and Newton's reduced residuals (nonlinear problems; else empty)."""
+
     balance: HeatBalance
     components: dict
     newton: list = field(default_factory=list)
 
 
 @dataclass(frozen=True, eq=False)
-class ElasticInfo(Record):
-    """What an elastic solve found: DOFs (three per basis function) and unknowns, constraint counts, patches,
-    the solver's report, seconds per stage, the :class:`WorkBalance`, the applied loads per tag (N) and the
-    body force's resultant (N)."""
+class ElasticInfo(SolveSummary):
+    """What an elastic solve found (:class:`SolveSummary`'s fields first, DOFs three per basis function): the
+    :class:`WorkBalance`, the applied loads per tag (N) and the body force's resultant (N)."""
 
-    dofs: int
-    free_dofs: int
-    constraints: dict
-    patches: int
-    solver: SolveInfo
-    timings: dict
     work: WorkBalance
     applied_N: dict
     body_force_N: list
