@@ -21,6 +21,10 @@ the tolerance is taken again shorter; the size grows (at most x2) only when the 
 otherwise stays, so the prepared solver is reused.  The tolerance bounds each step's error, not the end's: on
 a dissipative problem the error at the end is at most the sum of the steps' errors (the tests measure it
 below steps x tol).
+
+With radiating faces or a temperature-dependent conductivity, K u becomes A(u) (:meth:`TimeStepper.operator`)
+and every step is a Newton solve of ``c_M M u1 + c_K A(u1) = rhs`` from the extrapolated state, its tangent
+(:meth:`TimeStepper.tangent`) solved afresh each iteration (symmetric for radiation, unsymmetric with k(T)).
 """
 
 from __future__ import annotations
@@ -61,8 +65,9 @@ _SAFETY, _KEEP = 0.9, 1.25
 @dataclass
 class StepRecord:
     """What a transient solve did: steps taken and rejected, the prepared solvers (one per step size used),
-    iterations of the linear solves, the largest local error estimate accepted (K; None for fixed steps), where
-    an ``until`` condition stopped it, and seconds per stage (``setup``: assembly, constraints and the initial state; ``steps``)."""
+    iterations of the linear solves, the largest local error estimate accepted (K; None for fixed steps),
+    Newton's residuals, where an ``until`` condition stopped it, and seconds per stage (``setup``: assembly,
+    constraints and the initial state; ``steps``)."""
 
     method: str
     steps: int = 0
@@ -71,7 +76,7 @@ class StepRecord:
     iterations: int = 0
     solver: str = ""
     largest_estimate: float | None = None
-    #: Newton's relative residuals, iteration after iteration over the steps (radiating faces), else empty
+    #: Newton's relative residuals, iteration after iteration over the steps (radiation, k(T)), else empty
     newton: list = field(default_factory=list)
     #: the time at which the solve's ``until`` condition held and the run stopped, None if it ran to the end
     stopped: float | None = None
