@@ -20,7 +20,6 @@ import numpy as np
 from geometry.errors import show
 from geometry.io.files import atomic_write, check_folder
 from geometry.numbers import TINY, is_integer, is_real
-from geometry.resources import check_memory
 
 from solvers.info import SolveInfo
 
@@ -32,7 +31,8 @@ from iga.heat.solution import Solution
 
 __all__ = ["TransientSolution", "TransientState"]
 
-#: frames sampled together when a ParaView series is written (the geometry is sampled once per batch)
+#: frames sampled together when a ParaView series is written (the geometry is sampled once per batch; the
+#: sampled grid's size is checked against the memory budget by iga.io.grids.sample_grid)
 _FRAMES_PER_PASS = 8
 
 
@@ -182,9 +182,6 @@ class TransientSolution:
                 suffixes = [f" {i}" for i in batch]
                 grid = sample_grid(self.problem.model, samples, tolerance, None, self.problem,
                                    temperature_frames(self.problem, self._U[batch], suffixes))
-                if start == 0:
-                    check_memory(2.0 * grid.n_points * 32 * len(frames) / len(batch), "the ParaView series",
-                                 ProblemError)
                 for i, suffix in zip(batch, suffixes):
                     frame = grid.copy(deep=False)
                     for other in suffixes:
