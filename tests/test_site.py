@@ -41,3 +41,15 @@ def test_the_site_builds_without_warnings(tmp_path):
         assert (tmp_path / "site" / page).stat().st_size > 1000
     api = (tmp_path / "site" / "api" / "index.html").read_text()
     assert "TransientHeatProblem" in api and "capacity" in api  # the reference holds the docstrings
+
+
+def test_the_site_navigation_and_landing_page_list_every_page_the_readme_lists():
+    import re
+
+    readme = (ROOT / "README.md").read_text()
+    pages = set(re.findall(r"\]\(docs/([\w-]+\.md)\)", readme))
+    index = set(re.findall(r"\]\(([\w-]+\.md)\)", (ROOT / "docs" / "index.md").read_text()))
+    nav = set(re.findall(r":\s*([\w-]+\.md)\s*$", (ROOT / "mkdocs.yml").read_text(), re.M))
+    on_disk = {p.name for p in (ROOT / "docs").glob("*.md")}
+    assert pages <= index, f"pages in the README but not on the site's landing page: {sorted(pages - index)}"
+    assert on_disk <= nav, f"pages left out of the site's navigation: {sorted(on_disk - nav)}"
