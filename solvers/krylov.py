@@ -14,13 +14,22 @@ from geometry import progress
 from .errors import SolverError
 from .info import SolveInfo
 
-__all__ = ["factorise", "preconditioned_cg", "relative_residual"]
+__all__ = ["factorise", "preconditioned_cg", "relative_residual", "checked_direct"]
 
 
 def relative_residual(A, x, b) -> float:
     """||b - A x|| / ||b|| (||b - A x|| for b = 0)."""
     nb = np.linalg.norm(b)
     return float(np.linalg.norm(b - A @ x) / (nb if nb > 0 else 1.0))
+
+
+def checked_direct(A, x, b, tol: float) -> float:
+    """The relative residual of a factorised solve x of A x = b; :class:`SolverError` where it is not finite or
+    above max(1e-6, 1e3 tol) (a nearly singular matrix)."""
+    res = relative_residual(A, x, b)
+    if not np.all(np.isfinite(x)) or res > max(1e-6, 1e3 * tol):
+        raise SolverError(f"direct solve is inaccurate: relative residual {res:.2e} (matrix nearly singular)")
+    return res
 
 
 def factorise(A):

@@ -164,6 +164,7 @@ class Conductivity:
         #: k(x (N, 3), T (N,)) -> (N,) where the conductivity depends on the temperature, else None
         self.of_temperature = None
         self.table = None  # (T, k) rows of a tabulated k(T)
+        self.table_slope = None
         if takes_time(spec):  # two arguments: k(x, T)
             self.of_temperature = spec
             return
@@ -171,6 +172,7 @@ class Conductivity:
         if table is not None:
             self.table = table
             pchip = PchipInterpolator(table[:, 0], table[:, 1])
+            self.table_slope = pchip.derivative()  # dk/dT of the interpolant, for Newton's tangent
             lo, hi = table[0, 0], table[-1, 0]
 
             def k_of_T(x, T, pchip=pchip):
@@ -219,7 +221,7 @@ class Conductivity:
         if not derivative:
             return k
         if self.table is not None:
-            return k, PchipInterpolator(self.table[:, 0], self.table[:, 1]).derivative()(T)
+            return k, self.table_slope(T)
         step = 1e-6 * (np.abs(T) + 1.0)
         up, down = _call_T(self.of_temperature, x, T + step, where), _call_T(self.of_temperature, x, T - step, where)
         return k, (up - down) / (2 * step)

@@ -25,7 +25,6 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from geometry.numbers import TINY
-from geometry.grouping import ObjectIndex
 from geometry.patches.chain import patches_geometry_derivs
 
 from iga.assembly.tensor import banded_form, banded_to_csr_data, pattern, stiffness_data
@@ -52,13 +51,9 @@ def tangent_forms(problem, u: np.ndarray, derivative: bool = True):
     """(K(u), C(u)): the diffusion matrix with k at the temperature of coefficients ``u`` (symmetric, CSR) and,
     with ``derivative``, the first-order term int dk/dT N_j grad T . grad N_i dV (CSR; None otherwise)."""
     vol, k = problem.volume, problem.conductivity
-    same = ObjectIndex()
-    groups: dict = {}
-    for i, s in enumerate(problem.spaces):
-        groups.setdefault((s.key(), same(problem.model.patches[i].spline)), []).append(i)
     Kc = VectorCSR(problem.offsets, vol.nnz, components=1)
     Cc = VectorCSR(problem.offsets, vol.nnz, components=1) if derivative else None
-    for members in groups.values():
+    for members in vol.groups.values():  # patches sharing a space and a tile spline
         if problem.weights[members[0]] is not None:
             raise ProblemError(f"patch {members[0]} is analysed in the NURBS basis of its own weights; a "
                                "temperature-dependent conductivity is assembled in the polynomial basis only: "

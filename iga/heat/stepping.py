@@ -165,8 +165,7 @@ class TimeStepper:
         if hasattr(spec, "problem"):  # a steady Solution of this model and space (checked by initial())
             u = np.array(spec.u, float)
             G = self.Pf.T @ self.Pf  # each column of Pf spreads one unknown: x = (Pf^T Pf)^-1 Pf^T (u - g)
-            return u, solvers.prepare(sp.csr_matrix(G), "direct" if G.shape[0] <= _MASS_DIRECT else "cg",
-                                      1e-13)(np.asarray(self.Pf.T @ (u - offset0)))[0]
+            return u, _mass_like(sp.csr_matrix(G))(np.asarray(self.Pf.T @ (u - offset0)))[0]
         T0 = ScalarField(spec, "initial temperature", model=p.model, channels=False)
         b, _ = p.volume.load(_Product(T0, p.capacity))
         x = self._mass_solve(self.Pf.T @ (b - self.M @ offset0))
@@ -387,8 +386,7 @@ class TimeStepper:
         :data:`_MASS_DIRECT` unknowns, Jacobi-CG to 1e-13 above (a mass matrix is
         well conditioned once its diagonal is scaled)."""
         if self._mass is None:
-            method = "direct" if self.Mr.shape[0] <= _MASS_DIRECT else "cg"
-            self._mass = solvers.prepare(self.Mr, method, 1e-13)
+            self._mass = _mass_like(self.Mr)
         return self._mass(np.asarray(b, float))[0]
 
     # ----------------------------------------------------------------- a state's flows
@@ -418,6 +416,12 @@ def _landing(t: float, h: float, t_end: float, span: float, adaptive: bool) -> t
     if rest < h:
         return rest, t_end
     return h, t + h
+
+
+def _mass_like(A):
+    """A prepared solver of a mass-like matrix to 1e-13: factorised up to :data:`_MASS_DIRECT` unknowns,
+    Jacobi-CG above."""
+    return solvers.prepare(A, "direct" if A.shape[0] <= _MASS_DIRECT else "cg", 1e-13)
 
 
 class _Product:
