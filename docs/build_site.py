@@ -1,4 +1,5 @@
-"""Build the documentation site: run every gallery script of ``examples/`` (each writes its picture into
+"""Build the documentation site: write ``docs/pipeline-reference.md`` from the validator's table
+(:mod:`iga.app.config_schema`), run every gallery script of ``examples/`` (each writes its picture into
 ``docs/gallery/``), write ``docs/gallery.md`` from their docstrings, pictures and printed output, then
 ``mkdocs build --strict`` (warnings are errors) into ``site/``.
 
@@ -53,6 +54,10 @@ def main(argv=None) -> int:
     ap.add_argument("--site-dir", default=str(ROOT / "site"), help="where the site is written")
     args = ap.parse_args(argv)
     page = ROOT / "docs" / "gallery.md"
+    sys.path.insert(0, str(ROOT))
+    from iga.app.config_schema import reference
+
+    (ROOT / "docs" / "pipeline-reference.md").write_text(reference())
     if not args.no_examples:
         GALLERY.mkdir(exist_ok=True)
         printed = {}

@@ -6,26 +6,9 @@ returns a normalised copy with every default filled in, or raises
 Types are checked exactly (``"22"`` is not a list of counts, ``"no"`` is not a
 boolean), keyword arguments (``args``) are bound against the signature of the
 primitive or tile they configure, and output names may not leave the output
-folder.  The schema (README, "Pipelines")::
-
-    [map]      primitive = one of MAPS, args = {...}   or   file = "map.npz"
-               grading = {channel, near, far, face, mode}        (optional)
-    [tile]     library = one of tiling.library.TILES, args = {...}   (polygons: a polygon tile)
-    [paving]   scheme = "hierarchical" | "regular" | "bifurcation" | "vrep" | "polygons" | "random_implicit" |
-               "implicit_bifurcation", with the keys of its scheme (iga.app.config_model)
-    [[primitive]]  name, map, tile, counts, priority        (scheme "vrep")
-    [second_level] tile, counts, degree, seal               (optional)
-    [reduce]   degree, check                                (optional)
-    [material] conductivity = number | channel | {formula} | 6 channels | 3 x 3 matrix | [[T, k], ...] table,
-               source = number | formula,
-               capacity = number | channel | {formula}                      (transient-heat)
-    [[bc]]     kind = "dirichlet" | "neumann" | "robin" | "radiation", tag, value | (h, ambient) |
-               (emissivity, ambient, scale = "K" | "C"): numbers or formulas of x, y, z
-    [physics]  kind, youngs, poisson, expansion, reference, hold_rigid; [[support]], [[load]]
-    [time]     end, step | tolerance, method, theta, initial, every, fraction, max_steps   (iga.app.config_time)
-    [solver]   method, tol, maxiter, refine, degree_elevation, degree, quadrature_extra
-    [output]   dir, name, vtu, bezier, png, samples | tolerance, probes, exports
-    [limits]   max_memory_gib
+folder.  The keys, their defaults and meanings are one table, :mod:`iga.app.config_schema` (also the
+documentation's pipeline reference); the checks of values and of how sections combine are here and in
+:mod:`iga.app.config_model`, :mod:`iga.app.config_physics` and :mod:`iga.app.config_time`.
 """
 
 from __future__ import annotations
@@ -39,6 +22,7 @@ from iga.app.config_checks import (boolean as _bool, choice as _choice, fail as 
 from iga.app.config_model import (NO_MAP, NO_TILE, map_section, paving_section, polygon_tile, primitives, reduce_section,
                            second_level, surface_reason, tile_section)
 from iga.app.config_physics import physics as _physics
+from iga.app.config_schema import SCHEMA, allowed, default, required
 from iga.app.config_time import capacity, time_section
 from iga.errors import ProblemError
 from geometry.errors import show
@@ -47,16 +31,14 @@ __all__ = ["validate", "SECTIONS", "OUTPUT_DEFAULTS"]
 
 SECTIONS = ("map", "tile", "paving", "primitive", "second_level", "reduce", "material", "bc", "physics", "support",
             "load", "time", "solver", "output", "limits")
-OUTPUT_DEFAULTS = {"dir": "out", "name": "result", "vtu": True, "bezier": False, "png": True, "samples": 3,
-                   "tolerance": None, "probes": [], "exports": []}
+OUTPUT_DEFAULTS = {k.name: k.default for k in SCHEMA["output"].keys}
 EXPORTS = ("stl", "obj", "ply", "vtp", "iges", "gismo")
 SURFACE_SCHEMES = ("random_implicit", "implicit_bifurcation")  # implicit structures: surfaces, no analysis
-SOLVER_DEFAULTS = {"method": "auto", "tol": 1e-10, "maxiter": None, "refine": 0, "degree_elevation": 0, "degree": None,
-                   "quadrature_extra": 0}
+SOLVER_DEFAULTS = {k.name: k.default for k in SCHEMA["solver"].keys}
 
 
 def _bc(v, where) -> dict:
-    t = _table(v, where, {"kind", "tag", "value", "h", "ambient", "emissivity", "scale"}, ("kind", "tag"))
+    t = _table(v, where, allowed("bc"), required("bc"))
     kind = _choice(t["kind"], f"{where}.kind", ("dirichlet", "neumann", "robin", "radiation"))
     out = {"kind": kind, "tag": _tag(t["tag"], f"{where}.tag")}
     if kind != "radiation":
@@ -74,7 +56,7 @@ def _bc(v, where) -> dict:
         if isinstance(out["emissivity"], float) and not 0 <= out["emissivity"] <= 1:
             _fail(f"{where}.emissivity", f"must lie in [0, 1], got {show(t['emissivity'])}")
         out["ambient"] = _formula(t["ambient"], f"{where}.ambient")
-        out["scale"] = _choice(t.get("scale", "K"), f"{where}.scale", ("K", "C"))
+        out["scale"] = _choice(t.get("scale", default("bc", "scale")), f"{where}.scale", ("K", "C"))
     elif kind == "robin":
         for key in ("h", "ambient"):
             if key not in t:
@@ -87,7 +69,7 @@ def _bc(v, where) -> dict:
         extra = sorted(set(t) & {"h", "ambient"})
         if extra:
             _fail(f"{where}.{extra[0]}", f"a {kind} condition takes 'value', not {extra}")
-        out["value"] = _formula(t.get("value", 0.0), f"{where}.value")
+        out["value"] = _formula(t.get("value", default("bc", "value")), f"{where}.value")
     return out
 
 
@@ -110,8 +92,8 @@ def _conductivity(v, where):
 
 
 def _output(v, base: Path) -> dict:
-    t = _table(v, "output", set(OUTPUT_DEFAULTS))
-    out = dict(OUTPUT_DEFAULTS)
+    t = _table(v, "output", allowed("output"))
+    out = {key: default("output", key) for key in OUTPUT_DEFAULTS}
     if "dir" in t:
         out["dir"] = _str(t["dir"], "output.dir")
     if "name" in t:
@@ -230,9 +212,10 @@ def validate(config, base_dir=".") -> dict:
         raise ProblemError("config section material holds the heat problem's conductivity and source; physics.kind = "
                            "'elasticity' takes its materials in [physics] (youngs, poisson): drop [material], or "
                            "use kind = 'thermo-elastic'")
-    mat = _table(config.get("material", {}), "material", {"conductivity", "source", "capacity"})
-    cfg["material"] = {"conductivity": _conductivity(mat.get("conductivity", 1.0), "material.conductivity"),
-                       "source": _formula(mat.get("source", 0.0), "material.source"),
+    mat = _table(config.get("material", {}), "material", allowed("material"))
+    cfg["material"] = {"conductivity": _conductivity(mat.get("conductivity", default("material", "conductivity")),
+                                                     "material.conductivity"),
+                       "source": _formula(mat.get("source", default("material", "source")), "material.source"),
                        "capacity": capacity(mat, physics["kind"])}
     bcs = config.get("bc", [])
     bcs = bcs if isinstance(bcs, list) else [bcs]
@@ -250,18 +233,19 @@ def validate(config, base_dir=".") -> dict:
                       "temperature VTU), which physics.kind = 'elasticity' does not compute; drop it, or use "
                       "kind = 'thermo-elastic'")
     _exports_fit(cfg, surface)
-    lim = _table(config.get("limits", {}), "limits", {"max_memory_gib"})
+    lim = _table(config.get("limits", {}), "limits", allowed("limits"))
     cfg["limits"] = {"max_memory_gib": None if "max_memory_gib" not in lim
                      else _number(lim["max_memory_gib"], "limits.max_memory_gib", lo=0)}
     return cfg
 
 
 def _solver(s) -> dict:
-    s = _table(s, "solver", set(SOLVER_DEFAULTS))
-    return {"method": _choice(s.get("method", "auto"), "solver.method", solvers.backends()),
-            "tol": _number(s.get("tol", 1e-10), "solver.tol", lo=0, hi=1),
-            "maxiter": None if s.get("maxiter") is None else _int(s["maxiter"], "solver.maxiter", 1),
-            "refine": _int(s.get("refine", 0), "solver.refine", 0),
-            "degree_elevation": _int(s.get("degree_elevation", 0), "solver.degree_elevation", 0),
-            "degree": None if s.get("degree") is None else _int(s["degree"], "solver.degree", 1),
-            "quadrature_extra": _int(s.get("quadrature_extra", 0), "solver.quadrature_extra", 0)}
+    s = _table(s, "solver", allowed("solver"))
+    s = {key: s.get(key, default("solver", key)) for key in SOLVER_DEFAULTS}
+    return {"method": _choice(s["method"], "solver.method", solvers.backends()),
+            "tol": _number(s["tol"], "solver.tol", lo=0, hi=1),
+            "maxiter": None if s["maxiter"] is None else _int(s["maxiter"], "solver.maxiter", 1),
+            "refine": _int(s["refine"], "solver.refine", 0),
+            "degree_elevation": _int(s["degree_elevation"], "solver.degree_elevation", 0),
+            "degree": None if s["degree"] is None else _int(s["degree"], "solver.degree", 1),
+            "quadrature_extra": _int(s["quadrature_extra"], "solver.quadrature_extra", 0)}

@@ -24,6 +24,7 @@ from tiling.members.polygons import PolygonTile, beam_lattice
 from iga.app.config_checks import (boolean as _bool, choice as _choice, fail as _fail, integer as _int, ints as _ints,
                             kwargs as _kwargs, number as _number, string as _str, table as _table)
 from iga.errors import ProblemError
+from iga.app.config_schema import SCHEMA, allowed, default, required
 from iga.app.maps import MAPS
 from iga.tags import parse_expression
 
@@ -36,15 +37,15 @@ NO_TILE = ("bifurcation", "vrep", "random_implicit", "implicit_bifurcation")
 #: schemes without a [map] section (V-rep primitives carry their maps)
 NO_MAP = ("vrep",)
 POLYGON_TILES = {"beam_lattice": beam_lattice}
-_PAVING_KEYS = {"scheme", "counts", "levels", "scale", "seal", "thickness", "seal_sides", "epsilon", "kind",
-                "direction", "margin", "alpha", "seed", "continuity", "connectivity", "cap", "resolution", "radius",
-                "expression", "samples", "bridges", "beta", "d_maxdist", "phi"}
+#: the keys of each scheme's [paving] (iga.app.config_schema), and every key some scheme takes
+_SCHEME_KEYS = {scheme: allowed(f"paving.{scheme}") for scheme in SCHEMES}
+_PAVING_KEYS = set().union(*_SCHEME_KEYS.values())
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")  # a primitive's name: a word the expression can hold
 
 
 def map_section(m, base_dir, where: str = "map") -> dict:
     """The checked [map] section (or the ``map`` table of a V-rep primitive, named ``where``)."""
-    m = _table(m, where, {"primitive", "args", "file", "grading"})
+    m = _table(m, where, allowed("map"))
     if ("primitive" in m) == ("file" in m):
         raise ProblemError(f"config section {where} needs exactly one of 'primitive' (a built-in map) or 'file' "
                            "(a .npz)")
@@ -64,59 +65,55 @@ def map_section(m, base_dir, where: str = "map") -> dict:
 
 
 def _grading(g, where) -> dict:
-    g = _table(g, where, {"channel", "near", "far", "face", "mode"})
-    return {"channel": _str(g.get("channel", "k"), f"{where}.channel"),
-            "near": _number(g.get("near", 205.0), f"{where}.near"),
-            "far": _number(g.get("far", 54.0), f"{where}.far"),
-            "face": _choice(g.get("face", "wmin"), f"{where}.face", FACE_NAMES),
-            "mode": _choice(g.get("mode", "parameter"), f"{where}.mode", ("parameter", "distance"))}
+    g = _table(g, where, allowed("map.grading"))
+    g = {key: g.get(key, default("map.grading", key)) for key in allowed("map.grading")}
+    return {"channel": _str(g["channel"], f"{where}.channel"), "near": _number(g["near"], f"{where}.near"),
+            "far": _number(g["far"], f"{where}.far"), "face": _choice(g["face"], f"{where}.face", FACE_NAMES),
+            "mode": _choice(g["mode"], f"{where}.mode", ("parameter", "distance"))}
 
 
 def random_implicit(p) -> dict:
     """The random implicit scheme (Massarwi et al. 2018, Section 4): a surface, exported by name."""
-    allowed = {"scheme", "counts", "alpha", "seed", "continuity", "connectivity", "cap", "resolution"}
-    extra = sorted(set(p) - allowed)
-    if extra:
-        _fail(f"paving.{extra[0]}", "does not apply to the random_implicit scheme")
+    _only(p, "random_implicit")
     if "counts" not in p:
         raise ProblemError("config section paving (scheme 'random_implicit') needs 'counts' (cells per direction)")
+    p = _filled(p, "random_implicit")
     return {"scheme": "random_implicit", "counts": _ints(p["counts"], "paving.counts", 3),
-            "alpha": _number(p.get("alpha", 0.5), "paving.alpha", lo=0, hi=1, open_lo=False),
-            "seed": _int(p.get("seed", 0), "paving.seed", 0),
-            "continuity": _choice(p.get("continuity", "C0"), "paving.continuity", ("C0", "C1")),
-            "connectivity": _int(p.get("connectivity", 1), "paving.connectivity", 1),
-            "cap": _bool(p.get("cap", False), "paving.cap"),
-            "resolution": _int(p.get("resolution", 12), "paving.resolution", 2)}
+            "alpha": _number(p["alpha"], "paving.alpha", lo=0, hi=1, open_lo=False),
+            "seed": _int(p["seed"], "paving.seed", 0),
+            "continuity": _choice(p["continuity"], "paving.continuity", ("C0", "C1")),
+            "connectivity": _int(p["connectivity"], "paving.connectivity", 1),
+            "cap": _bool(p["cap"], "paving.cap"), "resolution": _int(p["resolution"], "paving.resolution", 2)}
 
 
 def implicit_bifurcation(p) -> dict:
     """The implicit bifurcation scheme (Massarwi et al. 2018, Section 5.2, Fig. 16): a surface over the adaptive
     subdivision of ``epsilon``."""
-    extra = sorted(set(p) - {"scheme", "epsilon", "alpha", "seed", "cap", "resolution", "radius"})
-    if extra:
-        _fail(f"paving.{extra[0]}", "does not apply to the implicit_bifurcation scheme")
+    _only(p, "implicit_bifurcation")
     if "epsilon" not in p:
         raise ProblemError("config section paving (scheme 'implicit_bifurcation') needs 'epsilon' (the largest cell "
                            "edge, model units)")
+    p = _filled(p, "implicit_bifurcation")
     return {"scheme": "implicit_bifurcation", "epsilon": _number(p["epsilon"], "paving.epsilon", lo=0),
-            "alpha": _number(p.get("alpha", 0.0), "paving.alpha", lo=0, hi=1, open_lo=False),
-            "seed": _int(p.get("seed", 0), "paving.seed", 0), "cap": _bool(p.get("cap", True), "paving.cap"),
-            "resolution": _int(p.get("resolution", 8), "paving.resolution", 2),
-            "radius": _number(p.get("radius", 0.35), "paving.radius", lo=0, hi=0.5)}
+            "alpha": _number(p["alpha"], "paving.alpha", lo=0, hi=1, open_lo=False),
+            "seed": _int(p["seed"], "paving.seed", 0), "cap": _bool(p["cap"], "paving.cap"),
+            "resolution": _int(p["resolution"], "paving.resolution", 2),
+            "radius": _number(p["radius"], "paving.radius", lo=0, hi=0.5)}
 
 
 def bifurcation(p) -> dict:
     """The bifurcation scheme (Massarwi et al. 2018, Section 5): ``epsilon`` (model units) or ``levels`` (one per
     layer), ``kind`` ("1-2", "1-4a", "1-4b"), ``direction`` (0, 1, 2), ``margin``."""
-    for key in ("counts", "scale", "seal", "thickness", "seal_sides"):
-        if key in p:
-            _fail(f"paving.{key}", "does not apply to the bifurcation scheme (its layers follow epsilon or levels)")
+    for key in sorted(set(p) - _SCHEME_KEYS["bifurcation"]):
+        _fail(f"paving.{key}", "does not apply to the bifurcation scheme" + (
+            " (its layers follow epsilon or levels)" if key in _SCHEME_KEYS["hierarchical"] else ""))
     if ("epsilon" in p) == ("levels" in p):
         raise ProblemError("config section paving (scheme 'bifurcation') needs exactly one of 'epsilon' (the largest "
                            "cell edge, model units) or 'levels' (one per layer)")
-    out = {"scheme": "bifurcation", "kind": _choice(p.get("kind", "1-2"), "paving.kind", ("1-2", "1-4a", "1-4b")),
-           "direction": _int(p.get("direction", 2), "paving.direction", 0),
-           "margin": _number(p.get("margin", 0.3), "paving.margin", lo=0, hi=0.5)}
+    f = _filled(p, "bifurcation")
+    out = {"scheme": "bifurcation", "kind": _choice(f["kind"], "paving.kind", ("1-2", "1-4a", "1-4b")),
+           "direction": _int(f["direction"], "paving.direction", 0),
+           "margin": _number(f["margin"], "paving.margin", lo=0, hi=0.5)}
     if out["direction"] > 2:
         _fail("paving.direction", f"must be 0, 1 or 2 (the growth direction), got {out['direction']}")
     if "epsilon" in p:
@@ -132,38 +129,43 @@ def bifurcation(p) -> dict:
 
 def tile_section(t, where: str = "tile") -> dict:
     """The checked [tile] section (a library tile), or a tile table named ``where``."""
-    t = _table(t, where, {"library", "args"}, ("library",))
+    t = _table(t, where, allowed("tile"), required("tile"))
     lib = _choice(t["library"], f"{where}.library", TILES)
-    return {"library": lib, "args": _kwargs(t.get("args", {}), f"{where}.args", TILES[lib])}
+    return {"library": lib, "args": _kwargs(t.get("args", default("tile", "args")), f"{where}.args", TILES[lib])}
 
 
 def paving_section(p) -> dict:
     """The checked [paving] section, per scheme."""
-    p = _table(p, "paving", _PAVING_KEYS, ("scheme",))
+    p = _table(p, "paving", set(p) if isinstance(p, dict) else (), ("scheme",))
     scheme = _choice(p["scheme"], "paving.scheme", SCHEMES)
+    unknown = sorted(set(p) - _PAVING_KEYS)  # a key no scheme takes (one of another scheme is named below)
+    if unknown:
+        raise ProblemError(f"unknown config key paving.{show(unknown[0])} for the {scheme} scheme; allowed keys: "
+                           f"{sorted(_SCHEME_KEYS[scheme])}")
     if scheme in _SCHEME_CHECKS:
         return _SCHEME_CHECKS[scheme](p)
-    for key in sorted(set(p) - {"scheme", "counts", "levels", "scale", "seal", "thickness", "seal_sides"}):
-        takers = [name for name, keys in _SCHEME_KEYS.items() if key in keys]
+    for key in sorted(set(p) - _SCHEME_KEYS["regular"] - _SCHEME_KEYS["hierarchical"]):
+        takers = [name for name, keys in _SCHEME_KEYS.items() if key in keys and name not in ("regular", "hierarchical")]
         _fail(f"paving.{key}", f"applies to the {' and '.join(takers)} scheme{'s' if len(takers) > 1 else ''} only")
     if "counts" not in p:
         raise ProblemError(f"config section paving (scheme {scheme!r}) needs 'counts'")
     pav = {"scheme": scheme, "counts": _ints(p["counts"], "paving.counts", 2 if scheme == "hierarchical" else 3)}
     if scheme == "hierarchical":
-        pav["levels"] = _int(p.get("levels", 2), "paving.levels", 1)
+        pav["levels"] = _int(p.get("levels", default("paving.hierarchical", "levels")), "paving.levels", 1)
         pav["scale"] = None if "scale" not in p else _number(p["scale"], "paving.scale", lo=0)
     else:
-        for key in ("levels", "scale"):
+        for key in sorted(_SCHEME_KEYS["hierarchical"] - _SCHEME_KEYS["regular"]):
             if key in p:
                 _fail(f"paving.{key}", "applies to the hierarchical scheme only")
     if "seal" in p:
         pav["seal"] = _choice(p["seal"], "paving.seal", ("cap", "shell"))
-        pav["thickness"] = _number(p.get("thickness", 0.1), "paving.thickness", lo=0, hi=0.5)
+        pav["thickness"] = _number(p.get("thickness", default(f"paving.{scheme}", "thickness")), "paving.thickness", lo=0,
+                                   hi=0.5)
         if pav["seal"] == "shell":  # (passing the six sides on made every shelled pipeline fail)
             if "seal_sides" in p:
                 _fail("paving.seal_sides", "applies to seal = \"cap\" only: a shell seals every side")
         else:
-            sides = p.get("seal_sides", list(FACE_NAMES))
+            sides = p.get("seal_sides", default(f"paving.{scheme}", "seal_sides"))
             if not isinstance(sides, list) or not sides or any(x not in FACE_NAMES for x in sides):
                 _fail("paving.seal_sides", f"must be a list of face names from {list(FACE_NAMES)}, got {show(sides)}")
             pav["seal_sides"] = list(sides)
@@ -176,32 +178,44 @@ def paving_section(p) -> dict:
 
 
 
-def _only(p, scheme: str, allowed: set) -> None:
-    extra = sorted(set(p) - allowed - {"scheme"})
+def _only(p, scheme: str) -> None:
+    """Refuses a [paving] key that ``scheme`` does not take."""
+    extra = sorted(set(p) - _SCHEME_KEYS[scheme])
     if extra:
         _fail(f"paving.{extra[0]}", f"does not apply to the {scheme} scheme")
+
+
+def _filled(p, scheme: str) -> dict:
+    """``p`` with the defaults of ``scheme`` (:mod:`iga.app.config_schema`) filled in where a key is left out;
+    required keys and optional ones without a default are left as given."""
+    out = dict(p)
+    for key in SCHEMA[f"paving.{scheme}"].keys:
+        if key.name not in out and key.default is not None and key.name not in required(f"paving.{scheme}"):
+            out[key.name] = default(f"paving.{scheme}", key.name)
+    return out
 
 
 def vrep(p) -> dict:
     """The V-rep scheme (Hong and Elber 2021): ``expression`` over the [[primitive]] names and the options of
     :func:`tiling.vrep.vrep_microstructure`."""
-    _only(p, "vrep", {"expression", "samples", "margin", "bridges", "beta", "d_maxdist", "phi", "alpha"})
+    _only(p, "vrep")
     if "expression" not in p:
         raise ProblemError("config section paving (scheme 'vrep') needs 'expression': the Boolean model over the "
                            "[[primitive]] names, e.g. \"(body | wing) - hole\"")
-    return {"scheme": "vrep", "expression": _str(p["expression"], "paving.expression"),
-            "samples": _int(p.get("samples", 4), "paving.samples", 2),
-            "margin": _number(p.get("margin", 0.0), "paving.margin", lo=0, hi=0.5, open_lo=False),
-            "bridges": _bool(p.get("bridges", True), "paving.bridges"),
-            "beta": _number(p.get("beta", 0.5), "paving.beta", lo=0, hi=1),
-            "d_maxdist": None if "d_maxdist" not in p else _number(p["d_maxdist"], "paving.d_maxdist", lo=0),
-            "phi": _number(p.get("phi", 0.0), "paving.phi", lo=0, hi=1.0000001, open_lo=False),
-            "alpha": _number(p.get("alpha", 0.7853981633974483), "paving.alpha", lo=0, hi=1.5707963267948966)}
+    f = _filled(p, "vrep")
+    return {"scheme": "vrep", "expression": _str(f["expression"], "paving.expression"),
+            "samples": _int(f["samples"], "paving.samples", 2),
+            "margin": _number(f["margin"], "paving.margin", lo=0, hi=0.5, open_lo=False),
+            "bridges": _bool(f["bridges"], "paving.bridges"),
+            "beta": _number(f["beta"], "paving.beta", lo=0, hi=1),
+            "d_maxdist": None if "d_maxdist" not in f else _number(f["d_maxdist"], "paving.d_maxdist", lo=0),
+            "phi": _number(f["phi"], "paving.phi", lo=0, hi=1.0000001, open_lo=False),
+            "alpha": _number(f["alpha"], "paving.alpha", lo=0, hi=1.5707963267948966)}
 
 
 def polygons(p) -> dict:
     """The polygon scheme (Elber 2017, Section 2, Eq. 3): ``counts`` copies of the [tile] polygon tile."""
-    _only(p, "polygons", {"counts"})
+    _only(p, "polygons")
     if "counts" not in p:
         raise ProblemError("config section paving (scheme 'polygons') needs 'counts' (cells per direction)")
     return {"scheme": "polygons", "counts": _ints(p["counts"], "paving.counts", 3)}
@@ -210,7 +224,7 @@ def polygons(p) -> dict:
 def polygon_tile(t) -> dict:
     """The [tile] of the polygon scheme: ``library`` (one of :data:`POLYGON_TILES`), or ``points`` (N x 3 in the
     unit cube) with ``polygons`` and/or ``lines`` (lists of vertex indices), checked by building it."""
-    t = _table(t, "tile", {"library", "points", "polygons", "lines", "name"})
+    t = _table(t, "tile", allowed("tile.polygons"))
     if ("library" in t) == ("points" in t):
         raise ProblemError("config section tile (scheme 'polygons') needs exactly one of 'library' "
                            f"({sorted(POLYGON_TILES)}) or 'points' with 'polygons' and/or 'lines'")
@@ -220,8 +234,8 @@ def polygon_tile(t) -> dict:
             _fail(f"tile.{extra[0]}", "goes with 'points', not with 'library'")
         name = _choice(t["library"], "tile.library", POLYGON_TILES)
         return {"library": name, "facets": bool(POLYGON_TILES[name]().polygons)}
-    out = {"points": t["points"], "polygons": t.get("polygons", []), "lines": t.get("lines", []),
-           "name": _str(t.get("name", "polygon tile"), "tile.name")}
+    t = {key: t.get(key, default("tile.polygons", key)) for key in allowed("tile.polygons") - {"library"}}
+    out = {"points": t["points"], "polygons": t["polygons"], "lines": t["lines"], "name": _str(t["name"], "tile.name")}
     out["facets"] = bool(out["polygons"])
     try:
         PolygonTile(out["points"], out["polygons"], out["lines"], out["name"])
@@ -242,7 +256,7 @@ def primitives(config, base_dir, names_in: str) -> list:
     out, seen = [], set()
     for i, v in enumerate(items):
         w = f"primitive[{i}]"
-        t = _table(v, w, {"name", "map", "tile", "counts", "priority"}, ("name", "map", "tile", "counts"))
+        t = _table(v, w, allowed("primitive"), required("primitive"))
         name = _str(t["name"], f"{w}.name")
         if not _NAME.match(name) or name in seen:
             _fail(f"{w}.name", f"must be a new word of letters, digits and _ (the expression names it), got "
@@ -254,7 +268,7 @@ def primitives(config, base_dir, names_in: str) -> list:
                                "trivariates and analysed: use a volumetric tile such as cross")
         out.append({"name": name, "map": map_section(t["map"], base_dir, f"{w}.map"), "tile": tile,
                     "counts": _ints(t["counts"], f"{w}.counts", 3),
-                    "priority": _int(t.get("priority", 0), f"{w}.priority", -10**9)})
+                    "priority": _int(t.get("priority", default("primitive", "priority")), f"{w}.priority", -10**9)})
     parse_expression(names_in, lambda name: {name}, "primitive", "\"(body | wing) - hole\"")  # its syntax
     used = set(re.findall(r"[A-Za-z_][A-Za-z0-9_]*", names_in))
     if used - seen:
@@ -269,8 +283,8 @@ def primitives(config, base_dir, names_in: str) -> list:
 def second_level(v) -> dict:
     """[second_level]: every trivariate of the first level paved again by ``tile`` (``counts``), each reduced to
     ``degree`` (2 or 3) or kept exact (``degree = "exact"``), its free sides capped with ``seal = "cap"``."""
-    t = _table(v, "second_level", {"tile", "counts", "degree", "seal"}, ("tile", "counts"))
-    deg = t.get("degree", 2)
+    t = _table(v, "second_level", allowed("second_level"), required("second_level"))
+    deg = t.get("degree", default("second_level", "degree"))
     if deg != "exact" and (not isinstance(deg, int) or isinstance(deg, bool) or deg not in (2, 3)):
         _fail("second_level.degree", f"must be 2, 3 or \"exact\", got {show(deg)}")
     return {"tile": tile_section(t["tile"], "second_level.tile"), "counts": _ints(t["counts"], "second_level.counts", 3),
@@ -281,11 +295,11 @@ def second_level(v) -> dict:
 def reduce_section(v) -> dict:
     """[reduce]: the model's patches approximated by ``degree`` (2 or 3), deviation measured on ``check`` points
     per direction and piece."""
-    t = _table(v, "reduce", {"degree", "check"}, ("degree",))
+    t = _table(v, "reduce", allowed("reduce"), required("reduce"))
     deg = t["degree"]
     if not isinstance(deg, int) or isinstance(deg, bool) or deg not in (2, 3):
         _fail("reduce.degree", f"must be 2 or 3, got {show(deg)}")
-    return {"degree": deg, "check": _int(t.get("check", 9), "reduce.check", 2)}
+    return {"degree": deg, "check": _int(t.get("check", default("reduce", "check")), "reduce.check", 2)}
 
 
 def _dims(tile_cfg) -> set:
@@ -308,10 +322,5 @@ def surface_reason(cfg: dict) -> str | None:
     return None
 
 
-#: the keys of the other schemes, to name where a misplaced key belongs
-_SCHEME_KEYS = {"bifurcation": {"epsilon", "kind", "direction", "margin"},
-                "random_implicit": {"alpha", "seed", "continuity", "connectivity", "cap", "resolution"},
-                "implicit_bifurcation": {"epsilon", "alpha", "seed", "cap", "resolution", "radius"},
-                "vrep": {"expression", "samples", "margin", "bridges", "beta", "d_maxdist", "phi", "alpha"}}
 _SCHEME_CHECKS = {"bifurcation": bifurcation, "random_implicit": random_implicit,
                   "implicit_bifurcation": implicit_bifurcation, "vrep": vrep, "polygons": polygons}

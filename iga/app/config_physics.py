@@ -7,6 +7,7 @@ from geometry.errors import show
 from iga.app.config_checks import choice as _choice, fail as _fail, formula as _formula, formula_table as _formula_table
 from iga.app.config_checks import number as _number, string as _str
 from iga.app.config_checks import table as _table, tag as _tag
+from iga.app.config_schema import allowed, default, required
 from iga.errors import ProblemError
 
 __all__ = ["PHYSICS", "physics"]
@@ -26,9 +27,9 @@ def physics(config, surface: str | None = None) -> dict:
 
     ``surface``: why the configured model has no volume (e.g. "the random implicit structure is a surface (the
     boundary of an implicit solid)"), or None for a volumetric model; such a model takes no analysis."""
-    t = _table(config.get("physics", {}), "physics", {"kind", "youngs", "poisson", "expansion", "reference",
-                                                      "hold_rigid"})
-    kind = _choice(t.get("kind", "none" if surface and "bc" not in config else "heat"), "physics.kind", PHYSICS)
+    t = _table(config.get("physics", {}), "physics", allowed("physics"))
+    kind = _choice(t.get("kind", "none" if surface and "bc" not in config else default("physics", "kind")),
+                   "physics.kind", PHYSICS)
     out = {"kind": kind}
     if surface and kind != "none":
         raise ProblemError(f"{surface}, not a volumetric B-spline model: heat and elasticity need trivariate "
@@ -53,10 +54,10 @@ def physics(config, surface: str | None = None) -> dict:
     out["poisson"] = _material_value(t["poisson"], "physics.poisson", lo=-1, hi=0.5)
     if kind == "thermo-elastic":
         out["expansion"] = _material_value(t["expansion"], "physics.expansion")
-        out["reference"] = _number(t.get("reference", 20.0), "physics.reference")
+        out["reference"] = _number(t.get("reference", default("physics", "reference")), "physics.reference")
     elif "expansion" in t or "reference" in t:
         _fail("physics.expansion", "applies to physics.kind = 'thermo-elastic'")
-    hold = t.get("hold_rigid", False)
+    hold = t.get("hold_rigid", default("physics", "hold_rigid"))
     if not isinstance(hold, bool):
         _fail("physics.hold_rigid", f"must be true or false, got {show(hold)}")
     out["hold_rigid"] = hold
@@ -87,16 +88,16 @@ def _vector(v, where, broadcast: bool):
 
 
 def _support(v, where) -> dict:
-    t = _table(v, where, {"tag", "value", "components"}, ("tag",))
-    comps = t.get("components", "xyz")
+    t = _table(v, where, allowed("support"), required("support"))
+    comps = t.get("components", default("support", "components"))
     if not (isinstance(comps, str) and comps and set(comps) <= set("xyz") and len(set(comps)) == len(comps)):
         _fail(f"{where}.components", f"must be distinct letters of 'xyz' (e.g. 'z'), got {show(comps)}")
-    return {"tag": _tag(t["tag"], f"{where}.tag"), "value": _vector(t.get("value", 0.0), f"{where}.value", True),
+    return {"tag": _tag(t["tag"], f"{where}.tag"), "value": _vector(t.get("value", default("support", "value")), f"{where}.value", True),
             "components": comps}
 
 
 def _load(v, where) -> dict:
-    t = _table(v, where, {"kind", "tag", "value"}, ("kind", "tag", "value"))
+    t = _table(v, where, allowed("load"), required("load"))
     kind = _choice(t["kind"], f"{where}.kind", ("traction", "pressure"))
     where_value = f"{where}.value"
     value = _formula(t["value"], where_value) if kind == "pressure" else _vector(t["value"], where_value, False)

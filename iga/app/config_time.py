@@ -14,6 +14,7 @@ from __future__ import annotations
 from geometry.errors import show
 
 from iga.app.config_checks import choice, fail, formula, formula_table, integer, number, string, table
+from iga.app.config_schema import allowed, default, required
 from iga.errors import ProblemError
 from iga.heat.transient import SCHEMES
 
@@ -21,7 +22,6 @@ __all__ = ["time_section", "capacity", "TIME_SOLVERS"]
 
 #: the solvers a transient run prepares once per step size (:func:`solvers.prepare`)
 TIME_SOLVERS = ("auto", "direct", "amg-cg", "cg")
-_KEYS = {"end", "step", "tolerance", "method", "theta", "initial", "every", "fraction", "max_steps"}
 
 
 def time_section(config: dict, kind: str, solver_method: str) -> dict | None:
@@ -32,17 +32,17 @@ def time_section(config: dict, kind: str, solver_method: str) -> dict | None:
         return None
     if "time" not in config:
         raise ProblemError("physics.kind = 'transient-heat' needs a [time] section (end, step or tolerance)")
-    t = table(config["time"], "time", _KEYS, ("end",))
+    t = table(config["time"], "time", allowed("time"), required("time"))
     steady = isinstance(t["end"], str)
     if steady and t["end"] != "steady":
         fail("time.end", f"must be a number of seconds or \"steady\", got {show(t['end'])}")
     out = {"end": "steady" if steady else number(t["end"], "time.end", lo=0),
            "step": None if "step" not in t else number(t["step"], "time.step", lo=0),
            "tolerance": None if "tolerance" not in t else number(t["tolerance"], "time.tolerance", lo=0),
-           "method": choice(t.get("method", "bdf2"), "time.method", tuple(SCHEMES) + ("theta",)),
-           "theta": None, "every": integer(t.get("every", 1), "time.every", 1),
-           "max_steps": integer(t.get("max_steps", 100_000), "time.max_steps", 1),
-           "fraction": None, "initial": formula(t.get("initial", 0.0), "time.initial")}
+           "method": choice(t.get("method", default("time", "method")), "time.method", tuple(SCHEMES) + ("theta",)),
+           "theta": None, "every": integer(t.get("every", default("time", "every")), "time.every", 1),
+           "max_steps": integer(t.get("max_steps", default("time", "max_steps")), "time.max_steps", 1),
+           "fraction": None, "initial": formula(t.get("initial", default("time", "initial")), "time.initial")}
     if out["method"] == "theta":
         if "theta" not in t:
             raise ProblemError("config key time.method = 'theta' needs time.theta in [0.5, 1]")
@@ -55,7 +55,7 @@ def time_section(config: dict, kind: str, solver_method: str) -> dict | None:
         if out["tolerance"] is None:
             fail("time.end", "\"steady\" runs for as long as the part takes to settle: give time.tolerance (K, "
                  "the error allowed per step) for adaptive steps")
-        out["fraction"] = number(t.get("fraction", 0.95), "time.fraction", lo=0, hi=1)
+        out["fraction"] = number(t.get("fraction", default("time", "fraction")), "time.fraction", lo=0, hi=1)
     elif "fraction" in t:
         fail("time.fraction", "applies to time.end = \"steady\"")
     if out["step"] is None and out["tolerance"] is None:

@@ -1,0 +1,314 @@
+"""The keys of every section of a pipeline configuration, with what each takes, its default and its meaning: the
+one table the validator (:mod:`iga.app.config`, :mod:`iga.app.config_model`, :mod:`iga.app.config_physics`,
+:mod:`iga.app.config_time`) reads its allowed keys, required keys and defaults from, and from which the TOML
+reference of the documentation is written (``python -m iga.app.config_schema`` prints it,
+``docs/pipeline-reference.md``), so the two cannot drift apart.
+
+A section whose keys depend on a choice (the paving's ``scheme``) has one entry per choice, named
+``"paving.regular"``, ``"paving.vrep"``, ...; the table of a V-rep primitive is ``"primitive"``, the grading
+table of a map ``"map.grading"``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from math import pi
+
+import solvers
+from iga.app.maps import MAPS
+
+__all__ = ["Key", "Section", "SCHEMA", "REQUIRED", "allowed", "required", "default", "reference"]
+
+
+class _Required:
+    """The default of a key that must be given."""
+
+    def __repr__(self) -> str:
+        return "required"
+
+
+REQUIRED = _Required()
+#: the default of an optional key that has no value when left out (its meaning says what happens then)
+UNSET = None
+
+
+@dataclass(frozen=True)
+class Key:
+    """One key of a section: ``takes`` says its type and range in words, ``default`` its value when left out
+    (:data:`REQUIRED`: it must be given; None: unset, ``meaning`` says what that does)."""
+    name: str
+    takes: str
+    default: object
+    meaning: str
+
+
+@dataclass(frozen=True)
+class Section:
+    """A section (``[name]``), an array of tables (``[[name]]``, ``many``) or an inner table of one."""
+    name: str
+    title: str
+    meaning: str
+    keys: tuple
+    many: bool = False
+
+    def key(self, name: str) -> Key:
+        return next(k for k in self.keys if k.name == name)
+
+
+def _one_of(names) -> str:
+    names = [f"`{n}`" for n in names]
+    return ", ".join(names[:-1]) + " or " + names[-1]
+
+
+def _K(name, takes, default, meaning) -> Key:
+    return Key(name, takes, default, meaning)
+
+
+_TILE_KEYS = (_K("library", "a tile of `tiling.library` (see [Tiles](tiles.md))", REQUIRED,
+                 "the tile paved into every cell"),
+              _K("args", "a table of the tile's keyword arguments", {}, "e.g. `{arm = 0.3}`; checked against the "
+                 "tile's signature"))
+_SEAL = (_K("seal", "`\"cap\"` or `\"shell\"`", UNSET, "seal the paving's free sides (Massarwi et al. 2018, "
+            "Section 6.2): caps of the tiles' open ends, or shells around surface tiles"),
+         _K("thickness", "a number in (0, 0.5)", 0.1, "the seal's thickness, a fraction of the cell"),
+         _K("seal_sides", "a list of face names (`umin` .. `wmax`)", ["umin", "umax", "vmin", "vmax", "wmin", "wmax"],
+            "the sides that `seal = \"cap\"` closes"))
+
+_SECTIONS = (
+    Section("map", "[map]", "The deformation map: a built-in primitive or a saved trivariate (exactly one).", (
+        _K("primitive", _one_of(MAPS), UNSET, "a built-in map (`iga.app.maps`); give this or `file`"),
+        _K("args", "a table of the primitive's keyword arguments", {}, "e.g. `{size = [0.03, 0.03, 0.03]}`, "
+           "`channels = {k = 205.0}` for a constant material channel"),
+        _K("file", "a path to a `.npz` written by `geometry.io.save`", UNSET, "a saved trivariate, relative to "
+           "the config file; give this or `primitive`"),
+        _K("grading", "a `map.grading` table or a list of them", UNSET, "material channels graded from one face "
+           "(one table per channel)"))),
+    Section("map.grading", "[map] grading = {...}", "A material channel graded linearly from one face of the map.", (
+        _K("channel", "a channel name", "k", "the channel written onto the map's control points"),
+        _K("near", "a number", 205.0, "its value on `face`"),
+        _K("far", "a number", 54.0, "its value on the opposite face"),
+        _K("face", "`umin` .. `wmax`", "wmin", "where the channel takes `near`"),
+        _K("mode", "`\"parameter\"` or `\"distance\"`", "parameter", "linear in the map's parameter, or in the "
+           "distance from `face`"))),
+    Section("tile", "[tile]", "The tile of the `regular` and `hierarchical` schemes (and of `[second_level]`).",
+            _TILE_KEYS),
+    Section("tile.polygons", "[tile] (scheme \"polygons\")", "The polygon tile: a library tile, or points with "
+            "facets and/or lines (Elber 2017, Eq. 3).", (
+                _K("library", "`\"beam_lattice\"`", UNSET, "a built-in polygon tile; give this or `points`"),
+                _K("points", "a list of [x, y, z] in the unit cube", UNSET, "the tile's vertices"),
+                _K("polygons", "a list of vertex-index lists", [], "its facets"),
+                _K("lines", "a list of vertex-index lists", [], "its polylines"),
+                _K("name", "a string", "polygon tile", "its name in the summary"))),
+    Section("paving.regular", "[paving] scheme = \"regular\"", "Copies of the tile in `counts` cells of the map's "
+            "parameter domain, each composed into the map (Elber 2017, Eq. 2).", (
+                _K("scheme", "`\"regular\"`", REQUIRED, "the paving scheme"),
+                _K("counts", "three integers >= 1", REQUIRED, "cells along u, v, w")) + _SEAL),
+    Section("paving.hierarchical", "[paving] scheme = \"hierarchical\"", "Tiles paved into tiles, `levels` deep "
+            "(Massarwi et al. 2018, Section 3; branch faces glued by refinement matrices).", (
+                _K("scheme", "`\"hierarchical\"`", REQUIRED, "the paving scheme"),
+                _K("counts", "two integers >= 1", REQUIRED, "cells along u and v of every level"),
+                _K("levels", "an integer >= 1", 2, "the depth of the hierarchy"),
+                _K("scale", "a number > 0", UNSET, "each level's height relative to the one below (unset: "
+                   "equal heights)")) + _SEAL),
+    Section("paving.bifurcation", "[paving] scheme = \"bifurcation\"", "Adaptive bifurcation: the cells split "
+            "where the map is large (Massarwi et al. 2018, Section 5); no [tile].", (
+                _K("scheme", "`\"bifurcation\"`", REQUIRED, "the paving scheme"),
+                _K("epsilon", "a number > 0 (model units)", UNSET, "the largest cell edge; give this or `levels`"),
+                _K("levels", "a list of integers >= 0", UNSET, "the level of every layer; give this or `epsilon`"),
+                _K("kind", "`\"1-2\"`, `\"1-4a\"` or `\"1-4b\"`", "1-2", "the bifurcation tile"),
+                _K("direction", "0, 1 or 2", 2, "the direction of growth"),
+                _K("margin", "a number in (0, 0.5)", 0.3, "the tiles' wall margin"))),
+    Section("paving.vrep", "[paving] scheme = \"vrep\"", "A Boolean model over [[primitive]] tables, each a paved "
+            "map (Hong and Elber 2021); no [map], no [tile].", (
+                _K("scheme", "`\"vrep\"`", REQUIRED, "the paving scheme"),
+                _K("expression", "a Boolean expression of the primitives' names", REQUIRED,
+                   "`|` union, `&` intersection, ` - ` subtraction, parentheses: `\"(body | wing) - hole\"`"),
+                _K("samples", "an integer >= 2", 4, "points per direction that classify a cell"),
+                _K("margin", "a number in [0, 0.5)", 0.0, "cells this close to a boundary count as cut"),
+                _K("bridges", "true or false", True, "bridge the cut cells to the surface"),
+                _K("beta", "a number in (0, 1)", 0.5, "the bridges' anchoring fraction"),
+                _K("d_maxdist", "a number > 0", UNSET, "the largest bridge length (unset: no bound)"),
+                _K("phi", "a number in [0, 1]", 0.0, "the bridges' twist limit"),
+                _K("alpha", "an angle in (0, pi/2) rad", pi / 4, "the largest angle between a bridge and the "
+                   "surface normal"))),
+    Section("paving.polygons", "[paving] scheme = \"polygons\"", "A polygon tile paved by vertex mapping (Elber "
+            "2017, Eq. 3): a mesh, no analysis.", (
+                _K("scheme", "`\"polygons\"`", REQUIRED, "the paving scheme"),
+                _K("counts", "three integers >= 1", REQUIRED, "cells along u, v, w"))),
+    Section("paving.random_implicit", "[paving] scheme = \"random_implicit\"", "Random fields around the canonical "
+            "tubes (Massarwi et al. 2018, Section 4): a surface, no analysis; no [tile].", (
+                _K("scheme", "`\"random_implicit\"`", REQUIRED, "the paving scheme"),
+                _K("counts", "three integers >= 1", REQUIRED, "cells along u, v, w"),
+                _K("alpha", "a number in [0, 1)", 0.5, "the share of randomness"),
+                _K("seed", "an integer >= 0", 0, "the random seed"),
+                _K("continuity", "`\"C0\"` or `\"C1\"`", "C0", "the fields' continuity across cells"),
+                _K("connectivity", "an integer >= 1", 1, "the components the structure must have at most"),
+                _K("cap", "true or false", False, "close the structure at the map's boundary"),
+                _K("resolution", "an integer >= 2", 12, "marching-cubes samples per cell and direction"))),
+    Section("paving.implicit_bifurcation", "[paving] scheme = \"implicit_bifurcation\"", "Implicit tubes over "
+            "the adaptive subdivision (Massarwi et al. 2018, Section 5.2, Fig. 16): a surface, no analysis.", (
+                _K("scheme", "`\"implicit_bifurcation\"`", REQUIRED, "the paving scheme"),
+                _K("epsilon", "a number > 0 (model units)", REQUIRED, "the largest cell edge"),
+                _K("alpha", "a number in [0, 1)", 0.0, "the share of randomness"),
+                _K("seed", "an integer >= 0", 0, "the random seed"),
+                _K("cap", "true or false", True, "close the structure at the map's boundary"),
+                _K("resolution", "an integer >= 2", 8, "marching-cubes samples per cell and direction"),
+                _K("radius", "a number in (0, 0.5)", 0.35, "the tubes' radius, a fraction of the cell"))),
+    Section("primitive", "[[primitive]]", "One primitive of a V-rep model (scheme \"vrep\").", (
+        _K("name", "a word of letters, digits and _", REQUIRED, "the name the expression uses"),
+        _K("map", "a table like [map]", REQUIRED, "the primitive's map"),
+        _K("tile", "a table like [tile]", REQUIRED, "its tile (volumetric)"),
+        _K("counts", "three integers >= 1", REQUIRED, "cells per knot span along u, v, w"),
+        _K("priority", "an integer", 0, "the higher priority tiles a V-cell two primitives share")), many=True),
+    Section("second_level", "[second_level]", "Every trivariate of the first level paved again (Massarwi et al. "
+            "2018, Fig. 12); volumetric first levels.", (
+                _K("tile", "a table like [tile]", REQUIRED, "the second level's tile"),
+                _K("counts", "three integers >= 1", REQUIRED, "cells per first-level trivariate"),
+                _K("degree", "2, 3 or `\"exact\"`", 2, "each first-level trivariate reduced to this degree before "
+                   "it is paved, or kept exact"),
+                _K("seal", "`\"cap\"`", UNSET, "cap the first level's free faces (surface tiles)"))),
+    Section("reduce", "[reduce]", "The model's patches approximated by a lower degree (Massarwi et al. 2018, "
+            "Section 6.3), interfaces, slots and tags kept; the summary reports the deviation (m).", (
+                _K("degree", "2 or 3", REQUIRED, "the degree of the approximation"),
+                _K("check", "an integer >= 2", 9, "points per direction and piece where the deviation is measured"))),
+    Section("material", "[material]", "The heat problem's material.", (
+        _K("conductivity", "a number > 0 (W/(m K)), a channel name, `{formula = \"...\"}`, six channel names, a "
+           "3 x 3 matrix or a table of [T, k] rows", 1.0, "a table of [T, k] rows (T increasing) makes k depend "
+           "on the temperature (solved by Newton)"),
+        _K("source", "a number or a formula of x, y, z (W/m^3)", 0.0, "the volumetric heat source"),
+        _K("capacity", "a number > 0, a channel name or `{formula = \"...\"}` (J/(m^3 K))", UNSET,
+           "rho c; `transient-heat` only, where it is required"))),
+    Section("bc", "[[bc]]", "One condition of the heat problem; values are numbers or formulas of x, y, z.", (
+        _K("kind", "`\"dirichlet\"`, `\"neumann\"`, `\"robin\"` or `\"radiation\"`", REQUIRED, "the condition"),
+        _K("tag", "a tag, a tag expression or a list of tags", REQUIRED, "the faces it holds on"),
+        _K("value", "a number or a formula", 0.0, "dirichlet: the temperature (C); neumann: the inflowing flux "
+           "(W/m^2)"),
+        _K("h", "a number >= 0 or a formula (W/(m^2 K))", UNSET, "robin: the film coefficient (required)"),
+        _K("ambient", "a number or a formula (C)", UNSET, "robin and radiation: the surroundings' temperature "
+           "(required)"),
+        _K("emissivity", "a number in [0, 1] or a formula", UNSET, "radiation: the surface's emissivity "
+           "(required)"),
+        _K("scale", "`\"K\"` or `\"C\"`", "K", "radiation: the temperatures are kelvin, or Celsius (273.15 "
+           "added in the Stefan-Boltzmann law)")), many=True),
+    Section("physics", "[physics]", "What is analysed.", (
+        _K("kind", "`\"heat\"`, `\"transient-heat\"`, `\"elasticity\"`, `\"thermo-elastic\"` or `\"none\"`",
+           "heat", "`none` builds and exports the model only (the default for surfaces without [[bc]])"),
+        _K("youngs", "a number > 0 (Pa), a channel name or `{formula = \"...\"}`", UNSET,
+           "Young's modulus; required by the elastic kinds"),
+        _K("poisson", "a number in (-1, 0.5), a channel name or `{formula = \"...\"}`", UNSET,
+           "Poisson's ratio; required by the elastic kinds"),
+        _K("expansion", "a number (1/K), a channel name or `{formula = \"...\"}`", UNSET,
+           "the thermal expansion coefficient; required by `thermo-elastic`"),
+        _K("reference", "a number (C)", 20.0, "`thermo-elastic`: the temperature without thermal strain"),
+        _K("hold_rigid", "true or false", False, "hold the body against rigid motion only (3-2-1 at three "
+           "corners) instead of [[support]] tables"))),
+    Section("support", "[[support]]", "A displacement held on faces (the elastic kinds).", (
+        _K("tag", "a tag, a tag expression or a list of tags", REQUIRED, "the faces held"),
+        _K("value", "a number, a formula or a list of three (m)", 0.0, "the displacement imposed"),
+        _K("components", "distinct letters of `xyz`", "xyz", "the components held (`\"z\"`: free to slide)")),
+        many=True),
+    Section("load", "[[load]]", "A surface load (the elastic kinds).", (
+        _K("kind", "`\"traction\"` or `\"pressure\"`", REQUIRED, "a traction vector, or a pressure along the "
+           "inward normal"),
+        _K("tag", "a tag, a tag expression or a list of tags", REQUIRED, "the faces loaded"),
+        _K("value", "traction: a list of three numbers or formulas; pressure: a number or a formula (Pa)",
+           REQUIRED, "the load")), many=True),
+    Section("time", "[time]", "The time stepping of `physics.kind = \"transient-heat\"` (required there).", (
+        _K("end", "a number of seconds > 0, or `\"steady\"`", REQUIRED, "`\"steady\"` runs until the hottest "
+           "point of the steady solution has risen by `fraction` of its steady rise"),
+        _K("step", "a number > 0 (s)", UNSET, "fixed steps (or the first adaptive step); give this or "
+           "`tolerance`"),
+        _K("tolerance", "a number > 0 (K)", UNSET, "the error allowed per step: adaptive steps; required by "
+           "`end = \"steady\"`"),
+        _K("method", "`\"bdf2\"`, `\"crank-nicolson\"`, `\"backward-euler\"` or `\"theta\"`", "bdf2",
+           "the time scheme"),
+        _K("theta", "a number in [0.5, 1]", UNSET, "the theta of `method = \"theta\"` (required there)"),
+        _K("initial", "a number or a formula of x, y, z (C)", 0.0, "the initial temperature"),
+        _K("every", "an integer >= 1", 1, "every n-th step is kept and written to `NAME.pvd`"),
+        _K("fraction", "a number in (0, 1)", 0.95, "`end = \"steady\"`: the share of the steady rise"),
+        _K("max_steps", "an integer >= 1", 100_000, "the run stops with an error after this many steps"))),
+    Section("solver", "[solver]", "The discretisation and the linear solver.", (
+        _K("method", _one_of(m for m in solvers.backends() if m != "petsc") + " (`petsc` with the [mpi] extra)",
+           "auto", "`auto` chooses by the problem's size and structure"),
+        _K("tol", "a number in (0, 1)", 1e-10, "the iterative solvers' relative residual"),
+        _K("maxiter", "an integer >= 1", UNSET, "the iterative solvers' iteration limit (unset: their own)"),
+        _K("refine", "an integer >= 0", 0, "uniform h-refinement rounds of every tile space"),
+        _K("degree_elevation", "an integer >= 0", 0, "degrees added to every patch's space"),
+        _K("degree", "an integer >= 1", UNSET, "the analysis degree of every patch instead of the tile's"),
+        _K("quadrature_extra", "an integer >= 0", 0, "Gauss points per direction beyond degree + 1"))),
+    Section("output", "[output]", "What is written, and where.", (
+        _K("dir", "a folder, relative to the config file", "out", "the output folder"),
+        _K("name", "a plain file name (at most 200 characters)", "result", "the stem of every file written"),
+        _K("vtu", "true or false", True, "write `NAME.vtu` (sampled, every field)"),
+        _K("bezier", "true or false", False, "also write `NAME_bezier.vtu`: exact Bezier hexahedra"),
+        _K("png", "true or false", True, "render `NAME.png` (needs the VTU)"),
+        _K("samples", "an integer >= 1", 3, "VTU samples per element and direction"),
+        _K("tolerance", "a number > 0 (m)", UNSET, "instead of `samples`: the samples that keep the written cells "
+           "within it of the exact geometry"),
+        _K("probes", "a list of [x, y, z] points (m)", [], "temperatures reported at these points"),
+        _K("exports", "a list of `stl`, `obj`, `ply`, `vtp`, `iges`, `gismo`", [], "the boundary surface "
+           "(stl/obj/ply/vtp), the exact boundary (iges), the heat problem as G+Smo XML (gismo)"))),
+    Section("limits", "[limits]", "Resource limits.", (
+        _K("max_memory_gib", "a number > 0 (GiB)", UNSET, "the memory a run may use (unset: the memory "
+           "available); a model estimated beyond it is refused before it is built"),)),
+)
+
+#: every section by name
+SCHEMA: dict[str, Section] = {s.name: s for s in _SECTIONS}
+
+
+def allowed(section: str) -> set:
+    """The keys ``section`` takes."""
+    return {k.name for k in SCHEMA[section].keys}
+
+
+def required(section: str) -> tuple:
+    """The keys ``section`` cannot do without."""
+    return tuple(k.name for k in SCHEMA[section].keys if k.default is REQUIRED)
+
+
+def default(section: str, key: str):
+    """The value of ``key`` when ``section`` leaves it out (a fresh copy of a list or table)."""
+    value = SCHEMA[section].key(key).default
+    if value is REQUIRED:
+        raise KeyError(f"{section}.{key} is required; it has no default")
+    return type(value)(value) if isinstance(value, (list, dict)) else value
+
+
+def _show(value) -> str:
+    if value is REQUIRED:
+        return "**required**"
+    if value is None:
+        return "unset"
+    if isinstance(value, bool):
+        return f"`{str(value).lower()}`"
+    if isinstance(value, str):
+        return f'`"{value}"`'
+    if isinstance(value, float) and value == pi / 4:
+        return "pi/4"
+    if isinstance(value, list):
+        return "`[" + ", ".join(f'"{v}"' if isinstance(v, str) else str(v) for v in value) + "]`"
+    if isinstance(value, dict):
+        return "`{}`"
+    return f"`{value}`"
+
+
+def reference() -> str:
+    """The TOML reference as Markdown: per section its keys, what each takes, its default and its meaning."""
+    lines = ["# Pipeline reference", "",
+             "Every key `iga run CONFIG.toml` takes, written from the validator's own table "
+             "(`iga/app/config_schema.py`; `python -m iga.app.config_schema` prints this page). A key not listed "
+             "is refused, naming the keys its section allows; so is a key of another paving scheme. "
+             "How the sections fit together, with examples: [Pipelines](pipelines.md).", ""]
+    for s in _SECTIONS:
+        lines += [f"## {s.title}", "", s.meaning + (" One table per item (an array of tables)." if s.many else ""),
+                  "", "| key | takes | default | meaning |", "|---|---|---|---|"]
+        for k in s.keys:
+            cells = (f"`{k.name}`", k.takes, _show(k.default), k.meaning)
+            lines.append("| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    print(reference(), end="")
