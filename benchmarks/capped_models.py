@@ -1,4 +1,4 @@
-"""Capped micro-structures: Elber 2017, Fig. 2(d) and Massarwi et al. 2018, Fig. 12 analogues (issue #16).
+"""Capped micro-structures: Elber 2017, Fig. 2(d) and Massarwi et al. 2018, Fig. 12 analogues.
 
     python benchmarks/capped_models.py            # table, JSON, renders
     python benchmarks/capped_models.py --no-png

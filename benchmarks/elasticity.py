@@ -1,4 +1,4 @@
-"""Linear elasticity against heat on the same spaces, and Elber 2017's Fig. 12 ring (issue #31).
+"""Linear elasticity against heat on the same spaces, and Elber 2017's Fig. 12 ring.
 
     python benchmarks/elasticity.py [--quick] [--no-png]
 
@@ -74,7 +74,7 @@ def compare(quick: bool, repeats: int = 5) -> list[dict]:
                      "asm target": 6.0,
                      # the same time per stored non-zero (elastic: 9x heat's) and per parametric coefficient
                      # term per Gauss point (45 for the six computed elastic blocks, 6 for heat's one): the
-                     # measures the note of issue #31 offers beside the 6x target
+                     # measures offered beside the 6x target
                      "per nnz": (min(ea) / elastic_nnz) / (min(ha) / heat_nnz),
                      "per term": min(ea) / min(ha) / (ELASTIC_TERMS / 6),
                      "heat its": hs.info["solver"]["iterations"], "elastic its": es.info["solver"]["iterations"],

@@ -1,4 +1,4 @@
-"""Elber 2017, Fig. 4(c): 47 helical tiles composed into a tricubic knot trivariate (issue #33).
+"""Elber 2017, Fig. 4(c): 47 helical tiles composed into a tricubic knot trivariate.
 
     python benchmarks/fig4_knot.py [--repeat 3] [--no-png]
 

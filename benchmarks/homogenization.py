@@ -1,4 +1,4 @@
-"""Effective properties of tiles and graded macro models (issue #34).
+"""Effective properties of tiles and graded macro models.
 
     python benchmarks/homogenization.py [--quick]
 

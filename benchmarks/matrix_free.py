@@ -1,4 +1,4 @@
-"""Matrix-free stiffness application by sum factorisation against the assembled matrix (issue #22).
+"""Matrix-free stiffness application by sum factorisation against the assembled matrix.
 
     python benchmarks/matrix_free.py
 

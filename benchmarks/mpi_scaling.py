@@ -1,4 +1,4 @@
-"""Strong scaling of the distributed assembly and solve on PETSc (issue #21), on this machine's ranks.
+"""Strong scaling of the distributed assembly and solve on PETSc, on this machine's ranks.
 
     python benchmarks/mpi_scaling.py [--ranks 1,2,4] [--repeat N] [--quick] [--estimate-only]
 
@@ -118,7 +118,7 @@ def _floors(rows, case: str) -> dict:
 
 
 def per_rank_check(rows) -> list[dict]:
-    """Peak memory per rank above a fixed floor against 1/R of the single rank's (issue #36: within 20%),
+    """Peak memory per rank above a fixed floor against 1/R of the single rank's (the target: within 20%),
     above either floor of :func:`_floors`."""
     out = []
     for case in sorted({r["case"] for r in rows}):

@@ -1,4 +1,4 @@
-"""Every row of issue #33's table in one run: the slow cases against their targets.
+"""Every slow timing target of the papers in one run: the slow cases against their targets.
 
     python benchmarks/paper_targets.py [--skip NAME[,NAME...]]
 
@@ -226,7 +226,7 @@ def main(argv=None) -> int:
             rows += new
             for row in new:
                 print(f"  {row['case']}: {row['measured']:.3g} {row['unit']} (target {row['target']})", flush=True)
-    print("\nIssue #33: the slow cases against their targets (this machine; each case in its own process)")
+    print("\nThe slow cases against their targets (this machine; each case in its own process)")
     print_table(rows, [("case", "s"), ("measured", ".3g"), ("unit", "s"), ("target", "s"), ("meets", "s"),
                        ("note", "s")])
     save_json("paper_targets.json", rows)

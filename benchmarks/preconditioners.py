@@ -1,4 +1,4 @@
-"""Spline-aware preconditioners against AMG-CG, same run, same tolerance (issue #22).
+"""Spline-aware preconditioners against AMG-CG, same run, same tolerance.
 
     python benchmarks/preconditioners.py [--geometry twisted,cube] [--quick] [--no-micro | --micro-only]
 

@@ -1,4 +1,4 @@
-"""Heat on the winged-duck V-model: an aluminium body, steel wings, bridges between them (issue #20).
+"""Heat on the winged-duck V-model: an aluminium body, steel wings, bridges between them.
 
     python benchmarks/vrep_heat.py [--body 10 10 12] [--wing 10 20 1] [--solver auto] [--no-png]
 

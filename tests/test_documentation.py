@@ -44,6 +44,30 @@ def test_every_python_block_of_the_readme_and_docs_runs_as_written(code, tmp_pat
         assert tmp_path / name in written, f"{name} was not written"  # the block wrote what it says
 
 
+def _toml_blocks():
+    """Every TOML block of the README and the docs pages (each a whole configuration), named like the Python ones."""
+    pages = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+    return [pytest.param(code, id=f"{page.stem}-toml-{i}") for page in pages
+            for i, code in enumerate(re.findall(r"```toml\n(.*?)```", page.read_text(), re.S))]
+
+
+def test_the_docs_show_configurations_to_run():
+    assert len(_toml_blocks()) >= 5
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("code", _toml_blocks())
+def test_every_toml_block_of_the_readme_and_docs_runs_through_iga_run(code, tmp_path):
+    import tomllib
+
+    (tmp_path / "case.toml").write_text(code)
+    run = subprocess.run([sys.executable, "-m", "iga", "--quiet", "run", "case.toml"], cwd=tmp_path,
+                         capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr[-2000:]
+    out = tmp_path / tomllib.loads(code).get("output", {}).get("dir", "out")
+    assert (out / "summary.json").stat().st_size > 100  # the run wrote what a run writes
+
+
 def test_every_relative_link_of_the_readme_and_docs_leads_to_a_file():
     pages = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
     missing = []
@@ -58,4 +82,15 @@ def test_the_readme_and_docs_speak_of_the_software_not_of_its_making():
     found = [f"{page.relative_to(ROOT)}: {line.strip()[:80]}"
              for page in [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
              for line in page.read_text().splitlines() if NARRATION.search(line)]
+    assert not found, found
+
+
+def test_the_code_speaks_of_the_software_not_of_its_making():
+    """Docstrings and comments of the library, the benchmarks, the examples and the tests likewise (this file
+    holds the pattern, so it is left out)."""
+    here = Path(__file__).resolve()
+    found = [f"{f.relative_to(ROOT)}:{i + 1}: {line.strip()[:80]}"
+             for folder in ("geometry", "tiling", "iga", "solvers", "benchmarks", "examples", "docs", "tests")
+             for f in sorted((ROOT / folder).rglob("*.py")) if f.resolve() != here
+             for i, line in enumerate(f.read_text().splitlines()) if NARRATION.search(line)]
     assert not found, found

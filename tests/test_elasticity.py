@@ -1,5 +1,5 @@
 """Linear elasticity on the heat analysis's machinery: patch tests on micro-structures, measured rates, Lame's
-cylinder, thermal expansion, reactions, and bad input (issue #31)."""
+cylinder, thermal expansion, reactions, and bad input."""
 
 import numpy as np
 import pytest

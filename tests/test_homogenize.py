@@ -1,4 +1,4 @@
-"""Effective conductivity of periodic tiles (issue #34): laminates, cubic symmetry, the full lattice, refusals."""
+"""Effective conductivity of periodic tiles: laminates, cubic symmetry, the full lattice, refusals."""
 
 import numpy as np
 import pytest

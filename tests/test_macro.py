@@ -1,4 +1,4 @@
-"""Graded lattices and their macro models (issue #34): a tile family graded along w (tiling.graded), the
+"""Graded lattices and their macro models: a tile family graded along w (tiling.graded), the
 effective tensors tabulated over its parameter (iga.effective_table) and written into conductivity channels of
 the map (iga.macro_map); the macro model against the full lattice."""
 

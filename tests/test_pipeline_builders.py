@@ -1,4 +1,4 @@
-"""Every builder from a pipeline (issue #32): V-rep models, polygon tiles, surface and curve tiles, two-level
+"""Every builder from a pipeline: V-rep models, polygon tiles, surface and curve tiles, two-level
 structures, degree reduction, and the analysis degree; each against the same model built in Python."""
 
 import numpy as np

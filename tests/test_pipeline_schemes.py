@@ -1,4 +1,4 @@
-"""More of the Python API from a pipeline (issue #32): the bifurcation scheme and the shape maps."""
+"""More of the Python API from a pipeline: the bifurcation scheme and the shape maps."""
 
 import json
 

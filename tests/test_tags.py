@@ -1,4 +1,4 @@
-"""Tag algebra: unions, intersections, differences, lists, 'rest', and clashes that name both tags (issue #32)."""
+"""Tag algebra: unions, intersections, differences, lists, 'rest', and clashes that name both tags."""
 
 import numpy as np
 import pytest

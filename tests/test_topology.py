@@ -1,4 +1,4 @@
-"""Interfaces by construction (issue #28): regular and hierarchical pavings glue their patches by cell-grid
+"""Interfaces by construction: regular and hierarchical pavings glue their patches by cell-grid
 arithmetic over layouts matched once in the unit cell (tiling.topology), periodic maps across their seam; the
 result equals the geometric search wherever that search works, and holds at any length scale."""
 

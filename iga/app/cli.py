@@ -73,8 +73,8 @@ def _transient_lines(args, s: dict) -> int:
     print(f"{args.variant} heat sink switched on at 20 C: {_plural(s['tiles'], 'tile')}, {s['dofs']} DOFs, "
           f"{tr['method']} in {tr['steps']} steps ({tr['rejected']} rejected, {tr['prepared_solvers']} solver "
           f"preparations)")
-    print(f"hottest point {tr['hottest_C'][0]:.2f} -> {tr['hottest_C'][-1]:.2f} C, 95% of its steady rise (to "
-          f"{tr['steady_hottest_C']:.2f} C) after {minutes:.1f} min; then {s['inflow_W']:.4g} W in, "
+    print(f"hottest point {tr['watched_C'][0]:.2f} -> {tr['watched_C'][-1]:.2f} C, 95% of its steady rise (to "
+          f"{tr['steady_watched_C']:.2f} C) after {minutes:.1f} min; then {s['inflow_W']:.4g} W in, "
           f"{s['stored_W']:.4g} W still stored, balance error {s['energy_balance_error']:.1e}")
     print(f"wrote {', '.join(s['files'].values())} and {Path(args.out) / 'summary.json'}")
     return 0

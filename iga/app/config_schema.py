@@ -214,8 +214,8 @@ _SECTIONS = (
         _K("value", "traction: a list of three numbers or formulas; pressure: a number or a formula (Pa)",
            REQUIRED, "the load")), many=True),
     Section("time", "[time]", "The time stepping of `physics.kind = \"transient-heat\"` (required there).", (
-        _K("end", "a number of seconds > 0, or `\"steady\"`", REQUIRED, "`\"steady\"` runs until the hottest "
-           "point of the steady solution has risen by `fraction` of its steady rise"),
+        _K("end", "a number of seconds > 0, or `\"steady\"`", REQUIRED, "`\"steady\"` runs until the point "
+           "of largest steady change (no Dirichlet condition holding it) has changed by `fraction` of that change"),
         _K("step", "a number > 0 (s)", UNSET, "fixed steps (or the first adaptive step); give this or "
            "`tolerance`"),
         _K("tolerance", "a number > 0 (K)", UNSET, "the error allowed per step: adaptive steps; required by "

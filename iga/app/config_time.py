@@ -3,8 +3,9 @@
     [time]  end = seconds | "steady", step = s, tolerance = K, method = "bdf2" | "crank-nicolson" |
             "backward-euler" | "theta", theta, initial = number | formula, every = n, fraction, max_steps
 
-``end = "steady"`` runs until the hottest point of the steady solution has risen by ``fraction`` (default 0.95)
-of its steady rise from the initial temperature, with adaptive steps (``tolerance``); a number of seconds
+``end = "steady"`` runs until the point of largest steady change (among the points no Dirichlet condition holds;
+the hottest point of a part heated from the initial temperature) has changed by ``fraction`` (default 0.95)
+of its steady change, with adaptive steps (``tolerance``); a number of seconds
 runs to that time with fixed steps (``step``) or adaptive ones (``tolerance``, ``step`` the first).
 ``every``: every n-th step is kept and written to the ParaView series.
 """

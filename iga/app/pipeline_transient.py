@@ -1,10 +1,11 @@
 """The transient heat stage of a pipeline (physics.kind = "transient-heat"): the configured
 :class:`iga.TransientHeatProblem` stepped as [time] says, its ParaView series, the end state's VTU and
-picture, a plot of the probes (or the hottest point) against time, and the summary's figures.
+picture, a plot of the probes (or the watched point) against time, and the summary's figures.
 
-With ``end = "steady"`` the steady problem is solved first: its hottest sample point is watched, and the run
-stops once that point has risen by ``fraction`` of its steady rise (the warm-up time a heat-sink designer
-asks for: the summary's ``settle_time_s``).
+With ``end = "steady"`` the steady problem is solved first: of its sample points that no Dirichlet condition
+holds, the one whose temperature changes most from the initial one is watched, and the run stops once that
+point has risen (or fallen) by ``fraction`` of its steady change (the warm-up time a heat-sink designer asks
+for: the summary's ``settle_time_s``; on a sink heated through its base, its hottest point).
 """
 
 from __future__ import annotations
@@ -42,18 +43,19 @@ def transient_stage(cfg: dict, model, out: Path, ocfg: dict, stages):
     if tcfg["end"] == "steady":
         stages.start("steady solve (the state to settle to)")
         steady = heat_problem(cfg, model).solve(solver=scfg["method"], tol=scfg["tol"], maxiter=scfg["maxiter"])
-        grid = steady.to_pyvista(samples=1)
-        point = np.asarray(grid.points)[int(np.argmax(grid.point_data["temperature"]))][None]
-        watch = {"point": point, "steady_C": float(steady.probe(point)[0])}
-        stages.done(f"(hottest point {np.round(point[0], 5).tolist()} at {watch['steady_C']:.3f} C)")
     stages.start("transient solve")
     prob = heat_problem(cfg, model, TransientHeatProblem, capacity=mat["capacity"])
     prob.initial(tcfg["initial"])
+    if tcfg["end"] == "steady":
+        point = _watched_point(prob, steady, tcfg["initial"])
+        watch = {"point": point, "steady_C": float(steady.probe(point)[0])}
+        stages.done(f"(watched point {np.round(point[0], 5).tolist()}, {watch['steady_C']:.3f} C when steady)")
+        stages.start("transient solve")
     until, t_end = None, tcfg["end"]
     if watch is not None:
         E = prob.probe_matrix(watch["point"])
         start = float(ScalarField(tcfg["initial"], "time.initial", channels=False).values(
-            watch["point"], {}, "the hottest point")[0])
+            watch["point"], {}, "the watched point")[0])
         target = start + tcfg["fraction"] * (watch["steady_C"] - start)
         rising = target >= start
         watch.update(start_C=start, target_C=target)
@@ -75,7 +77,7 @@ def transient_stage(cfg: dict, model, out: Path, ocfg: dict, stages):
                          max_steps=tcfg["max_steps"], until=until)
     r = history.record
     if watch is not None and r.stopped is None:
-        raise ProblemError(f"the run did not settle: the hottest point did not reach {100 * tcfg['fraction']:g}% "
+        raise ProblemError(f"the run did not settle: the watched point did not reach {100 * tcfg['fraction']:g}% "
                            f"of its steady rise within time.max_steps = {tcfg['max_steps']} steps")
     stages.done(f"({prob.ndof} DOFs, {r.steps} steps to {history.times[-1]:.4g} s, {r.prepared} prepared "
                 f"{r.solver})")
@@ -86,6 +88,32 @@ def transient_stage(cfg: dict, model, out: Path, ocfg: dict, stages):
     summary = _summary(cfg, history, final, probes, watch, files, analysis_peak)
     return summary, final, {"statistics": time.perf_counter() - t0,
                             **{f"iga.{k}": v for k, v in prob.timings.items()}}
+
+
+#: a sample point is held by Dirichlet conditions where the free coefficients weigh less than this in its value
+#: (the B-spline weights at a point sum to 1; a point on a held face has free weight 0 up to round-off)
+_HELD_WEIGHT = 1e-6
+
+
+def _watched_point(prob, steady, initial) -> np.ndarray:
+    """The sample point (1, 3) of the steady solution whose temperature rises (or falls) most from the initial
+    one, among the points the Dirichlet conditions do not hold: a held point takes its steady value at the first
+    step, so its rise says nothing about the part settling."""
+    grid = steady.to_pyvista(samples=1)
+    points = np.asarray(grid.points, float)
+    held_faces = list(prob.faces_by_kind()["dirichlet"])
+    free = np.ones(len(points), bool)
+    if held_faces:
+        held = np.zeros(prob.ndof, bool)
+        held[np.concatenate([fd.dofs for fd in prob.faces(held_faces)])] = True
+        E = prob.probe_matrix(points).tocsc()
+        free = np.asarray(abs(E[:, np.flatnonzero(~held)]).sum(axis=1)).ravel() > _HELD_WEIGHT
+        if not free.any():
+            raise ProblemError("time.end = \"steady\" watches a point the Dirichlet conditions do not hold, and "
+                               "they hold every sample point of this model; give time.end in seconds")
+    start = ScalarField(initial, "time.initial", channels=False).values(points[free], {}, "the sample points")
+    rise = np.abs(np.asarray(grid.point_data["temperature"], float)[free] - start)
+    return points[free][int(np.argmax(rise))][None]
 
 
 def _crossing(seen: list, target: float) -> float:
@@ -129,7 +157,7 @@ def _series_outputs(history, final, ocfg: dict, out: Path, stages, watch) -> dic
 
 
 def _plot_history(history, ocfg: dict, path: Path, watch) -> Path:
-    """Temperature against time at the probes (or the watched hottest point), with the steady value and the
+    """Temperature against time at the probes (or the watched point), with the steady value and the
     settling time where known (atomic)."""
     import matplotlib
 
@@ -140,7 +168,7 @@ def _plot_history(history, ocfg: dict, path: Path, watch) -> Path:
     labels = [f"probe {i}" for i in range(len(points))]
     if watch is not None:
         points = np.vstack([points, watch["point"]])
-        labels.append("hottest point")
+        labels.append("watched point")
     fig, ax = plt.subplots(figsize=(8, 4.5))
     t = history.times
     scale, unit = (60.0, "min") if t[-1] > 600 else (1.0, "s")
@@ -185,7 +213,7 @@ def _summary(cfg, history, final, probes, watch, files, analysis_peak) -> dict:
         "files": files,
     }
     if watch is not None:
-        out["transient"].update(settle_time_s=float(watch["settle_s"]), hottest_point=watch["point"][0].tolist(),
-                                hottest_C=history.probe(watch["point"])[:, 0].tolist(),
-                                steady_hottest_C=watch["steady_C"], settled_fraction=cfg["time"]["fraction"])
+        out["transient"].update(settle_time_s=float(watch["settle_s"]), watched_point=watch["point"][0].tolist(),
+                                watched_C=history.probe(watch["point"])[:, 0].tolist(),
+                                steady_watched_C=watch["steady_C"], settled_fraction=cfg["time"]["fraction"])
     return out
