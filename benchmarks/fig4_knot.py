@@ -31,62 +31,14 @@ from _common import figures_dir, print_table, run_child, save_json
 PAPER_S, TARGET_S = 20.0, 2.0
 
 
-def trefoil(n: int = 50) -> np.ndarray:
-    """``n`` points along the trefoil knot (sin t + 2 sin 2t, cos t - 2 cos 2t, -sin 3t), not quite closed."""
-    t = np.linspace(0.0, 2 * np.pi * 0.96, n)
-    return np.column_stack([np.sin(t) + 2 * np.sin(2 * t), np.cos(t) - 2 * np.cos(2 * t), -np.sin(3 * t)])
-
-
-def knot_map(half_side: float = 0.25):
-    """The tricubic knot trivariate of lengths (4, 4, 50)."""
-    from geometry import BSpline, knots as kn
-    from geometry.shapes.sweep import frames
-
-    axis = BSpline((3,), [kn.uniform_knots(3, 47)], trefoil(50))
-    v = kn.greville(axis.knots[0], 3)
-    X, _, N1, N2 = frames(axis, v)
-    s = np.linspace(-half_side, half_side, 4)
-    P = (X[None, None] + s[:, None, None, None] * N1[None, None] + s[None, :, None, None] * N2[None, None])
-    U = kn.uniform_knots(3, 1)
-    return BSpline((3, 3, 3), [U, U, axis.knots[0]], P)
-
-
-def _fit(points: np.ndarray, spans: int, closed: bool = False):
-    """A cubic B-spline of ``spans`` uniform spans through ``spans + 3`` points (closed: the first repeated)."""
-    from scipy.interpolate import make_interp_spline
-
-    from geometry import BSpline, knots as kn
-
-    U = kn.uniform_knots(3, spans)
-    t = kn.greville(U, 3)
-    c = make_interp_spline(t, points, k=3, t=U).c
-    if closed:
-        c[-1] = c[0]
-    return BSpline((3,), [U], c)
-
-
-def helical_tile(radius: float = 0.22, tube: float = 0.12):
-    """Fig. 4(a): four bicubic tubes, helix quarter turn (4 spans) + circle (6 spans), in the unit cube."""
-    from geometry import BSpline
-    from tiling import Tile
-
-    u = np.linspace(0.0, 1.0, 7)
-    a = np.linspace(0.0, 2 * np.pi, 9)
-    circle = _fit(np.column_stack([tube * np.cos(a), tube * np.sin(a), 0 * a]), 6, closed=True)
-    surfaces = []
-    for k in range(4):
-        ang = k * np.pi / 2 + u * np.pi / 2
-        helix = _fit(np.column_stack([0.5 + radius * np.cos(ang), 0.5 + radius * np.sin(ang), u]), 4)
-        cp = helix.control_points[:, None, :] + circle.control_points[None, :, :]  # the algebraic sum
-        surfaces.append(BSpline((3, 3), [helix.knots[0], circle.knots[0]], cp))
-    return Tile(surfaces, name="helical tubes")
-
-
 def _pave():
     import tiling
 
     t0 = time.perf_counter()
-    ms = tiling.regular(knot_map(), helical_tile(), (1, 1, 1), name="fig4 knot")
+    from geometry.shapes.sweep import trefoil
+    from tiling.library import helical_tubes
+
+    ms = tiling.regular(trefoil(), helical_tubes(), (1, 1, 1), name="fig4 knot")
     t1 = time.perf_counter()
     composed = ms.compose_all()
     return ms, composed, t1 - t0, time.perf_counter() - t1

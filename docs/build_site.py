@@ -36,15 +36,20 @@ def run_example(script: Path, out: Path) -> str:
 
 
 def gallery_page(printed: dict) -> str:
-    """docs/gallery.md: per script its title and case (the docstring), its picture and what it printed."""
+    """docs/gallery.md: per script its title and case (the docstring), its picture and what it printed; the
+    scripts named ``paper_*`` (figures of the three papers, reproduced) in a section of their own."""
     lines = ["# Gallery", "", "Each picture comes from a script under `examples/` that states its case; "
              "`python docs/build_site.py` runs them all (`python examples/NAME.py OUT_DIR` runs one).", ""]
-    for script in examples():
-        doc = ast.get_docstring(ast.parse(script.read_text())) or script.stem
-        title, _, case = doc.partition("\n")
-        lines += [f"## {title.rstrip('.')}", "", case.strip(), "", f"![{title}](gallery/{script.stem}.png)", "",
-                  f"`examples/{script.name}` prints:", "", "```text", printed.get(script.stem, "").strip() or "-",
-                  "```", ""]
+    groups = (("Analyses and structures", [s for s in examples() if not s.stem.startswith("paper_")]),
+              ("Figures of the papers, reproduced", [s for s in examples() if s.stem.startswith("paper_")]))
+    for heading, scripts in groups:
+        lines += [f"## {heading}", ""]
+        for script in scripts:
+            doc = ast.get_docstring(ast.parse(script.read_text())) or script.stem
+            title, _, case = doc.partition("\n")
+            lines += [f"### {title.rstrip('.')}", "", case.strip(), "", f"![{title}](gallery/{script.stem}.png)", "",
+                      f"`examples/{script.name}` prints:", "", "```text",
+                      printed.get(script.stem, "").strip() or "-", "```", ""]
     return "\n".join(lines)
 
 

@@ -16,4 +16,5 @@ problem = HeatProblem(fin, conductivity=205.0).dirichlet("umin", 400.0)
 problem.robin("rest", 10.0, 20.0).radiation("rest", 0.8, 20.0, scale="C")
 solution = problem.solve()
 print(solution, "Newton residuals:", [f"{r:.1e}" for r in solution.info.newton])
-solution.plot(screenshot=out / "radiating_fin.png")
+solution.plot(screenshot=out / "radiating_fin.png",
+              title="Aluminium fin, root at 400 C: convection h = 10 W/(m^2 K) and radiation eps = 0.8 to 20 C")

@@ -539,3 +539,37 @@ def test_a_curve_whose_polygon_crosses_a_knot_plane_while_the_curve_does_not_com
     x = np.random.default_rng(2).random((200, 1))
     assert c.knots[0].size == 2 * (c.degrees[0] + 1)  # one Bezier piece
     assert rel_err(c.evaluate(x)[:, :3], D.evaluate(C.evaluate(x)[:, :3])[:, :3]) < 1e-12
+
+
+def test_the_helical_tubes_join_when_stacked_and_compose_exactly_into_the_trefoil():
+    from geometry.errors import SplineError
+    from geometry.shapes.sweep import box_sweep, trefoil
+    from tiling import TilingError, regular
+    from tiling.library import helical_tubes
+
+    tubes = helical_tubes(0.22, 0.12).patches
+    rng = np.random.default_rng(3)
+    t = rng.random(40)
+    for k in range(4):  # tube k enters where tube k - 1 leaves one cell lower: stacked copies are four helices
+        enter = tubes[k].evaluate(np.column_stack([np.zeros_like(t), t]))
+        leave = tubes[k - 1].evaluate(np.column_stack([np.ones_like(t), t]))
+        assert np.abs(enter - (leave - [0.0, 0.0, 1.0])).max() < 1e-12
+    D = trefoil(12, 0.2)
+    corners = D.control_points[[0, 3, 0], [0, 0, 3]]  # the square section at every control layer
+    assert np.allclose(np.linalg.norm(corners[1] - corners[0], axis=-1), 0.4)
+    assert np.allclose(np.einsum("ij,ij->i", corners[1] - corners[0], corners[2] - corners[0]), 0.0, atol=1e-12)
+    ms = regular(D, helical_tubes(), (1, 1, 1))
+    for P, C in zip(ms.patches[:8], ms.compose_all()[:8]):  # exact: D(A S + b) at random parameters
+        st = rng.random((20, 2))
+        y = P.spline.evaluate(st)[:, :3] @ P.placement[:, :3].T + P.placement[:, 3]
+        assert np.abs(C.evaluate(st)[:, :3] - D.evaluate(y)[:, :3]).max() < 1e-11
+    for bad in ({"n": 3}, {"n": 2.5}, {"half_side": 0.7}, {"half_side": float("nan")}):
+        with pytest.raises(SplineError, match="trefoil"):
+            trefoil(**bad)
+    with pytest.raises(SplineError, match="box_sweep: axis must be a cubic B-spline curve"):
+        box_sweep(pr.box(), 0.1)
+    with pytest.raises(SplineError, match="box_sweep: half_side"):
+        box_sweep(BSpline((3,), [kn.uniform_knots(3, 1)], np.eye(4, 3)), -1.0)
+    for bad in ({"radius": 0.4}, {"tube": -0.1}, {"radius": "0.2"}):
+        with pytest.raises(TilingError, match="helical_tubes"):
+            helical_tubes(**bad)

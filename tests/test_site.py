@@ -13,11 +13,13 @@ EXAMPLES = sorted((ROOT / "examples").glob("*.py"))
 
 def test_the_gallery_lists_every_example_with_its_picture():
     page = (ROOT / "docs" / "gallery.md").read_text()
-    assert len(EXAMPLES) >= 5
+    assert len(EXAMPLES) >= 5 and sum(s.stem.startswith("paper_") for s in EXAMPLES) >= 8
     for script in EXAMPLES:
         assert f"](gallery/{script.stem}.png)" in page and f"`examples/{script.name}`" in page
         assert (ROOT / "docs" / "gallery" / f"{script.stem}.png").stat().st_size > 20_000
-        assert script.read_text().startswith('"""')  # the docstring states the case the gallery shows
+        code = script.read_text()
+        assert code.startswith('"""')  # the docstring states the case the gallery shows
+        assert "title=" in code or ".plot(" not in code  # and the picture states it too
 
 
 @pytest.mark.slow
@@ -53,3 +55,19 @@ def test_the_site_navigation_and_landing_page_list_every_page_the_readme_lists()
     on_disk = {p.name for p in (ROOT / "docs").glob("*.md")}
     assert pages <= index, f"pages in the README but not on the site's landing page: {sorted(pages - index)}"
     assert on_disk <= nav, f"pages left out of the site's navigation: {sorted(on_disk - nav)}"
+
+
+def test_the_tiles_page_shows_every_tile_of_the_library_with_its_picture():
+    import sys
+
+    from tiling.library import TILES
+
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        from tile_gallery import page
+    finally:
+        sys.path.remove(str(ROOT / "benchmarks"))
+    text = (ROOT / "docs" / "tiles.md").read_text()
+    assert text == page(), "docs/tiles.md is stale: python benchmarks/tile_gallery.py --figures"
+    for name in TILES:
+        assert f"](tiles/{name}.png)" in text and (ROOT / "docs" / "tiles" / f"{name}.png").stat().st_size > 5_000

@@ -15,6 +15,7 @@
 ``hollow_cross()``   24 bilinear surfaces: the walls of the cross's arms, open
                      where the arms meet the cell faces (a surface tile to cap)
 ``helix()``          a cubic curve winding around the cell's axis (Elber 2017, Fig. 10)
+``helical_tubes()``  four bicubic tubes, quarter turns of helices (Elber 2017, Fig. 4(a))
 ``stitch()``         one sine period through the thickness: stitched fibres (Elber 2017, Fig. 8)
 ``struts(kind)``     straight beam axes, body-centred (``bcc``) or ``cubic``, for round-strut lattices
 ``bent_cross()``     the cross at degrees (3, 3, 2) with bent insides (Massarwi et al. 2018, Fig. 10)
@@ -267,6 +268,40 @@ def helix(turns: float = 2.0, radius: float = 0.3, n: int = 16) -> Tile:
     return Tile([BSpline((3,), [kn.uniform_knots(3, n - 3)], cp)], name="helix")
 
 
+def _cubic_through(points: np.ndarray, spans: int, closed: bool = False) -> BSpline:
+    """The cubic B-spline of ``spans`` uniform spans interpolating ``spans + 3`` points at the Greville
+    abscissae (``closed``: the last control point set to the first, the points being a closed loop)."""
+    from scipy.interpolate import make_interp_spline
+
+    U = kn.uniform_knots(3, spans)
+    c = make_interp_spline(kn.greville(U, 3), points, k=3, t=U).c
+    if closed:
+        c[-1] = c[0]
+    return BSpline((3,), [U], c)
+
+
+def helical_tubes(radius: float = 0.22, tube: float = 0.12) -> Tile:
+    """Four bicubic tubes, each a quarter turn of a helix about the cell's vertical axis at ``radius`` swept by a
+    circle of radius ``tube`` (the algebraic sum of the two curves; Elber 2017, Fig. 4(a)): a tube enters at the
+    bottom face where the next one leaves at the top, so stacked copies join into four helices (Fig. 4(c))."""
+    for name, v in (("radius", radius), ("tube", tube)):
+        if not (is_real(v) and np.isfinite(v) and v > 0):
+            raise TilingError(f"helical_tubes: {name} must be a positive number (cell units), got {show(v)}")
+    if radius + tube >= 0.5:
+        raise TilingError(f"helical_tubes: radius + tube = {radius + tube:g} must stay below 0.5 (the tubes "
+                          "inside the cell)")
+    u = np.linspace(0.0, 1.0, 7)
+    a = np.linspace(0.0, 2 * np.pi, 9)
+    circle = _cubic_through(np.column_stack([tube * np.cos(a), tube * np.sin(a), 0 * a]), 6, closed=True)
+    surfaces = []
+    for k in range(4):
+        ang = k * np.pi / 2 + u * np.pi / 2
+        axis = _cubic_through(np.column_stack([0.5 + radius * np.cos(ang), 0.5 + radius * np.sin(ang), u]), 4)
+        cp = axis.control_points[:, None, :] + circle.control_points[None, :, :]  # the algebraic sum
+        surfaces.append(BSpline((3, 3), [axis.knots[0], circle.knots[0]], cp))
+    return Tile(surfaces, name="helical tubes")
+
+
 def struts(kind: str = "bcc") -> Tile:
     """Straight beam axes (degree-1 curves) for round-strut lattices (:func:`tiling.members.struts.round_struts`).
 
@@ -317,5 +352,5 @@ def oblique_tubes(width: float = 0.16) -> Tile:
 
 #: the built-in tiles by name (what ``[tile] library = ...`` of a pipeline may name)
 TILES = {f.__name__: f for f in (heat_sink_t1, heat_sink_t2, skinned_branching, fractal, hollow_box, cube, cross, helix,
-                                 bent_cross, hollow_cross, graded_cross, struts, stitch, through_cylinders,
+                                 helical_tubes, bent_cross, hollow_cross, graded_cross, struts, stitch, through_cylinders,
                                  oblique_tubes)}

@@ -96,3 +96,4 @@ def cylinder(radius: float = 1.0, length: float = 4.0, axis: int = 2, centre=(0.
     cp += np.asarray(centre, float)
     U = kn.uniform_knots(2, n - 2)
     return BSpline((2, 2, 1), [U, U, kn.uniform_knots(1, 1)], cp)
+

@@ -26,13 +26,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from geometry import knots as kn
 from geometry.bspline import BSpline
 from geometry.errors import SplineError, show
 from geometry.shapes.fitting import c0_joints, evaluate, interpolate, span_nodes
 from geometry.primitives import arc
 from geometry.numbers import TINY, is_real
 
-__all__ = ["Sweep", "sweep", "circle", "frames", "section_error", "kinks", "points_and_tangents"]
+__all__ = ["Sweep", "sweep", "circle", "frames", "section_error", "kinks", "points_and_tangents", "box_sweep", "trefoil"]
 
 #: interpolation nodes per axis knot span to start from, and the most the refinement goes to
 _START, _MAX_NODES = 4, 1 << 14
@@ -276,3 +277,32 @@ def _surface(section: BSpline, k, t, coef) -> BSpline:
     Us = section.knots[0]
     return BSpline((section.degrees[0], k), [Us, np.asarray(t, float)], P, w)
 
+
+
+def box_sweep(axis: BSpline, half_side: float) -> BSpline:
+    """A trivariate of square section (side 2 ``half_side``, model units) carried along the curve ``axis`` by
+    its rotation-minimising frames (:func:`frames`): lengths (4, 4, n) for an axis of n control points, cubic
+    across the section, the axis's knots along w. A map whose tiles follow a curve (Elber 2017, Fig. 4(c))."""
+    if not (isinstance(axis, BSpline) and axis.dim == 1 and axis.degrees[0] == 3):
+        raise SplineError(f"box_sweep: axis must be a cubic B-spline curve, got {show(axis)}")
+    if not (is_real(half_side) and np.isfinite(half_side) and half_side > 0):
+        raise SplineError(f"box_sweep: half_side must be a positive number (model units), got {show(half_side)}")
+    X, _, N1, N2 = frames(axis, kn.greville(axis.knots[0], 3))
+    s = np.linspace(-half_side, half_side, 4)
+    P = X[None, None] + s[:, None, None, None] * N1[None, None] + s[None, :, None, None] * N2[None, None]
+    U = kn.uniform_knots(3, 1)
+    return BSpline((3, 3, 3), [U, U, axis.knots[0]], P)
+
+
+def trefoil(n: int = 50, half_side: float = 0.25) -> BSpline:
+    """The tricubic knot trivariate of Elber 2017, Fig. 4(c): :func:`box_sweep` of half side ``half_side`` along
+    the cubic through ``n`` points of the trefoil knot (sin t + 2 sin 2t, cos t - 2 cos 2t, -sin 3t), t from 0
+    to 0.96 of a turn (not quite closed); control lengths (4, 4, n)."""
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 8:
+        raise SplineError(f"trefoil: n must be an integer >= 8 (points along the knot), got {show(n)}")
+    if not (is_real(half_side) and np.isfinite(half_side) and 0 < half_side < 0.5):
+        raise SplineError(f"trefoil: half_side must be a number in (0, 0.5) (the knot's strands are about 1.5 "
+                          f"apart), got {show(half_side)}")
+    t = np.linspace(0.0, 2 * np.pi * 0.96, int(n))
+    points = np.column_stack([np.sin(t) + 2 * np.sin(2 * t), np.cos(t) - 2 * np.cos(2 * t), -np.sin(3 * t)])
+    return box_sweep(BSpline((3,), [kn.uniform_knots(3, int(n) - 3)], points), half_side)

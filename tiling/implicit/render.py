@@ -37,16 +37,21 @@ def tree_lines(structure) -> list:
 
 
 def render_png(structure, path, *, trees: bool = False, surface: bool = True, color_by: str | None = None,
-               resolution: int | None = None, window=(1000, 800), camera="iso", zoom: float = 1.4) -> Path:
+               resolution: int | None = None, window=(1000, 800), camera="iso", zoom: float = 1.4,
+               title: str | None = None) -> Path:
     """Offscreen render of the structure's surface and/or its spanning trees to a PNG (atomic).
 
     ``color_by``: a point-data name of the surface (a channel of D, a material,
     or "u", "v", "w"); default a plain colour.  ``trees``: draw the trees
-    (Fig. 5); with ``surface`` as well, the surface is drawn translucent.
+    (Fig. 5); with ``surface`` as well, the surface is drawn translucent.  ``title``: text in the upper left.
     """
     if not (trees or surface):
         raise TilingError("nothing to render: ask for the surface, the trees, or both")
+    if title is not None and not isinstance(title, str):
+        raise TilingError(f"title must be a string, got {show(title)}")
     pl = offscreen_plotter(window)
+    if title:
+        pl.add_text(title, position="upper_left", font_size=11, color="black")
     if surface:
         mesh = structure.surface(resolution)
         if color_by is not None and color_by not in mesh.point_data:
