@@ -206,28 +206,6 @@ def test_the_analysis_degree_and_extra_quadrature_are_configured(tmp_path):
         validate({**cfg, "solver": {"quadrature_extra": -1}}, tmp_path)
 
 
-@pytest.mark.slow
-def test_every_complete_toml_example_of_the_documentation_runs_as_written(tmp_path):
-    """The pipeline examples of the README and docs/, read by tomllib as a user would paste them (pictures and
-    VTU off)."""
-    import re
-    import tomllib
-    from pathlib import Path
-
-    root = Path(__file__).resolve().parents[1]
-    text = "\n".join(p.read_text() for p in [root / "README.md", *sorted((root / "docs").glob("*.md"))])
-    ran = 0
-    for i, block in enumerate(re.findall(r"```toml\n(.*?)```", text, re.S)):
-        cfg = tomllib.loads(block)
-        if "paving" not in cfg:  # a fragment (the [physics] example), checked in test_elastic_pipeline
-            continue
-        cfg.setdefault("output", {}).update(png=False, vtu=False, dir=str(tmp_path / f"o{i}"))
-        s = run_pipeline(cfg, tmp_path)
-        assert s["connected_pieces"] == 1 and s["energy_balance_error"] < 1e-9
-        ran += 1
-    assert ran >= 3
-
-
 @pytest.mark.parametrize("expression", ["A - B", "A & B", "(A | B) - B"])
 def test_vrep_subtractions_and_intersections_run_as_in_python(expression, tmp_path):
     from geometry.primitives import box

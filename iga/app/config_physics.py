@@ -87,18 +87,68 @@ def _vector(v, where, broadcast: bool):
     return [_formula(x, f"{where}[{i}]") for i, x in enumerate(v)]
 
 
+_SELECTIONS = ("tag", "edge", "corner", "point", "box")
+
+
 def _support(v, where) -> dict:
+    """A [[support]] table: faces held (``tag``), or the control points of an edge, a corner, a point or a box held
+    (``select``: (key, value)) or sprung (``stiffness``)."""
     t = _table(v, where, allowed("support"), required("support"))
+    given = [k for k in _SELECTIONS if k in t]
+    if len(given) != 1:
+        raise ProblemError(f"config {where} needs exactly one of {list(_SELECTIONS)} (what is held), got "
+                           f"{given or 'none'}")
     comps = t.get("components", default("support", "components"))
     if not (isinstance(comps, str) and comps and set(comps) <= set("xyz") and len(set(comps)) == len(comps)):
         _fail(f"{where}.components", f"must be distinct letters of 'xyz' (e.g. 'z'), got {show(comps)}")
-    return {"tag": _tag(t["tag"], f"{where}.tag"), "value": _vector(t.get("value", default("support", "value")), f"{where}.value", True),
-            "components": comps}
+    out = {"tag": None, "select": None, "components": comps, "stiffness": None,
+           "name": None if "name" not in t else _str(t["name"], f"{where}.name")}
+    key = given[0]
+    if key == "tag":
+        out["tag"] = _tag(t["tag"], f"{where}.tag")
+        if "stiffness" in t:
+            _fail(f"{where}.stiffness", "springs go on nodes: select them by edge, corner, point or box")
+    elif key in ("edge", "corner"):
+        n = 2 if key == "edge" else 3
+        sel = t[key]
+        if not (isinstance(sel, list) and len(sel) == n and all(isinstance(x, str) and x for x in sel)):
+            _fail(f"{where}.{key}", f"must be a list of {n} face tags (e.g. {['umin', 'wmin', 'vmin'][:n]}), got "
+                                    f"{show(sel)}")
+        out["select"] = (key, tuple(sel))
+    elif key == "point":
+        out["select"] = ("point", tuple(_point(t["point"], f"{where}.point")))
+    else:
+        box = t["box"]
+        if not (isinstance(box, list) and len(box) == 2):
+            _fail(f"{where}.box", f"must be two corners [[x0, y0, z0], [x1, y1, z1]], got {show(box)}")
+        out["select"] = ("box", tuple(tuple(_point(c, f"{where}.box[{i}]")) for i, c in enumerate(box)))
+    if "stiffness" in t:
+        if "value" in t:
+            _fail(f"{where}.value", "a spring holds no displacement; give stiffness or value, not both")
+        out["stiffness"] = _number(t["stiffness"], f"{where}.stiffness", lo=0)
+        out["value"] = None
+    else:
+        out["value"] = _vector(t.get("value", default("support", "value")), f"{where}.value", True)
+    return out
+
+
+def _point(v, where) -> list:
+    if not (isinstance(v, list) and len(v) == 3):
+        _fail(where, f"must be three numbers [x, y, z], got {show(v)}")
+    return [_number(x, f"{where}[{i}]") for i, x in enumerate(v)]
 
 
 def _load(v, where) -> dict:
     t = _table(v, where, allowed("load"), required("load"))
-    kind = _choice(t["kind"], f"{where}.kind", ("traction", "pressure"))
+    kind = _choice(t["kind"], f"{where}.kind", ("traction", "pressure", "point"))
     where_value = f"{where}.value"
+    if kind == "point":
+        if "tag" in t or "point" not in t:
+            _fail(f"{where}.{'tag' if 'tag' in t else 'point'}", "a point load takes point = [x, y, z] and value = "
+                  "[Fx, Fy, Fz] (N), no tag")
+        return {"kind": kind, "tag": None, "point": _point(t["point"], f"{where}.point"),
+                "value": _point(t["value"], where_value)}
+    if "point" in t or "tag" not in t:
+        _fail(f"{where}.{'point' if 'point' in t else 'tag'}", f"a {kind} load takes the faces' tag, not a point")
     value = _formula(t["value"], where_value) if kind == "pressure" else _vector(t["value"], where_value, False)
     return {"kind": kind, "tag": _tag(t["tag"], f"{where}.tag"), "value": value}

@@ -202,17 +202,29 @@ _SECTIONS = (
         _K("reference", "a number (C)", 20.0, "`thermo-elastic`: the temperature without thermal strain"),
         _K("hold_rigid", "true or false", False, "hold the body against rigid motion only (3-2-1 at three "
            "corners) instead of [[support]] tables"))),
-    Section("support", "[[support]]", "A displacement held on faces (the elastic kinds).", (
-        _K("tag", "a tag, a tag expression or a list of tags", REQUIRED, "the faces held"),
+    Section("support", "[[support]]", "A displacement held (the elastic kinds): on faces (`tag`), or on the control "
+            "points of a patch edge, a patch corner, a point or a box (exactly one of `tag`, `edge`, `corner`, "
+            "`point`, `box`); with `stiffness`, springs instead of a rigid hold.", (
+        _K("tag", "a tag, a tag expression or a list of tags", UNSET, "the faces held"),
+        _K("edge", "two face tags", UNSET, "the patch edges where a face of each meets: a line support "
+           "(e.g. `[\"umin\", \"wmin\"]`)"),
+        _K("corner", "three face tags", UNSET, "the patch corners where a face of each meets: a point support"),
+        _K("point", "[x, y, z] (m)", UNSET, "the nodes at this point"),
+        _K("box", "[[x0, y0, z0], [x1, y1, z1]] (m)", UNSET, "the nodes inside this box"),
         _K("value", "a number, a formula or a list of three (m)", 0.0, "the displacement imposed"),
-        _K("components", "distinct letters of `xyz`", "xyz", "the components held (`\"z\"`: free to slide)")),
-        many=True),
-    Section("load", "[[load]]", "A surface load (the elastic kinds).", (
-        _K("kind", "`\"traction\"` or `\"pressure\"`", REQUIRED, "a traction vector, or a pressure along the "
-           "inward normal"),
-        _K("tag", "a tag, a tag expression or a list of tags", REQUIRED, "the faces loaded"),
-        _K("value", "traction: a list of three numbers or formulas; pressure: a number or a formula (Pa)",
-           REQUIRED, "the load")), many=True),
+        _K("components", "distinct letters of `xyz`", "xyz", "the components held (`\"z\"`: free to slide)"),
+        _K("stiffness", "a number > 0 (N/m per node)", UNSET, "springs on the selected nodes' `components` instead "
+           "of a rigid hold (not with `tag`)"),
+        _K("name", "a string", UNSET, "the name of its reaction in the summary (default: the tag, or "
+           "`support[i]`)")), many=True),
+    Section("load", "[[load]]", "A load (the elastic kinds): on faces, or a force at a point.", (
+        _K("kind", "`\"traction\"`, `\"pressure\"` or `\"point\"`", REQUIRED, "a traction vector, a pressure "
+           "along the inward normal, or a force at a point"),
+        _K("tag", "a tag, a tag expression or a list of tags", UNSET, "the faces loaded (traction, pressure)"),
+        _K("point", "[x, y, z] (m)", UNSET, "where a point force acts (kind `\"point\"`); its stress there is "
+           "infinite, the summary's largest von Mises stress grows under refinement"),
+        _K("value", "traction: a list of three numbers or formulas (Pa); pressure: a number or a formula (Pa); "
+           "point: three numbers (N)", REQUIRED, "the load")), many=True),
     Section("time", "[time]", "The time stepping of `physics.kind = \"transient-heat\"` (required there).", (
         _K("end", "a number of seconds > 0, or `\"steady\"`", REQUIRED, "`\"steady\"` runs until the point "
            "of largest steady change (no Dirichlet condition holding it) has changed by `fraction` of that change"),

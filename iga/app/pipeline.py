@@ -324,6 +324,12 @@ def _run(cfg: dict, out: Path, root: bool = True) -> dict:
     return summary
 
 
+def _support_names(supports: list) -> list:
+    """The summary's name of each [[support]]: its ``name``, else its tag (as written), else ``support[i]``."""
+    return [s["name"] or (as_expression(s["tag"]) if s["tag"] is not None else f"support[{i}]")
+            for i, s in enumerate(supports)]
+
+
 def _elastic_stage(cfg, ms, heat_solution, out: Path, ocfg: dict, stages) -> dict:
     """The elastic (or thermo-elastic, on the heat solution) analysis of the [physics] section, its stress VTU
     and render; returns its summary (with its files)."""
@@ -334,10 +340,22 @@ def _elastic_stage(cfg, ms, heat_solution, out: Path, ocfg: dict, stages) -> dic
     stages.start("elastic analysis")
     p = ElasticityProblem(ms, ph["youngs"], ph["poisson"], degree_elevation=scfg["degree_elevation"],
                           refine=scfg["refine"], degree=scfg["degree"], quadrature_extra=scfg["quadrature_extra"])
-    for s in ph["support"]:
-        p.dirichlet(s["tag"], s["value"], s["components"])
-    for ld in ph["load"]:
-        (p.traction if ld["kind"] == "traction" else p.pressure)(ld["tag"], ld["value"])
+    names = _support_names(ph["support"])
+    for s, name in zip(ph["support"], names):
+        if s["tag"] is not None:
+            p.dirichlet(s["tag"], s["value"], s["components"])
+            continue
+        kind, where = s["select"]
+        where = where if kind in ("edge", "corner") else np.asarray(where, float)
+        if s["stiffness"] is not None:  # springs on the selected components
+            p.spring(where, [s["stiffness"] if c in s["components"] else 0.0 for c in "xyz"], name=name)
+        else:
+            p.hold(where, s["value"], s["components"], name=name)
+    for i, ld in enumerate(ph["load"]):
+        if ld["kind"] == "point":
+            p.point_load(ld["point"], ld["value"], name=f"load[{i}]")
+        else:
+            (p.traction if ld["kind"] == "traction" else p.pressure)(ld["tag"], ld["value"])
     if ph["hold_rigid"]:
         p.hold_rigid()
     if ph["kind"] == "thermo-elastic":
@@ -362,6 +380,9 @@ def _elastic_stage(cfg, ms, heat_solution, out: Path, ocfg: dict, stages) -> dic
     return {"dofs": es.info["dofs"], "unknowns": es.info["free_dofs"], "solver": es.info["solver"],
             "max_displacement_m": float(np.linalg.norm(grid.point_data["displacement"], axis=1).max()),
             "max_von_mises_Pa": float(grid.point_data["von_mises"].max()),
-            "reactions_N": {as_expression(s["tag"]): es.reaction(s["tag"]).tolist() for s in ph["support"]},
+            "reactions_N": {name: es.reaction(s["tag"] if s["tag"] is not None else name).tolist()
+                            for s, name in zip(ph["support"], names)},
+            **({"max_von_mises_note": "a point load's stress is infinite at its point: the largest von Mises stress "
+                "sampled grows under refinement"} if any(ld["kind"] == "point" for ld in ph["load"]) else {}),
             "applied_N": es.info["applied_N"], "work": es.info["work"],
             "timings_s": {k: float(v) for k, v in es.info["timings"].items()}, "files": files}

@@ -26,6 +26,7 @@ from iga.heat.coefficients import ScalarField, is_number
 from iga.discretisation.components import dof_labels
 from iga.discretisation.constraints import needs_constraints, prolongation
 from iga.discretisation.problem import Problem, SolveRecord
+from iga.discretisation.fields import evaluation_matrix
 from iga.discretisation.setting import count
 from iga.elasticity.solution import ElasticSolution
 from iga.elasticity.volume import ElasticVolume, vector_constraints
@@ -37,6 +38,8 @@ from iga.elasticity.rigid import free_modes, greville_points, rigid_modes
 from iga.discretisation.system import solve_system
 from iga.tags import as_expression, condition_faces, mentions_rest
 from iga.elasticity.data import VectorField, component_field, merge_dirichlet, pin_dofs
+from iga.elasticity.supports import (Hold, PointLoad, Spring, components_of, hold_dirichlet, select_nodes,
+                                     spring_matrix, stiffness_per_node)
 
 __all__ = ["ElasticityProblem"]
 
@@ -88,6 +91,11 @@ class ElasticityProblem(Problem):
             raise ProblemError(f"Poisson's ratio must lie in (-1, 0.5), got {show(poisson)}")
         self.supports: list[_Support] = []
         self.loads: list[_Load] = []
+        self.holds: list[Hold] = []  # control points held (edges, corners, selections: iga.elasticity.supports)
+        self.springs: list[Spring] = []
+        self.point_loads: list[PointLoad] = []
+        self._nodes = None  # the DOFs' nodes (Greville images), computed on first use
+        self._located = None  # the point locator, built on first use
         self.body = None
         self.thermal_strain = None
         self.rigid_hold = False
@@ -115,6 +123,71 @@ class ElasticityProblem(Problem):
         field = VectorField(value, f"displacement on {show(tag)}", broadcast=True)
         self.supports.append(_Support(tag, field, tuple(_AXES.index(c) for c in components)))
         return self
+
+    def nodes(self) -> np.ndarray:
+        """The node (ndof, 3) of every scalar DOF: its patch's image of the DOF's Greville abscissae (m)."""
+        if self._nodes is None:
+            self._nodes = greville_points(self.model, self.spaces, self.offsets)
+        return self._nodes
+
+    def _name(self, name, kind: str, taken: list) -> str:
+        if name is None:
+            return f"{kind} {len(taken) + 1}"
+        if not isinstance(name, str) or not name:
+            raise ProblemError(f"{kind}: name must be a non-empty string, got {show(name)}")
+        if name in self.model.tags or any(x.name == name for x in self.holds + self.springs + self.point_loads):
+            raise ProblemError(f"{kind}: the name {show(name)} is already a tag or another support's name; choose a "
+                               "new one")
+        return name
+
+    def hold(self, where, value=0.0, components: str = "xyz", name: str | None = None) -> "ElasticityProblem":
+        """Hold the control points ``where`` selects (:func:`iga.elasticity.supports.select_nodes`: a patch edge
+        ``("umin", "wmin")``, a corner ``("umin", "vmin", "wmin")``, a point, a box or a callable of the nodes) at
+        the displacement ``value`` (m: a number, three numbers or a callable of the nodes (N, 3) -> (N, 3)) in
+        ``components``.  On patch edges and corners that is a line or point support, exactly; elsewhere it holds
+        control values (module notes).  ``name`` (default "hold 1", ...) names its reaction
+        (:meth:`iga.ElasticSolution.reaction`)."""
+        name = self._name(name, "hold", self.holds)
+        comps = components_of(components, name)
+        dofs = select_nodes(self, where, self.nodes(), name)
+        field = VectorField(value, f"displacement of {show(name)}", broadcast=True)
+        self.holds.append(Hold(name, dofs, self.nodes()[dofs], field, comps))
+        return self
+
+    def spring(self, where, stiffness, name: str | None = None) -> "ElasticityProblem":
+        """Discrete springs to the ground on the control points ``where`` selects (as :meth:`hold`): ``stiffness``
+        in N/m per node, a number for x, y and z or three numbers (0 leaves a component free); a support that is
+        not rigid (an elastic bearing, a foundation)."""
+        name = self._name(name, "spring", self.springs)
+        k = stiffness_per_node(stiffness, name)
+        self.springs.append(Spring(name, select_nodes(self, where, self.nodes(), name), k))
+        return self
+
+    def point_load(self, point, force, name: str | None = None) -> "ElasticityProblem":
+        """A force ``force`` (three numbers, N) at the physical ``point`` (m), inside or on the model.  Its energy
+        is infinite in 3-D: displacements and stresses away from the point converge under refinement, the
+        values at it do not, and :meth:`iga.ElasticSolution.stress` refuses it there."""
+        name = self._name(name, "point load", self.point_loads)
+        try:
+            x = np.asarray(point, float).reshape(3)
+            F = np.asarray(force, float).reshape(3)
+        except (TypeError, ValueError):
+            raise ProblemError(f"{name}: point and force must be three numbers each, got {show(point)} and "
+                               f"{show(force)}") from None
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(F))) or isinstance(point, str) \
+                or isinstance(force, str):
+            raise ProblemError(f"{name}: point and force must be three finite numbers each, got {show(point)} and "
+                               f"{show(force)}")
+        self._locator()(x[None], what=name)  # in the model, or refused naming it
+        self.point_loads.append(PointLoad(name, x, F))
+        return self
+
+    def _locator(self):
+        from iga.discretisation.locate import Locator
+
+        if self._located is None:
+            self._located = Locator(self.model)
+        return self._located
 
     def traction(self, tag: str, t) -> "ElasticityProblem":
         """Surface traction (Pa) on ``tag``: three numbers or a callable ``t(x (N, 3)) -> (N, 3)``."""
@@ -203,6 +276,13 @@ class ElasticityProblem(Problem):
                 force += (t * fd.dAw[:, None]).sum(0)
                 moments[load.tag] = moments.get(load.tag, 0.0) + (np.cross(fd.x, t) * fd.dAw[:, None]).sum(0)
             applied[load.tag] = applied.get(load.tag, 0.0) + force
+        for pl in self.point_loads:  # f_i += N_i(x) F: the consistent load of a force at a point
+            where, params = self._locator()(pl.point[None], what=pl.name)
+            row = evaluation_matrix(self, where, params).toarray().ravel()
+            for a in range(3):
+                f[a * n:(a + 1) * n] += pl.force[a] * row
+            applied[pl.name] = pl.force.copy()
+            moments[pl.name] = np.cross(pl.point, pl.force)
         return applied, moments
 
     def _support_faces(self) -> list:
@@ -262,8 +342,8 @@ class ElasticityProblem(Problem):
         if maxiter is not None:
             count("maxiter", maxiter, 1)
         supports = self._support_faces()
-        if self.rigid_hold and any(supports):
-            tags = sorted({show(sup.tag) for sup in self.supports})
+        if self.rigid_hold and (any(supports) or self.holds or self.springs):
+            tags = sorted({show(sup.tag) for sup in self.supports} | {show(x.name) for x in self.holds + self.springs})
             raise ProblemError(f"hold_rigid pins three corners against rigid motion only, but displacement conditions "
                                f"on {', '.join(tags)} already hold the body: the pins would add supports (and "
                                "reactions) of their own; use either the conditions or hold_rigid")
@@ -279,9 +359,18 @@ class ElasticityProblem(Problem):
                              timings={**self.timings, **book["timings"]})
         constraints = vector_constraints(scalar, self.ndof)
         dd = merge_dirichlet(self.faces, supports, self.ndof, scalar)
-        points = greville_points(self.model, self.spaces, self.offsets)
+        points = self._nodes if self._nodes is not None else greville_points(self.model, self.spaces, self.offsets)
         held = [np.unique(np.concatenate([fd.dofs for fd in self.faces(list(sup))])) if sup
                 else np.zeros(0, np.int64) for sup in supports]
+        dd, hold_unknowns = hold_dirichlet(dd, self.holds, self.ndof, scalar)
+        for h in self.holds:
+            for a in h.components:
+                held[a] = np.union1d(held[a], h.dofs)
+        for spring in self.springs:  # a spring restrains its components as a hold does (for the rigid check)
+            for a in np.flatnonzero(spring.stiffness > 0):
+                held[a] = np.union1d(held[a], spring.dofs)
+        if self.springs:
+            K = K + spring_matrix(self.springs, self.ndof)
         if self.rigid_hold:
             pins = self._three_two_one(points)
             dd = pin_dofs(dd, pins, self.ndof, scalar)
@@ -298,7 +387,7 @@ class ElasticityProblem(Problem):
         del K
         record.timings.update({"constraints": t2 - t1, "solve": res.info.setup_s + res.info.solve_s})
         record.reduced_dofs = int(res.reduced)
-        return ElasticSolution(self, res, f, dd, work, applied, record)
+        return ElasticSolution(self, res, f, dd, work, applied, record, hold_unknowns, self.springs)
 
 
 def _refuse_net_load(applied: dict, body: np.ndarray, moments: dict) -> None:

@@ -9,7 +9,9 @@ from geometry import SplineFunction
 from geometry.patches.chain import patch_geometry_points
 
 from iga.elasticity.forms import lame
+from iga.elasticity.supports import POINT_MARGIN
 from iga.errors import ProblemError
+from geometry.errors import show
 from iga.discretisation.problem import SolveRecord
 from iga.discretisation.fields import integrate_fields
 from iga.discretisation.locate import Locator
@@ -29,7 +31,7 @@ class ElasticSolution:
     info : dict with DOF counts, constraints, solver diagnostics, timings and the work balance
     """
 
-    def __init__(self, problem, res, f, dd, work, applied, record=None):
+    def __init__(self, problem, res, f, dd, work, applied, record=None, holds=None, springs=()):
         self.problem = problem
         self.record = SolveRecord(reduced_dofs=int(res.reduced), timings=dict(problem.timings)) \
             if record is None else record  # what the solve found (iga.discretisation.problem)
@@ -45,6 +47,16 @@ class ElasticSolution:
             self._face_forces[key] = float(np.sum(res.reaction * Gd[:, j] / safe))
         self._f = f
         self._reaction, self._prescribed = res.reaction, res.prescribed
+        position = {int(r): i for i, r in enumerate(res.reaction_dofs)}
+        self._hold_forces = {name: np.array([sum(float(res.reaction[position[int(r)]]) for r in unknowns[a]
+                                                 if int(r) in position) for a in range(3)])
+                             for name, unknowns in (holds or {}).items()}  # hold name -> force on the body (N)
+        n = problem.ndof
+        self._spring_forces = {s.name: np.array([-s.stiffness[a] * float(self.u[a * n + s.dofs].sum())
+                                                 for a in range(3)]) for s in springs}
+        # u . K_s u: the work the springs take (the continuum's internal work is the rest of u . f)
+        self._spring_work = sum(float(np.sum(s.stiffness[a] * self.u[a * n + s.dofs] ** 2))
+                                for s in springs for a in range(3))
         balance, energy = self._work_and_energy()
         self.info = ElasticInfo(
             dofs=3 * problem.ndof, free_dofs=int(self.record.reduced_dofs),
@@ -132,15 +144,32 @@ class ElasticSolution:
         return self._at_points(points, lambda pi, p: self.displacement_spline(pi).evaluate(p), (3,))
 
     def strain(self, points) -> np.ndarray:
-        """Total small strain sym(grad u) (N, 3, 3) at physical points."""
+        """Total small strain sym(grad u) (N, 3, 3) at physical points; refused at a point load's point."""
+        self._refuse_point_loads(points, "strain")
+
         def eps(pi, p):
             g = self.evaluate(pi, p)[1]
             return 0.5 * (g + np.transpose(g, (0, 2, 1)))
         return self._at_points(points, eps, (3, 3))
 
     def stress(self, points) -> np.ndarray:
-        """Cauchy stress (N, 3, 3) in Pa at physical points (thermal strain taken off the total)."""
+        """Cauchy stress (N, 3, 3) in Pa at physical points (thermal strain taken off the total); refused at the
+        point of a point load, where it is infinite (:mod:`iga.elasticity.supports`)."""
+        self._refuse_point_loads(points, "stress")
         return self._at_points(points, self._stress_at, (3, 3))
+
+    def _refuse_point_loads(self, points, what: str) -> None:
+        loads = self.problem.point_loads
+        pts = np.asarray(points, float).reshape(-1, 3) if np.size(points) else np.zeros((0, 3))
+        if not loads or not len(pts):
+            return
+        size = max(float(np.ptp(self.problem.nodes(), axis=0).max()), TINY)
+        for pl in loads:
+            d = np.linalg.norm(pts - pl.point, axis=1)
+            if np.any(d <= POINT_MARGIN * size):
+                raise ProblemError(f"the {what} at the point of {show(pl.name)} {pl.point.tolist()} is infinite (a "
+                                   f"force at a point of a 3-D body); ask for it away from the point, where it "
+                                   "converges under refinement")
 
     def von_mises(self, points) -> np.ndarray:
         """Von Mises equivalent stress (N,) in Pa at physical points."""
@@ -149,7 +178,12 @@ class ElasticSolution:
     # ------------------------------------------------------------ reactions
     def reaction(self, tag: str) -> np.ndarray:
         """Force (3,) in N that the supports on the faces tagged ``tag`` exert on the body (the consistent
-        residual of the prescribed unknowns, split among faces by their share of int N_i dA)."""
+        residual of the prescribed unknowns, split among faces by their share of int N_i dA); or that the hold or
+        the springs named ``tag`` exert (:meth:`iga.ElasticityProblem.hold`, :meth:`~iga.ElasticityProblem.spring`)."""
+        if isinstance(tag, str) and tag in self._hold_forces:
+            return self._hold_forces[tag].copy()
+        if isinstance(tag, str) and tag in self._spring_forces:
+            return self._spring_forces[tag].copy()
         faces = set(self.problem.tag_faces(tag))
         if not faces:
             raise ProblemError(f"tag {tag!r} has no faces in this model")
@@ -212,7 +246,8 @@ class ElasticSolution:
                                       for a in range(3)]), 3, densities, context=True)
         if self._prescribed is None:
             return EnergyBalance(float(internal), None, None), float(energy)
-        external = float(self.u @ self._f) - float(thermal_load) + float(self._reaction @ self._prescribed)
+        external = float(self.u @ self._f) - float(thermal_load) + float(self._reaction @ self._prescribed) \
+            - self._spring_work
         scale = max(abs(internal), abs(external), abs(total), TINY)
         return EnergyBalance(float(internal), external, float(abs(internal - external) / scale)), float(energy)
 
