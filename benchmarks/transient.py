@@ -10,7 +10,7 @@ unknowns 599 MiB after the first step, 714 MiB from step 50 to step 400 with no 
 (flat: only the kept states grow, 16 bytes per coefficient each, one in 50 steps here), and how far the
 hottest point got towards its steady rise.
 
-Targets (the transient issue): a step after the first at most 0.3x a steady solve; memory flat over the steps.
+Targets: a step after the first at most 0.3x a steady solve; memory flat over the steps.
 
     python benchmarks/transient.py            # refine 0 (the demo's), 1,000 steps
     python benchmarks/transient.py --refine 1 --steps 200

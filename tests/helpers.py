@@ -82,24 +82,32 @@ def read_own_iges(path):
 
 
 def decode_appended_vtu(path) -> dict:
-    """Every DataArray of a VTU with raw appended, zlib-compressed data (UInt32 headers), by name."""
+    """Every DataArray of a VTU with appended binary data, raw or zlib-compressed, with UInt32 or UInt64 block
+    headers (as its VTKFile element says), by name: a reader of our own, written from VTK's file format."""
     import xml.etree.ElementTree as ET
     import zlib
 
     raw = path.read_bytes()
     start = raw.index(b"<AppendedData")
-    head = raw[:start].decode() + "</VTKFile>"
+    head = ET.fromstring(raw[:start].decode() + "</VTKFile>")
+    word = "<u8" if head.get("header_type") == "UInt64" else "<u4"
+    w = np.dtype(word).itemsize
+    compressed = head.get("compressor") == "vtkZLibDataCompressor"
     data = raw[raw.index(b"_", start) + 1:]
     dtypes = {"Float64": "<f8", "Float32": "<f4", "Int32": "<i4", "Int64": "<i8", "UInt8": "u1"}
     out = {}
-    for el in ET.fromstring(head).iter("DataArray"):
+    for el in head.iter("DataArray"):
         off = int(el.get("offset"))
-        nb = int(np.frombuffer(data[off:off + 4], "<u4")[0])
-        sizes = np.frombuffer(data[off + 12:off + 12 + 4 * nb], "<u4")
-        pos, chunks = off + 12 + 4 * nb, []
-        for s in sizes:
-            chunks.append(zlib.decompress(data[pos:pos + int(s)]))
-            pos += int(s)
+        if not compressed:  # one header word: the byte count, then the values
+            nbytes = int(np.frombuffer(data[off:off + w], word)[0])
+            out[el.get("Name")] = np.frombuffer(data[off + w:off + w + nbytes], dtypes[el.get("type")])
+            continue
+        nb = int(np.frombuffer(data[off:off + w], word)[0])  # blocks, block size, last block size, sizes
+        sizes = np.frombuffer(data[off + 3 * w:off + 3 * w + w * nb], word)
+        pos, chunks = off + 3 * w + w * nb, []
+        for size in sizes:
+            chunks.append(zlib.decompress(data[pos:pos + int(size)]))
+            pos += int(size)
         out[el.get("Name")] = np.frombuffer(b"".join(chunks), dtypes[el.get("type")])
     return out
 

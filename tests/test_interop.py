@@ -250,3 +250,24 @@ def test_iga_info_describes_every_file_the_toolkit_writes(tmp_path):
     (tmp_path / "bad.igs").write_text("not iges\n")
     out = subprocess.run([sys.executable, "-m", "iga", "info", str(tmp_path / "bad.igs")], capture_output=True, text=True)
     assert out.returncode == 1 and "is not an IGES file" in out.stderr and "Traceback" not in out.stderr
+
+
+def test_raw_and_compressed_vtu_hold_the_same_arrays_for_meshio_and_vtk(tmp_path):
+    import meshio
+    import pyvista as pv
+
+    from iga import write_vtu
+
+    ms = tiling.regular(pr.box((2.0, 1.0, 1.0), degrees=(2, 2, 2)), L.cross(), (2, 1, 1))
+    sol = HeatProblem(ms, conductivity=3.0).dirichlet("umin", 1.0).robin("rest", 2.0, 0.0).solve()
+    raw, packed = write_vtu(tmp_path / "raw.vtu", sol), write_vtu(tmp_path / "zlib.vtu", sol, compress=True)
+    head = [p.read_bytes()[:400] for p in (raw, packed)]
+    assert b"vtkZLibDataCompressor" not in head[0] and b"vtkZLibDataCompressor" in head[1]
+    assert b'header_type="UInt64"' in head[0]
+    a, b = meshio.read(raw), meshio.read(packed)
+    assert np.array_equal(a.points, b.points) and np.array_equal(a.cells[0].data, b.cells[0].data)
+    for name in ("temperature", "heat_flux"):
+        assert np.array_equal(a.point_data[name], b.point_data[name])
+        assert np.array_equal(pv.read(raw).point_data[name], a.point_data[name])
+    with pytest.raises(ProblemError, match="compress must be True or False"):
+        write_vtu(tmp_path / "x.vtu", sol, compress="yes")

@@ -107,7 +107,7 @@ def _output(v, base: Path) -> dict:
         _fail("output.dir", f"must not hold a NUL character, got {show(out['dir'])}")
     if Path(name).is_absolute() or Path(name).name != name or name in (".", ".."):
         _fail("output.name", f"must be a plain file name inside output.dir (no folders, no '..'), got {show(name)}")
-    for key in ("vtu", "bezier", "png"):
+    for key in ("vtu", "bezier", "png", "compress"):
         if key in t:
             out[key] = _bool(t[key], f"output.{key}")
     if "samples" in t:

@@ -21,7 +21,7 @@ import numpy as np
 from geometry import resources
 from geometry import progress as display
 from geometry.io.iges import write_iges
-from geometry.io.files import atomic_write, offscreen_plotter, save_screenshot
+from geometry.io.files import atomic_write, check_folder, offscreen_plotter, save_screenshot
 from iga.io.pictures import count, render_temperature
 from iga.app.problems import heat_problem
 from iga.app.pipeline_transient import transient_stage
@@ -36,7 +36,7 @@ from iga.discretisation.locate import Locator
 from iga.app.maps import MAPS, circular_heat_sink_map, vertical_heat_sink_map
 from iga.distributed import solve as distributed
 from iga.tags import as_expression
-from iga.io.vtu import write_pieces, write_vtu
+from iga.io.vtu import sampled_grid, save_grid, write_pieces, write_vtu
 from geometry.errors import show
 
 __all__ = ["run_pipeline", "heat_sink_config", "circular_heat_sink_map", "vertical_heat_sink_map", "MAPS",
@@ -98,6 +98,11 @@ def _read_volume(path: Path) -> float:
     return float(pv.read(path).volume)
 
 
+def _save(grid, path: Path, ocfg: dict) -> Path:
+    """``grid`` written to ``path`` (atomic; compressed as ``output.compress`` says)."""
+    return atomic_write(path, lambda tmp: save_grid(grid, tmp, ocfg["compress"]), ".vtu", ProblemError)
+
+
 def _volumes(exact: float, mesh: float | None) -> dict:
     """The model's volume (Gauss rule on the exact geometry) and the sampled VTU's, with its relative error."""
     out = {"exact": exact}
@@ -145,16 +150,18 @@ def _write_outputs(ocfg: dict, out: Path, sol, stages) -> tuple[dict, float | No
     stages.start("VTU output")
     name = ocfg["name"]
     vtu = out / f"{name}.vtu"
-    mesh_volume = None
+    mesh_volume, grid = None, None
     world = distributed.solve_world(sol.problem)
     if world and ocfg.get("pieces"):  # a distributed solve: every rank writes its patches, rank 0 the .pvtu index
         vtu = write_pieces(out / f"{name}.pvtu", sol, world[0], samples=ocfg["samples"], tolerance=ocfg["tolerance"])
         files["vtu"] = str(vtu)
         mesh_volume = _read_volume(vtu) if ocfg["vtu"] else None
     elif ocfg["vtu"]:
-        write_vtu(vtu, sol, samples=ocfg["samples"], tolerance=ocfg["tolerance"])
+        check_folder(vtu, ProblemError)
+        grid = sampled_grid(sol.problem.model, sol, ocfg["samples"], ocfg["tolerance"])
+        _save(grid, vtu, ocfg)
         files["vtu"] = str(vtu)
-        mesh_volume = _read_volume(vtu)  # what ParaView's Integrate Variables will show
+        mesh_volume = float(grid.volume)  # what ParaView's Integrate Variables will show
     if ocfg["bezier"]:  # exact Bezier hexahedra (VTK 79) beside the sampled file
         exact = out / f"{name}_bezier.vtu"
         write_vtu(exact, sol, cells="bezier")
@@ -163,7 +170,8 @@ def _write_outputs(ocfg: dict, out: Path, sol, stages) -> tuple[dict, float | No
     stages.start("render")
     if ocfg["png"]:
         b = sol.info["balance"]
-        render_temperature(vtu, out / f"{name}.png", caption=f"{name}: {count(sol.info['patches'], 'patch')}, "
+        render_temperature(grid if grid is not None else vtu, out / f"{name}.png",
+                           caption=f"{name}: {count(sol.info['patches'], 'patch')}, "
                            f"{count(sol.info['free_dofs'], 'unknown')}, {b['inflow_W']:.4g} W in")
         files["png"] = str(out / f"{name}.png")
     stages.done()
@@ -308,7 +316,7 @@ def _run(cfg: dict, out: Path, root: bool = True) -> dict:
         if kind == "none" and ocfg["vtu"] and root:  # the model alone: its geometry and channels
             stages.start("VTU output")
             vtu = out / f"{ocfg['name']}.vtu"
-            write_vtu(vtu, model, samples=ocfg["samples"], tolerance=ocfg["tolerance"])
+            write_vtu(vtu, model, samples=ocfg["samples"], tolerance=ocfg["tolerance"], compress=ocfg["compress"])
             summary["files"]["vtu"] = str(vtu)
             stages.done()
     if elastic:
@@ -334,7 +342,6 @@ def _elastic_stage(cfg, ms, heat_solution, out: Path, ocfg: dict, stages) -> dic
     """The elastic (or thermo-elastic, on the heat solution) analysis of the [physics] section, its stress VTU
     and render; returns its summary (with its files)."""
     from iga.elasticity.problem import ElasticityProblem
-    from iga.io.vtu import sampled_grid, save_grid
 
     ph, scfg = cfg["physics"], cfg["solver"]
     stages.start("elastic analysis")
@@ -367,13 +374,13 @@ def _elastic_stage(cfg, ms, heat_solution, out: Path, ocfg: dict, stages) -> dic
     files = {}
     if ocfg["vtu"]:
         vtu = out / f"{ocfg['name']}_stress.vtu"
-        atomic_write(vtu, lambda tmp: save_grid(grid, tmp), ".vtu", ProblemError)
+        _save(grid, vtu, ocfg)
         files["stress_vtu"] = str(vtu)
         if ocfg["png"]:
             umax = float(np.abs(grid.point_data["displacement"]).max())
             size = float(np.ptp(grid.points, axis=0).max())
             warp = 0.05 * size / umax if umax > 0 else None  # the deformation shown at 5% of the model's size
-            render_temperature(vtu, out / f"{ocfg['name']}_stress.png", "von Mises stress (Pa)", scalars="von_mises",
+            render_temperature(grid, out / f"{ocfg['name']}_stress.png", "von Mises stress (Pa)", scalars="von_mises",
                                warp=warp, cmap="viridis", fmt="%.3g")
             files["stress_png"] = str(out / f"{ocfg['name']}_stress.png")
     stages.done()

@@ -24,7 +24,7 @@ from iga.errors import ProblemError
 from iga.heat.coefficients import ScalarField
 from iga.heat.transient import TransientHeatProblem
 from iga.io.pictures import count, render_temperature
-from iga.io.vtu import write_vtu
+from iga.io.vtu import sampled_grid, save_grid
 from iga.tags import as_expression
 
 __all__ = ["transient_stage"]
@@ -138,14 +138,16 @@ def _series_outputs(history, final, ocfg: dict, out: Path, stages, watch) -> dic
     stages.start("VTU output")
     if ocfg["vtu"]:
         files["pvd"] = str(history.write_pvd(out / f"{name}.pvd", samples=ocfg["samples"],
-                                             tolerance=ocfg["tolerance"]))
-        vtu = write_vtu(out / f"{name}.vtu", final, samples=ocfg["samples"], tolerance=ocfg["tolerance"])
+                                             tolerance=ocfg["tolerance"], compress=ocfg["compress"]))
+        grid = sampled_grid(final.problem.model, final, ocfg["samples"], ocfg["tolerance"])
+        vtu = atomic_write(out / f"{name}.vtu", lambda tmp: save_grid(grid, tmp, ocfg["compress"]), ".vtu",
+                           ProblemError)
         files["vtu"] = str(vtu)
     stages.done()
     stages.start("render")
     if ocfg["png"] and ocfg["vtu"]:
         b = final.info["balance"]
-        render_temperature(Path(files["vtu"]), out / f"{name}.png",
+        render_temperature(grid, out / f"{name}.png",
                            caption=f"{name} at t = {final.time:.4g} s: {count(final.info['patches'], 'patch')}, "
                                    f"{count(final.info['free_dofs'], 'unknown')}, {b['inflow_W']:.4g} W in, "
                                    f"{b['stored_W']:.4g} W stored")

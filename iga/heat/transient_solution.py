@@ -147,12 +147,13 @@ class TransientSolution:
         return self._V @ (self._stepper.M.T @ np.ones(self.problem.ndof))
 
     # --------------------------------------------------------------- ParaView
-    def write_pvd(self, path, every: int = 1, samples: int = 3, tolerance: float | None = None) -> Path:
+    def write_pvd(self, path, every: int = 1, samples: int = 3, tolerance: float | None = None,
+                  compress: bool = False) -> Path:
         """Write a ParaView time series: ``path`` (``.pvd``) and one ``.vtu`` per written time in the folder
         beside it named after its stem (``run.pvd`` and ``run/run_00000.vtu`` ...).  File > Open on the
         ``.pvd`` shows an animation of temperature (C) and heat flux (W/m^2) on the sampled grid of
         :func:`iga.write_vtu`.  ``every``: every ``every``-th kept time (the last always); ``samples``,
-        ``tolerance``: as :func:`iga.write_vtu`.  Written to temporary names first: an existing series of
+        ``tolerance``, ``compress``: as :func:`iga.write_vtu`.  Written to temporary names first: an existing series of
         the same name is replaced whole, and a failure leaves nothing half-written."""
         from iga.io.grids import sample_grid
         from iga.io.sampling import temperature_frames
@@ -162,6 +163,8 @@ class TransientSolution:
             raise ProblemError(f"every must be a positive integer, got {show(every)}")
         if not is_integer(samples) or samples < 1:
             raise ProblemError(f"samples must be a positive integer, got {show(samples)}")
+        if not isinstance(compress, bool):
+            raise ProblemError(f"compress must be True or False, got {show(compress)}")
         path = Path(path)
         if path.suffix.lower() != ".pvd":
             raise ProblemError(f"cannot write {path.name}: a ParaView time series ends in .pvd")
@@ -191,7 +194,7 @@ class TransientSolution:
                     frame.point_data["heat_flux"] = grid.point_data["heat_flux" + suffix]
                     frame.field_data["TimeValue"] = np.array([self.times[i]])
                     name = f"{stem}_{i:05d}.vtu"
-                    save_grid(frame, tmp / name)
+                    save_grid(frame, tmp / name, compress)
                     names.append((float(self.times[i]), f"{stem}/{name}"))
             old = None
             if target.exists():  # replaced whole: moved aside, then removed once the new one is in place

@@ -78,17 +78,19 @@ def count(n: int, noun: str) -> str:
     return f"{n:,} {noun if n == 1 else plural}"
 
 
-def render_temperature(vtu_path: Path, png_path: Path, title: str = "temperature (C)", scalars: str = "temperature",
+def render_temperature(source, png_path: Path, title: str = "temperature (C)", scalars: str = "temperature",
                        warp: float | None = None, cmap: str = "inferno", fmt: str = "%.2f",
                        above: float | None = None, caption: str | None = None):
-    """Offscreen render of a written .vtu coloured by ``scalars`` (a point array), with a scalar bar (atomic);
+    """Offscreen render of a sampled grid (a ``pyvista`` grid, or the path of a written .vtu) coloured by
+    ``scalars`` (a point array), with a scalar bar (atomic);
     ``warp``: the surface moved by that factor times its ``displacement`` array (an elastic solution);
     ``above``: colour by the rise of ``scalars`` above this value on a logarithmic scale (from 1e-3 of the
     largest rise), so that a part that stays near the ambient temperature still shows its gradient;
     ``caption``: the case, written in the upper left above the shown array's range."""
     import pyvista as pv
 
-    mesh = pv.read(vtu_path).extract_surface(algorithm="dataset_surface")
+    grid = pv.read(source) if isinstance(source, (str, Path)) else source
+    mesh = grid.extract_surface(algorithm="dataset_surface")
     log = above is not None
     if log:
         rise = np.asarray(mesh.point_data[scalars], float) - above
