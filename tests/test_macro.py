@@ -78,3 +78,35 @@ def test_graded_cross_refuses_widths_outside_the_cell():
     with pytest.raises(TilingError, match="top arm width must be in"):
         L.graded_cross(0.2, 1.2)
     assert len(MultiPatch.from_splines(L.graded_cross(0.3, 0.3).patches).interfaces) == 6  # the plain cross's
+
+
+def test_a_field_graded_lattice_conforms_in_all_three_directions_and_solves():
+    import tiling
+
+    D = pr.box((0.03, 0.02, 0.02), degrees=(1, 1, 1)).with_channel("rho", np.linspace(0.2, 0.4, 8).reshape(2, 2, 2))
+    field = lambda s: 0.15 + 0.1 * s[:, 0] + 0.08 * s[:, 1] + 0.12 * s[:, 2] ** 2  # noqa: E731  (all three ways)
+    ms = tiling.field_graded(D, L.face_graded_cross, (3, 2, 2), field)
+    plain = tiling.regular(D, L.cross(), (3, 2, 2))
+    assert len(ms.interfaces) == len(plain.interfaces) == 12 * 6 + 2 * 2 * 2 + 3 * 1 * 2 + 3 * 2 * 1
+    u = ms.info["faces"][0]
+    assert u.shape == (4, 2, 2) and np.all(np.diff(u[:, 0, 0]) > 0)  # widths grow along u ...
+    assert np.all(np.diff(ms.info["faces"][2][0, 0, :]) > 0)  # ... and along w
+    # two neighbours' arms end on the same square: the wall's value read once, by both
+    t0, t1 = ms.tiles[0], ms.tiles[4]  # cells (0, 0, 0) and (1, 0, 0)
+    assert t0.name.split(", ")[1] == t1.name.split("(")[1].split(",")[0]
+    s = HeatProblem(ms, conductivity=10.0).dirichlet("umin", 1.0).dirichlet("umax", 0.0).solve()
+    assert abs(s.flux("umin") + s.flux("umax")) < 1e-9 * abs(s.flux("umin"))  # what enters leaves
+    assert s.info.balance.relative_error < 1e-10
+    from_channel = tiling.field_graded(D, L.face_graded_cross, (3, 2, 2), "rho")
+    walls = np.stack(np.meshgrid([0, 1 / 3, 2 / 3, 1], [0.25, 0.75], [0.25, 0.75], indexing="ij"), -1)
+    expected = D.evaluate(walls.reshape(-1, 3))[:, 3].reshape(4, 2, 2)  # the channel at the u-walls' centres
+    assert np.allclose(from_channel.info["faces"][0], expected, rtol=1e-12)
+    uniform = tiling.field_graded(D, L.face_graded_cross, (3, 2, 2), 0.3)
+    for P, Q in zip(uniform.patches, plain.patches):  # a constant field is the plain cross lattice
+        assert np.allclose(P.spline.control_points, Q.spline.control_points)
+    with pytest.raises(TilingError, match=r"cell \(0, 0, 0\).*umin arm width must be in \(0, 1\)"):
+        tiling.field_graded(D, L.face_graded_cross, (3, 2, 2), lambda s: 1.5 - s[:, 0])
+    with pytest.raises(TilingError, match="not a channel of the map"):
+        tiling.field_graded(D, L.face_graded_cross, (3, 2, 2), "k")
+    with pytest.raises(TilingError, match="one finite value per face centre"):
+        tiling.field_graded(D, L.face_graded_cross, (3, 2, 2), lambda s: np.nan * s[:, 0])

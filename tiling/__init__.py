@@ -20,7 +20,7 @@ from tiling.branching.paving import bifurcation, bifurcation_tiles
 from tiling.branching.implicit import BifurcationStructure, implicit_bifurcation
 from tiling.members.polygons import PolygonTile, pave_polygons
 from .levels import compose_levels
-from .graded_layers import graded
+from .graded_layers import field_graded, graded
 from tiling.members.struts import round_struts
 from . import library
 
@@ -28,4 +28,4 @@ __all__ = ["TilingError", "Tile", "BranchFace", "discontinuity_branches", "Micro
            "Interface", "regular", "hierarchical", "library",
            "random_implicit", "ImplicitStructure", "canonical_tubes", "topo_subdiv", "CellComplex", "bifurcation",
            "bifurcation_tiles", "implicit_bifurcation", "BifurcationStructure",
-           "PolygonTile", "pave_polygons", "compose_levels", "graded", "round_struts"]
+           "PolygonTile", "pave_polygons", "compose_levels", "graded", "field_graded", "round_struts"]

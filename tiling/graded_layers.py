@@ -1,4 +1,6 @@
-"""Graded pavings: a tile family whose parameter varies along w, each layer of cells its own member.
+"""Graded pavings: a tile family whose parameter varies along w, each layer of cells its own member
+(:func:`graded`), or whose parameters belong to the cell's six faces, taken from a field on every shared face
+(:func:`field_graded`: grading in all three directions).
 
 A lattice graded in density (arms thickening from one face to the other,
 Massarwi et al. 2018, Section 6.1: heterogeneous micro-structures) needs tiles
@@ -17,6 +19,7 @@ import numpy as np
 
 from geometry import BSpline
 from geometry.errors import show
+from geometry.numbers import is_real
 
 from .errors import TilingError
 from .microstructure import Microstructure, PlacedPatch
@@ -24,7 +27,7 @@ from .checks import check_budget, check_counts, check_map, check_spans, paramete
 from .paving import grid_identity
 from .tile import Tile, refuse_trimmed
 
-__all__ = ["graded"]
+__all__ = ["graded", "field_graded"]
 
 
 def _values(D: BSpline, values, w: np.ndarray) -> np.ndarray:
@@ -90,3 +93,89 @@ def graded(D: BSpline, family, counts, values, name: str = "graded") -> Microstr
     ms = Microstructure.build(D, placed, tiles, [], name=name, identity=grid_identity(D, tiles, shape))
     ms.info = {"parameter": [float(v) for v in p]}
     return ms
+
+
+def _field_values(D: BSpline, field, points: np.ndarray) -> np.ndarray:
+    """The field at D's parameters ``points`` (N, 3): a number, a channel of D, or a callable of the normalised
+    parameters (N, 3) in [0, 1]^3 returning (N,) (a parameter spline: ``lambda s: spline.evaluate(s)[:, 0]``)."""
+    dom = D.domain
+    if is_real(field):
+        out = np.full(len(points), float(field))
+    elif isinstance(field, str):
+        if field not in D.channels:
+            raise TilingError(f"field_graded: {show(field)} is not a channel of the map (its channels: "
+                              f"{list(D.channels)}); give a number, a channel name or a callable of the normalised "
+                              "parameters")
+        out = D.evaluate(points)[:, 3 + list(D.channels).index(field)]
+    elif callable(field):
+        try:
+            out = np.asarray(field((points - dom[:, 0]) / (dom[:, 1] - dom[:, 0])), float).reshape(-1)
+        except (TypeError, ValueError) as exc:
+            raise TilingError(f"field_graded: the field callable failed on the face centres (N, 3): {exc}") from None
+    else:
+        raise TilingError(f"field_graded: field must be a number, a channel name of the map or a callable of the "
+                          f"normalised parameters (N, 3), got {show(field)}")
+    if out.shape != (len(points),) or not np.all(np.isfinite(out)):
+        raise TilingError(f"field_graded: the field must give one finite value per face centre ({len(points)}), "
+                          f"got {show(out)}")
+    return out
+
+
+def field_graded(D: BSpline, family, counts, field, name: str = "field-graded") -> Microstructure:
+    """Regular paving of D by ``counts`` cells per knot span whose every cell holds
+    ``family(umin=, umax=, vmin=, vmax=, wmin=, wmax=)`` with the ``field`` taken at the centres of its six faces
+    (:func:`_field_values`: a number, a channel of D or a callable of the normalised parameters).  The values
+    live on the faces of the cell grid, so two cells sharing a face read the same value and their tiles meet face
+    to face there (:func:`tiling.library.face_graded_cross`): the interfaces come by construction, as in a regular
+    paving, and a lattice is graded in all three directions.  ``ms.info["faces"]`` holds the values per direction,
+    arrays of shapes (nu + 1, nv, nw), (nu, nv + 1, nw) and (nu, nv, nw + 1).
+
+    >>> from geometry import primitives
+    >>> from tiling import library
+    >>> ms = field_graded(primitives.box(), library.face_graded_cross, (3, 2, 2), lambda s: 0.2 + 0.2 * s[:, 0])
+    >>> ms.n_tiles, [round(float(v), 3) for v in ms.info["faces"][0][:, 0, 0]]
+    (12, [0.2, 0.267, 0.333, 0.4])
+    """
+    check_map(D)
+    if not callable(family):
+        raise TilingError(f"field_graded: family must be a callable of the six face values (umin=..., wmax=...) "
+                          f"returning a Tile, e.g. tiling.library.face_graded_cross; got {show(family)}")
+    counts = check_counts(counts, 3, "counts")
+    cells = [parameter_cells(D, k, counts[k]) for k in range(3)]
+    shape = tuple(len(c) for c in cells)
+    bounds = [np.append(c[:, 0], c[-1, 1]) for c in cells]  # the cell walls along each direction
+    centres = [c.mean(1) for c in cells]
+    faces = []
+    for d in range(3):  # the field at the centre of every wall normal to d
+        axes = [bounds[j] if j == d else centres[j] for j in range(3)]
+        grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1)
+        faces.append(_field_values(D, field, grid.reshape(-1, 3)).reshape(grid.shape[:3]))
+    placed, tiles = [], []
+    for i, j, k in np.ndindex(shape):
+        values = {"umin": faces[0][i, j, k], "umax": faces[0][i + 1, j, k], "vmin": faces[1][i, j, k],
+                  "vmax": faces[1][i, j + 1, k], "wmin": faces[2][i, j, k], "wmax": faces[2][i, j, k + 1]}
+        try:
+            t = family(**{f: float(v) for f, v in values.items()})
+        except TilingError as exc:
+            raise TilingError(f"field_graded: cell ({i}, {j}, {k}): {exc}") from None
+        if not isinstance(t, Tile):
+            raise TilingError(f"field_graded: family must return a tiling.Tile, got {show(t)} for cell ({i}, {j}, {k})")
+        refuse_trimmed(t, "the field-graded paving")
+        if not tiles:  # the first cell's tile stands for the others' size
+            check_budget(float(np.prod(shape)), t, "the field-graded paving")
+        lo = np.array([cells[0][i, 0], cells[1][j, 0], cells[2][k, 0]])
+        hi = np.array([cells[0][i, 1], cells[1][j, 1], cells[2][k, 1]])
+        M = np.column_stack([np.diag(hi - lo), lo])
+        tiles.append(t)
+        placed += [PlacedPatch(patch, M, D, len(tiles) - 1, 0, pi) for pi, patch in enumerate(t.patches)]
+    check_spans(D, placed)
+    interfaces, mismatched = grid_identity(D, tiles, shape)
+    if mismatched:
+        (pa, fa), (pb, fb), why = mismatched[0]
+        raise TilingError(f"field_graded: the tiles of neighbouring cells do not meet face to face (patch {pa} "
+                          f"{fa} against patch {pb} {fb}: {why}); the family must shape each face by that face's "
+                          "value alone")
+    ms = Microstructure.build(D, placed, tiles, [], name=name, identity=(interfaces, mismatched))
+    ms.info = {"faces": faces}
+    return ms
+

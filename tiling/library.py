@@ -12,6 +12,7 @@
 ``hollow_box()``     six bilinear surfaces, the walls of the cell (Elber 2017, Fig. 2)
 ``cross()``          seven trivariates: a centre block and six arms reaching
                      every face of the cell; opposite faces match (periodic)
+``face_graded_cross()`` a cross with its own arm width on each of the six faces (grading in 3 directions)
 ``hollow_cross()``   24 bilinear surfaces: the walls of the cross's arms, open
                      where the arms meet the cell faces (a surface tile to cap)
 ``helix()``          a cubic curve winding around the cell's axis (Elber 2017, Fig. 10)
@@ -203,6 +204,37 @@ def graded_cross(bottom: float = 0.2, top: float = 0.4) -> Tile:
     return Tile(blocks, name=f"graded_cross({bottom:g}, {top:g})")
 
 
+def face_graded_cross(umin: float = 0.3, umax: float = 0.3, vmin: float = 0.3, vmax: float = 0.3,
+                      wmin: float = 0.3, wmax: float = 0.3) -> Tile:
+    """A cross whose arm towards each face of the cell has its own width there (``umin`` .. ``wmax``, in (0, 1)):
+    a centre block of the six widths' mean and six frusta from the centre's faces to square sections of the given
+    widths on the cell's faces.  Paved with the widths of a field taken on every shared face
+    (:func:`tiling.field_graded`), neighbouring cells meet face to face in all three directions."""
+    widths = {"umin": umin, "umax": umax, "vmin": vmin, "vmax": vmax, "wmin": wmin, "wmax": wmax}
+    for face, v in widths.items():
+        if not (is_real(v) and 0 < v < 1):
+            raise TilingError(f"face_graded_cross: the {face} arm width must be in (0, 1), got {show(v)}")
+    mid = float(np.mean(list(widths.values())))
+    a, b = 0.5 - mid / 2, 0.5 + mid / 2
+    blocks = [pr.box((mid,) * 3, (a,) * 3)]
+    for k, axis in enumerate("uvw"):
+        rest = [j for j in range(3) if j != k]
+        for side in (0, 1):
+            w = float(widths[f"{axis}{'max' if side else 'min'}"])
+            ends = ((0.0, w), (a, mid)) if side == 0 else ((b, mid), (1.0, w))  # (coordinate, width), along +axis
+            corners = {}
+            for m, (along, width) in enumerate(ends):
+                for i in (0, 1):
+                    for j in (0, 1):
+                        x, key = np.empty(3), [0, 0, 0]
+                        x[k], x[rest[0]], x[rest[1]] = along, 0.5 + (i - 0.5) * width, 0.5 + (j - 0.5) * width
+                        key[k], key[rest[0]], key[rest[1]] = m, i, j
+                        corners[tuple(key)] = tuple(x)
+            blocks.append(_hexa(corners))
+    name = ", ".join(f"{v:g}" for v in widths.values())
+    return Tile(blocks, name=f"face_graded_cross({name})")
+
+
 def hollow(tile: Tile) -> Tile:
     """The boundary of a volumetric tile as a surface tile: every face of its trivariates that no other of its
     trivariates shares and that does not lie on a cell wall (where neighbours continue it), oriented outwards.
@@ -352,5 +384,6 @@ def oblique_tubes(width: float = 0.16) -> Tile:
 
 #: the built-in tiles by name (what ``[tile] library = ...`` of a pipeline may name)
 TILES = {f.__name__: f for f in (heat_sink_t1, heat_sink_t2, skinned_branching, fractal, hollow_box, cube, cross, helix,
-                                 helical_tubes, bent_cross, hollow_cross, graded_cross, struts, stitch, through_cylinders,
+                                 helical_tubes, bent_cross, hollow_cross, graded_cross, face_graded_cross, struts,
+                                 stitch, through_cylinders,
                                  oblique_tubes)}
