@@ -144,3 +144,14 @@ def test_iga_run_prints_the_newton_iterations_of_a_radiating_pipeline(tmp_path, 
     out = capsys.readouterr().out
     n = json.loads((tmp_path / "out" / "summary.json").read_text())["solver"]["newton_iterations"]
     assert n >= 3 and f"Newton: {n} iterations" in out
+
+
+def test_a_faint_radiation_beside_a_held_temperature_stops_at_round_off():
+    # 1 K held at x = 0, a face radiating 0.5 sigma T^4 (28 nW/m^2) at x = 1: the loads' own scale is tiny, so
+    # the residual's floor is the round-off of the conduction term; T(1) = 1 - sigma eps T(1)^4 / k
+    from geometry import primitives as pr
+    from iga import HeatProblem
+
+    s = HeatProblem(pr.box(), conductivity=1.0).dirichlet("umin", 1.0).radiation("umax", 0.5, 0.0).solve()
+    assert len(s.info.newton) <= 3
+    assert s.probe(np.array([[1.0, 0.5, 0.5]]))[0] == pytest.approx(1 - 5.670374419e-8 * 0.5, abs=1e-14)

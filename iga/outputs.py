@@ -1,0 +1,236 @@
+"""Outputs as objects: what a design is judged by, evaluable on a solution and, where it is differentiable in
+the coefficients, with its gradient for the adjoint (:mod:`iga.sensitivity`).
+
+Each output has ``value(solution) -> float`` and ``gradient(solution) -> (ndof,)`` (dJ/du, the partial
+derivative in the solution's coefficients u; for an elastic solution (3 ndof,), component-major).  Units are
+those of the solution: temperatures in C (or K, as the conditions were given), lengths in m.
+
+* :class:`Volume` (m^3): the model's volume (no dependence on u).
+* :class:`MeanTemperature` (C): int T dV / V, or over the faces of ``tag``: int T dA / A.
+* :class:`TemperatureNorm` (C): (int |T|^p dV / V)^(1/p), a smooth maximum that tends to max |T| as p grows.
+* :class:`HeatFlow` (W): the heat leaving through the faces of ``tag`` (value only).
+* :class:`Compliance`: u . f, the work of the loads (heat: W K; elasticity: J).
+* :class:`VonMisesNorm` (Pa): (int sigma_vm^p dV / V)^(1/p) of an elastic solution (value only).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from geometry.errors import show
+from geometry.numbers import is_real
+
+from iga.discretisation.faces import chunks
+from iga.discretisation.fields import grid_fields
+from iga.errors import ProblemError
+from geometry.patches.chain import patches_geometry_derivs
+
+__all__ = ["Output", "Volume", "MeanTemperature", "TemperatureNorm", "HeatFlow", "Compliance", "VonMisesNorm",
+           "gauss_pass"]
+
+
+def gauss_pass(problem, fields: np.ndarray, fn) -> None:
+    """Call ``fn(chunk, space, vals (P nq, c), grads (P nq, c, 3), wv (P nq,), x (P nq, 3), chans)`` for every group
+    of patches sharing a space and a tile spline, with the fields of coefficient vectors ``fields`` (c, ndof) at
+    the Gauss points; ``wv`` the weights times |det J| (polynomial bases only)."""
+    from geometry.grouping import ObjectIndex
+
+    same = ObjectIndex()
+    groups: dict = {}
+    for i, s in enumerate(problem.spaces):
+        groups.setdefault((s.key(), same(problem.model.patches[i].spline)), []).append(i)
+    c = len(fields)
+    for members in groups.values():
+        if problem.weights[members[0]] is not None:
+            raise ProblemError(f"patch {members[0]} is analysed in the NURBS basis of its own weights; outputs' "
+                               "gradients and sensitivities are computed in the polynomial basis only")
+        space = problem.spaces[members[0]]
+        tables = [np.swapaxes(d.B[:, :, :-1], 1, 2) for d in space.dirs]
+        w = np.einsum("i,j,k->ijk", *[d.qw for d in space.dirs]).ravel()
+        for chunk in chunks(members, c * space.nq_total):
+            x, D, chans = patches_geometry_derivs([problem.model.patches[i] for i in chunk], space.qaxes)
+            U = np.stack([fields[:, problem.offsets[i]:problem.offsets[i + 1]].reshape((c,) + space.shape)
+                          for i in chunk])
+            vals, grads, det = grid_fields(U, tables, D)
+            wv = np.broadcast_to(w, (len(chunk), len(w))).reshape(-1) * np.abs(det)
+            fn(chunk, space, vals, grads, wv, x.reshape(-1, 3), chans)
+
+
+def _volume_load(solution, density) -> np.ndarray:
+    """int density(T) N_i dV (ndof,) for ``density(T (N,)) -> (N,)`` of the solution's temperature at the Gauss
+    points: the gradient of int g(T) dV with g' = density."""
+    from iga.assembly.tensor import load_form
+
+    prob = solution.problem
+    out = np.zeros(prob.ndof)
+
+    def add(chunk, space, vals, grads, wv, x, chans):
+        L = (density(vals[:, 0]) * wv).reshape((len(chunk),) + space.qshape)
+        loads = load_form(space, L)
+        for j, pi in enumerate(chunk):
+            out[prob.offsets[pi]:prob.offsets[pi + 1]] += loads[j].reshape(-1)
+
+    gauss_pass(prob, solution.u[None], add)
+    return out
+
+
+class Output:
+    """An output J of a solution: :meth:`value`, and :meth:`gradient` dJ/du where it is differentiable."""
+
+    name = "output"
+
+    def value(self, solution) -> float:
+        raise NotImplementedError
+
+    def gradient(self, solution) -> np.ndarray:
+        raise ProblemError(f"{self.name} has no gradient in the solution's coefficients here; its sensitivity "
+                           "needs one (use MeanTemperature, TemperatureNorm or Compliance)")
+
+    def __call__(self, solution) -> float:
+        return self.value(solution)
+
+    def __repr__(self) -> str:
+        return self.name
+
+
+def _heat(solution, what: str):
+    from iga.heat.solution import Solution
+
+    if not isinstance(solution, Solution):
+        raise ProblemError(f"{what} is an output of a heat solution (iga.Solution), got {show(solution)}")
+    return solution
+
+
+class Volume(Output):
+    """The model's volume (m^3) by the problem's Gauss rule."""
+
+    name = "Volume()"
+
+    def value(self, solution) -> float:
+        if hasattr(solution, "volume"):
+            return float(solution.volume())
+        return float(solution.integrate(lambda x, u, g: np.ones(len(x))))
+
+    def gradient(self, solution) -> np.ndarray:
+        return np.zeros(len(solution.u))
+
+
+class MeanTemperature(Output):
+    """The mean temperature: int T dV / V over the model, or int T dA / A over the faces of ``tag``."""
+
+    def __init__(self, tag=None):
+        self.tag = tag
+        self.name = f"MeanTemperature({'' if tag is None else show(tag)})"
+
+    def _faces(self, solution):
+        prob = solution.problem
+        keys = prob.faces_of(self.tag, self.name)
+        fds = prob.faces(keys)
+        area = float(sum(fd.dAw.sum() for fd in fds))
+        return fds, area
+
+    def value(self, solution) -> float:
+        s = _heat(solution, self.name)
+        if self.tag is None:
+            return float(s.mean_temperature())
+        return float(self.gradient(s) @ s.u)
+
+    def gradient(self, solution) -> np.ndarray:
+        from iga.heat.forms import boundary_load
+
+        s = _heat(solution, self.name)
+        if self.tag is None:
+            return _volume_load(s, np.ones_like) / s.volume()
+        fds, area = self._faces(s)
+        return boundary_load(fds, [fd.dAw for fd in fds], s.problem.ndof) / area
+
+
+class TemperatureNorm(Output):
+    """(int |T|^p dV / V)^(1/p) (C): a smooth maximum of |T| over the model (``p`` >= 1; the larger, the
+    closer to the maximum and the stiffer the gradient)."""
+
+    def __init__(self, p: float = 8.0):
+        if not (is_real(p) and np.isfinite(p) and p >= 1):
+            raise ProblemError(f"TemperatureNorm: p must be a number >= 1, got {show(p)}")
+        self.p = float(p)
+        self.name = f"TemperatureNorm({self.p:g})"
+
+    def value(self, solution) -> float:
+        s = _heat(solution, self.name)
+        p = self.p
+        return float((s.integrate(lambda x, T, g: np.abs(T) ** p) / s.volume()) ** (1 / p))
+
+    def gradient(self, solution) -> np.ndarray:
+        s = _heat(solution, self.name)
+        p, J = self.p, self.value(s)
+        if J == 0:
+            return np.zeros(s.problem.ndof)
+        g = _volume_load(s, lambda T: np.abs(T) ** (p - 1) * np.sign(T))
+        return g * J ** (1 - p) / s.volume()
+
+
+class HeatFlow(Output):
+    """The heat leaving through the faces of ``tag`` (W, outward positive; :meth:`iga.Solution.flux`)."""
+
+    def __init__(self, tag):
+        self.tag = tag
+        self.name = f"HeatFlow({show(tag)})"
+
+    def value(self, solution) -> float:
+        return float(_heat(solution, self.name).flux(self.tag))
+
+
+class Compliance(Output):
+    """u . f, the work of the loads on the solution (heat: sources, Neumann and Robin loads; elasticity: body
+    forces, tractions, pressures and point loads): the design's overall stiffness (the smaller, the stiffer)."""
+
+    name = "Compliance()"
+
+    def _f(self, solution):
+        f = solution._loads if hasattr(solution, "_loads") else solution._f
+        if f is None:
+            raise ProblemError("Compliance needs the load vector, which a distributed solve does not keep")
+        return f
+
+    def value(self, solution) -> float:
+        return float(solution.u @ self._f(solution))
+
+    def gradient(self, solution) -> np.ndarray:
+        return np.array(self._f(solution), float)
+
+
+class VonMisesNorm(Output):
+    """(int sigma_vm^p dV / V)^(1/p) (Pa) of an elastic solution: a smooth maximum of the von Mises stress."""
+
+    def __init__(self, p: float = 8.0):
+        if not (is_real(p) and np.isfinite(p) and p >= 1):
+            raise ProblemError(f"VonMisesNorm: p must be a number >= 1, got {show(p)}")
+        self.p = float(p)
+        self.name = f"VonMisesNorm({self.p:g})"
+
+    def value(self, solution) -> float:
+        from iga.elasticity.forms import lame
+        from iga.elasticity.solution import ElasticSolution
+
+        if not isinstance(solution, ElasticSolution):
+            raise ProblemError(f"{self.name} is an output of an elastic solution, got {show(solution)}")
+        prob, p = solution.problem, self.p
+        n, o = prob.ndof, prob.offsets
+
+        def density(x, u, g, at):
+            where = f"patches {at.patches[0]}..{at.patches[-1]}"
+            lam, mu = lame(prob.youngs.values(x, at.chans, where), prob.poisson.values(x, at.chans, where), where)
+            eps = 0.5 * (g + np.transpose(g, (0, 2, 1)))
+            if prob.thermal_strain is not None:
+                eps = eps - at.per_patch(prob.thermal_strain)[:, None, None] * np.eye(3)
+            S = lam[:, None, None] * np.trace(eps, axis1=1, axis2=2)[:, None, None] * np.eye(3) + 2 * mu[:, None,
+                                                                                                         None] * eps
+            dev = S - np.trace(S, axis1=1, axis2=2)[:, None, None] / 3 * np.eye(3)
+            vm = np.sqrt(1.5 * np.sum(dev * dev, axis=(1, 2)))
+            return np.stack([vm**p, np.ones_like(vm)], 1)
+
+        from iga.discretisation.fields import integrate_fields
+
+        total, vol = integrate_fields(prob, lambda i: np.stack([solution.u[a * n + o[i]:a * n + o[i + 1]].reshape(
+            prob.spaces[i].shape) for a in range(3)]), 3, density, context=True)
+        return float((total / vol) ** (1 / p))

@@ -1,0 +1,89 @@
+"""Outputs as objects and exact conductivity sensitivities by the adjoint: each output against a direct
+evaluation or a closed form, and every sensitivity against central finite differences of re-solved problems."""
+
+import numpy as np
+import pytest
+
+import tiling
+from geometry import primitives as pr
+from iga import ElasticityProblem, HeatProblem, ProblemError
+from iga.outputs import Compliance, HeatFlow, MeanTemperature, TemperatureNorm, Volume, VonMisesNorm
+from iga.sensitivity import conductivity_sensitivity
+from tiling import library as L
+
+SIZE = np.array([0.03, 0.02, 0.02])
+
+
+def _lattice():
+    return tiling.regular(pr.box(tuple(SIZE), degrees=(1, 1, 1)), L.cross(0.4), (3, 2, 2))
+
+
+def _solve(ms, scale: dict):
+    """The lattice with the conductivity of tile t scaled by (1 + scale[t]) (its cell's box in space)."""
+    boxes = ms.tile_boxes()[1]
+
+    def k(x):
+        s = np.ones(len(x))
+        for t, f in scale.items():
+            inside = np.all((x >= boxes[t][:, 0] * SIZE) & (x <= boxes[t][:, 1] * SIZE), axis=1)
+            s[inside] *= 1 + f
+        return 10.0 * s
+
+    problem = HeatProblem(ms, conductivity=k, degree_elevation=1)
+    return problem.dirichlet("umin", 40.0).neumann("umax", 1000.0).robin("vmax", 5.0, 20.0).solve()
+
+
+@pytest.mark.parametrize("output", [MeanTemperature(), MeanTemperature("umax"), TemperatureNorm(6), Compliance()],
+                         ids=str)
+def test_conductivity_sensitivities_by_the_adjoint_equal_finite_differences(output):
+    ms = _lattice()
+    base = _solve(ms, {})
+    sens = conductivity_sensitivity(base, output, per="tile")
+    assert sens.shape == (ms.n_tiles,)
+    eps = 1e-5
+    for t in (0, 5, 11):
+        fd = (output.value(_solve(ms, {t: eps})) - output.value(_solve(ms, {t: -eps}))) / (2 * eps)
+        assert sens[t] == pytest.approx(fd, rel=1e-7, abs=1e-9 * abs(output.value(base)))
+    by_patch = conductivity_sensitivity(base, output, per="patch")
+    assert by_patch.sum() == pytest.approx(sens.sum(), rel=1e-12)  # the tiles' shares are their patches'
+
+
+def test_outputs_against_direct_evaluation_and_closed_forms():
+    # a bar 0 <= x <= 1 held at 0 C at x = 0, 2 W/m^2 in at x = 1, k = 4: T = x / 2 exactly (linear in the space)
+    bar = pr.refined(pr.box((1.0, 0.2, 0.1), degrees=(2, 1, 1)), (4, 1, 1))
+    s = HeatProblem(bar, conductivity=4.0).dirichlet("umin", 0.0).neumann("umax", 2.0).solve()
+    assert Volume().value(s) == pytest.approx(0.02, rel=1e-12)
+    assert MeanTemperature().value(s) == pytest.approx(0.25, rel=1e-10)
+    assert MeanTemperature("umax").value(s) == pytest.approx(0.5, rel=1e-10)
+    assert TemperatureNorm(4).value(s) == pytest.approx((0.5**4 / 5) ** 0.25, rel=1e-10)  # (int x^4/16 dx)^1/4
+    assert TemperatureNorm(64).value(s) == pytest.approx(0.5, rel=0.07)  # towards the maximum
+    assert HeatFlow("umin").value(s) == pytest.approx(2.0 * 0.02, rel=1e-9)  # what enters at x = 1 leaves at 0
+    assert Compliance().value(s) == pytest.approx(0.5 * 2.0 * 0.02, rel=1e-10)  # T(1) times the inflow
+    with pytest.raises(ProblemError, match="HeatFlow.*no gradient"):
+        HeatFlow("umin").gradient(s)
+    with pytest.raises(ProblemError, match="p must be a number >= 1"):
+        TemperatureNorm(0.5)
+    # uniaxial stress sigma = E e: the von Mises norm is sigma for every p
+    e = ElasticityProblem(pr.box(degrees=(1, 1, 1)), youngs=100.0, poisson=0.3)
+    e.dirichlet("umin", 0.0, components="x").dirichlet("umax", 1e-3, components="x")
+    e.dirichlet("vmin", 0.0, components="y").dirichlet("wmin", 0.0, components="z")
+    es = e.solve()
+    assert VonMisesNorm(3).value(es) == pytest.approx(0.1, rel=1e-9)
+    with pytest.raises(ProblemError, match="output of a heat solution"):
+        MeanTemperature().value(es)
+
+
+def test_sensitivities_refuse_what_they_cannot_differentiate():
+    ms = _lattice()
+    s = _solve(ms, {})
+    with pytest.raises(ProblemError, match="per must be"):
+        conductivity_sensitivity(s, MeanTemperature(), per="cell")
+    with pytest.raises(ProblemError, match="one of iga.outputs"):
+        conductivity_sensitivity(s, lambda sol: 1.0)
+    with pytest.raises(ProblemError, match="no gradient"):
+        conductivity_sensitivity(s, HeatFlow("umin"))
+    bar = HeatProblem(pr.box(), conductivity=1.0).dirichlet("umin", 1.0).radiation("umax", 0.5, 0.0).solve()
+    with pytest.raises(ProblemError, match="nonlinear"):
+        conductivity_sensitivity(bar, MeanTemperature())
+    with pytest.raises(ProblemError, match="per='tile' needs a micro-structure"):
+        conductivity_sensitivity(bar, MeanTemperature(), per="tile")
