@@ -46,6 +46,7 @@ def _config(section: str) -> tuple[dict, callable, callable]:
         scheme = section.split(".")[1]
         paving = {"regular": {"counts": [1, 1, 1], "seal": "cap"}, "hierarchical": {"counts": [1, 1], "seal": "cap"},
                   "bifurcation": {"epsilon": 1.0}, "polygons": {"counts": [1, 1, 1]},
+                  "field_graded": {"counts": [1, 1, 1], "field": 0.3},
                   "random_implicit": {"counts": [1, 1, 1]}, "implicit_bifurcation": {"epsilon": 1.0}}
         if scheme == "vrep":
             cfg = copy.deepcopy(VREP)
@@ -55,6 +56,8 @@ def _config(section: str) -> tuple[dict, callable, callable]:
             del cfg["tile"]
         if scheme == "polygons":
             cfg["tile"] = {"library": "beam_lattice"}
+        if scheme == "field_graded":
+            cfg["tile"] = {"library": "face_graded_cross"}
         if scheme in ("polygons", "random_implicit", "implicit_bifurcation"):
             del cfg["bc"]
         at, out = (lambda c: c["paving"]), (lambda v: v["paving"])

@@ -141,3 +141,28 @@ def test_an_implicit_bifurcation_of_the_duck_runs_to_a_closed_surface(tmp_path):
         validate({**cfg, "physics": {"kind": "heat"}, "bc": [{"kind": "dirichlet", "tag": "wmin", "value": 1.0}]})
     with pytest.raises(ProblemError, match=r"needs 'epsilon'"):
         validate({**cfg, "paving": {"scheme": "implicit_bifurcation"}})
+
+
+def test_a_field_graded_lattice_runs_from_a_pipeline_with_a_formula_of_the_position(tmp_path):
+    cfg = {"map": {"primitive": "box", "args": {"size": [0.03, 0.02, 0.02]}}, "tile": {"library": "face_graded_cross"},
+           "paving": {"scheme": "field_graded", "counts": [3, 2, 2], "field": {"formula": "0.15 + 10 * x"}},
+           "material": {"conductivity": 205.0},
+           "bc": [{"kind": "dirichlet", "tag": "umin", "value": 50.0}, {"kind": "robin", "tag": "rest", "h": 10.0,
+                                                                         "ambient": 20.0}],
+           "output": {"dir": str(tmp_path), "png": False}}
+    s = run_pipeline(cfg, tmp_path)
+    assert s["tiles"] == 12 and s["connected_pieces"] == 1 and s["energy_balance_error"] < 1e-9
+    import tiling
+    from geometry import primitives
+    from tiling import library
+
+    ms = tiling.field_graded(primitives.box((0.03, 0.02, 0.02)), library.face_graded_cross, (3, 2, 2),
+                             lambda u: 0.15 + 10 * 0.03 * u[:, 0])  # x = 0.03 u on this map
+    assert s["interfaces"] == len(ms.interfaces)
+    for bad, match in ((dict(cfg, tile={"library": "cross"}), r"tile\.library: the field_graded scheme needs"),
+                       (dict(cfg, tile={"library": "face_graded_cross", "args": {"umin": 0.2}}), r"tile\.args"),
+                       (dict(cfg, paving={"scheme": "field_graded", "counts": [3, 2, 2]}), "needs 'field'"),
+                       (dict(cfg, paving={"scheme": "field_graded", "counts": [3, 2, 2], "field": 1.5}),
+                        r"paving\.field: must be < 1")):
+        with pytest.raises(ProblemError, match=match):
+            validate(bad, tmp_path)

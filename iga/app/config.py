@@ -161,6 +161,8 @@ def _model(config, base_dir) -> dict:
         if "tile" not in config:
             raise ProblemError("missing required config section 'tile'")
         cfg["tile"] = polygon_tile(config["tile"]) if scheme == "polygons" else tile_section(config["tile"])
+        if scheme == "field_graded":
+            _face_family(cfg["tile"])
     for sec, check in (("second_level", second_level), ("reduce", reduce_section)):
         if sec in config:
             if scheme in ("polygons",) + SURFACE_SCHEMES:
@@ -168,6 +170,23 @@ def _model(config, base_dir) -> dict:
                                    "builds a surface mesh")
             cfg[sec] = check(config[sec])
     return cfg
+
+
+def _face_family(tile: dict) -> None:
+    """The [tile] of the field_graded scheme: a library tile whose arguments are the six faces' values (the field
+    gives them, so no ``args``)."""
+    import inspect
+
+    from tiling.library import TILES
+
+    faces = {"umin", "umax", "vmin", "vmax", "wmin", "wmax"}
+    takes = set(inspect.signature(TILES[tile["library"]]).parameters)
+    if not faces <= takes:
+        family = sorted(n for n, f in TILES.items() if faces <= set(inspect.signature(f).parameters))
+        _fail("tile.library", f"the field_graded scheme needs a tile of the six faces' values (umin .. wmax); "
+              f"{tile['library']!r} is not one: use one of {family}")
+    if tile["args"]:
+        _fail("tile.args", "the field_graded scheme gives the tile its six face values from paving.field; drop args")
 
 
 def _exports_fit(cfg: dict, surface: str | None) -> None:

@@ -21,6 +21,7 @@ from tiling.errors import TilingError
 from tiling.library import TILES
 from tiling.members.polygons import PolygonTile, beam_lattice
 
+from iga.app.config_checks import formula_table
 from iga.app.config_checks import (boolean as _bool, choice as _choice, fail as _fail, integer as _int, ints as _ints,
                             kwargs as _kwargs, number as _number, string as _str, table as _table)
 from iga.errors import ProblemError
@@ -31,7 +32,8 @@ from iga.tags import parse_expression
 __all__ = ["map_section", "tile_section", "paving_section", "primitives", "second_level", "reduce_section",
            "surface_reason", "polygon_tile", "SCHEMES", "NO_TILE", "NO_MAP", "POLYGON_TILES"]
 
-SCHEMES = ("hierarchical", "regular", "bifurcation", "vrep", "polygons", "random_implicit", "implicit_bifurcation")
+SCHEMES = ("hierarchical", "regular", "field_graded", "bifurcation", "vrep", "polygons", "random_implicit",
+           "implicit_bifurcation")
 #: schemes whose [paving] builds its own tiles or takes them elsewhere: no [tile] section
 NO_TILE = ("bifurcation", "vrep", "random_implicit", "implicit_bifurcation")
 #: schemes without a [map] section (V-rep primitives carry their maps)
@@ -213,6 +215,22 @@ def vrep(p) -> dict:
             "alpha": _number(f["alpha"], "paving.alpha", lo=0, hi=1.5707963267948966)}
 
 
+def field_graded(p) -> dict:
+    """The field-graded scheme (:func:`tiling.field_graded`): ``counts`` and the ``field`` on the cell walls."""
+    _only(p, "field_graded")
+    for key in ("counts", "field"):
+        if key not in p:
+            raise ProblemError(f"config section paving (scheme 'field_graded') needs {key!r}")
+    v = p["field"]
+    if isinstance(v, dict):
+        field = formula_table(v, "paving.field")
+    elif isinstance(v, str):
+        field = _str(v, "paving.field")  # a channel of the map
+    else:
+        field = _number(v, "paving.field", lo=0, hi=1)
+    return {"scheme": "field_graded", "counts": _ints(p["counts"], "paving.counts", 3), "field": field}
+
+
 def polygons(p) -> dict:
     """The polygon scheme (Elber 2017, Section 2, Eq. 3): ``counts`` copies of the [tile] polygon tile."""
     _only(p, "polygons")
@@ -322,5 +340,5 @@ def surface_reason(cfg: dict) -> str | None:
     return None
 
 
-_SCHEME_CHECKS = {"bifurcation": bifurcation, "random_implicit": random_implicit,
+_SCHEME_CHECKS = {"field_graded": field_graded, "bifurcation": bifurcation, "random_implicit": random_implicit,
                   "implicit_bifurcation": implicit_bifurcation, "vrep": vrep, "polygons": polygons}

@@ -110,6 +110,14 @@ _SECTIONS = (
                 _K("levels", "an integer >= 1", 2, "the depth of the hierarchy"),
                 _K("scale", "a number > 0", UNSET, "each level's height relative to the one below (unset: "
                    "equal heights)")) + _SEAL),
+    Section("paving.field_graded", "[paving] scheme = \"field_graded\"", "Cells whose tile takes its parameters "
+            "from a field on the six faces (`tiling.field_graded`): grading in three directions; [tile] names a "
+            "family of the six faces, e.g. `face_graded_cross`.", (
+                _K("scheme", "`\"field_graded\"`", REQUIRED, "the paving scheme"),
+                _K("counts", "three integers >= 1", REQUIRED, "cells along u, v, w"),
+                _K("field", "a number, a channel name of the map or `{formula = \"...\"}` of x, y, z (m)", REQUIRED,
+                   "the tiles' face parameter (an arm width, a fraction of the cell), taken at the centre of every "
+                   "wall of the cell grid"))),
     Section("paving.bifurcation", "[paving] scheme = \"bifurcation\"", "Adaptive bifurcation: the cells split "
             "where the map is large (Massarwi et al. 2018, Section 5); no [tile].", (
                 _K("scheme", "`\"bifurcation\"`", REQUIRED, "the paving scheme"),

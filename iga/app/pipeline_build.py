@@ -110,6 +110,9 @@ def _scheme(cfg, D):
         ms = tiling.bifurcation(D, p["epsilon"], p["kind"], direction=p["direction"], levels=p["levels"],
                                 margin=p["margin"])
         return Built(ms, ms)
+    if p["scheme"] == "field_graded":
+        ms = tiling.field_graded(D, TILES[cfg["tile"]["library"]], p["counts"], _wall_field(D, p["field"]))
+        return Built(ms, ms)
     tile = _tile(cfg["tile"])
     seal = {k: p[k] for k in ("seal", "thickness", "seal_sides") if k in p}
     if p["scheme"] == "hierarchical":
@@ -117,6 +120,20 @@ def _scheme(cfg, D):
     else:
         ms = tiling.regular(D, tile, p["counts"], **seal)
     return Built(ms, ms)
+
+
+def _wall_field(D, field):
+    """paving.field for :func:`tiling.field_graded`: a number or a channel name as they are, a formula of the
+    position as a callable of the normalised parameters (evaluated where D maps them)."""
+    if not callable(field):
+        return field
+    dom = D.domain
+
+    def at(s):
+        x = D.evaluate(dom[:, 0] + np.asarray(s) * (dom[:, 1] - dom[:, 0]))[:, :3]
+        return field(x)
+
+    return at
 
 
 def build(cfg, maps) -> Built:
