@@ -13,9 +13,11 @@ documentation's pipeline reference); the checks of values and of how sections co
 
 from __future__ import annotations
 
+import inspect
 from pathlib import Path
 
 import solvers
+from tiling.library import TILES
 from iga.app.config_checks import (boolean as _bool, choice as _choice, fail as _fail, formula as _formula,
                             formula_table as _formula_table, integer as _int, number as _number, string as _str,
                             table as _table, tag as _tag)
@@ -175,10 +177,6 @@ def _model(config, base_dir) -> dict:
 def _face_family(tile: dict) -> None:
     """The [tile] of the field_graded scheme: a library tile whose arguments are the six faces' values (the field
     gives them, so no ``args``)."""
-    import inspect
-
-    from tiling.library import TILES
-
     faces = {"umin", "umax", "vmin", "vmax", "wmin", "wmax"}
     takes = set(inspect.signature(TILES[tile["library"]]).parameters)
     if not faces <= takes:
