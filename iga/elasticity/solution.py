@@ -47,9 +47,11 @@ class ElasticSolution:
             self._face_forces[key] = float(np.sum(res.reaction * Gd[:, j] / safe))
         self._f = f
         self._reaction, self._prescribed = res.reaction, res.prescribed
-        position = {int(r): i for i, r in enumerate(res.reaction_dofs)}
-        self._hold_forces = {name: np.array([sum(float(res.reaction[position[int(r)]]) for r in unknowns[a]
-                                                 if int(r) in position) for a in range(3)])
+        at = np.zeros(0, np.int64)  # each prescribed unknown's row of the reactions (a hold's are all prescribed)
+        if len(res.reaction_dofs):
+            at = np.full(int(np.max(res.reaction_dofs)) + 1, -1, np.int64)
+            at[res.reaction_dofs] = np.arange(len(res.reaction_dofs))
+        self._hold_forces = {name: np.array([float(res.reaction[at[u]].sum()) for u in unknowns])
                              for name, unknowns in (holds or {}).items()}  # hold name -> force on the body (N)
         n = problem.ndof
         self._spring_forces = {s.name: np.array([-s.stiffness[a] * float(self.u[a * n + s.dofs].sum())

@@ -191,9 +191,10 @@ def hold_dirichlet(dd: DirichletData, holds: list, ndof: int, scalar) -> tuple[D
     is held only where every unknown of its combination is held to zero by the same hold, and refused otherwise.
     A component held twice (by a face condition or another hold) is refused."""
     nred = ndof if scalar is None else scalar.P.shape[1]
-    taken = {int(d): "a face condition" for d in dd.dofs}
+    owner = np.full(3 * nred, -1, np.int64)  # who prescribes each unknown: -1 nobody, 0 a face, i + 1 hold i
+    owner[dd.dofs] = 0
     dofs, values, owned = [dd.dofs], [dd.values], {}
-    for h in holds:
+    for number, h in enumerate(holds, start=1):
         vals = h.value.values(h.nodes, f"the nodes of {show(h.name)}")
         mine = [np.zeros(0, np.int64)] * 3
         for a in h.components:
@@ -202,12 +203,13 @@ def hold_dirichlet(dd: DirichletData, holds: list, ndof: int, scalar) -> tuple[D
                 _combination_held(scalar, h, red, vals[:, a], a)
             keep = red >= 0
             unknowns, first = np.unique(red[keep] + a * nred, return_index=True)
-            for u in unknowns:
-                if int(u) in taken:
-                    raise ProblemError(f"displacement component {_AXES[a]} of a node of {show(h.name)} is already "
-                                       f"prescribed by {taken[int(u)]}; give each component of a node one "
-                                       "condition")
-                taken[int(u)] = show(h.name)
+            clash = owner[unknowns] >= 0
+            if clash.any():
+                by = int(owner[unknowns[np.argmax(clash)]])
+                other = "a face condition" if by == 0 else show(holds[by - 1].name)
+                raise ProblemError(f"displacement component {_AXES[a]} of a node of {show(h.name)} is already "
+                                   f"prescribed by {other}; give each component of a node one condition")
+            owner[unknowns] = number
             dofs.append(unknowns)
             values.append(vals[keep][first, a])
             mine[a] = unknowns
