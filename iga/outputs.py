@@ -74,6 +74,13 @@ def _volume_load(solution, density) -> np.ndarray:
     return out
 
 
+def _exponent(p, what: str) -> float:
+    """The exponent of a p-norm output: a number >= 1."""
+    if not (is_real(p) and np.isfinite(p) and p >= 1):
+        raise ProblemError(f"{what}: p must be a number >= 1, got {show(p)}")
+    return float(p)
+
+
 class Output:
     """An output J of a solution: :meth:`value`, and :meth:`gradient` dJ/du where it is differentiable."""
 
@@ -150,9 +157,7 @@ class TemperatureNorm(Output):
     closer to the maximum and the stiffer the gradient)."""
 
     def __init__(self, p: float = 8.0):
-        if not (is_real(p) and np.isfinite(p) and p >= 1):
-            raise ProblemError(f"TemperatureNorm: p must be a number >= 1, got {show(p)}")
-        self.p = float(p)
+        self.p = _exponent(p, "TemperatureNorm")
         self.name = f"TemperatureNorm({self.p:g})"
 
     def value(self, solution) -> float:
@@ -203,9 +208,7 @@ class VonMisesNorm(Output):
     """(int sigma_vm^p dV / V)^(1/p) (Pa) of an elastic solution: a smooth maximum of the von Mises stress."""
 
     def __init__(self, p: float = 8.0):
-        if not (is_real(p) and np.isfinite(p) and p >= 1):
-            raise ProblemError(f"VonMisesNorm: p must be a number >= 1, got {show(p)}")
-        self.p = float(p)
+        self.p = _exponent(p, "VonMisesNorm")
         self.name = f"VonMisesNorm({self.p:g})"
 
     def value(self, solution) -> float:

@@ -62,37 +62,55 @@ def graded(D: BSpline, family, counts, values, name: str = "graded") -> Microstr
     >>> ms.n_tiles, [round(p, 2) for p in ms.info["parameter"]]
     (16, [0.2, 0.25, 0.3, 0.35, 0.4])
     """
-    check_map(D)
-    if not callable(family):
-        raise TilingError(f"graded: family must be a callable (lower, upper) -> Tile, e.g. "
-                          f"tiling.library.graded_cross; got {show(family)}")
-    counts = check_counts(counts, 3, "counts")
-    cells = [parameter_cells(D, k, counts[k]) for k in range(3)]
+    cells = _cell_grid(D, family, counts, "graded", "a callable (lower, upper) -> Tile, e.g. "
+                       "tiling.library.graded_cross")
     w = np.append(cells[2][:, 0], cells[2][-1, 1])
     p = _values(D, values, w)
-    layers = []
-    for k in range(len(w) - 1):
-        try:
-            t = family(float(p[k]), float(p[k + 1]))
-        except TilingError as exc:
-            raise TilingError(f"graded: layer {k} (parameter {p[k]:g} to {p[k + 1]:g}): {exc}") from None
-        if not isinstance(t, Tile):
-            raise TilingError(f"graded: family must return a tiling.Tile, got {show(t)} for layer {k}")
-        refuse_trimmed(t, "the graded paving")
-        layers.append(t)
-    shape = tuple(len(c) for c in cells)
-    check_budget(float(np.prod(shape)), layers[0], "the graded paving")
-    placed, tiles = [], []
-    for i, j, k in np.ndindex(shape):
-        lo = np.array([cells[0][i, 0], cells[1][j, 0], cells[2][k, 0]])
-        hi = np.array([cells[0][i, 1], cells[1][j, 1], cells[2][k, 1]])
-        M = np.column_stack([np.diag(hi - lo), lo])
-        tiles.append(layers[k])
-        placed += [PlacedPatch(patch, M, D, len(tiles) - 1, 0, pi) for pi, patch in enumerate(layers[k].patches)]
-    check_spans(D, placed)
+    layers = [_member(family, (float(p[k]), float(p[k + 1])), {}, "graded", f"layer {k} (parameter {p[k]:g} to "
+                      f"{p[k + 1]:g})") for k in range(len(w) - 1)]
+    placed, tiles, shape = _paved(D, cells, lambda i, j, k: layers[k], "the graded paving")
     ms = Microstructure.build(D, placed, tiles, [], name=name, identity=grid_identity(D, tiles, shape))
     ms.info = {"parameter": [float(v) for v in p]}
     return ms
+
+
+def _cell_grid(D: BSpline, family, counts, what: str, family_is: str) -> list:
+    """The checked map, family and counts of a graded paving: D's cells per direction (:func:`parameter_cells`)."""
+    check_map(D)
+    if not callable(family):
+        raise TilingError(f"{what}: family must be {family_is}; got {show(family)}")
+    counts = check_counts(counts, 3, "counts")
+    return [parameter_cells(D, k, counts[k]) for k in range(3)]
+
+
+def _member(family, args: tuple, kwargs: dict, what: str, where: str) -> Tile:
+    """``family(*args, **kwargs)``, a plain tile, or the family's refusal naming ``where``."""
+    try:
+        t = family(*args, **kwargs)
+    except TilingError as exc:
+        raise TilingError(f"{what}: {where}: {exc}") from None
+    if not isinstance(t, Tile):
+        raise TilingError(f"{what}: family must return a tiling.Tile, got {show(t)} for {where}")
+    refuse_trimmed(t, f"the {what} paving")
+    return t
+
+
+def _paved(D: BSpline, cells: list, tile_of, what: str) -> tuple[list, list, tuple]:
+    """Every cell (i, j, k) of D's grid ``cells`` holding ``tile_of(i, j, k)``, its patches placed:
+    (placed patches, tiles, grid shape); the size checked against the memory budget on the first tile."""
+    shape = tuple(len(c) for c in cells)
+    placed, tiles = [], []
+    for i, j, k in np.ndindex(shape):
+        t = tile_of(i, j, k)
+        if not tiles:  # the first cell's tile stands for the others' size
+            check_budget(float(np.prod(shape)), t, what)
+        lo = np.array([cells[0][i, 0], cells[1][j, 0], cells[2][k, 0]])
+        hi = np.array([cells[0][i, 1], cells[1][j, 1], cells[2][k, 1]])
+        M = np.column_stack([np.diag(hi - lo), lo])
+        tiles.append(t)
+        placed += [PlacedPatch(patch, M, D, len(tiles) - 1, 0, pi) for pi, patch in enumerate(t.patches)]
+    check_spans(D, placed)
+    return placed, tiles, shape
 
 
 def _field_values(D: BSpline, field, points: np.ndarray) -> np.ndarray:
@@ -136,13 +154,8 @@ def field_graded(D: BSpline, family, counts, field, name: str = "field-graded") 
     >>> ms.n_tiles, [round(float(v), 3) for v in ms.info["faces"][0][:, 0, 0]]
     (12, [0.2, 0.267, 0.333, 0.4])
     """
-    check_map(D)
-    if not callable(family):
-        raise TilingError(f"field_graded: family must be a callable of the six face values (umin=..., wmax=...) "
-                          f"returning a Tile, e.g. tiling.library.face_graded_cross; got {show(family)}")
-    counts = check_counts(counts, 3, "counts")
-    cells = [parameter_cells(D, k, counts[k]) for k in range(3)]
-    shape = tuple(len(c) for c in cells)
+    cells = _cell_grid(D, family, counts, "field_graded", "a callable of the six face values (umin=..., wmax=...) "
+                       "returning a Tile, e.g. tiling.library.face_graded_cross")
     bounds = [np.append(c[:, 0], c[-1, 1]) for c in cells]  # the cell walls along each direction
     centres = [c.mean(1) for c in cells]
     faces = []
@@ -150,25 +163,13 @@ def field_graded(D: BSpline, family, counts, field, name: str = "field-graded") 
         axes = [bounds[j] if j == d else centres[j] for j in range(3)]
         grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1)
         faces.append(_field_values(D, field, grid.reshape(-1, 3)).reshape(grid.shape[:3]))
-    placed, tiles = [], []
-    for i, j, k in np.ndindex(shape):
+
+    def tile_of(i, j, k):
         values = {"umin": faces[0][i, j, k], "umax": faces[0][i + 1, j, k], "vmin": faces[1][i, j, k],
                   "vmax": faces[1][i, j + 1, k], "wmin": faces[2][i, j, k], "wmax": faces[2][i, j, k + 1]}
-        try:
-            t = family(**{f: float(v) for f, v in values.items()})
-        except TilingError as exc:
-            raise TilingError(f"field_graded: cell ({i}, {j}, {k}): {exc}") from None
-        if not isinstance(t, Tile):
-            raise TilingError(f"field_graded: family must return a tiling.Tile, got {show(t)} for cell ({i}, {j}, {k})")
-        refuse_trimmed(t, "the field-graded paving")
-        if not tiles:  # the first cell's tile stands for the others' size
-            check_budget(float(np.prod(shape)), t, "the field-graded paving")
-        lo = np.array([cells[0][i, 0], cells[1][j, 0], cells[2][k, 0]])
-        hi = np.array([cells[0][i, 1], cells[1][j, 1], cells[2][k, 1]])
-        M = np.column_stack([np.diag(hi - lo), lo])
-        tiles.append(t)
-        placed += [PlacedPatch(patch, M, D, len(tiles) - 1, 0, pi) for pi, patch in enumerate(t.patches)]
-    check_spans(D, placed)
+        return _member(family, (), {f: float(v) for f, v in values.items()}, "field_graded", f"cell ({i}, {j}, {k})")
+
+    placed, tiles, shape = _paved(D, cells, tile_of, "the field-graded paving")
     interfaces, mismatched = grid_identity(D, tiles, shape)
     if mismatched:
         (pa, fa), (pb, fb), why = mismatched[0]
