@@ -11,6 +11,9 @@ A factor (1 + p_e) on the conductivity of patch (or tile) e scales its diffusion
 dJ/dp_e = - int_e grad lambda . k grad T dV, integrated by the problem's own Gauss rule: the derivative of
 the discrete output, exact to round-off (a finite difference agrees to its own truncation error,
 ``tests/test_sensitivity.py``).  Robin, Neumann and source terms do not depend on the conductivity.
+A conductivity given as a channel of the deformation map D is linear in D's control values k_c of that
+channel: k(y) = sum_c R_c(y) k_c at the point's parameter y of D (R_c the NURBS basis where D has weights), so
+dJ/dk_c = - int R_c(y) grad lambda . grad T dV (:func:`channel_sensitivity`).
 """
 
 from __future__ import annotations
@@ -26,7 +29,19 @@ from iga.errors import ProblemError
 from iga.heat.coefficients import TENSOR_PAIRS
 from iga.outputs import Output, gauss_pass
 
-__all__ = ["adjoint", "conductivity_sensitivity"]
+__all__ = ["gradient", "adjoint", "conductivity_sensitivity", "channel_sensitivity"]
+
+
+def gradient(solution, output: Output, wrt: str = "tiles", solver: str = "auto") -> np.ndarray:
+    """The derivative of ``output`` (one of :mod:`iga.outputs`) on a steady heat ``solution`` by the adjoint:
+    ``wrt="tiles"`` or ``"patches"``, per tile or patch for a factor (1 + p) on its conductivity
+    (:func:`conductivity_sensitivity`); ``wrt="channel:NAME"``, per control value of the map's channel NAME, which
+    the conductivity reads (:func:`channel_sensitivity`)."""
+    if isinstance(wrt, str) and wrt.startswith("channel:"):
+        return channel_sensitivity(solution, output, wrt.split(":", 1)[1], solver)
+    if wrt not in ("tiles", "patches"):
+        raise ProblemError(f"wrt must be 'tiles', 'patches' or 'channel:NAME', got {show(wrt)}")
+    return conductivity_sensitivity(solution, output, per=wrt[:-1], solver=solver)
 
 
 def adjoint(solution, output: Output, solver: str = "auto", tol: float = 1e-12) -> np.ndarray:
@@ -80,3 +95,64 @@ def conductivity_sensitivity(solution, output: Output, per: str = "patch", solve
         return out
     tiles = np.array([p.tile for p in prob.model.patches])
     return np.bincount(tiles, weights=out, minlength=len(prob.model.tiles))
+
+
+def channel_sensitivity(solution, output: Output, channel: str, solver: str = "auto") -> np.ndarray:
+    """dJ/dk_c of ``output`` with respect to the control values of the channel ``channel`` of the deformation map
+    (the heat problem's conductivity must be that channel): an array shaped like D's control grid (module
+    notes).  Units: those of J per W/(m K) of a control value."""
+    prob = solution.problem
+    k = prob.conductivity
+    if k.scalar is None or k.scalar.kind != "channel" or k.scalar.spec != channel:
+        raise ProblemError(f"channel_sensitivity: the conductivity is not the channel {show(channel)} of the map; "
+                           "give the problem conductivity=" + repr(channel) + " (or differentiate the channel the "
+                           "conductivity reads)")
+    patches = prob.model.patches
+    outers = {id(p.outer): p.outer for p in patches}
+    D = next(iter(outers.values())) if len(outers) == 1 else None
+    placed = D is not None
+    if D is None and len(patches) == 1:  # a single spline: the channel is its own
+        D, placed = patches[0].spline, False
+    if D is None or channel not in getattr(D, "channels", ()):
+        raise ProblemError(f"channel_sensitivity: the model needs one deformation map holding the channel "
+                           f"{show(channel)} (a micro-structure paved in one map, or one spline)")
+    lam = adjoint(solution, output, solver)
+    grad = np.zeros(int(np.prod(D.control_points.shape[:3])))
+    dom = D.domain
+
+    def add(chunk, space, vals, grads, wv, x, chans):
+        rho = wv * np.sum(grads[:, 0] * grads[:, 1], axis=1)  # grad T . grad lambda w |det J|
+        axes = np.stack(np.meshgrid(*space.qaxes, indexing="ij"), -1).reshape(-1, 3)
+        S = patches[chunk[0]].spline.evaluate(axes)[:, :3] if placed else axes
+        ys = [S @ patches[i].placement[:, :3].T + patches[i].placement[:, 3]
+              if placed and patches[i].placement is not None else S for i in chunk]
+        y = np.clip(np.concatenate(ys), dom[:, 0], dom[:, 1])
+        grad[:] -= _map_basis(D, y).T @ rho
+
+    gauss_pass(prob, np.stack([solution.u, lam]), add)
+    return grad.reshape(D.control_points.shape[:3])
+
+
+def _map_basis(D, y: np.ndarray):
+    """The sparse matrix (N, control points) of D's basis (NURBS where D has weights) at its parameters y (N, 3)."""
+    import scipy.sparse as sp
+
+    from geometry import knots as kn
+
+    n = D.control_points.shape[:3]
+    parts = [kn.basis_functions(D.knots[d], D.degrees[d], y[:, d]) for d in range(3)]
+    idx, val = None, None
+    for d, (spans, ders) in enumerate(parts):
+        p = D.degrees[d]
+        i_d = spans[:, None] - p + np.arange(p + 1)[None]  # (N, p + 1) control indices along d
+        v_d = ders[:, 0, :]
+        if idx is None:
+            idx, val = i_d, v_d
+        else:
+            idx = (idx[:, :, None] * n[d] + i_d[:, None, :]).reshape(len(y), -1)
+            val = (val[:, :, None] * v_d[:, None, :]).reshape(len(y), -1)
+    if D.weights is not None:  # R_c = w_c N_c / sum_c w_c N_c
+        wv = val * np.asarray(D.weights, float).reshape(-1)[idx]
+        val = wv / wv.sum(1, keepdims=True)
+    rows = np.repeat(np.arange(len(y)), idx.shape[1])
+    return sp.csr_matrix((val.ravel(), (rows, idx.ravel())), shape=(len(y), int(np.prod(n))))

@@ -8,7 +8,7 @@ import tiling
 from geometry import primitives as pr
 from iga import ElasticityProblem, HeatProblem, ProblemError
 from iga.outputs import Compliance, HeatFlow, MeanTemperature, TemperatureNorm, Volume, VonMisesNorm
-from iga.sensitivity import conductivity_sensitivity
+from iga.sensitivity import conductivity_sensitivity, gradient
 from tiling import library as L
 
 SIZE = np.array([0.03, 0.02, 0.02])
@@ -87,3 +87,26 @@ def test_sensitivities_refuse_what_they_cannot_differentiate():
         conductivity_sensitivity(bar, MeanTemperature())
     with pytest.raises(ProblemError, match="per='tile' needs a micro-structure"):
         conductivity_sensitivity(bar, MeanTemperature(), per="tile")
+
+
+@pytest.mark.parametrize("output", [MeanTemperature(), TemperatureNorm(6), Compliance()], ids=str)
+def test_channel_gradients_on_a_rational_map_equal_finite_differences_in_a_random_direction(output):
+    base = pr.annulus(0.01, 0.02, 0.01, angle=np.pi / 2)  # an exact NURBS quarter annulus: rational weights
+    rng = np.random.default_rng(0)
+    kc = 100.0 + 50.0 * rng.random(base.control_points.shape[:3])
+
+    def solve(k):
+        ms = tiling.regular(base.with_channel("k", k), L.cross(0.4), (2, 1, 1))
+        return HeatProblem(ms, conductivity="k").dirichlet("umin", 50.0).robin("rest", 20.0, 20.0).solve()
+
+    s = solve(kc)
+    g = gradient(s, output, wrt="channel:k")
+    assert g.shape == kc.shape
+    d = rng.standard_normal(kc.shape)
+    eps = 1e-3
+    fd = (output.value(solve(kc + eps * d)) - output.value(solve(kc - eps * d))) / (2 * eps)
+    assert np.sum(g * d) == pytest.approx(fd, rel=1e-6)
+    with pytest.raises(ProblemError, match="not the channel 'rho'"):
+        gradient(s, output, wrt="channel:rho")
+    with pytest.raises(ProblemError, match="wrt must be"):
+        gradient(s, output, wrt="map")
