@@ -18,12 +18,13 @@ from __future__ import annotations
 import numpy as np
 
 from geometry.errors import show
-from geometry.numbers import is_real
+from geometry.grouping import ObjectIndex
+from geometry.numbers import TINY, is_real
+from geometry.patches.chain import patches_geometry_derivs
 
 from iga.discretisation.faces import chunks
 from iga.discretisation.fields import grid_fields
 from iga.errors import ProblemError
-from geometry.patches.chain import patches_geometry_derivs
 
 __all__ = ["Output", "Volume", "MeanTemperature", "TemperatureNorm", "HeatFlow", "Compliance", "VonMisesNorm",
            "gauss_pass"]
@@ -33,8 +34,6 @@ def gauss_pass(problem, fields: np.ndarray, fn) -> None:
     """Call ``fn(chunk, space, vals (P nq, c), grads (P nq, c, 3), wv (P nq,), x (P nq, 3), chans)`` for every group
     of patches sharing a space and a tile spline, with the fields of coefficient vectors ``fields`` (c, ndof) at
     the Gauss points; ``wv`` the weights times |det J| (polynomial bases only)."""
-    from geometry.grouping import ObjectIndex
-
     same = ObjectIndex()
     groups: dict = {}
     for i, s in enumerate(problem.spaces):
@@ -168,7 +167,7 @@ class TemperatureNorm(Output):
     def gradient(self, solution) -> np.ndarray:
         s = _heat(solution, self.name)
         p, J = self.p, self.value(s)
-        if J == 0:
+        if not J > TINY:  # T = 0 everywhere: the norm has no direction to grow in
             return np.zeros(s.problem.ndof)
         g = _volume_load(s, lambda T: np.abs(T) ** (p - 1) * np.sign(T))
         return g * J ** (1 - p) / s.volume()
