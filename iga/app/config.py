@@ -24,7 +24,7 @@ from iga.app.config_checks import (boolean as _bool, choice as _choice, fail as 
 from iga.app.config_model import (NO_MAP, NO_TILE, map_section, paving_section, polygon_tile, primitives, reduce_section,
                            second_level, surface_reason, tile_section)
 from iga.app.config_physics import physics as _physics
-from iga.app.config_schema import SCHEMA, allowed, default, required
+from iga.app.config_schema import SCHEMA, allowed, default, filled, required
 from iga.app.config_time import capacity, time_section
 from iga.errors import ProblemError
 from geometry.errors import show
@@ -258,7 +258,7 @@ def validate(config, base_dir=".") -> dict:
 
 def _solver(s) -> dict:
     s = _table(s, "solver", allowed("solver"))
-    s = {key: s.get(key, default("solver", key)) for key in SOLVER_DEFAULTS}
+    s = filled("solver", s)
     return {"method": _choice(s["method"], "solver.method", solvers.backends()),
             "tol": _number(s["tol"], "solver.tol", lo=0, hi=1),
             "maxiter": None if s["maxiter"] is None else _int(s["maxiter"], "solver.maxiter", 1),

@@ -21,11 +21,10 @@ from tiling.errors import TilingError
 from tiling.library import TILES
 from tiling.members.polygons import PolygonTile, beam_lattice
 
-from iga.app.config_checks import formula_table
-from iga.app.config_checks import (boolean as _bool, choice as _choice, fail as _fail, integer as _int, ints as _ints,
-                            kwargs as _kwargs, number as _number, string as _str, table as _table)
+from iga.app.config_checks import (boolean as _bool, choice as _choice, fail as _fail, formula_table, integer as _int,
+                                   ints as _ints, kwargs as _kwargs, number as _number, string as _str, table as _table)
 from iga.errors import ProblemError
-from iga.app.config_schema import SCHEMA, allowed, default, required
+from iga.app.config_schema import allowed, default, filled, required
 from iga.app.maps import MAPS
 from iga.tags import parse_expression
 
@@ -68,7 +67,7 @@ def map_section(m, base_dir, where: str = "map") -> dict:
 
 def _grading(g, where) -> dict:
     g = _table(g, where, allowed("map.grading"))
-    g = {key: g.get(key, default("map.grading", key)) for key in allowed("map.grading")}
+    g = filled("map.grading", g)
     return {"channel": _str(g["channel"], f"{where}.channel"), "near": _number(g["near"], f"{where}.near"),
             "far": _number(g["far"], f"{where}.far"), "face": _choice(g["face"], f"{where}.face", FACE_NAMES),
             "mode": _choice(g["mode"], f"{where}.mode", ("parameter", "distance"))}
@@ -79,7 +78,7 @@ def random_implicit(p) -> dict:
     _only(p, "random_implicit")
     if "counts" not in p:
         raise ProblemError("config section paving (scheme 'random_implicit') needs 'counts' (cells per direction)")
-    p = _filled(p, "random_implicit")
+    p = filled("paving.random_implicit", p)
     return {"scheme": "random_implicit", "counts": _ints(p["counts"], "paving.counts", 3),
             "alpha": _number(p["alpha"], "paving.alpha", lo=0, hi=1, open_lo=False),
             "seed": _int(p["seed"], "paving.seed", 0),
@@ -95,7 +94,7 @@ def implicit_bifurcation(p) -> dict:
     if "epsilon" not in p:
         raise ProblemError("config section paving (scheme 'implicit_bifurcation') needs 'epsilon' (the largest cell "
                            "edge, model units)")
-    p = _filled(p, "implicit_bifurcation")
+    p = filled("paving.implicit_bifurcation", p)
     return {"scheme": "implicit_bifurcation", "epsilon": _number(p["epsilon"], "paving.epsilon", lo=0),
             "alpha": _number(p["alpha"], "paving.alpha", lo=0, hi=1, open_lo=False),
             "seed": _int(p["seed"], "paving.seed", 0), "cap": _bool(p["cap"], "paving.cap"),
@@ -112,7 +111,7 @@ def bifurcation(p) -> dict:
     if ("epsilon" in p) == ("levels" in p):
         raise ProblemError("config section paving (scheme 'bifurcation') needs exactly one of 'epsilon' (the largest "
                            "cell edge, model units) or 'levels' (one per layer)")
-    f = _filled(p, "bifurcation")
+    f = filled("paving.bifurcation", p)
     out = {"scheme": "bifurcation", "kind": _choice(f["kind"], "paving.kind", ("1-2", "1-4a", "1-4b")),
            "direction": _int(f["direction"], "paving.direction", 0),
            "margin": _number(f["margin"], "paving.margin", lo=0, hi=0.5)}
@@ -187,16 +186,6 @@ def _only(p, scheme: str) -> None:
         _fail(f"paving.{extra[0]}", f"does not apply to the {scheme} scheme")
 
 
-def _filled(p, scheme: str) -> dict:
-    """``p`` with the defaults of ``scheme`` (:mod:`iga.app.config_schema`) filled in where a key is left out;
-    required keys and optional ones without a default are left as given."""
-    out = dict(p)
-    for key in SCHEMA[f"paving.{scheme}"].keys:
-        if key.name not in out and key.default is not None and key.name not in required(f"paving.{scheme}"):
-            out[key.name] = default(f"paving.{scheme}", key.name)
-    return out
-
-
 def vrep(p) -> dict:
     """The V-rep scheme (Hong and Elber 2021): ``expression`` over the [[primitive]] names and the options of
     :func:`tiling.vrep.vrep_microstructure`."""
@@ -204,13 +193,13 @@ def vrep(p) -> dict:
     if "expression" not in p:
         raise ProblemError("config section paving (scheme 'vrep') needs 'expression': the Boolean model over the "
                            "[[primitive]] names, e.g. \"(body | wing) - hole\"")
-    f = _filled(p, "vrep")
+    f = filled("paving.vrep", p)
     return {"scheme": "vrep", "expression": _str(f["expression"], "paving.expression"),
             "samples": _int(f["samples"], "paving.samples", 2),
             "margin": _number(f["margin"], "paving.margin", lo=0, hi=0.5, open_lo=False),
             "bridges": _bool(f["bridges"], "paving.bridges"),
             "beta": _number(f["beta"], "paving.beta", lo=0, hi=1),
-            "d_maxdist": None if "d_maxdist" not in f else _number(f["d_maxdist"], "paving.d_maxdist", lo=0),
+            "d_maxdist": None if f["d_maxdist"] is None else _number(f["d_maxdist"], "paving.d_maxdist", lo=0),
             "phi": _number(f["phi"], "paving.phi", lo=0, hi=1.0000001, open_lo=False),
             "alpha": _number(f["alpha"], "paving.alpha", lo=0, hi=1.5707963267948966)}
 
@@ -252,7 +241,7 @@ def polygon_tile(t) -> dict:
             _fail(f"tile.{extra[0]}", "goes with 'points', not with 'library'")
         name = _choice(t["library"], "tile.library", POLYGON_TILES)
         return {"library": name, "facets": bool(POLYGON_TILES[name]().polygons)}
-    t = {key: t.get(key, default("tile.polygons", key)) for key in allowed("tile.polygons") - {"library"}}
+    t = filled("tile.polygons", t)
     out = {"points": t["points"], "polygons": t["polygons"], "lines": t["lines"], "name": _str(t["name"], "tile.name")}
     out["facets"] = bool(out["polygons"])
     try:

@@ -17,7 +17,7 @@ from math import pi
 import solvers
 from iga.app.maps import MAPS
 
-__all__ = ["Key", "Section", "SCHEMA", "REQUIRED", "allowed", "required", "default", "reference"]
+__all__ = ["Key", "Section", "SCHEMA", "REQUIRED", "allowed", "required", "default", "filled", "reference"]
 
 
 class _Required:
@@ -295,6 +295,16 @@ def default(section: str, key: str):
     if value is REQUIRED:
         raise KeyError(f"{section}.{key} is required; it has no default")
     return type(value)(value) if isinstance(value, (list, dict)) else value
+
+
+def filled(section: str, table: dict) -> dict:
+    """``table`` with the default of every key of ``section`` it leaves out (None for an optional key without
+    one); required keys are left as given."""
+    out = dict(table)
+    for k in SCHEMA[section].keys:
+        if k.name not in out and k.default is not REQUIRED:
+            out[k.name] = default(section, k.name)
+    return out
 
 
 def _show(value) -> str:

@@ -36,7 +36,7 @@ from iga.discretisation.locate import Locator
 from iga.app.maps import MAPS, circular_heat_sink_map, vertical_heat_sink_map
 from iga.distributed import solve as distributed
 from iga.tags import as_expression
-from iga.io.vtu import sampled_grid, save_grid, write_pieces, write_vtu
+from iga.io.vtu import sampled_grid, save_vtu, write_pieces, write_vtu
 from geometry.errors import show
 
 __all__ = ["run_pipeline", "heat_sink_config", "circular_heat_sink_map", "vertical_heat_sink_map", "MAPS",
@@ -98,11 +98,6 @@ def _read_volume(path: Path) -> float:
     return float(pv.read(path).volume)
 
 
-def _save(grid, path: Path, ocfg: dict) -> Path:
-    """``grid`` written to ``path`` (atomic; compressed as ``output.compress`` says)."""
-    return atomic_write(path, lambda tmp: save_grid(grid, tmp, ocfg["compress"]), ".vtu", ProblemError)
-
-
 def _volumes(exact: float, mesh: float | None) -> dict:
     """The model's volume (Gauss rule on the exact geometry) and the sampled VTU's, with its relative error."""
     out = {"exact": exact}
@@ -159,7 +154,7 @@ def _write_outputs(ocfg: dict, out: Path, sol, stages) -> tuple[dict, float | No
     elif ocfg["vtu"]:
         check_folder(vtu, ProblemError)
         grid = sampled_grid(sol.problem.model, sol, ocfg["samples"], ocfg["tolerance"])
-        _save(grid, vtu, ocfg)
+        save_vtu(vtu, grid, ocfg["compress"])
         files["vtu"] = str(vtu)
         mesh_volume = float(grid.volume)  # what ParaView's Integrate Variables will show
     if ocfg["bezier"]:  # exact Bezier hexahedra (VTK 79) beside the sampled file
@@ -374,7 +369,7 @@ def _elastic_stage(cfg, ms, heat_solution, out: Path, ocfg: dict, stages) -> dic
     files = {}
     if ocfg["vtu"]:
         vtu = out / f"{ocfg['name']}_stress.vtu"
-        _save(grid, vtu, ocfg)
+        save_vtu(vtu, grid, ocfg["compress"])
         files["stress_vtu"] = str(vtu)
         if ocfg["png"]:
             umax = float(np.abs(grid.point_data["displacement"]).max())

@@ -24,7 +24,7 @@ from iga.errors import ProblemError
 from iga.heat.coefficients import ScalarField
 from iga.heat.transient import TransientHeatProblem
 from iga.io.pictures import count, render_temperature
-from iga.io.vtu import sampled_grid, save_grid
+from iga.io.vtu import sampled_grid, save_vtu
 from iga.tags import as_expression
 
 __all__ = ["transient_stage"]
@@ -43,14 +43,12 @@ def transient_stage(cfg: dict, model, out: Path, ocfg: dict, stages):
     if tcfg["end"] == "steady":
         stages.start("steady solve (the state to settle to)")
         steady = heat_problem(cfg, model).solve(solver=scfg["method"], tol=scfg["tol"], maxiter=scfg["maxiter"])
+        point = _watched_point(steady, tcfg["initial"])
+        watch = {"point": point, "steady_C": float(steady.probe(point)[0])}
+        stages.done(f"(watched point {np.round(point[0], 5).tolist()}, {watch['steady_C']:.3f} C when steady)")
     stages.start("transient solve")
     prob = heat_problem(cfg, model, TransientHeatProblem, capacity=mat["capacity"])
     prob.initial(tcfg["initial"])
-    if tcfg["end"] == "steady":
-        point = _watched_point(prob, steady, tcfg["initial"])
-        watch = {"point": point, "steady_C": float(steady.probe(point)[0])}
-        stages.done(f"(watched point {np.round(point[0], 5).tolist()}, {watch['steady_C']:.3f} C when steady)")
-        stages.start("transient solve")
     until, t_end = None, tcfg["end"]
     if watch is not None:
         E = prob.probe_matrix(watch["point"])
@@ -95,10 +93,11 @@ def transient_stage(cfg: dict, model, out: Path, ocfg: dict, stages):
 _HELD_WEIGHT = 1e-6
 
 
-def _watched_point(prob, steady, initial) -> np.ndarray:
+def _watched_point(steady, initial) -> np.ndarray:
     """The sample point (1, 3) of the steady solution whose temperature rises (or falls) most from the initial
     one, among the points the Dirichlet conditions do not hold: a held point takes its steady value at the first
     step, so its rise says nothing about the part settling."""
+    prob = steady.problem
     grid = steady.to_pyvista(samples=1)
     points = np.asarray(grid.points, float)
     held_faces = list(prob.faces_by_kind()["dirichlet"])
@@ -140,8 +139,7 @@ def _series_outputs(history, final, ocfg: dict, out: Path, stages, watch) -> dic
         files["pvd"] = str(history.write_pvd(out / f"{name}.pvd", samples=ocfg["samples"],
                                              tolerance=ocfg["tolerance"], compress=ocfg["compress"]))
         grid = sampled_grid(final.problem.model, final, ocfg["samples"], ocfg["tolerance"])
-        vtu = atomic_write(out / f"{name}.vtu", lambda tmp: save_grid(grid, tmp, ocfg["compress"]), ".vtu",
-                           ProblemError)
+        vtu = save_vtu(out / f"{name}.vtu", grid, ocfg["compress"])
         files["vtu"] = str(vtu)
     stages.done()
     stages.start("render")

@@ -24,6 +24,8 @@ from iga.heat.coefficients import Conductivity, ScalarField, is_number
 from iga.discretisation.components import analyse_components
 from iga.discretisation.constraints import needs_constraints, prolongation
 from iga.discretisation.dirichlet import project_dirichlet
+from iga.discretisation.fields import evaluation_matrix
+from iga.discretisation.locate import Locator
 from iga.discretisation.problem import Problem, SolveRecord
 from iga.discretisation.setting import count
 from iga.errors import ProblemError, SingularProblemError
@@ -202,6 +204,13 @@ class HeatProblem(Problem):
     def face_terms(self, by_kind, patches=None):
         """The face forms of the conditions ``by_kind`` (:func:`iga.heat.conditions.face_terms`)."""
         return face_terms(self, by_kind, patches)
+
+    def probe_matrix(self, points):
+        """The sparse matrix E (N, ndof) with ``E @ u`` the temperatures at physical points (N, 3) for
+        coefficients u (:func:`iga.discretisation.fields.evaluation_matrix`): probes of many states at once, and
+        the ``until`` conditions of a transient solve."""
+        where, params = Locator(self.model)(np.asarray(points, float), what="probe points")
+        return evaluation_matrix(self, where, params)
 
     def mass(self, capacity=1.0):
         """The heat capacity matrix M (CSR, ndof x ndof, J/K): int rho c N_i N_j dV over the model, for the

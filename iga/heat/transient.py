@@ -30,8 +30,6 @@ import numpy as np
 
 from geometry.errors import show
 
-from iga.discretisation.fields import evaluation_matrix
-from iga.discretisation.locate import Locator
 from iga.errors import ProblemError
 from iga.heat.coefficients import ScalarField, at_time, is_number, takes_time
 from iga.heat.problem import HeatProblem
@@ -199,9 +197,3 @@ class TransientHeatProblem(HeatProblem):
             raise ProblemError(f"until must be a callable of (t, u) returning True to stop, got {show(until)}")
         return TimeStepper(self, method, theta if method == "theta" else SCHEMES[method], solver,
                            solver_tol).run(float(t_end), dt, tol, int(keep), int(max_steps), until=until)
-
-    def probe_matrix(self, points):
-        """The sparse matrix E (N, ndof) with ``E @ u`` the temperatures at physical points (N, 3) for
-        coefficients u (:func:`iga.discretisation.fields.evaluation_matrix`): for ``until`` conditions."""
-        where, params = Locator(self.model)(np.asarray(points, float), what="probe points")
-        return evaluation_matrix(self, where, params)

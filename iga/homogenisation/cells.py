@@ -64,11 +64,10 @@ class Effective:
         """The cell fields as one ``.vtu`` (atomic): the correctors chi_x, chi_y, chi_z (``corrector``), the
         cell's heat flux for a unit macroscopic gradient along x, y, z (``cell_flux_x`` ..) and the
         conductivity, on the tile's patches sampled ``samples`` times per element (conductivity only)."""
-        from geometry.io.files import atomic_write
         from geometry.patches.sampling import sampled_mesh
 
         from iga.io.sampling import corrector_fields
-        from iga.io.vtu import save_grid
+        from iga.io.vtu import save_vtu
 
         if self.correctors is None:
             raise ProblemError("this Effective holds no cell fields: write_vtu needs "
@@ -77,7 +76,7 @@ class Effective:
         grid = sampled_mesh(prob.model, samples, knots_of=lambda pi: [d.knots for d in prob.spaces[pi].dirs],
                             spaces_key=lambda pi: prob.spaces[pi].key(),
                             fields=corrector_fields(prob, self.correctors))
-        return atomic_write(path, lambda tmp: save_grid(grid, tmp), ".vtu", ProblemError)
+        return save_vtu(path, grid)
 
 
 def periodic_cell(tile) -> MultiPatch:

@@ -36,7 +36,7 @@ from iga.io.vtu_bezier import bezier_grid
 from geometry.errors import show
 from geometry.numbers import is_integer, is_real
 
-__all__ = ["write_vtu", "write_pieces", "save_grid"]
+__all__ = ["write_vtu", "write_pieces", "save_grid", "save_vtu"]
 
 
 def save_grid(grid, path, compress: bool = False) -> None:
@@ -63,6 +63,11 @@ def save_grid(grid, path, compress: bool = False) -> None:
         writer.SetCompressorTypeToNone()
     if not writer.Write():
         raise OSError(f"VTK could not write {path}")
+
+
+def save_vtu(path, grid, compress: bool = False) -> Path:
+    """``grid`` written to ``path`` by :func:`save_grid` under a temporary name renamed into place (atomic)."""
+    return atomic_write(path, lambda tmp: save_grid(grid, tmp, compress), ".vtu", ProblemError)
 
 
 def write_vtu(path, solution_or_model, samples: int = 3, cells: str = "linear", tolerance: float | None = None,
@@ -112,7 +117,7 @@ def write_vtu(path, solution_or_model, samples: int = 3, cells: str = "linear", 
         grid = bezier_grid(sol, model)
     else:
         grid = sampled_grid(model, sol, samples, tolerance)
-    return atomic_write(path, lambda tmp: save_grid(grid, tmp, compress), ".vtu", ProblemError)
+    return save_vtu(path, grid, compress)
 
 
 def sampled_grid(model, solution=None, samples: int = 3, tolerance: float | None = None, patches=None):
@@ -169,7 +174,7 @@ def write_pieces(path, solution, comm, samples: int = 3, tolerance: float | None
             raise ProblemError(f"rank {rank} of {size} solved no patch ({len(part)} patches on {size} ranks): it has "
                                f"no piece to write; run with at most as many ranks as patches")
         grid = sampled_grid(model, solution, samples, tolerance, patches=mine)
-        atomic_write(piece, lambda tmp: save_grid(grid, tmp), ".vtu", ProblemError)
+        save_vtu(piece, grid)
     except ProblemError as err:
         failure = err
     written = comm.allreduce(0 if failure else 1)  # every rank's piece is in place before the index names it
