@@ -7,7 +7,8 @@ those of the solution: temperatures in C (or K, as the conditions were given), l
 
 * :class:`Volume` (m^3): the model's volume (no dependence on u).
 * :class:`MeanTemperature` (C): int T dV / V, or over the faces of ``tag``: int T dA / A.
-* :class:`TemperatureNorm` (C): (int |T|^p dV / V)^(1/p), a smooth maximum that tends to max |T| as p grows.
+* :class:`TemperatureNorm` (C): (int |T|^p dV / V)^(1/p), or over the faces of ``tag``, a smooth maximum that
+  tends to max |T| as p grows.
 * :class:`HeatFlow` (W): the heat leaving through the faces of ``tag`` (value only).
 * :class:`Compliance`: u . f, the work of the loads (heat: W K; elasticity: J).
 * :class:`VonMisesNorm` (Pa): (int sigma_vm^p dV / V)^(1/p) of an elastic solution (value only).
@@ -100,9 +101,7 @@ class Output:
 
 
 def _heat(solution, what: str):
-    from iga.heat.solution import Solution
-
-    if not isinstance(solution, Solution):
+    if getattr(type(solution), "physics", None) != "heat":  # (Solution and its states declare it)
         raise ProblemError(f"{what} is an output of a heat solution (iga.Solution), got {show(solution)}")
     return solution
 
@@ -121,19 +120,19 @@ class Volume(Output):
         return np.zeros(len(solution.u))
 
 
+def _tag_faces(solution, tag, what: str):
+    """The face data of ``tag`` (a tag of the solution's model) and their area (m^2)."""
+    prob = solution.problem
+    fds = prob.faces(prob.faces_of(tag, what))
+    return fds, float(sum(fd.dAw.sum() for fd in fds))
+
+
 class MeanTemperature(Output):
     """The mean temperature: int T dV / V over the model, or int T dA / A over the faces of ``tag``."""
 
     def __init__(self, tag=None):
         self.tag = tag
         self.name = f"MeanTemperature({'' if tag is None else show(tag)})"
-
-    def _faces(self, solution):
-        prob = solution.problem
-        keys = prob.faces_of(self.tag, self.name)
-        fds = prob.faces(keys)
-        area = float(sum(fd.dAw.sum() for fd in fds))
-        return fds, area
 
     def value(self, solution) -> float:
         s = _heat(solution, self.name)
@@ -147,30 +146,38 @@ class MeanTemperature(Output):
         s = _heat(solution, self.name)
         if self.tag is None:
             return _volume_load(s, np.ones_like) / s.volume()
-        fds, area = self._faces(s)
+        fds, area = _tag_faces(s, self.tag, self.name)
         return boundary_load(fds, [fd.dAw for fd in fds], s.problem.ndof) / area
 
 
 class TemperatureNorm(Output):
-    """(int |T|^p dV / V)^(1/p) (C): a smooth maximum of |T| over the model (``p`` >= 1; the larger, the
-    closer to the maximum and the stiffer the gradient)."""
+    """(int |T|^p dV / V)^(1/p) (C) over the model, or (int |T|^p dA / A)^(1/p) over the faces of ``tag``: a
+    smooth maximum of |T| (``p`` >= 1; the larger, the closer to the maximum and the stiffer the gradient)."""
 
-    def __init__(self, p: float = 8.0):
-        self.p = _exponent(p, "TemperatureNorm")
-        self.name = f"TemperatureNorm({self.p:g})"
+    def __init__(self, p: float = 8.0, tag=None):
+        self.p, self.tag = _exponent(p, "TemperatureNorm"), tag
+        self.name = f"TemperatureNorm({self.p:g}{'' if tag is None else ', ' + show(tag)})"
 
     def value(self, solution) -> float:
         s = _heat(solution, self.name)
         p = self.p
-        return float((s.integrate(lambda x, T, g: np.abs(T) ** p) / s.volume()) ** (1 / p))
+        if self.tag is None:
+            return float((s.integrate(lambda x, T, g: np.abs(T) ** p) / s.volume()) ** (1 / p))
+        fds, area = _tag_faces(s, self.tag, self.name)
+        return float((sum(float(np.sum(np.abs(fd.trace(s.u)) ** p * fd.dAw)) for fd in fds) / area) ** (1 / p))
 
     def gradient(self, solution) -> np.ndarray:
+        from iga.heat.forms import boundary_load
+
         s = _heat(solution, self.name)
         p, J = self.p, self.value(s)
         if not J > TINY:  # T = 0 everywhere: the norm has no direction to grow in
             return np.zeros(s.problem.ndof)
-        g = _volume_load(s, lambda T: np.abs(T) ** (p - 1) * np.sign(T))
-        return g * J ** (1 - p) / s.volume()
+        if self.tag is None:
+            return _volume_load(s, lambda T: np.abs(T) ** (p - 1) * np.sign(T)) * J ** (1 - p) / s.volume()
+        fds, area = _tag_faces(s, self.tag, self.name)
+        dens = [np.abs(T) ** (p - 1) * np.sign(T) * fd.dAw for fd, T in ((fd, fd.trace(s.u)) for fd in fds)]
+        return boundary_load(fds, dens, s.problem.ndof) * J ** (1 - p) / area
 
 
 class HeatFlow(Output):
@@ -212,9 +219,7 @@ class VonMisesNorm(Output):
 
     def value(self, solution) -> float:
         from iga.elasticity.forms import lame
-        from iga.elasticity.solution import ElasticSolution
-
-        if not isinstance(solution, ElasticSolution):
+        if getattr(type(solution), "physics", None) != "elasticity":
             raise ProblemError(f"{self.name} is an output of an elastic solution, got {show(solution)}")
         prob, p = solution.problem, self.p
         n, o = prob.ndof, prob.offsets

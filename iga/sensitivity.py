@@ -47,9 +47,7 @@ def gradient(solution, output: Output, wrt: str = "tiles", solver: str = "auto")
 def adjoint(solution, output: Output, solver: str = "auto", tol: float = 1e-12) -> np.ndarray:
     """The adjoint lambda (ndof,) of ``output`` on a steady, linear heat ``solution``: K lambda = dJ/du on the
     free unknowns, lambda = 0 where the solution is prescribed, the interface constraints as in the solve."""
-    from iga.heat.solution import Solution
-
-    if not isinstance(solution, Solution) or type(solution) is not Solution:
+    if getattr(type(solution), "physics", None) != "heat" or not type(solution).steady:
         raise ProblemError(f"the adjoint is of a steady heat solution (iga.Solution), got {show(solution)}")
     if not isinstance(output, Output):
         raise ProblemError(f"output must be one of iga.outputs (e.g. MeanTemperature()), got {show(output)}")

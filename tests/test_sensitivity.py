@@ -33,8 +33,8 @@ def _solve(ms, scale: dict):
     return problem.dirichlet("umin", 40.0).neumann("umax", 1000.0).robin("vmax", 5.0, 20.0).solve()
 
 
-@pytest.mark.parametrize("output", [MeanTemperature(), MeanTemperature("umax"), TemperatureNorm(6), Compliance()],
-                         ids=str)
+@pytest.mark.parametrize("output", [MeanTemperature(), MeanTemperature("umax"), TemperatureNorm(6),
+                                    TemperatureNorm(4, "umax"), Compliance()], ids=str)
 def test_conductivity_sensitivities_by_the_adjoint_equal_finite_differences(output):
     ms = _lattice()
     base = _solve(ms, {})
@@ -57,6 +57,7 @@ def test_outputs_against_direct_evaluation_and_closed_forms():
     assert MeanTemperature("umax").value(s) == pytest.approx(0.5, rel=1e-10)
     assert TemperatureNorm(4).value(s) == pytest.approx((0.5**4 / 5) ** 0.25, rel=1e-10)  # (int x^4/16 dx)^1/4
     assert TemperatureNorm(64).value(s) == pytest.approx(0.5, rel=0.07)  # towards the maximum
+    assert TemperatureNorm(3, "umax").value(s) == pytest.approx(0.5, rel=1e-10)  # T = 1/2 on the face x = 1
     assert HeatFlow("umin").value(s) == pytest.approx(2.0 * 0.02, rel=1e-9)  # what enters at x = 1 leaves at 0
     assert Compliance().value(s) == pytest.approx(0.5 * 2.0 * 0.02, rel=1e-10)  # T(1) times the inflow
     with pytest.raises(ProblemError, match="HeatFlow.*no gradient"):
@@ -100,7 +101,8 @@ def test_channel_gradients_on_a_rational_map_equal_finite_differences_in_a_rando
         return HeatProblem(ms, conductivity="k").dirichlet("umin", 50.0).robin("rest", 20.0, 20.0).solve()
 
     s = solve(kc)
-    g = gradient(s, output, wrt="channel:k")
+    g = s.gradient(output, wrt="channel:k")  # the Solution method and the module function are one
+    assert np.array_equal(g, gradient(s, output, wrt="channel:k"))
     assert g.shape == kc.shape
     d = rng.standard_normal(kc.shape)
     eps = 1e-3

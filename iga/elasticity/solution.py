@@ -31,6 +31,8 @@ class ElasticSolution:
     info : dict with DOF counts, constraints, solver diagnostics, timings and the work balance
     """
 
+    physics = "elasticity"  # (iga.outputs asks)
+
     def __init__(self, problem, res, f, dd, work, applied, record=None, holds=None, springs=()):
         self.problem = problem
         self.record = SolveRecord(reduced_dofs=int(res.reduced), timings=dict(problem.timings)) \

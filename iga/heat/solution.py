@@ -44,6 +44,10 @@ class Solution:
         iterations, residual), timings (s), the energy balance; read by attribute or by key
     """
 
+    #: what the outputs of :mod:`iga.outputs` and the adjoint of :mod:`iga.sensitivity` ask of a solution
+    physics = "heat"
+    steady = True
+
     def __init__(self, problem, u, book, dirichlet_dofs, reaction, dirichlet_integrals, solver_info, loads=None,
                  prescribed=None, record=None):
         self.problem = problem
@@ -282,6 +286,14 @@ class Solution:
     def volume(self) -> float:
         """Volume of the model (m^3), by the problem's Gauss rule."""
         return self.integrate(lambda x, T, g: np.ones(len(T)))
+
+    def gradient(self, output, wrt: str = "tiles", solver: str = "auto") -> np.ndarray:
+        """The derivative of ``output`` (one of :mod:`iga.outputs`) by the adjoint: ``wrt="tiles"`` or
+        ``"patches"`` (a factor on each one's conductivity) or ``"channel:NAME"`` (the control values of the
+        map's channel the conductivity reads); :func:`iga.sensitivity.gradient`."""
+        from iga.sensitivity import gradient
+
+        return gradient(self, output, wrt, solver)
 
     def mean_temperature(self) -> float:
         """Volume average of the temperature: int T dV / int dV."""

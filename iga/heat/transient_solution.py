@@ -40,6 +40,8 @@ class TransientState(Solution):
     """The temperature of a transient solve at one ``time`` (s): a :class:`iga.Solution` whose balance
     includes the heat stored per second, ``stored_W`` = int rho c dT/dt dV (W; positive while warming)."""
 
+    steady = False  # a state in time: no steady adjoint
+
     def __init__(self, problem, u, book, reaction_dofs, reaction, integrals, info, loads, prescribed, record,
                  time: float, stored_W: float):
         self.time, self.stored_W = float(time), float(stored_W)
