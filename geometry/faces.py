@@ -62,6 +62,14 @@ def face_knots(spline, face: str):
     return [(spline.knots[d], spline.degrees[d]) for d in range(3) if d != k]
 
 
+def oriented_face_knots(knots, swap: bool, flip) -> list:
+    """Face-b knot vectors [(U, p)] * 2 along face a's axes under an interface's orientation (b's parameters are
+    a's swapped if ``swap``, then reversed per ``flip`` on b's own axes): b's axes reversed per ``flip``, then
+    swapped."""
+    out = [(U[0] + U[-1] - U[::-1], p) if f else (U, p) for (U, p), f in zip(knots, flip)]
+    return out[::-1] if swap else out
+
+
 def discontinuity_slots(spline) -> dict:
     """Free parts of the discontinuity planes of a trivariate: {slot face id: [rectangles]}.
 

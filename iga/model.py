@@ -62,7 +62,8 @@ def as_model(obj) -> MultiPatch:
     if isinstance(obj, MultiPatch) and all(isinstance(p, PlacedPatch) for p in obj.patches):
         return obj
     patches = [PlacedPatch(p.spline, getattr(p, "placement", None), getattr(p, "outer", None), getattr(p, "tile", i),
-                           getattr(p, "level", 0)) for i, p in enumerate(obj.patches)]
+                           getattr(p, "level", 0), refinement=getattr(p, "refinement", 0))
+               for i, p in enumerate(obj.patches)]
     return MultiPatch(patches, list(getattr(obj, "interfaces", [])), {t: list(v) for t, v in obj.tags.items()},
                       dict(getattr(obj, "face_regions", {})))
 

@@ -72,6 +72,9 @@ def _config(section: str) -> tuple[dict, callable, callable]:
         at, out = (lambda c: c[section][0]), (lambda v: (v if section == "bc" else v["physics"])[section][0])
     elif section == "physics":
         at, out = (lambda c: c["physics"]), (lambda v: v["physics"])
+    elif section == "adapt":
+        cfg["adapt"] = {"tolerance": 0.01}
+        at, out = (lambda c: c["adapt"]), (lambda v: v["adapt"])
     elif section == "time":
         cfg.update(physics={"kind": "transient-heat"}, material={"capacity": 1.0}, time={"end": "steady", "tolerance": 0.1})
         at, out = (lambda c: c["time"]), (lambda v: v["time"])

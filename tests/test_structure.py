@@ -257,3 +257,10 @@ def test_a_zero_divisor_is_guarded_by_the_one_named_floor():
              if path.name != "numbers.py"
              for i, line in enumerate(path.read_text().splitlines(), 1) if re.search(r"(?<![\w.])1e-300\b", line)]
     assert not found, f"literal 1e-300 guards (use geometry.numbers.TINY): {found}"
+
+
+def test_the_solvers_copy_of_the_rank_and_round_off_thresholds_is_the_toolkit_s():
+    import solvers.elimination as e
+    from geometry import tolerances as t
+
+    assert (e.RANK, e.ROUNDOFF) == (t.RANK, t.ROUNDOFF)

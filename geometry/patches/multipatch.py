@@ -30,7 +30,7 @@ import scipy.sparse as sp
 from geometry.bspline import BSpline
 from geometry.composition.core import compose_many, compose_placed
 from geometry.errors import SplineError
-from geometry.faces import FACE_NAMES, face_knots, nested_refinement
+from geometry.faces import FACE_NAMES, face_knots, nested_refinement, oriented_face_knots
 from geometry.maps.inversion import invert
 from geometry.patches.placed_points import IDENTITY, face_points, physical_corners, tile_corners, trivariates
 from geometry.grouping import identity_groups, near_pairs
@@ -53,6 +53,8 @@ class PlacedPatch:
     tile: int = 0
     level: int = 0
     patch_in_tile: int = 0
+    #: knot-span bisections of this patch beyond its tile's own (set by adaptive refinement, ``iga.adaptivity``)
+    refinement: int = 0
     #: the composed image, once computed (:attr:`composed`) or set by a batch (:meth:`set_composed`)
     _composed: BSpline | None = field(default=None, repr=False)
 
@@ -132,10 +134,7 @@ ORIENTATIONS, _ORIENTATION_PERMS = _orientations()
 
 def _same_face_space(patches, a, b, swap, flip) -> bool:
     ka, kb = face_knots(patches[a[0]].spline, a[1]), face_knots(patches[b[0]].spline, b[1])
-    if swap:
-        kb, flip = kb[::-1], flip[::-1]
-    kb = [(U[0] + U[-1] - U[::-1], p) if f else (U, p) for (U, p), f in zip(kb, flip)]  # b's axes as a's
-    return same_space(ka, kb)
+    return same_space(ka, oriented_face_knots(kb, swap, flip))  # b's axes as a's
 
 
 # interior sample points of a face (normalised face parameters): images must coincide on conforming faces

@@ -114,11 +114,12 @@ def conforming_axes(model, knots_of, samples) -> list[list[np.ndarray]]:
             for j in range(2):  # face a's direction j <-> face b's direction order[j]
                 links.append((pa, da[j], pb, db[order[j]], None, itf.flip[order[j]]))
         else:
-            for j in range(2):  # the child's direction j spans the box side j of the parent's face
+            order = [1, 0] if itf.swap else [0, 1]
+            for j in range(2):  # the child's direction order[j] spans the box side j of the parent's face
                 lo, hi = itf.box[j]
                 d0 = doms[pa][da[j]]
-                links.append((pa, da[j], pb, db[j], ((lo - d0[0]) / (d0[1] - d0[0]), (hi - d0[0]) / (d0[1] - d0[0])),
-                              False))
+                links.append((pa, da[j], pb, db[order[j]],
+                              ((lo - d0[0]) / (d0[1] - d0[0]), (hi - d0[0]) / (d0[1] - d0[0])), itf.flip[order[j]]))
     for _ in range(64):
         changed = False
         for pa, ka, pb, kb, box, flip in links:
@@ -130,7 +131,8 @@ def conforming_axes(model, knots_of, samples) -> list[list[np.ndarray]]:
                 lo, hi = box
                 inside = A[(A >= lo - ON_DOMAIN) & (A <= hi + ON_DOMAIN)]
                 to_b = np.clip((inside - lo) / (hi - lo), 0, 1)
-                to_a = lo + B * (hi - lo)
+                to_b = 1 - to_b if flip else to_b
+                to_a = lo + (1 - B if flip else B) * (hi - lo)
             axes[pb][kb], cb = _unite(B, to_b)
             axes[pa][ka], ca = _unite(A, to_a)
             changed |= ca or cb
@@ -207,6 +209,8 @@ def sample_model(model, samples: int = 3, knots_of=None, fields=None, spaces_key
         key = (same(patch.spline), spaces_key(pi) if spaces_key else None, tuple(a.tobytes() for a in axes[pi]))
         groups.setdefault(key, []).append(pi)
     points, cells, rims, pdata, cdata = [], [], [], {}, {"patch": [], "tile": [], "level": []}
+    if any(p.refinement for p in model.patches):  # an adaptively refined model: each patch's refinement too
+        cdata["refinement"] = []
     offset = 0
     for members in progress.bar(list(groups.values()), desc="sampling", unit="group"):
         spline = model.patches[members[0]].spline
@@ -235,8 +239,10 @@ def sample_model(model, samples: int = 3, knots_of=None, fields=None, spaces_key
                 for key, v in data.items():
                     pdata.setdefault(key, []).append(v[j])
                 patch = model.patches[pi]
-                for key, value in (("patch", pi), ("tile", patch.tile), ("level", patch.level)):
-                    cdata[key].append(np.full(len(hexes), value, np.int32))
+                for key, value in (("patch", pi), ("tile", patch.tile), ("level", patch.level),
+                                   ("refinement", patch.refinement)):
+                    if key in cdata:
+                        cdata[key].append(np.full(len(hexes), value, np.int32))
                 offset += N
     return (np.concatenate(points), np.concatenate(cells), {k: np.concatenate(v) for k, v in pdata.items()},
             {k: np.concatenate(v) for k, v in cdata.items()}, np.concatenate(rims))

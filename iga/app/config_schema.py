@@ -247,6 +247,18 @@ _SECTIONS = (
         _K("every", "an integer >= 1", 1, "every n-th step is kept and written to `NAME.pvd`"),
         _K("fraction", "a number in (0, 1)", 0.95, "`end = \"steady\"`: the share of the steady rise"),
         _K("max_steps", "an integer >= 1", 100_000, "the run stops with an error after this many steps"))),
+    Section("adapt", "[adapt]", "Adaptive refinement by tiles of a steady heat analysis (`physics.kind = "
+            "\"heat\"`): solve, estimate the error per patch, split the patches that carry most of it, repeat "
+            "(`iga.adaptivity`).", (
+        _K("tolerance", "a number > 0", REQUIRED, "the relative energy-norm error wanted (the residual estimate "
+           "over the solution's energy norm), e.g. `1e-3`"),
+        _K("max_unknowns", "an integer >= 1", UNSET, "stop before a step with more DOFs; the best solution so far "
+           "is written and the summary says why it stopped"),
+        _K("marking", "a number in (0, 1]", 0.5, "Dorfler's fraction: the patches marked carry at least this share "
+           "of the squared estimate"),
+        _K("refine", "`\"h\"` or `\"h-in-place\"`", "h", "`h` splits a marked patch into 2 x 2 x 2 children "
+           "(patches with discontinuity planes are bisected in place), `h-in-place` bisects its knot spans"),
+        _K("max_steps", "an integer >= 1", 50, "at most this many solves"))),
     Section("solver", "[solver]", "The discretisation and the linear solver.", (
         _K("method", _one_of(m for m in solvers.backends() if m != "petsc") + " (`petsc` with the [mpi] extra)",
            "auto", "`auto` chooses by the problem's size and structure"),

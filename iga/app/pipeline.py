@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import time
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +24,7 @@ from geometry import progress as display
 from geometry.io.iges import write_iges
 from geometry.io.files import atomic_write, check_folder, offscreen_plotter, save_screenshot
 from iga.io.pictures import count, render_temperature
+from iga.adaptivity.loop import adaptive_solve
 from iga.app.problems import heat_problem
 from iga.app.pipeline_transient import transient_stage
 from tiling.export import boundary_splines, mesh_watertightness, write_mesh, write_surfaces
@@ -268,7 +270,16 @@ def _heat_stage(cfg, model, out: Path, ocfg: dict, stages):
     probes = np.asarray(ocfg["probes"], float).reshape(-1, 3)
     if len(probes):  # before the solve: a probe outside the model is a configuration error
         Locator(prob.model)(probes, what="output.probes")
-    sol = prob.solve(solver=scfg["method"], tol=scfg["tol"], maxiter=scfg["maxiter"])
+    adapted = None
+    if cfg["adapt"] is not None:  # solve, estimate, split where the estimate is largest, until the tolerance
+        a = cfg["adapt"]
+        adapted = adaptive_solve(prob, a["tolerance"], a["max_unknowns"], a["marking"], a["refine"], scfg["method"],
+                                 max_steps=a["max_steps"], tol=scfg["tol"])
+        sol = adapted.solution
+        prob = sol.problem
+        model = prob.model
+    else:
+        sol = prob.solve(solver=scfg["method"], tol=scfg["tol"], maxiter=scfg["maxiter"])
     stages.done(f"({prob.ndof} DOFs, {sol.info['free_dofs']} unknowns)")
     # high-water mark of the analysis alone (map, tiling, assembly, solve), before VTK is loaded for output
     analysis_peak = resources.peak_memory_mib()
@@ -277,6 +288,10 @@ def _heat_stage(cfg, model, out: Path, ocfg: dict, stages):
     t0 = time.perf_counter()
     tmin, tmax = sol.temperature_range(ocfg["samples"])
     summary = _summary(cfg, prob, sol, (tmin, tmax), mesh_volume, probes, files, analysis_peak)
+    if adapted is not None:
+        summary["adapt"] = {"reached": adapted.reached, "reason": adapted.reason,
+                            "estimate": float(adapted.estimate.relative), "patches": len(model.patches),
+                            "steps": [asdict(h) for h in adapted.history]}
     return summary, sol, {"statistics": time.perf_counter() - t0, **{f"iga.{k}": v for k, v in prob.timings.items()}}
 
 

@@ -28,7 +28,7 @@ master classes owning a Dirichlet DOF; *induced rank*: the rank of the
 conditions that Dirichlet DOFs of slave classes put on their masters (a slot
 of a child tile that reaches its base meets the parent's branch-out face
 inside an element, so its Dirichlet data fix combinations of the parent's
-face coefficients; :func:`induced_elimination`).
+face coefficients; :func:`solvers.elimination.induced_elimination`).
 """
 
 from __future__ import annotations
@@ -37,16 +37,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.linalg import qr, solve_triangular
 from scipy.sparse.csgraph import connected_components
 
-from geometry.numbers import TINY
 from geometry.errors import SplineError
-from geometry.faces import FACE_AXIS, discontinuity_slots, nested_refinement, slot_face_id
+from geometry.faces import FACE_AXIS, discontinuity_slots, nested_refinement, oriented_face_knots, slot_face_id
 from geometry.grouping import ObjectIndex
 
+from solvers.elimination import elimination
 from iga.errors import ProblemError
-from geometry.tolerances import CONSISTENT, RANK, ROUNDOFF
+from geometry.tolerances import CONSISTENT, ROUNDOFF
 
 # coefficients of a branch row below this are round-off of the knot insertion (entries are O(1));
 # two branch rows of one DOF class that differ by more than _CONSISTENT prescribe it differently
@@ -115,10 +114,12 @@ def _face_space_knots(space, face):
 
 
 def _branch_R(spaces, itf, cache: dict) -> sp.csr_matrix:
-    """The refinement matrix of a branch interface (child face coefficients = R @ parent's), cached on
-    the two face spaces and the box: a hierarchy repeats the same pair many times."""
+    """The refinement matrix of a branch interface (child face coefficients, on the child's DOF grid re-indexed
+    along the parent's face axes by the interface's orientation, = R @ parent's), cached on the two face
+    spaces, the box and the orientation: a hierarchy repeats the same pair many times."""
     (pa, fa), (pb, fb) = itf.a, itf.b
-    parent, child = _face_space_knots(spaces[pa], fa), _face_space_knots(spaces[pb], fb)
+    parent = _face_space_knots(spaces[pa], fa)
+    child = oriented_face_knots(_face_space_knots(spaces[pb], fb), itf.swap, itf.flip)
     key = (tuple((U.tobytes(), p) for U, p in parent), tuple(map(tuple, itf.box)),
            tuple((U.tobytes(), p) for U, p in child))
     if key not in cache:
@@ -240,7 +241,7 @@ def branch_rows(model, spaces, offsets) -> BranchRows:
             continue
         (pa, fa), (pb, fb) = itf.a, itf.b
         R = _branch_R(spaces, itf, cache)
-        child.append(face_dof_grid(spaces, offsets, pb, fb).ravel())
+        child.append(_oriented(face_dof_grid(spaces, offsets, pb, fb), itf.swap, itf.flip).ravel())
         interface.append(np.full(R.shape[0], j))
         row.append(nrows + np.repeat(np.arange(R.shape[0]), np.diff(R.indptr)))
         parent.append(face_dof_grid(spaces, offsets, pa, fa).ravel()[R.indices])
@@ -250,34 +251,24 @@ def branch_rows(model, spaces, offsets) -> BranchRows:
                       np.concatenate(weight) if weight else np.zeros(0))
 
 
-def class_expressions(model, ncls: int, cls: np.ndarray, rows: BranchRows) -> tuple[sp.csr_matrix, np.ndarray]:
-    """(C, slaves): C (ncls x ncls) expresses every class through classes (the identity for masters, its
-    branch row for a slave class); ``slaves`` the sorted slave classes.
-
-    A class reached by several branch rows (edges and corners shared by child
-    faces, one DOF class on two branch faces) must be given the same row by all
-    of them; otherwise the constraints contradict each other and are refused.
-    """
+def _rows_by_class(ncls: int, cls: np.ndarray, rows: BranchRows):
+    """(M, owner, slaves, first): every branch row over classes (nr x ncls, duplicates summed, round-off dropped),
+    the class each row constrains, the sorted slave classes and the first row of each."""
     nr = len(rows.child)
     M = sp.csr_matrix((rows.weight, (rows.row, cls[rows.parent])), shape=(nr, ncls))  # sums duplicates
     M.data[np.abs(M.data) <= _ZERO_WEIGHT] = 0.0
     M.eliminate_zeros()
     owner = cls[rows.child]
     slaves, first = np.unique(owner, return_index=True)
-    if nr:
-        ref = first[np.searchsorted(slaves, owner)]  # each row against the first row of its class
-        D = abs(M - M[ref]).tocsr()
-        worst = np.zeros(nr)
-        nz = np.diff(D.indptr) > 0
-        worst[nz] = np.maximum.reduceat(D.data, D.indptr[:-1][nz]) if D.nnz else 0.0
-        bad = np.flatnonzero(worst > _CONSISTENT)
-        if len(bad):
-            r = int(bad[0])
-            one, two = model.interfaces[rows.interface[ref[r]]], model.interfaces[rows.interface[r]]
-            raise ProblemError(
-                f"inconsistent constraints: DOF {rows.child[r]} is constrained by branch faces patch {one.a[0]} "
-                f"{one.a[1]} -> patch {one.b[0]} {one.b[1]} and patch {two.a[0]} {two.a[1]} -> patch "
-                f"{two.b[0]} {two.b[1]} with different values; check these faces and their refinement")
+    return M, owner, slaves, first
+
+
+def class_expressions(model, ncls: int, cls: np.ndarray, rows: BranchRows) -> tuple[sp.csr_matrix, np.ndarray]:
+    """(C, slaves): C (ncls x ncls) expresses every class through classes (the identity for masters, the first
+    branch row of a slave class); ``slaves`` the sorted slave classes.  A class reached by several branch rows
+    (edges and corners shared by child faces) must be given the same expression by all of them once slaves are
+    substituted: :func:`check_consistent`."""
+    M, _, slaves, first = _rows_by_class(ncls, cls, rows)
     is_slave = np.zeros(ncls, bool)
     is_slave[slaves] = True
     masters = np.flatnonzero(~is_slave)
@@ -285,6 +276,42 @@ def class_expressions(model, ncls: int, cls: np.ndarray, rows: BranchRows) -> tu
     C = sp.csr_matrix((np.r_[S.data, np.ones(len(masters))], (np.r_[slaves[S.row], masters], np.r_[S.col, masters])),
                       shape=(ncls, ncls))
     return C, slaves
+
+
+def implied_conditions(model, ncls: int, cls: np.ndarray, rows: BranchRows, Q: sp.csr_matrix) -> sp.csr_matrix:
+    """The conditions among master classes that branch rows of one DOF class imply: every row, with its slaves
+    substituted (``Q``: :func:`substitute_slaves`), must equal its class's expression; rows that differ give
+    ``(row - expression) u = 0`` (a matrix over the classes, one row per condition, none when all agree).
+
+    Two rows from *different* parent faces that differ say that the two parents' traces agree where the
+    child's edge runs along both (a patch split next to two coarse neighbours that touch only along an edge:
+    the child was their only link), a continuity condition the model needs.  Two rows from one parent face that
+    differ contradict each other (a face constrained twice over overlapping boxes) and are refused.
+    """
+    nr = len(rows.child)
+    if not nr:
+        return sp.csr_matrix((0, ncls))
+    M, owner, _, _ = _rows_by_class(ncls, cls, rows)
+    D = (M @ Q - Q[owner]).tocsr()
+    worst = np.zeros(nr)
+    nz = np.diff(D.indptr) > 0
+    worst[nz] = np.maximum.reduceat(abs(D).data, D.indptr[:-1][nz]) if D.nnz else 0.0
+    bad = np.flatnonzero(worst > _CONSISTENT)
+    if not len(bad):
+        return sp.csr_matrix((0, ncls))
+    first = np.full(ncls, -1)
+    first[owner[::-1]] = np.arange(nr)[::-1]  # the row each class's expression came from
+    for r in bad.tolist():
+        one, two = model.interfaces[rows.interface[first[owner[r]]]], model.interfaces[rows.interface[r]]
+        if tuple(one.a) == tuple(two.a):
+            raise ProblemError(
+                f"inconsistent constraints: DOF {rows.child[r]} is constrained by branch faces patch {one.a[0]} "
+                f"{one.a[1]} -> patch {one.b[0]} {one.b[1]} and patch {two.a[0]} {two.a[1]} -> patch "
+                f"{two.b[0]} {two.b[1]} with different values; check these faces and their refinement")
+    out = D[bad]
+    out.data[np.abs(out.data) <= _ZERO_WEIGHT] = 0.0
+    out.eliminate_zeros()
+    return out
 
 
 def substitute_slaves(C: sp.csr_matrix, slaves: np.ndarray) -> sp.csr_matrix:
@@ -340,6 +367,7 @@ def prolongation(model, spaces, offsets, weights=None) -> Constraints:
     rows = branch_rows(model, spaces, offsets)
     C, slaves = class_expressions(model, ncls, cls, rows)
     Q = substitute_slaves(C, slaves)
+    implied = implied_conditions(model, ncls, cls, rows, Q)
     is_slave = np.zeros(ncls, bool)
     is_slave[slaves] = True
     masters = np.flatnonzero(~is_slave)
@@ -347,8 +375,17 @@ def prolongation(model, spaces, offsets, weights=None) -> Constraints:
     P = (E @ Q[:, masters]).tocsr()
     column = np.full(ncls, -1)
     column[masters] = np.arange(len(masters))
+    eliminated = 0
+    if implied.shape[0]:  # masters linked by the implied conditions: each block's dependent ones eliminated
+        T, _, _, keep = elimination(implied[:, masters], np.zeros(implied.shape[0]))
+        P = (P @ T).tocsr()
+        renumber = np.full(len(masters), -1)
+        renumber[keep] = np.arange(int(keep.sum()))
+        column[masters] = renumber
+        eliminated = int((~keep).sum())
     stats = {"identity_pairs": int(len(ia)), "c0_pairs": int(len(ca)), "branch_rows": int(len(rows.child)),
-             "classes": int(ncls), "slave_classes": int(len(slaves)), "reduced": int(len(masters))}
+             "classes": int(ncls), "slave_classes": int(len(slaves)), "implied_conditions": eliminated,
+             "reduced": int(P.shape[1])}
     return Constraints(P, column[cls], stats)
 
 
@@ -374,63 +411,3 @@ def _refuse_unequal_weights(weights, offsets, a: np.ndarray, b: np.ndarray) -> N
                            f"proportional (ratios {lo[bad[0]]:.6g} to {hi[bad[0]]:.6g}): a patch analysed in the NURBS "
                            "basis of its own weights (iga.discretisation.rational) glues only to a face with the same weights, up to "
                            "one factor; give both patches the same weights on the shared face")
-
-
-def induced_elimination(C: sp.spmatrix, rhs: np.ndarray, tol: float = RANK):
-    """Solve the linear constraints ``C x = rhs`` on free unknowns by elimination.
-
-    Dirichlet DOFs that are *slaves* (child branch-in DOFs on a Dirichlet face,
-    e.g. the bottom edge of a slot inside a parent's branch-out face) fix a
-    combination of their masters, not one master: ``P[row] u = g``.  These rows
-    are split into independent blocks (connected components of the columns they
-    share, SciPy's csgraph); per block a column-pivoted QR finds the rank ``r``
-    and expresses ``r`` pivot columns through the others.
-
-    Returns ``(T, x0, touched)``: every ``x`` with ``C x = rhs`` (in the least-squares
-    sense when the rows conflict) is ``x = T z + x0``; ``T`` is sparse (n x nz)
-    with unit columns for the untouched unknowns; ``touched`` are the columns C involves.
-    """
-    C = sp.csr_matrix(C)
-    n = C.shape[1]
-    C.data[np.abs(C.data) < ROUNDOFF] = 0.0
-    C.eliminate_zeros()
-    rows = np.nonzero(np.diff(C.indptr))[0]
-    touched = np.unique(C.indices)
-    x0 = np.zeros(n)
-    if not len(touched):
-        return sp.identity(n, format="csc"), x0, touched
-    Ct = C[rows][:, touched].tocsc()
-    # columns linked through a shared row belong to one block
-    link = (abs(Ct.T) @ abs(Ct)).tocsr()
-    nb, label = connected_components(link, directed=False)
-    keep = np.ones(n, bool)  # columns that stay unknowns
-    t_rows, t_cols, t_vals = [], [], []  # entries of T for eliminated columns: x_piv = sum_j t x_j
-    for b in range(nb):
-        cols_b = np.nonzero(label == b)[0]
-        sub = Ct[:, cols_b]
-        rows_b = np.unique(sub.indices)
-        A = sub[rows_b].toarray()
-        y = rhs[rows[rows_b]]
-        Q, R, perm = qr(A, mode="economic", pivoting=True)
-        d = np.abs(np.diag(R))
-        r = int(np.sum(d > tol * max(d[0], TINY))) if len(d) else 0
-        if r == 0:
-            continue
-        piv, rest = perm[:r], perm[r:]
-        # A[:, piv] x_piv + A[:, rest] x_rest = y  ->  x_piv = R11^-1 (Q1^T y - R12 x_rest)
-        R11, R12 = R[:r, :r], R[:r, r:]
-        base = solve_triangular(R11, Q[:, :r].T @ y)
-        coup = -solve_triangular(R11, R12) if len(rest) else np.zeros((r, 0))
-        gp, gr = touched[cols_b[piv]], touched[cols_b[rest]]
-        x0[gp] = base
-        keep[gp] = False
-        ii, jj = np.nonzero(np.abs(coup) > 0.1 * ROUNDOFF)
-        t_rows.append(gp[ii]); t_cols.append(gr[jj]); t_vals.append(coup[ii, jj])
-    col_of = np.full(n, -1)
-    col_of[keep] = np.arange(int(keep.sum()))
-    kept = np.nonzero(keep)[0]
-    r_all = np.concatenate([kept] + t_rows)
-    c_all = np.concatenate([col_of[kept]] + [col_of[c] for c in t_cols])
-    v_all = np.concatenate([np.ones(len(kept))] + t_vals)
-    T = sp.csc_matrix((v_all, (r_all, c_all)), shape=(n, int(keep.sum())))
-    return T, x0, touched

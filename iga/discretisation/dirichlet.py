@@ -7,7 +7,7 @@ The prescribed temperatures g on the Dirichlet faces are projected in the
 interface constraints, every reduced unknown that owns a Dirichlet DOF is
 prescribed (the mean of its members' values); Dirichlet DOFs of slave classes
 fix combinations of unknowns instead and are returned separately
-(:func:`iga.discretisation.constraints.induced_elimination` handles them).
+(:func:`solvers.elimination.induced_elimination` handles them).
 """
 
 from __future__ import annotations

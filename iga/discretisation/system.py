@@ -20,7 +20,8 @@ from geometry.numbers import TINY
 from solvers.indexing import complement
 
 from iga.assembly import compiled as fast_assembly
-from iga.discretisation.constraints import induced_elimination, owners_of
+from iga.discretisation.constraints import owners_of
+from solvers.elimination import induced_elimination
 from iga.errors import ProblemError
 
 __all__ = ["eliminate", "solve_system", "SystemSolution", "reduction", "project_symmetric"]

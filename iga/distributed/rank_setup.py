@@ -2,7 +2,7 @@
 its patches read (:mod:`iga.distributed.rank_constraints`), the Dirichlet data of its closure's faces, and the model's
 components found across the ranks (:mod:`iga.distributed.rank_components`); or, where Dirichlet slot faces meet a
 branch face inside an element on some rank (their induced conditions tie unknowns of the whole model
-together, :func:`iga.discretisation.constraints.induced_elimination`), the whole model's, as a serial solve builds them."""
+together, :func:`solvers.elimination.induced_elimination`), the whole model's, as a serial solve builds them."""
 
 from __future__ import annotations
 

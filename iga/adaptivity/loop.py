@@ -1,0 +1,210 @@
+"""The adaptive loop: solve, estimate, mark (Dorfler), refine by tiles, until the estimate meets the tolerance.
+
+:func:`adaptive_solve` takes a :class:`iga.HeatProblem` as set up (conductivity, source, conditions, solution
+degree and refinement) and replays it on ever finer models of :class:`iga.adaptivity.tree.TileRefinement`: each
+step solves, estimates the error per patch (:func:`iga.adaptivity.estimator.estimate_error`), marks the
+fewest patches whose indicators carry a fraction ``marking`` of the estimate's square (Dorfler 1996), and
+splits them into 2 x 2 x 2 children (patches with discontinuity planes are bisected in place).  It stops when
+the estimate relative to the solution's energy norm is at most ``tolerance``, or before a step would exceed
+``max_unknowns``, and returns the last solution with the history of every step.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from geometry import progress
+from geometry.errors import show
+from geometry.numbers import is_real as is_number
+
+from iga.adaptivity.estimator import ErrorEstimate, estimate_error
+from iga.adaptivity.tree import TileRefinement
+from iga.errors import ProblemError
+from iga.heat.problem import HeatProblem
+
+__all__ = ["AdaptiveStep", "AdaptiveResult", "adaptive_solve", "dorfler"]
+
+
+@dataclass(frozen=True)
+class AdaptiveStep:
+    """One step of the loop: ``unknowns`` solved for, ``dofs`` before constraints, ``patches``, the ``estimate``
+    (energy norm, sqrt(W K)) and it ``relative`` to the solution's, the true relative ``error`` (when the exact
+    gradient was given, else None), the patches ``marked`` for the next step and the step's ``seconds``."""
+
+    unknowns: int
+    dofs: int
+    patches: int
+    estimate: float
+    relative: float
+    error: float | None
+    marked: int
+    seconds: float
+
+    @property
+    def effectivity(self) -> float | None:
+        """Estimate over true error (None without the exact gradient)."""
+        return None if not self.error else self.relative / self.error
+
+
+@dataclass(frozen=True)
+class AdaptiveResult:
+    """What :func:`adaptive_solve` found: the last ``solution`` (its model the refined one), its ``estimate``,
+    the ``history`` of every step, whether the tolerance was ``reached``, and ``reason``: why the loop stopped.
+    Unpacks as ``solution, history``."""
+
+    solution: object
+    estimate: ErrorEstimate
+    history: tuple
+    reached: bool
+    reason: str
+
+    @property
+    def model(self):
+        """The refined model of the last solution."""
+        return self.solution.problem.model
+
+    def __iter__(self):
+        """``solution, history = adaptive_solve(...)`` unpacks the last solution and the steps."""
+        return iter((self.solution, self.history))
+
+
+def dorfler(indicators, fraction: float) -> np.ndarray:
+    """The fewest indices whose ``indicators`` (squares) sum to at least ``fraction`` of the total (largest first)."""
+    eta = np.asarray(indicators, float)
+    order = np.argsort(-eta, kind="stable")
+    cum = np.cumsum(eta[order])
+    if cum[-1] <= 0:
+        return np.zeros(0, np.int64)
+    # the first count reaching the fraction, with a margin below it so that round-off in the sum marks no extra
+    n = int(np.searchsorted(cum, fraction * cum[-1] * (1 - 1e-12), side="left")) + 1
+    return np.sort(order[: min(n, len(eta))])
+
+
+def _replayed(problem, model):
+    """``problem`` (a :class:`iga.HeatProblem`) set up again on ``model``: same coefficients, conditions and
+    solution degree and refinement."""
+    quadrature_extra, degree_elevation, refine, degree = problem.space_args
+    new = type(problem)(model, 1.0, 0.0, degree_elevation, refine, quadrature_extra, degree)
+    new.conductivity, new.source, new.conditions = problem.conductivity, problem.source, list(problem.conditions)
+    return new
+
+
+def _check(problem, tolerance, max_unknowns, marking, refine) -> None:
+    if type(problem) is not HeatProblem:
+        raise ProblemError(f"adaptive_solve takes a steady iga.HeatProblem, got {type(problem).__name__}")
+    if not (is_number(tolerance) and np.isfinite(tolerance) and tolerance > 0):
+        raise ProblemError(f"tolerance must be a positive number (the estimate relative to the solution's energy "
+                           f"norm, e.g. 1e-3), got {show(tolerance)}")
+    if not (is_number(marking) and 0 < marking <= 1):
+        raise ProblemError(f"marking must lie in (0, 1] (the fraction of the squared estimate the marked patches "
+                           f"carry; 0.5 is usual), got {show(marking)}")
+    if max_unknowns is not None and not (is_number(max_unknowns) and max_unknowns >= 1):
+        raise ProblemError(f"max_unknowns must be a positive number or None, got {show(max_unknowns)}")
+    if refine not in ("h", "h-in-place"):
+        raise ProblemError(f"refine must be 'h' (split patches into 2 x 2 x 2 children; those with discontinuity "
+                           f"planes bisected in place) or 'h-in-place' (bisect every marked patch's knot spans), got "
+                           f"{show(refine)}; degree elevation per patch ('p', 'hp') is not available")
+    own = [tuple(U.tobytes() for U in p.spline.knots) for p in problem.model.patches]
+    given = [tuple(np.asarray(U, float).tobytes() for U in knots) for knots, _ in problem.bases]
+    if own != given:
+        raise ProblemError("adaptive_solve refines each patch's own basis; a problem analysed in other bases "
+                           "(bases=...) cannot be refined by tiles")
+    if max_unknowns is not None and problem.ndof > max_unknowns:
+        raise ProblemError(f"the problem already has {problem.ndof:,} DOFs, more than max_unknowns = "
+                           f"{int(max_unknowns):,}; raise the budget or start coarser")
+
+
+def adaptive_solve(problem, tolerance: float, max_unknowns: int | None = None, marking: float = 0.5,
+                   refine: str = "h", solver: str = "auto", exact_gradient=None, max_steps: int = 50,
+                   tol: float = 1e-10) -> AdaptiveResult:
+    """Solve ``problem`` adaptively until the error estimate relative to the solution's energy norm is at most
+    ``tolerance`` (see the module notes).
+
+    Parameters
+    ----------
+    problem : a steady :class:`iga.HeatProblem` with its conditions; its ``degree_elevation``, ``refine`` and
+        ``degree`` apply to every patch of every step
+    tolerance : the relative energy-norm error wanted (> 0), e.g. 1e-3
+    max_unknowns : the budget of DOFs (before constraints, an upper bound of the unknowns): a step that would
+        exceed it refines only the marked patches with the largest indicators that fit; when none fits, the loop
+        stops and returns the best solution so far with ``reached=False`` and the reason
+    marking : Dorfler's fraction in (0, 1]: the marked patches carry at least this fraction of eta^2
+    refine : ``"h"`` splits marked patches into 2 x 2 x 2 children (patches with discontinuity planes are bisected
+        in place), ``"h-in-place"`` bisects every marked patch's knot spans
+    solver, tol : for each solve (:meth:`iga.HeatProblem.solve`)
+    exact_gradient : optional callable grad T(x (N, 3)) -> (N, 3) of the exact solution: the history then holds the
+        true relative energy-norm error of every step (conductivity constant per patch, as the estimate needs)
+    max_steps : at most this many solves
+
+    Progress: one line per step on stderr when progress is on (the ``iga`` command line, the benchmarks).
+    """
+    _check(problem, tolerance, max_unknowns, marking, refine)
+    tree = TileRefinement(problem.model)
+    current = problem if len(tree.leaves) == len(problem.model.patches) else _replayed(problem, tree.model())
+    history, reached, reason = [], False, f"{max_steps} steps taken"
+    solution = estimate = None
+    for step in range(1, max_steps + 1):
+        t0 = time.perf_counter()
+        solution = current.solve(solver=solver, tol=tol)
+        estimate = estimate_error(solution)
+        error = _true_error(solution, estimate, exact_gradient) if exact_gradient is not None else None
+        reached = bool(estimate.relative <= tolerance)
+        marked = np.zeros(0, np.int64) if reached else dorfler(estimate.patch, marking)
+        history.append(AdaptiveStep(int(solution.info.free_dofs), int(current.ndof), len(current.model.patches),
+                                    estimate.total, float(estimate.relative), error, len(marked),
+                                    time.perf_counter() - t0))
+        _report(step, history[-1])
+        if reached:
+            reason = f"the estimate {estimate.relative:.3g} met the tolerance {tolerance:g}"
+            break
+        if step == max_steps:
+            break
+        step_to = _next_step(problem, tree, estimate, marked, refine, max_unknowns, current.ndof)
+        if isinstance(step_to, str):
+            reason = f"{step_to}; the estimate reached {estimate.relative:.3g} (tolerance {tolerance:g})"
+            break
+        tree, current, refined = step_to
+        history[-1] = replace(history[-1], marked=refined)
+    return AdaptiveResult(solution, estimate, tuple(history), reached, reason)
+
+
+def _next_step(problem, tree, estimate, marked, refine, max_unknowns, ndof_now):
+    """(refinement, problem, patches refined) of the next step, or why there is none (a string).
+
+    Where refining every marked patch would exceed ``max_unknowns``, the marked patches with the largest
+    indicators that the DOFs left allow are refined (in proportion to the overshoot, then fewer until it fits),
+    so that the budget is used rather than the loop stopping short of it."""
+    order = marked[np.argsort(-estimate.patch[marked], kind="stable")]
+    n = len(order)
+    while n >= 1:
+        new = tree.refined(order[:n], refine, analysis_refine=problem.space_args[2])
+        if len(new.held) == n:
+            return (f"none of the {n} marked patches can be refined: their branch children sit on boxes that their "
+                    "refinement would not keep nested")
+        nxt = _replayed(problem, new.model())
+        if max_unknowns is None or nxt.ndof <= max_unknowns:
+            return new, nxt, n - len(new.held)
+        share = (max_unknowns - ndof_now) / max(nxt.ndof - ndof_now, 1)
+        n = min(n - 1, int(0.9 * share * n))
+    return f"no marked patch can be refined within max_unknowns = {int(max_unknowns):,} DOFs (now {ndof_now:,})"
+
+
+def _true_error(solution, estimate, exact_gradient) -> float:
+    """The relative energy-norm error ||grad(T - T_h)||_K / ||grad T_h||_K (conductivity constant per patch)."""
+    err = solution.h1_error(exact_gradient)
+    k = solution.problem.conductivity.constant
+    if k is None or np.ndim(k):
+        raise ProblemError("the true error needs a constant isotropic conductivity (a number)")
+    return float(np.sqrt(k) * err / np.sqrt(estimate.energy)) if estimate.energy > 0 else float("inf")
+
+
+def _report(step: int, s: AdaptiveStep) -> None:
+    if progress.active():
+        import sys
+
+        err = f", error {s.error:.3g}" if s.error is not None else ""
+        print(f"[adapt {step}] {s.patches} patches, {s.unknowns:,} unknowns: estimate {s.relative:.3g}{err}, "
+              f"{s.marked} marked, {s.seconds:.2f} s", file=sys.stderr, flush=True)
