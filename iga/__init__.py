@@ -5,7 +5,8 @@ Public names: :class:`HeatProblem`, :class:`Solution`, :class:`TransientHeatProb
 :func:`effective_conductivity`, :func:`effective_stiffness`, :func:`effective_table` and :func:`macro_map`
 (graded macro models), :func:`write_vtu`, :func:`write_pieces` (one VTU piece per MPI rank and a ``.pvtu``),
 :class:`Expression` (a formula of the position, for values that G+Smo export writes),
-:func:`adaptive_solve` (refinement by tiles, :mod:`iga.adaptivity`), :class:`ProblemError`.  Command line: ``iga --help``.
+:func:`adaptive_solve` (refinement by tiles, :mod:`iga.adaptivity`), :func:`optimize` (a material channel designed
+by gradient, :mod:`iga.design`), :class:`ProblemError`.  Command line: ``iga --help``.
 """
 
 from .errors import ProblemError, SingularProblemError
@@ -20,8 +21,9 @@ from iga.heat.transient import TransientHeatProblem
 from iga.heat.transient_solution import TransientSolution, TransientState
 from iga.io.vtu import write_pieces, write_vtu
 from iga.adaptivity.loop import AdaptiveResult, adaptive_solve
+from iga.design import DesignResult, optimize
 
 __all__ = ["ProblemError", "SingularProblemError", "HeatProblem", "Solution", "ElasticityProblem", "ElasticSolution",
            "effective_conductivity", "effective_stiffness", "EffectiveTable", "effective_table", "macro_map",
            "write_vtu", "write_pieces", "Expression", "TransientHeatProblem", "TransientSolution",
-           "TransientState", "adaptive_solve", "AdaptiveResult"]
+           "TransientState", "adaptive_solve", "AdaptiveResult", "optimize", "DesignResult"]

@@ -24,11 +24,13 @@ from geometry import BSpline, MultiPatch, PlacedPatch
 from geometry.errors import SplineError
 from geometry.faces import is_face
 
+from tiling.microstructure import Microstructure
+
 from .errors import ProblemError
 from .tags import resolve
 from geometry.errors import show
 
-__all__ = ["as_model", "tag_faces", "PlacedPatch"]
+__all__ = ["as_model", "tag_faces", "same_kind", "PlacedPatch"]
 
 
 def _check_spline(s, i):
@@ -78,3 +80,15 @@ def tag_faces(model, tag, rest: list | None = None) -> list:
             raise ProblemError(f"tag {show(tag)} holds an invalid face ({pi}, {show(face)}); faces are (patch index, "
                                "face name or slot face id)")
     return faces
+
+
+def same_kind(source, patches, interfaces, tags, regions=None):
+    """A model of the same kind as ``source`` from new patches, interfaces, tags and slot-face regions: a
+    ``tiling.Microstructure`` keeps its map, tiles, name, caps, trimmed members and the builder's report; anything
+    else becomes a :class:`geometry.MultiPatch` (refined or redesigned models: :mod:`iga.adaptivity`,
+    :mod:`iga.design`)."""
+    if isinstance(source, Microstructure):
+        ms = Microstructure(source.outer, patches, interfaces, tags, source.tiles, source.name, regions or {})
+        ms.caps, ms.trimmed, ms.info, ms.struts = source.caps, source.trimmed, dict(source.info), source.struts
+        return ms
+    return MultiPatch(patches, interfaces, tags, regions or {})

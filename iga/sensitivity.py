@@ -29,7 +29,7 @@ from iga.errors import ProblemError
 from iga.heat.coefficients import TENSOR_PAIRS
 from iga.outputs import Output, gauss_pass
 
-__all__ = ["gradient", "adjoint", "conductivity_sensitivity", "channel_sensitivity"]
+__all__ = ["gradient", "adjoint", "conductivity_sensitivity", "channel_sensitivity", "design_map", "map_basis"]
 
 
 def gradient(solution, output: Output, wrt: str = "tiles", solver: str = "auto") -> np.ndarray:
@@ -106,14 +106,7 @@ def channel_sensitivity(solution, output: Output, channel: str, solver: str = "a
                            "give the problem conductivity=" + repr(channel) + " (or differentiate the channel the "
                            "conductivity reads)")
     patches = prob.model.patches
-    outers = {id(p.outer): p.outer for p in patches}
-    D = next(iter(outers.values())) if len(outers) == 1 else None
-    placed = D is not None
-    if D is None and len(patches) == 1:  # a single spline: the channel is its own
-        D, placed = patches[0].spline, False
-    if D is None or channel not in getattr(D, "channels", ()):
-        raise ProblemError(f"channel_sensitivity: the model needs one deformation map holding the channel "
-                           f"{show(channel)} (a micro-structure paved in one map, or one spline)")
+    D, placed = design_map(prob, channel)
     lam = adjoint(solution, output, solver)
     grad = np.zeros(int(np.prod(D.control_points.shape[:3])))
     dom = D.domain
@@ -125,13 +118,28 @@ def channel_sensitivity(solution, output: Output, channel: str, solver: str = "a
         ys = [S @ patches[i].placement[:, :3].T + patches[i].placement[:, 3]
               if placed and patches[i].placement is not None else S for i in chunk]
         y = np.clip(np.concatenate(ys), dom[:, 0], dom[:, 1])
-        grad[:] -= _map_basis(D, y).T @ rho
+        grad[:] -= map_basis(D, y).T @ rho
 
     gauss_pass(prob, np.stack([solution.u, lam]), add)
     return grad.reshape(D.control_points.shape[:3])
 
 
-def _map_basis(D, y: np.ndarray):
+def design_map(problem, channel: str):
+    """(D, placed): the one deformation map of the model that holds ``channel`` (placed: the patches are placed in
+    it), or the model's single spline holding it (not placed); :class:`ProblemError` otherwise."""
+    patches = problem.model.patches
+    outers = {id(p.outer): p.outer for p in patches}
+    D = next(iter(outers.values())) if len(outers) == 1 else None
+    placed = D is not None
+    if D is None and len(patches) == 1:  # a single spline: the channel is its own
+        D, placed = patches[0].spline, False
+    if D is None or channel not in getattr(D, "channels", ()):
+        raise ProblemError(f"the model needs one deformation map holding the channel {show(channel)} (a "
+                           "micro-structure paved in one map, or one spline)")
+    return D, placed
+
+
+def map_basis(D, y: np.ndarray):
     """The sparse matrix (N, control points) of D's basis (NURBS where D has weights) at its parameters y (N, 3)."""
     import scipy.sparse as sp
 

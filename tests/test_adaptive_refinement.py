@@ -294,3 +294,15 @@ def test_a_bad_adapt_section_is_refused_naming_the_key(change, match):
         cfg["material"]["capacity"] = 2.4e6
     with pytest.raises(ProblemError, match=match):
         validate(cfg)
+
+
+def test_the_box_map_shortcut_of_the_estimate_equals_the_general_chain_rule(monkeypatch):
+    import iga.adaptivity.estimator as est
+
+    tree = TileRefinement(_lshape()).refined([0]).refined([3, 9])
+    s = iga.HeatProblem(tree.model(), source=lambda x: 1.0 + x[:, 0] ** 2).dirichlet("boundary", _corner).solve()
+    fast = estimate_error(s)
+    monkeypatch.setattr(est, "_affine", lambda D: None)  # every map through its second derivatives
+    general = estimate_error(s)
+    assert np.allclose(fast.patch, general.patch, rtol=1e-10, atol=0)
+    assert fast.energy == pytest.approx(general.energy, rel=1e-12)

@@ -43,6 +43,7 @@ from iga.heat.conditions import face_values
 __all__ = ["ErrorEstimate", "estimate_error"]
 
 _ONE_PER_PATCH = 1e-9  # relative spread of a conductivity treated as constant on a patch
+_AFFINE = 1e-12  # control points off an affine function of the Greville points by less than this (relative): affine
 _PAIRS = list(combinations_with_replacement(range(3), 2))  # the six second derivatives (i <= j)
 _VOIGT = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)]  # the conductivity tensor's components, in order
 _CHUNK = 1 << 17  # Gauss points per batch of patches
@@ -141,14 +142,26 @@ def _geometry(patches, T, axes):
     for idx in groups.values():
         D = patches[idx[0]].outer
         dom = D.domain
-        vD, JD, HD = _derivatives(D, np.clip(y[idx].reshape(-1, 3), dom[:, 0], dom[:, 1]))
         n = len(idx)
-        JD, HD = JD.reshape(n, N, -1, 3), HD.reshape(n, N, -1, 3, 3)
         Jyi = Jy[idx]
-        x[idx] = vD[:, :3].reshape(n, N, 3)
-        J[idx] = np.einsum("pnac,pnci->pnai", JD[:, :, :3], Jyi)
-        H[idx] = (np.einsum("pnacd,pnci,pndj->pnaij", HD[:, :, :3], Jyi, Jyi, optimize=True)
-                  + np.einsum("pnac,pncij->pnaij", JD[:, :, :3], Hy[idx], optimize=True))
+        yy = np.clip(y[idx].reshape(-1, 3), dom[:, 0], dom[:, 1])
+        affine = _affine(D)
+        if affine is not None:  # x = M y + c (a box map): no second derivatives of D, first ones constant
+            M, c = affine
+            x[idx] = yy.reshape(n, N, 3) @ M.T + c
+            J[idx] = np.einsum("ac,pnci->pnai", M, Jyi)
+            H[idx] = np.einsum("ac,pncij->pnaij", M, Hy[idx])
+            if not D.channels:
+                continue
+            vD, JD = D.value_and_jacobian(yy)
+            JD = JD.reshape(n, N, -1, 3)
+        else:
+            vD, JD, HD = _derivatives(D, yy)
+            JD, HD = JD.reshape(n, N, -1, 3), HD.reshape(n, N, -1, 3, 3)
+            x[idx] = vD[:, :3].reshape(n, N, 3)
+            J[idx] = np.einsum("pnac,pnci->pnai", JD[:, :, :3], Jyi)
+            H[idx] = (np.einsum("pnacd,pnci,pndj->pnaij", HD[:, :, :3], Jyi, Jyi, optimize=True)
+                      + np.einsum("pnac,pncij->pnaij", JD[:, :, :3], Hy[idx], optimize=True))
         for i, c in enumerate(D.channels):
             values.setdefault(c, np.zeros((P, N)))
             grads.setdefault(c, np.zeros((P, N, 3)))
@@ -157,6 +170,22 @@ def _geometry(patches, T, axes):
             values[c][idx] = vD[:, 3 + i].reshape(n, N)
             grads[c][idx] = np.einsum("pnc,pnci->pni", JD[:, :, 3 + i], Jyi)
     return x, J, H, values, grads
+
+
+def _affine(D):
+    """(M (3, 3), c (3,)) when the polynomial map D is affine, x = M y + c (its control points an affine function
+    of its Greville points, to round-off of its size), else None."""
+    if D.is_rational:
+        return None
+    P = D.control_points[..., :3].reshape(-1, 3)
+    G = np.stack(np.meshgrid(*(kn.greville(U, p) for U, p in zip(D.knots, D.degrees)), indexing="ij"),
+                 axis=-1).reshape(-1, 3)
+    A = np.c_[G, np.ones(len(G))]
+    X = np.linalg.lstsq(A, P, rcond=None)[0]
+    size = max(float(np.ptp(P, axis=0).max()), 1.0)
+    if np.abs(A @ X - P).max() > _AFFINE * size:
+        return None
+    return X[:3].T, X[3]
 
 
 def _field_derivatives(U, tables):

@@ -83,15 +83,6 @@ def dorfler(indicators, fraction: float) -> np.ndarray:
     return np.sort(order[: min(n, len(eta))])
 
 
-def _replayed(problem, model):
-    """``problem`` (a :class:`iga.HeatProblem`) set up again on ``model``: same coefficients, conditions and
-    solution degree and refinement."""
-    quadrature_extra, degree_elevation, refine, degree = problem.space_args
-    new = type(problem)(model, 1.0, 0.0, degree_elevation, refine, quadrature_extra, degree)
-    new.conductivity, new.source, new.conditions = problem.conductivity, problem.source, list(problem.conditions)
-    return new
-
-
 def _check(problem, tolerance, max_unknowns, marking, refine) -> None:
     if type(problem) is not HeatProblem:
         raise ProblemError(f"adaptive_solve takes a steady iga.HeatProblem, got {type(problem).__name__}")
@@ -143,7 +134,7 @@ def adaptive_solve(problem, tolerance: float, max_unknowns: int | None = None, m
     """
     _check(problem, tolerance, max_unknowns, marking, refine)
     tree = TileRefinement(problem.model)
-    current = problem if len(tree.leaves) == len(problem.model.patches) else _replayed(problem, tree.model())
+    current = problem if len(tree.leaves) == len(problem.model.patches) else problem.on(tree.model())
     history, reached, reason = [], False, f"{max_steps} steps taken"
     solution = estimate = None
     for step in range(1, max_steps + 1):
@@ -184,7 +175,7 @@ def _next_step(problem, tree, estimate, marked, refine, max_unknowns, ndof_now):
         if len(new.held) == n:
             return (f"none of the {n} marked patches can be refined: their branch children sit on boxes that their "
                     "refinement would not keep nested")
-        nxt = _replayed(problem, new.model())
+        nxt = problem.on(new.model())
         if max_unknowns is None or nxt.ndof <= max_unknowns:
             return new, nxt, n - len(new.held)
         share = (max_unknowns - ndof_now) / max(nxt.ndof - ndof_now, 1)

@@ -31,13 +31,12 @@ from geometry.errors import show
 from geometry.errors import SplineError
 from geometry.faces import FACE_AXIS, face_knots, nested_refinement, oriented_face_knots
 from geometry.grouping import ObjectIndex
-from geometry.patches.multipatch import MultiPatch, PlacedPatch
+from geometry.patches.multipatch import PlacedPatch
 
 from iga.adaptivity.gluing import (MAX_DEPTH, bisected, branch_pairs, identity_pairs, inner_pairs,
                                   interface)
 from iga.errors import ProblemError
-from iga.model import as_model
-from tiling.microstructure import Microstructure
+from iga.model import as_model, same_kind
 
 __all__ = ["Leaves", "TileRefinement", "MAX_DEPTH"]
 
@@ -212,14 +211,7 @@ class TileRefinement:
                                root.patch_in_tile, refinement=level)
         # a plain polynomial root: the leaf is the root placed on its box, x = root(A xi + b), over a reference
         # tile (the identity on [0, 1]^3 in the leaf's basis) that all leaves with equal bases share
-        knots = []
-        for k in range(3):
-            U = T.knots[k]
-            for _ in range(level):
-                b = np.unique(U)
-                U = np.sort(np.r_[U, 0.5 * (b[:-1] + b[1:])])
-            U = U if whole else kn.restriction(U, T.degrees[k], *box[k])[0]
-            knots.append((U - U[0]) / (U[-1] - U[0]))
+        knots = [self._leaf_knots(T, k, level, box[k]) for k in range(3)]
         key = ("reference", T.degrees, tuple(U.tobytes() for U in knots))
         if key not in self._tiles:
             self._tiles[key] = _identity_tile(T.degrees, knots)
@@ -231,6 +223,19 @@ class TileRefinement:
         A[:, :3] = np.diag(box[:, 1] - box[:, 0])
         A[:, 3] = box[:, 0]
         return PlacedPatch(self._tiles[key], A, outer, root.tile, root.level, root.patch_in_tile, refinement=level)
+
+    def _leaf_knots(self, T, k: int, level: int, interval) -> np.ndarray:
+        """The knot vector of direction ``k`` of a leaf of the plain root T: T's bisected ``level`` times,
+        restricted to ``interval`` (end knots repeated p + 1 times) and normalised to [0, 1]; cached (leaves of one
+        root and level share few distinct ones)."""
+        key = ("knots", self._same(T), k, level, float(interval[0]), float(interval[1]))
+        if key not in self._tiles:
+            U, p = bisected([(T.knots[k], T.degrees[k])], level)[0]
+            a, b = float(interval[0]), float(interval[1])
+            inner = U[(U > a) & (U < b)]
+            U = np.r_[np.full(p + 1, a), inner, np.full(p + 1, b)]
+            self._tiles[key] = (U - a) / (b - a)
+        return self._tiles[key]
 
     # ------------------------------------------------------------------- faces
     def _face_leaves(self, r: int, face: str):
@@ -306,7 +311,7 @@ class TileRefinement:
         for (r, face), rects in getattr(self.roots, "face_regions", {}).items():
             for i in self._face_leaves(r, face)[0]:
                 regions[(int(i), face)] = rects
-        return _rebuilt(self.source, patches, interfaces, tags, regions)
+        return same_kind(self.source, patches, interfaces, tags, regions)
 
 
 def _identity_tile(degrees, knots) -> BSpline:
@@ -314,13 +319,3 @@ def _identity_tile(degrees, knots) -> BSpline:
     g = [kn.greville(U, p) for U, p in zip(knots, degrees)]
     cp = np.stack(np.meshgrid(*g, indexing="ij"), axis=-1)
     return BSpline(tuple(degrees), [np.asarray(U, float) for U in knots], cp)
-
-
-def _rebuilt(source, patches, interfaces, tags, regions):
-    """A model of the same kind as ``source``: a ``tiling.Microstructure`` keeps its map, tiles, name and
-    the builder's report; anything else becomes a :class:`geometry.MultiPatch`."""
-    if isinstance(source, Microstructure):
-        ms = Microstructure(source.outer, patches, interfaces, tags, source.tiles, source.name, regions)
-        ms.caps, ms.trimmed, ms.info, ms.struts = source.caps, source.trimmed, dict(source.info), source.struts
-        return ms
-    return MultiPatch(patches, interfaces, tags, regions)

@@ -95,6 +95,14 @@ class HeatProblem(Problem):
         self.source = ScalarField(source, "source", model=self.model)
         self.conditions: list[Condition] = []
 
+    def on(self, model) -> "HeatProblem":
+        """This problem set up again on another ``model`` with the same tags and channels (refined, redesigned):
+        the same coefficients, conditions, and solution degree and refinement of every patch."""
+        quadrature_extra, degree_elevation, refine, degree = self.space_args
+        new = type(self)(model, 1.0, 0.0, degree_elevation, refine, quadrature_extra, degree)
+        new.conductivity, new.source, new.conditions = self.conductivity, self.source, list(self.conditions)
+        return new
+
     # ------------------------------------------------------------ conditions
     def _condition(self, kind, tag, value, h=None) -> "HeatProblem":
         tag = as_expression(tag)
