@@ -57,9 +57,13 @@ def adjoint(solution, output: Output, solver: str = "auto", tol: float = 1e-12) 
                            "radiation makes it nonlinear (its adjoint needs the tangent at the solution)")
     g = output.gradient(solution)
     K, _, book = prob.assemble()
-    constraints = prolongation(prob.model, prob.spaces, prob.offsets, prob.weights) \
-        if needs_constraints(prob.model, prob.spaces) else None
-    dd = project_dirichlet(prob.faces, book["dirichlet"], prob.ndof, constraints)
+    record = solution.record
+    if record.dirichlet is not None:  # the forward solve's constraints and Dirichlet data
+        constraints, dd = record.constraints, record.dirichlet
+    else:
+        constraints = prolongation(prob.model, prob.spaces, prob.offsets, prob.weights) \
+            if needs_constraints(prob.model, prob.spaces) else None
+        dd = project_dirichlet(prob.faces, book["dirichlet"], prob.ndof, constraints)
     zero = DirichletData(dd.dofs, np.zeros(len(dd.dofs)), dd.G, dd.keys, dd.slave_rows,
                          np.zeros(len(dd.slave_rows)), dd.slave_faces, dd.master_faces)
     return solve_system(K, g, constraints, zero, solver, tol).u

@@ -170,10 +170,10 @@ def test_the_adaptive_loop_refines_towards_the_re_entrant_edge_with_a_trustworth
     problem = iga.HeatProblem(_lshape()).dirichlet("boundary", _corner)
     result = adaptive_solve(problem, 1e-3, max_unknowns=6000, exact_gradient=_corner_gradient)
     h = result.history
-    assert not result.reached and "max_unknowns" in result.reason
+    assert not result.reached and "6,000" in result.reason
     assert all(isinstance(s, AdaptiveStep) for s in h) and len(h) >= 5
     assert all(0.3 <= s.effectivity <= 3 for s in h)
-    assert h[-1].error < 0.5 * h[0].error and h[-1].unknowns <= 6000
+    assert h[-1].error < 0.5 * h[0].error and h[-1].unknowns <= 6000 <= 3 * h[-1].unknowns  # the budget is used
     # refined where the solution is singular: patches near the edge x = y = 0 are finer than those far from it
     model = result.model
     centre = np.array([np.hypot(*p.image(p.spline.domain.mean(axis=1)[None])[0, :2]) for p in model.patches])
@@ -195,7 +195,7 @@ def test_dorfler_marks_the_fewest_largest_indicators():
     ({"tolerance": float("nan")}, "tolerance must be a positive number"),
     ({"tolerance": 1e-3, "marking": 0.0}, r"marking must lie in \(0, 1\]"),
     ({"tolerance": 1e-3, "marking": 1.5}, r"marking must lie in \(0, 1\]"),
-    ({"tolerance": 1e-3, "max_unknowns": 100}, "already has .* DOFs, more than max_unknowns = 100"),
+    ({"tolerance": 1e-3, "max_unknowns": 100}, "already has .* unknowns, more than max_unknowns = 100"),
     ({"tolerance": 1e-3, "refine": "p"}, "refine must be 'h'"),
 ])
 def test_bad_adaptive_input_is_refused_naming_it(kwargs, match):
@@ -207,7 +207,7 @@ def test_bad_adaptive_input_is_refused_naming_it(kwargs, match):
 def test_a_loop_that_cannot_reach_its_tolerance_returns_its_best_solution_and_says_why():
     problem = iga.HeatProblem(_lshape()).dirichlet("boundary", _corner)
     result = adaptive_solve(problem, 1e-8, max_unknowns=700)
-    assert not result.reached and "within max_unknowns = 700 DOFs" in result.reason
+    assert not result.reached and ("max_unknowns = 700" in result.reason or "budget of 700" in result.reason)
     assert result.estimate.relative == pytest.approx(result.history[-1].relative)
     assert result.solution.info.free_dofs == result.history[-1].unknowns
     solution, history = result  # the (solution, history) of the API contract
@@ -267,7 +267,7 @@ def test_a_pipeline_adapts_a_graded_heat_sink_and_reports_every_step(tmp_path):
     a = summary["adapt"]
     steps = a["steps"]
     # the tiles have discontinuity planes: refined in place, the estimate falls step by step until the budget
-    assert len(steps) >= 2 and not a["reached"] and "max_unknowns = 20,000" in a["reason"]
+    assert len(steps) >= 2 and not a["reached"] and "20,000" in a["reason"]
     assert all(s1["relative"] < s0["relative"] for s0, s1 in zip(steps, steps[1:]))
     assert summary["unknowns"] == steps[-1]["unknowns"] and abs(summary["energy_balance_error"]) < 1e-9
     mesh = meshio.read(tmp_path / "out" / "sink.vtu")

@@ -75,6 +75,10 @@ def _config(section: str) -> tuple[dict, callable, callable]:
     elif section == "adapt":
         cfg["adapt"] = {"tolerance": 0.01}
         at, out = (lambda c: c["adapt"]), (lambda v: v["adapt"])
+    elif section == "design":
+        cfg.update(map={"primitive": "box", "grading": {"channel": "k", "near": 100.0, "far": 100.0, "face": "wmin"}},
+                   material={"conductivity": "k"}, design={"variables": "channel:k", "bounds": [54.0, 205.0]})
+        at, out = (lambda c: c["design"]), (lambda v: v["design"])
     elif section == "time":
         cfg.update(physics={"kind": "transient-heat"}, material={"capacity": 1.0}, time={"end": "steady", "tolerance": 0.1})
         at, out = (lambda c: c["time"]), (lambda v: v["time"])

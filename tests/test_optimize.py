@@ -72,3 +72,92 @@ def test_bad_design_input_is_refused_naming_it(kwargs, match):
 def test_a_problem_that_is_not_a_steady_heat_problem_is_refused():
     with pytest.raises(ProblemError, match="optimize takes a steady iga.HeatProblem"):
         optimize("problem", MeanTemperature(), "channel:k")
+
+
+DESIGN = """
+[map]
+primitive = "vertical_heat_sink"
+grading = {channel = "k", near = 129.5, far = 129.5, face = "wmin"}
+
+[tile]
+library = "heat_sink_t2"
+
+[paving]
+scheme = "hierarchical"
+counts = [1, 1]
+levels = 2
+
+[material]
+conductivity = "k"
+
+[[bc]]
+kind = "neumann"
+tag = "branch-in"
+value = 2e4
+
+[[bc]]
+kind = "robin"
+tag = "exterior"
+h = 3000.0
+ambient = 0.0
+
+[design]
+variables = "channel:k"
+bounds = [54.0, 205.0]
+mean = 129.5
+iterations = 8
+
+[output]
+dir = "out"
+name = "sink"
+"""
+
+
+@pytest.mark.slow
+def test_iga_optimize_designs_the_channel_and_writes_the_design(tmp_path):
+    import json
+    import subprocess
+    import sys
+
+    import meshio
+
+    (tmp_path / "sink.toml").write_text(DESIGN)
+    done = subprocess.run([sys.executable, "-m", "iga", "--quiet", "optimize", "sink.toml"], cwd=tmp_path,
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "design: TemperatureNorm(8)" in done.stdout
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    d = summary["design"]
+    assert d["final"] < d["initial"] and d["improvement"] > 0.01 and 1 <= len(d["steps"]) <= 8
+    k = meshio.read(tmp_path / "out" / "sink.vtu").point_data["k"]
+    assert k.min() < 120 and k.max() > 140  # the written design is graded, at the uniform design's mean
+    assert (tmp_path / "out" / "sink_design.png").stat().st_size > 0
+    assert abs(summary["energy_balance_error"]) < 1e-9
+
+
+@pytest.mark.parametrize("change, match", [
+    ({"design": {"variables": "channel:rho", "bounds": [54.0, 205.0]}}, "names the channel 'rho'"),
+    ({"design": {"variables": "k", "bounds": [54.0, 205.0]}}, r"design.variables: must be \"channel:NAME\""),
+    ({"design": {"variables": "channel:k", "bounds": [205.0, 54.0]}}, "low < high"),
+    ({"design": {"variables": "channel:k", "bounds": [54.0, 205.0], "mean": 300.0}}, "cannot be met"),
+    ({"design": {"variables": "channel:k"}}, "bounds"),
+    ({"design": {"variables": "channel:k", "bounds": [54.0, 205.0], "objective": "peak"}}, "design.objective"),
+    ({"adapt": {"tolerance": 0.01}}, "adapt and design cannot both"),
+])
+def test_a_bad_design_section_is_refused_naming_the_key(change, match):
+    import tomllib
+
+    from iga.app.config import validate
+
+    cfg = tomllib.loads(DESIGN)
+    cfg.update(change)
+    with pytest.raises(ProblemError, match=match):
+        validate(cfg)
+
+
+def test_iga_optimize_without_a_design_section_says_what_is_missing(tmp_path):
+    from iga.app.cli import _cmd_optimize
+
+    (tmp_path / "plain.toml").write_text(DESIGN.split("[design]")[0] + '[output]\ndir = "out"\n')
+    with pytest.raises(ProblemError, match=r"iga optimize needs a \[design\] section"):
+        _cmd_optimize(type("Args", (), {"config": str(tmp_path / "plain.toml")})())

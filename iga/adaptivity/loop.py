@@ -6,7 +6,7 @@ step solves, estimates the error per patch (:func:`iga.adaptivity.estimator.esti
 fewest patches whose indicators carry a fraction ``marking`` of the estimate's square (Dorfler 1996), and
 splits them into 2 x 2 x 2 children (patches with discontinuity planes are bisected in place).  It stops when
 the estimate relative to the solution's energy norm is at most ``tolerance``, or before a step would exceed
-``max_unknowns``, and returns the last solution with the history of every step.
+``max_unknowns`` unknowns, and returns the last solution with the history of every step.
 """
 
 from __future__ import annotations
@@ -22,10 +22,11 @@ from geometry.numbers import is_real as is_number
 
 from iga.adaptivity.estimator import ErrorEstimate, estimate_error
 from iga.adaptivity.tree import TileRefinement
+from iga.discretisation.constraints import needs_constraints, prolongation
 from iga.errors import ProblemError
 from iga.heat.problem import HeatProblem
 
-__all__ = ["AdaptiveStep", "AdaptiveResult", "adaptive_solve", "dorfler"]
+__all__ = ["AdaptiveStep", "AdaptiveResult", "adaptive_solve", "dorfler", "unknowns"]
 
 
 @dataclass(frozen=True)
@@ -103,8 +104,8 @@ def _check(problem, tolerance, max_unknowns, marking, refine) -> None:
     if own != given:
         raise ProblemError("adaptive_solve refines each patch's own basis; a problem analysed in other bases "
                            "(bases=...) cannot be refined by tiles")
-    if max_unknowns is not None and problem.ndof > max_unknowns:
-        raise ProblemError(f"the problem already has {problem.ndof:,} DOFs, more than max_unknowns = "
+    if max_unknowns is not None and unknowns(problem) > max_unknowns:
+        raise ProblemError(f"the problem already has {unknowns(problem):,} unknowns, more than max_unknowns = "
                            f"{int(max_unknowns):,}; raise the budget or start coarser")
 
 
@@ -119,9 +120,10 @@ def adaptive_solve(problem, tolerance: float, max_unknowns: int | None = None, m
     problem : a steady :class:`iga.HeatProblem` with its conditions; its ``degree_elevation``, ``refine`` and
         ``degree`` apply to every patch of every step
     tolerance : the relative energy-norm error wanted (> 0), e.g. 1e-3
-    max_unknowns : the budget of DOFs (before constraints, an upper bound of the unknowns): a step that would
-        exceed it refines only the marked patches with the largest indicators that fit; when none fits, the loop
-        stops and returns the best solution so far with ``reached=False`` and the reason
+    max_unknowns : the budget of unknowns (those the interface constraints leave, before the Dirichlet data:
+        :func:`unknowns`): a step that would exceed it refines only the marked patches with the largest
+        indicators that fit, and its solve is the last; when none fits, the loop stops; either way the best
+        solution so far is returned with ``reached=False`` and the reason
     marking : Dorfler's fraction in (0, 1]: the marked patches carry at least this fraction of eta^2
     refine : ``"h"`` splits marked patches into 2 x 2 x 2 children (patches with discontinuity planes are bisected
         in place), ``"h-in-place"`` bisects every marked patch's knot spans
@@ -135,7 +137,7 @@ def adaptive_solve(problem, tolerance: float, max_unknowns: int | None = None, m
     _check(problem, tolerance, max_unknowns, marking, refine)
     tree = TileRefinement(problem.model)
     current = problem if len(tree.leaves) == len(problem.model.patches) else problem.on(tree.model())
-    history, reached, reason = [], False, f"{max_steps} steps taken"
+    history, reached, reason, last = [], False, f"{max_steps} steps taken", False
     solution = estimate = None
     for step in range(1, max_steps + 1):
         t0 = time.perf_counter()
@@ -151,23 +153,38 @@ def adaptive_solve(problem, tolerance: float, max_unknowns: int | None = None, m
         if reached:
             reason = f"the estimate {estimate.relative:.3g} met the tolerance {tolerance:g}"
             break
+        if last:
+            reason = (f"the budget of {int(max_unknowns):,} unknowns is used; the estimate reached "
+                      f"{estimate.relative:.3g} (tolerance {tolerance:g})")
+            break
         if step == max_steps:
             break
-        step_to = _next_step(problem, tree, estimate, marked, refine, max_unknowns, current.ndof)
+        now = solution.record.constraint_stats.get("reduced", current.ndof)  # the budget's measure, this step
+        step_to = _next_step(problem, tree, estimate, marked, refine, max_unknowns, now)
         if isinstance(step_to, str):
             reason = f"{step_to}; the estimate reached {estimate.relative:.3g} (tolerance {tolerance:g})"
             break
         tree, current, refined = step_to
+        last = refined < len(marked)  # the budget cut the step short: the next solve is the last
         history[-1] = replace(history[-1], marked=refined)
     return AdaptiveResult(solution, estimate, tuple(history), reached, reason)
 
 
-def _next_step(problem, tree, estimate, marked, refine, max_unknowns, ndof_now):
+def unknowns(problem) -> int:
+    """The unknowns a problem's interface constraints leave (before its Dirichlet data): the budget's measure,
+    an upper bound of the unknowns solved for."""
+    if not needs_constraints(problem.model, problem.spaces):
+        return int(problem.ndof)
+    return int(prolongation(problem.model, problem.spaces, problem.offsets, problem.weights).P.shape[1])
+
+
+def _next_step(problem, tree, estimate, marked, refine, max_unknowns, now):
     """(refinement, problem, patches refined) of the next step, or why there is none (a string).
 
-    Where refining every marked patch would exceed ``max_unknowns``, the marked patches with the largest
-    indicators that the DOFs left allow are refined (in proportion to the overshoot, then fewer until it fits),
-    so that the budget is used rather than the loop stopping short of it."""
+    Where refining every marked patch would exceed ``max_unknowns`` (:func:`unknowns`), the marked patches with the
+    largest indicators that the unknowns left allow are refined (in proportion to the overshoot, then fewer until
+    it fits), so that the budget is used rather than the loop stopping short of it; ``now`` the unknowns of the
+    current step."""
     order = marked[np.argsort(-estimate.patch[marked], kind="stable")]
     n = len(order)
     while n >= 1:
@@ -176,11 +193,14 @@ def _next_step(problem, tree, estimate, marked, refine, max_unknowns, ndof_now):
             return (f"none of the {n} marked patches can be refined: their branch children sit on boxes that their "
                     "refinement would not keep nested")
         nxt = problem.on(new.model())
-        if max_unknowns is None or nxt.ndof <= max_unknowns:
+        if max_unknowns is None:
             return new, nxt, n - len(new.held)
-        share = (max_unknowns - ndof_now) / max(nxt.ndof - ndof_now, 1)
-        n = min(n - 1, int(0.9 * share * n))
-    return f"no marked patch can be refined within max_unknowns = {int(max_unknowns):,} DOFs (now {ndof_now:,})"
+        size = unknowns(nxt)
+        if size <= max_unknowns:
+            return new, nxt, n - len(new.held)
+        share = (max_unknowns - now) / max(size - now, 1)
+        n = min(n - 1, int(0.95 * share * n))
+    return f"no marked patch can be refined within max_unknowns = {int(max_unknowns):,} (now {now:,} unknowns)"
 
 
 def _true_error(solution, estimate, exact_gradient) -> float:

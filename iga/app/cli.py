@@ -91,22 +91,34 @@ def _elastic_line(e: dict) -> str:
             f"{e['max_von_mises_Pa']:.3g} Pa; work balance error {e['work']['relative_error']:.1e}")
 
 
-def _cmd_run(args) -> int:
+def _read_config(path: Path) -> dict:
     import tomllib
 
-    from iga.app.pipeline import run_pipeline
-
-    path = Path(args.config)
     if path.is_dir():
         raise ProblemError(f"config file {path} is a folder; give the path of a .toml file")
     if not path.is_file():
         raise ProblemError(f"config file {path} does not exist")
     try:
-        cfg = tomllib.loads(path.read_text())
+        return tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as exc:
         raise ProblemError(f"{path} is not valid TOML: {exc}") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise ProblemError(f"cannot read config file {path}: {exc}") from None
+
+
+def _cmd_optimize(args) -> int:
+    cfg = _read_config(Path(args.config))
+    if "design" not in cfg:
+        raise ProblemError(f"iga optimize needs a [design] section in {args.config} (variables = \"channel:k\", "
+                           "bounds = [54, 205], ...); see the pipeline reference, or use iga run")
+    return _cmd_run(args, cfg)
+
+
+def _cmd_run(args, cfg: dict | None = None) -> int:
+    from iga.app.pipeline import run_pipeline
+
+    path = Path(args.config)
+    cfg = _read_config(path) if cfg is None else cfg
     s = run_pipeline(cfg, base_dir=path.parent)
     from iga.distributed.solve import is_root
 
@@ -117,6 +129,14 @@ def _cmd_run(args) -> int:
         t = s["temperature_C"]
         print(f"{_plural(s['tiles'], 'tile')}, {s['dofs']} DOFs; temperature {t['min']:.3f} .. {t['max']:.3f}; "
               f"balance error {s['energy_balance_error']:.1e}{_newton_note(s)}; {where}")
+    if "design" in s:
+        d = s["design"]
+        print(f"design: {d['objective']} {d['initial']:.4g} -> {d['final']:.4g} ({100 * d['improvement']:.1f}% "
+              f"lower) in {len(d['steps'])} iterations, {d['analyses']} analyses; {d['message']}")
+    if "adapt" in s:
+        a = s["adapt"]
+        print(f"adaptive: {len(a['steps'])} steps to {a['patches']} patches, estimate {a['estimate']:.3g}; "
+              f"{a['reason']}")
     if "elasticity" in s:
         print(f"{_plural(s['tiles'], 'tile')}, {_elastic_line(s['elasticity'])}; {where}")
     if "temperature_C" not in s and "elasticity" not in s:  # a model without analysis (physics.kind = 'none')
@@ -334,6 +354,18 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,
                      help="no progress display on stderr (as 'iga --quiet run ...')")
     run.set_defaults(func=_cmd_run)
+    opt = sub.add_parser(
+        "optimize", help="design a pipeline's material channel by gradient ([design] section)",
+        formatter_class=_Formatter,
+        description="Run a pipeline whose [design] section names the map's channel that the conductivity reads "
+        "(variables = \"channel:k\"), its bounds and the output to minimise: SLSQP over the channel's control values, "
+        "each step an exact analysis and one adjoint (iga.optimize). Writes the final design's VTU and picture, "
+        "NAME_design.png (the objective per iteration) and summary.json (every iteration).",
+    )
+    opt.add_argument("config", help="path to the CONFIG.toml file (with a [design] section)")
+    opt.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,
+                     help="no progress display on stderr (as 'iga --quiet optimize ...')")
+    opt.set_defaults(func=_cmd_optimize)
     _add_homogenize(sub)
     info = sub.add_parser("info", help="describe a file the toolkit wrote (splines, meshes, IGES, summary)",
                           description="Print degrees, sizes, channels, knot spans, domain, bounding box and "

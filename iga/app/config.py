@@ -25,7 +25,7 @@ from iga.app.config_model import (NO_MAP, NO_TILE, map_section, paving_section, 
                            second_level, surface_reason, tile_section)
 from iga.app.config_physics import physics as _physics
 from iga.app.config_schema import SCHEMA, allowed, default, filled, required
-from iga.app.config_adapt import adapt_section
+from iga.app.config_loops import adapt_section, design_section
 from iga.app.config_time import capacity, time_section
 from iga.errors import ProblemError
 from geometry.errors import show
@@ -33,7 +33,7 @@ from geometry.errors import show
 __all__ = ["validate", "SECTIONS", "OUTPUT_DEFAULTS"]
 
 SECTIONS = ("map", "tile", "paving", "primitive", "second_level", "reduce", "material", "bc", "physics", "support",
-            "load", "time", "adapt", "solver", "output", "limits")
+            "load", "time", "adapt", "design", "solver", "output", "limits")
 OUTPUT_DEFAULTS = {k.name: k.default for k in SCHEMA["output"].keys}
 EXPORTS = ("stl", "obj", "ply", "vtp", "iges", "gismo")
 SURFACE_SCHEMES = ("random_implicit", "implicit_bifurcation")  # implicit structures: surfaces, no analysis
@@ -243,8 +243,9 @@ def validate(config, base_dir=".") -> dict:
     cfg["solver"] = _solver(config.get("solver", {}))
     cfg["time"] = time_section(config, physics["kind"], cfg["solver"]["method"])
     cfg["adapt"] = adapt_section(config, physics["kind"])
-    if cfg["adapt"] is not None and cfg["solver"]["method"] == "petsc":
-        raise ProblemError("config section adapt solves serially; use another solver.method than 'petsc'")
+    cfg["design"] = design_section(config, physics["kind"], cfg["material"]["conductivity"])
+    if (cfg["adapt"] or cfg["design"]) is not None and cfg["solver"]["method"] == "petsc":
+        raise ProblemError("config sections adapt and design solve serially; use another solver.method than 'petsc'")
     cfg["output"] = _output(config.get("output", {}), Path(base_dir))
     if physics["kind"] == "elasticity":  # outputs of the temperature: the same rule as elastic keys in a heat run
         given = config.get("output", {}) if isinstance(config.get("output", {}), dict) else {}

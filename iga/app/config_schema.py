@@ -259,6 +259,20 @@ _SECTIONS = (
         _K("refine", "`\"h\"` or `\"h-in-place\"`", "h", "`h` splits a marked patch into 2 x 2 x 2 children "
            "(patches with discontinuity planes are bisected in place), `h-in-place` bisects its knot spans"),
         _K("max_steps", "an integer >= 1", 50, "at most this many solves"))),
+    Section("design", "[design]", "Design by gradient of a steady heat analysis (`physics.kind = \"heat\"`; "
+            "`iga optimize CONFIG.toml`, or `iga run`): the control values of the map's channel that the "
+            "conductivity reads, optimised for an output (`iga.optimize`).", (
+        _K("variables", "`\"channel:NAME\"`", REQUIRED, "the channel NAME of the map (the one "
+           "`material.conductivity` names), e.g. made by `map.grading`"),
+        _K("bounds", "[low, high] (W/(m K))", REQUIRED, "the bounds of every control value, e.g. `[54, 205]` for "
+           "steel to aluminium"),
+        _K("objective", "`\"temperature_norm\"` or `\"mean_temperature\"`", "temperature_norm",
+           "the output minimised: a smooth maximum (int T^p / V)^(1/p), or the mean"),
+        _K("p", "a number >= 1", 8.0, "the exponent of `temperature_norm`"),
+        _K("tag", "a tag (expression)", UNSET, "over the faces of this tag instead of the volume"),
+        _K("mean", "a number (W/(m K))", UNSET, "keep the volume mean of the channel (for a channel between two "
+           "materials: the volume, and the mass, of each)"),
+        _K("iterations", "an integer >= 1", 30, "SLSQP's iteration limit"))),
     Section("solver", "[solver]", "The discretisation and the linear solver.", (
         _K("method", _one_of(m for m in solvers.backends() if m != "petsc") + " (`petsc` with the [mpi] extra)",
            "auto", "`auto` chooses by the problem's size and structure"),

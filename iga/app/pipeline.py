@@ -25,6 +25,8 @@ from geometry.io.iges import write_iges
 from geometry.io.files import atomic_write, check_folder, offscreen_plotter, save_screenshot
 from iga.io.pictures import count, render_temperature
 from iga.adaptivity.loop import adaptive_solve
+from iga.design import optimize
+from iga.outputs import MeanTemperature, TemperatureNorm
 from iga.app.problems import heat_problem
 from iga.app.pipeline_transient import transient_stage
 from tiling.export import boundary_splines, mesh_watertightness, write_mesh, write_surfaces
@@ -270,8 +272,16 @@ def _heat_stage(cfg, model, out: Path, ocfg: dict, stages):
     probes = np.asarray(ocfg["probes"], float).reshape(-1, 3)
     if len(probes):  # before the solve: a probe outside the model is a configuration error
         Locator(prob.model)(probes, what="output.probes")
-    adapted = None
-    if cfg["adapt"] is not None:  # solve, estimate, split where the estimate is largest, until the tolerance
+    adapted = designed = None
+    if cfg["design"] is not None:  # the map's channel optimised: exact analyses of the same micro-structure
+        d = cfg["design"]
+        objective = (TemperatureNorm(d["p"], d["tag"]) if d["objective"] == "temperature_norm"
+                     else MeanTemperature(d["tag"]))
+        designed = optimize(prob, objective, d["variables"], d["bounds"], d["mean"], d["iterations"],
+                            solver=scfg["method"])
+        sol = designed.solution
+        prob, model = sol.problem, sol.problem.model
+    elif cfg["adapt"] is not None:  # solve, estimate, split where the estimate is largest, until the tolerance
         a = cfg["adapt"]
         adapted = adaptive_solve(prob, a["tolerance"], a["max_unknowns"], a["marking"], a["refine"], scfg["method"],
                                  max_steps=a["max_steps"], tol=scfg["tol"])
@@ -288,11 +298,36 @@ def _heat_stage(cfg, model, out: Path, ocfg: dict, stages):
     t0 = time.perf_counter()
     tmin, tmax = sol.temperature_range(ocfg["samples"])
     summary = _summary(cfg, prob, sol, (tmin, tmax), mesh_volume, probes, files, analysis_peak)
+    if designed is not None:
+        summary["design"] = {"objective": objective.name, "initial": designed.initial, "final": designed.objective,
+                             "improvement": designed.improvement, "success": designed.success,
+                             "message": designed.message, "analyses": designed.evaluations,
+                             "steps": [asdict(h) for h in designed.history]}
+        if ocfg["png"]:
+            files["design_png"] = str(_plot_design(designed, out / f"{ocfg['name']}_design.png"))
     if adapted is not None:
         summary["adapt"] = {"reached": adapted.reached, "reason": adapted.reason,
                             "estimate": float(adapted.estimate.relative), "patches": len(model.patches),
                             "steps": [asdict(h) for h in adapted.history]}
     return summary, sol, {"statistics": time.perf_counter() - t0, **{f"iga.{k}": v for k, v in prob.timings.items()}}
+
+
+def _plot_design(result, path: Path) -> Path:
+    """The objective against the SLSQP iterations of a design run (atomic)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4))
+    ax.plot([0] + [h.iteration for h in result.history], [result.initial] + [h.objective for h in result.history],
+            "o-")
+    ax.set(xlabel="iteration", ylabel="objective", title=f"design: {result.initial:.4g} -> {result.objective:.4g} "
+           f"({100 * result.improvement:.1f}% lower)")
+    fig.tight_layout()
+    out = atomic_write(path, lambda tmp: fig.savefig(tmp, format="png", dpi=110), ".png", ProblemError)
+    plt.close(fig)
+    return out
 
 
 def _run(cfg: dict, out: Path, root: bool = True) -> dict:

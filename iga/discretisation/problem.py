@@ -50,6 +50,10 @@ class SolveRecord:
     timings: dict = field(default_factory=dict)
     #: the reduced residual norms of Newton's iterations (a nonlinear problem: radiation), else empty
     newton: list = field(default_factory=list)
+    #: the interface constraints and the Dirichlet data of a serial solve, which an adjoint of the same problem
+    #: solves with again (:func:`iga.sensitivity.adjoint`); None under MPI
+    constraints: object = None
+    dirichlet: object = None
 
 
 class Problem:

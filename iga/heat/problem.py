@@ -46,9 +46,6 @@ from geometry.errors import show
 __all__ = ["HeatProblem"]
 
 
-_count = count
-
-
 class HeatProblem(Problem):
     """Steady heat transfer on a trivariate patch, a list of patches or a micro-structure.
 
@@ -242,7 +239,7 @@ class HeatProblem(Problem):
         if not (is_number(tol) and 0 < tol < 1):
             raise ProblemError(f"tol must be a number in (0, 1), got {show(tol)}")
         if maxiter is not None:
-            _count("maxiter", maxiter, 1)
+            count("maxiter", maxiter, 1)
         kinds = {c.kind for c in self.conditions}
         if not ({"dirichlet", "robin", "radiation"} & kinds):
             raise SingularProblemError(
@@ -275,6 +272,7 @@ class HeatProblem(Problem):
                                                                             self.faces_by_kind(), book["source"])
             dd = project_dirichlet(self.faces, book["dirichlet"], self.ndof, constraints)
         record.timings["constraints"] = time.perf_counter() - t0
+        record.constraints, record.dirichlet = (None, None) if world else (constraints, dd)  # the adjoint's too
         t0, options = time.perf_counter(), solver_options(self, solver, constraints, dd, book)
         record.timings["solver_structure"] = time.perf_counter() - t0  # Kronecker factors, multigrid levels
         if book["radiation"]:

@@ -53,6 +53,7 @@ class Solution:
         self.problem = problem
         self.record = SolveRecord(reduced_dofs=len(u), timings=dict(problem.timings)) if record is None else record
         self.u = u
+        self._volume = None  # the model's volume, once asked for
         self._book = book
         self._loads = loads  # the load vector f (ndof,): source, Neumann and Robin h T_inf; None when distributed
         self._prescribed = prescribed  # the prescribed unknowns' values (reaction . prescribed: the supports' part)
@@ -284,8 +285,10 @@ class Solution:
             lambda x, v, g: fn(x, v[:, 0], g[:, 0]))
 
     def volume(self) -> float:
-        """Volume of the model (m^3), by the problem's Gauss rule."""
-        return self.integrate(lambda x, T, g: np.ones(len(T)))
+        """Volume of the model (m^3), by the problem's Gauss rule (computed once)."""
+        if self._volume is None:
+            self._volume = self.integrate(lambda x, T, g: np.ones(len(T)))
+        return self._volume
 
     def gradient(self, output, wrt: str = "tiles", solver: str = "auto") -> np.ndarray:
         """The derivative of ``output`` (one of :mod:`iga.outputs`) by the adjoint: ``wrt="tiles"`` or

@@ -1,0 +1,76 @@
+"""The sections of a pipeline that wrap its steady heat solve in a loop: [adapt] and [design].
+
+    [adapt]   tolerance = relative energy-norm error, max_unknowns = n, marking = fraction, refine = "h" |
+              "h-in-place", max_steps = n
+    [design]  variables = "channel:NAME", objective = "temperature_norm" | "mean_temperature", p, tag,
+              bounds = [low, high], mean, iterations
+
+[adapt] solves by :func:`iga.adaptivity.loop.adaptive_solve` (the summary holds every step and why the loop
+stopped, the VTU the refinement of every patch); [design] by :func:`iga.design.optimize` (the summary holds the
+objective before and after and every iteration, the VTU the final design with its channel).
+"""
+
+from __future__ import annotations
+
+from iga.app.config_checks import choice, fail, integer, number, table
+from iga.app.config_schema import allowed, filled, required
+from iga.errors import ProblemError
+
+__all__ = ["adapt_section", "design_section"]
+
+OBJECTIVES = ("temperature_norm", "mean_temperature")
+
+
+def adapt_section(config: dict, kind: str) -> dict | None:
+    """The checked [adapt] section (None when absent); only a steady heat analysis adapts."""
+    if "adapt" not in config:
+        return None
+    if kind != "heat":
+        raise ProblemError(f"config section adapt refines a steady heat analysis (physics.kind = 'heat'), not "
+                           f"{kind!r}; drop [adapt] or the other physics")
+    a = filled("adapt", table(config["adapt"], "adapt", allowed("adapt"), required("adapt")))
+    return {"tolerance": number(a["tolerance"], "adapt.tolerance", lo=0),
+            "max_unknowns": None if a["max_unknowns"] is None else integer(a["max_unknowns"], "adapt.max_unknowns", 1),
+            "marking": _marking(a["marking"]),
+            "refine": choice(a["refine"], "adapt.refine", ("h", "h-in-place")),
+            "max_steps": integer(a["max_steps"], "adapt.max_steps", 1)}
+
+
+def _marking(v) -> float:
+    m = number(v, "adapt.marking", lo=0)
+    if m > 1:
+        fail("adapt.marking", f"must lie in (0, 1] (the share of the squared estimate the marked patches carry), "
+             f"got {m:g}")
+    return m
+
+
+def design_section(config: dict, kind: str, conductivity) -> dict | None:
+    """The checked [design] section (None when absent): a steady heat analysis whose conductivity is the channel
+    the variables name."""
+    if "design" not in config:
+        return None
+    if kind != "heat":
+        raise ProblemError(f"config section design optimises a steady heat analysis (physics.kind = 'heat'), not "
+                           f"{kind!r}")
+    if "adapt" in config:
+        raise ProblemError("config sections adapt and design cannot both drive the solve; drop one")
+    d = filled("design", table(config["design"], "design", allowed("design"), required("design")))
+    wrt = d["variables"]
+    if not (isinstance(wrt, str) and wrt.startswith("channel:") and len(wrt) > len("channel:")):
+        fail("design.variables", f"must be \"channel:NAME\" (the map's channel NAME the conductivity reads), got "
+             f"{wrt!r}")
+    if wrt.split(":", 1)[1] != conductivity:
+        fail("design.variables", f"names the channel {wrt.split(':', 1)[1]!r}, but material.conductivity is "
+             f"{conductivity!r}; the design changes the channel the conductivity reads")
+    b = d["bounds"]
+    if not (isinstance(b, list) and len(b) == 2):
+        fail("design.bounds", f"must be [low, high] (W/(m K)), got {b!r}")
+    low, high = number(b[0], "design.bounds[0]", lo=0), number(b[1], "design.bounds[1]", lo=0)
+    if not low < high:
+        fail("design.bounds", f"must be [low, high] with low < high, got {b!r}")
+    mean = None if d["mean"] is None else number(d["mean"], "design.mean", lo=0)
+    if mean is not None and not low <= mean <= high:
+        fail("design.mean", f"{mean:g} cannot be met within bounds [{low:g}, {high:g}]")
+    return {"variables": wrt, "objective": choice(d["objective"], "design.objective", OBJECTIVES),
+            "p": number(d["p"], "design.p", lo=1, open_lo=False), "tag": d["tag"], "bounds": (low, high),
+            "mean": mean, "iterations": integer(d["iterations"], "design.iterations", 1)}
