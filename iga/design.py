@@ -154,7 +154,7 @@ def optimize(problem, objective: Output, wrt: str = "channel:k", bounds=(54.0, 2
         if key not in cache:
             values = lo + np.clip(z, 0, 1) * (hi - lo)
             new = D.with_channel(name, values.reshape(D.control_points.shape[:3]))
-            sol = problem.on(redesigned(problem.model, D, new, placed)).solve(solver=solver)
+            sol = problem.on(redesigned(problem.model, D, new, placed)).solve(solver=solver, keep=True)
             cache.clear()  # one design at a time: SLSQP asks for the value and the gradient of the same point
             cache[key] = (values, sol, objective.value(sol), channel_sensitivity(sol, objective, name, solver))
         return cache[key]

@@ -56,8 +56,10 @@ def adjoint(solution, output: Output, solver: str = "auto", tol: float = 1e-12) 
         raise ProblemError("the adjoint here is of a linear problem; a temperature-dependent conductivity or "
                            "radiation makes it nonlinear (its adjoint needs the tangent at the solution)")
     g = output.gradient(solution)
-    K, _, book = prob.assemble()
     record = solution.record
+    if record.again is not None:  # the forward solve kept its factorisation: one back-substitution
+        return record.again(g)
+    K, _, book = prob.assemble()
     if record.dirichlet is not None:  # the forward solve's constraints and Dirichlet data
         constraints, dd = record.constraints, record.dirichlet
     else:

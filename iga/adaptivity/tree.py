@@ -41,7 +41,6 @@ from iga.model import as_model, same_kind
 __all__ = ["Leaves", "TileRefinement", "MAX_DEPTH"]
 
 
-
 @dataclass(frozen=True)
 class Leaves:
     """The leaves of all roots: ``root`` (L,), ``depth`` (L,), ``index`` (L, 3) position at that depth,
@@ -102,6 +101,13 @@ class TileRefinement:
         #: marked leaves that :meth:`refined` left unrefined (their branch children could not follow)
         self.held: list = []
 
+    def _with(self, leaves: Leaves) -> "TileRefinement":
+        """The same roots with other leaves (the roots' model, splittability and restricted tiles shared)."""
+        out = object.__new__(TileRefinement)
+        out.source, out.roots, out.splittable, out.leaves = self.source, self.roots, self.splittable, leaves
+        out._tiles, out._same, out.held = self._tiles, self._same, []
+        return out
+
     # ------------------------------------------------------------------ refinement
     def refined(self, marked, how: str = "h", analysis_refine: int = 0) -> "TileRefinement":
         """A new refinement with the ``marked`` leaves (indices) refined: ``how="h"`` splits each splittable leaf
@@ -150,9 +156,7 @@ class TileRefinement:
         octs = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)], np.int64)
         kids = Leaves(np.repeat(L.root[s], 8), np.repeat(L.depth[s] + 1, 8),
                       (2 * L.index[s][:, None, :] + octs[None]).reshape(-1, 3), np.repeat(L.extra[s], 8))
-        out = TileRefinement(self.source, Leaves.concat([kept, kids]))
-        out._tiles, out._same = self._tiles, self._same  # restricted tiles stay shared across refinements
-        return out
+        return self._with(Leaves.concat([kept, kids]))
 
     def closed(self) -> "TileRefinement":
         """Every glued pair nested: the smaller (or equal) face's leaf at least as fine as the larger one's
@@ -178,9 +182,7 @@ class TileRefinement:
                 continue
             if np.array_equal(need, L.level):
                 return out
-            nxt = TileRefinement(out.source, Leaves(L.root, L.depth, L.index, need - L.depth))
-            nxt._tiles, nxt._same = out._tiles, out._same
-            out = nxt
+            out = out._with(Leaves(L.root, L.depth, L.index, need - L.depth))
         raise ProblemError("the refinement did not close (a cycle of branch faces); check the model's interfaces")
 
     # ---------------------------------------------------------------- geometry

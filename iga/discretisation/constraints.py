@@ -267,7 +267,7 @@ def class_expressions(model, ncls: int, cls: np.ndarray, rows: BranchRows) -> tu
     """(C, slaves): C (ncls x ncls) expresses every class through classes (the identity for masters, the first
     branch row of a slave class); ``slaves`` the sorted slave classes.  A class reached by several branch rows
     (edges and corners shared by child faces) must be given the same expression by all of them once slaves are
-    substituted: :func:`check_consistent`."""
+    substituted, or imply conditions between masters: :func:`implied_conditions`."""
     M, _, slaves, first = _rows_by_class(ncls, cls, rows)
     is_slave = np.zeros(ncls, bool)
     is_slave[slaves] = True

@@ -54,6 +54,8 @@ class SolveRecord:
     #: solves with again (:func:`iga.sensitivity.adjoint`); None under MPI
     constraints: object = None
     dirichlet: object = None
+    #: a kept solver of the same system with zero Dirichlet data (``solve(keep=True)``), load -> coefficients
+    again: object = None
 
 
 class Problem:

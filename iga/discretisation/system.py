@@ -10,7 +10,7 @@ balance and ``Solution.flux``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -26,6 +26,8 @@ from iga.errors import ProblemError
 
 __all__ = ["eliminate", "solve_system", "SystemSolution", "reduction", "project_symmetric"]
 
+#: solvers a solve can keep prepared for the same system's next right-hand side (:func:`solvers.prepare`)
+_KEEPABLE = ("auto", "direct", "amg-cg", "cg")
 _IN_PLACE_NNZ = 1 << 22  # in-place Dirichlet elimination (numba) from this many matrix entries
 
 
@@ -71,6 +73,9 @@ class SystemSolution:
     #: the reduced unknowns' values on ``reaction_dofs`` (the supports' work is reaction . prescribed); None
     #: where a distributed solve does not gather them
     prescribed: np.ndarray | None = None
+    #: with ``keep``: load (ndof,) -> coefficients (ndof,) of the same system with zero Dirichlet data, by the
+    #: solve's own factorisation or hierarchy (an adjoint: :func:`iga.sensitivity.adjoint`); else None
+    again: object = None
 
 
 def project_symmetric(A, Pf) -> sp.csr_matrix:
@@ -128,12 +133,13 @@ def _refuse_conflicts(residual: np.ndarray, rhs: np.ndarray, dirichlet, Ps, dofs
 
 
 def solve_system(K, f, constraints, dirichlet, solver="auto", tol=1e-10, maxiter=None,
-                 options: dict | None = None) -> SystemSolution:
+                 options: dict | None = None, keep: bool = False) -> SystemSolution:
     """Eliminate constraints and Dirichlet data from ``K u = f`` (K symmetric, as every form here), solve, expand.
 
     ``constraints``: :class:`iga.discretisation.constraints.Constraints` or None; ``dirichlet``:
     :class:`iga.discretisation.dirichlet.DirichletData`; ``options``: passed to :func:`solvers.solve` (the spline
-    structure of :mod:`iga.discretisation.multilevel`).  K is consumed (it may be modified).
+    structure of :mod:`iga.discretisation.multilevel`).  K is consumed (it may be modified).  ``keep``: solve by a
+    prepared solver (``solver`` one of :data:`_KEEPABLE`) kept in :attr:`SystemSolution.again`.
     """
     nred = K.shape[0] if constraints is None else constraints.P.shape[1]
     dofs, g = dirichlet.dofs, dirichlet.values
@@ -153,8 +159,14 @@ def solve_system(K, f, constraints, dirichlet, solver="auto", tol=1e-10, maxiter
         value = options.pop(key, None)
         if value is not None and A.shape[0] == len(free):
             options[key] = np.asarray(value)[free]
-    x, info = solvers.solve(A, rhs, method=solver, tol=tol, maxiter=maxiter, overwrite_a=True,  # A is ours
-                            **options)
+    prepared = None
+    if keep and solver in _KEEPABLE:  # one factorisation (or hierarchy) for this solve and the adjoint's
+        prepared = solvers.prepare(A, solver, tol, maxiter)
+        x, info = prepared(rhs)
+        info = replace(info, setup_s=prepared.setup_s)
+    else:
+        x, info = solvers.solve(A, rhs, method=solver, tol=tol, maxiter=maxiter, overwrite_a=True,  # A is ours
+                                **options)
     reduced = int(A.shape[0])
     if constraints is None:
         u = np.zeros(nred)
@@ -167,4 +179,14 @@ def solve_system(K, f, constraints, dirichlet, solver="auto", tol=1e-10, maxiter
         reaction = (constraints.P.T @ (K @ u - f))[reaction_dofs]
         owner = owners_of(constraints.dof_master, constraints.P.shape[1])[reaction_dofs]
         prescribed = u[owner] if np.all(owner >= 0) else None
-    return SystemSolution(u, reaction_dofs, reaction, info, reduced, induced, prescribed)
+    again = None
+    if prepared is not None:
+        if constraints is None:
+            def again(load):  # noqa: E306 (the same system, another load, zero Dirichlet data)
+                out = np.zeros(nred)
+                out[free] = prepared(np.asarray(load, float)[free])[0]
+                return out
+        else:
+            def again(load):  # noqa: E306
+                return Pf @ prepared(Pf.T @ np.asarray(load, float))[0]
+    return SystemSolution(u, reaction_dofs, reaction, info, reduced, induced, prescribed, again)

@@ -230,11 +230,12 @@ class HeatProblem(Problem):
         return needs_constraints(self.model, self.spaces)
 
     # ------------------------------------------------------------------ solve
-    def solve(self, solver: str = "auto", tol: float = 1e-10, maxiter: int | None = None):
+    def solve(self, solver: str = "auto", tol: float = 1e-10, maxiter: int | None = None, keep: bool = False):
         """Assemble, apply the conditions, solve; returns a :class:`iga.Solution`.
 
-        ``solver``: a name from :func:`solvers.backends`; ``tol``: relative
-        residual of iterative solvers (0 < tol < 1); ``maxiter``: their iteration limit.
+        ``solver``: a name from :func:`solvers.backends`; ``tol``: relative residual of iterative solvers
+        (0 < tol < 1); ``maxiter``: their iteration limit; ``keep``: the solution keeps the factorisation (or AMG
+        hierarchy) for its adjoints (``auto``, ``direct``, ``amg-cg``, ``cg``; memory: the factors).
         """
         if not (is_number(tol) and 0 < tol < 1):
             raise ProblemError(f"tol must be a number in (0, 1), got {show(tol)}")
@@ -286,7 +287,8 @@ class HeatProblem(Problem):
             res = distributed.solve_system(system, constraints, dd, tol, maxiter, part, world[0], self.offsets,
                                            rc=rc)
         else:
-            res = solve_system(K, f, constraints, dd, solver, tol, maxiter, options)
+            res = solve_system(K, f, constraints, dd, solver, tol, maxiter, options, keep)
+            record.again = res.again
         if rc is None:  # (a rank's own constraints counted the prescribed unknowns across the ranks)
             record.constraint_stats["prescribed"] = int(len(dd.dofs))
         record.constraint_stats["induced_rank"] = res.induced_rank
