@@ -22,6 +22,8 @@ from geometry.numbers import is_real as is_number
 
 from iga.adaptivity.estimator import ErrorEstimate, estimate_error
 from iga.adaptivity.tree import TileRefinement
+from geometry.faces import FACE_AXIS
+
 from iga.discretisation.constraints import needs_constraints, prolongation
 from iga.errors import ProblemError
 from iga.heat.problem import HeatProblem
@@ -120,10 +122,9 @@ def adaptive_solve(problem, tolerance: float, max_unknowns: int | None = None, m
     problem : a steady :class:`iga.HeatProblem` with its conditions; its ``degree_elevation``, ``refine`` and
         ``degree`` apply to every patch of every step
     tolerance : the relative energy-norm error wanted (> 0), e.g. 1e-3
-    max_unknowns : the budget of unknowns (those the interface constraints leave, before the Dirichlet data:
-        :func:`unknowns`): a step that would exceed it refines only the marked patches with the largest
-        indicators that fit, and its solve is the last; when none fits, the loop stops; either way the best
-        solution so far is returned with ``reached=False`` and the reason
+    max_unknowns : the budget of unknowns solved for (:func:`unknowns`): a step that would exceed it refines
+        only the marked patches with the largest indicators that fit, and its solve is the last; when none fits,
+        the loop stops; either way the best solution so far is returned with ``reached=False`` and the reason
     marking : Dorfler's fraction in (0, 1]: the marked patches carry at least this fraction of eta^2
     refine : ``"h"`` splits marked patches into 2 x 2 x 2 children (patches with discontinuity planes are bisected
         in place), ``"h-in-place"`` bisects every marked patch's knot spans
@@ -159,7 +160,7 @@ def adaptive_solve(problem, tolerance: float, max_unknowns: int | None = None, m
             break
         if step == max_steps:
             break
-        now = solution.record.constraint_stats.get("reduced", current.ndof)  # the budget's measure, this step
+        now = int(solution.info.free_dofs)  # the budget's measure, this step
         step_to = _next_step(problem, tree, estimate, marked, refine, max_unknowns, now)
         if isinstance(step_to, str):
             reason = f"{step_to}; the estimate reached {estimate.relative:.3g} (tolerance {tolerance:g})"
@@ -171,11 +172,19 @@ def adaptive_solve(problem, tolerance: float, max_unknowns: int | None = None, m
 
 
 def unknowns(problem) -> int:
-    """The unknowns a problem's interface constraints leave (before its Dirichlet data): the budget's measure,
-    an upper bound of the unknowns solved for."""
+    """The unknowns a problem solves for, counted before assembly: those its interface constraints leave, less
+    those owning a DOF on a face of a Dirichlet condition (slave DOFs there, on faces a branch refines, tie
+    their masters by fewer conditions than they count; the count is then an upper bound).  The budget's
+    measure, the ``unknowns`` of :class:`AdaptiveStep`."""
+    faces = [key for key in problem.faces_by_kind()["dirichlet"] if key[1] in FACE_AXIS]
     if not needs_constraints(problem.model, problem.spaces):
-        return int(problem.ndof)
-    return int(prolongation(problem.model, problem.spaces, problem.offsets, problem.weights).P.shape[1])
+        owner, n = np.arange(problem.ndof), problem.ndof
+    else:
+        c = prolongation(problem.model, problem.spaces, problem.offsets, problem.weights)
+        owner, n = c.dof_master, c.P.shape[1]
+    dofs = [problem.spaces[pi].face_dofs(face) + problem.offsets[pi] for pi, face in faces]
+    held = owner[np.concatenate(dofs)] if dofs else np.zeros(0, np.int64)
+    return int(n - len(np.unique(held[held >= 0])))
 
 
 def _next_step(problem, tree, estimate, marked, refine, max_unknowns, now):

@@ -9,7 +9,7 @@ import numpy as np
 
 from geometry.errors import show
 
-from iga.errors import ProblemError
+from iga.errors import ProblemError, SingularProblemError
 from iga.heat.coefficients import ScalarField
 from iga.heat.forms import boundary_load, boundary_mass
 
@@ -107,3 +107,13 @@ def flat_values(field: ScalarField, fds, tag) -> np.ndarray:
         where = f"the faces tagged {show(tag)} (e.g. patch {fds[0].patch} face {fds[0].face})"
         v = field.values(x, chans, where)
     return v
+
+
+def refuse_floating(conditions) -> None:
+    """:class:`iga.errors.SingularProblemError` unless some condition fixes the temperature's level (Dirichlet,
+    Robin or radiation): with fluxes alone it is defined up to a constant."""
+    if not ({"dirichlet", "robin", "radiation"} & {c.kind for c in conditions}):
+        raise SingularProblemError(
+            "the heat problem has no Dirichlet, Robin or radiation condition, so its temperature is only defined "
+            "up to a constant (the system is singular); add problem.dirichlet(tag, T) or problem.robin(tag, h, "
+            "T_inf)")

@@ -28,10 +28,10 @@ from iga.discretisation.fields import evaluation_matrix
 from iga.discretisation.locate import Locator
 from iga.discretisation.problem import Problem, SolveRecord
 from iga.discretisation.setting import count
-from iga.errors import ProblemError, SingularProblemError
+from iga.errors import ProblemError
 from iga.discretisation.faces import FaceData
 from iga.assembly.tensor import add_within
-from iga.heat.conditions import Condition, face_terms, face_values
+from iga.heat.conditions import Condition, face_terms, face_values, refuse_floating
 from iga.heat.radiation import RadiationFaces, solve_radiation
 from iga.heat.nonlinear import solve_temperature_dependent
 from iga.model import tag_faces
@@ -241,13 +241,7 @@ class HeatProblem(Problem):
             raise ProblemError(f"tol must be a number in (0, 1), got {show(tol)}")
         if maxiter is not None:
             count("maxiter", maxiter, 1)
-        kinds = {c.kind for c in self.conditions}
-        if not ({"dirichlet", "robin", "radiation"} & kinds):
-            raise SingularProblemError(
-                "the heat problem has no Dirichlet, Robin or radiation condition, so its temperature is only defined "
-                "up to a constant (the system is singular); add problem.dirichlet(tag, T) or problem.robin(tag, h, "
-                "T_inf)"
-            )
+        refuse_floating(self.conditions)
         if self.conductivity.of_temperature is not None:  # k(T): Newton on the unsymmetric tangent
             if solver == "petsc":
                 raise ProblemError("a temperature-dependent conductivity is solved serially (Newton with a "
