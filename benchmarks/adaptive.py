@@ -21,11 +21,13 @@ effectivity within [0.3, 3] on every step.
 from __future__ import annotations
 
 import argparse
+import shutil
+import sys
 import time
 
 import numpy as np
 
-from _common import print_table, pyplot, save_json, save_plot, settle
+from _common import figures_dir, print_table, pyplot, save_json, save_plot, settle
 
 
 def lshape(elements):
@@ -86,6 +88,7 @@ def main(argv=None):
     ap.add_argument("--max-unknowns", type=int, default=300_000, help="the adaptive loop's budget (unknowns)")
     ap.add_argument("--marking", type=float, default=0.8, help="Dorfler's fraction (0.5, 0.8 and 0.9 measured)")
     ap.add_argument("--uniform", type=int, default=5, help="uniform levels: 2, 4, ... 2^N elements per patch")
+    ap.add_argument("--figures", action="store_true", help="copy the plot to docs/ (make_figures.py)")
     ap.add_argument("--elements", default="2,2,2;2,2,1",
                     help="elements per patch and direction of each adaptive start, ';' between starts")
     args = ap.parse_args(argv)
@@ -134,7 +137,9 @@ def main(argv=None):
         ax.set_ylabel("relative energy-norm error")
         ax.set_title("L-shaped domain, r^(2/3) sin(2 theta/3), degree 2")
         ax.legend(fontsize=7)
-        save_plot(fig, "adaptive_lshape.png")
+        path = save_plot(fig, "adaptive_lshape.png")
+        if "--figures" in sys.argv:  # make_figures.py: the docs' copy
+            shutil.copyfile(path, figures_dir() / "adaptive_lshape.png")
 
 
 if __name__ == "__main__":

@@ -18,7 +18,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 DOCS = HERE.parent / "docs"
 BENCHMARKS = ("tile_gallery", "bifurcation", "capped_models", "random_tiling", "vrep", "vrep_heat", "elasticity",
-              "sweeps", "trimmed_tiles", "fig4_knot", "design")
+              "sweeps", "trimmed_tiles", "fig4_knot", "design", "adaptive")
 
 
 def _demo(variant: str, option: str | None, picture: str, source: str) -> None:
