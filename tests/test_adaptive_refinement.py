@@ -89,6 +89,12 @@ def test_split_patches_follow_the_orientation_of_a_rotated_neighbour():
     # are evaluated at the same points
     s = iga.HeatProblem(tree.model()).dirichlet("boundary", lambda x: x[:, 0] ** 2 - x[:, 2] ** 2).solve()
     assert estimate_error(s).total < 1e-9
+    # the sampled VTU welds across the oriented branch faces: its outer surface is the 2 x 1 x 1 box's alone
+    from iga.io.vtu import sampled_grid
+
+    grid = sampled_grid(tree.model(), s, samples=2)
+    assert grid.volume == pytest.approx(2.0, rel=1e-12)
+    assert grid.extract_surface(algorithm="dataset_surface").area == pytest.approx(10.0, rel=1e-12)
 
 
 def test_refining_a_branch_parent_splits_its_children_until_their_faces_nest():
