@@ -20,10 +20,11 @@ by ``benchmarks/adaptive.py``, which prints the effectivity estimate / true erro
 Flux jumps count across every interface of the model (identity faces, branch faces, the faces between the
 children of a split patch); inside a patch the basis is C^(p-1) across its knots where the geometry is smooth,
 so the jumps there vanish, except across full-multiplicity knot planes (slots), which this estimate does not
-visit.  The element residual needs second derivatives of the geometry, taken exactly through the chain rule of
-x = D(A T(xi) + b), and div(k grad T) = k lap T + grad k . grad T the gradient of the conductivity: exact for a
-channel of the tile or the deformation map (a graded material), zero for a number; a callable conductivity or a
-tensor must be constant on each patch (within 1e-9 relative), else it is refused.
+visit, nor the Neumann and Robin mismatch on slot faces (their walls).  The element residual needs second
+derivatives of the geometry, taken exactly through the chain rule of x = D(A T(xi) + b), and
+div(k grad T) = k lap T + grad k . grad T the gradient of the conductivity: exact for a channel of the tile or
+the deformation map (a graded material), zero for a number; a callable conductivity or a tensor must be constant
+on each patch (within 1e-9 relative), else it is refused.
 """
 
 from __future__ import annotations

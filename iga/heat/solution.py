@@ -293,7 +293,8 @@ class Solution:
     def gradient(self, output, wrt: str = "tiles", solver: str = "auto") -> np.ndarray:
         """The derivative of ``output`` (one of :mod:`iga.outputs`) by the adjoint: ``wrt="tiles"`` or
         ``"patches"`` (a factor on each one's conductivity) or ``"channel:NAME"`` (the control values of the
-        map's channel the conductivity reads); :func:`iga.sensitivity.gradient`."""
+        map's channel the conductivity reads); :func:`iga.sensitivity.gradient`.  A solution of
+        ``solve(keep=True)`` solves the adjoint with its kept factorisation (one back-substitution)."""
         from iga.sensitivity import gradient
 
         return gradient(self, output, wrt, solver)
