@@ -321,3 +321,20 @@ def test_the_budget_counts_the_unknowns_a_solve_solves_for():
     for tag in ("boundary", "boundary - wmax"):
         problem = iga.HeatProblem(tree.model()).dirichlet(tag, _corner)
         assert unknowns(problem) == problem.solve().info.free_dofs
+
+
+def test_a_large_adapted_model_is_sampled_with_hanging_points_and_the_same_fields(monkeypatch):
+    import geometry.patches.sampling as sampling
+    from iga.io.vtu import sampled_grid
+
+    tree = TileRefinement(_lshape()).refined([1]).refined([3, 4, 5, 6]).refined([10, 11])
+    s = iga.HeatProblem(tree.model()).dirichlet("boundary", _corner).solve()
+    conforming = sampled_grid(tree.model(), s, samples=2)
+    monkeypatch.setattr(sampling, "_CONFORMING_POINTS", 0)  # as if the conforming grid were too large
+    monkeypatch.setattr(sampling, "_CONFORMING_COST", 1.0)
+    hanging = sampled_grid(tree.model(), s, samples=2)
+    assert hanging.n_points < conforming.n_points
+    assert conforming.extract_surface(algorithm="dataset_surface").area == pytest.approx(14.0, rel=1e-12)
+    assert hanging.volume == pytest.approx(3.0, rel=1e-12)  # the same solid, hanging points where fineness changes
+    x = np.asarray(hanging.points)
+    assert np.allclose(hanging.point_data["temperature"], s.probe(x), atol=1e-10)

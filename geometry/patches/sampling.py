@@ -12,7 +12,12 @@ by piece between its discontinuity knots, each side of a discontinuity plane
 with its own one-sided limit, so that the open part of a slot is two surfaces.
 Finally coinciding points (shared faces, the closed part of a discontinuity
 plane) are welded into one point (:func:`weld`), their data averaged, so the
-mesh has no internal faces.
+mesh has no internal faces.  An adaptively refined model (patches with a
+``refinement``) is made conforming only where that at most doubles its points
+or keeps them within a million; otherwise a coarser patch keeps its own samples
+against finer neighbours
+(hanging points, as in any octree mesh: the volume and the fields are the same,
+a surface filter also shows those faces).
 """
 
 from __future__ import annotations
@@ -38,6 +43,8 @@ __all__ = ["conforming_axes", "sample_model", "sampled_mesh", "weld", "sample_ax
 #: VTK hexahedron corner order as (di, dj, dk) offsets
 HEX_CORNERS = np.array([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)])
 _MAX_AXIS = 20_000  # sample points per direction and patch beyond which conformity is given up
+_CONFORMING_COST = 2.0  # an adapted model's grid is made conforming if that at most doubles its points,
+_CONFORMING_POINTS = 1_000_000  # or keeps it within this many (a million points: about 100 MB of VTU)
 _SAME = SAME_SAMPLE  # normalised parameters closer than this are one sample (the weld is finer)
 
 
@@ -105,24 +112,44 @@ def conforming_axes(model, knots_of, samples) -> list[list[np.ndarray]]:
     doms = [np.array([[U[0], U[-1]] for U in knots_of(pi)]) for pi in range(len(model.patches))]
     axes = [[(a - d[0]) / (d[1] - d[0]) for a, d in zip(sample_axes(knots_of(pi), per[pi]), doms[pi])]
             for pi in range(len(model.patches))]
-    links = []  # (patch a, dir a, patch b, dir b, scale, offset, flip): t_b = flip(t_a * scale + offset) on a's range
+    # (patch a, dir a, patch b, dir b, box, flip, one way): t_b = flip((t_a - lo) / (hi - lo)) on a's box (an identity:
+    # no box); one way: b takes a's samples, a keeps its own
+    links = []
     for itf in model.interfaces:
         (pa, fa), (pb, fb) = itf.a, itf.b
         da, db = _face_dirs(fa), _face_dirs(fb)
         if itf.kind == "identity":
             order = [1, 0] if itf.swap else [0, 1]
             for j in range(2):  # face a's direction j <-> face b's direction order[j]
-                links.append((pa, da[j], pb, db[order[j]], None, itf.flip[order[j]]))
+                links.append((pa, da[j], pb, db[order[j]], None, itf.flip[order[j]], False))
         else:
             order = [1, 0] if itf.swap else [0, 1]
+            # between patches of an adaptively refined model (dyadic levels: the finer face's samples hold the
+            # coarser one's) the coarser face may keep its own samples (hanging points, as in an octree mesh):
+            # uniting both ways carries every fine patch's samples along whole rows of coarse ones (10x the
+            # points on a refined L-shape), so it is done only where it costs little (_CONFORMING_COST, _POINTS)
+            one_way = bool(model.patches[pa].refinement or model.patches[pb].refinement)
             for j in range(2):  # the child's direction order[j] spans the box side j of the parent's face
                 lo, hi = itf.box[j]
                 d0 = doms[pa][da[j]]
                 links.append((pa, da[j], pb, db[order[j]],
-                              ((lo - d0[0]) / (d0[1] - d0[0]), (hi - d0[0]) / (d0[1] - d0[0])), itf.flip[order[j]]))
+                              ((lo - d0[0]) / (d0[1] - d0[0]), (hi - d0[0]) / (d0[1] - d0[0])), itf.flip[order[j]],
+                              one_way))
+    if any(link[6] for link in links):  # an adapted model: conforming unless that costs much (module notes)
+        two_way = _united([[a.copy() for a in ax] for ax in axes], [(*link[:6], False) for link in links])
+        one_way = _united(axes, links)
+        size = [sum(int(np.prod([len(a) for a in ax])) for ax in version) for version in (two_way, one_way)]
+        axes = two_way if size[0] <= max(_CONFORMING_COST * size[1], _CONFORMING_POINTS) else one_way
+    else:
+        axes = _united(axes, links)
+    return [[d[0] + a * (d[1] - d[0]) for a, d in zip(ax, dom)] for ax, dom in zip(axes, doms)]
+
+
+def _united(axes, links):
+    """The normalised sample axes of every patch united across the ``links`` until none adds a point."""
     for _ in range(64):
         changed = False
-        for pa, ka, pb, kb, box, flip in links:
+        for pa, ka, pb, kb, box, flip, one_way in links:
             A, B = axes[pa][ka], axes[pb][kb]
             if box is None:
                 to_b = 1 - A if flip else A
@@ -134,14 +161,16 @@ def conforming_axes(model, knots_of, samples) -> list[list[np.ndarray]]:
                 to_b = 1 - to_b if flip else to_b
                 to_a = lo + (1 - B if flip else B) * (hi - lo)
             axes[pb][kb], cb = _unite(B, to_b)
-            axes[pa][ka], ca = _unite(A, to_a)
+            ca = False
+            if not one_way:
+                axes[pa][ka], ca = _unite(A, to_a)
             changed |= ca or cb
             if max(len(axes[pa][ka]), len(axes[pb][kb])) > _MAX_AXIS:
                 changed = False  # a resolution race between incommensurate maps: stop, the weld does the rest
                 break
         if not changed:
             break
-    return [[d[0] + a * (d[1] - d[0]) for a, d in zip(ax, dom)] for ax, dom in zip(axes, doms)]
+    return axes
 
 
 def piece_boxes(spline) -> list[np.ndarray]:
