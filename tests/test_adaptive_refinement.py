@@ -203,6 +203,7 @@ def test_dorfler_marks_the_fewest_largest_indicators():
     ({"tolerance": 1e-3, "marking": 1.5}, r"marking must lie in \(0, 1\]"),
     ({"tolerance": 1e-3, "max_unknowns": 10}, "already has 32 unknowns, more than max_unknowns = 10"),
     ({"tolerance": 1e-3, "refine": "p"}, "refine must be 'h'"),
+    ({"tolerance": 1e-3, "max_steps": 0}, "max_steps must be an integer >= 1"),
 ])
 def test_bad_adaptive_input_is_refused_naming_it(kwargs, match):
     problem = iga.HeatProblem(_lshape()).dirichlet("boundary", _corner)

@@ -86,7 +86,7 @@ def dorfler(indicators, fraction: float) -> np.ndarray:
     return np.sort(order[: min(n, len(eta))])
 
 
-def _check(problem, tolerance, max_unknowns, marking, refine) -> None:
+def _check(problem, tolerance, max_unknowns, marking, refine, max_steps) -> None:
     if type(problem) is not HeatProblem:
         raise ProblemError(f"adaptive_solve takes a steady iga.HeatProblem, got {type(problem).__name__}")
     if not (is_number(tolerance) and np.isfinite(tolerance) and tolerance > 0):
@@ -97,6 +97,8 @@ def _check(problem, tolerance, max_unknowns, marking, refine) -> None:
                            f"carry; 0.5 is usual), got {show(marking)}")
     if max_unknowns is not None and not (is_number(max_unknowns) and max_unknowns >= 1):
         raise ProblemError(f"max_unknowns must be a positive number or None, got {show(max_unknowns)}")
+    if not (isinstance(max_steps, (int, np.integer)) and not isinstance(max_steps, bool) and max_steps >= 1):
+        raise ProblemError(f"max_steps must be an integer >= 1, got {show(max_steps)}")
     if refine not in ("h", "h-in-place"):
         raise ProblemError(f"refine must be 'h' (split patches into 2 x 2 x 2 children; those with discontinuity "
                            f"planes bisected in place) or 'h-in-place' (bisect every marked patch's knot spans), got "
@@ -135,7 +137,7 @@ def adaptive_solve(problem, tolerance: float, max_unknowns: int | None = None, m
 
     Progress: one line per step on stderr when progress is on (the ``iga`` command line, the benchmarks).
     """
-    _check(problem, tolerance, max_unknowns, marking, refine)
+    _check(problem, tolerance, max_unknowns, marking, refine, max_steps)
     tree = TileRefinement(problem.model)
     current = problem if len(tree.leaves) == len(problem.model.patches) else problem.on(tree.model())
     history, reached, reason, last = [], False, f"{max_steps} steps taken", False
@@ -165,8 +167,7 @@ def adaptive_solve(problem, tolerance: float, max_unknowns: int | None = None, m
         if isinstance(step_to, str):
             reason = f"{step_to}; the estimate reached {estimate.relative:.3g} (tolerance {tolerance:g})"
             break
-        tree, current, refined = step_to
-        last = refined < len(marked)  # the budget cut the step short: the next solve is the last
+        tree, current, refined, last = step_to  # last: the budget cut the step short, the next solve is the last
         history[-1] = replace(history[-1], marked=refined)
     return AdaptiveResult(solution, estimate, tuple(history), reached, reason)
 
@@ -188,7 +189,8 @@ def unknowns(problem) -> int:
 
 
 def _next_step(problem, tree, estimate, marked, refine, max_unknowns, now):
-    """(refinement, problem, patches refined) of the next step, or why there is none (a string).
+    """(refinement, problem, patches refined, whether the budget cut the step) of the next step, or why there is
+    none (a string).
 
     Where refining every marked patch would exceed ``max_unknowns`` (:func:`unknowns`), the longest prefix of
     the marked patches (largest indicators first) that fits is refined (found by bisection on its length, to 2%
@@ -209,7 +211,7 @@ def _next_step(problem, tree, estimate, marked, refine, max_unknowns, now):
         return (f"none of the {n} marked patches can be refined: their branch children sit on boxes that their "
                 "refinement would not keep nested")
     if max_unknowns is None or first[3] <= max_unknowns:
-        return first[:3]
+        return (*first[:3], False)
     # the budget allows part of the step: the largest-indicator prefix that fits, by bisection on its length
     # (a prefix that fits at lo, one that does not at hi), to within 2% of the marked patches
     lo, hi, best = 0, n, None
@@ -224,7 +226,7 @@ def _next_step(problem, tree, estimate, marked, refine, max_unknowns, now):
         guess = None
     if best is None:
         return f"no marked patch can be refined within max_unknowns = {int(max_unknowns):,} (now {now:,} unknowns)"
-    return best[:3]
+    return (*best[:3], True)
 
 
 def _true_error(solution, estimate, exact_gradient) -> float:
