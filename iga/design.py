@@ -26,6 +26,7 @@ from geometry.numbers import is_real
 from geometry.patches.multipatch import PlacedPatch
 
 from iga.errors import ProblemError
+from iga.heat.problem import HeatProblem
 from iga.model import same_kind
 from iga.outputs import Output, gauss_pass
 from iga.sensitivity import channel_sensitivity, design_map, map_basis
@@ -99,8 +100,6 @@ def channel_volumes(problem, D, placed: bool) -> np.ndarray:
 
 
 def _check(problem, objective, wrt, bounds, mean, maxiter):
-    from iga.heat.problem import HeatProblem
-
     if type(problem) is not HeatProblem:
         raise ProblemError(f"optimize takes a steady iga.HeatProblem, got {type(problem).__name__}")
     if not isinstance(objective, Output) or not hasattr(objective, "gradient"):
