@@ -29,7 +29,7 @@ from iga.errors import ProblemError
 from iga.heat.problem import HeatProblem
 from iga.model import same_kind
 from iga.outputs import Output, gauss_pass
-from iga.sensitivity import channel_sensitivity, design_map, map_basis
+from iga.sensitivity import channel_sensitivity, design_map, map_basis, map_parameters
 
 __all__ = ["optimize", "DesignResult", "DesignStep"]
 
@@ -86,14 +86,9 @@ def channel_volumes(problem, D, placed: bool) -> np.ndarray:
     parameter): the mean of a channel with control values k is volumes . k / volume."""
     patches = problem.model.patches
     out = np.zeros(int(np.prod(D.control_points.shape[:3])))
-    dom = D.domain
 
     def add(chunk, space, vals, grads, wv, x, chans):
-        axes = np.stack(np.meshgrid(*space.qaxes, indexing="ij"), -1).reshape(-1, 3)
-        S = patches[chunk[0]].spline.evaluate(axes)[:, :3] if placed else axes
-        ys = [S @ patches[i].placement[:, :3].T + patches[i].placement[:, 3]
-              if placed and patches[i].placement is not None else S for i in chunk]
-        out[:] += map_basis(D, np.clip(np.concatenate(ys), dom[:, 0], dom[:, 1])).T @ wv
+        out[:] += map_basis(D, map_parameters(patches, chunk, space, D, placed)).T @ wv
 
     gauss_pass(problem, np.zeros((1, problem.ndof)), add)
     return out

@@ -29,7 +29,8 @@ from iga.errors import ProblemError
 from iga.heat.coefficients import TENSOR_PAIRS
 from iga.outputs import Output, gauss_pass
 
-__all__ = ["gradient", "adjoint", "conductivity_sensitivity", "channel_sensitivity", "design_map", "map_basis"]
+__all__ = ["gradient", "adjoint", "conductivity_sensitivity", "channel_sensitivity", "design_map", "map_basis",
+           "map_parameters"]
 
 
 def gradient(solution, output: Output, wrt: str = "tiles", solver: str = "auto") -> np.ndarray:
@@ -115,16 +116,10 @@ def channel_sensitivity(solution, output: Output, channel: str, solver: str = "a
     D, placed = design_map(prob, channel)
     lam = adjoint(solution, output, solver)
     grad = np.zeros(int(np.prod(D.control_points.shape[:3])))
-    dom = D.domain
 
     def add(chunk, space, vals, grads, wv, x, chans):
         rho = wv * np.sum(grads[:, 0] * grads[:, 1], axis=1)  # grad T . grad lambda w |det J|
-        axes = np.stack(np.meshgrid(*space.qaxes, indexing="ij"), -1).reshape(-1, 3)
-        S = patches[chunk[0]].spline.evaluate(axes)[:, :3] if placed else axes
-        ys = [S @ patches[i].placement[:, :3].T + patches[i].placement[:, 3]
-              if placed and patches[i].placement is not None else S for i in chunk]
-        y = np.clip(np.concatenate(ys), dom[:, 0], dom[:, 1])
-        grad[:] -= map_basis(D, y).T @ rho
+        grad[:] -= map_basis(D, map_parameters(patches, chunk, space, D, placed)).T @ rho
 
     gauss_pass(prob, np.stack([solution.u, lam]), add)
     return grad.reshape(D.control_points.shape[:3])
@@ -143,6 +138,17 @@ def design_map(problem, channel: str):
         raise ProblemError(f"the model needs one deformation map holding the channel {show(channel)} (a "
                            "micro-structure paved in one map, or one spline)")
     return D, placed
+
+
+def map_parameters(patches, chunk, space, D, placed: bool) -> np.ndarray:
+    """The parameters y (P N, 3) in the map D of the Gauss points of the patches ``chunk`` (one tile spline and
+    ``space``): the placed tile's values A T(xi) + b, or (a model of one spline: D itself) the points xi; clipped
+    onto D's domain."""
+    axes = np.stack(np.meshgrid(*space.qaxes, indexing="ij"), -1).reshape(-1, 3)
+    S = patches[chunk[0]].spline.evaluate(axes)[:, :3] if placed else axes
+    ys = [S @ patches[i].placement[:, :3].T + patches[i].placement[:, 3]
+          if placed and patches[i].placement is not None else S for i in chunk]
+    return np.clip(np.concatenate(ys), D.domain[:, 0], D.domain[:, 1])
 
 
 def map_basis(D, y: np.ndarray):

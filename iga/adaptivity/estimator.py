@@ -38,8 +38,12 @@ from geometry import knots as kn
 from geometry.faces import FACE_AXIS
 from geometry.grouping import ObjectIndex
 
+from geometry.patches.chain import patches_geometry_derivs
+
+from iga.discretisation.fields import grid_fields
 from iga.errors import ProblemError
 from iga.heat.conditions import face_values
+from iga.heat.solution import flux_vector
 
 __all__ = ["ErrorEstimate", "estimate_error"]
 
@@ -231,13 +235,6 @@ def _conductivity(prob, x, chans, where):
     return v, v[:, :3].mean(axis=1), None
 
 
-def _flux(K6, grad):
-    """K grad (..., 3) for tensor components K6 (..., 6) (xx, yy, zz, xy, xz, yz)."""
-    return np.stack([K6[..., 0] * grad[..., 0] + K6[..., 3] * grad[..., 1] + K6[..., 4] * grad[..., 2],
-                     K6[..., 3] * grad[..., 0] + K6[..., 1] * grad[..., 1] + K6[..., 5] * grad[..., 2],
-                     K6[..., 4] * grad[..., 0] + K6[..., 5] * grad[..., 1] + K6[..., 2] * grad[..., 2]], axis=-1)
-
-
 def _residuals(solution):
     """Element residuals per patch (P,), per element, and the solution's energy int grad T . K grad T dV."""
     prob = solution.problem
@@ -278,7 +275,7 @@ def _residuals(solution):
                 dV = np.abs(det[j]) * w
                 contrib = (h / np.pi) ** 2 * r**2 / k * dV
                 out[pi] = contrib.sum()
-                energy += float(np.sum(np.einsum("na,na->n", _flux(K6, grad[j]), grad[j]) * dV))
+                energy -= float(np.sum(np.einsum("na,na->n", flux_vector(K6, grad[j]), grad[j]) * dV))
                 elements[pi] = _per_element(contrib, space)
     return out, elements, energy
 
@@ -313,22 +310,18 @@ def _element_lengths(space, axes):
 def _flux_on_grid(solution, members, axes, normals):
     """K grad T . n (P, N), T (P, N), the conductivity (mean of the diagonal, (P, N)) and the local element size
     (P, N) of patches ``members`` (one tile spline and space) on the grid ``axes``, with unit normals (P, N, 3)."""
-    from geometry.patches.chain import gradient_and_det, patches_geometry_derivs
-
     prob = solution.problem
     space = prob.spaces[members[0]]
     tabs = [[m.toarray() for m in kn.basis_matrices(d.knots, d.degree, np.clip(ax, d.knots[0], d.knots[-1]), 1)]
             for d, ax in zip(space.dirs, axes)]
-    U = np.stack([solution.u[prob.offsets[i] : prob.offsets[i + 1]].reshape(space.shape) for i in members])
+    U = np.stack([solution.u[prob.offsets[i] : prob.offsets[i + 1]].reshape((1,) + space.shape) for i in members])
     P = len(members)
-    val = np.einsum("pabc,ia,jb,kc->pijk", U, tabs[0][0], tabs[1][0], tabs[2][0], optimize=True).reshape(P, -1)
-    dxi = np.stack([np.einsum("pabc,ia,jb,kc->pijk", U, *(tabs[d][int(d == k)] for d in range(3)),
-                              optimize=True).reshape(P, -1) for k in range(3)], axis=-1)
     x, D, chans = patches_geometry_derivs([prob.model.patches[i] for i in members], axes)
-    grad, _ = gradient_and_det(D, dxi.reshape(-1, 3))
+    val, grad, _ = grid_fields(U, tabs, D)
+    val, grad = val[:, 0].reshape(P, -1), grad[:, 0]
     K6, k, _ = _conductivity(prob, x.reshape(-1, 3), {c: np.asarray(v).reshape(-1) for c, v in chans.items()},
                              f"patches {members[0]}..{members[-1]}")
-    q = np.einsum("ni,ni->n", _flux(K6, grad), normals.reshape(-1, 3))
+    q = -np.einsum("ni,ni->n", flux_vector(K6, grad), normals.reshape(-1, 3))
     h = (np.stack([np.linalg.norm(np.asarray(d), axis=-1) for d in D], axis=-1) * _element_lengths(space, axes)).min(-1)
     return q.reshape(P, -1), val, k.reshape(P, -1), h.reshape(P, -1)
 

@@ -108,8 +108,9 @@ def _check(problem, tolerance, max_unknowns, marking, refine, max_steps) -> None
     if own != given:
         raise ProblemError("adaptive_solve refines each patch's own basis; a problem analysed in other bases "
                            "(bases=...) cannot be refined by tiles")
-    if max_unknowns is not None and unknowns(problem) > max_unknowns:
-        raise ProblemError(f"the problem already has {unknowns(problem):,} unknowns, more than max_unknowns = "
+    start = unknowns(problem) if max_unknowns is not None else 0
+    if max_unknowns is not None and start > max_unknowns:
+        raise ProblemError(f"the problem already has {start:,} unknowns, more than max_unknowns = "
                            f"{int(max_unknowns):,}; raise the budget or start coarser")
 
 

@@ -331,6 +331,15 @@ def _one_line_warning(message, category, filename, lineno, file=None, line=None)
     print(f"iga: warning: {message}", file=sys.stderr)
 
 
+def _config_command(sub, name: str, func, summary: str, description: str, needs: str) -> None:
+    """A subcommand that runs a pipeline from CONFIG.toml (``needs``: what the file must hold, said in the help)."""
+    cmd = sub.add_parser(name, help=summary, formatter_class=_Formatter, description=description)
+    cmd.add_argument("config", help=f"path to the CONFIG.toml file{needs}")
+    cmd.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,
+                     help=f"no progress display on stderr (as 'iga --quiet {name} ...')")
+    cmd.set_defaults(func=func)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``iga`` command (subcommands demo, run, info)."""
     parser = _Parser(
@@ -344,28 +353,17 @@ def build_parser() -> argparse.ArgumentParser:
                         help="memory budget in GiB for the size checks (default: the memory available now)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     _add_demo(sub)
-    run = sub.add_parser(
-        "run", help="run a pipeline described in a TOML file", formatter_class=_Formatter,
-        description="Run a pipeline (deformation map, tile, paving, materials, boundary conditions, solver, "
-        "outputs) described in a TOML file; see the README, section Pipelines, for the schema. Outputs go to "
-        "[output] dir (default 'out', relative to the config file).",
-    )
-    run.add_argument("config", help="path to the CONFIG.toml file")
-    run.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,
-                     help="no progress display on stderr (as 'iga --quiet run ...')")
-    run.set_defaults(func=_cmd_run)
-    opt = sub.add_parser(
-        "optimize", help="design a pipeline's material channel by gradient ([design] section)",
-        formatter_class=_Formatter,
-        description="Run a pipeline whose [design] section names the map's channel that the conductivity reads "
-        "(variables = \"channel:k\"), its bounds and the output to minimise: SLSQP over the channel's control values, "
-        "each step an exact analysis and one adjoint (iga.optimize). Writes the final design's VTU and picture, "
-        "NAME_design.png (the objective per iteration) and summary.json (every iteration).",
-    )
-    opt.add_argument("config", help="path to the CONFIG.toml file (with a [design] section)")
-    opt.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,
-                     help="no progress display on stderr (as 'iga --quiet optimize ...')")
-    opt.set_defaults(func=_cmd_optimize)
+    _config_command(sub, "run", _cmd_run, "run a pipeline described in a TOML file",
+                    "Run a pipeline (deformation map, tile, paving, materials, boundary conditions, solver, "
+                    "outputs) described in a TOML file; see the README, section Pipelines, for the schema. Outputs go "
+                    "to [output] dir (default 'out', relative to the config file).", "")
+    _config_command(sub, "optimize", _cmd_optimize,
+                    "design a pipeline's material channel by gradient ([design] section)",
+                    "Run a pipeline whose [design] section names the map's channel that the conductivity reads "
+                    "(variables = \"channel:k\"), its bounds and the output to minimise: SLSQP over the channel's "
+                    "control values, each step an exact analysis and one adjoint (iga.optimize). Writes the final "
+                    "design's VTU and picture, NAME_design.png (the objective per iteration) and summary.json "
+                    "(every iteration).", " (with a [design] section)")
     _add_homogenize(sub)
     info = sub.add_parser("info", help="describe a file the toolkit wrote (splines, meshes, IGES, summary)",
                           description="Print degrees, sizes, channels, knot spans, domain, bounding box and "
