@@ -6,12 +6,15 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 import solvers
+import tiling
+from tiling import library as tiles
 from geometry import MultiPatch, primitives as pr
 from geometry.compiled import _fast
 from iga import HeatProblem, ProblemError
 from iga.assembly import compiled as fast_assembly
 from iga.discretisation import system as system_module
-from iga.assembly.tensor import load_form, pattern, stiffness_data
+from iga.assembly.tensor import banded_form, banded_to_csr_data, load_form, pattern, stiffness_data
+from iga.assembly.terms import form_terms
 from geometry.patches.chain import grid_values_derivs_slabs
 from iga.manufactured import quarter_annulus
 from iga.heat.coefficients import TENSOR_PAIRS as _PAIRS
@@ -31,6 +34,51 @@ pytestmark = pytest.mark.skipif(not fast_assembly.AVAILABLE, reason="the compile
 STIFFNESS_DEGREES = [(2, 2, 2), (3, 1, 2), (1, 3, 1), (4, 2, 2), (2, 2, 2), (4, 3, 1), (1, 2, 2)]
 
 
+@pytest.mark.parametrize("count, symmetric", [(1, False), (2, False), (5, False), (11, False), (1, True),
+                                              (4, True), (12, True)])
+def test_the_one_compiled_form_kernel_takes_any_number_of_terms(count, symmetric):
+    """Random forms of 1 to 12 terms (random fields, random derivative orders per direction; symmetric ones
+    closed under swapping the test and trial orders) through the compiled form kernel equal the NumPy
+    reference form (banded_form), slab by slab too."""
+    rng = np.random.default_rng(100 * count + symmetric)
+    degrees = (2, 3, 2) if count % 2 else (1, 2, 2)
+    space = make_space([random_knots(rng, p, 3, max_mult=p) for p in degrees], degrees)
+    P, fields = 2, 1 + count // 2
+    C = rng.standard_normal((fields, P) + space.qshape)
+    terms = []
+    while len(terms) < count:
+        orders = tuple(tuple(int(v) for v in rng.integers(0, 2, 2)) for _ in range(3))
+        c = int(rng.integers(0, fields))
+        terms.append((c, orders))
+        if symmetric and len(terms) < count:
+            terms.append((c, tuple((b, a) for a, b in orders)))
+    if symmetric and len(terms) % 2:  # an odd count: the last term its own transpose
+        terms[-1] = (terms[-1][0], ((1, 1), (0, 0), (1, 1)))
+    form = form_terms(terms, fields=fields, symmetric=symmetric)
+    pat = pattern(space)
+    ref = banded_to_csr_data(space, banded_form(space, [(C[c], orders) for c, orders in terms]), pat)
+    got_pat, got = fast_assembly.form_csr(space, C, form)
+    assert np.array_equal(got_pat.indices, pat.indices)
+    scale = np.abs(ref).max()
+    assert scale > 0 and np.abs(got - ref).max() <= 1e-12 * scale
+    acc = fast_assembly.FormAccumulator(space, P, form)
+    g, planes = space.dirs[0].g, space.dirs[0].nq
+    for a in range(0, planes, 2 * g):
+        b = min(a + 2 * g, planes)
+        acc.add(slice(a, b), C.reshape(fields, P, planes, -1)[:, :, a:b])
+    assert np.abs(acc.result()[1] - ref).max() <= 1e-12 * scale
+
+
+def test_a_form_declared_symmetric_must_be_so():
+    with pytest.raises(ProblemError, match="no transposed twin"):
+        form_terms([(0, ((1, 0), (0, 0), (0, 0)))], symmetric=True)
+    with pytest.raises(ProblemError, match="each 0 or 1"):
+        form_terms([(0, ((2, 0), (0, 0), (0, 0)))])
+    with pytest.raises(ProblemError, match="reads field 3"):
+        form_terms([(3, ((0, 0),) * 3)], fields=2)
+    assert form_terms([(0, ((1, 0), (0, 0), (0, 0))), (0, ((0, 1), (0, 0), (0, 0)))], symmetric=True).count == 1
+
+
 @pytest.mark.parametrize("seed", range(len(STIFFNESS_DEGREES)))
 def test_compiled_stiffness_equals_numpy_path(seed):
     rng = np.random.default_rng(seed)
@@ -44,11 +92,11 @@ def test_compiled_stiffness_equals_numpy_path(seed):
     C = rng.standard_normal((6, P) + space.qshape)
     ref_pat = pattern(space)
     ref = stiffness_data(space, {rs: C[j] for j, rs in enumerate(_PAIRS)}, ref_pat)
-    pat, data = fast_assembly.stiffness_csr(space, C)
+    pat, data = fast_assembly.form_csr(space, C)
     assert np.array_equal(pat.indptr, ref_pat.indptr) and np.array_equal(pat.indices, ref_pat.indices)
     assert np.abs(data - ref).max() <= 1e-12 * np.abs(ref).max()
     # slab by slab (whole elements of direction 1) gives the same matrix, and the same load vectors
-    acc = fast_assembly.StiffnessAccumulator(space, P)
+    acc = fast_assembly.FormAccumulator(space, P)
     g, planes = space.dirs[0].g, space.dirs[0].nq
     cuts = sorted({0, planes, *(g * rng.integers(0, planes // g + 1, 2))})
     Cg = C.reshape(6, P, planes, -1)
@@ -370,3 +418,25 @@ def test_a_boundary_mass_inside_the_pattern_is_added_in_place_and_one_outside_is
     outside = sp.coo_matrix(([1.5], ([3], [int(np.setdiff1d(np.arange(60), K2[3].indices)[0])])), shape=K2.shape)
     out2 = add_within(K2, M + outside)
     assert abs(out2 - (ref + M + outside)).max() < 1e-15 and out2.nnz == ref.nnz + 1
+
+
+def test_the_mass_form_and_the_k_of_t_tangent_take_the_compiled_kernel_on_large_groups(monkeypatch):
+    """The transient mass form and the first-order tangent of k(T) are forms of the vocabulary: with the
+    compiled threshold lowered they go through the one form kernel and give the NumPy path's matrices."""
+    from iga.assembly.terms import SYMMETRIC_PAIRS
+    from iga.heat.nonlinear import tangent_forms
+
+    assert SYMMETRIC_PAIRS == _PAIRS  # the kernel's diffusion fields are the conductivity's pair order
+    twisted = pr.twisted(pr.box((2.0, 1.0, 1.0), degrees=(2, 2, 2)), 0.3, axis_point=(1.0, 0.5))
+    ms = tiling.regular(twisted, tiles.cross(), (2, 2, 1))
+    prob = HeatProblem(ms, conductivity=lambda x, T: 1.0 + 0.01 * T + 0.1 * x[:, 0], degree_elevation=1)
+    u = np.random.default_rng(5).uniform(20.0, 80.0, prob.ndof)
+    found = {}
+    for threshold in (10**12, 1):
+        monkeypatch.setattr(fast_assembly, "MIN_POINTS", threshold)
+        found[threshold] = (prob.mass(lambda x: 2.0e6 + x[:, 1]), *tangent_forms(prob, u))
+    groups = prob.volume.groups.values()
+    assert any(len(g) > 1 for g in groups) and all(fast_assembly.applies(prob.spaces[g[0]], len(g), 3) for g in groups)
+    for ref, got in zip(found[10**12], found[1]):
+        assert np.array_equal(got.indices, ref.indices)
+        assert abs(got - ref).max() <= 1e-12 * abs(ref).max()

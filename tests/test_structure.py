@@ -264,3 +264,27 @@ def test_the_solvers_copy_of_the_rank_and_round_off_thresholds_is_the_toolkit_s(
     from geometry import tolerances as t
 
     assert (e.RANK, e.ROUNDOFF) == (t.RANK, t.ROUNDOFF)
+
+
+def _kernel_modules():
+    return sorted((ROOT / "iga").rglob("_*kernels.py"))
+
+
+def test_no_contraction_kernel_is_specialised_to_a_term_count():
+    """A form is data (iga.assembly.terms.FormTerms): the compiled contraction has one kernel factory, and no
+    kernel shapes its scratch by a literal term count (heat's 7, elasticity's 9 were such counts)."""
+    factories, literal_shapes = [], []
+    for path in _kernel_modules():
+        tree = ast.parse(path.read_text())
+        for node in ast.walk(tree):
+            if isinstance(node, ast.FunctionDef) and node.name.endswith("_for"):
+                factories.append(f"{path.name}:{node.name}")
+            if isinstance(node, ast.Call):
+                name = node.func.attr if isinstance(node.func, ast.Attribute) else getattr(node.func, "id", "")
+                if name in ("reshape", "empty", "zeros"):
+                    counts = [n.value for a in node.args for n in ast.walk(a)
+                              if isinstance(n, ast.Constant) and type(n.value) is int and n.value > 4]
+                    if counts:
+                        literal_shapes.append(f"{path.name}:{node.lineno}: {ast.unparse(node)}")
+    assert factories == ["_assembly_kernels.py:form3_for"], factories
+    assert not literal_shapes, literal_shapes

@@ -1,8 +1,9 @@
 """Compiled kernels of :mod:`iga.assembly.compiled` (imported only when numba is installed and first needed).
 
-Notation (3-D, one patch): ``C[c, q1, q2, q3]`` are the six symmetric
-coefficient fields (weights, |J| and conductivity included) in the pair order
-(0,0), (1,1), (2,2), (0,1), (0,2), (1,2).  Direction k has ``n_k`` basis
+Notation (3-D, one patch): ``C[c, q1, q2, q3]`` are the coefficient fields of a
+form (weights, |J| and the material included), contracted term by term as
+:class:`iga.assembly.terms.FormTerms` says (for diffusion the six symmetric
+fields in the pair order (0,0), (1,1), (2,2), (0,1), (0,2), (1,2)).  Direction k has ``n_k`` basis
 functions of degree ``p_k``, band width ``D_k = 2 p_k + 1`` and the window
 tables of :class:`iga.discretisation.space.Space1D`: ``W[v, i, d, l]`` for the derivative
 variants v = (0,0), (0,1), (1,0), (1,1) (v = 2 a + b), the window start
@@ -129,85 +130,90 @@ def _flush_row(ring, out, cols, dest, indptr, pi, i1, i2, n2, n3, D3, lo1, c1, l
 
 
 @njit(inline="always")
-def symmetric_stage3(cl, b3, e3, f, Z, t, q2, P3, G3):
-    """Stage 3 of :func:`stiffness3` on direction-3 element e3 (first function f) of Gauss row (t, q2): add the
-    seven coefficient/variant combinations of the element's coefficients ``cl`` (6, G3) (pair order of the
-    module notes) to Z[t, :, q2].  Inlined, so the callers' constant P3 and G3 fix the trip counts, which LLVM
-    unrolls; shared with the diagonal blocks of :mod:`iga.assembly._elastic_kernels`."""
-    for l3 in range(P3 + 1):
-        i3 = f + l3
-        for m3 in range(P3 + 1):
-            d3 = m3 - l3 + P3
-            z0 = z1 = z2 = z3 = z4 = z5 = z6 = 0.0
+def _stage3(cl, wv, field, v3, b3, e3, f, Zf, t, q2, P3, G3, D3):
+    """Stage 3 of :func:`form3_for`'s kernel on direction-3 element e3 (first function f) of Gauss row (t, q2):
+    for each term j, sum_t3 d^a N_{f+l3} d^b N_{f+m3} F_c over the element's G3 points added to
+    Zf[t, j, q2, i3 D3 + d3] for every local pair (l3, m3) (``cl`` (fields, G3): this row's coefficients on
+    the element; ``wv`` (2, G3) scratch).  Term outermost: its field and orders are fixed while the pair and
+    Gauss loops run with the caller's constant trip counts P3 and G3, which LLVM unrolls (inlined); the
+    test side's product with the field is formed once per l3 (measured: as fast as the seven register
+    accumulators of a kernel written for diffusion alone at p = 2, 5-10% slower at p = 3, and 30% faster
+    than a run-time loop over the terms inside the pair loops)."""
+    for j in range(field.shape[0]):
+        c, v = field[j], v3[j]
+        a, b = v >> 1, v & 1
+        for t3 in range(G3):
+            wv[0, t3] = cl[c, t3]
+        for l3 in range(P3 + 1):
+            k0 = (f + l3) * D3 - l3 + P3
             for t3 in range(G3):
-                u0 = b3[0, e3, l3, t3]
-                u1 = b3[1, e3, l3, t3]
-                v0 = b3[0, e3, m3, t3]
-                v1 = b3[1, e3, m3, t3]
-                w00 = u0 * v0
-                w01 = u0 * v1
-                z0 += w00 * cl[0, t3]  # C00 (0,0)
-                z1 += w00 * cl[3, t3]  # C01 (0,0)
-                z2 += w01 * cl[4, t3]  # C02 (0,1)
-                z3 += w00 * cl[1, t3]  # C11 (0,0)
-                z4 += u1 * v1 * cl[2, t3]  # C22 (1,1)
-                z5 += w01 * cl[5, t3]  # C12 (0,1)
-                z6 += u1 * v0 * cl[5, t3]  # C12 (1,0)
-            Z[t, 0, q2, i3, d3] += z0
-            Z[t, 1, q2, i3, d3] += z1
-            Z[t, 2, q2, i3, d3] += z2
-            Z[t, 3, q2, i3, d3] += z3
-            Z[t, 4, q2, i3, d3] += z4
-            Z[t, 5, q2, i3, d3] += z5
-            Z[t, 6, q2, i3, d3] += z6
+                wv[1, t3] = b3[a, e3, l3, t3] * wv[0, t3]
+            for m3 in range(P3 + 1):
+                z = 0.0
+                for t3 in range(G3):
+                    z += wv[1, t3] * b3[b, e3, m3, t3]
+                Zf[t, j, q2, k0 + m3] += z
+
+
+@njit(inline="always")
+def _sweep(y, Zf, t, q2, w, j, nb, K3):
+    """y += sum of the nb (1 to 4) consecutive term rows Zf[t, j .. j + nb - 1, q2], row i weighted by w[i]:
+    one pass over y (rows past nb are valid views, never read: nb is fixed for the sweep, so LLVM unswitches
+    the branches out of the k loop)."""
+    za, zb = Zf[t, j, q2], Zf[t, j + min(1, nb - 1), q2]
+    zc, zd = Zf[t, j + min(2, nb - 1), q2], Zf[t, j + min(3, nb - 1), q2]
+    wa, wb, wc, wd = w[0], w[1], w[2], w[3]
+    for k in range(K3):
+        acc = wa * za[k]
+        if nb > 1:
+            acc += wb * zb[k]
+        if nb > 2:
+            acc += wc * zc[k]
+        if nb > 3:
+            acc += wd * zd[k]
+        y[k] += acc
 
 
 @njit(cache=True, parallel=True, fastmath=True)
-def heat_stage2(Z, Y, W2, r2, s2):
-    """Stage 2 of :func:`stiffness3` for the g1 Gauss planes of one direction-1 element: Z (g1, 7, nq2, n3, D3)
-    contracted along direction 2 into Y (g1, 4, n2, D2, n3, D3), the mirrored groups and halves included.
+def form_stage2(Z, Y, W2, r2, s2, v2, groups, symmetric):
+    """Stage 2 of :func:`form3_for`'s kernel for the g1 Gauss planes of one direction-1 element: the terms Z
+    (g1, T, nq2, n3, D3) contracted along direction 2 (variant ``v2[j]`` of term j) into the four
+    direction-1 variant groups Y (g1, 4, n2, D2, n3, D3) (group 0: (1,1), 1: (1,0), 2: (0,1), 3: (0,0), as
+    :func:`stage1_flush` reads them); group g's terms are ``groups[g]:groups[g + 1]``, summed four at a time
+    in one sweep (:func:`_sweep`).
 
-    Compiled once for every degree (the degree-specialised stage 3 calls it), so that a new degree costs
-    only the compilation of its stage 3.
+    ``symmetric`` (:mod:`iga.assembly.terms`): group 1 is computed whole, groups 0 and 3 for d2 >= p2 only
+    and mirrored under (i2, d2, i3, d3) -> (j2, 2 p2 - d2, j3, 2 p3 - d3), group 2 is group 1 transposed.
+    Compiled once for every degree and term count.
     """
-    g1, nq2, n3, D3 = Z.shape[0], Z.shape[2], Z.shape[3], Z.shape[4]
+    g1, T, nq2, n3, D3 = Z.shape[0], Z.shape[1], Z.shape[2], Z.shape[3], Z.shape[4]
     n2, D2 = Y.shape[2], Y.shape[3]
     K3 = n3 * D3
-    p2, P3 = (D2 - 1) // 2, (D3 - 1) // 2  # P3 read off the shapes: a constant argument would be typed as a
-    Zf = Z.reshape(g1, 7, nq2, K3)  # literal and compile this function once per degree
-    Yf = Y.reshape(g1, 4, n2, D2, K3)
-    # stage 2: groups by the direction-1 variant (a1, b1):
-    # Y0 (1,1) = C00; Y1 (1,0) = C01 d_v N_j + C02 d_w N_j; Y3 (0,0) = the four C_rs, r, s in {1, 2}.
-    # Y0 and Y3 are symmetric under (i2, d2, i3, d3) -> (j2, 2 p2 - d2, j3, 2 p3 - d3): summed for
-    # d2 >= p2 only and mirrored with Y2 below
-    # (sweeps run over the flattened (i3, d3) index: contiguous, so they vectorise)
-    for item in prange(g1 * n2):
+    p2, P3 = (D2 - 1) // 2, (D3 - 1) // 2
+    Zf = Z.reshape(g1, T, nq2, K3)
+    Yf = Y.reshape(g1, Y.shape[1], n2, D2, K3)
+    for item in prange(g1 * n2):  # sweeps run over the flattened (i3, d3) index: contiguous, they vectorise
         t = item // n2
         i2 = item - t * n2
+        w = np.empty(4)
         for d2 in range(D2):
-            upper = d2 >= p2
-            y0, y1, y3 = Yf[t, 0, i2, d2], Yf[t, 1, i2, d2], Yf[t, 3, i2, d2]
-            for k in range(K3):
-                y1[k] = 0.0
-            if upper:
+            whole = not symmetric or d2 >= p2
+            for g in range(4):
+                if not (whole or g == 1) or (symmetric and g == 2):  # symmetric: group 2 is mirrored below
+                    continue
+                y = Yf[t, g, i2, d2]
                 for k in range(K3):
-                    y0[k] = 0.0
-                    y3[k] = 0.0
-            for l in range(r2[i2, d2, 0], r2[i2, d2, 1]):
-                q2 = s2[i2] + l
-                w00, w01, w10, w11 = band_weights(W2, i2, d2, l)
-                z0, z1, z2, z3 = Zf[t, 0, q2], Zf[t, 1, q2], Zf[t, 2, q2], Zf[t, 3, q2]
-                z4, z5, z6 = Zf[t, 4, q2], Zf[t, 5, q2], Zf[t, 6, q2]
-                if upper:
-                    for k in range(K3):
-                        y0[k] += w00 * z0[k]
-                        y1[k] += w01 * z1[k] + w00 * z2[k]
-                        y3[k] += w11 * z3[k] + w00 * z4[k] + w10 * z5[k] + w01 * z6[k]
-                else:
-                    for k in range(K3):
-                        y1[k] += w01 * z1[k] + w00 * z2[k]
-    # mirrors: group (0,1) is group (1,0) transposed; Y0 and Y3 below the diagonal band
-    for item in prange(g1 * n2):
+                    y[k] = 0.0
+                for l in range(r2[i2, d2, 0], r2[i2, d2, 1]):
+                    q2 = s2[i2] + l
+                    for j in range(groups[g], groups[g + 1], 4):
+                        nb = min(4, groups[g + 1] - j)
+                        for i in range(nb):
+                            w[i] = W2[v2[j + i], i2, d2, l]
+                        _sweep(y, Zf, t, q2, w, j, nb, K3)
+    if not symmetric:
+        return
+    for item in prange(g1 * n2):  # the mirrors: group 2 from group 1, groups 0 and 3 below the band's middle
         t = item // n2
         i2 = item - t * n2
         for d2 in range(D2):
@@ -255,66 +261,60 @@ def stage1_flush(ring, Y, b1, first1, pi, e1, out, cols, dest, indptr, lo1, c1, 
 
 
 @memo(64)  # one kernel per (p3, g3): a handful per process
-def stiffness3_for(p3: int, g3: int):
-    """The stiffness kernel ``stiffness3`` for degree p3 and g3 Gauss points per element in direction 3.
+def form3_for(p3: int, g3: int):
+    """The form kernel ``form3`` for degree p3 and g3 Gauss points per element in direction 3.
 
-    Both are compile-time constants of stage 3, so that LLVM unrolls its Gauss
-    loop and keeps its seven accumulators in registers (docs/performance.md).
-    Stages 2 and 1 (:func:`heat_stage2`, :func:`stage1_flush`) are compiled
-    once for all degrees: a new (p3, g3) compiles stage 3 only (about 4 s
-    instead of 14), cached on disk like the other kernels (numba keys closures
-    by their constants).
+    Both are compile-time constants of stage 3, so that LLVM unrolls its pair and Gauss loops
+    (docs/performance.md); the terms are data (:class:`iga.assembly.terms.FormTerms`), so one kernel serves
+    every form of every term count.  Stages 2 and 1 (:func:`form_stage2`, :func:`stage1_flush`) are compiled
+    once for all degrees: a new (p3, g3) compiles stage 3 only, cached on disk like the other kernels (numba
+    keys closures by their constants).
     """
     P3, G3 = int(p3), int(g3)
 
     @njit(cache=True, parallel=True, fastmath=True)
-    def stiffness3(C, e0, b1, first1, W2, r2, s2, b3, first3, indptr, lo1, c1, lo2, c2, lo3, c3, ring, Z, Y, out,
-                   cols, dest):
-        """Write sum_rs int C_rs d_r N_i d_s N_j over a slab of direction-1 elements into the CSR data ``out``.
+    def form3(C, field, variants, groups, symmetric, e0, b1, first1, W2, r2, s2, b3, first3, indptr, lo1, c1, lo2, c2,
+              lo3, c3, ring, Z, Y, out, cols, dest):
+        """Write sum_terms int F_c d^a N_i d^b N_j over a slab of direction-1 elements into the CSR data ``out``.
 
-        C (6, P, m g1, nq2, nq3): the Gauss planes of the m elements e0 .. e0 + m - 1
-        of direction 1, for P patches sharing one space; b1 (2, E1, p1 + 1, g1)
-        local values and derivatives of direction 1 per element, ``first1[e]``
-        the index of the first basis function on element e (b3, first3 the same
-        for direction 3); W2, r2, s2 the band tables of direction 2 (module notes).
-        Scratch, kept by the caller across slabs: ``ring`` (P, p1 + 1, 2 p1 + 1,
-        n2, D2 n3 D3), zero on the first call; Z (g1, 7, nq2, n3, D3) and
-        Y (g1, 4, n2, D2, n3, D3).  ``out``, ``cols`` and ``dest``: the flat
-        CSR data, its columns (written where asked) and where each patch's rows
-        go in them (:func:`_flush_row`).
+        C (fields, P, m g1, nq2, nq3): the coefficient fields on the Gauss planes of the m elements
+        e0 .. e0 + m - 1 of direction 1, for P patches sharing one space; ``field`` (T,), ``variants`` (T, 3),
+        ``groups`` (5,), ``symmetric``: the terms (:class:`iga.assembly.terms.FormTerms`); b1 (2, E1, p1 + 1, g1) local values
+        and derivatives of direction 1 per element, ``first1[e]`` the index of the first basis function on
+        element e (b3, first3 the same for direction 3); W2, r2, s2 the band tables of direction 2 (module
+        notes).  Scratch, kept by the caller across slabs: ``ring`` (P, p1 + 1, 2 p1 + 1, n2, D2 n3 D3), zero
+        on the first call and left zero after the last element; Z (g1, T, nq2, n3, D3) and
+        Y (g1, 4, n2, D2, n3, D3).  ``out``, ``cols`` and ``dest``: the flat CSR data, its columns (written
+        where asked) and where each patch's rows go in them (:func:`_flush_row`).
 
-        Sum factorisation by slabs of direction-1 elements: for the g1 Gauss
-        planes of element e1, contract direction 3 (Z, seven coefficient/variant
-        combinations), then direction 2 (Y, four groups by the direction-1
-        variant), then direction 1 into the CSR rows of the p1 + 1 basis
-        functions of e1.  Slabs run in order (rows of neighbouring slabs overlap);
-        inside a slab the work is split over planes and rows.
+        Sum factorisation by slabs of direction-1 elements: for the g1 Gauss planes of element e1, contract
+        direction 3 (Z, one row per term), then direction 2 (Y, four groups by the direction-1 variant), then
+        direction 1 into the CSR rows of the p1 + 1 basis functions of e1.  Slabs run in order (rows of
+        neighbouring slabs overlap); inside a slab the work is split over planes and rows.
         """
-        P, nq2, g1, E3, K3 = C.shape[1], C.shape[3], b1.shape[3], b3.shape[1], Z.shape[3] * Z.shape[4]
+        nc, P, nq2, g1, E3 = C.shape[0], C.shape[1], C.shape[3], b1.shape[3], b3.shape[1]
+        T, D3 = field.shape[0], Z.shape[4]
         n_el = C.shape[2] // g1
-        Zf = Z.reshape(g1, 7, nq2, K3)
+        Zf = Z.reshape(g1, T, nq2, Z.shape[3] * D3)
+        v2, v3 = variants[:, 1].copy(), variants[:, 2].copy()
         for pi in range(P):
             for e1 in range(e0, e0 + n_el):
-                # stage 3: Z[t, m, q2, i3, d3] = sum_q3 W3[v_m](i3, d3, q3) C[f_m](q1, q2, q3), element by
-                # element of direction 3: the element's 6 g3 coefficients are read once and every local pair
-                # (l3, m3) takes its products of basis values with fixed trip counts, which LLVM unrolls
-                # (alternatives measured and dropped: docs/performance.md)
                 for item in prange(g1 * nq2):
                     t = item // nq2
                     q2 = item - t * nq2
                     q1 = (e1 - e0) * g1 + t
-                    cl = np.empty((6, G3))
+                    cl = np.empty((nc, G3))
+                    wv = np.empty((2, G3))
                     Zf[t, :, q2] = 0.0
                     for e3 in range(E3):
-                        f = first3[e3]
                         for t3 in range(G3):
-                            for c in range(6):
+                            for c in range(nc):
                                 cl[c, t3] = C[c, pi, q1, q2, e3 * G3 + t3]
-                        symmetric_stage3(cl, b3, e3, f, Z, t, q2, P3, G3)
-                heat_stage2(Z, Y, W2, r2, s2)
+                        _stage3(cl, wv, field, v3, b3, e3, first3[e3], Zf, t, q2, P3, G3, D3)
+                form_stage2(Z, Y, W2, r2, s2, v2, groups, symmetric)
                 stage1_flush(ring, Y, b1, first1, pi, e1, out, cols, dest, indptr, lo1, c1, lo2, c2, lo3, c3)
 
-    return stiffness3
+    return form3
 
 
 @njit(cache=True)
@@ -352,7 +352,7 @@ def load3(L, e0, b1, first1, b2, e2lo, e2hi, first2, b3, first3, out):
 
     L (P, m g1, nq2, nq3): the source field (weights and |J| included) on the
     Gauss planes of elements e0 .. e0 + m - 1; b_k, first_k as in
-    :func:`stiffness3` (direction 2 too); ``e2lo[i2] .. e2hi[i2] - 1`` the
+    :func:`form3_for` (direction 2 too); ``e2lo[i2] .. e2hi[i2] - 1`` the
     direction-2 elements in the support of function i2.  Sum factorisation:
     direction 3 row by row, then direction 2 and 1 by rows i2 (one thread
     per row, so the accumulation into ``out`` needs no lock).

@@ -154,3 +154,39 @@ def elastic_metric(Du, Dv, Dw, lam, mu, w, start, G, LM, det):
         G[6, p, j], G[7, p, j], G[8, p, j] = e0, e1, e2
         LM[0, p, j] = lam[k] * fac
         LM[1, p, j] = mu[k] * fac
+
+
+@njit(cache=True, parallel=True, fastmath=True)
+def elastic_block_fields(G, LM, a, b, start, F):
+    """The parametric coefficient fields of block (a, b) of linear elasticity on a slab into F: on a diagonal
+    block the six symmetric C_rs = (lf + mf) c_r[a] c_s[a] + mf c_r . c_s in the pair order (0,0), (1,1),
+    (2,2), (0,1), (0,2), (1,2) (F (6, P, n)), off it the nine F_rs = lf c_r[a] c_s[b] + mf c_r[b] c_s[a] at
+    index 3 r + s (F (9, P, n)), for the n grid points from ``start`` on.  G (9, P, N): the metric rows,
+    ``G[3 r + k] = c_r[k]``; LM (2, P, N): lf = lambda w / |det J| and mf = mu w / |det J|
+    (:mod:`iga.elasticity.forms`), on the whole grid (N points per patch, C order).  Straight-line code per
+    point over contiguous runs: it vectorises."""
+    P, n = F.shape[1], F.shape[2]
+    chunk = 512
+    for item in prange(P * ((n + chunk - 1) // chunk)):
+        pi = item % P
+        lo = (item // P) * chunk
+        for q in range(lo, min(lo + chunk, n)):
+            g = start + q
+            lf, mf = LM[0, pi, g], LM[1, pi, g]
+            c00, c01, c02 = G[0, pi, g], G[1, pi, g], G[2, pi, g]
+            c10, c11, c12 = G[3, pi, g], G[4, pi, g], G[5, pi, g]
+            c20, c21, c22 = G[6, pi, g], G[7, pi, g], G[8, pi, g]
+            if a == b:
+                ca0, ca1, ca2 = G[a, pi, g], G[3 + a, pi, g], G[6 + a, pi, g]  # c_r[a], r = 0, 1, 2
+                lm = lf + mf
+                F[0, pi, q] = lm * ca0 * ca0 + mf * (c00 * c00 + c01 * c01 + c02 * c02)
+                F[1, pi, q] = lm * ca1 * ca1 + mf * (c10 * c10 + c11 * c11 + c12 * c12)
+                F[2, pi, q] = lm * ca2 * ca2 + mf * (c20 * c20 + c21 * c21 + c22 * c22)
+                F[3, pi, q] = lm * ca0 * ca1 + mf * (c00 * c10 + c01 * c11 + c02 * c12)
+                F[4, pi, q] = lm * ca0 * ca2 + mf * (c00 * c20 + c01 * c21 + c02 * c22)
+                F[5, pi, q] = lm * ca1 * ca2 + mf * (c10 * c20 + c11 * c21 + c12 * c22)
+            else:
+                for r in range(3):
+                    ra, rb = G[3 * r + a, pi, g], G[3 * r + b, pi, g]
+                    for s in range(3):
+                        F[3 * r + s, pi, q] = lf * ra * G[3 * s + b, pi, g] + mf * rb * G[3 * s + a, pi, g]

@@ -4,7 +4,7 @@ The NumPy/SciPy path of :mod:`iga.assembly.tensor` contracts one quadrature axis
 at a time over whole arrays: every stage writes and re-reads arrays of
 hundreds of MB, then the banded result is gathered into CSR order and added
 to its transpose.  Here the same sum factorisation runs slab by slab of
-direction-1 elements (:class:`StiffnessAccumulator`): per slab the geometry
+direction-1 elements (:class:`FormAccumulator`): per slab the geometry
 is evaluated from the spline coefficients (:func:`grid_derivs`), the metric
 coefficients computed (:func:`metric_fields`; both in one pass by
 :func:`metric_slabs` for patches without placement or map and with constant
@@ -38,6 +38,7 @@ from geometry.compiled.lock import locked
 from geometry.compiled._fast import grid_tables, readonly
 
 from iga.assembly.tensor import CACHE_NNZ, CSRPattern, band_limits
+from iga.assembly.terms import DIFFUSION, FormTerms, elastic_block
 from iga.discretisation.space import Space1D, TensorSpace
 
 #: quadrature points (over all patches of a group) from which the compiled kernels assemble the scalar form
@@ -53,7 +54,7 @@ _VARIANTS = ((0, 0), (0, 1), (1, 0), (1, 1))
 
 def applies(space: TensorSpace, n_patches: int, terms: int = 6) -> bool:
     """Whether the compiled kernels assemble ``n_patches`` patches on ``space``, for a form of ``terms``
-    parametric coefficient terms per Gauss point (6: the scalar stiffness, :func:`stiffness_csr`; 45: the
+    parametric coefficient terms per Gauss point (6: the scalar stiffness, :func:`form_csr`; 45: the
     six computed blocks of elasticity, :func:`elastic_into`).  The threshold is on work, points times
     terms: what :data:`MIN_POINTS` points of the scalar form take."""
     return AVAILABLE and space.dim == 3 and n_patches * space.nq_total * terms >= MIN_POINTS * 6
@@ -161,15 +162,19 @@ def compact_rows_cols(K, keep: np.ndarray):
     return sp.csr_matrix((data[:nnz], indices[:nnz], indptr[: rows + 1]), shape=(rows, rows))
 
 
-def _scratch(space: TensorSpace, n_patches: int, terms: int):
-    """A slab kernel's scratch: the ring of banded rows of the p1 + 1 direction-1 indices a slab touches
-    (zero; each kernel pass leaves it zero again), and its partial contractions Z (``terms`` coefficient and
-    variant combinations) and Y, allocated once: fresh memory per slab is page-faulted in again."""
+def _scratch(space: TensorSpace, n_patches: int, terms: int, scratch=None):
+    """A slab kernel's scratch (ring, Z, Y): the ring of banded rows of the p1 + 1 direction-1 indices a slab
+    touches (zero; each kernel pass leaves it zero again), its partial contractions Z (one row per term) and
+    Y, allocated once: fresh memory per slab is page-faulted in again.  ``scratch`` from an earlier pass on
+    the same space and patches is reused (its Z holds ``terms`` rows or more: the leading part is taken)."""
     (_, n2, n3), (p1, p2, p3) = space.shape, [d.degree for d in space.dirs]
     g1, nq2 = space.dirs[0].g, space.dirs[1].nq
+    zshape = (g1, terms, nq2, n3, 2 * p3 + 1)
+    if scratch is not None and scratch[1].size >= np.prod(zshape):
+        ring, Z, Y = scratch
+        return ring, Z.reshape(-1)[:int(np.prod(zshape))].reshape(zshape), Y
     ring = np.zeros((n_patches, p1 + 1, 2 * p1 + 1, n2, (2 * p2 + 1) * n3 * (2 * p3 + 1)))
-    return (ring, np.empty((g1, terms, nq2, n3, 2 * p3 + 1)),
-            np.empty((g1, 4, n2, 2 * p2 + 1, n3, 2 * p3 + 1)))
+    return ring, np.empty(zshape), np.empty((g1, 4, n2, 2 * p2 + 1, n3, 2 * p3 + 1))
 
 
 def scalar_destinations(n_patches: int, nnz: int) -> np.ndarray:
@@ -182,21 +187,23 @@ def scalar_destinations(n_patches: int, nnz: int) -> np.ndarray:
     return readonly(dest, np.int64)
 
 
-class StiffnessAccumulator:
-    """CSR stiffness of P patches sharing ``space``, added slab by slab of direction-1 elements.
+class FormAccumulator:
+    """CSR operator of the form ``form`` (:class:`iga.assembly.terms.FormTerms`) on P patches sharing ``space``,
+    added slab by slab of direction-1 elements.
 
-    ``add(planes, C)`` takes the coefficient fields (6, P, n) on the Gauss
-    planes ``planes`` (a slice of whole elements along the first quadrature
-    axis, as :meth:`iga.HeatProblem._stiffness_slabs` yields them), in order;
-    after the last element, :meth:`result` returns the pattern and the data (P, nnz).
-    ``add(planes, C, L)`` also contracts a source field L (P, n) into
-    :attr:`load` (P,) + space.shape.
-    Rows are finished in a banded ring buffer of the p1 + 1 direction-1
-    indices a slab touches and written to ``data`` once, when complete.
+    ``add(planes, C)`` takes the coefficient fields (form.fields, P, n) on the Gauss planes ``planes`` (a
+    slice of whole elements along the first quadrature axis, as :meth:`iga.heat.volume.VolumeAssembler._slabs`
+    yields them), in order; after the last element, :meth:`result` returns the pattern and the data (P, nnz).
+    ``add(planes, C, L)`` also contracts a source field L (P, n) into :attr:`load` (P,) + space.shape.
+    Rows are finished in a banded ring buffer of the p1 + 1 direction-1 indices a slab touches and written to
+    ``data`` once, when complete.  ``into`` (csr, members, component a, component b): write block (a, b) of
+    the patches' rows straight into a global :class:`iga.assembly.vector_csr.VectorCSR` (values and
+    columns).  ``scratch``: the (ring, Z, Y) of an accumulator on the same space and patches that has
+    finished (it leaves its ring zero), reused.
     """
 
-    def __init__(self, space: TensorSpace, n_patches: int, into=None):
-        self.space = space
+    def __init__(self, space: TensorSpace, n_patches: int, form: FormTerms = DIFFUSION, into=None, scratch=None):
+        self.space, self.form = space, form
         self.tables = [_tables(s) for s in space.dirs]
         self.n_patches = n_patches
         # the kernel writes the columns itself when it writes into a global CSR: only the row pointers needed
@@ -207,20 +214,20 @@ class StiffnessAccumulator:
             self.data = np.empty((n_patches, len(self.pattern.indices)))
             self.out, self.cols = self.data.reshape(-1), np.empty(0, np.int32)
             self.dest = scalar_destinations(n_patches, self.data.shape[1])
-        else:  # straight into the global CSR (a one-component VectorCSR): values and columns, rows written now
-            csr, members = into
-            self.data, self.out, self.cols, self.into = None, csr.data, csr.indices, into
-            csr.put_rows(members, self.pattern.indptr)
-            self.dest = readonly(np.stack([csr.bases(members, 0), np.ones(n_patches, np.int64),
-                                           np.zeros(n_patches, np.int64), csr.offsets[np.asarray(members)]],
-                                          axis=1), np.int64)
-        self.ring, self.Z, self.Y = _scratch(space, n_patches, 7)
+        else:  # straight into the global CSR: values and columns (only where asked), rows written with block 0
+            into = tuple(into) + (0, 0)[len(into) - 2:]
+            self.data, self.out, self.cols, self.into = None, into[0].data, into[0].indices, into
+            self.dest = _block_destinations(*into)
+            if into[2:] == (0, 0):
+                into[0].put_rows(into[1], self.pattern.indptr)
+        self.ring, self.Z, self.Y = _scratch(space, n_patches, form.count, scratch)
         self.next_element = 0
         #: load vectors (P,) + space.shape, once a slab with a source field was added (else None)
         self.load = None
 
     def add(self, planes: slice, C: np.ndarray, L: np.ndarray | None = None) -> None:
-        """Add the slab ``planes`` with coefficient fields C (6, P, n) and optionally a source field L (P, n)."""
+        """Add the slab ``planes`` with coefficient fields C (form.fields, P, n) and optionally a source field L
+        (P, n)."""
         g = self.space.dirs[0].g
         if planes.start % g or (planes.stop - planes.start) % g:
             raise ProblemError(f"slab {planes} does not cover whole elements ({g} Gauss planes each)")
@@ -228,43 +235,53 @@ class StiffnessAccumulator:
             raise ProblemError(f"slabs must come in order: expected Gauss plane {self.next_element * g}, "
                                f"got {planes.start}")
         t1, t2, t3 = self.tables
-        shape = (6, self.n_patches, planes.stop - planes.start) + self.space.qshape[1:]
+        shape = (self.form.fields, self.n_patches, planes.stop - planes.start) + self.space.qshape[1:]
         C = readonly(np.reshape(C, shape))
         if L is not None:  # shaped before anything is added, so that a bad slab changes nothing
             L = readonly(np.reshape(L, shape[1:]))
         self.next_element = planes.stop // g
         p3, g3 = t3["b"].shape[2] - 1, t3["b"].shape[3]
-        locked(_kernels().stiffness3_for(p3, g3))(C, planes.start // g, t1["b"], t1["first"], t2["W"], t2["r"], t2["s"],
-                                          t3["b"], t3["first"], readonly(self.pattern.indptr, np.int64),
-                                          t1["lo"], t1["c"],
-                                          t2["lo"], t2["c"], t3["lo"], t3["c"], self.ring, self.Z, self.Y,
-                                          self.out, self.cols, self.dest)
+        f = self.form
+        locked(_kernels().form3_for(p3, g3))(C, f.field, f.variants, f.groups, f.symmetric, planes.start // g, t1["b"],
+                                             t1["first"], t2["W"], t2["r"], t2["s"], t3["b"], t3["first"],
+                                             readonly(self.pattern.indptr, np.int64), t1["lo"], t1["c"],
+                                             t2["lo"], t2["c"], t3["lo"], t3["c"], self.ring, self.Z, self.Y,
+                                             self.out, self.cols, self.dest)
         if L is not None:
             if self.load is None:
                 self.load = np.zeros((self.n_patches,) + self.space.shape)
-            locked(_kernels().load3)(L, planes.start // g, t1["b"], t1["first"], t2["b"], t2["elo"], t2["ehi"], t2["first"],
-                             t3["b"], t3["first"], self.load)
+            locked(_kernels().load3)(L, planes.start // g, t1["b"], t1["first"], t2["b"], t2["elo"], t2["ehi"],
+                                     t2["first"], t3["b"], t3["first"], self.load)
 
     def result(self) -> tuple[CSRPattern, np.ndarray | None]:
         """``(pattern, data (P, nnz))`` once every element has been added; data None when written ``into`` a
-        global CSR (whose patches are then marked written)."""
+        global CSR (whose patches are then marked written, for a one-component operator)."""
         E1 = self.space.dirs[0].E
         if self.next_element != E1:
-            raise ProblemError(f"stiffness incomplete: elements {self.next_element}..{E1 - 1} of direction 1 "
+            raise ProblemError(f"form incomplete: elements {self.next_element}..{E1 - 1} of direction 1 "
                                "were not added")
-        if self.data is None:
+        if self.data is None and self.into[0].c == 1:
             self.into[0].mark(self.into[1])
         return self.pattern, self.data
 
 
-def stiffness_csr(space: TensorSpace, C: np.ndarray) -> tuple[CSRPattern, np.ndarray]:
-    """CSR pattern and data (P, nnz) of sum_rs int C_rs d_r N_i d_s N_j (one call, whole grid).
+def _block_destinations(csr, members, a: int = 0, b: int = 0) -> np.ndarray:
+    """The slab kernels' ``dest`` (P, 4) for block (a, b) of the patches ``members`` in the component-major
+    ``csr`` (:class:`iga.assembly.vector_csr.VectorCSR`; block (0, 0) of a one-component one): rows of component
+    a, entries of block b; columns written for component 0's rows only (a vector operator's other rows copy
+    them, :func:`iga.assembly._elastic_kernels.mirror_lower`)."""
+    members = np.asarray(members)
+    P, k = len(members), csr.c
+    cols = b * csr.n + csr.offsets[members] if a == 0 else np.full(P, -1)
+    return readonly(np.stack([csr.bases(members, a), np.full(P, k), np.full(P, b), cols], axis=1), np.int64)
 
-    ``C`` (6, P) + qshape: the symmetric coefficient fields in the pair order
-    (0,0), (1,1), (2,2), (0,1), (0,2), (1,2), quadrature weights and |J|
-    included (as built by :class:`iga.HeatProblem`).
-    """
-    acc = StiffnessAccumulator(space, C.shape[1])
+
+def form_csr(space: TensorSpace, C: np.ndarray, form: FormTerms = DIFFUSION) -> tuple[CSRPattern, np.ndarray]:
+    """CSR pattern and data (P, nnz) of the form ``form`` with coefficient fields ``C`` (form.fields, P) +
+    qshape (quadrature weights and |J| included), in one call over the whole grid.  For diffusion, the six
+    symmetric fields in the pair order (0,0), (1,1), (2,2), (0,1), (0,2), (1,2), as
+    :class:`iga.heat.volume.VolumeAssembler` builds them."""
+    acc = FormAccumulator(space, C.shape[1], form)
     acc.add(slice(0, space.dirs[0].nq), C)
     return acc.result()
 
@@ -281,40 +298,60 @@ def elastic_into(space: TensorSpace, members, G: np.ndarray, LM: np.ndarray, out
 
     ``G`` (9, P) + qshape: the metric rows, ``G[3 r + k] = c_r[k]`` (:func:`iga.elasticity.forms.metric_rows`);
     ``LM`` (2, P) + qshape: lambda w / |det J| and mu w / |det J| (Pa).  Block (a, b) couples component a of
-    the test functions (rows) with component b of the trial functions.  The kernel computes the six upper
-    blocks, the diagonal ones through the scalar kernel's symmetric stages, writing data as rows complete and
-    columns for component 0's rows; the lower blocks are copied from the upper ones' transposes (the
-    pattern's mirrored band offsets), and the other components' columns from component 0's, by one parallel
-    pass.  Compiled (:mod:`iga.assembly._elastic_kernels`); the NumPy reference is
-    :func:`iga.elasticity.forms.block_terms`.
+    the test functions (rows) with component b of the trial functions.  The six upper blocks are forms of the
+    one form kernel (:func:`iga.assembly.terms.elastic_block`: a diagonal block the symmetric six-field form,
+    an off-diagonal one nine fields), their fields formed slab by slab (:func:`_elastic_block_fields`), data
+    written as rows complete and columns for component 0's rows; the lower blocks are copied from the upper
+    ones' transposes (the pattern's mirrored band offsets), and the other components' columns from component
+    0's, by one parallel pass.  The NumPy reference is :func:`iga.elasticity.forms.block_terms`.
     """
-    t1, t2, t3 = (_tables(s) for s in space.dirs)
     pat = structure(space)
     P = G.shape[1]
     p1, p2, p3 = [d.degree for d in space.dirs]
-    ring, Z9, Y = _scratch(space, P, 9)  # the ring is left zero by each pass, so the six share it
-    Z7 = np.empty(Z9.shape[:1] + (7,) + Z9.shape[2:])
     G, LM = readonly(G), readonly(LM)
-    kernels = _elastic_kernels()
-    kernel = locked(kernels.elastic3_for(p3, space.dirs[2].g))
-    indptr = readonly(pat.indptr, np.int64)
     members = np.asarray(members)
-    before, offsets = readonly(out.before[members], np.int64), readonly(out.offsets[members], np.int64)
-    out.put_rows(members, indptr)
+    indptr = readonly(pat.indptr, np.int64)
+    g = space.dirs[0].g
+    rest = space.nq_total // space.dirs[0].nq
+    step = g * max(1, _ELASTIC_SLAB_POINTS // (rest * g))  # Gauss planes per slab, whole elements
+    scratch = _scratch(space, P, elastic_block(0, 1).count)  # the six passes share it (each leaves it zero)
+    fields = np.empty(9 * P * min(step, space.dirs[0].nq) * rest)  # the fields of a slab, allocated once
     for a in range(3):
         for b in range(a, 3):
-            # columns written for component 0's rows only: the mirror copies them to the other components' rows
-            cols = b * out.n + offsets if a == 0 else np.full(P, -1)
-            dest = np.stack([out.bases(members, a), np.full(P, 3), np.full(P, b), cols], axis=1)
-            kernel(G, LM, a, b, 0, t1["b"], t1["first"], t2["W"], t2["r"], t2["s"], t3["b"], t3["first"], indptr,
-                   t1["lo"], t1["c"], t2["lo"], t2["c"], t3["lo"], t3["c"], ring, Z7, Z9, Y, out.data, out.indices,
-                   readonly(dest, np.int64))
+            acc = FormAccumulator(space, P, elastic_block(a, b), into=(out, members, a, b), scratch=scratch)
+            for q0 in range(0, space.dirs[0].nq, step):
+                planes = slice(q0, min(q0 + step, space.dirs[0].nq))
+                acc.add(planes, _elastic_block_fields(G, LM, a, b, planes, fields))
+            acc.result()
+    kernels = _elastic_kernels()
+    t1, t2, t3 = (_tables(s) for s in space.dirs)
+    before = readonly(out.before[members], np.int64)
     transpose = np.empty(len(pat.indices), np.int64)
     locked(kernels.transpose_positions)(indptr, t1["lo"], t1["c"], t2["lo"], t2["c"], t3["lo"], t3["c"],
                                         p1, p2, p3, transpose)
     locked(kernels.mirror_lower)(indptr, readonly(pat.indices, pat.indices.dtype), readonly(transpose, np.int64),
                                  before, out.nnz, out.data, out.indices)
     out.mark(members)
+
+
+#: Gauss points per slab of the elastic blocks' fields (nine fields of a slab, formed then contracted)
+_ELASTIC_SLAB_POINTS = 1 << 16
+
+
+def _elastic_block_fields(G: np.ndarray, LM: np.ndarray, a: int, b: int, planes: slice,
+                          scratch: np.ndarray) -> np.ndarray:
+    """The fields of elastic block (a, b) on the Gauss planes ``planes``, compiled: on a diagonal block the six
+    symmetric C_rs = (lf + mf) c_r[a] c_s[a] + mf c_r . c_s (pair order of
+    :data:`iga.assembly.terms.SYMMETRIC_PAIRS`), off it the nine F_rs = lf c_r[a] c_s[b] + mf c_r[b] c_s[a]
+    (index 3 r + s); G (9, P) + qshape and LM (2, P) + qshape on the whole grid (read-only, contiguous);
+    written into the leading part of ``scratch`` (fresh memory per slab is page-faulted in again).
+    Formulas in :func:`iga.assembly._metric_kernels.elastic_block_fields`."""
+    P, rest = G.shape[1], int(np.prod(G.shape[3:]))
+    shape = (6 if a == b else 9, P, planes.stop - planes.start) + G.shape[3:]
+    F = scratch[:int(np.prod(shape))].reshape(shape)
+    locked(_metric_kernels().elastic_block_fields)(G.reshape(9, P, -1), LM.reshape(2, P, -1), a, b,
+                                                   planes.start * rest, F.reshape(shape[0], P, -1))
+    return F
 
 
 def metric_fields(D, kval, fval, w):

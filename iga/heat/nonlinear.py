@@ -27,7 +27,9 @@ import scipy.sparse.linalg as spla
 from geometry.numbers import TINY
 from geometry.patches.chain import patches_geometry_derivs
 
-from iga.assembly.tensor import banded_form, banded_to_csr_data, pattern, stiffness_data
+from iga.assembly.forms import form_data
+from iga.assembly.tensor import pattern
+from iga.assembly.terms import DIFFUSION, form_terms
 from iga.assembly.vector_csr import VectorCSR
 from iga.discretisation.components import analyse_components
 from iga.discretisation.constraints import owners_of, prolongation
@@ -38,13 +40,16 @@ from iga.discretisation.fields import grid_fields
 from iga.discretisation.jacobians import checked_det
 from iga.discretisation.system import SystemSolution, reduction
 from iga.errors import ProblemError
-from iga.heat.coefficients import TENSOR_PAIRS
 from iga.heat.forms import diffusion
 from iga.heat.radiation import RadiationFaces
 from iga.heat.solution import Solution
 from solvers.info import SolveInfo
 
 __all__ = ["tangent_forms", "solve_conductivity", "solve_temperature_dependent"]
+
+#: int G_r d_r N_i N_j: the test function differentiated along direction r, the trial one not; the tangent of
+#: k(T) takes G_r = dk/dT (c_r . grad T) w sign(det J) (c_r the rows of det J J^-1)
+TEMPERATURE_GRADIENT = form_terms([(r, tuple((int(k == r), 0) for k in range(3))) for r in range(3)], fields=3)
 
 
 def tangent_forms(problem, u: np.ndarray, derivative: bool = True):
@@ -74,15 +79,13 @@ def tangent_forms(problem, u: np.ndarray, derivative: bool = True):
                 (k.at_temperature(xs, T, where), None)
             wv = np.broadcast_to(w, (P, len(w))).reshape(-1)
             C6, _, _ = diffusion(D, kv, np.zeros_like(kv), wv)
-            fields = {rs: C6[j].reshape((P,) + space.qshape) for j, rs in enumerate(TENSOR_PAIRS)}
-            Kc.put(chunk, pat, {(0, 0): stiffness_data(space, fields, pat)})
+            Kc.put(chunk, pat, {(0, 0): form_data(space, C6.reshape((6, P) + space.qshape), DIFFUSION, pat)})
             if derivative:
                 Du, Dv, Dw = (d.reshape(-1, 3) for d in D)
                 rows = (np.cross(Dv, Dw), np.cross(Dw, Du), np.cross(Du, Dv))  # det J * J^-1, row by row
                 scale = dk * wv * np.sign(det)
-                terms = [((scale * np.sum(c * grad, axis=1)).reshape((P,) + space.qshape),
-                          tuple((int(k_ == r), 0) for k_ in range(3))) for r, c in enumerate(rows)]
-                Cc.put(chunk, pat, {(0, 0): banded_to_csr_data(space, banded_form(space, terms), pat)})
+                G = np.stack([(scale * np.sum(c * grad, axis=1)).reshape((P,) + space.qshape) for c in rows])
+                Cc.put(chunk, pat, {(0, 0): form_data(space, G, TEMPERATURE_GRADIENT, pat)})
     return Kc.matrix(), (Cc.matrix() if derivative else None)
 
 

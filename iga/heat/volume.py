@@ -22,7 +22,9 @@ from __future__ import annotations
 import numpy as np
 
 from iga.assembly import compiled as fast_assembly
+from iga.assembly.forms import form_data
 from iga.assembly.tensor import banded_form, banded_to_csr_data, load_form, pattern, stiffness_data
+from iga.assembly.terms import MASS
 from iga.heat.coefficients import TENSOR_PAIRS
 from iga.discretisation.faces import chunks
 from iga.heat.forms import diffusion
@@ -113,7 +115,7 @@ class VolumeAssembler:
         P, N = len(members), space.nq_total
         total = 0.0
         if self._compiled(members):  # compiled: each slab goes straight into the global CSR and loads
-            acc = fast_assembly.StiffnessAccumulator(space, P, into=(into, members))
+            acc = fast_assembly.FormAccumulator(space, P, into=(into, members))
             for planes, Cs, Ls in self._slabs(members, space, conductivity, source, compiled=True):
                 total += float(Ls.sum())
                 acc.add(planes, Cs, Ls if np.any(Ls) else None)
@@ -187,8 +189,9 @@ class VolumeAssembler:
         :class:`iga.heat.coefficients.ScalarField`; the volumetric heat capacity rho c in J/(m^3 K) makes M
         the heat capacity matrix in J/K per unit of the coefficients).  ``patches`` as in :meth:`assemble`.
 
-        One term of the sum-factorised vocabulary (:func:`iga.assembly.tensor.banded_form`): the coefficient
-        field c |det J| w on the Gauss grid, no derivative on either side; in the NURBS basis
+        One term of the form vocabulary (:data:`iga.assembly.terms.MASS` through
+        :func:`iga.assembly.forms.form_data`, compiled for large groups): the coefficient field c |det J| w on
+        the Gauss grid, no derivative on either side; in the NURBS basis
         (:mod:`iga.discretisation.rational`) the field is divided by the weight function squared and the
         entries scaled by w_i w_j."""
         n = len(self.spaces)
@@ -205,7 +208,7 @@ class VolumeAssembler:
                     W, _ = weight_fields(self.model.patches[members[0]].spline, space, len(members))
                     F /= W ** 2
                 pat = pattern(space)
-                data = banded_to_csr_data(space, banded_form(space, [(F, ((0, 0),) * space.dim)]), pat)
+                data = form_data(space, F[None], MASS, pat)
                 if rational:
                     data *= nurbs_scale(pat, self.weights[members[0]].reshape(-1))
                 M.put(members, pat, {(0, 0): data})
