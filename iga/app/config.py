@@ -24,6 +24,7 @@ from iga.app.config_checks import (boolean as _bool, choice as _choice, fail as 
 from iga.app.config_model import (NO_MAP, NO_TILE, map_section, paving_section, polygon_tile, primitives, reduce_section,
                            second_level, surface_reason, tile_section)
 from iga.app.config_physics import physics as _physics
+from iga.app.config_records import Config, config_record
 from iga.app.config_schema import SCHEMA, allowed, default, filled, required
 from iga.app.config_loops import adapt_section, design_section
 from iga.app.config_time import capacity, time_section
@@ -209,8 +210,9 @@ def _exports_fit(cfg: dict, surface: str | None) -> None:
         _fail("output.exports", "the polygon tile has lines only: stl, obj and ply hold triangles; use vtp")
 
 
-def validate(config, base_dir=".") -> dict:
-    """The normalised configuration (every default filled in), or :class:`ProblemError` (see module)."""
+def validate(config, base_dir=".") -> Config:
+    """The normalised configuration (every default filled in) as frozen records
+    (:class:`iga.app.config_records.Config`), or :class:`ProblemError` (see module)."""
     if not isinstance(config, dict):
         raise ProblemError("the configuration must be a table of sections")
     unknown = sorted(set(config) - set(SECTIONS))
@@ -258,7 +260,7 @@ def validate(config, base_dir=".") -> dict:
     lim = _table(config.get("limits", {}), "limits", allowed("limits"))
     cfg["limits"] = {"max_memory_gib": None if "max_memory_gib" not in lim
                      else _number(lim["max_memory_gib"], "limits.max_memory_gib", lo=0)}
-    return cfg
+    return config_record(cfg)
 
 
 def _solver(s) -> dict:

@@ -32,6 +32,7 @@ from iga.app.pipeline_transient import transient_stage
 from tiling.export import boundary_splines, mesh_watertightness, write_mesh, write_surfaces
 
 from iga.app.config import validate
+from iga.app.config_records import Config, Record
 from iga.app.config_model import surface_reason
 from iga.app.pipeline_build import build, build_maps
 from iga.errors import ProblemError
@@ -129,11 +130,11 @@ def run_pipeline(config: dict, base_dir: str | Path = ".", progress: bool | None
     setting of :mod:`geometry.progress`, off unless an application turned it on).
     """
     cfg = validate(config, base_dir)
-    out = cfg["output"]["path"]
+    out = cfg.output.path
     created = False
     root = distributed.is_root()  # under mpiexec rank 0 alone prints and writes
     try:
-        with (resources.memory_budget(cfg["limits"]["max_memory_gib"]),
+        with (resources.memory_budget(cfg.limits.max_memory_gib),
               display.enabled((display.active() if progress is None else progress) and root)):
             created = _output_folder(out) if root else False
             return _run(cfg, out, root)
@@ -143,31 +144,31 @@ def run_pipeline(config: dict, base_dir: str | Path = ".", progress: bool | None
         raise
 
 
-def _write_outputs(ocfg: dict, out: Path, sol, stages) -> tuple[dict, float | None]:
+def _write_outputs(ocfg: Record, out: Path, sol, stages) -> tuple[dict, float | None]:
     """The VTU files and the picture asked for; returns ({kind: path}, volume of the sampled mesh or None)."""
     files = {}
     stages.start("VTU output")
-    name = ocfg["name"]
+    name = ocfg.name
     vtu = out / f"{name}.vtu"
     mesh_volume, grid = None, None
     world = distributed.solve_world(sol.problem)
     if world and ocfg.get("pieces"):  # a distributed solve: every rank writes its patches, rank 0 the .pvtu index
-        vtu = write_pieces(out / f"{name}.pvtu", sol, world[0], samples=ocfg["samples"], tolerance=ocfg["tolerance"])
+        vtu = write_pieces(out / f"{name}.pvtu", sol, world[0], samples=ocfg.samples, tolerance=ocfg.tolerance)
         files["vtu"] = str(vtu)
-        mesh_volume = _read_volume(vtu) if ocfg["vtu"] else None
-    elif ocfg["vtu"]:
+        mesh_volume = _read_volume(vtu) if ocfg.vtu else None
+    elif ocfg.vtu:
         check_folder(vtu, ProblemError)
-        grid = sampled_grid(sol.problem.model, sol, ocfg["samples"], ocfg["tolerance"])
-        save_vtu(vtu, grid, ocfg["compress"])
+        grid = sampled_grid(sol.problem.model, sol, ocfg.samples, ocfg.tolerance)
+        save_vtu(vtu, grid, ocfg.compress)
         files["vtu"] = str(vtu)
         mesh_volume = float(grid.volume)  # what ParaView's Integrate Variables will show
-    if ocfg["bezier"]:  # exact Bezier hexahedra (VTK 79) beside the sampled file
+    if ocfg.bezier:  # exact Bezier hexahedra (VTK 79) beside the sampled file
         exact = out / f"{name}_bezier.vtu"
         write_vtu(exact, sol, cells="bezier")
         files["bezier_vtu"] = str(exact)
     stages.done()
     stages.start("render")
-    if ocfg["png"]:
+    if ocfg.png:
         b = sol.info["balance"]
         render_temperature(grid if grid is not None else vtu, out / f"{name}.png",
                            caption=f"{name}: {count(sol.info['patches'], 'patch')}, "
@@ -188,21 +189,21 @@ def render_mesh(mesh, png_path: Path, scalars: str | None = None, title: str | N
     save_screenshot(pl, png_path, ProblemError, "iso", 0.85)
 
 
-def _surface_outputs(built, out: Path, ocfg: dict, stages, root: bool) -> dict:
+def _surface_outputs(built, out: Path, ocfg: Record, stages, root: bool) -> dict:
     """The outputs of a model without volume (an implicit structure, a polygon paving, a paving of surface or curve
     tiles): its mesh as ``NAME.vtp`` (with ``vtu``) and the exports, a render, and the summary of the
     construction and of the surface's closedness."""
     stages.start("surface output")
     files, mesh, s = {}, built.mesh, built.structure
     if root:
-        names = (["vtp"] if ocfg["vtu"] else []) + [k for k in ocfg["exports"]
-                                                    if k not in ("iges",) and (k != "vtp" or not ocfg["vtu"])]
+        names = (["vtp"] if ocfg.vtu else []) + [k for k in ocfg.exports
+                                                    if k not in ("iges",) and (k != "vtp" or not ocfg.vtu)]
         for kind in names:
-            files[kind] = str(write_mesh(out / f"{ocfg['name']}.{kind}", mesh))
-        if "iges" in ocfg["exports"]:  # surface and curve tiles: their exact B-spline geometry
-            files["iges"] = str(write_iges(out / f"{ocfg['name']}.igs", boundary_splines(s), name=ocfg["name"]))
-        if ocfg["png"]:
-            png = out / f"{ocfg['name']}.png"
+            files[kind] = str(write_mesh(out / f"{ocfg.name}.{kind}", mesh))
+        if "iges" in ocfg.exports:  # surface and curve tiles: their exact B-spline geometry
+            files["iges"] = str(write_iges(out / f"{ocfg.name}.igs", boundary_splines(s), name=ocfg.name))
+        if ocfg.png:
+            png = out / f"{ocfg.name}.png"
             if hasattr(s, "render_png"):
                 s.render_png(png, color_by="w")
             else:
@@ -219,16 +220,16 @@ def _surface_outputs(built, out: Path, ocfg: dict, stages, root: bool) -> dict:
             **built.info, "files": files, "peak_memory_MiB": resources.peak_memory_mib()}
 
 
-def _exports(ocfg: dict, out: Path, ms, problem) -> dict:
+def _exports(ocfg: Record, out: Path, ms, problem) -> dict:
     """The exports named in ``[output] exports``: the boundary surface as STL/OBJ/PLY/VTP, the exact boundary as
     IGES, the heat problem as G+Smo XML; {name: path}."""
     files = {}
-    for kind in ocfg["exports"]:
-        path = out / f"{ocfg['name']}.{'igs' if kind == 'iges' else 'xml' if kind == 'gismo' else kind}"
+    for kind in ocfg.exports:
+        path = out / f"{ocfg.name}.{'igs' if kind == 'iges' else 'xml' if kind == 'gismo' else kind}"
         if kind in ("stl", "obj", "ply", "vtp"):
             write_surfaces(path, ms)
         elif kind == "iges":
-            write_iges(path, boundary_splines(ms), name=ocfg["name"])
+            write_iges(path, boundary_splines(ms), name=ocfg.name)
         elif problem is not None:
             export_gismo(problem, path)
         else:  # validation refuses this; kept as a message should it be reached another way
@@ -254,7 +255,7 @@ def _summary(cfg, prob, sol, trange, mesh_volume, probes, files, analysis_peak) 
         # heat-flow balance above, which sums consistent flows
         "energy_identity": sol.energy_balance().as_dict(),
         "connected_pieces": sol.info["components"]["count"],
-        "flux_W": {as_expression(bc["tag"]): sol.flux(bc["tag"]) for bc in cfg["bc"]},
+        "flux_W": {as_expression(bc["tag"]): sol.flux(bc["tag"]) for bc in cfg.bc},
         "solver": sol.info["solver"],
         "volume_m3": _volumes(sol.volume(), mesh_volume),
         "analysis_peak_memory_MiB": analysis_peak,
@@ -264,47 +265,47 @@ def _summary(cfg, prob, sol, trange, mesh_volume, probes, files, analysis_peak) 
     }
 
 
-def _heat_stage(cfg, model, out: Path, ocfg: dict, stages):
+def _heat_stage(cfg, model, out: Path, ocfg: Record, stages):
     """The heat analysis, its VTU files, picture and exports; returns (summary, solution, extra timings)."""
-    scfg = cfg["solver"]
+    scfg = cfg.solver
     stages.start("assembly and solve")
     prob = heat_problem(cfg, model)
-    probes = np.asarray(ocfg["probes"], float).reshape(-1, 3)
+    probes = np.asarray(ocfg.probes, float).reshape(-1, 3)
     if len(probes):  # before the solve: a probe outside the model is a configuration error
         Locator(prob.model)(probes, what="output.probes")
     adapted = designed = None
-    if cfg["design"] is not None:  # the map's channel optimised: exact analyses of the same micro-structure
-        d = cfg["design"]
-        objective = (TemperatureNorm(d["p"], d["tag"]) if d["objective"] == "temperature_norm"
-                     else MeanTemperature(d["tag"]))
-        designed = optimize(prob, objective, d["variables"], d["bounds"], d["mean"], d["iterations"],
-                            solver=scfg["method"])
+    if cfg.design is not None:  # the map's channel optimised: exact analyses of the same micro-structure
+        d = cfg.design
+        objective = (TemperatureNorm(d.p, d.tag) if d.objective == "temperature_norm"
+                     else MeanTemperature(d.tag))
+        designed = optimize(prob, objective, d.variables, d.bounds, d.mean, d.iterations,
+                            solver=scfg.method)
         sol = designed.solution
         prob, model = sol.problem, sol.problem.model
-    elif cfg["adapt"] is not None:  # solve, estimate, split where the estimate is largest, until the tolerance
-        a = cfg["adapt"]
-        adapted = adaptive_solve(prob, a["tolerance"], a["max_unknowns"], a["marking"], a["refine"], scfg["method"],
-                                 max_steps=a["max_steps"], tol=scfg["tol"])
+    elif cfg.adapt is not None:  # solve, estimate, split where the estimate is largest, until the tolerance
+        a = cfg.adapt
+        adapted = adaptive_solve(prob, a.tolerance, a.max_unknowns, a.marking, a.refine, scfg.method,
+                                 max_steps=a.max_steps, tol=scfg.tol)
         sol = adapted.solution
         prob = sol.problem
         model = prob.model
     else:
-        sol = prob.solve(solver=scfg["method"], tol=scfg["tol"], maxiter=scfg["maxiter"])
+        sol = prob.solve(solver=scfg.method, tol=scfg.tol, maxiter=scfg.maxiter)
     stages.done(f"({prob.ndof} DOFs, {sol.info['free_dofs']} unknowns)")
     # high-water mark of the analysis alone (map, tiling, assembly, solve), before VTK is loaded for output
     analysis_peak = resources.peak_memory_mib()
     files, mesh_volume = _write_outputs(ocfg, out, sol, stages)
     files.update(_exports(ocfg, out, model, prob))
     t0 = time.perf_counter()
-    tmin, tmax = sol.temperature_range(ocfg["samples"])
+    tmin, tmax = sol.temperature_range(ocfg.samples)
     summary = _summary(cfg, prob, sol, (tmin, tmax), mesh_volume, probes, files, analysis_peak)
     if designed is not None:
         summary["design"] = {"objective": objective.name, "initial": designed.initial, "final": designed.objective,
                              "improvement": designed.improvement, "success": designed.success,
                              "message": designed.message, "analyses": designed.evaluations,
                              "steps": [asdict(h) for h in designed.history]}
-        if ocfg["png"]:
-            files["design_png"] = str(_plot_design(designed, out / f"{ocfg['name']}_design.png"))
+        if ocfg.png:
+            files["design_png"] = str(_plot_design(designed, out / f"{ocfg.name}_design.png"))
     if adapted is not None:
         summary["adapt"] = {"reached": adapted.reached, "reason": adapted.reason,
                             "estimate": float(adapted.estimate.relative), "patches": len(model.patches),
@@ -330,16 +331,15 @@ def _plot_design(result, path: Path) -> Path:
     return out
 
 
-def _run(cfg: dict, out: Path, root: bool = True) -> dict:
-    ocfg, kind = cfg["output"], cfg["physics"]["kind"]
+def _run(cfg: Config, out: Path, root: bool = True) -> dict:
+    ocfg, kind = cfg.output, cfg.physics.kind
     # another MPI rank assembles and solves its share and writes its VTU piece; rank 0 writes the rest
-    ocfg = {**ocfg, "pieces": ocfg["vtu"]} if root else {**ocfg, "pieces": ocfg["vtu"], "vtu": False, "bezier": False,
-                                                           "png": False}
+    ocfg = ocfg.replace(pieces=ocfg.vtu) if root else ocfg.replace(pieces=ocfg.vtu, vtu=False, bezier=False, png=False)
     heat, elastic = kind in ("heat", "thermo-elastic"), kind in ("elasticity", "thermo-elastic")
     transient = kind == "transient-heat"
     surface = surface_reason(cfg) is not None
     stages = display.Stages(4 if surface else 3 + 3 * heat + 2 * elastic + (kind == "none")
-                            + (3 + (cfg["time"]["end"] == "steady") if transient else 0))
+                            + (3 + (cfg.time.end == "steady") if transient else 0))
     stages.start("deformation map")
     maps = build_maps(cfg)
     stages.done(f"({len(maps)} primitives)" if isinstance(maps, dict) else
@@ -358,10 +358,10 @@ def _run(cfg: dict, out: Path, root: bool = True) -> dict:
         summary = {**_counts(ms), **built.info, **summary}
     else:
         summary = {**_counts(ms), **built.info, "files": _exports(ocfg, out, model, None), "peak_memory_MiB": None}
-        if kind == "none" and ocfg["vtu"] and root:  # the model alone: its geometry and channels
+        if kind == "none" and ocfg.vtu and root:  # the model alone: its geometry and channels
             stages.start("VTU output")
-            vtu = out / f"{ocfg['name']}.vtu"
-            write_vtu(vtu, model, samples=ocfg["samples"], tolerance=ocfg["tolerance"], compress=ocfg["compress"])
+            vtu = out / f"{ocfg.name}.vtu"
+            write_vtu(vtu, model, samples=ocfg.samples, tolerance=ocfg.tolerance, compress=ocfg.compress)
             summary["files"]["vtu"] = str(vtu)
             stages.done()
     if elastic:
@@ -383,17 +383,17 @@ def _support_names(supports: list) -> list:
             for i, s in enumerate(supports)]
 
 
-def _elastic_stage(cfg, ms, heat_solution, out: Path, ocfg: dict, stages) -> dict:
+def _elastic_stage(cfg, ms, heat_solution, out: Path, ocfg: Record, stages) -> dict:
     """The elastic (or thermo-elastic, on the heat solution) analysis of the [physics] section, its stress VTU
     and render; returns its summary (with its files)."""
     from iga.elasticity.problem import ElasticityProblem
 
-    ph, scfg = cfg["physics"], cfg["solver"]
+    ph, scfg = cfg.physics, cfg.solver
     stages.start("elastic analysis")
-    p = ElasticityProblem(ms, ph["youngs"], ph["poisson"], degree_elevation=scfg["degree_elevation"],
-                          refine=scfg["refine"], degree=scfg["degree"], quadrature_extra=scfg["quadrature_extra"])
-    names = _support_names(ph["support"])
-    for s, name in zip(ph["support"], names):
+    p = ElasticityProblem(ms, ph.youngs, ph.poisson, degree_elevation=scfg.degree_elevation,
+                          refine=scfg.refine, degree=scfg.degree, quadrature_extra=scfg.quadrature_extra)
+    names = _support_names(ph.support)
+    for s, name in zip(ph.support, names):
         if s["tag"] is not None:
             p.dirichlet(s["tag"], s["value"], s["components"])
             continue
@@ -403,38 +403,38 @@ def _elastic_stage(cfg, ms, heat_solution, out: Path, ocfg: dict, stages) -> dic
             p.spring(where, [s["stiffness"] if c in s["components"] else 0.0 for c in "xyz"], name=name)
         else:
             p.hold(where, s["value"], s["components"], name=name)
-    for i, ld in enumerate(ph["load"]):
+    for i, ld in enumerate(ph.load):
         if ld["kind"] == "point":
             p.point_load(ld["point"], ld["value"], name=f"load[{i}]")
         else:
             (p.traction if ld["kind"] == "traction" else p.pressure)(ld["tag"], ld["value"])
-    if ph["hold_rigid"]:
+    if ph.hold_rigid:
         p.hold_rigid()
-    if ph["kind"] == "thermo-elastic":
-        p.thermal(heat_solution, ph["expansion"], ph["reference"])
-    es = p.solve(solver=scfg["method"], tol=scfg["tol"], maxiter=scfg["maxiter"])
+    if ph.kind == "thermo-elastic":
+        p.thermal(heat_solution, ph.expansion, ph.reference)
+    es = p.solve(solver=scfg.method, tol=scfg.tol, maxiter=scfg.maxiter)
     stages.done(f"({es.info['dofs']} DOFs, {es.info['free_dofs']} unknowns)")
     stages.start("stress output")
-    grid = sampled_grid(ms, es, ocfg["samples"], ocfg["tolerance"])
+    grid = sampled_grid(ms, es, ocfg.samples, ocfg.tolerance)
     files = {}
-    if ocfg["vtu"]:
-        vtu = out / f"{ocfg['name']}_stress.vtu"
-        save_vtu(vtu, grid, ocfg["compress"])
+    if ocfg.vtu:
+        vtu = out / f"{ocfg.name}_stress.vtu"
+        save_vtu(vtu, grid, ocfg.compress)
         files["stress_vtu"] = str(vtu)
-        if ocfg["png"]:
+        if ocfg.png:
             umax = float(np.abs(grid.point_data["displacement"]).max())
             size = float(np.ptp(grid.points, axis=0).max())
             warp = 0.05 * size / umax if umax > 0 else None  # the deformation shown at 5% of the model's size
-            render_temperature(grid, out / f"{ocfg['name']}_stress.png", "von Mises stress (Pa)", scalars="von_mises",
+            render_temperature(grid, out / f"{ocfg.name}_stress.png", "von Mises stress (Pa)", scalars="von_mises",
                                warp=warp, cmap="viridis", fmt="%.3g")
-            files["stress_png"] = str(out / f"{ocfg['name']}_stress.png")
+            files["stress_png"] = str(out / f"{ocfg.name}_stress.png")
     stages.done()
     return {"dofs": es.info["dofs"], "unknowns": es.info["free_dofs"], "solver": es.info["solver"],
             "max_displacement_m": float(np.linalg.norm(grid.point_data["displacement"], axis=1).max()),
             "max_von_mises_Pa": float(grid.point_data["von_mises"].max()),
             "reactions_N": {name: es.reaction(s["tag"] if s["tag"] is not None else name).tolist()
-                            for s, name in zip(ph["support"], names)},
+                            for s, name in zip(ph.support, names)},
             **({"max_von_mises_note": "a point load's stress is infinite at its point: the largest von Mises stress "
-                "sampled grows under refinement"} if any(ld["kind"] == "point" for ld in ph["load"]) else {}),
+                "sampled grows under refinement"} if any(ld["kind"] == "point" for ld in ph.load) else {}),
             "applied_N": es.info["applied_N"], "work": es.info["work"],
             "timings_s": {k: float(v) for k, v in es.info["timings"].items()}, "files": files}

@@ -49,31 +49,31 @@ class Built:
 
 def build_map(cfg) -> BSpline:
     """The [map] (or a primitive's map table): a built-in map or a saved one, with its graded channels."""
-    D = load(cfg["file"]) if "file" in cfg else MAPS[cfg["primitive"]](**cfg["args"])
+    D = load(cfg.file) if "file" in cfg else MAPS[cfg.primitive](**cfg.args)
     for g in cfg.get("grading", []):
         D = graded_channel(D, g["channel"], g["near"], g["far"], g["face"], g["mode"])
     return D
 
 
 def _tile(t):
-    return TILES[t["library"]](**t["args"])
+    return TILES[t.library](**t.args)
 
 
 def build_maps(cfg):
     """The deformation map of the configuration; for the vrep scheme {primitive name: map}."""
-    if cfg["paving"]["scheme"] == "vrep":
-        return {q["name"]: build_map(q["map"]) for q in cfg["primitives"]}
-    return build_map(cfg["map"])
+    if cfg.paving.scheme == "vrep":
+        return {q["name"]: build_map(q["map"]) for q in cfg.primitives}
+    return build_map(cfg.map)
 
 
 def _vrep(cfg, maps: dict) -> Built:
     """The V-model of the [[primitive]] tables combined by ``paving.expression`` (Hong and Elber 2021)."""
-    p = cfg["paving"]
+    p = cfg.paving
     prims = {q["name"]: Primitive(maps[q["name"]], _tile(q["tile"]), tuple(q["counts"]), q["priority"], q["name"])
-             for q in cfg["primitives"]}
-    model = parse_expression(p["expression"], prims.__getitem__, "primitive", "\"(body | wing) - hole\"")
-    res = vrep_microstructure(model, samples=p["samples"], margin=p["margin"], bridges=p["bridges"], beta=p["beta"],
-                              d_maxdist=p["d_maxdist"], phi=p["phi"], alpha=p["alpha"])
+             for q in cfg.primitives}
+    model = parse_expression(p.expression, prims.__getitem__, "primitive", "\"(body | wing) - hole\"")
+    res = vrep_microstructure(model, samples=p.samples, margin=p.margin, bridges=p.bridges, beta=p.beta,
+                              d_maxdist=p.d_maxdist, phi=p.phi, alpha=p.alpha)
     ms = res.microstructure
     info = {"vrep": {"model": repr(model), "tiles_per_primitive": res.counts(), "bridges": res.bridges.as_dict(),
                      "timings_s": {k: float(v) for k, v in res.timings.items()}}}
@@ -81,44 +81,44 @@ def _vrep(cfg, maps: dict) -> Built:
 
 
 def _polygons(cfg, D) -> Built:
-    t = cfg["tile"]
-    tile = POLYGON_TILES[t["library"]]() if "library" in t else PolygonTile(t["points"], t["polygons"], t["lines"],
-                                                                            t["name"])
-    mesh = tiling.pave_polygons(D, tile, cfg["paving"]["counts"])
+    t = cfg.tile
+    tile = POLYGON_TILES[t.library]() if "library" in t else PolygonTile(t.points, t.polygons, t.lines,
+                                                                            t.name)
+    mesh = tiling.pave_polygons(D, tile, cfg.paving.counts)
     facets = int(mesh.n_cells - mesh.n_lines - mesh.n_verts)
-    info = {"tiles": int(np.prod(cfg["paving"]["counts"])), "polygon_tile": tile.name,
+    info = {"tiles": int(np.prod(cfg.paving.counts)), "polygon_tile": tile.name,
             "mesh": {"points": int(mesh.n_points), "lines": int(mesh.n_lines), "facets": facets}}
     return Built(mesh, mesh, mesh, info)
 
 
 def _scheme(cfg, D):
     """The model of the [paving] scheme in the map D."""
-    p = cfg["paving"]
-    if p["scheme"] == "implicit_bifurcation":
-        s = tiling.implicit_bifurcation(D, p["epsilon"], alpha=p["alpha"], seed=p["seed"], cap=p["cap"],
-                                        resolution=p["resolution"], radius=p["radius"])
+    p = cfg.paving
+    if p.scheme == "implicit_bifurcation":
+        s = tiling.implicit_bifurcation(D, p.epsilon, alpha=p.alpha, seed=p.seed, cap=p.cap,
+                                        resolution=p.resolution, radius=p.radius)
         return Built(s, s, s.surface())  # contoured once: every file and the report use this mesh
-    if p["scheme"] == "random_implicit":
-        s = tiling.random_implicit(D, p["counts"], alpha=p["alpha"], seed=p["seed"], continuity=p["continuity"],
-                                   connectivity=p["connectivity"], cap=p["cap"], resolution=p["resolution"])
+    if p.scheme == "random_implicit":
+        s = tiling.random_implicit(D, p.counts, alpha=p.alpha, seed=p.seed, continuity=p.continuity,
+                                   connectivity=p.connectivity, cap=p.cap, resolution=p.resolution)
         # the summary says whether the connectivity is certified on the spline, and what the certificate changed
         cert = {k: (list(v) if isinstance(v, tuple) else v) for k, v in s.stats["certificate"].items()}
         return Built(s, s, s.surface(), {"certificate": cert})
-    if p["scheme"] == "polygons":
+    if p.scheme == "polygons":
         return _polygons(cfg, D)
-    if p["scheme"] == "bifurcation":
-        ms = tiling.bifurcation(D, p["epsilon"], p["kind"], direction=p["direction"], levels=p["levels"],
-                                margin=p["margin"])
+    if p.scheme == "bifurcation":
+        ms = tiling.bifurcation(D, p.epsilon, p.kind, direction=p.direction, levels=p.levels,
+                                margin=p.margin)
         return Built(ms, ms)
-    if p["scheme"] == "field_graded":
-        ms = tiling.field_graded(D, TILES[cfg["tile"]["library"]], p["counts"], _wall_field(D, p["field"]))
+    if p.scheme == "field_graded":
+        ms = tiling.field_graded(D, TILES[cfg.tile.library], p.counts, _wall_field(D, p.field))
         return Built(ms, ms)
-    tile = _tile(cfg["tile"])
+    tile = _tile(cfg.tile)
     seal = {k: p[k] for k in ("seal", "thickness", "seal_sides") if k in p}
-    if p["scheme"] == "hierarchical":
-        ms = tiling.hierarchical(D, tile, p["counts"], p["levels"], p["scale"], **seal)
+    if p.scheme == "hierarchical":
+        ms = tiling.hierarchical(D, tile, p.counts, p.levels, p.scale, **seal)
     else:
-        ms = tiling.regular(D, tile, p["counts"], **seal)
+        ms = tiling.regular(D, tile, p.counts, **seal)
     return Built(ms, ms)
 
 
@@ -138,7 +138,7 @@ def _wall_field(D, field):
 
 def build(cfg, maps) -> Built:
     """The configured model (module notes) on the map(s) of :func:`build_maps`."""
-    built = _vrep(cfg, maps) if cfg["paving"]["scheme"] == "vrep" else _scheme(cfg, maps)
+    built = _vrep(cfg, maps) if cfg.paving.scheme == "vrep" else _scheme(cfg, maps)
     second = cfg.get("second_level")
     if second:
         ms = tiling.compose_levels(built.structure, _tile(second["tile"]), second["counts"], degree=second["degree"],

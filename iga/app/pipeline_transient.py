@@ -18,6 +18,7 @@ import numpy as np
 from geometry import resources
 from geometry.io.files import atomic_write
 
+from iga.app.config_records import Config, Record
 from iga.app.problems import heat_problem
 from iga.discretisation.locate import Locator
 from iga.errors import ProblemError
@@ -33,28 +34,28 @@ __all__ = ["transient_stage"]
 _FOREVER = 1e15
 
 
-def transient_stage(cfg: dict, model, out: Path, ocfg: dict, stages):
+def transient_stage(cfg: Config, model, out: Path, ocfg: Record, stages):
     """Solve, write and summarise the transient run; returns (summary, end state, extra timings)."""
-    tcfg, scfg, mat = cfg["time"], cfg["solver"], cfg["material"]
-    probes = np.asarray(ocfg["probes"], float).reshape(-1, 3)
+    tcfg, scfg, mat = cfg.time, cfg.solver, cfg.material
+    probes = np.asarray(ocfg.probes, float).reshape(-1, 3)
     if len(probes):  # before the solve: a probe outside the model is a configuration error
         Locator(model)(probes, what="output.probes")
     watch = None
-    if tcfg["end"] == "steady":
+    if tcfg.end == "steady":
         stages.start("steady solve (the state to settle to)")
-        steady = heat_problem(cfg, model).solve(solver=scfg["method"], tol=scfg["tol"], maxiter=scfg["maxiter"])
-        point = _watched_point(steady, tcfg["initial"])
+        steady = heat_problem(cfg, model).solve(solver=scfg.method, tol=scfg.tol, maxiter=scfg.maxiter)
+        point = _watched_point(steady, tcfg.initial)
         watch = {"point": point, "steady_C": float(steady.probe(point)[0])}
         stages.done(f"(watched point {np.round(point[0], 5).tolist()}, {watch['steady_C']:.3f} C when steady)")
     stages.start("transient solve")
-    prob = heat_problem(cfg, model, TransientHeatProblem, capacity=mat["capacity"])
-    prob.initial(tcfg["initial"])
-    until, t_end = None, tcfg["end"]
+    prob = heat_problem(cfg, model, TransientHeatProblem, capacity=mat.capacity)
+    prob.initial(tcfg.initial)
+    until, t_end = None, tcfg.end
     if watch is not None:
         E = prob.probe_matrix(watch["point"])
-        start = float(ScalarField(tcfg["initial"], "time.initial", channels=False).values(
+        start = float(ScalarField(tcfg.initial, "time.initial", channels=False).values(
             watch["point"], {}, "the watched point")[0])
-        target = start + tcfg["fraction"] * (watch["steady_C"] - start)
+        target = start + tcfg.fraction * (watch["steady_C"] - start)
         rising = target >= start
         watch.update(start_C=start, target_C=target)
 
@@ -70,13 +71,13 @@ def transient_stage(cfg: dict, model, out: Path, ocfg: dict, stages):
             return done
 
         t_end = _FOREVER
-    history = prob.solve(t_end, tcfg["step"], tcfg["method"], tcfg["tolerance"], tcfg["theta"],
-                         solver=scfg["method"], solver_tol=scfg["tol"], keep=tcfg["every"],
-                         max_steps=tcfg["max_steps"], until=until)
+    history = prob.solve(t_end, tcfg.step, tcfg.method, tcfg.tolerance, tcfg.theta,
+                         solver=scfg.method, solver_tol=scfg.tol, keep=tcfg.every,
+                         max_steps=tcfg.max_steps, until=until)
     r = history.record
     if watch is not None and r.stopped is None:
-        raise ProblemError(f"the run did not settle: the watched point did not reach {100 * tcfg['fraction']:g}% "
-                           f"of its steady rise within time.max_steps = {tcfg['max_steps']} steps")
+        raise ProblemError(f"the run did not settle: the watched point did not reach {100 * tcfg.fraction:g}% "
+                           f"of its steady rise within time.max_steps = {tcfg.max_steps} steps")
     stages.done(f"({prob.ndof} DOFs, {r.steps} steps to {history.times[-1]:.4g} s, {r.prepared} prepared "
                 f"{r.solver})")
     analysis_peak = resources.peak_memory_mib()
@@ -130,33 +131,33 @@ def _crossing(seen: list, target: float) -> float:
     return t0 + (t1 - t0) * (target - v0) / (v1 - v0) if v1 != v0 else t1
 
 
-def _series_outputs(history, final, ocfg: dict, out: Path, stages, watch) -> dict:
+def _series_outputs(history, final, ocfg: Record, out: Path, stages, watch) -> dict:
     """The ParaView series, the end state's VTU and picture, and the plot against time; {kind: path}."""
     files = {}
-    name = ocfg["name"]
+    name = ocfg.name
     stages.start("VTU output")
-    if ocfg["vtu"]:
-        files["pvd"] = str(history.write_pvd(out / f"{name}.pvd", samples=ocfg["samples"],
-                                             tolerance=ocfg["tolerance"], compress=ocfg["compress"]))
-        grid = sampled_grid(final.problem.model, final, ocfg["samples"], ocfg["tolerance"])
-        vtu = save_vtu(out / f"{name}.vtu", grid, ocfg["compress"])
+    if ocfg.vtu:
+        files["pvd"] = str(history.write_pvd(out / f"{name}.pvd", samples=ocfg.samples,
+                                             tolerance=ocfg.tolerance, compress=ocfg.compress))
+        grid = sampled_grid(final.problem.model, final, ocfg.samples, ocfg.tolerance)
+        vtu = save_vtu(out / f"{name}.vtu", grid, ocfg.compress)
         files["vtu"] = str(vtu)
     stages.done()
     stages.start("render")
-    if ocfg["png"] and ocfg["vtu"]:
+    if ocfg.png and ocfg.vtu:
         b = final.info["balance"]
         render_temperature(grid, out / f"{name}.png",
                            caption=f"{name} at t = {final.time:.4g} s: {count(final.info['patches'], 'patch')}, "
                                    f"{count(final.info['free_dofs'], 'unknown')}, {b['inflow_W']:.4g} W in, "
                                    f"{b['stored_W']:.4g} W stored")
         files["png"] = str(out / f"{name}.png")
-    if ocfg["png"]:
+    if ocfg.png:
         files["history_png"] = str(_plot_history(history, ocfg, out / f"{name}_history.png", watch))
     stages.done()
     return files
 
 
-def _plot_history(history, ocfg: dict, path: Path, watch) -> Path:
+def _plot_history(history, ocfg: Record, path: Path, watch) -> Path:
     """Temperature against time at the probes (or the watched point), with the steady value and the
     settling time where known (atomic)."""
     import matplotlib
@@ -164,7 +165,7 @@ def _plot_history(history, ocfg: dict, path: Path, watch) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    points = np.asarray(ocfg["probes"], float).reshape(-1, 3)
+    points = np.asarray(ocfg.probes, float).reshape(-1, 3)
     labels = [f"probe {i}" for i in range(len(points))]
     if watch is not None:
         points = np.vstack([points, watch["point"]])
@@ -184,7 +185,7 @@ def _plot_history(history, ocfg: dict, path: Path, watch) -> Path:
                    label=f"{100 * (watch['target_C'] - watch['start_C']) / (watch['steady_C'] - watch['start_C']):.0f}"
                          f"% of the rise at {settle:.3g} {unit}")
     ax.set(xlabel=f"time ({unit})", ylabel="temperature (C)" if len(points) else "J",
-           title=f"{ocfg['name']}: {count(history.problem.ndof, 'unknown')}, {history.record.method} in "
+           title=f"{ocfg.name}: {count(history.problem.ndof, 'unknown')}, {history.record.method} in "
                  f"{count(history.record.steps, 'step')}")
     ax.legend()
     fig.tight_layout()
@@ -194,7 +195,7 @@ def _plot_history(history, ocfg: dict, path: Path, watch) -> Path:
 def _summary(cfg, history, final, probes, watch, files, analysis_peak) -> dict:
     """The run's summary: the end state's heat figures and the time series."""
     bal, r = final.info["balance"], history.record
-    lo, hi = final.temperature_range(cfg["output"]["samples"])
+    lo, hi = final.temperature_range(cfg.output.samples)
     out = {
         "dofs": final.problem.ndof, "unknowns": final.info["free_dofs"],
         "temperature_C": {"min": lo, "max": hi, "mean": final.mean_temperature()},
@@ -202,7 +203,7 @@ def _summary(cfg, history, final, probes, watch, files, analysis_peak) -> dict:
         "energy_balance_error": bal["relative_error"],
         "energy_identity": final.energy_balance().as_dict(),
         "connected_pieces": final.info["components"]["count"],
-        "flux_W": {as_expression(bc["tag"]): final.flux(bc["tag"]) for bc in cfg["bc"]},
+        "flux_W": {as_expression(bc["tag"]): final.flux(bc["tag"]) for bc in cfg.bc},
         "transient": {"method": r.method, "steps": r.steps, "rejected": r.rejected, "prepared_solvers": r.prepared,
                       "solver": r.solver, "iterations": r.iterations, "end_s": float(history.times[-1]),
                       "times_s": history.times.tolist(), "heat_content_J": history.heat_content().tolist(),
@@ -215,5 +216,5 @@ def _summary(cfg, history, final, probes, watch, files, analysis_peak) -> dict:
     if watch is not None:
         out["transient"].update(settle_time_s=float(watch["settle_s"]), watched_point=watch["point"][0].tolist(),
                                 watched_C=history.probe(watch["point"])[:, 0].tolist(),
-                                steady_watched_C=watch["steady_C"], settled_fraction=cfg["time"]["fraction"])
+                                steady_watched_C=watch["steady_C"], settled_fraction=cfg.time.fraction)
     return out
