@@ -62,6 +62,7 @@ def gradient_costs():
     from iga.app.maps import circular_heat_sink_map
     from iga.outputs import TemperatureNorm
     from iga.sensitivity import channel_sensitivity
+    from iga.shape_sensitivity import shape_sensitivity
     from tiling import library
     from tiling.materials import graded_channel
 
@@ -81,8 +82,11 @@ def gradient_costs():
         # the forward analysis as the optimiser runs it: keeping its factorisation for the adjoint
         s, forward = timed(lambda problem=problem: problem.solve(keep=True))
         g, grad = timed(lambda s=s: channel_sensitivity(s, TemperatureNorm(8), "k"))
+        s, forward_shape = timed(lambda problem=problem: problem.solve(keep=True))
+        gs, shape = timed(lambda s=s: shape_sensitivity(s, TemperatureNorm(8)))
         rows.append({"model": name, "unknowns": int(s.info.free_dofs), "variables": g.size, "forward_s": forward,
-                     "gradient_s": grad, "ratio": grad / forward, "fd_ratio": g.size * forward / grad})
+                     "gradient_s": grad, "ratio": grad / forward, "fd_ratio": g.size * forward / grad,
+                     "shape_variables": gs.size, "shape_s": shape, "shape_ratio": shape / forward_shape})
     return rows
 
 
@@ -97,11 +101,13 @@ def main(argv=None):
     from iga.io.vtu import sampled_grid
     from iga.outputs import MeanTemperature, TemperatureNorm
 
-    print("gradient against forward analysis (TemperatureNorm(8), d/dk of every control value of the map's k):")
+    print("gradient against forward analysis (TemperatureNorm(8): d/dk of every control value of the map's k, and "
+          "d/dP of every control point coordinate of the map, wrt='map'):")
     costs = gradient_costs()
     print_table(costs, [("model", ">14"), ("unknowns", ",d"), ("variables", "d"), ("forward_s", ".3f"),
-                        ("gradient_s", ".3f"), ("ratio", ".2f"), ("fd_ratio", ".0f")])
-    print("(ratio: gradient / forward, target <= 1.5; fd_ratio: finite differences / gradient)\n")
+                        ("gradient_s", ".3f"), ("ratio", ".2f"), ("fd_ratio", ".0f"), ("shape_variables", "d"),
+                        ("shape_s", ".3f"), ("shape_ratio", ".2f")])
+    print("(ratio, shape_ratio: gradient / forward, target <= 1.5; fd_ratio: finite differences / gradient)\n")
 
     sink, D = vertical()
     Dr = D.refine(2)[0]  # the same geometry, 6 x 6 x 6 control values of k

@@ -29,7 +29,8 @@ from iga.errors import ProblemError
 from iga.heat.problem import HeatProblem
 from iga.model import same_kind
 from iga.outputs import Output, gauss_pass
-from iga.sensitivity import channel_sensitivity, design_map, map_basis, map_parameters
+from iga.adjoint import design_map, map_basis, map_parameters
+from iga.sensitivity import channel_sensitivity
 
 __all__ = ["optimize", "DesignResult", "DesignStep"]
 

@@ -28,7 +28,7 @@ from iga.discretisation.fields import grid_fields
 from iga.errors import ProblemError
 
 __all__ = ["Output", "Volume", "MeanTemperature", "TemperatureNorm", "HeatFlow", "Compliance", "VonMisesNorm",
-           "gauss_pass"]
+           "gauss_pass", "tag_faces"]
 
 
 def gauss_pass(problem, fields: np.ndarray, fn) -> None:
@@ -120,7 +120,7 @@ class Volume(Output):
         return np.zeros(len(solution.u))
 
 
-def _tag_faces(solution, tag, what: str):
+def tag_faces(solution, tag, what: str):
     """The face data of ``tag`` (a tag of the solution's model) and their area (m^2)."""
     prob = solution.problem
     fds = prob.faces(prob.faces_of(tag, what))
@@ -146,7 +146,7 @@ class MeanTemperature(Output):
         s = _heat(solution, self.name)
         if self.tag is None:
             return _volume_load(s, np.ones_like) / s.volume()
-        fds, area = _tag_faces(s, self.tag, self.name)
+        fds, area = tag_faces(s, self.tag, self.name)
         return boundary_load(fds, [fd.dAw for fd in fds], s.problem.ndof) / area
 
 
@@ -163,7 +163,7 @@ class TemperatureNorm(Output):
         p = self.p
         if self.tag is None:
             return float((s.integrate(lambda x, T, g: np.abs(T) ** p) / s.volume()) ** (1 / p))
-        fds, area = _tag_faces(s, self.tag, self.name)
+        fds, area = tag_faces(s, self.tag, self.name)
         return float((sum(float(np.sum(np.abs(fd.trace(s.u)) ** p * fd.dAw)) for fd in fds) / area) ** (1 / p))
 
     def gradient(self, solution) -> np.ndarray:
@@ -175,7 +175,7 @@ class TemperatureNorm(Output):
             return np.zeros(s.problem.ndof)
         if self.tag is None:
             return _volume_load(s, lambda T: np.abs(T) ** (p - 1) * np.sign(T)) * J ** (1 - p) / s.volume()
-        fds, area = _tag_faces(s, self.tag, self.name)
+        fds, area = tag_faces(s, self.tag, self.name)
         dens = [np.abs(T) ** (p - 1) * np.sign(T) * fd.dAw for fd, T in ((fd, fd.trace(s.u)) for fd in fds)]
         return boundary_load(fds, dens, s.problem.ndof) * J ** (1 - p) / area
 

@@ -111,4 +111,4 @@ def test_channel_gradients_on_a_rational_map_equal_finite_differences_in_a_rando
     with pytest.raises(ProblemError, match="not the channel 'rho'"):
         gradient(s, output, wrt="channel:rho")
     with pytest.raises(ProblemError, match="wrt must be"):
-        gradient(s, output, wrt="map")
+        gradient(s, output, wrt="parameters")
