@@ -1,0 +1,110 @@
+"""The optimisation loop every design shares: SciPy's SLSQP over scaled variables, one exact analysis and its
+adjoint gradient per design, typed results (:class:`DesignResult`, :class:`DesignStep`), and the model of a
+redesigned map (:func:`redesigned`).  Used by :mod:`iga.design` (a channel of the map) and :mod:`iga.shape_design`
+(the map's control points)."""
+
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import minimize
+
+from geometry import progress
+from geometry.patches.multipatch import PlacedPatch
+
+from iga.model import same_kind
+
+__all__ = ["DesignStep", "DesignResult", "redesigned", "run_slsqp"]
+
+
+@dataclass(frozen=True)
+class DesignStep:
+    """One iteration: the ``objective`` (the output's units), the ``mean`` of the channel (its units; a shape
+    design: the solid volume, m^3), the ``step`` (largest change of a control value: the channel's units, or m)
+    and the iteration's ``seconds``."""
+
+    iteration: int
+    objective: float
+    mean: float
+    step: float
+    seconds: float
+
+
+@dataclass(frozen=True)
+class DesignResult:
+    """What :func:`optimize` found: the channel's control ``values`` (shaped like D's control grid; a shape design:
+    the control points' coordinates, (n1, n2, n3, 3)), the ``solution``
+    of the final design, the objective at the start and the end, the ``history``, SciPy's ``success`` and
+    ``message``, and the number of analyses (``evaluations``)."""
+
+    values: np.ndarray
+    solution: object
+    initial: float
+    objective: float
+    history: tuple
+    success: bool
+    message: str
+    evaluations: int
+
+    @property
+    def improvement(self) -> float:
+        """Relative decrease of the objective, (initial - final) / |initial|."""
+        return (self.initial - self.objective) / abs(self.initial) if self.initial else 0.0
+
+
+def redesigned(model, D, new, placed: bool):
+    """The model with its deformation map D replaced by ``new`` (the same map with other channel values, or with
+    knots inserted: the same geometry): the same tiles, placements, interfaces and tags (a model of one spline:
+    that spline replaced)."""
+    if placed:
+        patches = [PlacedPatch(p.spline, p.placement, new if p.outer is D else p.outer, p.tile, p.level,
+                               p.patch_in_tile, refinement=p.refinement) for p in model.patches]
+    else:
+        p = model.patches[0]
+        patches = [PlacedPatch(new, p.placement, p.outer, p.tile, p.level, p.patch_in_tile, refinement=p.refinement)]
+    return same_kind(model, patches, list(model.interfaces), {t: list(v) for t, v in model.tags.items()},
+                     dict(getattr(model, "face_regions", {})))
+
+
+def run_slsqp(objective, analyse, z0, box, unit: float, constraints, maxiter: int, tol: float, measured: str,
+              shape) -> DesignResult:
+    """SLSQP over scaled variables z in ``box`` from ``z0``: ``analyse(z) -> (values, solution, J, dJ/dz, measure)``
+    (one analysis and its gradient per design; the last design is kept, as SLSQP asks for the value and the
+    gradient of the same point), the objective scaled by its initial value; ``unit`` converts a step in z to the
+    values' units; ``measured`` names the measure (``mean``, ``volume``) in the progress lines; ``shape`` the
+    values' shape in the result."""
+    cache: dict = {}
+
+    def at(z):
+        key = np.asarray(z, float).tobytes()
+        if key not in cache:
+            cache.clear()
+            cache[key] = analyse(np.asarray(z, float))
+        return cache[key]
+
+    _, _, J0, _, _ = at(z0)
+    scale = abs(J0) if J0 else 1.0
+    history: list = []
+    state = {"z": np.array(z0, float), "t": time.perf_counter(), "evals": 0}
+
+    def fun(z):
+        state["evals"] += int(np.asarray(z, float).tobytes() not in cache)
+        return at(z)[2] / scale
+
+    def record(z):
+        _, _, J, _, measure = at(z)
+        step = float(np.abs(z - state["z"]).max() * unit)
+        history.append(DesignStep(len(history) + 1, float(J), float(measure), step, time.perf_counter() - state["t"]))
+        state["z"], state["t"] = np.array(z, float), time.perf_counter()
+        if progress.active():
+            print(f"[design {len(history)}] {objective.name} = {J:.6g}, {measured} {measure:.4g}, step "
+                  f"{step:.3g}, {history[-1].seconds:.2f} s", file=sys.stderr, flush=True)
+
+    res = minimize(fun, z0, jac=lambda z: at(z)[3] / scale, bounds=[box] * len(z0), constraints=constraints,
+                   method="SLSQP", callback=record, options={"maxiter": maxiter, "ftol": tol})
+    values, sol, J, _, _ = at(res.x)
+    return DesignResult(np.asarray(values).reshape(shape), sol, float(J0), float(J), tuple(history),
+                        bool(res.success), str(res.message), state["evals"] + 1)

@@ -1,0 +1,112 @@
+"""Shape design by gradient: the deformation map's control points moved to minimise an output at a fixed solid volume.
+
+:func:`optimize_shape` (``iga.optimize(problem, objective, wrt="map", bounds=move, hold=(...))``) moves every
+coordinate of the map's control points within ``move`` metres of its start, except those on the map's faces
+named in ``hold`` (e.g. the face that takes the heat, so that the heated area and so the power stay as given),
+keeping the solid volume of the micro-structure at its start (a nonlinear equality: its shape gradient is
+:class:`iga.outputs.Volume`'s, by :func:`iga.shape_sensitivity.shape_sensitivity`).  Every evaluation is an exact
+analysis of the same tiles composed into the moved map; the gradient is one adjoint solve
+(:mod:`iga.shape_sensitivity`).  SLSQP runs in variables z in [-1, 1] (move = z ``move``).  A move that folds
+the map is refused by the analysis (:class:`iga.errors.ProblemError` naming the patch): keep ``move`` below
+about a quarter of the spacing of the map's control points.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from geometry import BSpline
+from geometry.errors import show
+from geometry.faces import FACE_AXIS
+from geometry.numbers import is_real
+
+from iga.errors import ProblemError
+from iga.heat.problem import HeatProblem
+from iga.optimiser import redesigned, run_slsqp
+from iga.outputs import Output, Volume
+from iga.shape_sensitivity import shape_map, shape_sensitivity
+
+__all__ = ["optimize_shape", "moved_map"]
+
+
+def moved_map(D, points: np.ndarray) -> BSpline:
+    """D with its control points' coordinates replaced by ``points`` (n1, n2, n3, 3): the same degrees, knots,
+    weights and channel values."""
+    cp = np.array(D.control_points, float)
+    cp[..., :3] = points
+    return BSpline(D.degrees, D.knots, cp, D.weights, channels=D.channels)
+
+
+def _free(shape, hold) -> np.ndarray:
+    """Mask (n1, n2, n3, 3) of the coordinates that move: all but those of control points on the faces ``hold``."""
+    free = np.ones(tuple(shape) + (3,), bool)
+    for face in hold:
+        if face not in FACE_AXIS:
+            raise ProblemError(f"hold: {show(face)} is not a face of the map; use 'umin', 'umax', 'vmin', 'vmax', "
+                               "'wmin' or 'wmax'")
+        k, side = FACE_AXIS[face]
+        index = [slice(None)] * 3
+        index[k] = -1 if side else 0
+        free[tuple(index)] = False
+    return free
+
+
+def _check(problem, objective, move, hold, maxiter) -> None:
+    if type(problem) is not HeatProblem:
+        raise ProblemError(f"optimize takes a steady iga.HeatProblem, got {type(problem).__name__}")
+    if not isinstance(objective, Output):
+        raise ProblemError(f"objective must be an output of iga.outputs with a gradient (e.g. TemperatureNorm(8)), "
+                           f"got {show(objective)}")
+    if not (is_real(move) and np.isfinite(move) and move > 0):
+        raise ProblemError(f"wrt='map': bounds is the largest move of a control point coordinate, a number > 0 (m), "
+                           f"got {show(move)}")
+    if isinstance(hold, str) or not all(isinstance(h, str) for h in hold):
+        raise ProblemError(f"hold must be a list of the map's face names, e.g. ['wmin'], got {show(hold)}")
+    if not (isinstance(maxiter, int) and maxiter >= 1):
+        raise ProblemError(f"maxiter must be an integer >= 1, got {show(maxiter)}")
+
+
+def optimize_shape(problem, objective: Output, move: float, hold=(), keep_volume: bool = True, maxiter: int = 30,
+                   tol: float = 1e-6, solver: str = "auto"):
+    """Minimise ``objective`` over the map's control points (module notes); returns an
+    :class:`iga.design.DesignResult` whose ``values`` are the final control points (n1, n2, n3, 3) and whose steps
+    record the solid volume (m^3)."""
+    _check(problem, objective, move, hold, maxiter)
+    D, placed = shape_map(problem)
+    P0 = np.array(D.control_points, float)[..., :3]
+    free = _free(P0.shape[:3], hold)
+    if not free.any():
+        raise ProblemError(f"hold = {show(list(hold))} holds every control point of the map: nothing can move")
+    volume = Volume()
+
+    def analyse(z):
+        P = P0.copy()
+        P[free] += np.clip(z, -1.0, 1.0) * move
+        sol = problem.on(redesigned(problem.model, D, moved_map(D, P), placed)).solve(solver=solver, keep=True)
+        g = shape_sensitivity(sol, objective, solver)[free] * move
+        gV = shape_sensitivity(sol, volume, solver)[free] * move
+        return P, sol, objective.value(sol), g, (volume.value(sol), gV)
+
+    last: dict = {}  # the volume and its gradient of the design last analysed
+
+    def measure(z):
+        key = np.asarray(z, float).tobytes()
+        if key not in last:
+            last.clear()
+            last[key] = analyse(np.asarray(z, float))[4]
+        return last[key]
+
+    def tracked(z):  # an analysis for the objective also serves the volume constraint at the same design
+        out = analyse(z)
+        last.clear()
+        last[np.asarray(z, float).tobytes()] = out[4]
+        return out[:4] + (out[4][0],)
+
+    z0 = np.zeros(int(free.sum()))
+    V0 = measure(z0)[0]  # the start's solid volume (m^3)
+    constraints = []
+    if keep_volume:  # (V(z) - V0) / V0 = 0, with its shape gradient
+        constraints = [{"type": "eq", "fun": lambda z: np.array([(measure(z)[0] - V0) / V0]),
+                        "jac": lambda z: measure(z)[1][None, :] / V0}]
+    return run_slsqp(objective, tracked, z0, (-1.0, 1.0), move, constraints, maxiter, tol,
+                     "volume", P0.shape)
