@@ -9,7 +9,8 @@ The budget is the memory available on this machine (``MemAvailable`` on
 Linux, the physical memory elsewhere) unless set: ``with memory_budget(gib):``
 around the work (a pipeline's ``max_memory_gib`` under ``[limits]`` does
 this), ``set_memory_limit(gib)`` for the rest of the current context (the CLI
-option ``--max-memory``), or the environment variable ``IGA_MAX_MEMORY_GIB``.
+option ``--max-memory``, or else the environment variable ``IGA_MAX_MEMORY_GIB``,
+which the ``iga`` command reads once at start: :func:`environment_limit`).
 The budget is a context variable: a ``with`` block restores the caller's on
 exit, and threads or asyncio tasks started elsewhere do not see it.
 """
@@ -28,7 +29,7 @@ from .errors import SplineError
 from .errors import show
 from .numbers import is_real
 
-__all__ = ["usable_cores", "available_memory", "memory_limit", "memory_budget", "set_memory_limit", "check_memory", "peak_memory_mib", "GiB",
+__all__ = ["usable_cores", "available_memory", "memory_limit", "environment_limit", "memory_budget", "set_memory_limit", "check_memory", "peak_memory_mib", "GiB",
            "paused_gc", "bulk_build", "one_blas_thread"]
 
 GiB = float(1 << 30)
@@ -105,18 +106,22 @@ def memory_budget(gib: float | None):
 def memory_limit() -> float:
     """The memory budget in bytes (see the module notes)."""
     limit = _LIMIT.get()
-    if limit is not None:
-        return limit
+    return limit if limit is not None else available_memory()
+
+
+def environment_limit() -> float | None:
+    """The budget in GiB the environment variable ``IGA_MAX_MEMORY_GIB`` sets, or None: read by the application
+    edge (the ``iga`` command; a script may pass it to :func:`set_memory_limit`), never by library calls."""
     env = os.environ.get("IGA_MAX_MEMORY_GIB")
-    if env:
-        try:
-            value = float(env)
-        except ValueError:
-            value = -1.0
-        if not value > 0:
-            raise SplineError(f"IGA_MAX_MEMORY_GIB must be a positive number of GiB, got {show(env)}")
-        return value * GiB
-    return available_memory()
+    if not env:
+        return None
+    try:
+        value = float(env)
+    except ValueError:
+        value = -1.0
+    if not value > 0:
+        raise SplineError(f"IGA_MAX_MEMORY_GIB must be a positive number of GiB, got {show(env)}")
+    return value
 
 
 def check_memory(estimate: float, what: str, error=SplineError, hint: str = "") -> None:

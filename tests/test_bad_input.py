@@ -10,6 +10,7 @@ exit status 1, one line on stderr and no traceback.
 
 from __future__ import annotations
 
+import os
 import re
 import subprocess
 import sys
@@ -23,6 +24,7 @@ import solvers
 import tiling
 from geometry import BSpline, MultiPatch, SplineError, ToolkitError, check_regular, compose, compose_many, invert
 from geometry import knots as kn
+from geometry import resources
 from geometry import primitives as pr
 from geometry.io.files import load, save
 from iga import HeatProblem, ProblemError, SingularProblemError, write_vtu
@@ -817,9 +819,9 @@ def _elastic_solution():
 
 @pytest.mark.parametrize("fn, exc, match", RESOURCES)
 def test_resources_are_refused_within_seconds(fn, exc, match, tmp_path, monkeypatch):
-    monkeypatch.setenv("IGA_MAX_MEMORY_GIB", "8")  # the same budget on every machine
     t = time.perf_counter()
-    check(fn, exc, match, tmp_path)
+    with resources.memory_budget(8.0):  # the same budget on every machine
+        check(fn, exc, match, tmp_path)
     assert time.perf_counter() - t < 5.0
     assert not (tmp_path / "o").exists()
 
@@ -1313,3 +1315,15 @@ def test_tubes_and_offsets_past_a_radius_of_curvature_are_refused_with_the_bound
     helices = tiling.regular(pr.box(), L.helix(), (1, 1, 1))
     with pytest.raises(TilingError, match=r"strut through patch 0 .*to or past the axis's radius of curvature"):
         tiling.round_struts(helices, 0.45)
+
+
+def test_the_memory_budget_of_the_environment_is_read_by_the_command_not_by_library_calls(tmp_path, monkeypatch):
+    monkeypatch.setenv("IGA_MAX_MEMORY_GIB", "1e-6")
+    assert resources.memory_limit() > 1e6  # a library call sees the budget set, not the environment
+    assert resources.environment_limit() == 1e-6
+    out = subprocess.run([sys.executable, "-m", "iga", "--quiet", "demo", "heat-sink", "--out", str(tmp_path / "o")],
+                         capture_output=True, text=True, timeout=120, env={**os.environ, "IGA_MAX_MEMORY_GIB": "1e-6"})
+    assert out.returncode == 1 and "GiB this run may use" in out.stderr, out.stderr
+    monkeypatch.setenv("IGA_MAX_MEMORY_GIB", "lots")
+    with pytest.raises(SplineError, match="IGA_MAX_MEMORY_GIB must be a positive number"):
+        resources.environment_limit()

@@ -350,7 +350,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"iga {_version()}")
     parser.add_argument("--quiet", action="store_true", help="no progress display on stderr")
     parser.add_argument("--max-memory", type=float, metavar="GIB", default=None,
-                        help="memory budget in GiB for the size checks (default: the memory available now)")
+                        help="memory budget in GiB for the size checks (default: IGA_MAX_MEMORY_GIB if set, else "
+                             "the memory available now)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     _add_demo(sub)
     _config_command(sub, "run", _cmd_run, "run a pipeline described in a TOML file",
@@ -399,7 +400,8 @@ def main(argv=None) -> int:
 
 def _main(args) -> int:
     try:
-        resources.set_memory_limit(args.max_memory)
+        # the environment is read here, at the edge, once: library calls only see the budget set
+        resources.set_memory_limit(args.max_memory if args.max_memory is not None else resources.environment_limit())
         if getattr(args, "name", None) == "heat-sink":
             for name in ("levels", "refine"):
                 v = getattr(args, name)
