@@ -124,17 +124,24 @@ def nested_refinement(parent_knots, box, child_knots) -> sp.csr_matrix:
     ``parent_knots``, ``child_knots``: [(U, p)] * 2 of the two faces; ``box``:
     the sub-rectangle ((a1, b1), (a2, b2)) of the parent face (in its
     parameters) that carries the child's face, whose parameters are mapped
-    affinely onto it.  Raises :class:`SplineError` unless the child's face
-    space contains the parent's restricted space (same degree, every parent
-    knot present with at least its multiplicity).
+    affinely onto it.  A child of higher degree (p-refinement) takes the
+    parent's restricted space degree-elevated first (every knot's multiplicity
+    raised with the degree: the continuity kept).  Raises :class:`SplineError`
+    unless the child's face space contains the parent's restricted space (a
+    degree at least the parent's, every parent knot present with at least its
+    multiplicity, raised by the elevation).
     """
     Rs = []
     for d in range(2):
         (Up, pp), (Uc, pc) = parent_knots[d], child_knots[d]
         a, b = (_snap(float(x), Up) for x in box[d])
-        if pc != pp:
-            raise SplineError(f"nested faces need equal degrees; parent {pp}, child {pc} (face direction {d})")
+        if pc < pp:
+            raise SplineError(f"the child face's degree {pc} is below its parent's {pp} (face direction {d}); the "
+                              "spaces are not nested")
         sub, S = kn.restriction(np.asarray(Up, float), pp, a, b)
+        if pc > pp:
+            sub, E = kn.elevation_matrix(sub, pp, pc - pp)
+            S = E @ S
         mapped = a + _normalised(Uc) * (b - a)
         vals_s, m_s = kn.breakpoints(sub)
         vals_c, m_c = kn.breakpoints(mapped)
@@ -150,6 +157,6 @@ def nested_refinement(parent_knots, box, child_knots) -> sp.csr_matrix:
                     f"(multiplicity {m}) is missing on the child (face direction {d}); the spaces are not nested"
                 )
         inner = [v for v in need if a < v < b]
-        _, Rins = kn.insertion_matrix(sub, pp, inner)
+        _, Rins = kn.insertion_matrix(sub, pc, inner)
         Rs.append(sp.csr_matrix(Rins @ S))
     return sp.csr_matrix(sp.kron(Rs[0], Rs[1]))

@@ -77,6 +77,42 @@ def test_patches_of_different_levels_carry_a_linear_field_exactly():
     assert s.volume() == pytest.approx(3.0, rel=1e-12)
 
 
+def test_patches_of_different_degrees_and_levels_carry_a_linear_field_exactly():
+    # p on one root, h on another, p again on a child: degrees 2, 3 and 4 meet levels 0 and 1 (degree-elevation and
+    # refinement matrices across equal and nested faces)
+    tree = TileRefinement(_lshape()).refined([1], "p").refined([0]).refined([0, 3], "p")
+    model = tree.model()
+    degrees = sorted({p.spline.degrees[0] for p in model.patches})
+    assert degrees == [2, 3, 4] and sorted(set(tree.leaves.level.tolist())) == [0, 1]
+    assert any(i.kind == "branch" for i in model.interfaces)
+    err, s = _exact_linear(model, dirichlet=("boundary - wmax",), neumann={"wmax": 1.0})
+    assert err < 1e-9
+    assert s.volume() == pytest.approx(3.0, rel=1e-12)
+
+
+def test_p_refinement_reaches_a_smooth_solution_with_fewer_unknowns_than_h():
+    # a harmonic field, smooth everywhere: raising degrees converges faster per unknown than splitting
+    def smooth(x):
+        return np.sin(np.pi * x[:, 0] / 2) * np.sinh(np.pi * x[:, 1] / 2)
+
+    def smooth_gradient(x):
+        a, b = np.pi * x[:, 0] / 2, np.pi * x[:, 1] / 2
+        return np.pi / 2 * np.stack([np.cos(a) * np.sinh(b), np.sin(a) * np.cosh(b), 0 * a], axis=1)
+
+    def run(how, **budget):
+        problem = iga.HeatProblem(_lshape((1, 1, 1))).dirichlet("boundary", smooth)
+        result = adaptive_solve(problem, 2e-3, refine=how, exact_gradient=smooth_gradient, max_steps=10, **budget)
+        assert all(0.3 <= h.effectivity <= 3.0 for h in result.history)
+        return result
+
+    p = run("p")
+    assert p.reached and p.history[-1].relative <= 2e-3
+    assert {q.spline.degrees[0] for q in p.solution.problem.model.patches} != {2}  # degrees were raised
+    h = run("h", max_unknowns=5 * p.history[-1].unknowns)
+    # at five times the unknowns, splitting is still less accurate than raising the degree
+    assert h.history[-1].error > p.history[-1].error, (h.history[-1], p.history[-1])
+
+
 def test_split_patches_follow_the_orientation_of_a_rotated_neighbour():
     a = pr.box((1, 1, 1), (0, 0, 0), degrees=(2, 2, 2), elements=(2, 2, 2))
     b = pr.box((1, 1, 1), (1, 0, 0), degrees=(2, 2, 2), elements=(2, 2, 2)).swap(1, 2).reverse(1)
@@ -202,11 +238,13 @@ def test_dorfler_marks_the_fewest_largest_indicators():
     ({"tolerance": 1e-3, "marking": 0.0}, r"marking must lie in \(0, 1\]"),
     ({"tolerance": 1e-3, "marking": 1.5}, r"marking must lie in \(0, 1\]"),
     ({"tolerance": 1e-3, "max_unknowns": 10}, "already has 32 unknowns, more than max_unknowns = 10"),
-    ({"tolerance": 1e-3, "refine": "p"}, "refine must be 'h'"),
+    ({"tolerance": 1e-3, "refine": "hp"}, "refine must be 'h'"),
     ({"tolerance": 1e-3, "max_steps": 0}, "max_steps must be an integer >= 1"),
+    ({"tolerance": 1e-3, "refine": "p", "degree": 3}, "fixes every patch's degree"),
 ])
 def test_bad_adaptive_input_is_refused_naming_it(kwargs, match):
-    problem = iga.HeatProblem(_lshape()).dirichlet("boundary", _corner)
+    degree = kwargs.pop("degree", None)
+    problem = iga.HeatProblem(_lshape(), degree=degree).dirichlet("boundary", _corner)
     with pytest.raises(ProblemError, match=match):
         adaptive_solve(problem, **kwargs)
 
@@ -284,7 +322,7 @@ def test_a_pipeline_adapts_a_graded_heat_sink_and_reports_every_step(tmp_path):
 @pytest.mark.parametrize("change, match", [
     ({"adapt": {"tolerance": 0}}, "adapt.tolerance: must be > 0"),
     ({"adapt": {"tolerance": 1e-3, "marking": 1.5}}, r"adapt.marking: must lie in \(0, 1\]"),
-    ({"adapt": {"tolerance": 1e-3, "refine": "p"}}, "adapt.refine: must be one of"),
+    ({"adapt": {"tolerance": 1e-3, "refine": "hp"}}, "adapt.refine: must be one of"),
     ({"adapt": {"tolerance": 1e-3, "budget": 3}}, "budget"),
     ({"adapt": {"marking": 0.5}}, "tolerance"),
     ({"physics": {"kind": "transient-heat"}, "time": {"end": 10.0, "step": 1.0}}, "adapt refines a steady heat "

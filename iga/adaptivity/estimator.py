@@ -6,16 +6,20 @@ For -div(K grad T) = f with the energy norm ||e||_E^2 = int grad e . K grad e dV
             + 1/4 sum over its faces F glued to a neighbour of (h_F / pi) / k_F ||[K grad T_h . n]||^2_F  (flux jump)
             + sum over its Neumann and Robin faces of (h_F / pi) / k_F ||q_n - (K grad T_h . n)||^2_F  (mismatch)
 
-with ``h`` the local element size: the smallest of the element's three edge lengths |dx/dxi_k| dxi_k, taken at each
+with ``h`` the local size: the smallest of the element's three edge lengths |dx/dxi_k| dxi_k / p_k, taken at each
 Gauss point from the geometry Jacobian (on a face, those of the element it bounds, on the finer side of a glued
-face; the smallest, so that a flat or long element is measured across its thin direction), and ``k`` the conductivity (the mean of the tensor's
-diagonal).  On a face between two patches each side's residual is half the flux jump, the mismatch of either side's
-flux with their average (Ainsworth and Oden 2000, Section 2.2), so each side counts a quarter of the squared jump
-and the face half of it.  The residual estimator's reliability rests on ||v - Pv||_E <= C h |v|_1 for a projection P onto
-the spline space; for splines of every degree and smoothness the L2 projection on an element of size h gives it
+face; the smallest, so that a flat or long element is measured across its thin direction), each edge divided by
+its direction's degree p_k (the h / p of hp finite elements, Melenk and Wohlmuth 2001: a patch whose degree is
+raised is measured as it approximates; on splines of one degree a constant factor), and ``k`` the conductivity
+(the mean of the tensor's diagonal).  On a face between two patches each side's residual is half the flux jump,
+the mismatch of either side's flux with their average (Ainsworth and Oden 2000, Section 2.2), so each side counts
+a quarter of the squared jump and the face half of it.  The residual estimator's reliability rests on
+||v - Pv||_E <= C h |v|_1 for a projection P onto the spline space; for splines of every degree and smoothness the L2 projection on an element of size h gives it
 with the explicit constant C = 1 / pi (Sande, Manni and Speleers 2019), so the sizes are scaled by 1 / pi and
-no constant is fitted: ``total`` estimates the energy norm of the error up to a factor of order one (measured
-by ``benchmarks/adaptive.py``, which prints the effectivity estimate / true error on every step).
+no constant is fitted; the 1 / p factor follows hp finite elements, whose residual estimators are reliable with
+h / p (Melenk and Wohlmuth 2001): ``total`` estimates the energy norm of the error up to a factor of order one
+(measured by ``benchmarks/adaptive.py``, which prints the effectivity estimate / true error on every step, and by
+the tests for h- and p-refinement).
 
 Flux jumps count across every interface of the model (identity faces, branch faces, the faces between the
 children of a split patch); inside a patch the basis is C^(p-1) across its knots where the geometry is smooth,
@@ -105,9 +109,15 @@ def _tables(space):
     return [[m.toarray() for m in kn.basis_matrices(d.knots, d.degree, d.qpts, 2)] for d in space.dirs]
 
 
+def _per_dof(d) -> float:
+    """The factor 1 / p of a direction of degree p on the element lengths: the h / p of hp finite elements, so
+    that raising a patch's degree is measured (module notes)."""
+    return 1.0 / d.degree
+
+
 def _spacing(space):
-    """Per direction the parameter length of the element of each Gauss point (nq,)."""
-    return [np.repeat(np.diff(d.breaks), d.g) for d in space.dirs]
+    """Per direction the local size, in parameters, of the element of each Gauss point (nq,) (:func:`_per_dof`)."""
+    return [np.repeat(np.diff(d.breaks) * _per_dof(d), d.g) for d in space.dirs]
 
 
 def _derivatives(spline, points):
@@ -303,7 +313,7 @@ def _element_lengths(space, axes):
     lengths = []
     for d, ax in zip(space.dirs, axes):
         e = np.clip(np.searchsorted(d.breaks, ax, side="right") - 1, 0, d.E - 1)
-        lengths.append(np.diff(d.breaks)[e])
+        lengths.append(np.diff(d.breaks)[e] * _per_dof(d))
     return np.stack(np.meshgrid(*lengths, indexing="ij"), axis=-1).reshape(-1, 3)
 
 

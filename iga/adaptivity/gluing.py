@@ -43,6 +43,17 @@ class Pair:
     root_branch: bool = False
 
 
+def finer(L, a: int, b: int) -> bool:
+    """Whether leaf a's space is finer than leaf b's on equal boxes: more bisections, or as many and a higher
+    degree (the closure then makes the other side at least as fine in both)."""
+    return (int(L.level[a]), int(L.elevation[a])) > (int(L.level[b]), int(L.elevation[b]))
+
+
+def same_space(L, a: int, b: int) -> bool:
+    """Whether leaves a and b have the same bisections and degree elevations (equal boxes: an identity)."""
+    return int(L.level[a]) == int(L.level[b]) and int(L.elevation[a]) == int(L.elevation[b])
+
+
 def inner_pairs(L) -> list:
     """Pairs across the split planes inside each root: from each leaf face, the leaf just outside its centre
     at its own depth or coarser (exact integer arithmetic); equal ones once, from the max side."""
@@ -73,14 +84,14 @@ def inner_pairs(L) -> list:
                     if da == d and not side:
                         continue  # equal faces: once, from the max side
                     fb, fa = face_name(k, side), face_name(k, 1 - side)
-                    if da == d and L.level[a] > L.level[b]:  # equal boxes: the coarser space is the parent
+                    if da == d and finer(L, a, b):  # equal boxes: the coarser space is the parent
                         out.append(Pair((b, fb), (a, fa), ((0.0, 1.0), (0.0, 1.0)), False, (False, False), False))
                         continue
                     s = 1.0 / (1 << (d - da))
                     rect = tuple((L.index[b, t] * s - L.index[a, t], L.index[b, t] * s - L.index[a, t] + s)
                                  for t in rest)
                     out.append(Pair((a, fa), (b, fb), rect, False, (False, False),
-                                     da == d and L.level[a] == L.level[b]))
+                                     da == d and same_space(L, a, b)))
     return out
 
 
@@ -173,10 +184,10 @@ def identity_pairs(L, A, B, swap, flip) -> list:
                 continue
             s = 1.0 / (1 << (d - e))
             rect = ((x * s - (x >> (d - e)), x * s - (x >> (d - e)) + s), (y * s - (y >> (d - e)), y * s - (y >> (d - e)) + s))
-            if e == d and L.level[a] > L.level[b]:  # equal faces, a finer: b is the parent
+            if e == d and finer(L, a, b):  # equal faces, a finer: b is the parent
                 out.append(Pair((b, fb), (a, fa), ((0.0, 1.0), (0.0, 1.0)), bswap, bflip, False))
             else:
-                out.append(Pair((a, fa), (b, fb), rect, swap, flip, e == d and L.level[a] == L.level[b]))
+                out.append(Pair((a, fa), (b, fb), rect, swap, flip, e == d and same_space(L, a, b)))
             break
     for a, d, (x, y) in zip(ia.tolist(), da.tolist(), pa_in_b.tolist()):
         for e in range(d - 1, -1, -1):

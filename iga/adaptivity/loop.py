@@ -99,10 +99,13 @@ def _check(problem, tolerance, max_unknowns, marking, refine, max_steps) -> None
         raise ProblemError(f"max_unknowns must be a positive number or None, got {show(max_unknowns)}")
     if not (isinstance(max_steps, (int, np.integer)) and not isinstance(max_steps, bool) and max_steps >= 1):
         raise ProblemError(f"max_steps must be an integer >= 1, got {show(max_steps)}")
-    if refine not in ("h", "h-in-place"):
+    if refine not in ("h", "h-in-place", "p"):
         raise ProblemError(f"refine must be 'h' (split patches into 2 x 2 x 2 children; those with discontinuity "
-                           f"planes bisected in place) or 'h-in-place' (bisect every marked patch's knot spans), got "
-                           f"{show(refine)}; degree elevation per patch ('p', 'hp') is not available")
+                           f"planes bisected in place), 'h-in-place' (bisect every marked patch's knot spans) or 'p' "
+                           f"(raise every marked patch's degree by one), got {show(refine)}; 'hp' is not available")
+    if refine == "p" and problem.space_args[3] is not None:
+        raise ProblemError("refine='p' raises each marked patch's degree; the problem fixes every patch's degree "
+                           "(degree=...): give degree_elevation instead")
     own = [tuple(U.tobytes() for U in p.spline.knots) for p in problem.model.patches]
     given = [tuple(np.asarray(U, float).tobytes() for U in knots) for knots, _ in problem.bases]
     if own != given:
@@ -130,7 +133,8 @@ def adaptive_solve(problem, tolerance: float, max_unknowns: int | None = None, m
         the loop stops; either way the best solution so far is returned with ``reached=False`` and the reason
     marking : Dorfler's fraction in (0, 1]: the marked patches carry at least this fraction of eta^2
     refine : ``"h"`` splits marked patches into 2 x 2 x 2 children (patches with discontinuity planes are bisected
-        in place), ``"h-in-place"`` bisects every marked patch's knot spans
+        in place), ``"h-in-place"`` bisects every marked patch's knot spans, ``"p"`` raises every marked patch's
+        degree by one (its neighbours' faces of lower degree glued by degree-elevation matrices)
     solver, tol : for each solve (:meth:`iga.HeatProblem.solve`)
     exact_gradient : optional callable grad T(x (N, 3)) -> (N, 3) of the exact solution: the history then holds the
         true relative energy-norm error of every step (conductivity constant per patch, as the estimate needs)

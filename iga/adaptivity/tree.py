@@ -38,18 +38,23 @@ from iga.adaptivity.gluing import (MAX_DEPTH, bisected, branch_pairs, identity_p
 from iga.errors import ProblemError
 from iga.model import as_model, same_kind
 
-__all__ = ["Leaves", "TileRefinement", "MAX_DEPTH"]
+__all__ = ["Leaves", "TileRefinement", "MAX_DEPTH", "MAX_ELEVATION"]
+
+#: degree elevations of a leaf beyond its root's (p-refinement): a degree-2 tile goes to degree 8 at most
+MAX_ELEVATION = 6
 
 
 @dataclass(frozen=True)
 class Leaves:
     """The leaves of all roots: ``root`` (L,), ``depth`` (L,), ``index`` (L, 3) position at that depth,
-    ``extra`` (L,) in-place bisections beyond the depth."""
+    ``extra`` (L,) in-place bisections beyond the depth, ``elevation`` (L,) degree elevations beyond the root's
+    (p-refinement, the same in every direction)."""
 
     root: np.ndarray
     depth: np.ndarray
     index: np.ndarray
     extra: np.ndarray
+    elevation: np.ndarray
 
     def __len__(self) -> int:
         return len(self.root)
@@ -60,11 +65,17 @@ class Leaves:
         return self.depth + self.extra
 
     def take(self, keep) -> "Leaves":
-        return Leaves(self.root[keep], self.depth[keep], self.index[keep], self.extra[keep])
+        return Leaves(self.root[keep], self.depth[keep], self.index[keep], self.extra[keep], self.elevation[keep])
+
+    def but(self, extra=None, elevation=None) -> "Leaves":
+        """The same leaves with other in-place bisections or degree elevations."""
+        return Leaves(self.root, self.depth, self.index, self.extra if extra is None else extra,
+                      self.elevation if elevation is None else elevation)
 
     @staticmethod
     def concat(parts) -> "Leaves":
-        return Leaves(*(np.concatenate([getattr(p, f) for p in parts]) for f in ("root", "depth", "index", "extra")))
+        return Leaves(*(np.concatenate([getattr(p, f) for p in parts])
+                        for f in ("root", "depth", "index", "extra", "elevation")))
 
 
 def _splittable(model) -> np.ndarray:
@@ -95,7 +106,8 @@ class TileRefinement:
         n = len(self.roots.patches)
         self.splittable = _splittable(self.roots)
         self.leaves = leaves if leaves is not None else Leaves(np.arange(n), np.zeros(n, np.int64),
-                                                               np.zeros((n, 3), np.int64), np.zeros(n, np.int64))
+                                                               np.zeros((n, 3), np.int64), np.zeros(n, np.int64),
+                                                               np.zeros(n, np.int64))
         self._tiles: dict = {}
         self._same = ObjectIndex()
         #: marked leaves that :meth:`refined` left unrefined (their branch children could not follow)
@@ -112,7 +124,9 @@ class TileRefinement:
     def refined(self, marked, how: str = "h", analysis_refine: int = 0) -> "TileRefinement":
         """A new refinement with the ``marked`` leaves (indices) refined: ``how="h"`` splits each splittable leaf
         into 2 x 2 x 2 children at its parametric midpoints and bisects the others' knot spans in place;
-        ``"h-in-place"`` bisects in place only.  The result is :meth:`closed`.
+        ``"h-in-place"`` bisects in place only; ``"p"`` raises each marked leaf's degree by one (in every
+        direction, keeping its continuity: the same geometry, :data:`MAX_ELEVATION` at most).  The result is
+        :meth:`closed`.
 
         A branch child whose face lies on its parent's face at a box that is not dyadic in the parent (a seal plate
         on part of a tile's face) cannot follow every refinement of the parent: its bisected knots miss the
@@ -141,37 +155,46 @@ class TileRefinement:
         if len(marked) and (marked.min() < 0 or marked.max() >= len(L)):
             raise ProblemError(f"marked patches must be indices below {len(L)}, got {show(marked.tolist()[:5])}")
         split = np.zeros(len(L), bool)
+        if how == "p":
+            elevation = L.elevation.copy()
+            elevation[marked] += 1
+            if np.any(elevation > MAX_ELEVATION):
+                raise ProblemError(f"a patch's degree would be raised more than {MAX_ELEVATION} times; stop the "
+                                   "refinement earlier (a larger tolerance or a smaller budget) or use refine='h'")
+            return self._with(L.but(elevation=elevation))
         if how == "h":
             split[marked] = self.splittable[L.root[marked]]
         elif how != "h-in-place":
-            raise ProblemError(f"how must be 'h' or 'h-in-place', got {show(how)}")
+            raise ProblemError(f"how must be 'h', 'h-in-place' or 'p', got {show(how)}")
         if np.any(L.depth[split] >= MAX_DEPTH):
             raise ProblemError(f"a patch would be split more than {MAX_DEPTH} times; stop the refinement earlier "
                                "(a larger tolerance or a smaller budget)")
         extra = L.extra.copy()
         inplace = np.setdiff1d(marked, np.flatnonzero(split))
         extra[inplace] += 1
-        kept = Leaves(L.root, L.depth, L.index, extra).take(~split)
+        kept = L.but(extra=extra).take(~split)
         s = np.flatnonzero(split)
         octs = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)], np.int64)
         kids = Leaves(np.repeat(L.root[s], 8), np.repeat(L.depth[s] + 1, 8),
-                      (2 * L.index[s][:, None, :] + octs[None]).reshape(-1, 3), np.repeat(L.extra[s], 8))
+                      (2 * L.index[s][:, None, :] + octs[None]).reshape(-1, 3), np.repeat(L.extra[s], 8),
+                      np.repeat(L.elevation[s], 8))
         return self._with(Leaves.concat([kept, kids]))
 
     def closed(self) -> "TileRefinement":
-        """Every glued pair nested: the smaller (or equal) face's leaf at least as fine as the larger one's
-        (in-place bisections added where not), and a root child's face inside one leaf of its parent (the child
-        split where not)."""
+        """Every glued pair nested: the smaller (or equal) face's leaf at least as fine as the larger one's, in
+        bisections and in degree (in-place bisections and elevations added where not), and a root child's face
+        inside one leaf of its parent (the child split where not)."""
         out = self
-        for _ in range(4 * MAX_DEPTH + 8):
+        for _ in range(4 * (MAX_DEPTH + MAX_ELEVATION) + 8):
             L = out.leaves
-            need = L.level.copy()
+            need, degree = L.level.copy(), L.elevation.copy()
             split = np.zeros(len(L), bool)
             for p in out._pairs():
                 if p.a[0] < 0:  # a root child's face over several parent leaves
                     split[p.b[0]] = True
                     continue
                 need[p.b[0]] = max(need[p.b[0]], L.level[p.a[0]])
+                degree[p.b[0]] = max(degree[p.b[0]], L.elevation[p.a[0]])
             if split.any():
                 if not out.splittable[L.root[split]].all():
                     bad = int(L.root[np.flatnonzero(split & ~out.splittable[L.root])[0]])
@@ -180,9 +203,9 @@ class TileRefinement:
                                        "refine its parent in place (how='h-in-place')")
                 out = out._refined(np.flatnonzero(split), "h")
                 continue
-            if np.array_equal(need, L.level):
+            if np.array_equal(need, L.level) and np.array_equal(degree, L.elevation):
                 return out
-            out = out._with(Leaves(L.root, L.depth, L.index, need - L.depth))
+            out = out._with(L.but(extra=need - L.depth, elevation=degree))
         raise ProblemError("the refinement did not close (a cycle of branch faces); check the model's interfaces")
 
     # ---------------------------------------------------------------- geometry
@@ -200,23 +223,27 @@ class TileRefinement:
         """The leaf as a placed patch (exact: a restriction of its root)."""
         L = self.leaves
         root = self.roots.patches[int(L.root[i])]
-        level, box = int(L.level[i]), self._leaf_box(i)
+        level, box, up = int(L.level[i]), self._leaf_box(i), int(L.elevation[i])
         T = root.spline
         whole = bool(L.depth[i] == 0)
         if root.outer is not None or T.is_rational or not self.splittable[L.root[i]]:
-            # the tile restricted (shared by the copies of one tile at one position and level)
-            key = ("tile", self._same(T), level, tuple(map(int, L.index[i])), int(L.depth[i]))
+            # the tile restricted (shared by the copies of one tile at one position, level and degree)
+            key = ("tile", self._same(T), level, tuple(map(int, L.index[i])), int(L.depth[i]), up)
             if key not in self._tiles:
                 S = T.refine(level)[0] if level else T
-                self._tiles[key] = S if whole else S.extract(box)
+                S = S if whole else S.extract(box)
+                self._tiles[key] = S.elevate_to(tuple(p + up for p in T.degrees)) if up else S
             return PlacedPatch(self._tiles[key], root.placement, root.outer, root.tile, root.level,
                                root.patch_in_tile, refinement=level)
         # a plain polynomial root: the leaf is the root placed on its box, x = root(A xi + b), over a reference
         # tile (the identity on [0, 1]^3 in the leaf's basis) that all leaves with equal bases share
         knots = [self._leaf_knots(T, k, level, box[k]) for k in range(3)]
-        key = ("reference", T.degrees, tuple(U.tobytes() for U in knots))
+        degrees = tuple(p + up for p in T.degrees)
+        if up:  # the same knots, each multiplicity raised with the degree (the continuity kept)
+            knots = [kn.elevation_matrix(U, p, up)[0] for U, p in zip(knots, T.degrees)]
+        key = ("reference", degrees, tuple(U.tobytes() for U in knots))
         if key not in self._tiles:
-            self._tiles[key] = _identity_tile(T.degrees, knots)
+            self._tiles[key] = _identity_tile(degrees, knots)
         okey = ("outer", int(L.root[i]))
         if okey not in self._tiles:
             self._tiles[okey] = T if root.placement is None else T.affine(root.placement[:, :3], root.placement[:, 3])
