@@ -50,7 +50,7 @@ def _check(problem, objective, wrt, bounds, mean, maxiter):
                            f"got {show(objective)}")
     if not (isinstance(wrt, str) and wrt.startswith("channel:")):
         raise ProblemError(f"wrt must be 'channel:NAME' (the control values of the map's channel NAME, which the "
-                           f"conductivity reads), got {show(wrt)}")
+                           f"conductivity reads) or 'map' (its control points), got {show(wrt)}")
     ok = (isinstance(bounds, (tuple, list)) and len(bounds) == 2 and all(is_real(b) and np.isfinite(b) for b in bounds)
           and 0 < bounds[0] < bounds[1])
     if not ok:

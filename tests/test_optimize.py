@@ -57,7 +57,8 @@ def test_the_optimiser_lowers_the_smooth_maximum_at_a_fixed_mean_within_the_boun
     ({"bounds": (205.0, 54.0)}, r"bounds must be \(low, high\)"),
     ({"bounds": (54.0,)}, r"bounds must be \(low, high\)"),
     ({"mean": 300.0}, "cannot be met within bounds"),
-    ({"wrt": "map"}, "wrt must be 'channel:NAME'"),
+    ({"wrt": "map"}, "largest move of a control point"),
+    ({"wrt": "shape"}, "wrt must be 'channel:NAME' .* or 'map'"),
     ({"wrt": "channel:rho"}, "holding the channel 'rho'"),
     ({"objective": HeatFlow("umin")}, "has no gradient in the solution.s coefficients"),
     ({"maxiter": 0}, "maxiter must be an integer >= 1"),
@@ -142,6 +143,10 @@ def test_iga_optimize_designs_the_channel_and_writes_the_design(tmp_path):
     ({"design": {"variables": "channel:k", "bounds": [205.0, 54.0]}}, "low < high"),
     ({"design": {"variables": "channel:k", "bounds": [54.0, 205.0], "mean": 300.0}}, "cannot be met"),
     ({"design": {"variables": "channel:k"}}, "bounds"),
+    ({"design": {"variables": "map", "bounds": [54.0, 205.0]}}, "belongs to a channel design"),
+    ({"design": {"variables": "map"}}, "design.move: is required"),
+    ({"design": {"variables": "map", "move": 0.001, "hold": ["bottom"]}}, "design.hold: must be a list"),
+    ({"design": {"variables": "channel:k", "bounds": [54.0, 205.0], "move": 0.001}}, "belongs to a shape design"),
     ({"design": {"variables": "channel:k", "bounds": [54.0, 205.0], "objective": "peak"}}, "design.objective"),
     ({"adapt": {"tolerance": 0.01}}, "adapt and design cannot both"),
 ])
@@ -212,3 +217,23 @@ def test_bad_shape_designs_are_refused():
     with pytest.raises(ProblemError, match="holds every control point"):
         iga.optimize(problem, TemperatureNorm(8), wrt="map", bounds=0.001,
                      hold=("umin", "umax", "vmin", "vmax", "wmin", "wmax"))
+
+
+@pytest.mark.slow
+def test_iga_optimize_designs_the_shape_from_a_pipeline(tmp_path):
+    import json
+    import subprocess
+    import sys
+
+    head = DESIGN.split("[design]")[0]
+    tail = DESIGN.split("[design]")[1].split("\n[", 1)[1]
+    (tmp_path / "shape.toml").write_text(head + '[design]\nvariables = "map"\nmove = 0.001\nhold = ["wmin"]\n'
+                                         'iterations = 4\n\n[' + tail)
+    done = subprocess.run([sys.executable, "-m", "iga", "--quiet", "optimize", "shape.toml"], cwd=tmp_path,
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr[-2000:]
+    d = json.loads((tmp_path / "out" / "summary.json").read_text())["design"]
+    assert d["final"] < d["initial"] and 1 <= len(d["steps"]) <= 4
+    volumes = [s["mean"] for s in d["steps"]]  # a shape design's steps record the solid volume (m^3)
+    assert max(volumes) - min(volumes) <= 1e-5 * max(volumes)
+    assert (tmp_path / "out" / "sink.vtu").stat().st_size > 0

@@ -2,8 +2,8 @@
 
     [adapt]   tolerance = relative energy-norm error, max_unknowns = n, marking = fraction, refine = "h" | "p" |
               "h-in-place", max_steps = n
-    [design]  variables = "channel:NAME", objective = "temperature_norm" | "mean_temperature", p, tag,
-              bounds = [low, high], mean, iterations
+    [design]  variables = "channel:NAME" | "map", objective = "temperature_norm" | "mean_temperature", p, tag,
+              bounds = [low, high], mean (a channel), move, hold (the map), iterations
 
 [adapt] solves by :func:`iga.adaptivity.loop.adaptive_solve` (the summary holds every step and why the loop
 stopped, the VTU the refinement of every patch); [design] by :func:`iga.design.optimize` (the summary holds the
@@ -56,12 +56,20 @@ def design_section(config: dict, kind: str, conductivity) -> dict | None:
         raise ProblemError("config sections adapt and design cannot both drive the solve; drop one")
     d = filled("design", table(config["design"], "design", allowed("design"), required("design")))
     wrt = d["variables"]
+    common = {"variables": wrt, "objective": choice(d["objective"], "design.objective", OBJECTIVES),
+              "p": number(d["p"], "design.p", lo=1, open_lo=False), "tag": d["tag"],
+              "iterations": integer(d["iterations"], "design.iterations", 1)}
+    if wrt == "map":
+        return {**common, **_shape_design(d)}
     if not (isinstance(wrt, str) and wrt.startswith("channel:") and len(wrt) > len("channel:")):
-        fail("design.variables", f"must be \"channel:NAME\" (the map's channel NAME the conductivity reads), got "
-             f"{wrt!r}")
+        fail("design.variables", f"must be \"channel:NAME\" (the map's channel NAME the conductivity reads) or "
+             f"\"map\" (its control points), got {wrt!r}")
     if wrt.split(":", 1)[1] != conductivity:
         fail("design.variables", f"names the channel {wrt.split(':', 1)[1]!r}, but material.conductivity is "
              f"{conductivity!r}; the design changes the channel the conductivity reads")
+    for key in ("move", "hold"):
+        if d[key]:
+            fail(f"design.{key}", "belongs to a shape design (variables = \"map\"); drop it")
     b = d["bounds"]
     if not (isinstance(b, list) and len(b) == 2):
         fail("design.bounds", f"must be [low, high] (W/(m K)), got {b!r}")
@@ -71,6 +79,20 @@ def design_section(config: dict, kind: str, conductivity) -> dict | None:
     mean = None if d["mean"] is None else number(d["mean"], "design.mean", lo=0)
     if mean is not None and not low <= mean <= high:
         fail("design.mean", f"{mean:g} cannot be met within bounds [{low:g}, {high:g}]")
-    return {"variables": wrt, "objective": choice(d["objective"], "design.objective", OBJECTIVES),
-            "p": number(d["p"], "design.p", lo=1, open_lo=False), "tag": d["tag"], "bounds": (low, high),
-            "mean": mean, "iterations": integer(d["iterations"], "design.iterations", 1)}
+    return {**common, "bounds": (low, high), "mean": mean}
+
+
+def _shape_design(d) -> dict:
+    """The keys of a shape design (variables = "map"): ``move`` (m) and ``hold`` (faces of the map)."""
+    for key in ("bounds", "mean"):
+        if d[key] is not None:
+            fail(f"design.{key}", "belongs to a channel design; a shape design (variables = \"map\") takes move "
+                 "(m) and hold")
+    if d["move"] is None:
+        fail("design.move", "is required for variables = \"map\": the largest move of a control point "
+             "coordinate (m)")
+    hold = d["hold"]
+    faces = ("umin", "umax", "vmin", "vmax", "wmin", "wmax")
+    if not (isinstance(hold, list) and all(isinstance(f, str) and f in faces for f in hold)):
+        fail("design.hold", f"must be a list of the map's faces {list(faces)}, got {hold!r}")
+    return {"move": number(d["move"], "design.move", lo=0), "hold": list(hold)}

@@ -262,11 +262,17 @@ _SECTIONS = (
         _K("max_steps", "an integer >= 1", 50, "at most this many solves"))),
     Section("design", "[design]", "Design by gradient of a steady heat analysis (`physics.kind = \"heat\"`; "
             "`iga optimize CONFIG.toml`, or `iga run`): the control values of the map's channel that the "
-            "conductivity reads, optimised for an output (`iga.optimize`).", (
-        _K("variables", "`\"channel:NAME\"`", REQUIRED, "the channel NAME of the map (the one "
-           "`material.conductivity` names), e.g. made by `map.grading`"),
-        _K("bounds", "[low, high] (W/(m K))", REQUIRED, "the bounds of every control value, e.g. `[54, 205]` for "
-           "steel to aluminium"),
+            "conductivity reads, or the map's control points (its shape), optimised for an output "
+            "(`iga.optimize`).", (
+        _K("variables", "`\"channel:NAME\"` or `\"map\"`", REQUIRED, "the channel NAME of the map (the one "
+           "`material.conductivity` names), e.g. made by `map.grading`; or `map`: the coordinates of the map's "
+           "control points, at the solid volume of the start"),
+        _K("bounds", "[low, high] (W/(m K))", UNSET, "the bounds of every control value of a channel, e.g. "
+           "`[54, 205]` for steel to aluminium (required for `channel:NAME`)"),
+        _K("move", "a number > 0 (m)", UNSET, "the largest move of a control point coordinate (required for "
+           "`map`; below a quarter of the control points' spacing)"),
+        _K("hold", "a list of the map's faces (`umin` .. `wmax`)", [], "`map`: the faces whose control points "
+           "stay, e.g. the heated one (its area, so the power of a flux per area, is kept)"),
         _K("objective", "`\"temperature_norm\"` or `\"mean_temperature\"`", "temperature_norm",
            "the output minimised: a smooth maximum (int T^p / V)^(1/p), or the mean"),
         _K("p", "a number >= 1", 8.0, "the exponent of `temperature_norm`"),

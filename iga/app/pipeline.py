@@ -278,8 +278,11 @@ def _heat_stage(cfg, model, out: Path, ocfg: Record, stages):
         d = cfg.design
         objective = (TemperatureNorm(d.p, d.tag) if d.objective == "temperature_norm"
                      else MeanTemperature(d.tag))
-        designed = optimize(prob, objective, d.variables, d.bounds, d.mean, d.iterations,
-                            solver=scfg.method)
+        if d.variables == "map":  # the shape: the map's control points, the solid volume kept
+            designed = optimize(prob, objective, "map", d.move, maxiter=d.iterations, solver=scfg.method,
+                                hold=tuple(d.hold))
+        else:
+            designed = optimize(prob, objective, d.variables, d.bounds, d.mean, d.iterations, solver=scfg.method)
         sol = designed.solution
         prob, model = sol.problem, sol.problem.model
     elif cfg.adapt is not None:  # solve, estimate, split where the estimate is largest, until the tolerance
