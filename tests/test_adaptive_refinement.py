@@ -90,7 +90,7 @@ def test_patches_of_different_degrees_and_levels_carry_a_linear_field_exactly():
     assert s.volume() == pytest.approx(3.0, rel=1e-12)
 
 
-def test_p_refinement_reaches_a_smooth_solution_with_fewer_unknowns_than_h():
+def test_p_and_hp_refinement_reach_a_smooth_solution_with_fewer_unknowns_than_h():
     # a harmonic field, smooth everywhere: raising degrees converges faster per unknown than splitting
     def smooth(x):
         return np.sin(np.pi * x[:, 0] / 2) * np.sinh(np.pi * x[:, 1] / 2)
@@ -111,6 +111,12 @@ def test_p_refinement_reaches_a_smooth_solution_with_fewer_unknowns_than_h():
     h = run("h", max_unknowns=5 * p.history[-1].unknowns)
     # at five times the unknowns, splitting is still less accurate than raising the degree
     assert h.history[-1].error > p.history[-1].error, (h.history[-1], p.history[-1])
+    # hp: split first (no prediction yet), then raise the degree where the error fell as predicted
+    both = run("hp")
+    assert both.reached and both.history[-1].unknowns <= 2 * h.history[-1].unknowns
+    assert both.history[-1].error < 0.2 * h.history[-1].error  # at about the unknowns of h, a fifth of its error
+    degrees = {q.spline.degrees[0] for q in both.solution.problem.model.patches}
+    assert len(both.solution.problem.model.patches) > 3 and max(degrees) > 2
 
 
 def test_split_patches_follow_the_orientation_of_a_rotated_neighbour():
@@ -238,7 +244,7 @@ def test_dorfler_marks_the_fewest_largest_indicators():
     ({"tolerance": 1e-3, "marking": 0.0}, r"marking must lie in \(0, 1\]"),
     ({"tolerance": 1e-3, "marking": 1.5}, r"marking must lie in \(0, 1\]"),
     ({"tolerance": 1e-3, "max_unknowns": 10}, "already has 32 unknowns, more than max_unknowns = 10"),
-    ({"tolerance": 1e-3, "refine": "hp"}, "refine must be 'h'"),
+    ({"tolerance": 1e-3, "refine": "hq"}, "refine must be 'h'"),
     ({"tolerance": 1e-3, "max_steps": 0}, "max_steps must be an integer >= 1"),
     ({"tolerance": 1e-3, "refine": "p", "degree": 3}, "fixes every patch's degree"),
 ])
@@ -322,7 +328,7 @@ def test_a_pipeline_adapts_a_graded_heat_sink_and_reports_every_step(tmp_path):
 @pytest.mark.parametrize("change, match", [
     ({"adapt": {"tolerance": 0}}, "adapt.tolerance: must be > 0"),
     ({"adapt": {"tolerance": 1e-3, "marking": 1.5}}, r"adapt.marking: must lie in \(0, 1\]"),
-    ({"adapt": {"tolerance": 1e-3, "refine": "hp"}}, "adapt.refine: must be one of"),
+    ({"adapt": {"tolerance": 1e-3, "refine": "q"}}, "adapt.refine: must be one of"),
     ({"adapt": {"tolerance": 1e-3, "budget": 3}}, "budget"),
     ({"adapt": {"marking": 0.5}}, "tolerance"),
     ({"physics": {"kind": "transient-heat"}, "time": {"end": 10.0, "step": 1.0}}, "adapt refines a steady heat "

@@ -20,6 +20,7 @@ from geometry import progress
 from geometry.errors import show
 from geometry.numbers import is_real as is_number
 
+from iga.adaptivity import hp
 from iga.adaptivity.estimator import ErrorEstimate, estimate_error
 from iga.adaptivity.tree import TileRefinement
 from geometry.faces import FACE_AXIS
@@ -99,11 +100,12 @@ def _check(problem, tolerance, max_unknowns, marking, refine, max_steps) -> None
         raise ProblemError(f"max_unknowns must be a positive number or None, got {show(max_unknowns)}")
     if not (isinstance(max_steps, (int, np.integer)) and not isinstance(max_steps, bool) and max_steps >= 1):
         raise ProblemError(f"max_steps must be an integer >= 1, got {show(max_steps)}")
-    if refine not in ("h", "h-in-place", "p"):
+    if refine not in ("h", "h-in-place", "p", "hp"):
         raise ProblemError(f"refine must be 'h' (split patches into 2 x 2 x 2 children; those with discontinuity "
-                           f"planes bisected in place), 'h-in-place' (bisect every marked patch's knot spans) or 'p' "
-                           f"(raise every marked patch's degree by one), got {show(refine)}; 'hp' is not available")
-    if refine == "p" and problem.space_args[3] is not None:
+                           f"planes bisected in place), 'h-in-place' (bisect every marked patch's knot spans), 'p' "
+                           f"(raise every marked patch's degree by one) or 'hp' (either, per patch), got "
+                           f"{show(refine)}")
+    if refine in ("p", "hp") and problem.space_args[3] is not None:
         raise ProblemError("refine='p' raises each marked patch's degree; the problem fixes every patch's degree "
                            "(degree=...): give degree_elevation instead")
     own = [tuple(U.tobytes() for U in p.spline.knots) for p in problem.model.patches]
@@ -134,7 +136,9 @@ def adaptive_solve(problem, tolerance: float, max_unknowns: int | None = None, m
     marking : Dorfler's fraction in (0, 1]: the marked patches carry at least this fraction of eta^2
     refine : ``"h"`` splits marked patches into 2 x 2 x 2 children (patches with discontinuity planes are bisected
         in place), ``"h-in-place"`` bisects every marked patch's knot spans, ``"p"`` raises every marked patch's
-        degree by one (its neighbours' faces of lower degree glued by degree-elevation matrices)
+        degree by one (its neighbours' faces of lower degree glued by degree-elevation matrices), ``"hp"`` chooses
+        per patch: split where its indicator exceeds the one predicted for it, else raise its degree
+        (:mod:`iga.adaptivity.hp`)
     solver, tol : for each solve (:meth:`iga.HeatProblem.solve`)
     exact_gradient : optional callable grad T(x (N, 3)) -> (N, 3) of the exact solution: the history then holds the
         true relative energy-norm error of every step (conductivity constant per patch, as the estimate needs)
@@ -147,6 +151,7 @@ def adaptive_solve(problem, tolerance: float, max_unknowns: int | None = None, m
     current = problem if len(tree.leaves) == len(problem.model.patches) else problem.on(tree.model())
     history, reached, reason, last = [], False, f"{max_steps} steps taken", False
     solution = estimate = None
+    predicted: dict = {}  # refine="hp": the predicted squared indicator of each leaf
     for step in range(1, max_steps + 1):
         t0 = time.perf_counter()
         solution = current.solve(solver=solver, tol=tol)
@@ -168,11 +173,12 @@ def adaptive_solve(problem, tolerance: float, max_unknowns: int | None = None, m
         if step == max_steps:
             break
         now = int(solution.info.free_dofs)  # the budget's measure, this step
-        step_to = _next_step(problem, tree, estimate, marked, refine, max_unknowns, now)
+        step_to = _next_step(problem, tree, estimate, marked, refine, max_unknowns, now, predicted)
         if isinstance(step_to, str):
             reason = f"{step_to}; the estimate reached {estimate.relative:.3g} (tolerance {tolerance:g})"
             break
-        tree, current, refined, last = step_to  # last: the budget cut the step short, the next solve is the last
+        # last: the budget cut the step short, the next solve is the last
+        tree, current, refined, last, predicted = step_to
         history[-1] = replace(history[-1], marked=refined)
     return AdaptiveResult(solution, estimate, tuple(history), reached, reason)
 
@@ -193,9 +199,9 @@ def unknowns(problem) -> int:
     return int(n - len(np.unique(held[held >= 0])))
 
 
-def _next_step(problem, tree, estimate, marked, refine, max_unknowns, now):
-    """(refinement, problem, patches refined, whether the budget cut the step) of the next step, or why there is
-    none (a string).
+def _next_step(problem, tree, estimate, marked, refine, max_unknowns, now, predicted):
+    """(refinement, problem, patches refined, whether the budget cut the step, the hp predictions) of the next
+    step, or why there is none (a string).
 
     Where refining every marked patch would exceed ``max_unknowns`` (:func:`unknowns`), the longest prefix of
     the marked patches (largest indicators first) that fits is refined (found by bisection on its length, to 2%
@@ -204,19 +210,25 @@ def _next_step(problem, tree, estimate, marked, refine, max_unknowns, now):
     order = marked[np.argsort(-estimate.patch[marked], kind="stable")]
 
     def attempt(n):
-        new = tree.refined(order[:n], refine, analysis_refine=problem.space_args[2])
+        chosen, depth = order[:n], problem.space_args[2]
+        if refine == "hp":
+            split, raise_ = hp.choose(tree, estimate.patch, chosen, predicted)
+            new = hp.refine_hp(tree, split, raise_, depth)
+            guess = hp.predictions(tree, new, estimate.patch, split, raise_, predicted)
+        else:
+            new, guess = tree.refined(chosen, refine, analysis_refine=depth), predicted
         if len(new.held) == n:
             return None
         nxt = problem.on(new.model())
-        return new, nxt, n - len(new.held), None if max_unknowns is None else unknowns(nxt)
+        return new, nxt, n - len(new.held), None if max_unknowns is None else unknowns(nxt), guess
 
     n = len(order)
     first = attempt(n)
     if first is None:
         return (f"none of the {n} marked patches can be refined: their branch children sit on boxes that their "
-                "refinement would not keep nested")
+                "refinement would not keep nested, or their degree is the highest (refine='p')")
     if max_unknowns is None or first[3] <= max_unknowns:
-        return (*first[:3], False)
+        return (*first[:3], False, first[4])
     # the budget allows part of the step: the largest-indicator prefix that fits, by bisection on its length
     # (a prefix that fits at lo, one that does not at hi), to within 2% of the marked patches
     lo, hi, best = 0, n, None
@@ -231,7 +243,7 @@ def _next_step(problem, tree, estimate, marked, refine, max_unknowns, now):
         guess = None
     if best is None:
         return f"no marked patch can be refined within max_unknowns = {int(max_unknowns):,} (now {now:,} unknowns)"
-    return (*best[:3], True)
+    return (*best[:3], True, best[4])
 
 
 def _true_error(solution, estimate, exact_gradient) -> float:

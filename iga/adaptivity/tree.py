@@ -131,10 +131,14 @@ class TileRefinement:
         A branch child whose face lies on its parent's face at a box that is not dyadic in the parent (a seal plate
         on part of a tile's face) cannot follow every refinement of the parent: its bisected knots miss the
         parent's new ones.  Marked leaves whose refinement would leave such a pair not nested (checked on the
-        analysis spaces, ``analysis_refine`` further bisections) are left as they are; :attr:`held` lists them.
+        analysis spaces, ``analysis_refine`` further bisections) are left as they are, as are marked leaves at
+        :data:`MAX_ELEVATION` under ``"p"``; :attr:`held` lists them.
         """
         marked = np.unique(np.asarray(marked, np.int64))
         held: list = []
+        if how == "p" and len(marked) and 0 <= marked.min() and marked.max() < len(self.leaves):
+            top = self.leaves.elevation[marked] >= MAX_ELEVATION  # at the highest degree: held
+            held, marked = marked[top].tolist(), marked[~top]
         while True:
             out = self._refined(marked, how).closed()
             bad = out._unnested_roots(analysis_refine)

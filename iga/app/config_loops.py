@@ -1,6 +1,6 @@
 """The sections of a pipeline that wrap its steady heat solve in a loop: [adapt] and [design].
 
-    [adapt]   tolerance = relative energy-norm error, max_unknowns = n, marking = fraction, refine = "h" | "p" |
+    [adapt]   tolerance = relative energy-norm error, max_unknowns = n, marking = fraction, refine = "h" | "p" | "hp" |
               "h-in-place", max_steps = n
     [design]  variables = "channel:NAME" | "map", objective = "temperature_norm" | "mean_temperature", p, tag,
               bounds = [low, high], mean (a channel), move, hold (the map), iterations
@@ -32,7 +32,7 @@ def adapt_section(config: dict, kind: str) -> dict | None:
     return {"tolerance": number(a["tolerance"], "adapt.tolerance", lo=0),
             "max_unknowns": None if a["max_unknowns"] is None else integer(a["max_unknowns"], "adapt.max_unknowns", 1),
             "marking": _marking(a["marking"]),
-            "refine": choice(a["refine"], "adapt.refine", ("h", "h-in-place", "p")),
+            "refine": choice(a["refine"], "adapt.refine", ("h", "h-in-place", "p", "hp")),
             "max_steps": integer(a["max_steps"], "adapt.max_steps", 1)}
 
 

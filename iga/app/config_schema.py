@@ -256,9 +256,10 @@ _SECTIONS = (
            "is written and the summary says why it stopped"),
         _K("marking", "a number in (0, 1]", 0.5, "Dorfler's fraction: the patches marked carry at least this share "
            "of the squared estimate"),
-        _K("refine", "`\"h\"`, `\"h-in-place\"` or `\"p\"`", "h", "`h` splits a marked patch into 2 x 2 x 2 "
-           "children (patches with discontinuity planes are bisected in place), `h-in-place` bisects its knot "
-           "spans, `p` raises its degree by one"),
+        _K("refine", "`\"h\"`, `\"h-in-place\"`, `\"p\"` or `\"hp\"`", "h", "`h` splits a marked patch into "
+           "2 x 2 x 2 children (patches with discontinuity planes are bisected in place), `h-in-place` bisects its "
+           "knot spans, `p` raises its degree by one, `hp` chooses per patch (split where the error did not fall "
+           "as predicted)"),
         _K("max_steps", "an integer >= 1", 50, "at most this many solves"))),
     Section("design", "[design]", "Design by gradient of a steady heat analysis (`physics.kind = \"heat\"`; "
             "`iga optimize CONFIG.toml`, or `iga run`): the control values of the map's channel that the "
