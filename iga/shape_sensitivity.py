@@ -59,14 +59,14 @@ def shape_sensitivity(solution, output: Output, solver: str = "auto") -> np.ndar
     n = int(np.prod(D.control_points.shape[:3]))
     grad = np.zeros((n, 3))
     patches = prob.model.patches
-    K6 = _conductivity_matrix(prob)
+    conductivity_at = _conductivity_matrix(prob)
     source = prob.source
 
     def add(chunk, space, vals, grads, wv, x, chans):
         where = f"patches {chunk[0]}..{chunk[-1]}"
         flat = {c: np.reshape(v, -1) for c, v in chans.items()}
         gT, gL, T, L = grads[:, 0], grads[:, 1], vals[:, 0], vals[:, 1]
-        K = K6(x, flat, where)  # (N, 3, 3)
+        K = conductivity_at(x, flat, where)  # (N, 3, 3)
         KgT, KgL = np.einsum("qij,qj->qi", K, gT), np.einsum("qij,qj->qi", K, gL)
         s = np.sum(gL * KgT, axis=1)
         # - lambda . dK/dP u (diffusion) + lambda . df/dP (source) + explicit volume terms
