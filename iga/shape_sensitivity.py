@@ -50,11 +50,14 @@ __all__ = ["shape_sensitivity", "shape_map", "map_basis_gradient"]
 def shape_sensitivity(solution, output: Output, solver: str = "auto") -> np.ndarray:
     """dJ/dP of ``output`` with respect to the coordinates of the deformation map's control points, shaped like
     them: (n1, n2, n3, 3) (module notes).  Units: those of J per metre."""
+    if getattr(type(solution), "physics", None) != "heat" or not type(solution).steady:
+        raise ProblemError(f"wrt='map' differentiates a steady heat solution (iga.Solution), got {show(solution)}")
     prob = solution.problem
     _check_material(prob)
     D, placed = shape_map(prob)
     explicit = _explicit_terms(output, solution)
-    lam = adjoint(solution, output, solver)
+    # the volume does not depend on the temperature: its adjoint is zero (no solve)
+    lam = np.zeros(prob.ndof) if isinstance(output, Volume) else adjoint(solution, output, solver)
     u_load = solution.u if isinstance(output, Compliance) else None  # u . f: f's shape terms with u for lambda
     n = int(np.prod(D.control_points.shape[:3]))
     grad = np.zeros((n, 3))

@@ -92,6 +92,12 @@ def test_what_the_shape_derivative_does_not_cover_is_refused():
         grad(HeatProblem(box).dirichlet("umin", 0.0).radiation("umax", 0.5, 20.0, scale="C"))
     with pytest.raises(ProblemError, match="knows the shape terms"):
         grad(HeatProblem(box).dirichlet("umin", 0.0).neumann("umax", 1.0), HeatFlow("umax"))
+    from iga import ElasticityProblem
+    from iga.shape_sensitivity import shape_sensitivity
+
+    elastic = ElasticityProblem(box, 1.0, 0.3).dirichlet("umin", 0.0).traction("umax", (1.0, 0.0, 0.0)).solve()
+    with pytest.raises(ProblemError, match="steady heat solution"):
+        shape_sensitivity(elastic, Volume())
     two = MultiPatch.from_splines([box, pr.box(origin=(1.0, 0.0, 0.0), degrees=(2, 2, 2), elements=(2, 2, 2))])
     with pytest.raises(ProblemError, match="one deformation map"):
         grad(HeatProblem(two).dirichlet("umin", 0.0).neumann("umax", 1.0))
