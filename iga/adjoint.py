@@ -10,7 +10,9 @@ values eliminated as the solve eliminates them); the adjoint lambda solves K lam
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 
+from geometry import knots as kn
 from geometry.errors import show
 
 from iga.discretisation.constraints import needs_constraints, prolongation
@@ -19,7 +21,7 @@ from iga.discretisation.system import solve_system
 from iga.errors import ProblemError
 from iga.outputs import Output
 
-__all__ = ["adjoint", "design_map", "map_parameters", "map_basis"]
+__all__ = ["adjoint", "shape_map", "design_map", "map_parameters", "map_basis", "map_basis_values"]
 
 
 def adjoint(solution, output: Output, solver: str = "auto", tol: float = 1e-12) -> np.ndarray:
@@ -49,15 +51,25 @@ def adjoint(solution, output: Output, solver: str = "auto", tol: float = 1e-12) 
     return solve_system(K, g, constraints, zero, solver, tol).u
 
 
-def design_map(problem, channel: str):
-    """(D, placed): the one deformation map of the model that holds ``channel`` (placed: the patches are placed in
-    it), or the model's single spline holding it (not placed); :class:`ProblemError` otherwise."""
+def shape_map(problem):
+    """(D, placed): the one deformation map the model's patches are placed in, or the model's single spline (not
+    placed); :class:`ProblemError` for models of several maps."""
     patches = problem.model.patches
     outers = {id(p.outer): p.outer for p in patches}
-    D = next(iter(outers.values())) if len(outers) == 1 else None
-    placed = D is not None
-    if D is None and len(patches) == 1:  # a single spline: the channel is its own
-        D, placed = patches[0].spline, False
+    if len(outers) == 1 and next(iter(outers.values())) is not None:
+        return next(iter(outers.values())), True
+    if len(patches) == 1 and patches[0].outer is None:
+        return patches[0].spline, False
+    raise ProblemError("wrt='map' differentiates with respect to the control points of one deformation map: the "
+                       f"model has {len(outers)} maps (a V-rep union has one per primitive) or patches without one")
+
+
+def design_map(problem, channel: str):
+    """(D, placed): the map of :func:`shape_map`, which must hold ``channel``; :class:`ProblemError` otherwise."""
+    try:
+        D, placed = shape_map(problem)
+    except ProblemError:
+        D = placed = None
     if D is None or channel not in getattr(D, "channels", ()):
         raise ProblemError(f"the model needs one deformation map holding the channel {show(channel)} (a "
                            "micro-structure paved in one map, or one spline)")
@@ -75,26 +87,38 @@ def map_parameters(patches, chunk, space, D, placed: bool) -> np.ndarray:
     return np.clip(np.concatenate(ys), D.domain[:, 0], D.domain[:, 1])
 
 
-def map_basis(D, y: np.ndarray):
-    """The sparse matrix (N, control points) of D's basis (NURBS where D has weights) at its parameters y (N, 3)."""
-    import scipy.sparse as sp
-
-    from geometry import knots as kn
-
+def map_basis_values(D, y: np.ndarray, derivatives: bool = False):
+    """(idx (N, b), R (N, b), dR): the control indices of the b basis functions of D non-zero at each parameter y
+    (N, 3), their values and, with ``derivatives``, [dR / dy_k (N, b)] * 3 (else None); NURBS where D has
+    weights (R_c = w_c N_c / W, dR_c = w_c (dN_c W - N_c dW) / W^2)."""
     n = D.control_points.shape[:3]
-    parts = [kn.basis_functions(D.knots[d], D.degrees[d], y[:, d]) for d in range(3)]
-    idx, val = None, None
-    for d, (spans, ders) in enumerate(parts):
-        p = D.degrees[d]
-        i_d = spans[:, None] - p + np.arange(p + 1)[None]  # (N, p + 1) control indices along d
-        v_d = ders[:, 0, :]
-        if idx is None:
-            idx, val = i_d, v_d
-        else:
-            idx = (idx[:, :, None] * n[d] + i_d[:, None, :]).reshape(len(y), -1)
-            val = (val[:, :, None] * v_d[:, None, :]).reshape(len(y), -1)
-    if D.weights is not None:  # R_c = w_c N_c / sum_c w_c N_c
-        wv = val * np.asarray(D.weights, float).reshape(-1)[idx]
-        val = wv / wv.sum(1, keepdims=True)
+    parts = [kn.basis_functions(D.knots[d], D.degrees[d], y[:, d], nder=int(derivatives)) for d in range(3)]
+    idx = None
+    for d, (spans, _) in enumerate(parts):
+        i_d = spans[:, None] - D.degrees[d] + np.arange(D.degrees[d] + 1)[None]  # (N, p + 1) indices along d
+        idx = i_d if idx is None else (idx[:, :, None] * n[d] + i_d[:, None, :]).reshape(len(y), -1)
+
+    def product(orders):
+        val = None
+        for d, (_, ders) in enumerate(parts):
+            v = ders[:, orders[d], :]
+            val = v if val is None else (val[:, :, None] * v[:, None, :]).reshape(len(y), -1)
+        return val
+
+    N0 = product((0, 0, 0))
+    dN = [product(tuple(int(j == k) for j in range(3))) for k in range(3)] if derivatives else None
+    if D.weights is None:
+        return idx, N0, dN
+    w = np.asarray(D.weights, float).reshape(-1)[idx]
+    W = (w * N0).sum(1, keepdims=True)
+    R = w * N0 / W
+    if dN is not None:
+        dN = [w * (d * W - N0 * (w * d).sum(1, keepdims=True)) / W ** 2 for d in dN]
+    return idx, R, dN
+
+
+def map_basis(D, y: np.ndarray) -> sp.csr_matrix:
+    """The sparse matrix (N, control points) of D's basis (NURBS where D has weights) at its parameters y (N, 3)."""
+    idx, R, _ = map_basis_values(D, y)
     rows = np.repeat(np.arange(len(y)), idx.shape[1])
-    return sp.csr_matrix((val.ravel(), (rows, idx.ravel())), shape=(len(y), int(np.prod(n))))
+    return sp.csr_matrix((R.ravel(), (rows, idx.ravel())), shape=(len(y), int(np.prod(D.control_points.shape[:3]))))

@@ -20,8 +20,7 @@ from geometry.numbers import is_real
 
 from iga.adjoint import design_map, map_basis, map_parameters
 from iga.errors import ProblemError
-from iga.heat.problem import HeatProblem
-from iga.optimiser import DesignResult, DesignStep, redesigned, run_slsqp
+from iga.optimiser import DesignResult, DesignStep, check_design, redesigned, run_slsqp
 from iga.outputs import Output, gauss_pass
 from iga.sensitivity import channel_sensitivity
 from iga.shape_design import optimize_shape
@@ -42,12 +41,8 @@ def channel_volumes(problem, D, placed: bool) -> np.ndarray:
     return out
 
 
-def _check(problem, objective, wrt, bounds, mean, maxiter):
-    if type(problem) is not HeatProblem:
-        raise ProblemError(f"optimize takes a steady iga.HeatProblem, got {type(problem).__name__}")
-    if not isinstance(objective, Output) or not hasattr(objective, "gradient"):
-        raise ProblemError(f"objective must be an output of iga.outputs with a gradient (e.g. TemperatureNorm(8)), "
-                           f"got {show(objective)}")
+def _check(wrt, bounds, mean) -> None:
+    """The arguments of a channel design (:func:`iga.optimiser.check_design` checks the rest)."""
     if not (isinstance(wrt, str) and wrt.startswith("channel:")):
         raise ProblemError(f"wrt must be 'channel:NAME' (the control values of the map's channel NAME, which the "
                            f"conductivity reads) or 'map' (its control points), got {show(wrt)}")
@@ -59,8 +54,6 @@ def _check(problem, objective, wrt, bounds, mean, maxiter):
     if mean is not None and not (is_real(mean) and bounds[0] <= mean <= bounds[1]):
         raise ProblemError(f"mean = {show(mean)} cannot be met within bounds {show(tuple(bounds))}: a mean of the "
                            "channel lies between its bounds")
-    if not (isinstance(maxiter, int) and maxiter >= 1):
-        raise ProblemError(f"maxiter must be an integer >= 1, got {show(maxiter)}")
 
 
 def optimize(problem, objective: Output, wrt: str = "channel:k", bounds=(54.0, 205.0), mean: float | None = None,
@@ -86,7 +79,8 @@ def optimize(problem, objective: Output, wrt: str = "channel:k", bounds=(54.0, 2
     """
     if wrt == "map":
         return optimize_shape(problem, objective, bounds, hold, keep_volume, maxiter, tol, solver)
-    _check(problem, objective, wrt, bounds, mean, maxiter)
+    check_design(problem, objective, maxiter)
+    _check(wrt, bounds, mean)
     name = wrt.split(":", 1)[1]
     D, placed = design_map(problem, name)
     v0 = np.asarray(D.channel(name), float).reshape(-1)
@@ -102,7 +96,7 @@ def optimize(problem, objective: Output, wrt: str = "channel:k", bounds=(54.0, 2
         new = D.with_channel(name, values.reshape(D.control_points.shape[:3]))
         sol = problem.on(redesigned(problem.model, D, new, placed)).solve(solver=solver, keep=True)
         return values, sol, objective.value(sol), channel_sensitivity(sol, objective, name, solver).reshape(-1) * (
-            hi - lo), float(vol @ values / total)
+            hi - lo), float(vol @ values / total), None
 
     constraints = []
     if mean is not None:

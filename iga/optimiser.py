@@ -13,11 +13,15 @@ import numpy as np
 from scipy.optimize import minimize
 
 from geometry import progress
+from geometry.errors import show
 from geometry.patches.multipatch import PlacedPatch
 
+from iga.errors import ProblemError
+from iga.heat.problem import HeatProblem
 from iga.model import same_kind
+from iga.outputs import Output
 
-__all__ = ["DesignStep", "DesignResult", "redesigned", "run_slsqp"]
+__all__ = ["DesignStep", "DesignResult", "redesigned", "run_slsqp", "check_design"]
 
 
 @dataclass(frozen=True)
@@ -69,13 +73,25 @@ def redesigned(model, D, new, placed: bool):
                      dict(getattr(model, "face_regions", {})))
 
 
+def check_design(problem, objective, maxiter) -> None:
+    """What every design needs: a steady heat problem, an output to minimise, an iteration limit."""
+    if type(problem) is not HeatProblem:
+        raise ProblemError(f"optimize takes a steady iga.HeatProblem, got {type(problem).__name__}")
+    if not isinstance(objective, Output):
+        raise ProblemError(f"objective must be an output of iga.outputs with a gradient (e.g. TemperatureNorm(8)), "
+                           f"got {show(objective)}")
+    if not (isinstance(maxiter, int) and maxiter >= 1):
+        raise ProblemError(f"maxiter must be an integer >= 1, got {show(maxiter)}")
+
+
 def run_slsqp(objective, analyse, z0, box, unit: float, constraints, maxiter: int, tol: float, measured: str,
-              shape) -> DesignResult:
-    """SLSQP over scaled variables z in ``box`` from ``z0``: ``analyse(z) -> (values, solution, J, dJ/dz, measure)``
-    (one analysis and its gradient per design; the last design is kept, as SLSQP asks for the value and the
-    gradient of the same point), the objective scaled by its initial value; ``unit`` converts a step in z to the
-    values' units; ``measured`` names the measure (``mean``, ``volume``) in the progress lines; ``shape`` the
-    values' shape in the result."""
+              shape, keep_measure: bool = False) -> DesignResult:
+    """SLSQP over scaled variables z in ``box`` from ``z0``: ``analyse(z) -> (values, solution, J, dJ/dz, measure,
+    d measure/dz or None)`` (one analysis and its gradients per design; the last design is kept, as SLSQP asks for
+    the value, the gradient and the constraints of the same point), the objective scaled by its initial value;
+    ``unit`` converts a step in z to the values' units; ``measured`` names the measure (``mean``, ``volume``) in
+    the progress lines; ``shape`` the values' shape in the result; ``keep_measure``: the measure kept at its value
+    at ``z0`` (an equality with its gradient, relative to that value), besides ``constraints``."""
     cache: dict = {}
 
     def at(z):
@@ -85,8 +101,11 @@ def run_slsqp(objective, analyse, z0, box, unit: float, constraints, maxiter: in
             cache[key] = analyse(np.asarray(z, float))
         return cache[key]
 
-    _, _, J0, _, _ = at(z0)
+    _, _, J0, _, M0, _ = at(z0)
     scale = abs(J0) if J0 else 1.0
+    if keep_measure:
+        constraints = list(constraints) + [{"type": "eq", "fun": lambda z: np.array([(at(z)[4] - M0) / abs(M0)]),
+                                            "jac": lambda z: at(z)[5][None, :] / abs(M0)}]
     history: list = []
     state = {"z": np.array(z0, float), "t": time.perf_counter(), "evals": 0}
 
@@ -95,7 +114,7 @@ def run_slsqp(objective, analyse, z0, box, unit: float, constraints, maxiter: in
         return at(z)[2] / scale
 
     def record(z):
-        _, _, J, _, measure = at(z)
+        _, _, J, _, measure, _ = at(z)
         step = float(np.abs(z - state["z"]).max() * unit)
         history.append(DesignStep(len(history) + 1, float(J), float(measure), step, time.perf_counter() - state["t"]))
         state["z"], state["t"] = np.array(z, float), time.perf_counter()
@@ -105,6 +124,6 @@ def run_slsqp(objective, analyse, z0, box, unit: float, constraints, maxiter: in
 
     res = minimize(fun, z0, jac=lambda z: at(z)[3] / scale, bounds=[box] * len(z0), constraints=constraints,
                    method="SLSQP", callback=record, options={"maxiter": maxiter, "ftol": tol})
-    values, sol, J, _, _ = at(res.x)
+    values, sol, J = at(res.x)[:3]
     return DesignResult(np.asarray(values).reshape(shape), sol, float(J0), float(J), tuple(history),
                         bool(res.success), str(res.message), state["evals"] + 1)

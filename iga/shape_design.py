@@ -21,10 +21,10 @@ from geometry.faces import FACE_AXIS
 from geometry.numbers import is_real
 
 from iga.errors import ProblemError
-from iga.heat.problem import HeatProblem
-from iga.optimiser import redesigned, run_slsqp
+from iga.optimiser import check_design, redesigned, run_slsqp
 from iga.outputs import Output, Volume
-from iga.shape_sensitivity import shape_map, shape_sensitivity
+from iga.adjoint import shape_map
+from iga.shape_sensitivity import shape_sensitivity
 
 __all__ = ["optimize_shape", "moved_map"]
 
@@ -51,19 +51,13 @@ def _free(shape, hold) -> np.ndarray:
     return free
 
 
-def _check(problem, objective, move, hold, maxiter) -> None:
-    if type(problem) is not HeatProblem:
-        raise ProblemError(f"optimize takes a steady iga.HeatProblem, got {type(problem).__name__}")
-    if not isinstance(objective, Output):
-        raise ProblemError(f"objective must be an output of iga.outputs with a gradient (e.g. TemperatureNorm(8)), "
-                           f"got {show(objective)}")
+def _check(move, hold) -> None:
+    """The arguments of a shape design (:func:`iga.optimiser.check_design` checks the rest)."""
     if not (is_real(move) and np.isfinite(move) and move > 0):
         raise ProblemError(f"wrt='map': bounds is the largest move of a control point coordinate, a number > 0 (m), "
                            f"got {show(move)}")
     if isinstance(hold, str) or not all(isinstance(h, str) for h in hold):
         raise ProblemError(f"hold must be a list of the map's face names, e.g. ['wmin'], got {show(hold)}")
-    if not (isinstance(maxiter, int) and maxiter >= 1):
-        raise ProblemError(f"maxiter must be an integer >= 1, got {show(maxiter)}")
 
 
 def optimize_shape(problem, objective: Output, move: float, hold=(), keep_volume: bool = True, maxiter: int = 30,
@@ -71,7 +65,8 @@ def optimize_shape(problem, objective: Output, move: float, hold=(), keep_volume
     """Minimise ``objective`` over the map's control points (module notes); returns an
     :class:`iga.design.DesignResult` whose ``values`` are the final control points (n1, n2, n3, 3) and whose steps
     record the solid volume (m^3)."""
-    _check(problem, objective, move, hold, maxiter)
+    check_design(problem, objective, maxiter)
+    _check(move, hold)
     D, placed = shape_map(problem)
     P0 = np.array(D.control_points, float)[..., :3]
     free = _free(P0.shape[:3], hold)
@@ -85,28 +80,7 @@ def optimize_shape(problem, objective: Output, move: float, hold=(), keep_volume
         sol = problem.on(redesigned(problem.model, D, moved_map(D, P), placed)).solve(solver=solver, keep=True)
         g = shape_sensitivity(sol, objective, solver)[free] * move
         gV = shape_sensitivity(sol, volume, solver)[free] * move
-        return P, sol, objective.value(sol), g, (volume.value(sol), gV)
+        return P, sol, objective.value(sol), g, volume.value(sol), gV
 
-    last: dict = {}  # the volume and its gradient of the design last analysed
-
-    def measure(z):
-        key = np.asarray(z, float).tobytes()
-        if key not in last:
-            last.clear()
-            last[key] = analyse(np.asarray(z, float))[4]
-        return last[key]
-
-    def tracked(z):  # an analysis for the objective also serves the volume constraint at the same design
-        out = analyse(z)
-        last.clear()
-        last[np.asarray(z, float).tobytes()] = out[4]
-        return out[:4] + (out[4][0],)
-
-    z0 = np.zeros(int(free.sum()))
-    V0 = measure(z0)[0]  # the start's solid volume (m^3)
-    constraints = []
-    if keep_volume:  # (V(z) - V0) / V0 = 0, with its shape gradient
-        constraints = [{"type": "eq", "fun": lambda z: np.array([(measure(z)[0] - V0) / V0]),
-                        "jac": lambda z: measure(z)[1][None, :] / V0}]
-    return run_slsqp(objective, tracked, z0, (-1.0, 1.0), move, constraints, maxiter, tol,
-                     "volume", P0.shape)
+    return run_slsqp(objective, analyse, np.zeros(int(free.sum())), (-1.0, 1.0), move, [], maxiter, tol, "volume",
+                     P0.shape, keep_measure=keep_volume)

@@ -21,7 +21,7 @@ and each term is an integral whose shape derivative is classical (e.g. Haslinger
 
 With V = R_c e_d, div V = d_d R_c and grad V = e_d (grad R_c)^T, every term is Q(x) : (e_d grad R_c^T) for a
 3 x 3 field Q on the Gauss points, and grad_x R_c = D'(y)^-T grad_y R_c (x = D(y)): so dJ/dP_{c,d} =
-sum_q sum_k (Q D'^-T)_{dk} d_k R_c(y_q) w_q, one sparse product per parametric direction k of D.  The result is
+sum_q sum_k (Q D'^-T)_{dk} d_k R_c(y_q) w_q, one scatter per parametric direction k of D.  The result is
 the derivative of the discrete output (exact to round-off: ``tests/test_shape_sensitivity.py`` compares it
 with finite differences of fresh analyses of moved maps).
 
@@ -33,18 +33,16 @@ several maps (V-rep primitives), patches analysed in their own NURBS basis.
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
 
-from geometry import knots as kn
 from geometry.errors import show
 from geometry.faces import FACE_AXIS, parse_slot_face
 
 from iga.errors import ProblemError
 from iga.heat.conditions import face_values
 from iga.outputs import Compliance, MeanTemperature, Output, TemperatureNorm, Volume, gauss_pass, tag_faces
-from iga.adjoint import adjoint, map_parameters
+from iga.adjoint import adjoint, map_basis_values, map_parameters, shape_map
 
-__all__ = ["shape_sensitivity", "shape_map", "map_basis_gradient"]
+__all__ = ["shape_sensitivity", "face_parameters"]
 
 
 def shape_sensitivity(solution, output: Output, solver: str = "auto") -> np.ndarray:
@@ -94,19 +92,6 @@ def shape_sensitivity(solution, output: Output, solver: str = "auto") -> np.ndar
         for a in range(0, len(y), _SCATTER_POINTS):
             _scatter(grad, D, y[a:a + _SCATTER_POINTS], Q[a:a + _SCATTER_POINTS])
     return grad.reshape(D.control_points.shape[:3] + (3,))
-
-
-def shape_map(problem):
-    """(D, placed): the one deformation map the model's patches are placed in, or the model's single spline (not
-    placed); :class:`ProblemError` for models of several maps."""
-    patches = problem.model.patches
-    outers = {id(p.outer): p.outer for p in patches}
-    if len(outers) == 1 and next(iter(outers.values())) is not None:
-        return next(iter(outers.values())), True
-    if len(patches) == 1 and patches[0].outer is None:
-        return patches[0].spline, False
-    raise ProblemError("wrt='map' differentiates with respect to the control points of one deformation map: the "
-                       f"model has {len(outers)} maps (a V-rep union has one per primitive) or patches without one")
 
 
 def _check_material(prob) -> None:
@@ -258,43 +243,8 @@ def _scatter(grad: np.ndarray, D, y: np.ndarray, Q: np.ndarray) -> None:
     pass (module notes) at D's parameters y (N, 3)."""
     Dy = D.jacobian(y)[:, :3, :]  # dx/dy (N, 3, 3)
     Z = np.einsum("qdj,qkj->qdk", Q, np.linalg.inv(Dy))  # Q D'^-T: (Q D'^-T)_{dk} = sum_j Q_dj (D'^-1)_kj
-    idx, dR = _basis_gradient(D, y)
+    idx, _, dR = map_basis_values(D, y, derivatives=True)
     flat = idx.ravel()
     for d in range(3):
         val = sum(dR[k] * Z[:, d, k][:, None] for k in range(3))
         grad[:, d] += np.bincount(flat, weights=val.ravel(), minlength=len(grad))
-
-
-def _basis_gradient(D, y: np.ndarray):
-    """(idx (N, b), [d R / d y_k (N, b)] * 3): the control indices of the b basis functions of D that are non-zero
-    at each parameter y (N, 3) and their derivatives (NURBS where D has weights)."""
-    n = D.control_points.shape[:3]
-    parts = [kn.basis_functions(D.knots[d], D.degrees[d], y[:, d], nder=1) for d in range(3)]
-    idx = None
-    for d, (spans, _) in enumerate(parts):
-        i_d = spans[:, None] - D.degrees[d] + np.arange(D.degrees[d] + 1)[None]
-        idx = i_d if idx is None else (idx[:, :, None] * n[d] + i_d[:, None, :]).reshape(len(y), -1)
-
-    def product(orders):
-        val = None
-        for d, (_, ders) in enumerate(parts):
-            v = ders[:, orders[d], :]
-            val = v if val is None else (val[:, :, None] * v[:, None, :]).reshape(len(y), -1)
-        return val
-
-    N0 = product((0, 0, 0))
-    dN = [product(tuple(int(j == k) for j in range(3))) for k in range(3)]
-    if D.weights is not None:  # R_c = w_c N_c / W: d R_c = w_c (dN_c W - N_c dW) / W^2
-        w = np.asarray(D.weights, float).reshape(-1)[idx]
-        W = (w * N0).sum(1, keepdims=True)
-        dN = [w * (d * W - N0 * (w * d).sum(1, keepdims=True)) / W ** 2 for d in dN]
-    return idx, dN
-
-
-def map_basis_gradient(D, y: np.ndarray) -> list:
-    """The three sparse matrices (N, control points) of the derivatives d R_c / d y_k of D's basis (NURBS where D
-    has weights) at its parameters y (N, 3)."""
-    idx, dN = _basis_gradient(D, y)
-    rows = np.repeat(np.arange(len(y)), idx.shape[1])
-    shape = (len(y), int(np.prod(D.control_points.shape[:3])))
-    return [sp.csr_matrix((d.ravel(), (rows, idx.ravel())), shape=shape) for d in dN]

@@ -161,10 +161,7 @@ class TileRefinement:
         split = np.zeros(len(L), bool)
         if how == "p":
             elevation = L.elevation.copy()
-            elevation[marked] += 1
-            if np.any(elevation > MAX_ELEVATION):
-                raise ProblemError(f"a patch's degree would be raised more than {MAX_ELEVATION} times; stop the "
-                                   "refinement earlier (a larger tolerance or a smaller budget) or use refine='h'")
+            elevation[marked] += 1  # :meth:`refined` holds the leaves already at MAX_ELEVATION
             return self._with(L.but(elevation=elevation))
         if how == "h":
             split[marked] = self.splittable[L.root[marked]]
