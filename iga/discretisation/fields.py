@@ -14,7 +14,7 @@ from geometry.grouping import ObjectIndex
 from iga.errors import ProblemError
 from iga.discretisation.faces import chunks
 
-__all__ = ["grid_fields", "integrate_fields", "GaussPoints", "field_spline", "physical_gradient", "evaluation_matrix"]
+__all__ = ["grid_fields", "grid_contract", "integrate_fields", "GaussPoints", "field_spline", "physical_gradient", "evaluation_matrix"]
 
 
 def grid_fields(U: np.ndarray, tables, D, weights=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -26,9 +26,9 @@ def grid_fields(U: np.ndarray, tables, D, weights=None) -> tuple[np.ndarray, np.
     (:mod:`iga.discretisation.rational`): U then holds NURBS control values, the field sum w_i U_i N_i / W.
     """
     def on_grid(block):  # values (P N,) and parameter derivatives (P N, 3) of coefficient blocks (P,) + shape
-        v = np.einsum("pabc,ia,jb,kc->pijk", block, tables[0][0], tables[1][0], tables[2][0], optimize=True)
-        dv = np.stack([np.einsum("pabc,ia,jb,kc->pijk", block, *(tables[d][int(d == k)] for d in range(3)),
-                                 optimize=True).reshape(-1) for k in range(3)], -1)
+        v = grid_contract(block, *(tables[d][0] for d in range(3)))
+        dv = np.stack([grid_contract(block, *(tables[d][int(d == k)] for d in range(3))).reshape(-1)
+                       for k in range(3)], -1)
         return v.reshape(-1), dv
 
     W = dW = None
@@ -44,6 +44,16 @@ def grid_fields(U: np.ndarray, tables, D, weights=None) -> tuple[np.ndarray, np.
         g, det = gradient_and_det(D, dxi)
         grads.append(g)
     return np.stack(vals, 1), np.stack(grads, 1), det
+
+
+def grid_contract(block: np.ndarray, A: np.ndarray, B: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """sum_abc block[p, a, b, c] A[i, a] B[j, b] C[k, c] -> (P, i, j, k): one direction at a time (sum
+    factorisation by matrix products; no per-call contraction-path search, which dominates for small patches)."""
+    P, na, nb, nc = block.shape
+    t = np.matmul(block.reshape(P, na, nb, nc), C.T)  # (P, a, b, k)
+    t = np.matmul(B, t)  # (P, a, j, k)
+    t = np.matmul(A, t.reshape(P, na, -1))  # (P, i, j k)
+    return t.reshape(P, A.shape[0], B.shape[0], C.shape[0])
 
 
 def integrate_fields(prob, coefficients, components: int, fn, context: bool = False):
