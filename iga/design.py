@@ -23,6 +23,7 @@ from iga.errors import ProblemError
 from iga.optimiser import DesignResult, DesignStep, check_design, redesigned, run_slsqp
 from iga.outputs import Output, gauss_pass
 from iga.sensitivity import channel_sensitivity
+from iga.parameter_design import optimize_parameters
 from iga.shape_design import optimize_shape
 
 __all__ = ["optimize", "DesignResult", "DesignStep", "redesigned", "channel_volumes"]
@@ -45,7 +46,8 @@ def _check(wrt, bounds, mean) -> None:
     """The arguments of a channel design (:func:`iga.optimiser.check_design` checks the rest)."""
     if not (isinstance(wrt, str) and wrt.startswith("channel:")):
         raise ProblemError(f"wrt must be 'channel:NAME' (the control values of the map's channel NAME, which the "
-                           f"conductivity reads) or 'map' (its control points), got {show(wrt)}")
+                           f"conductivity reads), 'map' (its control points) or 'parameters' (a field-graded "
+                           f"paving's parameter field), got {show(wrt)}")
     ok = (isinstance(bounds, (tuple, list)) and len(bounds) == 2 and all(is_real(b) and np.isfinite(b) for b in bounds)
           and 0 < bounds[0] < bounds[1])
     if not ok:
@@ -56,29 +58,36 @@ def _check(wrt, bounds, mean) -> None:
                            "channel lies between its bounds")
 
 
-def optimize(problem, objective: Output, wrt: str = "channel:k", bounds=(54.0, 205.0), mean: float | None = None,
+def optimize(problem, objective: Output, wrt: str = "channel:k", bounds=None, mean: float | None = None,
              maxiter: int = 30, tol: float = 1e-6, solver: str = "auto", hold=(), keep_volume: bool = True
              ) -> DesignResult:
     """Minimise ``objective`` over the control values of the map's channel named in ``wrt`` (see the module), or
-    over the map's control points (``wrt="map"``: :func:`iga.shape_design.optimize_shape`).
+    over the map's control points (``wrt="map"``: :func:`iga.shape_design.optimize_shape`), or over the control
+    values of a field-graded micro-structure's parameter field (``wrt="parameters"``:
+    :func:`iga.parameter_design.optimize_parameters`).
 
     Parameters
     ----------
     problem : a steady :class:`iga.HeatProblem` whose conductivity is the channel (``conductivity="k"``)
     objective : an output of :mod:`iga.outputs` with a gradient, e.g. ``TemperatureNorm(8)`` (C)
-    wrt : ``"channel:NAME"`` or ``"map"``
-    bounds : (low, high) of every control value (W/(m K)); the initial values must lie within them.  For
-        ``wrt="map"``: the largest move of a control point coordinate from its start (m)
+    wrt : ``"channel:NAME"``, ``"map"`` or ``"parameters"``
+    bounds : (low, high) of every control value (W/(m K); default (54, 205), steel to aluminium); the initial
+        values must lie within them.  For ``wrt="map"``: the largest move of a control point coordinate from its
+        start (m); for ``wrt="parameters"``: (low, high) of the field's control values (required)
     mean : the volume mean of the channel to keep (W/(m K)); None: free
     maxiter, tol : SLSQP's iteration limit and tolerance (on the objective scaled by its initial value)
     solver : the linear solver of every analysis and adjoint
-    hold, keep_volume : ``wrt="map"`` only: the map's faces (``"wmin"``, ...) whose control points stay, and
-        whether the solid volume is kept at its start
+    hold : ``wrt="map"`` and ``"parameters"``: the map's faces (``"wmin"``, ...) whose control points (or the
+        field's control values there) stay
+    keep_volume : ``wrt="map"`` and ``"parameters"``: whether the solid volume is kept at its start
 
     Progress: one line per iteration on stderr where progress is on.
     """
     if wrt == "map":
         return optimize_shape(problem, objective, bounds, hold, keep_volume, maxiter, tol, solver)
+    if wrt == "parameters":
+        return optimize_parameters(problem, objective, bounds, hold, keep_volume, maxiter, tol, solver)
+    bounds = (54.0, 205.0) if bounds is None else bounds
     check_design(problem, objective, maxiter)
     _check(wrt, bounds, mean)
     name = wrt.split(":", 1)[1]

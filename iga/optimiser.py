@@ -14,6 +14,7 @@ from scipy.optimize import minimize
 
 from geometry import progress
 from geometry.errors import show
+from geometry.faces import FACE_AXIS
 from geometry.patches.multipatch import PlacedPatch
 
 from iga.errors import ProblemError
@@ -21,7 +22,7 @@ from iga.heat.problem import HeatProblem
 from iga.model import same_kind
 from iga.outputs import Output
 
-__all__ = ["DesignStep", "DesignResult", "redesigned", "run_slsqp", "check_design"]
+__all__ = ["DesignStep", "DesignResult", "redesigned", "run_slsqp", "check_design", "free_mask"]
 
 
 @dataclass(frozen=True)
@@ -71,6 +72,23 @@ def redesigned(model, D, new, placed: bool):
         patches = [PlacedPatch(new, p.placement, p.outer, p.tile, p.level, p.patch_in_tile, refinement=p.refinement)]
     return same_kind(model, patches, list(model.interfaces), {t: list(v) for t, v in model.tags.items()},
                      dict(getattr(model, "face_regions", {})))
+
+
+def free_mask(shape, hold) -> np.ndarray:
+    """Mask ``shape`` (n1, n2, n3) of the control values that move: all but those on the faces ``hold`` of their
+    grid (a clamped spline's face is its face's control values alone: the map's faces, a field's walls there)."""
+    if isinstance(hold, str) or not all(isinstance(h, str) for h in hold):
+        raise ProblemError(f"hold must be a list of the map's face names, e.g. ['wmin'], got {show(hold)}")
+    free = np.ones(tuple(shape), bool)
+    for face in hold:
+        if face not in FACE_AXIS:
+            raise ProblemError(f"hold: {show(face)} is not a face of the map; use 'umin', 'umax', 'vmin', 'vmax', "
+                               "'wmin' or 'wmax'")
+        k, side = FACE_AXIS[face]
+        index = [slice(None)] * 3
+        index[k] = -1 if side else 0
+        free[tuple(index)] = False
+    return free
 
 
 def check_design(problem, objective, maxiter) -> None:

@@ -26,6 +26,7 @@ from iga.adjoint import adjoint, design_map, map_basis, map_parameters
 from iga.errors import ProblemError
 from iga.heat.coefficients import TENSOR_PAIRS
 from iga.outputs import Output, gauss_pass
+from iga.parameter_sensitivity import parameter_sensitivity
 from iga.shape_sensitivity import shape_sensitivity
 
 __all__ = ["gradient", "adjoint", "conductivity_sensitivity", "channel_sensitivity", "design_map", "map_basis",
@@ -37,13 +38,18 @@ def gradient(solution, output: Output, wrt: str = "tiles", solver: str = "auto")
     ``wrt="tiles"`` or ``"patches"``, per tile or patch for a factor (1 + p) on its conductivity
     (:func:`conductivity_sensitivity`); ``wrt="channel:NAME"``, per control value of the map's channel NAME, which
     the conductivity reads (:func:`channel_sensitivity`); ``wrt="map"``, per coordinate of the deformation map's
-    control points, shaped (n1, n2, n3, 3) (:func:`iga.shape_sensitivity.shape_sensitivity`)."""
+    control points, shaped (n1, n2, n3, 3) (:func:`iga.shape_sensitivity.shape_sensitivity`); ``wrt="parameters"``
+    or ``"faces"``, per control value of a field-graded paving's parameter field or per value on its cell walls
+    (:func:`iga.parameter_sensitivity.parameter_sensitivity`)."""
     if isinstance(wrt, str) and wrt.startswith("channel:"):
         return channel_sensitivity(solution, output, wrt.split(":", 1)[1], solver)
     if wrt == "map":
         return shape_sensitivity(solution, output, solver)
+    if wrt in ("parameters", "faces"):
+        return parameter_sensitivity(solution, output, wrt, solver)
     if wrt not in ("tiles", "patches"):
-        raise ProblemError(f"wrt must be 'tiles', 'patches', 'channel:NAME' or 'map', got {show(wrt)}")
+        raise ProblemError(f"wrt must be 'tiles', 'patches', 'channel:NAME', 'map', 'parameters' or 'faces', got "
+                           f"{show(wrt)}")
     return conductivity_sensitivity(solution, output, per=wrt[:-1], solver=solver)
 
 

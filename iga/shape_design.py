@@ -17,11 +17,10 @@ import numpy as np
 
 from geometry import BSpline
 from geometry.errors import show
-from geometry.faces import FACE_AXIS
 from geometry.numbers import is_real
 
 from iga.errors import ProblemError
-from iga.optimiser import check_design, redesigned, run_slsqp
+from iga.optimiser import check_design, free_mask, redesigned, run_slsqp
 from iga.outputs import Output, Volume
 from iga.adjoint import shape_map
 from iga.shape_sensitivity import shape_sensitivity
@@ -37,27 +36,11 @@ def moved_map(D, points: np.ndarray) -> BSpline:
     return BSpline(D.degrees, D.knots, cp, D.weights, channels=D.channels)
 
 
-def _free(shape, hold) -> np.ndarray:
-    """Mask (n1, n2, n3, 3) of the coordinates that move: all but those of control points on the faces ``hold``."""
-    free = np.ones(tuple(shape) + (3,), bool)
-    for face in hold:
-        if face not in FACE_AXIS:
-            raise ProblemError(f"hold: {show(face)} is not a face of the map; use 'umin', 'umax', 'vmin', 'vmax', "
-                               "'wmin' or 'wmax'")
-        k, side = FACE_AXIS[face]
-        index = [slice(None)] * 3
-        index[k] = -1 if side else 0
-        free[tuple(index)] = False
-    return free
-
-
 def _check(move, hold) -> None:
     """The arguments of a shape design (:func:`iga.optimiser.check_design` checks the rest)."""
     if not (is_real(move) and np.isfinite(move) and move > 0):
         raise ProblemError(f"wrt='map': bounds is the largest move of a control point coordinate, a number > 0 (m), "
                            f"got {show(move)}")
-    if isinstance(hold, str) or not all(isinstance(h, str) for h in hold):
-        raise ProblemError(f"hold must be a list of the map's face names, e.g. ['wmin'], got {show(hold)}")
 
 
 def optimize_shape(problem, objective: Output, move: float, hold=(), keep_volume: bool = True, maxiter: int = 30,
@@ -69,7 +52,7 @@ def optimize_shape(problem, objective: Output, move: float, hold=(), keep_volume
     _check(move, hold)
     D, placed = shape_map(problem)
     P0 = np.array(D.control_points, float)[..., :3]
-    free = _free(P0.shape[:3], hold)
+    free = np.repeat(free_mask(P0.shape[:3], hold)[..., None], 3, axis=-1)
     if not free.any():
         raise ProblemError(f"hold = {show(list(hold))} holds every control point of the map: nothing can move")
     volume = Volume()

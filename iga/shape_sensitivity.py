@@ -42,24 +42,49 @@ from iga.heat.conditions import face_values
 from iga.outputs import Compliance, MeanTemperature, Output, TemperatureNorm, Volume, gauss_pass, tag_faces
 from iga.adjoint import adjoint, map_basis_values, map_parameters, shape_map
 
-__all__ = ["shape_sensitivity", "face_parameters"]
+__all__ = ["shape_sensitivity", "shape_densities", "face_parameters", "steady_heat"]
 
 
 def shape_sensitivity(solution, output: Output, solver: str = "auto") -> np.ndarray:
     """dJ/dP of ``output`` with respect to the coordinates of the deformation map's control points, shaped like
     them: (n1, n2, n3, 3) (module notes).  Units: those of J per metre."""
-    if getattr(type(solution), "physics", None) != "heat" or not type(solution).steady:
-        raise ProblemError(f"wrt='map' differentiates a steady heat solution (iga.Solution), got {show(solution)}")
+    steady_heat(solution, "wrt='map'")
+    D, placed = shape_map(solution.problem)
+    grad = np.zeros((int(np.prod(D.control_points.shape[:3])), 3))
+    patches = solution.problem.model.patches
+
+    def volume(chunk, space, Qw, dk):
+        _scatter(grad, D, map_parameters(patches, chunk, space, D, placed), Qw)
+
+    def faces(fds, Qw):
+        y = np.concatenate(face_parameters(solution.problem, fds, D, placed))
+        for a in range(0, len(y), _SCATTER_POINTS):
+            _scatter(grad, D, y[a:a + _SCATTER_POINTS], Qw[a:a + _SCATTER_POINTS])
+
+    shape_densities(solution, output, volume, faces, solver, "wrt='map'")
+    return grad.reshape(D.control_points.shape[:3] + (3,))
+
+
+def steady_heat(solution, what: str) -> None:
+    """Refuse what is not a steady heat solution (the derivatives here are of one)."""
+    if getattr(type(solution), "physics", None) != "heat" or not getattr(type(solution), "steady", False):
+        raise ProblemError(f"{what} differentiates a steady heat solution (iga.Solution), got {show(solution)}")
+
+
+def shape_densities(solution, output: Output, volume, faces, solver: str = "auto", what: str = "wrt='map'") -> None:
+    """The shape derivative of ``output`` as densities against the velocity gradient: dJ = sum_q Q_q : grad V_q
+    over the Gauss points of the volume and of the Neumann, Robin and output faces, for any velocity V that
+    carries the material (module notes); one adjoint solve.  ``volume(chunk, space, Qw (P nq, 3, 3), dk (P nq,))``
+    per group of patches of :func:`iga.outputs.gauss_pass` (``dk``: the weighted derivative of the integrand by
+    an isotropic conductivity value at the point, for velocities that do not carry a conductivity field);
+    ``faces(face data, Qw (N, 3, 3))`` once, all faces' points concatenated in their order."""
+    steady_heat(solution, what)
     prob = solution.problem
-    _check_material(prob)
-    D, placed = shape_map(prob)
-    explicit = _explicit_terms(output, solution)
+    _check_material(prob, what)
+    explicit = _explicit_terms(output, solution, what)
     # the volume does not depend on the temperature: its adjoint is zero (no solve)
     lam = np.zeros(prob.ndof) if isinstance(output, Volume) else adjoint(solution, output, solver)
     u_load = solution.u if isinstance(output, Compliance) else None  # u . f: f's shape terms with u for lambda
-    n = int(np.prod(D.control_points.shape[:3]))
-    grad = np.zeros((n, 3))
-    patches = prob.model.patches
     conductivity_at = _conductivity_matrix(prob)
     source = prob.source
 
@@ -76,46 +101,41 @@ def shape_sensitivity(solution, output: Output, solver: str = "auto") -> np.ndar
         if explicit.volume is not None:
             scalar = scalar + explicit.volume(T)
         Q += scalar[:, None, None] * np.eye(3)
-        y = map_parameters(patches, chunk, space, D, placed)
-        _scatter(grad, D, y, Q * wv[:, None, None])
+        volume(chunk, space, Q * wv[:, None, None], -np.sum(gL * gT, axis=1) * wv)
 
     gauss_pass(prob, np.stack([solution.u, lam]), add)
-    faces, psis = [], []
-    for fds, psi in _face_densities(prob, solution, lam, u_load, explicit):
-        faces += fds
+    fds, psis = [], []
+    for f, psi in _face_densities(prob, solution, lam, u_load, explicit):
+        fds += f
         psis += psi
-    if faces:  # every face at once: the tile evaluated once per (tile spline, face, space), one scatter
-        y = np.concatenate(face_parameters(prob, faces, D, placed))
-        normal = np.concatenate([fd.normal for fd in faces])
-        dens = np.concatenate([p * fd.dAw for fd, p in zip(faces, psis)])
-        Q = dens[:, None, None] * (np.eye(3) - np.einsum("qi,qj->qij", normal, normal))
-        for a in range(0, len(y), _SCATTER_POINTS):
-            _scatter(grad, D, y[a:a + _SCATTER_POINTS], Q[a:a + _SCATTER_POINTS])
-    return grad.reshape(D.control_points.shape[:3] + (3,))
+    if fds:  # every face at once
+        normal = np.concatenate([fd.normal for fd in fds])
+        dens = np.concatenate([p * fd.dAw for fd, p in zip(fds, psis)])
+        faces(fds, dens[:, None, None] * (np.eye(3) - np.einsum("qi,qj->qij", normal, normal)))
 
 
-def _check_material(prob) -> None:
+def _check_material(prob, what: str) -> None:
     """Refuse what the shape derivative here does not cover (module notes)."""
     k = prob.conductivity
     if k.of_temperature is not None or k.table is not None or any(c.kind == "radiation" for c in prob.conditions):
-        raise ProblemError("wrt='map' is for linear heat problems: a temperature-dependent conductivity or radiation "
+        raise ProblemError(f"{what} is for linear heat problems: a temperature-dependent conductivity or radiation "
                            "makes the problem nonlinear")
     if k.callable is not None or (k.scalar is not None and k.scalar.kind == "callable"):
-        raise ProblemError("wrt='map' needs a conductivity that moves with the material (a number or channels of "
+        raise ProblemError(f"{what} needs a conductivity that moves with the material (a number or channels of "
                            "the map); a callable of x would change under the move (its gradient term is not built)")
     if prob.source.kind == "callable":
-        raise ProblemError("wrt='map' needs a source that moves with the material (a number or a channel of the map),"
+        raise ProblemError(f"{what} needs a source that moves with the material (a number or a channel of the map),"
                            " not a callable of x")
     for c in prob.conditions:
         if c.kind == "dirichlet" and c.value.kind != "number":
-            raise ProblemError(f"wrt='map': the Dirichlet value on {show(c.tag)} must be a number (the projection "
+            raise ProblemError(f"{what}: the Dirichlet value on {show(c.tag)} must be a number (the projection "
                                "of a field would move with the faces)")
         if c.kind in ("neumann", "robin") and (c.value.kind == "callable" or (c.h is not None and
                                                                             c.h.kind == "callable")):
-            raise ProblemError(f"wrt='map': the {c.kind} data on {show(c.tag)} must be numbers or channels of the "
+            raise ProblemError(f"{what}: the {c.kind} data on {show(c.tag)} must be numbers or channels of the "
                                "map (material), not callables of x")
         if c.timed is not None:
-            raise ProblemError(f"wrt='map' is for steady problems; the condition on {show(c.tag)} changes in time")
+            raise ProblemError(f"{what} is for steady problems; the condition on {show(c.tag)} changes in time")
 
 
 def _conductivity_matrix(prob):
@@ -146,7 +166,7 @@ class _Explicit:
         self.volume, self.faces = volume, faces
 
 
-def _explicit_terms(output: Output, solution) -> _Explicit:
+def _explicit_terms(output: Output, solution, what: str) -> _Explicit:
     """The explicit shape terms of the outputs of :mod:`iga.outputs` (module notes)."""
     if isinstance(output, Volume):
         return _Explicit(volume=np.ones_like)
@@ -166,7 +186,7 @@ def _explicit_terms(output: Output, solution) -> _Explicit:
             return _Explicit(volume=lambda T: density(T, V))
         fds, area = tag_faces(solution, output.tag, output.name)
         return _Explicit(faces=[(fd, density(fd.trace(solution.u), area)) for fd in fds])
-    raise ProblemError(f"wrt='map' knows the shape terms of Volume, MeanTemperature, TemperatureNorm and "
+    raise ProblemError(f"{what} knows the shape terms of Volume, MeanTemperature, TemperatureNorm and "
                        f"Compliance; got {show(output)}")
 
 

@@ -58,7 +58,7 @@ def test_the_optimiser_lowers_the_smooth_maximum_at_a_fixed_mean_within_the_boun
     ({"bounds": (54.0,)}, r"bounds must be \(low, high\)"),
     ({"mean": 300.0}, "cannot be met within bounds"),
     ({"wrt": "map"}, "largest move of a control point"),
-    ({"wrt": "shape"}, "wrt must be 'channel:NAME' .* or 'map'"),
+    ({"wrt": "shape"}, "wrt must be 'channel:NAME' .*, 'map' .* or 'parameters'"),
     ({"wrt": "channel:rho"}, "holding the channel 'rho'"),
     ({"objective": HeatFlow("umin")}, "has no gradient in the solution.s coefficients"),
     ({"maxiter": 0}, "maxiter must be an integer >= 1"),
@@ -240,3 +240,84 @@ def test_iga_optimize_designs_the_shape_from_a_pipeline(tmp_path):
 
     written = meshio.read(tmp_path / "out" / "sink.vtu")  # the final (moved) design, read back by meshio
     assert len(written.points) > 0 and np.all(np.isfinite(written.point_data["temperature"]))
+
+
+GRADED = """
+[map]
+primitive = "box"
+args = {size = [0.04, 0.04, 0.01], degrees = [2, 2, 1], channels = {t = 0.35}}
+
+[tile]
+library = "face_graded_cross"
+
+[paving]
+scheme = "field_graded"
+counts = [1, 1, 1]
+field = "t"
+
+[material]
+conductivity = 205.0
+
+[[bc]]
+kind = "neumann"
+tag = "wmin"
+value = 2e4
+
+[[bc]]
+kind = "robin"
+tag = "wmax"
+h = 3000.0
+ambient = 0.0
+
+[design]
+variables = "parameters"
+bounds = [0.15, 0.6]
+hold = ["wmin"]
+iterations = 5
+
+[output]
+dir = "out"
+name = "lattice"
+"""
+
+
+@pytest.mark.slow
+def test_iga_optimize_grades_a_field_graded_lattice_from_a_pipeline(tmp_path):
+    """variables = "parameters": the arm widths of a field-graded paving, read from a channel of the map, at the
+    start's solid volume with the heated face held; the final design's VTU read back by meshio."""
+    import json
+    import subprocess
+    import sys
+
+    import meshio
+
+    (tmp_path / "graded.toml").write_text(GRADED)
+    done = subprocess.run([sys.executable, "-m", "iga", "--quiet", "optimize", "graded.toml"], cwd=tmp_path,
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr[-2000:]
+    d = json.loads((tmp_path / "out" / "summary.json").read_text())["design"]
+    assert d["final"] < 0.9 * d["initial"] and 1 <= len(d["steps"]) <= 5
+    D = pr.box((0.04, 0.04, 0.01), degrees=(2, 2, 1), channels={"t": 0.35})
+    start = iga.HeatProblem(tiling.field_graded(D, library.face_graded_cross, (1, 1, 1), "t")).robin(
+        "wmax", 1.0, 0.0).solve().volume()
+    assert abs(d["steps"][-1]["mean"] - start) <= 1e-6 * start  # SLSQP ends on its volume constraint
+    written = meshio.read(tmp_path / "out" / "lattice.vtu")
+    assert len(written.points) > 0 and np.all(np.isfinite(written.point_data["temperature"]))
+
+
+@pytest.mark.parametrize("change, match", [
+    ({"paving": {"scheme": "regular", "counts": [1, 1, 1]}, "tile": {"library": "cross"}}, "field_graded"),
+    ({"paving": {"scheme": "field_graded", "counts": [1, 1, 1], "field": {"formula": "0.3 + x"}}}, "a formula"),
+    ({"design": {"variables": "parameters", "hold": ["wmin"]}}, "design.bounds: is required"),
+    ({"design": {"variables": "parameters", "bounds": [0.15, 0.6], "move": 0.001}}, "design.move"),
+    ({"design": {"variables": "parameters", "bounds": [0.15, 0.6], "hold": "wmin"}}, "design.hold"),
+])
+def test_a_bad_parameter_design_is_refused_naming_the_key(change, match):
+    import tomllib
+
+    from iga.app.config import validate
+
+    cfg = tomllib.loads(GRADED)
+    cfg.update(change)
+    with pytest.raises(ProblemError, match=match):
+        validate(cfg)

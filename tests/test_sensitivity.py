@@ -110,5 +110,7 @@ def test_channel_gradients_on_a_rational_map_equal_finite_differences_in_a_rando
     assert np.sum(g * d) == pytest.approx(fd, rel=1e-6)
     with pytest.raises(ProblemError, match="not the channel 'rho'"):
         gradient(s, output, wrt="channel:rho")
-    with pytest.raises(ProblemError, match="wrt must be"):
+    with pytest.raises(ProblemError, match="field-graded"):
         gradient(s, output, wrt="parameters")
+    with pytest.raises(ProblemError, match="wrt must be"):
+        gradient(s, output, wrt="parameter")

@@ -15,9 +15,11 @@ value and conform.  The interfaces come by construction, as in a regular paving
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
-from geometry import BSpline
+from geometry import BSpline, SplineFunction
 from geometry.errors import show
 from geometry.numbers import is_real
 
@@ -27,7 +29,7 @@ from .checks import check_budget, check_counts, check_map, check_spans, paramete
 from .paving import grid_identity
 from .tile import Tile, refuse_trimmed
 
-__all__ = ["graded", "field_graded"]
+__all__ = ["graded", "field_graded", "FaceGrading"]
 
 
 def _values(D: BSpline, values, w: np.ndarray) -> np.ndarray:
@@ -114,8 +116,9 @@ def _paved(D: BSpline, cells: list, tile_of, what: str) -> tuple[list, list, tup
 
 
 def _field_values(D: BSpline, field, points: np.ndarray) -> np.ndarray:
-    """The field at D's parameters ``points`` (N, 3): a number, a channel of D, or a callable of the normalised
-    parameters (N, 3) in [0, 1]^3 returning (N,) (a parameter spline: ``lambda s: spline.evaluate(s)[:, 0]``)."""
+    """The field at D's parameters ``points`` (N, 3): a number, a channel of D, a parameter spline (a scalar
+    trivariate :class:`geometry.SplineFunction`, its domain standing for D's, linearly) or a callable of the
+    normalised parameters (N, 3) in [0, 1]^3 returning (N,)."""
     dom = D.domain
     if is_real(field):
         out = np.full(len(points), float(field))
@@ -125,28 +128,69 @@ def _field_values(D: BSpline, field, points: np.ndarray) -> np.ndarray:
                               f"{list(D.channels)}); give a number, a channel name or a callable of the normalised "
                               "parameters")
         out = D.evaluate(points)[:, 3 + list(D.channels).index(field)]
+    elif isinstance(field, SplineFunction):
+        if field.dim != 3 or field.coefficients.shape[-1] != 1:
+            raise TilingError(f"field_graded: a parameter spline must be a scalar trivariate SplineFunction "
+                              f"(coefficients (n1, n2, n3, 1)), got {show(field)}")
+        out = field.evaluate(spline_parameters(field, (points - dom[:, 0]) / (dom[:, 1] - dom[:, 0])))[:, 0]
     elif callable(field):
         try:
             out = np.asarray(field((points - dom[:, 0]) / (dom[:, 1] - dom[:, 0])), float).reshape(-1)
         except (TypeError, ValueError) as exc:
             raise TilingError(f"field_graded: the field callable failed on the face centres (N, 3): {exc}") from None
     else:
-        raise TilingError(f"field_graded: field must be a number, a channel name of the map or a callable of the "
-                          f"normalised parameters (N, 3), got {show(field)}")
+        raise TilingError(f"field_graded: field must be a number, a channel name of the map, a parameter spline "
+                          f"(geometry.SplineFunction) or a callable of the normalised parameters (N, 3), got "
+                          f"{show(field)}")
     if out.shape != (len(points),) or not np.all(np.isfinite(out)):
         raise TilingError(f"field_graded: the field must give one finite value per face centre ({len(points)}), "
                           f"got {show(out)}")
     return out
 
 
+def spline_parameters(spline: SplineFunction, s: np.ndarray) -> np.ndarray:
+    """The parameters of ``spline`` at normalised parameters ``s`` (N, 3) in [0, 1]^3 (its domain linearly)."""
+    dom = np.array([[U[0], U[-1]] for U in spline.knots])
+    return np.clip(dom[:, 0] + s * (dom[:, 1] - dom[:, 0]), dom[:, 0], dom[:, 1])
+
+
+@dataclass(frozen=True)
+class FaceGrading:
+    """What a field-graded paving chose, for its derivatives: the ``family`` of the six face values, the ``field``
+    as given, its values on the cell walls ``faces`` per direction (arrays (nu + 1, nv, nw), (nu, nv + 1, nw),
+    (nu, nv, nw + 1)) at the wall centres ``centres`` (the same shapes + (3,), D's parameters), the cell grid
+    ``shape`` and the ``counts`` per knot span it was paved with; tile t sits in cell
+    ``np.unravel_index(t, shape)``."""
+
+    family: object
+    field: object
+    faces: tuple
+    centres: tuple
+    shape: tuple
+    counts: tuple
+
+    def walls(self, t: int) -> dict:
+        """{face name: (direction, wall index (i, j, k))}: the six walls of tile t's cell."""
+        i, j, k = (int(v) for v in np.unravel_index(t, self.shape))
+        return {"umin": (0, (i, j, k)), "umax": (0, (i + 1, j, k)), "vmin": (1, (i, j, k)),
+                "vmax": (1, (i, j + 1, k)), "wmin": (2, (i, j, k)), "wmax": (2, (i, j, k + 1))}
+
+    def values(self, t: int) -> dict:
+        """{face name: value}: the family's arguments of tile t."""
+        return {f: float(self.faces[d][w]) for f, (d, w) in self.walls(t).items()}
+
+
 def field_graded(D: BSpline, family, counts, field, name: str = "field-graded") -> Microstructure:
     """Regular paving of D by ``counts`` cells per knot span whose every cell holds
     ``family(umin=, umax=, vmin=, vmax=, wmin=, wmax=)`` with the ``field`` taken at the centres of its six faces
-    (:func:`_field_values`: a number, a channel of D or a callable of the normalised parameters).  The values
+    (:func:`_field_values`: a number, a channel of D, a parameter spline or a callable of the normalised
+    parameters).  The values
     live on the faces of the cell grid, so two cells sharing a face read the same value and their tiles meet face
     to face there (:func:`tiling.library.face_graded_cross`): the interfaces come by construction, as in a regular
     paving, and a lattice is graded in all three directions.  ``ms.info["faces"]`` holds the values per direction,
-    arrays of shapes (nu + 1, nv, nw), (nu, nv + 1, nw) and (nu, nv, nw + 1).
+    arrays of shapes (nu + 1, nv, nw), (nu, nv + 1, nw) and (nu, nv, nw + 1); ``ms.grading`` the
+    :class:`FaceGrading` (family, field, wall values and centres) that the parameter sensitivities read
+    (``Solution.gradient(output, wrt="parameters")``).
 
     >>> from geometry import primitives
     >>> from tiling import library
@@ -158,16 +202,18 @@ def field_graded(D: BSpline, family, counts, field, name: str = "field-graded") 
                        "returning a Tile, e.g. tiling.library.face_graded_cross")
     bounds = [np.append(c[:, 0], c[-1, 1]) for c in cells]  # the cell walls along each direction
     centres = [c.mean(1) for c in cells]
-    faces = []
+    faces, walls = [], []
     for d in range(3):  # the field at the centre of every wall normal to d
         axes = [bounds[j] if j == d else centres[j] for j in range(3)]
         grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1)
+        walls.append(grid)
         faces.append(_field_values(D, field, grid.reshape(-1, 3)).reshape(grid.shape[:3]))
+    grading = FaceGrading(family, field, tuple(faces), tuple(walls), tuple(len(c) for c in cells),
+                          tuple(int(c) for c in counts))
 
     def tile_of(i, j, k):
-        values = {"umin": faces[0][i, j, k], "umax": faces[0][i + 1, j, k], "vmin": faces[1][i, j, k],
-                  "vmax": faces[1][i, j + 1, k], "wmin": faces[2][i, j, k], "wmax": faces[2][i, j, k + 1]}
-        return _member(family, (), {f: float(v) for f, v in values.items()}, "field_graded", f"cell ({i}, {j}, {k})")
+        t = int(np.ravel_multi_index((i, j, k), grading.shape))
+        return _member(family, (), grading.values(t), "field_graded", f"cell ({i}, {j}, {k})")
 
     placed, tiles, shape = _paved(D, cells, tile_of, "the field-graded paving")
     interfaces, mismatched = grid_identity(D, tiles, shape)
@@ -178,5 +224,6 @@ def field_graded(D: BSpline, family, counts, field, name: str = "field-graded") 
                           "value alone")
     ms = Microstructure.build(D, placed, tiles, [], name=name, identity=(interfaces, mismatched))
     ms.info = {"faces": faces}
+    ms.grading = grading
     return ms
 

@@ -235,6 +235,10 @@ def face_graded_cross(umin: float = 0.3, umax: float = 0.3, vmin: float = 0.3, v
     return Tile(blocks, name=f"face_graded_cross({name})")
 
 
+#: its control points are affine in the six widths (the parameter sensitivities take one derivative for all cells)
+face_graded_cross.affine_in_values = True
+
+
 def hollow(tile: Tile) -> Tile:
     """The boundary of a volumetric tile as a surface tile: every face of its trivariates that no other of its
     trivariates shares and that does not lie on a cell wall (where neighbours continue it), oriented outwards.

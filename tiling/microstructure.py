@@ -70,6 +70,8 @@ class Microstructure(MultiPatch):
         #: layers, tile and growth direction
         self.info: dict = {}
         self.struts = None  # round_struts: the tiling.members.struts.StrutReport of its sweeps
+        #: field_graded: the tiling.graded_layers.FaceGrading (family, field, wall values) its tiles came from
+        self.grading = None
 
     def __repr__(self):
         return (f"Microstructure({show(self.name)}: {len(self.patches)} patches, {self.n_tiles} tiles, "

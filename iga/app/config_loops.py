@@ -2,7 +2,7 @@
 
     [adapt]   tolerance = relative energy-norm error, max_unknowns = n, marking = fraction, refine = "h" | "p" | "hp" |
               "h-in-place", max_steps = n
-    [design]  variables = "channel:NAME" | "map", objective = "temperature_norm" | "mean_temperature", p, tag,
+    [design]  variables = "channel:NAME" | "map" | "parameters", objective = "temperature_norm" | "mean_temperature", p, tag,
               bounds = [low, high], mean (a channel), move, hold (the map), iterations
 
 [adapt] solves by :func:`iga.adaptivity.loop.adaptive_solve` (the summary holds every step and why the loop
@@ -61,25 +61,60 @@ def design_section(config: dict, kind: str, conductivity) -> dict | None:
               "iterations": integer(d["iterations"], "design.iterations", 1)}
     if wrt == "map":
         return {**common, **_shape_design(d)}
+    if wrt == "parameters":
+        return {**common, **_parameter_design(d, config)}
     if not (isinstance(wrt, str) and wrt.startswith("channel:") and len(wrt) > len("channel:")):
-        fail("design.variables", f"must be \"channel:NAME\" (the map's channel NAME the conductivity reads) or "
-             f"\"map\" (its control points), got {wrt!r}")
+        fail("design.variables", f"must be \"channel:NAME\" (the map's channel NAME the conductivity reads), "
+             f"\"map\" (its control points) or \"parameters\" (the field of a field_graded paving), got {wrt!r}")
     if wrt.split(":", 1)[1] != conductivity:
         fail("design.variables", f"names the channel {wrt.split(':', 1)[1]!r}, but material.conductivity is "
              f"{conductivity!r}; the design changes the channel the conductivity reads")
     for key in ("move", "hold"):
         if d[key]:
             fail(f"design.{key}", "belongs to a shape design (variables = \"map\"); drop it")
-    b = d["bounds"]
-    if not (isinstance(b, list) and len(b) == 2):
-        fail("design.bounds", f"must be [low, high] (W/(m K)), got {b!r}")
-    low, high = number(b[0], "design.bounds[0]", lo=0), number(b[1], "design.bounds[1]", lo=0)
-    if not low < high:
-        fail("design.bounds", f"must be [low, high] with low < high, got {b!r}")
+    low, high = _bounds(d["bounds"], "W/(m K)")
     mean = None if d["mean"] is None else number(d["mean"], "design.mean", lo=0)
     if mean is not None and not low <= mean <= high:
         fail("design.mean", f"{mean:g} cannot be met within bounds [{low:g}, {high:g}]")
     return {**common, "bounds": (low, high), "mean": mean}
+
+
+def _bounds(b, unit: str) -> tuple:
+    """design.bounds: [low, high] with 0 <= low < high."""
+    if not (isinstance(b, list) and len(b) == 2):
+        fail("design.bounds", f"must be [low, high] ({unit}), got {b!r}")
+    low, high = number(b[0], "design.bounds[0]", lo=0), number(b[1], "design.bounds[1]", lo=0)
+    if not low < high:
+        fail("design.bounds", f"must be [low, high] with low < high, got {b!r}")
+    return low, high
+
+
+def _hold(hold) -> list:
+    """design.hold: a list of the map's faces."""
+    faces = ("umin", "umax", "vmin", "vmax", "wmin", "wmax")
+    if not (isinstance(hold, list) and all(isinstance(f, str) and f in faces for f in hold)):
+        fail("design.hold", f"must be a list of the map's faces {list(faces)}, got {hold!r}")
+    return list(hold)
+
+
+def _parameter_design(d, config: dict) -> dict:
+    """The keys of a parameter design (variables = "parameters"): ``bounds`` of the field's control values and
+    ``hold``; the paving must be field_graded with a number or a channel as its field (a formula has no control
+    values)."""
+    paving = config.get("paving", {}) if isinstance(config.get("paving"), dict) else {}
+    if paving.get("scheme") != "field_graded":
+        fail("design.variables", "\"parameters\" designs the field of a field_graded paving; set paving.scheme = "
+             f"\"field_graded\" (got scheme {paving.get('scheme')!r})")
+    if isinstance(paving.get("field"), dict):
+        fail("design.variables", "\"parameters\" needs paving.field as a number or a channel of the map (its "
+             "control values are the variables); a formula has none")
+    for key in ("move", "mean"):
+        if d[key] is not None:
+            fail(f"design.{key}", "belongs to another design; a parameter design takes bounds and hold")
+    if d["bounds"] is None:
+        fail("design.bounds", "is required for variables = \"parameters\": [low, high] of the field's control "
+             "values, inside the tile family's range (e.g. [0.15, 0.6] arm widths)")
+    return {"bounds": _bounds(d["bounds"], "the field's units"), "hold": _hold(d["hold"])}
 
 
 def _shape_design(d) -> dict:
@@ -91,8 +126,4 @@ def _shape_design(d) -> dict:
     if d["move"] is None:
         fail("design.move", "is required for variables = \"map\": the largest move of a control point "
              "coordinate (m)")
-    hold = d["hold"]
-    faces = ("umin", "umax", "vmin", "vmax", "wmin", "wmax")
-    if not (isinstance(hold, list) and all(isinstance(f, str) and f in faces for f in hold)):
-        fail("design.hold", f"must be a list of the map's faces {list(faces)}, got {hold!r}")
-    return {"move": number(d["move"], "design.move", lo=0), "hold": list(hold)}
+    return {"move": number(d["move"], "design.move", lo=0), "hold": _hold(d["hold"])}

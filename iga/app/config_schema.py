@@ -263,17 +263,22 @@ _SECTIONS = (
         _K("max_steps", "an integer >= 1", 50, "at most this many solves"))),
     Section("design", "[design]", "Design by gradient of a steady heat analysis (`physics.kind = \"heat\"`; "
             "`iga optimize CONFIG.toml`, or `iga run`): the control values of the map's channel that the "
-            "conductivity reads, or the map's control points (its shape), optimised for an output "
+            "conductivity reads, the map's control points (its shape), or the field of a `field_graded` paving "
+            "(its tiles' parameters), optimised for an output "
             "(`iga.optimize`).", (
-        _K("variables", "`\"channel:NAME\"` or `\"map\"`", REQUIRED, "the channel NAME of the map (the one "
-           "`material.conductivity` names), e.g. made by `map.grading`; or `map`: the coordinates of the map's "
-           "control points, at the solid volume of the start"),
-        _K("bounds", "[low, high] (W/(m K))", UNSET, "the bounds of every control value of a channel, e.g. "
-           "`[54, 205]` for steel to aluminium (required for `channel:NAME`)"),
+        _K("variables", "`\"channel:NAME\"`, `\"map\"` or `\"parameters\"`", REQUIRED, "the channel NAME of "
+           "the map (the one `material.conductivity` names), e.g. made by `map.grading`; or `map`: the coordinates "
+           "of the map's control points, at the solid volume of the start; or `parameters`: the control values of "
+           "`paving.field` (a number or a channel of the map) of a `field_graded` paving, at the solid volume of "
+           "the start"),
+        _K("bounds", "[low, high]", UNSET, "the bounds of every control value: of a channel (W/(m K)), e.g. "
+           "`[54, 205]` for steel to aluminium, or of the parameter field, inside the tile family's range, e.g. "
+           "`[0.15, 0.6]` arm widths (required for `channel:NAME` and `parameters`)"),
         _K("move", "a number > 0 (m)", UNSET, "the largest move of a control point coordinate (required for "
            "`map`; below a quarter of the control points' spacing)"),
-        _K("hold", "a list of the map's faces (`umin` .. `wmax`)", [], "`map`: the faces whose control points "
-           "stay, e.g. the heated one (its area, so the power of a flux per area, is kept)"),
+        _K("hold", "a list of the map's faces (`umin` .. `wmax`)", [], "`map` and `parameters`: the faces whose "
+           "control points (or the field's control values there) stay, e.g. the heated one (its area, so the power "
+           "of a flux per area, is kept)"),
         _K("objective", "`\"temperature_norm\"` or `\"mean_temperature\"`", "temperature_norm",
            "the output minimised: a smooth maximum (int T^p / V)^(1/p), or the mean"),
         _K("p", "a number >= 1", 8.0, "the exponent of `temperature_norm`"),

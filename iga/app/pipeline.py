@@ -281,6 +281,9 @@ def _heat_stage(cfg, model, out: Path, ocfg: Record, stages):
         if d.variables == "map":  # the shape: the map's control points, the solid volume kept
             designed = optimize(prob, objective, "map", d.move, maxiter=d.iterations, solver=scfg.method,
                                 hold=tuple(d.hold))
+        elif d.variables == "parameters":  # the field of a field-graded paving, the solid volume kept
+            designed = optimize(prob, objective, "parameters", d.bounds, maxiter=d.iterations, solver=scfg.method,
+                                hold=tuple(d.hold))
         else:
             designed = optimize(prob, objective, d.variables, d.bounds, d.mean, d.iterations, solver=scfg.method)
         sol = designed.solution
