@@ -314,27 +314,31 @@ def weld(points, cells, point_data, candidates=None, tol: float = 1e-10):
     """
     n = len(points)
     idx = np.arange(n) if candidates is None else np.flatnonzero(candidates)
-    scale = max(1.0, float(np.ptp(points, axis=0).max())) if n else 1.0
+    # the model's size from the candidates (every patch's boundary: they span the model), a third of the points
+    scale = max(1.0, float(np.ptp(points[idx], axis=0).max())) if len(idx) else 1.0
     pairs = cKDTree(points[idx]).query_pairs(tol * scale, output_type="ndarray") if len(idx) else np.zeros((0, 2), int)
     if not len(pairs):
         return points, cells, point_data, 0
-    k = len(idx)
-    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(k, k))
-    mc, lab = connected_components(graph, directed=False)  # components among the candidates
-    first = np.unique(lab, return_index=True)[1]  # first candidate of each component
+    # only the candidates in some pair take part in the merging: relabel them 0 .. k - 1
+    involved = idx[np.unique(pairs)]
+    k = len(involved)
+    local = np.searchsorted(involved, idx[pairs])
+    graph = coo_matrix((np.ones(len(local)), (local[:, 0], local[:, 1])), shape=(k, k))
+    mc, lab = connected_components(graph, directed=False)  # components among the involved candidates
+    first = np.unique(lab, return_index=True)[1]  # first involved point of each component
     rep = np.ones(n, bool)
-    rep[idx] = False
-    rep[idx[first]] = True  # kept points: every non-candidate and one per component
+    rep[involved] = False
+    rep[involved[first]] = True  # kept points: every point not merged and one per component
     new = np.cumsum(rep) - 1
     label = new.copy()
-    label[idx] = new[idx[first]][lab]
+    label[involved] = new[involved[first]][lab]
     counts = np.bincount(lab, minlength=mc).astype(float)
     out_data = {}
     for key, v in point_data.items():
         out = v[rep].copy()
-        vc = v[idx].reshape(k, -1)
+        vc = v[involved].reshape(k, -1)
         avg = np.stack([np.bincount(lab, weights=vc[:, c], minlength=mc) for c in range(vc.shape[1])], 1)
-        out.reshape(len(out), -1)[new[idx[first]]] = avg / counts[:, None]
+        out.reshape(len(out), -1)[new[involved[first]]] = avg / counts[:, None]
         out_data[key] = out
     m = int(rep.sum())
     out_pts = points[rep]

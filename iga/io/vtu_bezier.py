@@ -54,7 +54,7 @@ def _exact_geometries(model) -> list:
 
 def _vtk_order(degrees) -> np.ndarray:
     """Permutation: VTK point index -> flat (C-order) index of the (p1+1, p2+1, p3+1) control net."""
-    import vtk
+    from vtkmodules.vtkCommonDataModel import vtkBezierHexahedron  # (not ``import vtk``: every module, 0.7 s)
 
     p = [int(v) for v in degrees]
     n = [v + 1 for v in p]
@@ -62,7 +62,7 @@ def _vtk_order(degrees) -> np.ndarray:
     for i in range(n[0]):
         for j in range(n[1]):
             for k in range(n[2]):
-                order[vtk.vtkBezierHexahedron.PointIndexFromIJK(i, j, k, p)] = (i * n[1] + j) * n[2] + k
+                order[vtkBezierHexahedron.PointIndexFromIJK(i, j, k, p)] = (i * n[1] + j) * n[2] + k
     return order
 
 
