@@ -22,7 +22,6 @@ from iga.adjoint import design_map, map_basis, map_parameters
 from iga.errors import ProblemError
 from iga.optimiser import DesignResult, DesignStep, check_design, redesigned, run_slsqp
 from iga.outputs import Output, gauss_pass
-from iga.sensitivity import channel_sensitivity
 from iga.parameter_design import optimize_parameters
 from iga.shape_design import optimize_shape
 
@@ -51,8 +50,8 @@ def _check(wrt, bounds, mean) -> None:
     ok = (isinstance(bounds, (tuple, list)) and len(bounds) == 2 and all(is_real(b) and np.isfinite(b) for b in bounds)
           and 0 < bounds[0] < bounds[1])
     if not ok:
-        raise ProblemError(f"bounds must be (low, high) conductivities with 0 < low < high (W/(m K)), e.g. (54, 205) "
-                           f"for steel to aluminium, got {show(bounds)}")
+        raise ProblemError(f"bounds must be (low, high) of the channel with 0 < low < high, e.g. (54, 205) W/(m K) "
+                           f"for steel to aluminium conductivities, or Young's moduli in Pa, got {show(bounds)}")
     if mean is not None and not (is_real(mean) and bounds[0] <= mean <= bounds[1]):
         raise ProblemError(f"mean = {show(mean)} cannot be met within bounds {show(tuple(bounds))}: a mean of the "
                            "channel lies between its bounds")
@@ -68,10 +67,12 @@ def optimize(problem, objective: Output, wrt: str = "channel:k", bounds=None, me
 
     Parameters
     ----------
-    problem : a steady :class:`iga.HeatProblem` whose conductivity is the channel (``conductivity="k"``)
+    problem : a steady :class:`iga.HeatProblem` whose conductivity is the channel (``conductivity="k"``), or
+        an :class:`iga.ElasticityProblem` whose Young's modulus is (``youngs="E"``; objective ``Compliance()``,
+        whose gradient needs no adjoint solve: :mod:`iga.elasticity.sensitivity`)
     objective : an output of :mod:`iga.outputs` with a gradient, e.g. ``TemperatureNorm(8)`` (C)
     wrt : ``"channel:NAME"``, ``"map"`` or ``"parameters"``
-    bounds : (low, high) of every control value (W/(m K); default (54, 205), steel to aluminium); the initial
+    bounds : (low, high) of every control value (W/(m K); default (54, 205), steel to aluminium; Pa for E); the initial
         values must lie within them.  For ``wrt="map"``: the largest move of a control point coordinate from its
         start (m); for ``wrt="parameters"``: (low, high) of the field's control values (required)
     mean : the volume mean of the channel to keep (W/(m K)); None: free
@@ -88,9 +89,14 @@ def optimize(problem, objective: Output, wrt: str = "channel:k", bounds=None, me
     if wrt == "parameters":
         return optimize_parameters(problem, objective, bounds, hold, keep_volume, maxiter, tol, solver)
     bounds = (54.0, 205.0) if bounds is None else bounds
-    check_design(problem, objective, maxiter)
+    check_design(problem, objective, maxiter, elastic=True)
     _check(wrt, bounds, mean)
     name = wrt.split(":", 1)[1]
+    elastic = getattr(problem, "youngs", None) is not None
+    read, what = (problem.youngs, "Young's modulus") if elastic else (problem.conductivity.scalar, "conductivity")
+    if read is None or read.kind != "channel" or read.spec != name:
+        raise ProblemError(f"wrt={wrt!r}: the {what} does not read the channel {show(name)}; the design changes "
+                           "the channel it reads")
     D, placed = design_map(problem, name)
     v0 = np.asarray(D.channel(name), float).reshape(-1)
     lo, hi = float(bounds[0]), float(bounds[1])
@@ -103,8 +109,9 @@ def optimize(problem, objective: Output, wrt: str = "channel:k", bounds=None, me
     def analyse(z):
         values = lo + np.clip(z, 0, 1) * (hi - lo)
         new = D.with_channel(name, values.reshape(D.control_points.shape[:3]))
-        sol = problem.on(redesigned(problem.model, D, new, placed)).solve(solver=solver, keep=True)
-        return values, sol, objective.value(sol), channel_sensitivity(sol, objective, name, solver).reshape(-1) * (
+        again = problem.on(redesigned(problem.model, D, new, placed))
+        sol = again.solve(solver=solver) if elastic else again.solve(solver=solver, keep=True)
+        return values, sol, objective.value(sol), sol.gradient(objective, wrt, solver).reshape(-1) * (
             hi - lo), float(vol @ values / total), None
 
     constraints = []

@@ -20,7 +20,7 @@ from geometry.patches.multipatch import PlacedPatch
 from iga.errors import ProblemError
 from iga.heat.problem import HeatProblem
 from iga.model import same_kind
-from iga.outputs import Output
+from iga.outputs import Compliance, Output
 
 __all__ = ["DesignStep", "DesignResult", "redesigned", "run_slsqp", "check_design", "free_mask"]
 
@@ -91,10 +91,18 @@ def free_mask(shape, hold) -> np.ndarray:
     return free
 
 
-def check_design(problem, objective, maxiter) -> None:
-    """What every design needs: a steady heat problem, an output to minimise, an iteration limit."""
-    if type(problem) is not HeatProblem:
-        raise ProblemError(f"optimize takes a steady iga.HeatProblem, got {type(problem).__name__}")
+def check_design(problem, objective, maxiter, elastic: bool = False) -> None:
+    """What every design needs: a steady heat problem (or, where ``elastic``, an elasticity problem whose
+    objective is its compliance), an output to minimise, an iteration limit."""
+    from iga.elasticity.problem import ElasticityProblem
+
+    if elastic and type(problem) is ElasticityProblem:
+        if not isinstance(objective, Compliance):
+            raise ProblemError(f"an elastic design minimises Compliance() (its gradient needs no adjoint solve), "
+                               f"got {show(objective)}")
+    elif type(problem) is not HeatProblem:
+        raise ProblemError(f"optimize takes a steady iga.HeatProblem{' or an iga.ElasticityProblem' if elastic else ''}"
+                           f", got {type(problem).__name__}")
     if not isinstance(objective, Output):
         raise ProblemError(f"objective must be an output of iga.outputs with a gradient (e.g. TemperatureNorm(8)), "
                            f"got {show(objective)}")

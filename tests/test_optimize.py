@@ -59,7 +59,7 @@ def test_the_optimiser_lowers_the_smooth_maximum_at_a_fixed_mean_within_the_boun
     ({"mean": 300.0}, "cannot be met within bounds"),
     ({"wrt": "map"}, "largest move of a control point"),
     ({"wrt": "shape"}, "wrt must be 'channel:NAME' .*, 'map' .* or 'parameters'"),
-    ({"wrt": "channel:rho"}, "holding the channel 'rho'"),
+    ({"wrt": "channel:rho"}, "does not read the channel 'rho'"),
     ({"objective": HeatFlow("umin")}, "has no gradient in the solution.s coefficients"),
     ({"maxiter": 0}, "maxiter must be an integer >= 1"),
     ({"bounds": (54.0, 100.0)}, "outside bounds"),

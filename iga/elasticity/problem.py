@@ -100,6 +100,18 @@ class ElasticityProblem(Problem):
         self.thermal_strain = None
         self.rigid_hold = False
 
+    def on(self, model) -> "ElasticityProblem":
+        """This problem set up again on another ``model`` with the same patches, tags and channels (a redesigned
+        map: other channel values): the same materials, supports, holds, springs and loads (holds and springs
+        keep their control points: the patches and spaces are the same)."""
+        quadrature_extra, degree_elevation, refine, degree = self.space_args
+        new = type(self)(model, 1.0, 0.0, degree_elevation, refine, quadrature_extra, degree)
+        new.youngs, new.poisson = self.youngs, self.poisson
+        new.supports, new.loads, new.holds = list(self.supports), list(self.loads), list(self.holds)
+        new.springs, new.point_loads = list(self.springs), list(self.point_loads)
+        new.body, new.thermal_strain, new.rigid_hold = self.body, self.thermal_strain, self.rigid_hold
+        return new
+
     # ------------------------------------------------------------ conditions
     def tag_faces(self, tag) -> list:
         """The faces of a tag or tag expression of this problem; ``rest``: every free face that no support or

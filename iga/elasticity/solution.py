@@ -206,6 +206,15 @@ class ElasticSolution:
         return integrate_fields(prob, lambda i: np.stack([self.u[a * n + o[i]:a * n + o[i + 1]].reshape(
             prob.spaces[i].shape) for a in range(3)]), 3, fn)
 
+    def gradient(self, output, wrt: str = "tiles", solver: str = "auto") -> np.ndarray:
+        """The derivative of the compliance (``iga.outputs.Compliance()``) by Young's modulus, without an extra
+        solve (the compliance is self-adjoint): ``wrt="tiles"`` or ``"patches"`` (a factor on each one's E) or
+        ``"channel:NAME"`` (the control values of the map's channel E reads);
+        :func:`iga.elasticity.sensitivity.elastic_sensitivity`.  ``solver`` is unused (no adjoint solve)."""
+        from iga.elasticity.sensitivity import elastic_sensitivity
+
+        return elastic_sensitivity(self, output, wrt)
+
     def strain_energy(self) -> float:
         """Elastic strain energy (J): 1/2 int (eps - eps_th) : C : (eps - eps_th) dV, the thermal strain taken
         off (a free thermal expansion stores none), by the problem's Gauss rule."""
