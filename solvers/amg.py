@@ -113,6 +113,27 @@ def spectral_radius(A, steps: int = 15) -> float:
     return float(eigvalsh_tridiagonal(np.array(alphas), np.array(betas[: len(alphas) - 1]))[-1])
 
 
+def permuted_padded(A: sp.csr_matrix, slots: np.ndarray, size: int) -> sp.csr_matrix:
+    """The (size, size) CSR matrix with A[i, j] at (slots[i], slots[j]) and a unit diagonal on the rows no slot
+    takes: A's rows taken in the order of their slots (SciPy's row gather), the columns renamed, the unit rows
+    inserted (a COO round trip sorted all of A's non-zeros again: 1.9 s for 20 million, this a quarter)."""
+    order = np.argsort(slots, kind="stable")  # A's rows in the order of their slots
+    B = A[order]
+    placed = slots[order]
+    pads = complement(size, slots)
+    before = np.searchsorted(placed, pads)  # taken rows above each unit row
+    at = B.indptr[before]
+    indices = np.insert(slots[B.indices], at, pads)
+    data = np.insert(B.data, at, 1.0)
+    lengths = np.ones(size, np.int64)
+    lengths[placed] = np.diff(B.indptr)
+    indptr = np.zeros(size + 1, np.int64)
+    np.cumsum(lengths, out=indptr[1:])
+    out = sp.csr_matrix((data, indices, indptr), shape=(size, size))
+    out.sort_indices()  # the slots reorder the columns within a row
+    return out
+
+
 class AMGPreconditioner:
     """Preconditioner of a symmetric positive definite CSR matrix A: M r = S V(S r) (see the module notes).
 
@@ -198,11 +219,7 @@ class AMGPreconditioner:
             raise SolverError(f"node_slots must be {n} distinct non-negative integers (each unknown's place "
                               "3 node + component)")
         size = 3 * (int(slots.max()) // 3 + 1)
-        free = complement(size, slots)
-        C = sp.coo_matrix(A)
-        Ap = sp.csr_matrix((np.concatenate([C.data, np.ones(len(free))]),
-                            (np.concatenate([slots[C.row], free]), np.concatenate([slots[C.col], free]))),
-                           shape=(size, size))
+        Ap = permuted_padded(sp.csr_matrix(A), slots, size)
         Bp = None
         if B is not None:
             B = _near_nullspace(B, n)

@@ -214,3 +214,26 @@ def test_auto_factorises_coupled_patches_further_than_one_patch():
     assert one.info.free_dofs > solvers.AUTO_DIRECT_LIMIT and one.info.solver.method == "fd-cg"  # one patch
     with pytest.raises(SolverError, match="direct_limit"):
         solvers.solve(sp.identity(3, format="csr"), np.ones(3), direct_limit=-1)
+
+
+def test_the_node_major_copy_equals_the_coo_round_trip():
+    """solvers.amg.permuted_padded: A[i, j] at (slots[i], slots[j]), unit rows where no slot lands, sorted
+    indices, against building the same matrix through COO."""
+    from solvers.amg import permuted_padded
+    from solvers.indexing import complement
+
+    rng = np.random.default_rng(0)
+    for n, nred in ((300, 120), (50, 100)):
+        A = sp.random(n, n, density=0.05, random_state=1, format="csr")
+        A = (A + A.T + sp.identity(n)).tocsr()
+        slots = rng.permutation(3 * nred)[:n]
+        size = 3 * (int(slots.max()) // 3 + 1)
+        free = complement(size, slots)
+        C = sp.coo_matrix(A)
+        ref = sp.csr_matrix((np.concatenate([C.data, np.ones(len(free))]),
+                             (np.concatenate([slots[C.row], free]), np.concatenate([slots[C.col], free]))),
+                            shape=(size, size))
+        got = permuted_padded(A, slots, size)
+        assert got.has_sorted_indices
+        assert np.array_equal(got.indptr, ref.indptr) and np.array_equal(got.indices, ref.indices)
+        assert np.array_equal(got.data, ref.data)
