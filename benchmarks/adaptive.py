@@ -20,7 +20,8 @@ effectivity within [0.3, 3] on every step.
 
 ``--sinks``: the demo heat sinks (graded aluminium/steel, 1515.8 W/m^2 in, h = 5 W/(m^2 K)) at refine 0, 1, 2 (3 on
 the circular sink: the overkill reference), adaptively by h to the unknowns of refine 2 (their tiles have slots, so
-they are refined in place, whole tiles at a time) and by p for 2, 3 and 4 steps: the heat flows through the tags
+they are refined in place, whole tiles at a time), by p for 2, 3 and 4 steps and by p with the flows as the goal
+(dual-weighted marking, :mod:`iga.adaptivity.goal`) for 2 and 3 steps: the heat flows through the tags
 umax, vmin, wmax and internal, their deviation from the reference, the fewest unknowns within 1e-4 of it.
 """
 
@@ -95,6 +96,7 @@ def sinks():
     circular sink, 348,624 unknowns; refine 2 on the vertical one, whose flows are converged to 2e-5 at refine 0),
     and the fewest unknowns of each kind within 1e-4 of it."""
     import iga
+    from iga.outputs import HeatFlow
     from iga.app.config import validate
     from iga.app.pipeline import heat_sink_config
     from iga.app.pipeline_build import build, build_maps
@@ -114,11 +116,15 @@ def sinks():
             rows.append({"run": f"uniform refine {r}", "kind": "uniform", "unknowns": int(s.info.free_dofs),
                          **{t: s.flux(t) for t in tags}})
         budget = rows[2]["unknowns"]
-        runs = [("h", {"max_unknowns": budget}, "")] + [("p", {"max_steps": k}, f", {k} steps") for k in (2, 3, 4)]
-        for how, options, label in runs:
-            result = iga.adaptive_solve(problem(), 1e-5, refine=how, **options)
+        goal = [HeatFlow(t) for t in tags]
+        runs = [("h", {"max_unknowns": budget}, "", "h")] + \
+            [("p", {"max_steps": k}, f", {k} steps", "p") for k in (2, 3, 4)] + \
+            [("p", {"max_steps": k, "goal": goal, "tolerance": 1e-9}, f", goal, {k} steps", "p goal") for k in (2, 3)]
+        for how, options, label, kind in runs:
+            options = {"tolerance": 1e-5, **options}
+            result = iga.adaptive_solve(problem(), options.pop("tolerance"), refine=how, **options)
             s = result.solution
-            rows.append({"run": f"adaptive {how}{label}", "kind": how, "unknowns": int(s.info.free_dofs),
+            rows.append({"run": f"adaptive {how}{label}", "kind": kind, "unknowns": int(s.info.free_dofs),
                          **{t: s.flux(t) for t in tags}})
         ref = rows[levels - 1]
         for row in rows:

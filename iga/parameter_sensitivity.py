@@ -41,7 +41,6 @@ import scipy.sparse as sp
 from geometry import SplineFunction
 from geometry import knots as kn
 from geometry.errors import show
-from geometry.faces import FACE_AXIS, parse_slot_face
 from geometry.numbers import is_real
 from tiling import TilingError
 from tiling.graded_layers import spline_parameters
@@ -49,7 +48,7 @@ from tiling.graded_layers import spline_parameters
 from iga.adjoint import map_basis, shape_map
 from iga.errors import ProblemError
 from iga.outputs import Output
-from iga.shape_sensitivity import shape_densities, steady_heat
+from iga.shape_sensitivity import face_plane, shape_densities, steady_heat
 
 __all__ = ["parameter_sensitivity", "tile_derivatives"]
 
@@ -217,13 +216,8 @@ def _face_axes(T, face: str, space):
     plane the limit from the face's side), in the point order of :func:`iga.shape_sensitivity.face_parameters`."""
     axes = [np.asarray(d.qpts, float) for d in space.dirs]
     sides = ["right"] * 3
-    slot = parse_slot_face(face)
-    if slot is None:
-        k, side = FACE_AXIS[face]
-        at = T.knots[k][-1] if side else T.knots[k][0]
-    else:
-        k, at, sgn = slot
-        sides[k] = "left" if sgn < 0 else "right"
+    k, at, sgn = face_plane(T, face)
+    sides[k] = "left" if sgn < 0 else "right"
     axes[k] = np.array([at])
     return axes, sides
 

@@ -42,7 +42,7 @@ from iga.heat.conditions import face_values
 from iga.outputs import Compliance, MeanTemperature, Output, TemperatureNorm, Volume, gauss_pass, tag_faces
 from iga.adjoint import adjoint, map_basis_values, map_parameters, shape_map
 
-__all__ = ["shape_sensitivity", "shape_densities", "face_parameters", "steady_heat"]
+__all__ = ["shape_sensitivity", "shape_densities", "face_parameters", "face_plane", "steady_heat"]
 
 
 def shape_sensitivity(solution, output: Output, solver: str = "auto") -> np.ndarray:
@@ -236,15 +236,21 @@ def face_parameters(prob, faces, D, placed: bool) -> list[np.ndarray]:
     return out
 
 
-def _face_grid(spline, face: str, space, placed: bool) -> np.ndarray:
-    """The face's Gauss grid (N, 3) of ``space`` on the tile ``spline``: its parameters, or (placed) the tile's
-    points there (at a slot plane, the limit from the face's side)."""
+def face_plane(spline, face: str) -> tuple:
+    """(direction k, parameter at, side) of a face of ``spline``: a boundary face (side 0) or a slot face at an
+    interior discontinuity plane (side -1: the piece below it, +1: above)."""
     slot = parse_slot_face(face)
     if slot is None:
         k, side = FACE_AXIS[face]
-        at = spline.knots[k][-1] if side else spline.knots[k][0]
-    else:
-        k, at, sgn = slot
+        return k, spline.knots[k][-1] if side else spline.knots[k][0], 0
+    return slot
+
+
+def _face_grid(spline, face: str, space, placed: bool) -> np.ndarray:
+    """The face's Gauss grid (N, 3) of ``space`` on the tile ``spline``: its parameters, or (placed) the tile's
+    points there (at a slot plane, the limit from the face's side)."""
+    k, at, sgn = face_plane(spline, face)
+    if sgn:
         box = spline.domain.copy()
         box[k] = [box[k, 0], at] if sgn < 0 else [at, box[k, 1]]
         spline = spline.extract(box)

@@ -187,3 +187,31 @@ def test_a_graded_lattice_designed_by_its_field_is_cooler_at_the_same_volume():
     with pytest.raises(ProblemError, match="one number"):
         iga.optimize(constant.neumann("wmin", 2e4).robin("wmax", 3000.0, 0.0), objective, wrt="parameters",
                      bounds=(0.15, 0.6), hold=("wmin",))
+
+
+def _slotted(umin=0.3, umax=0.3, vmin=0.3, vmax=0.3, wmin=0.3, wmax=0.3):
+    """The heat-sink tile T1 (a slot along u opening towards its top) with the slot's width scaled by the top
+    face's value: the slot walls are faces at an interior discontinuity plane."""
+    from geometry import BSpline
+
+    T = library.heat_sink_t1().patches[0]
+    cp = np.array(T.control_points)
+    half = np.array([0.0, 0.0, 0.0, 0.03, 0.05]) * (wmax / 0.3)
+    for k, g in enumerate(half):  # the six u coordinates of each layer: two quadratic pieces either side of 0.5
+        cp[:, :, k, 0] = np.array([0.0, (0.5 - g) / 2, 0.5 - g, 0.5 + g, (1.5 + g) / 2, 1.0])[:, None]
+    return tiling.Tile([BSpline(T.degrees, T.knots, cp)], name="slotted")
+
+
+def test_the_slot_walls_of_a_tile_move_with_its_parameter():
+    """Robin cooling on every free face, the slot walls (faces at the tiles' discontinuity planes) included: the
+    face terms take the limit of the tile's basis from the wall's side."""
+    D = _map(channel=False)
+
+    def analyse(c):
+        ms = tiling.field_graded(D, _slotted, (2, 1, 1), _spline(c))
+        assert any("u=0.5" in f for _, f in ms.tags["boundary"])
+        return HeatProblem(ms, conductivity=150.0).neumann("wmin", 5e4).robin("boundary - wmin", 80.0,
+                                                                                20.0).solve(tol=1e-13)
+
+    c0 = 0.3 + 0.05 * np.random.default_rng(5).random((3, 3, 3, 1))
+    _fd_check(analyse, c0, [MeanTemperature(), MeanTemperature("wmax")])

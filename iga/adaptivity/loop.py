@@ -20,6 +20,7 @@ from geometry import progress
 from geometry.errors import show
 from geometry.numbers import is_real as is_number
 
+from iga.adaptivity import goal as goals_of
 from iga.adaptivity import hp
 from iga.adaptivity.estimator import ErrorEstimate, estimate_error
 from iga.adaptivity.tree import TileRefinement
@@ -46,6 +47,8 @@ class AdaptiveStep:
     error: float | None
     marked: int
     seconds: float
+    #: with a goal: the estimate sum_P eta_P(T) eta_P(z) of the weighted flows' error (:mod:`iga.adaptivity.goal`)
+    goal: float | None = None
 
     @property
     def effectivity(self) -> float | None:
@@ -121,7 +124,7 @@ def _check(problem, tolerance, max_unknowns, marking, refine, max_steps) -> None
 
 def adaptive_solve(problem, tolerance: float, max_unknowns: int | None = None, marking: float = 0.5,
                    refine: str = "h", solver: str = "auto", exact_gradient=None, max_steps: int = 50,
-                   tol: float = 1e-10) -> AdaptiveResult:
+                   tol: float = 1e-10, goal=None) -> AdaptiveResult:
     """Solve ``problem`` adaptively until the error estimate relative to the solution's energy norm is at most
     ``tolerance`` (see the module notes).
 
@@ -143,10 +146,16 @@ def adaptive_solve(problem, tolerance: float, max_unknowns: int | None = None, m
     exact_gradient : optional callable grad T(x (N, 3)) -> (N, 3) of the exact solution: the history then holds the
         true relative energy-norm error of every step (conductivity constant per patch, as the estimate needs)
     max_steps : at most this many solves
+    goal : optional :class:`iga.outputs.HeatFlow` or list of them (flows through Robin faces): mark by the
+        product of the solution's and the dual solution's indicators and stop when the estimated error of the
+        flows, each relative to its size, is at most ``tolerance`` (:mod:`iga.adaptivity.goal`; one more solve
+        per step)
 
     Progress: one line per step on stderr when progress is on (the ``iga`` command line, the benchmarks).
     """
     _check(problem, tolerance, max_unknowns, marking, refine, max_steps)
+    goals = None if goal is None else goals_of.check_goals(problem, goal)
+    weights = None
     tree = TileRefinement(problem.model)
     current = problem if len(tree.leaves) == len(problem.model.patches) else problem.on(tree.model())
     history, reached, reason, last = [], False, f"{max_steps} steps taken", False
@@ -157,14 +166,21 @@ def adaptive_solve(problem, tolerance: float, max_unknowns: int | None = None, m
         solution = current.solve(solver=solver, tol=tol)
         estimate = estimate_error(solution)
         error = _true_error(solution, estimate, exact_gradient) if exact_gradient is not None else None
-        reached = bool(estimate.relative <= tolerance)
-        marked = np.zeros(0, np.int64) if reached else dorfler(estimate.patch, marking)
+        indicators, goal_estimate = estimate.patch, None
+        if goals is not None:  # the dual-weighted product of the two solutions' indicators
+            weights = goals_of.goal_weights(solution, goals) if weights is None else weights
+            dual = estimate_error(goals_of.dual_problem(current, goals, weights).solve(solver=solver, tol=tol))
+            indicators = np.sqrt(estimate.patch * dual.patch)
+            goal_estimate = float(indicators.sum())
+        reached = bool((estimate.relative if goals is None else goal_estimate) <= tolerance)
+        marked = np.zeros(0, np.int64) if reached else dorfler(indicators, marking)
         history.append(AdaptiveStep(int(solution.info.free_dofs), int(current.ndof), len(current.model.patches),
                                     estimate.total, float(estimate.relative), error, len(marked),
-                                    time.perf_counter() - t0))
+                                    time.perf_counter() - t0, goal_estimate))
         _report(step, history[-1])
         if reached:
-            reason = f"the estimate {estimate.relative:.3g} met the tolerance {tolerance:g}"
+            reason = f"the estimate {estimate.relative if goals is None else goal_estimate:.3g} met the tolerance " \
+                     f"{tolerance:g}"
             break
         if last:
             reason = (f"the budget of {int(max_unknowns):,} unknowns is used; the estimate reached "
@@ -173,7 +189,7 @@ def adaptive_solve(problem, tolerance: float, max_unknowns: int | None = None, m
         if step == max_steps:
             break
         now = int(solution.info.free_dofs)  # the budget's measure, this step
-        step_to = _next_step(problem, tree, estimate, marked, refine, max_unknowns, now, predicted)
+        step_to = _next_step(problem, tree, estimate, marked, refine, max_unknowns, now, predicted, indicators)
         if isinstance(step_to, str):
             reason = f"{step_to}; the estimate reached {estimate.relative:.3g} (tolerance {tolerance:g})"
             break
@@ -199,7 +215,7 @@ def unknowns(problem) -> int:
     return int(n - len(np.unique(held[held >= 0])))
 
 
-def _next_step(problem, tree, estimate, marked, refine, max_unknowns, now, predicted):
+def _next_step(problem, tree, estimate, marked, refine, max_unknowns, now, predicted, indicators):
     """(refinement, problem, patches refined, whether the budget cut the step, the hp predictions) of the next
     step, or why there is none (a string).
 
@@ -207,7 +223,7 @@ def _next_step(problem, tree, estimate, marked, refine, max_unknowns, now, predi
     the marked patches (largest indicators first) that fits is refined (found by bisection on its length, to 2%
     of the marked patches), so that the budget is used rather than the loop stopping short of it; ``now`` the
     unknowns of the current step."""
-    order = marked[np.argsort(-estimate.patch[marked], kind="stable")]
+    order = marked[np.argsort(-indicators[marked], kind="stable")]  # (the marking's, energy or goal)
 
     def attempt(n):
         chosen, depth = order[:n], problem.space_args[2]
@@ -259,6 +275,7 @@ def _report(step: int, s: AdaptiveStep) -> None:
     if progress.active():
         import sys
 
-        err = f", error {s.error:.3g}" if s.error is not None else ""
+        err = (f", error {s.error:.3g}" if s.error is not None else "") + \
+            (f", goal {s.goal:.3g}" if s.goal is not None else "")
         print(f"[adapt {step}] {s.patches} patches, {s.unknowns:,} unknowns: estimate {s.relative:.3g}{err}, "
               f"{s.marked} marked, {s.seconds:.2f} s", file=sys.stderr, flush=True)

@@ -33,7 +33,14 @@ def adapt_section(config: dict, kind: str) -> dict | None:
             "max_unknowns": None if a["max_unknowns"] is None else integer(a["max_unknowns"], "adapt.max_unknowns", 1),
             "marking": _marking(a["marking"]),
             "refine": choice(a["refine"], "adapt.refine", ("h", "h-in-place", "p", "hp")),
-            "max_steps": integer(a["max_steps"], "adapt.max_steps", 1)}
+            "max_steps": integer(a["max_steps"], "adapt.max_steps", 1), "goal": _goal(a["goal"])}
+
+
+def _goal(v) -> list:
+    """adapt.goal: the tags whose heat flows the loop converges (empty: the energy norm)."""
+    if not (isinstance(v, list) and all(isinstance(t, str) and t.strip() for t in v)):
+        fail("adapt.goal", f"must be a list of tags (Robin faces whose heat flows to converge), got {v!r}")
+    return list(v)
 
 
 def _marking(v) -> float:

@@ -260,7 +260,10 @@ _SECTIONS = (
            "2 x 2 x 2 children (patches with discontinuity planes are bisected in place), `h-in-place` bisects its "
            "knot spans, `p` raises its degree by one, `hp` chooses per patch (split where the error did not fall "
            "as predicted)"),
-        _K("max_steps", "an integer >= 1", 50, "at most this many solves"))),
+        _K("max_steps", "an integer >= 1", 50, "at most this many solves"),
+        _K("goal", "a list of tags of Robin faces", [], "goal-oriented: converge the heat flows through these "
+           "tags (the tolerance then bounds their estimated error, each relative to its size) by marking with "
+           "the dual-weighted indicators; one more solve per step"))),
     Section("design", "[design]", "Design by gradient of a steady heat analysis (`physics.kind = \"heat\"`; "
             "`iga optimize CONFIG.toml`, or `iga run`): the control values of the map's channel that the "
             "conductivity reads, the map's control points (its shape), or the field of a `field_graded` paving "

@@ -26,7 +26,7 @@ from geometry.io.files import atomic_write, check_folder, offscreen_plotter, sav
 from iga.io.pictures import count, render_temperature
 from iga.adaptivity.loop import adaptive_solve
 from iga.design import optimize
-from iga.outputs import MeanTemperature, TemperatureNorm
+from iga.outputs import HeatFlow, MeanTemperature, TemperatureNorm
 from iga.app.problems import heat_problem
 from iga.app.pipeline_transient import transient_stage
 from tiling.export import boundary_splines, mesh_watertightness, write_mesh, write_surfaces
@@ -291,7 +291,8 @@ def _heat_stage(cfg, model, out: Path, ocfg: Record, stages):
     elif cfg.adapt is not None:  # solve, estimate, split where the estimate is largest, until the tolerance
         a = cfg.adapt
         adapted = adaptive_solve(prob, a.tolerance, a.max_unknowns, a.marking, a.refine, scfg.method,
-                                 max_steps=a.max_steps, tol=scfg.tol)
+                                 max_steps=a.max_steps, tol=scfg.tol,
+                                 goal=[HeatFlow(t) for t in a.goal] if a.goal else None)
         sol = adapted.solution
         prob = sol.problem
         model = prob.model
