@@ -90,8 +90,19 @@ def _check_model(ms, prob, D) -> None:
 
 
 def _dragged_channel(prob, D, what: str):
-    """The index of D's channel an isotropic conductivity reads (its values move with the points: the drag term of
-    the module notes), or None; sources and face data must not read D's channels."""
+    """The index of D's channel an isotropic conductivity (elasticity: Young's modulus) reads (its values move with
+    the points: the drag term of the module notes), or None; sources, face data (Poisson's ratio) must not read
+    D's channels."""
+    tile_channels = {c for p in prob.model.patches for c in p.spline.channels}
+    if hasattr(prob, "youngs"):
+        if prob.poisson.kind == "channel" and prob.poisson.spec in D.channels and \
+                prob.poisson.spec not in tile_channels:
+            raise ProblemError(f"{what}: Poisson's ratio reads the map's channel {show(prob.poisson.spec)}; its "
+                               "term is not built (give a number)")
+        E = prob.youngs
+        if E.kind == "channel" and E.spec in D.channels and E.spec not in tile_channels:
+            return list(D.channels).index(E.spec)
+        return None
     k = prob.conductivity
     if k.channels is not None and any(c in D.channels for c in k.channels):
         raise ProblemError(f"{what}: an anisotropic conductivity read from channels of the map is not supported "
@@ -104,7 +115,6 @@ def _dragged_channel(prob, D, what: str):
                 raise ProblemError(f"{what}: the {c.kind} data on {show(c.tag)} read the map's channel "
                                    f"{show(field.spec)}; give numbers")
     if k.scalar is not None and k.scalar.kind == "channel":
-        tile_channels = {c for p in prob.model.patches for c in p.spline.channels}
         if k.scalar.spec not in tile_channels:  # a tile's channel moves with its points: no drag
             return list(D.channels).index(k.scalar.spec)
     return None

@@ -37,6 +37,7 @@ import numpy as np
 from geometry.errors import show
 from geometry.faces import FACE_AXIS, parse_slot_face
 
+from iga.elasticity.shape import elastic_densities
 from iga.errors import ProblemError
 from iga.heat.conditions import face_values
 from iga.outputs import Compliance, MeanTemperature, Output, TemperatureNorm, Volume, gauss_pass, tag_faces
@@ -66,9 +67,12 @@ def shape_sensitivity(solution, output: Output, solver: str = "auto") -> np.ndar
 
 
 def steady_heat(solution, what: str) -> None:
-    """Refuse what is not a steady heat solution (the derivatives here are of one)."""
+    """Refuse what is neither a steady heat solution nor an elastic one (the derivatives here are of those)."""
+    if getattr(type(solution), "physics", None) == "elasticity":
+        return
     if getattr(type(solution), "physics", None) != "heat" or not getattr(type(solution), "steady", False):
-        raise ProblemError(f"{what} differentiates a steady heat solution (iga.Solution), got {show(solution)}")
+        raise ProblemError(f"{what} differentiates a steady heat solution (iga.Solution) or an elastic one, got "
+                           f"{show(solution)}")
 
 
 def shape_densities(solution, output: Output, volume, faces, solver: str = "auto", what: str = "wrt='map'") -> None:
@@ -77,8 +81,11 @@ def shape_densities(solution, output: Output, volume, faces, solver: str = "auto
     carries the material (module notes); one adjoint solve.  ``volume(chunk, space, Qw (P nq, 3, 3), dk (P nq,))``
     per group of patches of :func:`iga.outputs.gauss_pass` (``dk``: the weighted derivative of the integrand by
     an isotropic conductivity value at the point, for velocities that do not carry a conductivity field);
-    ``faces(face data, Qw (N, 3, 3))`` once, all faces' points concatenated in their order."""
+    ``faces(face data, Qw (N, 3, 3))`` once, all faces' points concatenated in their order.  An elastic
+    solution's compliance: :func:`iga.elasticity.shape.elastic_densities` (``dk`` by Young's modulus)."""
     steady_heat(solution, what)
+    if getattr(type(solution), "physics", None) == "elasticity":  # the compliance's densities
+        return elastic_densities(solution, output, volume, faces, what)
     prob = solution.problem
     _check_material(prob, what)
     explicit = _explicit_terms(output, solution, what)

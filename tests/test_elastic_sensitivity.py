@@ -43,7 +43,7 @@ def test_elastic_sensitivities_refuse_what_they_do_not_cover():
     with pytest.raises(ProblemError, match="not the channel 'k'"):
         s.gradient(Compliance(), wrt="channel:k")
     with pytest.raises(ProblemError, match="wrt must be"):
-        s.gradient(Compliance(), wrt="map")
+        s.gradient(Compliance(), wrt="wall")
     moved = _beam(E0).dirichlet("umax", 1e-4, components="x").solve(solver="direct")
     with pytest.raises(ProblemError, match="zero displacement"):
         moved.gradient(Compliance(), wrt="channel:E")
@@ -70,3 +70,70 @@ def test_an_elastic_channel_design_is_stiffer_at_the_same_mean_modulus():
     assert Compliance().value(fresh) == pytest.approx(res.objective, rel=1e-8)
     with pytest.raises(ProblemError, match="Compliance"):
         iga.optimize(problem, VonMisesNorm(4), "channel:E", bounds=(1e9, 2e9))
+
+
+def _moved(D, P):
+    from geometry import BSpline
+
+    return BSpline(D.degrees, D.knots, P, D.weights, channels=D.channels)
+
+
+def _loaded(model):
+    return ElasticityProblem(model, youngs="E", poisson=0.3).dirichlet("umin", 0.0).traction(
+        "umax", [0, 2e3, -1e4]).body_force([0, 0, -2e4]).solve(solver="direct")
+
+
+def test_the_compliance_s_shape_gradient_is_its_finite_difference():
+    """wrt="map" on the twisted lattice beam with a graded modulus, a traction and a body force."""
+    rng = np.random.default_rng(1)
+    D = pr.twisted(pr.box((0.04, 0.01, 0.01), degrees=(2, 2, 2)), 0.2, axis_point=(0.02, 0.005))
+    D = D.with_channel("E", 1e9 * (1 + rng.random(D.control_points.shape[:3])))
+
+    def solve(D):
+        return _loaded(tiling.regular(D, library.cross(0.4), (4, 1, 1)))
+
+    g = solve(D).gradient(Compliance(), wrt="map")
+    assert g.shape == D.control_points.shape[:3] + (3,)
+    P0 = np.array(D.control_points)
+    d = np.zeros_like(P0)
+    d[..., :3] = rng.standard_normal(g.shape) * 2e-7
+    fd = (Compliance().value(solve(_moved(D, P0 + d))) - Compliance().value(solve(_moved(D, P0 - d)))) / 2
+    assert float(np.sum(g * d[..., :3])) == pytest.approx(fd, rel=1e-6)
+
+
+def test_the_compliance_s_parameter_gradient_is_its_finite_difference():
+    """wrt="parameters" of a field-graded lattice beam: the arm widths from a parameter spline, the modulus a
+    channel of the map (its values drag with the moving points)."""
+    from geometry import SplineFunction
+    from geometry import knots as kn
+
+    rng = np.random.default_rng(2)
+    D = pr.twisted(pr.box((0.04, 0.01, 0.01), degrees=(2, 2, 2)), 0.2, axis_point=(0.02, 0.005))
+    D = D.with_channel("E", 1e9 * (1 + rng.random(D.control_points.shape[:3])))
+    U = kn.uniform_knots(2, 1)
+
+    def solve(c):
+        field = SplineFunction((2, 2, 2), [U, U, U], c)
+        return _loaded(tiling.field_graded(D, library.face_graded_cross, (4, 1, 1), field))
+
+    c0 = 0.35 + 0.05 * rng.random((3, 3, 3, 1))
+    g = solve(c0).gradient(Compliance(), wrt="parameters")
+    assert g.shape == (3, 3, 3)
+    dc = rng.standard_normal(c0.shape) * 1e-5
+    fd = (Compliance().value(solve(c0 + dc)) - Compliance().value(solve(c0 - dc))) / 2
+    assert float(np.sum(g * dc[..., 0])) == pytest.approx(fd, rel=1e-6)
+
+
+def test_elastic_shape_gradients_refuse_what_they_do_not_cover():
+    E0 = np.full((3, 3, 3), 1e9)
+    D = pr.twisted(pr.box((0.04, 0.01, 0.01), degrees=(2, 2, 2)), 0.2, axis_point=(0.02, 0.005))
+    ms = tiling.regular(D.with_channel("E", E0), library.cross(0.4), (4, 1, 1))
+    pressed = ElasticityProblem(ms, youngs="E", poisson=0.3).dirichlet("umin", 0.0).pressure("umax", 1e4)
+    with pytest.raises(ProblemError, match="pressure"):
+        pressed.solve(solver="direct").gradient(Compliance(), wrt="map")
+    inside = ms.patches[-1].composed.evaluate(np.array([[0.5, 0.5, 0.5]]))[0, :3]  # a point of the last tile
+    pointed = ElasticityProblem(ms, youngs="E", poisson=0.3).dirichlet("umin", 0.0).point_load(inside, [0, 0, -1.0])
+    with pytest.raises(ProblemError, match="point load"):
+        pointed.solve(solver="direct").gradient(Compliance(), wrt="map")
+    with pytest.raises(ProblemError, match="Compliance"):
+        _beam(E0).solve(solver="direct").gradient(VonMisesNorm(4), wrt="map")

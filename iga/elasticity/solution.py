@@ -207,10 +207,21 @@ class ElasticSolution:
             prob.spaces[i].shape) for a in range(3)]), 3, fn)
 
     def gradient(self, output, wrt: str = "tiles", solver: str = "auto") -> np.ndarray:
-        """The derivative of the compliance (``iga.outputs.Compliance()``) by Young's modulus, without an extra
-        solve (the compliance is self-adjoint): ``wrt="tiles"`` or ``"patches"`` (a factor on each one's E) or
-        ``"channel:NAME"`` (the control values of the map's channel E reads);
-        :func:`iga.elasticity.sensitivity.elastic_sensitivity`.  ``solver`` is unused (no adjoint solve)."""
+        """The derivative of the compliance (``iga.outputs.Compliance()``), without an extra solve (the compliance
+        is self-adjoint): by Young's modulus, ``wrt="tiles"`` or ``"patches"`` (a factor on each one's E) or
+        ``"channel:NAME"`` (the control values of the map's channel E reads),
+        :func:`iga.elasticity.sensitivity.elastic_sensitivity`; by the shape, ``wrt="map"`` (the map's control
+        points, :func:`iga.shape_sensitivity.shape_sensitivity`) or ``"parameters"`` / ``"faces"`` (a
+        field-graded paving's field, :func:`iga.parameter_sensitivity.parameter_sensitivity`).  ``solver`` is
+        unused (no adjoint solve)."""
+        if wrt == "map":
+            from iga.shape_sensitivity import shape_sensitivity
+
+            return shape_sensitivity(self, output, solver)
+        if wrt in ("parameters", "faces"):
+            from iga.parameter_sensitivity import parameter_sensitivity
+
+            return parameter_sensitivity(self, output, wrt, solver)
         from iga.elasticity.sensitivity import elastic_sensitivity
 
         return elastic_sensitivity(self, output, wrt)

@@ -1,0 +1,91 @@
+"""The shape derivative of an elastic solution's compliance, as densities against the velocity gradient: what
+``wrt="map"`` (:mod:`iga.shape_sensitivity`) and ``wrt="parameters"`` (:mod:`iga.parameter_sensitivity`) contract
+with their velocities.
+
+The compliance J = l(u) of a(u, v) = l(v) is self-adjoint, so dJ = 2 l'(u) - a'(u, u) for a move V of the
+material points, and with grad u -> grad u - grad u grad V, dx -> div V dx, dA -> div_G V dA (material
+coefficients: numbers or channels of the map, which move with the points):
+
+    a'(u, u) = int eps : C : eps div V - 2 sigma : (grad u grad V) dV,
+    l'(u)   = int f . u div V dV + int t . u div_G V dA,
+
+i.e. dJ = sum_q Q_q : grad V_q with Q = 2 grad u^T sigma + (2 f . u - eps : C : eps) I in the volume and
+Q = 2 (t . u) (I - n n) on traction faces.  ``tests/test_elastic_sensitivity.py`` compares the contractions with
+central differences of fresh solves.  Refused: outputs other than the compliance, pressures (their direction
+moves with the face), point loads (they stay where they are while the material moves), callables of x,
+thermal strains and prescribed displacements other than zero.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from geometry.errors import show
+
+from iga.elasticity.forms import lame
+from iga.errors import ProblemError
+from iga.outputs import Compliance, gauss_pass
+
+__all__ = ["elastic_densities"]
+
+
+def _check(solution, output, what: str) -> None:
+    prob = solution.problem
+    if not isinstance(output, Compliance):
+        raise ProblemError(f"{what}: the elastic shape derivative is of Compliance() (self-adjoint), got "
+                           f"{show(output)}")
+    if prob.thermal_strain is not None:
+        raise ProblemError(f"{what}: the thermal strain's shape terms are not built; differentiate a problem without "
+                           ".thermal(...)")
+    if solution._prescribed is None or np.any(np.asarray(solution._prescribed) != 0):
+        raise ProblemError(f"{what} needs supports that hold at zero displacement (and a serial solve)")
+    if prob.point_loads:
+        raise ProblemError(f"{what}: a point load stays where it is while the material moves (its term is not "
+                           "built); use a traction")
+    for load in prob.loads:
+        if load.kind != "traction" or load.value.kind != "vector":
+            raise ProblemError(f"{what}: the {load.kind} on {show(load.tag)} must be a traction of three numbers (a "
+                               "pressure's direction moves with the face; a callable of x would move)")
+    if prob.body is not None and prob.body.kind != "vector":
+        raise ProblemError(f"{what}: the body force must be three numbers, not a callable of x")
+    for field in (prob.youngs, prob.poisson):
+        if field.kind == "callable":
+            raise ProblemError(f"{what}: {field.what} must be a number or a channel of the map (material), not a "
+                               "callable of x")
+
+
+def elastic_densities(solution, output, volume, faces, what: str) -> None:
+    """The compliance's shape densities (module notes) handed to ``volume(chunk, space, Qw, dk)`` per group of
+    patches (``dk``: the weighted derivative of the integrand by Young's modulus at the point) and to
+    ``faces(face data, Qw)`` once, as :func:`iga.shape_sensitivity.shape_densities` does for heat."""
+    _check(solution, output, what)
+    prob = solution.problem
+    n = prob.ndof
+    body = None if prob.body is None else np.asarray(prob.body.spec, float)
+
+    def add(chunk, space, vals, grads, wv, x, chans):
+        where = f"patches {chunk[0]}..{chunk[-1]}"
+        flat = {c: np.reshape(v, -1) for c, v in chans.items()}
+        E = prob.youngs.values(x, flat, where)
+        lam, mu = lame(E, prob.poisson.values(x, flat, where), where)
+        eps = 0.5 * (grads + np.transpose(grads, (0, 2, 1)))
+        tr = np.trace(eps, axis1=1, axis2=2)
+        sig = lam[:, None, None] * tr[:, None, None] * np.eye(3) + 2 * mu[:, None, None] * eps
+        energy2 = np.sum(sig * eps, axis=(1, 2))  # eps : C : eps
+        Q = 2 * np.einsum("qik,qij->qkj", grads, sig)
+        scalar = -energy2 + (0.0 if body is None else 2 * vals @ body)
+        Q += scalar[:, None, None] * np.eye(3)
+        volume(chunk, space, Q * wv[:, None, None], -energy2 / E * wv)
+
+    gauss_pass(prob, solution.u.reshape(3, n), add)
+    fds, dens = [], []
+    for load in prob.loads:
+        t = np.asarray(load.value.spec, float)
+        for fd in prob.faces(sorted(set(prob.tag_faces(load.tag)))):
+            u = np.stack([fd.trace(solution.u[a * n:(a + 1) * n]) for a in range(3)], axis=1)
+            fds.append(fd)
+            dens.append(2 * (u @ t) * fd.dAw)
+    if fds:
+        normal = np.concatenate([fd.normal for fd in fds])
+        d = np.concatenate(dens)
+        faces(fds, d[:, None, None] * (np.eye(3) - np.einsum("qi,qj->qij", normal, normal)))
