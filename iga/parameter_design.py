@@ -1,5 +1,6 @@
 """Grading by gradient: the parameter field of a field-graded micro-structure (:func:`tiling.field_graded`: e.g.
-the arm widths of :func:`tiling.library.face_graded_cross` on every cell wall) optimised for an output.
+the arm widths of :func:`tiling.library.face_graded_cross` on every cell wall) optimised for an output of a
+steady heat analysis, or for the compliance of an elastic one (:mod:`iga.elasticity.shape`).
 
 :func:`optimize_parameters` (``iga.optimize(problem, objective, wrt="parameters", bounds=(low, high))``) changes
 the field's control values (a parameter spline's coefficients or a channel of the map) within ``bounds`` (a
@@ -58,7 +59,7 @@ def optimize_parameters(problem, objective: Output, bounds, hold=(), keep_volume
     """Minimise ``objective`` over the control values of the model's parameter field (module notes); returns an
     :class:`iga.optimiser.DesignResult` whose ``values`` are the final control values (shaped like the field's)
     and whose steps record the solid volume (m^3)."""
-    check_design(problem, objective, maxiter)
+    check_design(problem, objective, maxiter, elastic=True)
     grading = getattr(problem.model, "grading", None)
     if grading is None:
         raise ProblemError("wrt='parameters' designs the parameter field of a field-graded micro-structure "
@@ -81,13 +82,15 @@ def optimize_parameters(problem, objective: Output, bounds, hold=(), keep_volume
     if not free.any():
         raise ProblemError(f"hold = {show(list(hold))} holds every control value of the field: nothing can move")
     volume, model = Volume(), problem.model
+    elastic = hasattr(problem, "youngs")
 
     def analyse(z):
         values = v0.copy()
         values[free] = lo + np.clip(z, 0, 1) * (hi - lo)
         new, field = _with_values(grading, D, values)
         ms = tiling.field_graded(new, grading.family, grading.counts, field, name=model.name)
-        sol = problem.on(ms).solve(solver=solver, keep=True)
+        again = problem.on(ms)
+        sol = again.solve(solver=solver) if elastic else again.solve(solver=solver, keep=True)
         g = np.asarray(parameter_sensitivity(sol, objective, "parameters", solver))[free] * (hi - lo)
         gV = np.asarray(parameter_sensitivity(sol, volume, "parameters", solver))[free] * (hi - lo)
         return values, sol, objective.value(sol), g, volume.value(sol), gV

@@ -24,7 +24,7 @@ from geometry.errors import show
 
 from iga.elasticity.forms import lame
 from iga.errors import ProblemError
-from iga.outputs import Compliance, gauss_pass
+from iga.outputs import Compliance, Volume, gauss_pass
 
 __all__ = ["elastic_densities"]
 
@@ -55,12 +55,16 @@ def _check(solution, output, what: str) -> None:
 
 
 def elastic_densities(solution, output, volume, faces, what: str) -> None:
-    """The compliance's shape densities (module notes) handed to ``volume(chunk, space, Qw, dk)`` per group of
+    """The compliance's shape densities (module notes; the volume's, div V, for :class:`Volume`) handed to ``volume(chunk, space, Qw, dk)`` per group of
     patches (``dk``: the weighted derivative of the integrand by Young's modulus at the point) and to
     ``faces(face data, Qw)`` once, as :func:`iga.shape_sensitivity.shape_densities` does for heat."""
-    _check(solution, output, what)
     prob = solution.problem
     n = prob.ndof
+    if isinstance(output, Volume):  # geometry alone: dV' = div V dV
+        gauss_pass(prob, np.zeros((1, n)), lambda chunk, space, vals, grads, wv, x, chans: volume(
+            chunk, space, wv[:, None, None] * np.eye(3), np.zeros_like(wv)))
+        return
+    _check(solution, output, what)
     body = None if prob.body is None else np.asarray(prob.body.spec, float)
 
     def add(chunk, space, vals, grads, wv, x, chans):
