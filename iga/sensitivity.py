@@ -83,10 +83,11 @@ def conductivity_sensitivity(solution, output: Output, per: str = "patch", solve
     return np.bincount(tiles, weights=out, minlength=len(prob.model.tiles))
 
 
-def channel_sensitivity(solution, output: Output, channel: str, solver: str = "auto") -> np.ndarray:
+def channel_sensitivity(solution, output: Output, channel: str, solver: str = "auto"):
     """dJ/dk_c of ``output`` with respect to the control values of the channel ``channel`` of the deformation map
     (the heat problem's conductivity must be that channel): an array shaped like D's control grid (module
-    notes).  Units: those of J per W/(m K) of a control value."""
+    notes); for a model of several maps (a V-rep union: its primitives and bridges) a tuple of such arrays, one
+    per map in the order the patches first name them.  Units: those of J per W/(m K) of a control value."""
     prob = solution.problem
     k = prob.conductivity
     if k.scalar is None or k.scalar.kind != "channel" or k.scalar.spec != channel:
@@ -94,13 +95,43 @@ def channel_sensitivity(solution, output: Output, channel: str, solver: str = "a
                            "give the problem conductivity=" + repr(channel) + " (or differentiate the channel the "
                            "conductivity reads)")
     patches = prob.model.patches
-    D, placed = design_map(prob, channel)
+    maps = _channel_maps(prob, channel)
+    if maps is None:  # one map (or one spline)
+        D, placed = design_map(prob, channel)
+        maps = [D]
+    else:
+        placed = True
+    index = {id(D): i for i, D in enumerate(maps)}
     lam = adjoint(solution, output, solver)
-    grad = np.zeros(int(np.prod(D.control_points.shape[:3])))
+    grads_ = [np.zeros(int(np.prod(D.control_points.shape[:3]))) for D in maps]
 
     def add(chunk, space, vals, grads, wv, x, chans):
-        rho = wv * np.sum(grads[:, 0] * grads[:, 1], axis=1)  # grad T . grad lambda w |det J|
-        grad[:] -= map_basis(D, map_parameters(patches, chunk, space, D, placed)).T @ rho
+        rho = (wv * np.sum(grads[:, 0] * grads[:, 1], axis=1)).reshape(len(chunk), -1)  # grad T . grad lambda w|J|
+        owner = np.array([index[id(patches[i].outer)] if len(maps) > 1 else 0 for i in chunk])
+        for m in np.unique(owner):  # the patches of each map at once
+            rows = np.flatnonzero(owner == m)
+            D = maps[m]
+            y = map_parameters(patches, [chunk[r] for r in rows], space, D, placed)
+            grads_[m] -= map_basis(D, y).T @ rho[rows].reshape(-1)
 
     gauss_pass(prob, np.stack([solution.u, lam]), add)
-    return grad.reshape(D.control_points.shape[:3])
+    out = [g.reshape(D.control_points.shape[:3]) for g, D in zip(grads_, maps)]
+    return out[0] if len(out) == 1 else tuple(out)
+
+
+def _channel_maps(prob, channel: str):
+    """The maps of a model of several deformation maps (a V-rep union: primitives and bridges), in the order
+    their patches first name them, each holding ``channel``; None for a model of one map or one spline."""
+    maps: list = []
+    for p in prob.model.patches:
+        if p.outer is None:
+            return None
+        if all(p.outer is not m for m in maps):
+            maps.append(p.outer)
+    if len(maps) <= 1:
+        return None
+    for m in maps:
+        if channel not in m.channels:
+            raise ProblemError(f"the model's maps must all hold the channel {show(channel)}; one holds "
+                               f"{list(m.channels)}")
+    return maps

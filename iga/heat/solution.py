@@ -293,7 +293,7 @@ class Solution:
     def gradient(self, output, wrt: str = "tiles", solver: str = "auto") -> np.ndarray:
         """The derivative of ``output`` (one of :mod:`iga.outputs`) by the adjoint: ``wrt="tiles"`` or
         ``"patches"`` (a factor on each one's conductivity), ``"channel:NAME"`` (the control values of the
-        map's channel the conductivity reads), ``"map"`` (the map's control point coordinates, (n1, n2, n3, 3)),
+        map's channel the conductivity reads; a tuple of arrays, one per map, on a model of several maps), ``"map"`` (the map's control point coordinates, (n1, n2, n3, 3)),
         ``"parameters"`` (the control values of a field-graded paving's parameter field) or ``"faces"`` (its
         values on the cell walls); :func:`iga.sensitivity.gradient`.  A solution of
         ``solve(keep=True)`` solves the adjoint with its kept factorisation (one back-substitution)."""
