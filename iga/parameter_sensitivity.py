@@ -1,6 +1,7 @@
-"""Exact sensitivities of heat outputs with respect to the parameter field of a field-graded micro-structure
-(:func:`tiling.field_graded`): the derivative of an output J by the values of the field on the cell walls
-(``wrt="faces"``) or by the field's control values (``wrt="parameters"``), from one adjoint solve.
+"""Exact sensitivities of heat outputs (and of an elastic solution's compliance, :mod:`iga.elasticity.shape`) with
+respect to the parameter field of a field-graded micro-structure (:func:`tiling.field_graded`): the derivative
+of an output J by the values of the field on the cell walls (``wrt="faces"``) or by the field's control values
+(``wrt="parameters"``), from one adjoint solve (none for the compliance, which is self-adjoint).
 
 Every patch of a field-graded paving is x = D(A T(xi) + b) with T a patch of the tile ``family(umin=..,
 wmax=..)`` of its cell's six wall values theta.  Changing a wall value moves the control points T_i of the two
@@ -74,14 +75,14 @@ def parameter_sensitivity(solution, output: Output, wrt: str = "parameters", sol
                            "as a parameter spline (geometry.SplineFunction) or a channel of the map, or ask "
                            "wrt='faces' for the derivative by the values on the cell walls")
     D, placed = shape_map(prob)
-    _check_model(ms, prob, D)
+    _check_model(ms, D)
     drag = _dragged_channel(prob, D, what)
     per_patch = _patch_gradients(solution, output, D, drag, solver, what)
-    walls = _wall_gradients(ms, grading, per_patch, what)
+    walls = _wall_gradients(ms, grading, per_patch)
     return walls if wrt == "faces" else _field_gradient(grading, walls, D)
 
 
-def _check_model(ms, prob, D) -> None:
+def _check_model(ms, D) -> None:
     """Every patch the tile's own patch in its cell (not split or refined by adaptivity), placed in D."""
     for i, p in enumerate(ms.patches):
         if p.outer is not D or p.refinement or p.spline is not ms.tiles[p.tile].patches[p.patch_in_tile]:
@@ -93,16 +94,13 @@ def _dragged_channel(prob, D, what: str):
     """The index of D's channel an isotropic conductivity (elasticity: Young's modulus) reads (its values move with
     the points: the drag term of the module notes), or None; sources, face data (Poisson's ratio) must not read
     D's channels."""
-    tile_channels = {c for p in prob.model.patches for c in p.spline.channels}
+    # (a channel the map holds is read from the map, before an equally named channel of the tile)
     if hasattr(prob, "youngs"):
-        if prob.poisson.kind == "channel" and prob.poisson.spec in D.channels and \
-                prob.poisson.spec not in tile_channels:
+        if prob.poisson.kind == "channel" and prob.poisson.spec in D.channels:
             raise ProblemError(f"{what}: Poisson's ratio reads the map's channel {show(prob.poisson.spec)}; its "
                                "term is not built (give a number)")
         E = prob.youngs
-        if E.kind == "channel" and E.spec in D.channels and E.spec not in tile_channels:
-            return list(D.channels).index(E.spec)
-        return None
+        return list(D.channels).index(E.spec) if E.kind == "channel" and E.spec in D.channels else None
     k = prob.conductivity
     if k.channels is not None and any(c in D.channels for c in k.channels):
         raise ProblemError(f"{what}: an anisotropic conductivity read from channels of the map is not supported "
@@ -114,9 +112,8 @@ def _dragged_channel(prob, D, what: str):
             if getattr(field, "kind", None) == "channel" and field.spec in D.channels:
                 raise ProblemError(f"{what}: the {c.kind} data on {show(c.tag)} read the map's channel "
                                    f"{show(field.spec)}; give numbers")
-    if k.scalar is not None and k.scalar.kind == "channel":
-        if k.scalar.spec not in tile_channels:  # a tile's channel moves with its points: no drag
-            return list(D.channels).index(k.scalar.spec)
+    if k.scalar is not None and k.scalar.kind == "channel" and k.scalar.spec in D.channels:
+        return list(D.channels).index(k.scalar.spec)  # (a tile's own channel moves with its points: no drag)
     return None
 
 
@@ -273,7 +270,7 @@ def _control_points(family, values: dict, tile, t: int, face: str) -> list:
     return [p.control_points[..., :3].reshape(-1, 3) for p in other.patches]
 
 
-def _wall_gradients(ms, grading, per_patch: dict, what: str) -> tuple:
+def _wall_gradients(ms, grading, per_patch: dict) -> tuple:
     """dJ/dtheta on every wall: tuple of three arrays shaped like ``grading.faces``."""
     out = tuple(np.zeros(f.shape) for f in grading.faces)
     by_tile: dict = {}
