@@ -21,7 +21,7 @@ import numpy as np
 from geometry.errors import show
 
 from iga.adjoint import design_map, map_basis, map_parameters
-from iga.elasticity.forms import lame
+from iga.elasticity.shape import strain_and_stress
 from iga.errors import ProblemError
 from iga.outputs import Compliance, Output, gauss_pass
 
@@ -65,12 +65,8 @@ def elastic_sensitivity(solution, output: Output, wrt: str = "tiles") -> np.ndar
     patches = prob.model.patches
 
     def add(chunk, space, vals, grads, wv, x, chans):
-        where = f"patches {chunk[0]}..{chunk[-1]}"
-        flat = {c: np.reshape(v, -1) for c, v in chans.items()}
-        E = prob.youngs.values(x, flat, where)
-        lam, mu = lame(E, prob.poisson.values(x, flat, where), where)
-        eps = 0.5 * (grads + np.transpose(grads, (0, 2, 1)))
-        energy2 = (lam * np.trace(eps, axis1=1, axis2=2) ** 2 + 2 * mu * np.sum(eps * eps, axis=(1, 2))) * wv
+        E, eps, sig = strain_and_stress(prob, chunk, grads, x, chans)
+        energy2 = np.sum(sig * eps, axis=(1, 2)) * wv  # eps : C : eps
         if channel is None:
             out[np.asarray(chunk)] -= energy2.reshape(len(chunk), -1).sum(1)
         else:

@@ -26,7 +26,7 @@ from iga.elasticity.forms import lame
 from iga.errors import ProblemError
 from iga.outputs import Compliance, Volume, gauss_pass
 
-__all__ = ["elastic_densities"]
+__all__ = ["elastic_densities", "strain_and_stress"]
 
 
 def _check(solution, output, what: str) -> None:
@@ -54,6 +54,19 @@ def _check(solution, output, what: str) -> None:
                                "callable of x")
 
 
+def strain_and_stress(prob, chunk, grads, x, chans) -> tuple:
+    """(E (N,), eps (N, 3, 3), sigma (N, 3, 3)) at Gauss points of the patches ``chunk`` from the displacement
+    gradients ``grads`` (N, 3, 3), the points x and the channels there (isotropic: sigma = lam tr(eps) I + 2 mu
+    eps; no thermal strain)."""
+    where = f"patches {chunk[0]}..{chunk[-1]}"
+    flat = {c: np.reshape(v, -1) for c, v in chans.items()}
+    E = prob.youngs.values(x, flat, where)
+    lam, mu = lame(E, prob.poisson.values(x, flat, where), where)
+    eps = 0.5 * (grads + np.transpose(grads, (0, 2, 1)))
+    tr = np.trace(eps, axis1=1, axis2=2)
+    return E, eps, lam[:, None, None] * tr[:, None, None] * np.eye(3) + 2 * mu[:, None, None] * eps
+
+
 def elastic_densities(solution, output, volume, faces, what: str) -> None:
     """The compliance's shape densities (module notes; the volume's, div V, for :class:`Volume`) handed to ``volume(chunk, space, Qw, dk)`` per group of
     patches (``dk``: the weighted derivative of the integrand by Young's modulus at the point) and to
@@ -68,13 +81,7 @@ def elastic_densities(solution, output, volume, faces, what: str) -> None:
     body = None if prob.body is None else np.asarray(prob.body.spec, float)
 
     def add(chunk, space, vals, grads, wv, x, chans):
-        where = f"patches {chunk[0]}..{chunk[-1]}"
-        flat = {c: np.reshape(v, -1) for c, v in chans.items()}
-        E = prob.youngs.values(x, flat, where)
-        lam, mu = lame(E, prob.poisson.values(x, flat, where), where)
-        eps = 0.5 * (grads + np.transpose(grads, (0, 2, 1)))
-        tr = np.trace(eps, axis1=1, axis2=2)
-        sig = lam[:, None, None] * tr[:, None, None] * np.eye(3) + 2 * mu[:, None, None] * eps
+        E, eps, sig = strain_and_stress(prob, chunk, grads, x, chans)
         energy2 = np.sum(sig * eps, axis=(1, 2))  # eps : C : eps
         Q = 2 * np.einsum("qik,qij->qkj", grads, sig)
         scalar = -energy2 + (0.0 if body is None else 2 * vals @ body)
