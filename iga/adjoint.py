@@ -21,7 +21,8 @@ from iga.discretisation.system import solve_system
 from iga.errors import ProblemError
 from iga.outputs import Output
 
-__all__ = ["adjoint", "shape_map", "design_map", "map_parameters", "map_basis", "map_basis_values"]
+__all__ = ["adjoint", "shape_map", "design_map", "map_parameters", "map_basis", "map_basis_values", "ChannelScatter",
+           "per_patch_or_tile"]
 
 
 def adjoint(solution, output: Output, solver: str = "auto", tol: float = 1e-12) -> np.ndarray:
@@ -122,3 +123,65 @@ def map_basis(D, y: np.ndarray) -> sp.csr_matrix:
     idx, R, _ = map_basis_values(D, y)
     rows = np.repeat(np.arange(len(y)), idx.shape[1])
     return sp.csr_matrix((R.ravel(), (rows, idx.ravel())), shape=(len(y), int(np.prod(D.control_points.shape[:3]))))
+
+
+class ChannelScatter:
+    """Densities at the Gauss points scattered onto the control values of a channel: dJ/dc = sum_q R_c(y_q) rho_q
+    for the map(s) that hold ``channel`` (one map or one spline; or every map of a model of several, a V-rep
+    union's primitives and bridges).  ``add(chunk, space, rho (P nq,))`` per group of :func:`iga.outputs.gauss_pass`;
+    :meth:`result` is an array shaped like the map's control grid, or a tuple of them, one per map in the order
+    the patches first name them."""
+
+    def __init__(self, problem, channel: str):
+        self.patches = problem.model.patches
+        maps = _channel_maps(problem, channel)
+        if maps is None:  # one map (or one spline)
+            D, self.placed = design_map(problem, channel)
+            maps = [D]
+        else:
+            self.placed = True
+        self.maps = maps
+        self.index = {id(D): i for i, D in enumerate(maps)}
+        self.grads = [np.zeros(int(np.prod(D.control_points.shape[:3]))) for D in maps]
+
+    def add(self, chunk, space, rho: np.ndarray) -> None:
+        rho = rho.reshape(len(chunk), -1)
+        owner = np.array([self.index[id(self.patches[i].outer)] if len(self.maps) > 1 else 0 for i in chunk])
+        for m in np.unique(owner):  # the patches of each map at once
+            rows = np.flatnonzero(owner == m)
+            D = self.maps[m]
+            y = map_parameters(self.patches, [chunk[r] for r in rows], space, D, self.placed)
+            self.grads[m] += map_basis(D, y).T @ rho[rows].reshape(-1)
+
+    def result(self):
+        out = [g.reshape(D.control_points.shape[:3]) for g, D in zip(self.grads, self.maps)]
+        return out[0] if len(out) == 1 else tuple(out)
+
+
+def _channel_maps(problem, channel: str):
+    """The maps of a model of several deformation maps, in the order their patches first name them, each holding
+    ``channel``; None for a model of one map or one spline."""
+    maps: list = []
+    for p in problem.model.patches:
+        if p.outer is None:
+            return None
+        if all(p.outer is not m for m in maps):
+            maps.append(p.outer)
+    if len(maps) <= 1:
+        return None
+    for m in maps:
+        if channel not in m.channels:
+            raise ProblemError(f"the model's maps must all hold the channel {show(channel)}; one holds "
+                               f"{list(m.channels)}")
+    return maps
+
+
+def per_patch_or_tile(problem, per_patch: np.ndarray, per: str) -> np.ndarray:
+    """Values per patch (patches,) as they are (``per="patch"``) or summed per tile (``per="tile"``, (tiles,): a
+    micro-structure's; the project's error for another model)."""
+    if per == "patch":
+        return per_patch
+    if not hasattr(problem.model, "tiles"):
+        raise ProblemError("per tile needs a micro-structure (its patches know their tiles); ask per patch")
+    tiles = np.array([p.tile for p in problem.model.patches])
+    return np.bincount(tiles, weights=per_patch, minlength=len(problem.model.tiles))

@@ -22,7 +22,7 @@ import numpy as np
 
 from geometry.errors import show
 
-from iga.adjoint import adjoint, design_map, map_basis, map_parameters
+from iga.adjoint import ChannelScatter, adjoint, design_map, map_basis, map_parameters, per_patch_or_tile
 from iga.errors import ProblemError
 from iga.heat.coefficients import TENSOR_PAIRS
 from iga.outputs import Output, gauss_pass
@@ -77,10 +77,7 @@ def conductivity_sensitivity(solution, output: Output, per: str = "patch", solve
         out[np.asarray(chunk)] -= (dens * wv).reshape(len(chunk), -1).sum(1)
 
     gauss_pass(prob, np.stack([solution.u, lam]), add)
-    if per == "patch":
-        return out
-    tiles = np.array([p.tile for p in prob.model.patches])
-    return np.bincount(tiles, weights=out, minlength=len(prob.model.tiles))
+    return per_patch_or_tile(prob, out, per)
 
 
 def channel_sensitivity(solution, output: Output, channel: str, solver: str = "auto"):
@@ -94,44 +91,11 @@ def channel_sensitivity(solution, output: Output, channel: str, solver: str = "a
         raise ProblemError(f"channel_sensitivity: the conductivity is not the channel {show(channel)} of the map; "
                            "give the problem conductivity=" + repr(channel) + " (or differentiate the channel the "
                            "conductivity reads)")
-    patches = prob.model.patches
-    maps = _channel_maps(prob, channel)
-    if maps is None:  # one map (or one spline)
-        D, placed = design_map(prob, channel)
-        maps = [D]
-    else:
-        placed = True
-    index = {id(D): i for i, D in enumerate(maps)}
+    scatter = ChannelScatter(prob, channel)
     lam = adjoint(solution, output, solver)
-    grads_ = [np.zeros(int(np.prod(D.control_points.shape[:3]))) for D in maps]
 
     def add(chunk, space, vals, grads, wv, x, chans):
-        rho = (wv * np.sum(grads[:, 0] * grads[:, 1], axis=1)).reshape(len(chunk), -1)  # grad T . grad lambda w|J|
-        owner = np.array([index[id(patches[i].outer)] if len(maps) > 1 else 0 for i in chunk])
-        for m in np.unique(owner):  # the patches of each map at once
-            rows = np.flatnonzero(owner == m)
-            D = maps[m]
-            y = map_parameters(patches, [chunk[r] for r in rows], space, D, placed)
-            grads_[m] -= map_basis(D, y).T @ rho[rows].reshape(-1)
+        scatter.add(chunk, space, -wv * np.sum(grads[:, 0] * grads[:, 1], axis=1))  # -grad T . grad lambda w|J|
 
     gauss_pass(prob, np.stack([solution.u, lam]), add)
-    out = [g.reshape(D.control_points.shape[:3]) for g, D in zip(grads_, maps)]
-    return out[0] if len(out) == 1 else tuple(out)
-
-
-def _channel_maps(prob, channel: str):
-    """The maps of a model of several deformation maps (a V-rep union: primitives and bridges), in the order
-    their patches first name them, each holding ``channel``; None for a model of one map or one spline."""
-    maps: list = []
-    for p in prob.model.patches:
-        if p.outer is None:
-            return None
-        if all(p.outer is not m for m in maps):
-            maps.append(p.outer)
-    if len(maps) <= 1:
-        return None
-    for m in maps:
-        if channel not in m.channels:
-            raise ProblemError(f"the model's maps must all hold the channel {show(channel)}; one holds "
-                               f"{list(m.channels)}")
-    return maps
+    return scatter.result()

@@ -20,10 +20,10 @@ import numpy as np
 
 from geometry.errors import show
 
-from iga.adjoint import design_map, map_basis, map_parameters
-from iga.elasticity.shape import strain_and_stress
+from iga.adjoint import ChannelScatter, per_patch_or_tile
+from iga.elasticity.shape import self_adjoint, strain_and_stress
 from iga.errors import ProblemError
-from iga.outputs import Compliance, Output, gauss_pass
+from iga.outputs import Output, gauss_pass
 
 __all__ = ["elastic_sensitivity"]
 
@@ -31,29 +31,17 @@ __all__ = ["elastic_sensitivity"]
 def elastic_sensitivity(solution, output: Output, wrt: str = "tiles") -> np.ndarray:
     """dJ/dp of the compliance of an elastic ``solution`` (module notes): ``wrt="tiles"`` (tiles,) or
     ``"patches"`` (patches,) for a factor on E, in J per unit relative change; ``wrt="channel:NAME"`` per control
-    value of the map's channel NAME that E reads, shaped like the map's control grid, in J per Pa."""
-    if not isinstance(output, Compliance):
-        raise ProblemError(f"elastic sensitivities are of Compliance() (self-adjoint: no extra solve); "
-                           f"{show(output)} has no elastic adjoint here")
+    value of the map's channel NAME that E reads, shaped like the map's control grid (a tuple of them for a model
+    of several maps), in J per Pa."""
+    self_adjoint(solution, output, "elastic sensitivities", "sensitivity by Young's modulus")
     prob = solution.problem
-    if prob.thermal_strain is not None:
-        raise ProblemError("elastic sensitivities: the thermal strain's load depends on Young's modulus (its "
-                           "term is not built); differentiate a problem without .thermal(...)")
-    prescribed = solution._prescribed
-    if prescribed is None:
-        raise ProblemError("elastic sensitivities need the solve's prescribed values, which a distributed solve "
-                           "does not keep")
-    if np.any(np.asarray(prescribed) != 0):
-        raise ProblemError("elastic sensitivities of the compliance need supports that hold at zero displacement "
-                           "(a prescribed non-zero displacement does work the loads' u . f does not count)")
     channel = None
     if isinstance(wrt, str) and wrt.startswith("channel:"):
         channel = wrt.split(":", 1)[1]
         if prob.youngs.kind != "channel" or prob.youngs.spec != channel:
             raise ProblemError(f"wrt={wrt!r}: Young's modulus is {show(prob.youngs.spec)}, not the channel "
                                f"{show(channel)}; the derivative is by the channel E reads")
-        D, placed = design_map(prob, channel)
-        out = np.zeros(int(np.prod(D.control_points.shape[:3])))
+        scatter = ChannelScatter(prob, channel)
     elif wrt in ("tiles", "patches"):
         if wrt == "tiles" and not hasattr(prob.model, "tiles"):
             raise ProblemError("wrt='tiles' needs a micro-structure (its patches know their tiles); use 'patches'")
@@ -61,8 +49,6 @@ def elastic_sensitivity(solution, output: Output, wrt: str = "tiles") -> np.ndar
     else:
         raise ProblemError(f"wrt must be 'tiles', 'patches' or 'channel:NAME' for an elastic solution, got "
                            f"{show(wrt)}")
-    n = prob.ndof
-    patches = prob.model.patches
 
     def add(chunk, space, vals, grads, wv, x, chans):
         E, eps, sig = strain_and_stress(prob, chunk, grads, x, chans)
@@ -70,12 +56,7 @@ def elastic_sensitivity(solution, output: Output, wrt: str = "tiles") -> np.ndar
         if channel is None:
             out[np.asarray(chunk)] -= energy2.reshape(len(chunk), -1).sum(1)
         else:
-            out[:] -= map_basis(D, map_parameters(patches, chunk, space, D, placed)).T @ (energy2 / E)
+            scatter.add(chunk, space, -energy2 / E)
 
-    gauss_pass(prob, solution.u.reshape(3, n), add)
-    if channel is not None:
-        return out.reshape(D.control_points.shape[:3])
-    if wrt == "patches":
-        return out
-    tiles = np.array([p.tile for p in patches])
-    return np.bincount(tiles, weights=out, minlength=len(prob.model.tiles))
+    gauss_pass(prob, solution.u.reshape(3, prob.ndof), add)
+    return scatter.result() if channel is not None else per_patch_or_tile(prob, out, wrt[:-1])

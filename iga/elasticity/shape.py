@@ -26,19 +26,27 @@ from iga.elasticity.forms import lame
 from iga.errors import ProblemError
 from iga.outputs import Compliance, Volume, gauss_pass
 
-__all__ = ["elastic_densities", "strain_and_stress"]
+__all__ = ["elastic_densities", "strain_and_stress", "self_adjoint"]
 
 
-def _check(solution, output, what: str) -> None:
-    prob = solution.problem
+def self_adjoint(solution, output, what: str, subject: str = "shape derivative") -> None:
+    """Refuse what makes the compliance's adjoint other than the solution itself: another output, a thermal strain
+    (its load depends on the material and the shape), prescribed displacements other than zero (their work is not
+    in u . f), a distributed solve (no prescribed values kept)."""
     if not isinstance(output, Compliance):
-        raise ProblemError(f"{what}: the elastic shape derivative is of Compliance() (self-adjoint), got "
+        raise ProblemError(f"{what}: the elastic {subject} is of Compliance() (self-adjoint: no extra solve), got "
                            f"{show(output)}")
-    if prob.thermal_strain is not None:
-        raise ProblemError(f"{what}: the thermal strain's shape terms are not built; differentiate a problem without "
+    if solution.problem.thermal_strain is not None:
+        raise ProblemError(f"{what}: the thermal strain's terms are not built; differentiate a problem without "
                            ".thermal(...)")
     if solution._prescribed is None or np.any(np.asarray(solution._prescribed) != 0):
         raise ProblemError(f"{what} needs supports that hold at zero displacement (and a serial solve)")
+
+
+def _check(solution, output, what: str) -> None:
+    """:func:`self_adjoint`, and the loads and materials whose shape terms are built."""
+    self_adjoint(solution, output, what)
+    prob = solution.problem
     if prob.point_loads:
         raise ProblemError(f"{what}: a point load stays where it is while the material moves (its term is not "
                            "built); use a traction")
