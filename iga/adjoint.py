@@ -88,12 +88,15 @@ def map_parameters(patches, chunk, space, D, placed: bool) -> np.ndarray:
     return np.clip(np.concatenate(ys), D.domain[:, 0], D.domain[:, 1])
 
 
-def map_basis_values(D, y: np.ndarray, derivatives: bool = False):
+def map_basis_values(D, y: np.ndarray, derivatives: bool = False, sides=None):
     """(idx (N, b), R (N, b), dR): the control indices of the b basis functions of D non-zero at each parameter y
     (N, 3), their values and, with ``derivatives``, [dR / dy_k (N, b)] * 3 (else None); NURBS where D has
-    weights (R_c = w_c N_c / W, dR_c = w_c (dN_c W - N_c dW) / W^2)."""
+    weights (R_c = w_c N_c / W, dR_c = w_c (dN_c W - N_c dW) / W^2).  ``sides``: per direction "left" or
+    "right" (default), the limit taken at a knot (at a discontinuity plane, from one side)."""
     n = D.control_points.shape[:3]
-    parts = [kn.basis_functions(D.knots[d], D.degrees[d], y[:, d], nder=int(derivatives)) for d in range(3)]
+    sides = sides or ("right",) * 3
+    parts = [kn.basis_functions(D.knots[d], D.degrees[d], y[:, d], nder=int(derivatives), side=sides[d])
+             for d in range(3)]
     idx = None
     for d, (spans, _) in enumerate(parts):
         i_d = spans[:, None] - D.degrees[d] + np.arange(D.degrees[d] + 1)[None]  # (N, p + 1) indices along d

@@ -40,13 +40,12 @@ import numpy as np
 import scipy.sparse as sp
 
 from geometry import SplineFunction
-from geometry import knots as kn
 from geometry.errors import show
 from geometry.numbers import is_real
 from tiling import TilingError
 from tiling.graded_layers import spline_parameters
 
-from iga.adjoint import map_basis, shape_map
+from iga.adjoint import map_basis, map_basis_values, shape_map
 from iga.errors import ProblemError
 from iga.outputs import Output
 from iga.shape_sensitivity import face_plane, shape_densities, steady_heat
@@ -125,23 +124,18 @@ def _basis_key(T, axes, sides) -> tuple:
 
 
 def _tile_basis(T, axes, sides=None):
-    """T's basis on the grid ``axes`` (three 1-D arrays; ``sides`` per direction "left"/"right" for a limit at a
-    break): sparse (N, n) values and the three first derivatives, NURBS where T has weights."""
-    sides = tuple(sides or ("right",) * 3)
-    mats = [kn.basis_matrices(T.knots[d], T.degrees[d], axes[d], 1, sides[d]) for d in range(3)]
+    """T's basis on the grid ``axes`` (three 1-D arrays, C order; ``sides`` per direction "left"/"right" for a
+    limit at a break): sparse (N, n) values and the three first derivatives, NURBS where T has weights
+    (:func:`iga.adjoint.map_basis_values`)."""
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
+    idx, R, dR = map_basis_values(T, grid, derivatives=True, sides=sides)
+    rows = np.repeat(np.arange(len(grid)), idx.shape[1])
+    shape = (len(grid), int(np.prod(T.control_points.shape[:3])))
 
-    def kron(orders):
-        return sp.kron(sp.kron(mats[0][orders[0]], mats[1][orders[1]]), mats[2][orders[2]]).tocsr()
+    def csr(values):
+        return sp.csr_matrix((values.ravel(), (rows, idx.ravel())), shape=shape)
 
-    N0 = kron((0, 0, 0))
-    dN = [kron(tuple(int(j == k) for j in range(3))) for k in range(3)]
-    if T.weights is None:
-        return N0, dN
-    w = np.asarray(T.weights, float).reshape(-1)
-    W = N0 @ w
-    R = sp.diags(1 / W) @ N0 @ sp.diags(w)
-    dR = [sp.diags(1 / W) @ d @ sp.diags(w) - sp.diags((d @ w) / W ** 2) @ N0 @ sp.diags(w) for d in dN]
-    return R.tocsr(), [d.tocsr() for d in dR]
+    return csr(R), [csr(d) for d in dR]
 
 
 def _against_tile(patches, members, D, drag, B, dB, Qw, dk):
