@@ -20,7 +20,7 @@ from geometry.numbers import is_real
 
 from iga.adjoint import design_map, map_basis, map_parameters
 from iga.errors import ProblemError
-from iga.optimiser import DesignResult, DesignStep, check_design, redesigned, run_slsqp
+from iga.optimiser import DesignResult, DesignStep, analysed, bounds_pair, check_design, redesigned, run_slsqp
 from iga.outputs import Output, gauss_pass
 from iga.parameter_design import optimize_parameters
 from iga.shape_design import optimize_shape
@@ -47,9 +47,7 @@ def _check(wrt, bounds, mean) -> None:
         raise ProblemError(f"wrt must be 'channel:NAME' (the control values of the map's channel NAME, which the "
                            f"conductivity reads), 'map' (its control points) or 'parameters' (a field-graded "
                            f"paving's parameter field), got {show(wrt)}")
-    ok = (isinstance(bounds, (tuple, list)) and len(bounds) == 2 and all(is_real(b) and np.isfinite(b) for b in bounds)
-          and 0 < bounds[0] < bounds[1])
-    if not ok:
+    if not bounds_pair(bounds, positive=True):
         raise ProblemError(f"bounds must be (low, high) of the channel with 0 < low < high, e.g. (54, 205) W/(m K) "
                            f"for steel to aluminium conductivities, or Young's moduli in Pa, got {show(bounds)}")
     if mean is not None and not (is_real(mean) and bounds[0] <= mean <= bounds[1]):
@@ -109,8 +107,7 @@ def optimize(problem, objective: Output, wrt: str = "channel:k", bounds=None, me
     def analyse(z):
         values = lo + np.clip(z, 0, 1) * (hi - lo)
         new = D.with_channel(name, values.reshape(D.control_points.shape[:3]))
-        again = problem.on(redesigned(problem.model, D, new, placed))
-        sol = again.solve(solver=solver) if elastic else again.solve(solver=solver, keep=True)
+        sol = analysed(problem.on(redesigned(problem.model, D, new, placed)), solver)
         return values, sol, objective.value(sol), sol.gradient(objective, wrt, solver).reshape(-1) * (
             hi - lo), float(vol @ values / total), None
 

@@ -15,6 +15,7 @@ from scipy.optimize import minimize
 from geometry import progress
 from geometry.errors import show
 from geometry.faces import FACE_AXIS
+from geometry.numbers import is_real
 from geometry.patches.multipatch import PlacedPatch
 
 from iga.errors import ProblemError
@@ -22,7 +23,8 @@ from iga.heat.problem import HeatProblem
 from iga.model import same_kind
 from iga.outputs import Compliance, Output
 
-__all__ = ["DesignStep", "DesignResult", "redesigned", "run_slsqp", "check_design", "free_mask"]
+__all__ = ["DesignStep", "DesignResult", "redesigned", "run_slsqp", "check_design", "free_mask", "bounds_pair",
+           "analysed"]
 
 
 @dataclass(frozen=True)
@@ -89,6 +91,18 @@ def free_mask(shape, hold) -> np.ndarray:
         index[k] = -1 if side else 0
         free[tuple(index)] = False
     return free
+
+
+def bounds_pair(bounds, positive: bool = False) -> bool:
+    """Whether ``bounds`` is (low, high) of finite numbers with low < high (and 0 < low where ``positive``)."""
+    return (isinstance(bounds, (tuple, list)) and len(bounds) == 2 and all(is_real(b) and np.isfinite(b) for b in bounds)
+            and (not positive or 0 < bounds[0]) and bounds[0] < bounds[1])
+
+
+def analysed(problem, solver: str):
+    """One analysis of a design: a heat problem keeps its factorisation for the adjoint solves that follow; an
+    elastic one (its compliance is self-adjoint) needs none."""
+    return problem.solve(solver=solver) if hasattr(problem, "youngs") else problem.solve(solver=solver, keep=True)
 
 
 def check_design(problem, objective, maxiter, elastic: bool = False) -> None:

@@ -24,7 +24,7 @@ from geometry.numbers import is_real
 
 from iga.adjoint import shape_map
 from iga.errors import ProblemError
-from iga.optimiser import check_design, free_mask, run_slsqp
+from iga.optimiser import analysed, bounds_pair, check_design, free_mask, run_slsqp
 from iga.outputs import Output, Volume
 from iga.parameter_sensitivity import parameter_sensitivity
 
@@ -32,7 +32,8 @@ __all__ = ["optimize_parameters"]
 
 
 def _field_values(grading, D) -> np.ndarray:
-    """The field's control values (flat) and how to rebuild the field from new ones."""
+    """The field's control values: a parameter spline's coefficients (n1, n2, n3), the map channel's control values
+    (n1, n2, n3), or the one number (a 0-d array)."""
     field = grading.field
     if isinstance(field, SplineFunction):
         return np.array(field.coefficients[..., 0], float)
@@ -64,9 +65,7 @@ def optimize_parameters(problem, objective: Output, bounds, hold=(), keep_volume
     if grading is None:
         raise ProblemError("wrt='parameters' designs the parameter field of a field-graded micro-structure "
                            "(tiling.field_graded); this model has none")
-    ok = (isinstance(bounds, (tuple, list)) and len(bounds) == 2 and all(is_real(b) and np.isfinite(b) for b in bounds)
-          and bounds[0] < bounds[1])
-    if not ok:
+    if not bounds_pair(bounds):
         raise ProblemError(f"wrt='parameters': bounds must be (low, high) of the field's control values, low < high "
                            f"(inside the family's range, e.g. (0.15, 0.6) arm widths), got {show(bounds)}")
     D, _ = shape_map(problem)
@@ -82,15 +81,13 @@ def optimize_parameters(problem, objective: Output, bounds, hold=(), keep_volume
     if not free.any():
         raise ProblemError(f"hold = {show(list(hold))} holds every control value of the field: nothing can move")
     volume, model = Volume(), problem.model
-    elastic = hasattr(problem, "youngs")
 
     def analyse(z):
         values = v0.copy()
         values[free] = lo + np.clip(z, 0, 1) * (hi - lo)
         new, field = _with_values(grading, D, values)
         ms = tiling.field_graded(new, grading.family, grading.counts, field, name=model.name)
-        again = problem.on(ms)
-        sol = again.solve(solver=solver) if elastic else again.solve(solver=solver, keep=True)
+        sol = analysed(problem.on(ms), solver)
         g = np.asarray(parameter_sensitivity(sol, objective, "parameters", solver))[free] * (hi - lo)
         gV = np.asarray(parameter_sensitivity(sol, volume, "parameters", solver))[free] * (hi - lo)
         return values, sol, objective.value(sol), g, volume.value(sol), gV

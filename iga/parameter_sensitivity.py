@@ -73,7 +73,7 @@ def parameter_sensitivity(solution, output: Output, wrt: str = "parameters", sol
         raise ProblemError("wrt='parameters': the field is a callable, which has no control values; give the field "
                            "as a parameter spline (geometry.SplineFunction) or a channel of the map, or ask "
                            "wrt='faces' for the derivative by the values on the cell walls")
-    D, placed = shape_map(prob)
+    D, _ = shape_map(prob)  # (placed: every patch is, _check_model)
     _check_model(ms, D)
     drag = _dragged_channel(prob, D, what)
     per_patch = _patch_gradients(solution, output, D, drag, solver, what)
