@@ -3,6 +3,7 @@
 import meshio
 import numpy as np
 import pytest
+from commands import iga_command
 
 import iga
 import tiling
@@ -307,12 +308,9 @@ png = false
 @pytest.mark.slow
 def test_a_pipeline_adapts_a_graded_heat_sink_and_reports_every_step(tmp_path):
     import json
-    import subprocess
-    import sys
 
     (tmp_path / "sink.toml").write_text(SINK)
-    done = subprocess.run([sys.executable, "-m", "iga", "run", str(tmp_path / "sink.toml")], capture_output=True,
-                          text=True, cwd=tmp_path)
+    done = iga_command("run", tmp_path / "sink.toml", cwd=tmp_path)
     assert done.returncode == 0, done.stderr[-2000:]
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     a = summary["adapt"]

@@ -19,6 +19,7 @@ from functools import lru_cache
 
 import numpy as np
 import pytest
+from commands import iga_command
 
 import solvers
 import tiling
@@ -830,8 +831,7 @@ def test_resources_are_refused_within_seconds(fn, exc, match, tmp_path, monkeypa
 def _cli(tmp_path, *args, toml=None):
     if toml is not None:
         (tmp_path / "c.toml").write_text(toml)
-    return subprocess.run([sys.executable, "-m", "iga", *args], capture_output=True, text=True, cwd=tmp_path,
-                          timeout=120)
+    return iga_command(*args, cwd=tmp_path)
 
 
 GOOD_TOML = """

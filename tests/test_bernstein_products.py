@@ -5,6 +5,8 @@ import pytest
 
 from geometry import BSpline, bernstein as bz, compose_many, knots as kn
 
+pytestmark = pytest.mark.all_threads  # the compiled kernels on every thread: a race would show
+
 pytest.importorskip("numba", reason="the compiled product needs numba (test extra)")
 
 

@@ -3,12 +3,11 @@ and it speaks of the software, not of how it was made."""
 
 import json
 import re
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from commands import iga_command, run_code
 
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text()
@@ -39,7 +38,7 @@ def _python_blocks():
 @pytest.mark.slow
 @pytest.mark.parametrize("code", _python_blocks())
 def test_every_python_block_of_the_readme_and_docs_runs_as_written(code, tmp_path):
-    run = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    run = run_code(code, cwd=tmp_path)
     assert run.returncode == 0, run.stderr[-2000:]
     written = [p for p in tmp_path.iterdir() if p.stat().st_size > 0]
     for name in re.findall(r"""["']([\w.-]+\.(?:vtu|png|stl|xml|igs))["']""", code):
@@ -63,8 +62,7 @@ def test_every_toml_block_of_the_readme_and_docs_runs_through_iga_run(code, tmp_
     import tomllib
 
     (tmp_path / "case.toml").write_text(code)
-    run = subprocess.run([sys.executable, "-m", "iga", "--quiet", "run", "case.toml"], cwd=tmp_path,
-                         capture_output=True, text=True, timeout=300)
+    run = iga_command("--quiet", "run", "case.toml", cwd=tmp_path)
     assert run.returncode == 0, run.stderr[-2000:]
     out = tmp_path / tomllib.loads(code).get("output", {}).get("dir", "out")
     summary = json.loads((out / "summary.json").read_text())  # the run wrote what a run writes, and it holds

@@ -1,11 +1,10 @@
 """Elasticity from a pipeline: the [physics] section, [[support]] and [[load]] tables, and the demo's --stress."""
 
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
+from commands import iga_command
 
 from iga.app.config import validate
 from iga.errors import ProblemError
@@ -67,9 +66,8 @@ def test_a_heat_pipeline_refuses_elastic_tables():
 def test_the_demo_adds_the_thermal_stress_of_the_graded_sink(tmp_path):
     import meshio
 
-    out = subprocess.run([sys.executable, "-m", "iga", "--quiet", "demo", "heat-sink", "--variant", "vertical",
-                          "--levels", "1", "--stress", "--out", str(tmp_path / "demo")], capture_output=True, text=True,
-                         timeout=300)
+    out = iga_command("--quiet", "demo", "heat-sink", "--variant", "vertical", "--levels", "1", "--stress",
+                      "--out", tmp_path / "demo")
     assert out.returncode == 0, out.stderr
     assert "elasticity:" in out.stdout and "von Mises up to" in out.stdout
     s = json.loads((tmp_path / "demo" / "summary.json").read_text())

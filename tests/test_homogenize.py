@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from commands import iga_command
 
 import tiling
 from geometry import primitives as pr
@@ -118,16 +119,11 @@ def test_effective_stiffness_of_a_solid_a_laminate_and_the_cubic_cross():
 
 @pytest.mark.slow
 def test_the_homogenize_command_prints_the_tensors_and_names_bad_arguments():
-    import subprocess
-    import sys
-
-    out = subprocess.run([sys.executable, "-m", "iga", "homogenize", "--tile", "cross", "--arg", "arm=0.4",
-                          "--youngs", "1e9"], capture_output=True, text=True)
+    out = iga_command("homogenize", "--tile", "cross", "--arg", "arm=0.4", "--youngs", "1e9")
     assert out.returncode == 0, out.stderr
     k = effective_conductivity(L.cross(0.4))[0, 0]
     assert "volume fraction 0.352" in out.stdout and f"{k:.6f}" in out.stdout and "effective stiffness" in out.stdout
-    bad = subprocess.run([sys.executable, "-m", "iga", "homogenize", "--tile", "cross", "--arg", "width=0.4"],
-                         capture_output=True, text=True)
+    bad = iga_command("homogenize", "--tile", "cross", "--arg", "width=0.4")
     assert bad.returncode == 1 and "does not take ['width']" in bad.stderr and "Traceback" not in bad.stderr
 
 
@@ -136,9 +132,6 @@ def test_the_cell_fields_are_written_and_average_to_the_effective_flux(tmp_path)
     """The cell fields as VTU (the correctors and the cell's heat flux for unit macroscopic gradients): in a
     laminate across x the flux for a gradient along x is one constant, -K_xx, at every written point; in the cross
     tile the flux averages over the cell to -K e_x (the sampled linear cells: to 1%)."""
-    import subprocess
-    import sys
-
     import pyvista as pv
 
     tile = Tile([pr.box(degrees=(1, 1, 1), elements=(2, 1, 1))], name="laminate")
@@ -154,11 +147,9 @@ def test_the_cell_fields_are_written_and_average_to_the_effective_flux(tmp_path)
     m = meshio.read(tmp_path / "cross.vtu")
     assert np.array_equal(m.points, g.points) and np.allclose(m.point_data["corrector"], g.point_data["corrector"])
     assert mean == pytest.approx(-cross.tensor[:, 0], abs=1e-2 * cross.tensor[0, 0])
-    out = subprocess.run([sys.executable, "-m", "iga", "homogenize", "--tile", "cross", "--out",
-                          str(tmp_path / "c.vtu")], capture_output=True, text=True)
+    out = iga_command("homogenize", "--tile", "cross", "--out", tmp_path / "c.vtu")
     assert out.returncode == 0 and "cell fields" in out.stdout and (tmp_path / "c.vtu").stat().st_size > 0
-    bad = subprocess.run([sys.executable, "-m", "iga", "homogenize", "--tile", "cross", "--out",
-                          str(tmp_path / "c.txt")], capture_output=True, text=True)
+    bad = iga_command("homogenize", "--tile", "cross", "--out", tmp_path / "c.txt")
     assert bad.returncode == 1 and "ending in .vtu" in bad.stderr
 
 

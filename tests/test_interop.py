@@ -1,10 +1,9 @@
 """Interoperability: G+Smo XML (exact round trip, topology, heat problems), IGES (entities 126/128), iga info."""
 
-import subprocess
-import sys
 
 import numpy as np
 import pytest
+from commands import iga_command
 
 import tiling
 from geometry import BSpline, SplineError, primitives as pr
@@ -207,17 +206,17 @@ def test_iga_info_reads_gismo_and_npz(tmp_path):
     path = write_gismo(tmp_path / "m.xml", [pr.box(), pr.box(origin=(1, 0, 0))],
                        [((0, "umax"), (1, "umin"), False, (False, False))],
                        conditions=[GismoCondition("Dirichlet", [(0, "umin")], "20")])
-    out = subprocess.run([sys.executable, "-m", "iga", "info", str(path)], capture_output=True, text=True)
+    out = iga_command("info", path)
     assert out.returncode == 0, out.stderr
     assert "2 patches, 1 interface" in out.stdout and "Dirichlet 20" in out.stdout and "regularity: regular" in out.stdout
     npz = save_all(tmp_path / "s.npz", [pr.box((2.0, 1.0, 0.5))])
-    out = subprocess.run([sys.executable, "-m", "iga", "info", str(npz)], capture_output=True, text=True)
+    out = iga_command("info", npz)
     assert out.returncode == 0 and "1 spline" in out.stdout
     # the map's scale bounds (Elber 2017, Section 4): exact for a box of sides 2, 1, 0.5
     assert "singular values of the Jacobian) within 0.5 .. 2 over 1 boxes" in out.stdout
     assert "|dD/du| 2 .. 2, |dD/dv| 1 .. 1, |dD/dw| 0.5 .. 0.5" in out.stdout and "distortion bound 4" in out.stdout
     (tmp_path / "x.stl").write_text("solid")
-    out = subprocess.run([sys.executable, "-m", "iga", "info", str(tmp_path / "x.stl")], capture_output=True, text=True)
+    out = iga_command("info", tmp_path / "x.stl")
     assert out.returncode == 1 and "cannot read x.stl as a mesh" in out.stderr and "Traceback" not in out.stderr
 
 
@@ -239,16 +238,15 @@ def test_iga_info_describes_every_file_the_toolkit_writes(tmp_path):
 
     for name, write in files.items():
         write(tmp_path / name)
-        out = subprocess.run([sys.executable, "-m", "iga", "info", str(tmp_path / name)], capture_output=True, text=True)
+        out = iga_command("info", tmp_path / name)
         assert out.returncode == 0, out.stderr
         for pattern in want[name]:
             assert re.search(pattern, out.stdout), (name, out.stdout)
     (tmp_path / "summary.json").write_text('{"tiles": 3, "levels": 1, "interfaces": 2, "files": {"vtu": "m.vtu"}}')
-    out = subprocess.run([sys.executable, "-m", "iga", "info", str(tmp_path / "summary.json")], capture_output=True,
-                         text=True)
+    out = iga_command("info", tmp_path / "summary.json")
     assert out.returncode == 0 and "pipeline summary, 3 tiles on 1 levels" in out.stdout
     (tmp_path / "bad.igs").write_text("not iges\n")
-    out = subprocess.run([sys.executable, "-m", "iga", "info", str(tmp_path / "bad.igs")], capture_output=True, text=True)
+    out = iga_command("info", tmp_path / "bad.igs")
     assert out.returncode == 1 and "is not an IGES file" in out.stderr and "Traceback" not in out.stderr
 
 

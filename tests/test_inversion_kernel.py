@@ -10,7 +10,8 @@ from geometry.maps import inversion
 from geometry import primitives as pr
 from geometry.faces import FACE_NAMES
 
-pytestmark = pytest.mark.skipif(not _fast.AVAILABLE, reason="the compiled inversion needs numba (test extra)")
+pytestmark = [pytest.mark.skipif(not _fast.AVAILABLE, reason="the compiled inversion needs numba (test extra)"),
+              pytest.mark.all_threads]  # kernels on every thread: a race would show
 
 
 def _maps():

@@ -8,6 +8,8 @@ from geometry import primitives as pr
 from iga import HeatProblem
 from iga.discretisation.fields import integrate_fields
 
+pytestmark = pytest.mark.all_threads  # the compiled kernels on every thread: a race would show
+
 
 def _field_integral(problem, coefficients, fn):
     """int fn(x, u) dV of the field with ``coefficients`` (ndof,) by the problem's Gauss rule (the solution's

@@ -3,6 +3,7 @@ the map's control points (a shape design at a fixed solid volume)."""
 
 import numpy as np
 import pytest
+from commands import iga_command
 
 import iga
 import tiling
@@ -118,14 +119,11 @@ name = "sink"
 @pytest.mark.slow
 def test_iga_optimize_designs_the_channel_and_writes_the_design(tmp_path):
     import json
-    import subprocess
-    import sys
 
     import meshio
 
     (tmp_path / "sink.toml").write_text(DESIGN)
-    done = subprocess.run([sys.executable, "-m", "iga", "--quiet", "optimize", "sink.toml"], cwd=tmp_path,
-                          capture_output=True, text=True)
+    done = iga_command("--quiet", "optimize", "sink.toml", cwd=tmp_path)
     assert done.returncode == 0, done.stderr[-2000:]
     assert "design: TemperatureNorm(8)" in done.stdout
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
@@ -222,15 +220,12 @@ def test_bad_shape_designs_are_refused():
 @pytest.mark.slow
 def test_iga_optimize_designs_the_shape_from_a_pipeline(tmp_path):
     import json
-    import subprocess
-    import sys
 
     head = DESIGN.split("[design]")[0]
     tail = DESIGN.split("[design]")[1].split("\n[", 1)[1]
     (tmp_path / "shape.toml").write_text(head + '[design]\nvariables = "map"\nmove = 0.001\nhold = ["wmin"]\n'
                                          'iterations = 4\n\n[' + tail)
-    done = subprocess.run([sys.executable, "-m", "iga", "--quiet", "optimize", "shape.toml"], cwd=tmp_path,
-                          capture_output=True, text=True)
+    done = iga_command("--quiet", "optimize", "shape.toml", cwd=tmp_path)
     assert done.returncode == 0, done.stderr[-2000:]
     d = json.loads((tmp_path / "out" / "summary.json").read_text())["design"]
     assert d["final"] < d["initial"] and 1 <= len(d["steps"]) <= 4
@@ -286,14 +281,11 @@ def test_iga_optimize_grades_a_field_graded_lattice_from_a_pipeline(tmp_path):
     """variables = "parameters": the arm widths of a field-graded paving, read from a channel of the map, at the
     start's solid volume with the heated face held; the final design's VTU read back by meshio."""
     import json
-    import subprocess
-    import sys
 
     import meshio
 
     (tmp_path / "graded.toml").write_text(GRADED)
-    done = subprocess.run([sys.executable, "-m", "iga", "--quiet", "optimize", "graded.toml"], cwd=tmp_path,
-                          capture_output=True, text=True)
+    done = iga_command("--quiet", "optimize", "graded.toml", cwd=tmp_path)
     assert done.returncode == 0, done.stderr[-2000:]
     d = json.loads((tmp_path / "out" / "summary.json").read_text())["design"]
     assert d["final"] < 0.9 * d["initial"] and 1 <= len(d["steps"]) <= 5

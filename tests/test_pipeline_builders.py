@@ -3,6 +3,7 @@ structures, degree reduction, and the analysis degree; each against the same mod
 
 import numpy as np
 import pytest
+from commands import iga_command
 
 from iga import HeatProblem
 from iga.app.config import validate
@@ -231,8 +232,6 @@ def test_vrep_subtractions_and_intersections_run_as_in_python(expression, tmp_pa
 def test_iga_run_reports_a_surface_or_a_lattice_of_lines(tmp_path):
     """From the command line: a polygon lattice (lines only) and a capped hollow lattice (triangles) run to their
     surface and report it in one line (20 cell edges and 4 diagonals per cell: 28 lines)."""
-    import subprocess
-    import sys
 
     (tmp_path / "lines.toml").write_text('[map]\nprimitive = "box"\n[tile]\nlibrary = "beam_lattice"\n'
                                          '[paving]\nscheme = "polygons"\ncounts = [2, 1, 1]\n[output]\npng = false\n')
@@ -240,5 +239,5 @@ def test_iga_run_reports_a_surface_or_a_lattice_of_lines(tmp_path):
                                         'scheme = "regular"\ncounts = [2, 1, 1]\nseal = "cap"\n[output]\npng = false\n'
                                         'dir = "caps"\n')
     for name, want in (("lines.toml", "2 tiles (no analysis); 28 lines"), ("caps.toml", "triangles, closed")):
-        out = subprocess.run([sys.executable, "-m", "iga", "run", str(tmp_path / name)], capture_output=True, text=True)
+        out = iga_command("run", tmp_path / name)
         assert out.returncode == 0 and want in out.stdout, out.stderr

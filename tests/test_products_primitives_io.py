@@ -6,6 +6,7 @@ from math import pi
 
 import numpy as np
 import pytest
+from commands import iga_command
 from hypothesis import given, settings, strategies as st
 
 import geometry
@@ -150,9 +151,9 @@ def test_cli_help_and_info(tmp_path):
     for word in ("demo", "run", "info"):
         assert word in out.stdout
     geometry.save(tmp_path / "b.npz", pr.box(channels={"k": 3.0}))
-    out = subprocess.run([sys.executable, "-m", "iga", "info", str(tmp_path / "b.npz")], capture_output=True, text=True)
+    out = iga_command("info", tmp_path / "b.npz")
     assert out.returncode == 0 and "channels=['k']" in out.stdout
-    out = subprocess.run([sys.executable, "-m", "iga", "info", str(tmp_path / "none.npz")], capture_output=True, text=True)
+    out = iga_command("info", tmp_path / "none.npz")
     assert out.returncode == 1 and "does not exist" in out.stderr and "Traceback" not in out.stderr
 
 

@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from commands import run_script
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = sorted((ROOT / "examples").glob("*.py"))
@@ -25,8 +26,7 @@ def test_the_gallery_lists_every_example_with_its_picture():
 @pytest.mark.slow
 @pytest.mark.parametrize("script", EXAMPLES, ids=[s.stem for s in EXAMPLES])
 def test_every_example_runs_and_draws_its_picture(script, tmp_path):
-    run = subprocess.run([sys.executable, str(script), str(tmp_path)], capture_output=True, text=True,
-                         cwd=tmp_path, timeout=300)
+    run = run_script(script, tmp_path, cwd=tmp_path)
     assert run.returncode == 0, run.stderr[-2000:]
     assert (tmp_path / f"{script.stem}.png").stat().st_size > 20_000
     assert run.stdout.strip()  # it says what it computed

@@ -5,6 +5,7 @@ import threading
 
 import numpy as np
 import pytest
+from commands import iga_command
 import scipy.sparse as sp
 
 from geometry import progress, resources
@@ -115,8 +116,6 @@ def test_a_tile_branch_face_with_a_bad_box_is_one_tiling_error_and_a_bug_stays_a
 
 
 def test_solutions_print_in_one_line_and_the_demo_takes_quiet_after_its_name(tmp_path):
-    import subprocess
-    import sys
 
     from geometry import primitives as pr
     from iga import ElasticityProblem, HeatProblem
@@ -125,8 +124,7 @@ def test_solutions_print_in_one_line_and_the_demo_takes_quiet_after_its_name(tmp
     assert repr(s).startswith("Solution(1 patches, 8 DOFs") and "\n" not in repr(s)
     e = ElasticityProblem(pr.box(), youngs=1.0, poisson=0.3).dirichlet("umin", 0.0).traction("umax", [1, 0, 0]).solve()
     assert repr(e).startswith("ElasticSolution(1 patches, 24 DOFs") and "strain energy" in repr(e)
-    out = subprocess.run([sys.executable, "-m", "iga", "demo", "heat-sink", "--quiet", "--help"], capture_output=True,
-                         text=True)
+    out = iga_command("demo", "heat-sink", "--quiet", "--help")
     assert out.returncode == 0 and "--quiet" in out.stdout
 
 

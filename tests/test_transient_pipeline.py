@@ -3,11 +3,10 @@ summary's series against the Python API, the ParaView series read back, a run to
 settling time against fixed small steps, the demo's warm-up, and the configuration's refusals."""
 
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
+from commands import iga_command
 
 from geometry import primitives as pr
 from iga import ProblemError, TransientHeatProblem
@@ -93,8 +92,8 @@ def test_a_part_held_at_a_temperature_settles_at_the_point_the_condition_does_no
 
 @pytest.mark.slow
 def test_the_demo_follows_the_sink_warming_up(tmp_path):
-    out = subprocess.run([sys.executable, "-m", "iga", "demo", "heat-sink", "--variant", "vertical", "--levels",
-                          "1", "--transient", "--out", str(tmp_path / "demo")], capture_output=True, text=True)
+    out = iga_command("demo", "heat-sink", "--variant", "vertical", "--levels", "1", "--transient",
+                      "--out", tmp_path / "demo")
     assert out.returncode == 0, out.stderr
     s = json.loads((tmp_path / "demo" / "summary.json").read_text())
     tr = s["transient"]

@@ -26,7 +26,7 @@ import numpy as np
 
 from iga.errors import ProblemError
 
-__all__ = ["FormTerms", "form_terms", "DIFFUSION", "MASS", "elastic_block"]
+__all__ = ["FormTerms", "form_terms", "DIFFUSION", "RATIONAL_DIFFUSION", "MASS", "elastic_block"]
 
 #: the six symmetric fields of a diffusion-like form, in this order: (0,0), (1,1), (2,2), (0,1), (0,2), (1,2)
 SYMMETRIC_PAIRS = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
@@ -111,6 +111,21 @@ def _diffusion() -> FormTerms:
 
 #: the diffusion form (and a diagonal block of elasticity): six fields in :data:`SYMMETRIC_PAIRS` order
 DIFFUSION = _diffusion()
+
+
+def _rational_diffusion() -> FormTerms:
+    """Diffusion in the basis N / W (:mod:`iga.discretisation.rational`): the nine second-order terms of
+    :data:`DIFFUSION` on fields 0-5, the first-order terms F_r (d_r N_i N_j + N_i d_r N_j) on fields 6-8 and
+    the zero-order term F_0 N_i N_j on field 9 (:func:`iga.discretisation.rational.rational_diffusion_fields`)."""
+    terms = list(DIFFUSION.terms)
+    for r in range(3):
+        terms += [(6 + r, tuple((int(k == r), 0) for k in range(3))), (6 + r, tuple((0, int(k == r)) for k in range(3)))]
+    terms.append((9, ((0, 0),) * 3))
+    return form_terms(terms, fields=10, symmetric=True)
+
+
+#: diffusion in the NURBS basis N / W: ten fields (six second-order, three first-order, one zero-order)
+RATIONAL_DIFFUSION = _rational_diffusion()
 
 
 #: the mass form int F N_i N_j: one field, no derivative on either side

@@ -30,9 +30,10 @@ import numpy as np
 from geometry import SplineFunction
 from geometry import knots as kn
 from geometry.patches.chain import grid_values_derivs
+from iga.assembly.terms import SYMMETRIC_PAIRS
 
 __all__ = ["own_rational", "rational_quadrature_extra", "weight_coefficients", "weight_grid", "weight_fields",
-           "rational_form", "rational_load_terms", "stiffness_half_terms", "rational_load", "nurbs_scale"]
+           "rational_form", "rational_diffusion_fields", "rational_load_terms", "stiffness_half_terms", "rational_load", "nurbs_scale"]
 
 
 def own_rational(patch) -> bool:
@@ -130,6 +131,23 @@ def rational_form(terms, W: np.ndarray, dW: list) -> list:
             out.append((-F * g[s] / W, _orders(d, r, None)))
         if r is not None and s is not None:
             out.append((F * g[r] * g[s], _orders(d, None, None)))
+    return out
+
+
+def rational_diffusion_fields(C: np.ndarray, W: np.ndarray, dW) -> np.ndarray:
+    """The ten fields of :data:`iga.assembly.terms.RATIONAL_DIFFUSION` from the six diffusion fields C (6, ...)
+    (C_rs in :data:`iga.assembly.terms.SYMMETRIC_PAIRS` order) and W, dW (broadcasting against C[0]): C_rs / W^2,
+    F_r = -sum_s C_rs g_s / W and F_0 = sum_rs C_rs g_r g_s with g_r = d_r W / W^2 (module notes); the
+    form :func:`rational_form` writes term by term, in three fields per first-order direction fewer."""
+    full = {}
+    for c, (r, s) in enumerate(SYMMETRIC_PAIRS):
+        full[r, s] = full[s, r] = C[c]
+    g = [d / W**2 for d in dW]
+    out = np.empty((10,) + np.shape(C[0]))
+    out[:6] = C / W**2
+    for r in range(3):
+        out[6 + r] = -sum(full[r, s] * g[s] for s in range(3)) / W
+    out[9] = sum(full[r, s] * g[r] * g[s] for r in range(3) for s in range(3))
     return out
 
 

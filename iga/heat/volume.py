@@ -24,12 +24,13 @@ import numpy as np
 from iga.assembly import compiled as fast_assembly
 from iga.assembly.forms import form_data
 from iga.assembly.tensor import banded_form, banded_to_csr_data, load_form, pattern, stiffness_data
-from iga.assembly.terms import MASS
+from iga.assembly.terms import DIFFUSION, MASS, RATIONAL_DIFFUSION
 from iga.heat.coefficients import TENSOR_PAIRS
 from iga.discretisation.faces import chunks
 from iga.heat.forms import diffusion
-from iga.discretisation.rational import (nurbs_scale, own_rational, rational_form, rational_load, stiffness_half_terms,
-                       weight_coefficients, weight_fields)
+from iga.discretisation.rational import (nurbs_scale, own_rational, rational_diffusion_fields, rational_form,
+                                         rational_load, stiffness_half_terms, weight_coefficients, weight_fields,
+                                         weight_grid)
 from geometry import progress
 from geometry.patches.chain import gradient_and_det, patches_geometry_derivs_slabs
 
@@ -80,9 +81,10 @@ class VolumeAssembler:
         return any(self._compiled(g) for g in self.groups.values())
 
     def _compiled(self, members) -> bool:
-        """Whether patches ``members`` (one group) assemble in the compiled kernels: large enough, and in the
-        polynomial basis (the NURBS basis adds first- and zero-order terms, which the NumPy forms take)."""
-        return self.weights[members[0]] is None and fast_assembly.applies(self.spaces[members[0]], len(members))
+        """Whether patches ``members`` (one group) assemble in the compiled kernels: large enough for the form
+        (:data:`DIFFUSION`, or :data:`RATIONAL_DIFFUSION` in the NURBS basis)."""
+        form = DIFFUSION if self.weights[members[0]] is None else RATIONAL_DIFFUSION
+        return fast_assembly.applies(self.spaces[members[0]], len(members), terms=form.fields)
 
     def assemble(self, conductivity, source, patches=None):
         """(K, f, source_total): the stiffness of ``conductivity`` (a :class:`iga.heat.coefficients.Conductivity`)
@@ -114,6 +116,8 @@ class VolumeAssembler:
         shape or None, and int f dV of patches sharing a space and spline."""
         P, N = len(members), space.nq_total
         total = 0.0
+        if self._compiled(members) and self.weights[members[0]] is not None:
+            return self._compiled_nurbs(members, space, conductivity, source)
         if self._compiled(members):  # compiled: each slab goes straight into the global CSR and loads
             acc = fast_assembly.FormAccumulator(space, P, into=(into, members))
             for planes, Cs, Ls in self._slabs(members, space, conductivity, source, compiled=True):
@@ -144,6 +148,23 @@ class VolumeAssembler:
             return pat, data, loads, total
         del C
         return pat, data, (load_form(space, L.reshape(shape)) if np.any(L) else None), total
+
+    def _compiled_nurbs(self, members, space, conductivity, source):
+        """:meth:`_group` of patches analysed in the NURBS basis, by the compiled kernel: the ten fields of
+        :data:`RATIONAL_DIFFUSION` and the load density L / W per slab, then the entries scaled by w_i w_j and
+        the loads by w_i (:mod:`iga.discretisation.rational`)."""
+        W, dW = weight_grid(self.model.patches[members[0]].spline, space.qaxes)
+        W, dW = W.reshape(space.qshape), [d.reshape(space.qshape) for d in dW]
+        acc = fast_assembly.FormAccumulator(space, len(members), RATIONAL_DIFFUSION)
+        total = 0.0
+        for planes, Cs, Ls in self._slabs(members, space, conductivity, source, compiled=True):
+            total += float(Ls.sum())
+            Wp, dWp = W[planes].reshape(-1), [d[planes].reshape(-1) for d in dW]
+            acc.add(planes, rational_diffusion_fields(Cs, Wp, dWp), Ls / Wp if np.any(Ls) else None)
+        pat, data = acc.result()
+        w = self.weights[members[0]]
+        data *= nurbs_scale(pat, w.reshape(-1))
+        return pat, data, (acc.load * w if acc.load is not None else None), total
 
     def _slabs(self, members, space, conductivity, source, compiled=False):
         """Coefficient fields on the Gauss grid of patches ``members`` (same tile spline and space), by slabs.
