@@ -288,19 +288,29 @@ def _save(mesh, tmp, suffix):
 
 
 def render_png(ms: Microstructure, path, samples: int = 6, color_by: str = "level", window=(1000, 800),
-               camera: str = "iso", title: str | None = None) -> Path:
+               camera: str = "iso", title: str | None = None, mesh=None) -> Path:
     """Offscreen pyvista render of the boundary, coloured by ``level``, ``tile`` or ``patch``; ``title``
-    (default: the structure's name, tiles, patches and levels) in the upper left."""
-    return save_screenshot(draw(ms, offscreen_plotter(window), samples, color_by, title), path, TilingError, camera)
+    (default: the structure's name, tiles, patches and levels) in the upper left; ``mesh``: the boundary
+    already computed by :func:`surface` (see :func:`draw`)."""
+    return save_screenshot(draw(ms, offscreen_plotter(window), samples, color_by, title, mesh), path, TilingError,
+                           camera)
 
 
-def draw(ms: Microstructure, pl, samples: int = 6, color_by: str = "level", title: str | None = None):
-    """``pl`` (a ``pyvista.Plotter``) with the boundary of ``ms`` coloured by ``color_by`` and the title added."""
+def draw(ms: Microstructure, pl, samples: int = 6, color_by: str = "level", title: str | None = None, mesh=None):
+    """``pl`` (a ``pyvista.Plotter``) with the boundary of ``ms`` coloured by ``color_by`` and the title added.
+
+    ``mesh``: the boundary :func:`surface` (or ``ms.surface``) already gave for ``ms``, drawn instead of
+    computing it again (``samples`` is then not used); its ``patch`` cell numbers must be this structure's."""
     drawn = _drawn(ms)
     attr = {"level": [p.level for p in drawn], "tile": [p.tile for p in drawn], "patch": list(range(len(drawn)))}
     if color_by not in attr:
         raise TilingError(f"color_by must be one of {sorted(attr)}, got {show(color_by)}")
-    mesh = surface(ms, samples)
+    if mesh is None:
+        mesh = surface(ms, samples)
+    elif not hasattr(mesh, "cell_data") or "patch" not in mesh.cell_data or (
+            mesh.n_cells and int(np.max(mesh.cell_data["patch"])) >= len(drawn)):
+        raise TilingError(f"mesh must be the boundary surface(ms) gave for this structure ({len(drawn)} patches "
+                          "numbered in its 'patch' cell data); pass mesh=ms.surface(...) or leave it out")
     levels = ms.levels
     pl.add_text(title if title is not None else
                 f"{ms.name or 'micro-structure'}: {ms.n_tiles:,} tiles, {len(ms.patches):,} patches"

@@ -117,13 +117,14 @@ class Microstructure(MultiPatch):
             samples = export.samples_for_tolerance(self, tolerance)
         return export.surface(self, samples)
 
-    def plot(self, screenshot=None, samples: int = 6, color_by: str = "level", title: str | None = None):
+    def plot(self, screenshot=None, samples: int = 6, color_by: str = "level", title: str | None = None, mesh=None):
         """Draw the boundary coloured by ``level``, ``tile`` or ``patch``, titled with the name, tiles, patches
         and levels (:func:`tiling.export.render_png`); ``screenshot``: a ``.png`` written off screen (returned), else
-        the window is shown."""
+        the window is shown. ``mesh``: the boundary :meth:`surface` already gave, drawn as it is (not computed
+        again)."""
         if screenshot is not None:
-            return export.render_png(self, screenshot, samples, color_by, title=title)
-        pl = export.draw(self, window_plotter(), samples, color_by, title)
+            return export.render_png(self, screenshot, samples, color_by, title=title, mesh=mesh)
+        pl = export.draw(self, window_plotter(), samples, color_by, title, mesh)
         pl.set_background("white")
         pl.show()
         return None
