@@ -91,9 +91,16 @@ def test_a_capped_hollow_lattice_is_one_closed_surface(D, counts):
 
 
 @pytest.mark.slow
-def test_two_level_capped_structure_is_one_closed_surface():
+def test_two_level_capped_structure_is_one_closed_surface(monkeypatch):
+    from tiling import paving
+
     first = tiling.regular(TWISTED, L.cross(), (1, 1, 1))  # 7 blocks, 6 interfaces
+    built, variant_for = [], paving.variant_for
+    monkeypatch.setattr(paving, "variant_for", lambda tile, sides, *a: built.append(sides) or variant_for(tile, sides, *a))
     ms = tiling.compose_levels(first, L.hollow_cross(), (2, 2, 2), seal="cap")
+    # each set of free sides capped once for all seven maps, and the maps' tiles share those variants
+    capped = {id(t): t for t in ms.tiles if getattr(t, "caps", None)}
+    assert len(built) == len(set(built)) == len(capped) and len(ms.caps) > 7 * len(capped) / 2
     assert len(ms.patches) == 7 * 8 * 24
     w = tiling.export.watertightness(ms, samples=2)
     assert w["closed"] and w["manifold"] and w["components"] == 1

@@ -70,11 +70,12 @@ def compose_levels(first: Microstructure, tile: Tile, counts, degree: int | None
         if f in FACE_NAMES:
             free.setdefault(i, set()).add(f)
     placed, tiles, caps, links, origin, trimmed = [], [], [], [], [], []
+    built: dict = {}  # the tile's sealed variants, built once for every map
     for i, D in enumerate(progress.bar(maps, desc="second level", unit="map")):
         sides = sorted(free.get(i, ()), key=FACE_NAMES.index)
         sealed = bool(sides and seal)
         sub = regular(D, tile, counts, seal=seal if sealed else None,
-                      seal_sides=sides if sealed and seal == "cap" else None)  # a shell seals every side
+                      seal_sides=sides if sealed and seal == "cap" else None, built=built)  # a shell: every side
         p0, t0 = len(placed), len(tiles)
         level = first.patches[i].level
         placed += [PlacedPatch(P.spline, P.placement, P.outer, P.tile + t0, level, P.patch_in_tile)

@@ -46,7 +46,8 @@ def _affine(M: np.ndarray) -> np.ndarray:
 
 @bulk_build
 def regular(D: BSpline, tile: Tile, counts, variants: dict | None = None, name: str = "regular",
-            seal: str | None = None, thickness: float = SEAL_THICKNESS, seal_sides=None) -> Microstructure:
+            seal: str | None = None, thickness: float = SEAL_THICKNESS, seal_sides=None, *,
+            built: dict | None = None) -> Microstructure:
     """Regular paving: ``counts`` = (cx, cy, cz) copies of ``tile`` per knot span of D.
 
     ``variants`` optionally maps a position key ``(ku, kv, kw)`` with entries
@@ -59,7 +60,9 @@ def regular(D: BSpline, tile: Tile, counts, variants: dict | None = None, name: 
     sides); ``seal="shell"`` seals all six.  The plates' free faces are tagged
     ``cap`` (or ``shell``), and the heat model includes the plates.  A
     surface tile is capped by planar trimmed surfaces over its boundary
-    curves instead (:mod:`tiling.sealing.caps`; ``Microstructure.caps``).
+    curves instead (:mod:`tiling.sealing.caps`; ``Microstructure.caps``).  ``built``: a dict of sealed
+    variants built by earlier pavings, (tile, variant) by (seal, thickness, sides), filled here: pavings of
+    one tile in many maps (:func:`tiling.compose_levels`) build each variant once.
 
     >>> from geometry import primitives
     >>> from tiling import library
@@ -68,7 +71,7 @@ def regular(D: BSpline, tile: Tile, counts, variants: dict | None = None, name: 
     (16, 112, 4)
     """
     placed, tiles, links, caps, sealed, trimmed = regular_placements(D, tile, counts, variants, seal, thickness,
-                                                                     seal_sides)
+                                                                     seal_sides, built)
     shape = tuple(len(parameter_cells(D, k, c)) for k, c in enumerate(counts))  # (counts checked by the placements)
     ms = Microstructure.build(D, placed, tiles, links, name=name, identity=grid_identity(D, tiles, shape))
     ms.caps = caps
@@ -92,10 +95,10 @@ class Placements(NamedTuple):
 
 
 def regular_placements(D: BSpline, tile: Tile, counts, variants: dict | None = None, seal: str | None = None,
-                       thickness: float = SEAL_THICKNESS, seal_sides=None) -> Placements:
+                       thickness: float = SEAL_THICKNESS, seal_sides=None, built: dict | None = None) -> Placements:
     """The placements of :func:`regular` without the interface search (:class:`Placements`).  Tiles are
     numbered in C order over the cells; for callers that keep a subset of them and build one micro-structure
-    from several pavings (:mod:`tiling.vrep`)."""
+    from several pavings (:mod:`tiling.vrep`).  ``built``: as :func:`regular`'s."""
     check_map(D)
     if not isinstance(tile, Tile):
         raise TilingError(f"tile must be a tiling.Tile, got {type(tile).__name__}")
@@ -113,6 +116,7 @@ def regular_placements(D: BSpline, tile: Tile, counts, variants: dict | None = N
     N = [len(c) for c in cells]
     placed, tiles, links, caps, trimmed = [], [], [], [], []
     sealed: dict = {}  # sealed variants, built once per set of sides
+    built = {} if built is None else built
     for i in range(N[0]):
         for j in range(N[1]):
             for k in range(N[2]):
@@ -125,7 +129,10 @@ def regular_placements(D: BSpline, tile: Tile, counts, variants: dict | None = N
                                       if at and f in allowed)
                     if sides:
                         if sides not in sealed:
-                            sealed[sides] = variant_for(tile, sides, thickness, seal)
+                            key = (seal, float(thickness), sides)
+                            if key not in built or built[key][0] is not tile:  # another tile's: built again
+                                built[key] = (tile, variant_for(tile, sides, thickness, seal))
+                            sealed[sides] = built[key][1]
                         t = sealed[sides]
                 lo = np.array([cells[0][i, 0], cells[1][j, 0], cells[2][k, 0]])
                 hi = np.array([cells[0][i, 1], cells[1][j, 1], cells[2][k, 1]])
