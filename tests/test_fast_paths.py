@@ -442,3 +442,24 @@ def test_the_mass_form_and_the_k_of_t_tangent_take_the_compiled_kernel_on_large_
     for ref, got in zip(found[10**12], found[1]):
         assert np.array_equal(got.indices, ref.indices)
         assert abs(got - ref).max() <= 1e-12 * abs(ref).max()
+
+
+def test_elasticity_in_the_nurbs_basis_takes_the_form_kernel_on_large_groups(monkeypatch):
+    # the rewritten forms of the NURBS basis (first- and zero-order terms added, iga.discretisation.rational) go
+    # through iga.assembly.forms.terms_data: compiled above the threshold, NumPy below, the same operator
+    from iga import ElasticityProblem
+
+    ring = pr.annulus(0.5, 1.0, 1.0, elements=(2, 1, 2))
+    form_csr, seen = fast_assembly.form_csr, []
+    monkeypatch.setattr(fast_assembly, "form_csr", lambda space, C, form: seen.append(form.count)
+                        or form_csr(space, C, form))
+
+    def stiffness(threshold):
+        monkeypatch.setattr(fast_assembly, "MIN_POINTS", threshold)
+        return ElasticityProblem(ring, youngs=70e9, poisson=0.33, refine=1).dirichlet("wmin", (0, 0, 0)).assemble()[0]
+
+    K_numpy = stiffness(10**12)
+    assert seen == []
+    K_compiled = stiffness(0)
+    assert len(seen) == 6 and max(seen) == 16  # six upper blocks; a rewritten off-diagonal block: 16 terms
+    assert abs(K_compiled - K_numpy).max() <= 1e-12 * abs(K_numpy).max()

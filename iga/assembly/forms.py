@@ -13,11 +13,11 @@ import numpy as np
 
 from iga.assembly import compiled
 from iga.assembly.tensor import CSRPattern, banded_form, banded_to_csr_data, pattern
-from iga.assembly.terms import FormTerms
+from iga.assembly.terms import FormTerms, form_terms
 from iga.discretisation.space import TensorSpace
 from iga.errors import ProblemError
 
-__all__ = ["form_data"]
+__all__ = ["form_data", "terms_data"]
 
 
 def form_data(space: TensorSpace, C: np.ndarray, form: FormTerms, pat: CSRPattern | None = None) -> np.ndarray:
@@ -35,3 +35,20 @@ def form_data(space: TensorSpace, C: np.ndarray, form: FormTerms, pat: CSRPatter
     pat = pat or pattern(space)
     return banded_to_csr_data(space, banded_form(space, [(C[c], orders[:space.dim]) for c, orders in form.terms]),
                               pat)
+
+
+def terms_data(space: TensorSpace, terms, pat: CSRPattern | None = None) -> np.ndarray:
+    """CSR data (P, nnz) of a form written as terms [(F, orders)] of :func:`iga.assembly.tensor.banded_form`'s
+    vocabulary (F broadcasting to (P,) + qshape; orders ((a_k, b_k),) per direction): the terms of equal orders
+    summed into one field, then :func:`form_data` (compiled for groups with enough work).  How the NURBS basis's
+    rewritten forms (:func:`iga.discretisation.rational.rational_form`) reach the compiled kernel."""
+    merged: dict = {}
+    for F, orders in terms:
+        key = tuple((int(a), int(b)) for a, b in orders) + ((0, 0),) * (3 - len(orders))
+        merged[key] = merged[key] + F if key in merged else np.asarray(F, float)
+    if not merged:
+        raise ProblemError("a form needs at least one term")
+    keys = list(merged)
+    shape = np.broadcast_shapes(*(np.shape(F) for F in merged.values()))
+    C = np.stack([np.broadcast_to(merged[k], shape) for k in keys])
+    return form_data(space, C, form_terms([(c, k) for c, k in enumerate(keys)], fields=len(keys)), pat)

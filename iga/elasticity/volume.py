@@ -8,9 +8,10 @@ sharing a space and a tile spline are batched, and every batch writes its
 rows straight into the operator's final arrays (:class:`iga.assembly.vector_csr.VectorCSR`).
 Large batches go through one compiled kernel per upper block
 (:func:`iga.assembly.compiled.elastic_into`, the block's parametric coefficients
-formed on the fly, the lower blocks copied as transposes); small ones through
-NumPy: each upper block's parametric terms in one sum-factorised banded form
-(:func:`iga.assembly.tensor.banded_form`), the lower blocks as transposes.
+formed on the fly, the lower blocks copied as transposes); small ones, and patches in the NURBS basis
+(:mod:`iga.discretisation.rational`, whose rewritten forms add first- and zero-order terms), as each upper
+block's parametric terms in one form (:func:`iga.assembly.forms.terms_data`: the same form kernel for large
+groups, NumPy's sum-factorised banded form for small ones), the lower blocks as transposes.
 """
 
 from __future__ import annotations
@@ -22,7 +23,8 @@ from geometry import progress
 from geometry.patches.chain import patches_geometry_derivs_slabs
 
 from iga.assembly import compiled as fast_assembly
-from iga.assembly.tensor import banded_form, banded_to_csr_data, derivative_load_form, load_form, pattern
+from iga.assembly.forms import terms_data
+from iga.assembly.tensor import derivative_load_form, load_form, pattern
 from iga.discretisation.constraints import Constraints
 from iga.elasticity.forms import block_terms, divergence_terms, lame, metric_rows
 from iga.discretisation.faces import chunks
@@ -139,8 +141,9 @@ class ElasticVolume:
 
 
 def _numpy_blocks(space, pat, c, LM, shape, nurbs=None, w=None) -> dict:
-    """The nine blocks' CSR data {(a, b): (P, nnz)} of patches on ``space`` (pattern ``pat``) through NumPy:
-    each upper block from its parametric terms in one banded form (:func:`iga.elasticity.forms.block_terms`; the
+    """The nine blocks' CSR data {(a, b): (P, nnz)} of patches on ``space`` (pattern ``pat``) from their terms
+    (:func:`iga.assembly.forms.terms_data`: the form kernel for large groups, NumPy otherwise):
+    each upper block from its parametric terms in one form (:func:`iga.elasticity.forms.block_terms`; the
     weights are in LM, so fac 1), a diagonal block as H + H^T of its six symmetric half terms, an off-diagonal
     one from all nine (one form, measured 1.8x faster than a symmetric and an antisymmetric part), the lower
     blocks as transposes.  ``nurbs`` (W, dW) and ``w``: the NURBS basis (:mod:`iga.discretisation.rational`)."""
@@ -151,7 +154,7 @@ def _numpy_blocks(space, pat, c, LM, shape, nurbs=None, w=None) -> dict:
             terms = block_terms(c, 1.0, LM[0], LM[1], a, b, shape)
             if nurbs is not None:
                 terms = rational_form(terms, *nurbs)
-            H = banded_to_csr_data(space, banded_form(space, terms), pat)
+            H = terms_data(space, terms, pat)  # compiled for large groups
             if scale is not None:
                 H *= scale
             if a == b:
