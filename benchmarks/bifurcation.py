@@ -83,7 +83,7 @@ def run(case: str, png: bool) -> dict:
            "components": w["components"], "peak MiB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
     assert np.isfinite(row["heat flow W"]) and row["balance"] < 1e-8
     if png:
-        tiling.export.render_png(ms, DOCS / f"bifurcation_duck_{case}.png", color_by="level")
+        tiling.pictures.render_png(ms, DOCS / f"bifurcation_duck_{case}.png", color_by="level")
     return row
 
 

@@ -27,7 +27,8 @@ from heat_sink_maps import bent_map, circular_map, fractal_map, vertical_map
 
 import tiling
 from tiling import library as L
-from tiling.export import render_png, watertightness, write_surfaces
+from tiling.export import watertightness, write_surfaces
+from tiling.pictures import render_png
 
 EXAMPLES = [
     ("fig2c_skinned_branching", lambda: tiling.hierarchical(bent_map(), L.skinned_branching(), (1, 1), 3), (1, 1), 6),

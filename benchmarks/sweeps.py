@@ -18,7 +18,8 @@ from geometry import primitives
 from geometry.shapes import examples as shapes
 from geometry.shapes.sweep import section_error
 from tiling import library, regular, round_struts
-from tiling.export import render_png, watertightness
+from tiling.export import watertightness
+from tiling.pictures import render_png
 
 from _common import figures_dir
 

@@ -15,7 +15,7 @@ import sys
 
 import tiling
 from geometry import primitives as pr
-from tiling.export import render_png
+from tiling.pictures import render_png
 from tiling.library import TILES
 
 from _common import figures_dir

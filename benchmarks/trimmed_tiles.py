@@ -23,7 +23,8 @@ from geometry import BSpline, primitives
 from geometry.io.files import offscreen_plotter, save_screenshot
 from tiling import library, regular
 from tiling.members.cylinders import through_cylinders
-from tiling.export import boundary_splines, render_png, watertightness, write_iges
+from tiling.export import boundary_splines, watertightness, write_iges
+from tiling.pictures import render_png
 
 from _common import figures_dir
 

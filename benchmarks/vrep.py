@@ -106,7 +106,7 @@ def run(case: str, png: bool) -> dict:
         row["speed-up"] = row["paper s"] / t
         row["best speed-up"] = row["paper s"] / min(times)
     if png:
-        from tiling.export import render_png
+        from tiling.pictures import render_png
 
         name = case.replace(" ", "_").replace(">", "").replace("(", "").replace(")", "")
         render_png(ms, DOCS / f"vrep_{name}.png", samples=1 if len(ms.patches) > 10000 else 2, color_by="tile")

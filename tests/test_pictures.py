@@ -85,7 +85,7 @@ def test_a_microstructure_draws_itself_titled(tmp_path):
 def test_a_microstructure_draws_the_boundary_it_was_given_and_refuses_another_s(tmp_path, monkeypatch):
     import pyvista as pv
     import tiling
-    from tiling import TilingError, export
+    from tiling import TilingError, pictures
     from tiling import library as L
 
     ms = tiling.regular(pr.box(degrees=(2, 2, 2)), L.cross(), (2, 1, 1))
@@ -93,7 +93,7 @@ def test_a_microstructure_draws_the_boundary_it_was_given_and_refuses_another_s(
     again = ms.surface(samples=2)
     other = tiling.regular(pr.box(degrees=(2, 2, 2)), L.cross(), (3, 2, 1)).surface(samples=2)
     drawn = []
-    monkeypatch.setattr(export, "surface", lambda *a, **k: drawn.append(a) or again)
+    monkeypatch.setattr(pictures, "surface", lambda *a, **k: drawn.append(a) or again)
     png = ms.plot(screenshot=tmp_path / "ms.png", mesh=boundary, color_by="tile")
     assert drawn == [] and pv.read(png).dimensions[:2] == (1000, 800)  # drawn as given, not computed again
     for bad in (other, pv.Sphere(), "boundary.stl"):

@@ -27,7 +27,7 @@ from geometry.errors import SplineError
 from geometry.io.iges import write_iges as _write_iges
 from geometry.patches.placed_points import IDENTITY, placements
 from geometry.shapes.orientation import orient_outward
-from geometry.io.files import atomic_write, offscreen_plotter, save_screenshot
+from geometry.io.files import atomic_write
 from geometry.patches.sampling import piece_boxes, sample_axes, sampled_mesh, weld
 
 from .errors import TilingError
@@ -42,7 +42,7 @@ from geometry.grouping import ObjectIndex
 from geometry.numbers import is_integer, is_real
 
 __all__ = ["surface", "watertightness", "pinch_lines", "mesh_watertightness", "write_surfaces", "write_mesh",
-           "render_png", "draw",
+           "drawn_patches",
            "boundary_splines", "continuous_pieces", "slot_surfaces", "write_iges",
            "samples_for_tolerance"]
 
@@ -124,7 +124,7 @@ def surface(ms: Microstructure, samples: int = 4):
     mesh = pv.PolyData(pts, np.column_stack([np.full(len(tris), 3), tris]).ravel()) if len(tris) else pv.PolyData()
     if len(tris):
         mesh.cell_data["patch"] = pid
-        mesh.cell_data["level"] = np.array([P.level for P in _drawn(ms)], np.int32)[pid]
+        mesh.cell_data["level"] = np.array([P.level for P in drawn_patches(ms)], np.int32)[pid]
         # surface patches run in their own parameter directions, caps and volume faces in theirs, and a map with
         # det J < 0 turns everything inside out: one consistent, outward orientation per sheet
         mesh = orient_outward(mesh)
@@ -136,7 +136,7 @@ def surface(ms: Microstructure, samples: int = 4):
     return mesh
 
 
-def _drawn(ms) -> list:
+def drawn_patches(ms) -> list:
     """What the ``patch`` numbers of :func:`surface` stand for: the placed patches, then the placed surfaces of
     the trimmed members (:class:`tiling.members.trimmed.PlacedTrimmed`)."""
     return list(ms.patches) + [m.placed for m in getattr(ms, "trimmed", [])]
@@ -144,7 +144,7 @@ def _drawn(ms) -> list:
 
 def _trimmed_parts(ms, samples: int):
     """(physical points, triangles, patch number) of every trimmed cap (drawn with its tile's patch) and
-    every trimmed member (numbered after the patches, :func:`_drawn`)."""
+    every trimmed member (numbered after the patches, :func:`drawn_patches`)."""
     for pc in getattr(ms, "caps", []):
         pts, t = _cap_triangles(ms, pc, samples)
         owner = next((lp[0][0] for lp in pc.cap.segments if lp), 0)  # drawn with a tile patch it closes
@@ -285,52 +285,6 @@ def _save(mesh, tmp, suffix):
     target = str(tmp) + suffix
     mesh.save(target, binary=True)
     os.replace(target, tmp)
-
-
-def render_png(ms: Microstructure, path, samples: int = 6, color_by: str = "level", window=(1000, 800),
-               camera: str = "iso", title: str | None = None, mesh=None) -> Path:
-    """Offscreen pyvista render of the boundary, coloured by ``level``, ``tile`` or ``patch``; ``title``
-    (default: the structure's name, tiles, patches and levels) in the upper left; ``mesh``: the boundary
-    already computed by :func:`surface` (see :func:`draw`)."""
-    return save_screenshot(draw(ms, offscreen_plotter(window), samples, color_by, title, mesh), path, TilingError,
-                           camera)
-
-
-def draw(ms: Microstructure, pl, samples: int = 6, color_by: str = "level", title: str | None = None, mesh=None):
-    """``pl`` (a ``pyvista.Plotter``) with the boundary of ``ms`` coloured by ``color_by`` and the title added.
-
-    ``mesh``: the boundary :func:`surface` (or ``ms.surface``) already gave for ``ms``, drawn instead of
-    computing it again (``samples`` is then not used); its ``patch`` cell numbers must be this structure's."""
-    drawn = _drawn(ms)
-    attr = {"level": [p.level for p in drawn], "tile": [p.tile for p in drawn], "patch": list(range(len(drawn)))}
-    if color_by not in attr:
-        raise TilingError(f"color_by must be one of {sorted(attr)}, got {show(color_by)}")
-    if mesh is None:
-        mesh = surface(ms, samples)
-    elif not hasattr(mesh, "cell_data") or "patch" not in mesh.cell_data or (
-            mesh.n_cells and int(np.max(mesh.cell_data["patch"])) >= len(drawn)):
-        raise TilingError(f"mesh must be the boundary surface(ms) gave for this structure ({len(drawn)} patches "
-                          "numbered in its 'patch' cell data); pass mesh=ms.surface(...) or leave it out")
-    levels = ms.levels
-    pl.add_text(title if title is not None else
-                f"{ms.name or 'micro-structure'}: {ms.n_tiles:,} tiles, {len(ms.patches):,} patches"
-                + (f", {levels} levels" if levels > 1 else ""), position="upper_left", font_size=11, color="black")
-    tris = mesh.extract_cells_by_type(5)
-    if tris.n_cells:
-        tris.cell_data[color_by] = np.asarray(attr[color_by])[tris.cell_data["patch"]]
-        n = len(np.unique(tris.cell_data[color_by]))
-        if n > 1:
-            pl.add_mesh(tris, scalars=color_by, cmap="viridis", smooth_shading=True, split_sharp_edges=True,
-                        scalar_bar_args={"title": color_by, "vertical": True, "position_x": 0.86,
-                                         "position_y": 0.15, "width": 0.08, "height": 0.6, "n_labels": min(n, 6),
-                                         "fmt": "%.0f"})
-        else:  # one value: a plain colour reads better than the colour map's end
-            pl.add_mesh(tris, color="#8fb3de", smooth_shading=True, split_sharp_edges=True)
-    lines = mesh.extract_cells_by_type(3)
-    if lines.n_cells:
-        size = float(np.ptp(np.asarray(lines.points), axis=0).max())
-        pl.add_mesh(lines.extract_surface(algorithm="dataset_surface").tube(radius=0.01 * size), color="darkred")
-    return pl
 
 
 def boundary_splines(ms: Microstructure) -> list:

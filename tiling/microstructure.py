@@ -36,7 +36,7 @@ from geometry.patches.contact import unglued_contacts
 from geometry.patches.multipatch import (Interface, MultiPatch, PlacedPatch, detect_interfaces, free_face_mask, free_faces,
                                  tile_corners)
 
-from . import export
+from . import export, pictures
 from .errors import TilingError
 from geometry.errors import show
 from geometry.grouping import ObjectIndex
@@ -119,12 +119,12 @@ class Microstructure(MultiPatch):
 
     def plot(self, screenshot=None, samples: int = 6, color_by: str = "level", title: str | None = None, mesh=None):
         """Draw the boundary coloured by ``level``, ``tile`` or ``patch``, titled with the name, tiles, patches
-        and levels (:func:`tiling.export.render_png`); ``screenshot``: a ``.png`` written off screen (returned), else
+        and levels (:func:`tiling.pictures.render_png`); ``screenshot``: a ``.png`` written off screen (returned), else
         the window is shown. ``mesh``: the boundary :meth:`surface` already gave, drawn as it is (not computed
         again)."""
         if screenshot is not None:
-            return export.render_png(self, screenshot, samples, color_by, title=title, mesh=mesh)
-        pl = export.draw(self, window_plotter(), samples, color_by, title, mesh)
+            return pictures.render_png(self, screenshot, samples, color_by, title=title, mesh=mesh)
+        pl = pictures.draw(self, window_plotter(), samples, color_by, title, mesh)
         pl.set_background("white")
         pl.show()
         return None
