@@ -102,6 +102,8 @@ def test_two_level_capped_structure_is_one_closed_surface(monkeypatch):
     capped = {id(t): t for t in ms.tiles if getattr(t, "caps", None)}
     assert len(built) == len(set(built)) == len(capped) and len(ms.caps) > 7 * len(capped) / 2
     assert len(ms.patches) == 7 * 8 * 24
+    with pytest.raises(tiling.TilingError, match=r"built must be a dict \(of sealed variants"):
+        tiling.regular(TWISTED, L.hollow_cross(), (2, 1, 1), seal="cap", built=[])
     w = tiling.export.watertightness(ms, samples=2)
     assert w["closed"] and w["manifold"] and w["components"] == 1
     # 8 crosses per block with 12 connections each, 4 more through each of the first level's 6 interfaces

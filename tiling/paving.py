@@ -116,6 +116,8 @@ def regular_placements(D: BSpline, tile: Tile, counts, variants: dict | None = N
     N = [len(c) for c in cells]
     placed, tiles, links, caps, trimmed = [], [], [], [], []
     sealed: dict = {}  # sealed variants, built once per set of sides
+    if built is not None and not isinstance(built, dict):
+        raise TilingError(f"built must be a dict (of sealed variants, filled by the paving), got {show(built)}")
     built = {} if built is None else built
     for i in range(N[0]):
         for j in range(N[1]):

@@ -6,7 +6,8 @@ deformation-map evaluation per batch).  Each group is assembled
 
 * by the compiled kernels of :mod:`iga.assembly.compiled` (numba) when it has at
   least :data:`iga.assembly.compiled.MIN_POINTS` Gauss points: geometry, metric
-  and stiffness slab by slab, straight into the final CSR;
+  and stiffness slab by slab, straight into the final CSR (patches in the NURBS basis: the ten fields of
+  :data:`iga.assembly.terms.RATIONAL_DIFFUSION` per slab, the entries scaled by w_i w_j once complete);
 * otherwise by the NumPy sum factorisation of :mod:`iga.assembly.tensor`.
 
 Both evaluate the same coefficient fields (:func:`iga.heat.forms.diffusion` or its
