@@ -119,7 +119,8 @@ def sinks():
         goal = [HeatFlow(t) for t in tags]
         runs = [("h", {"max_unknowns": budget}, "", "h")] + \
             [("p", {"max_steps": k}, f", {k} steps", "p") for k in (2, 3, 4)] + \
-            [("p", {"max_steps": k, "goal": goal, "tolerance": 1e-9}, f", goal, {k} steps", "p goal") for k in (2, 3)]
+            [("p", {"max_steps": k, "goal": goal, "tolerance": 1e-9}, f", goal, {k} steps", "p goal") for k in (2, 3)] + \
+            [("p", {"max_steps": 5, "marking": 0.15}, ", marking 0.15, 5 steps", "p")]  # small steps: fewest unknowns
         for how, options, label, kind in runs:
             options = {"tolerance": 1e-5, **options}
             result = iga.adaptive_solve(problem(), options.pop("tolerance"), refine=how, **options)
