@@ -137,8 +137,9 @@ def rational_form(terms, W: np.ndarray, dW: list) -> list:
 def rational_diffusion_fields(C: np.ndarray, W: np.ndarray, dW) -> np.ndarray:
     """The ten fields of :data:`iga.assembly.terms.RATIONAL_DIFFUSION` from the six diffusion fields C (6, ...)
     (C_rs in :data:`iga.assembly.terms.SYMMETRIC_PAIRS` order) and W, dW (broadcasting against C[0]): C_rs / W^2,
-    F_r = -sum_s C_rs g_s / W and F_0 = sum_rs C_rs g_r g_s with g_r = d_r W / W^2 (module notes); the
-    form :func:`rational_form` writes term by term, in three fields per first-order direction fewer."""
+    F_r = -sum_s C_rs g_s / W and F_0 = sum_rs C_rs g_r g_s with g_r = d_r W / W^2 (module notes).  The form
+    :func:`rational_form` gives for the diffusion terms, gathered into one field per order, a first-order term
+    and its transpose sharing theirs: so the form is declared symmetric and the kernel contracts half of it."""
     full = {}
     for c, (r, s) in enumerate(SYMMETRIC_PAIRS):
         full[r, s] = full[s, r] = C[c]

@@ -113,7 +113,7 @@ class ElasticVolume:
         """Write the stiffness of ``members`` into K; returns loads [(P,) + shape or None] * 3 and int f dV (3,)."""
         space = self.disc.spaces[members[0]]
         shape = (len(members),) + space.qshape
-        w = self.disc.weights[members[0]]  # the NURBS basis (iga.discretisation.rational): NumPy forms, scaled by w
+        w = self.disc.weights[members[0]]  # the NURBS basis (iga.discretisation.rational): forms scaled by w
         compiled = w is None and fast_assembly.applies(space, len(members), terms=ELASTIC_TERMS)
         G, LM, fb, th = self._fields(members, youngs, poisson, body, thermal, compiled)
         c = [[G[3 * r + a] for a in range(3)] for r in range(3)]
@@ -124,7 +124,7 @@ class ElasticVolume:
             fast_assembly.elastic_into(space, members, G, LM, K)
         else:
             pat = pattern(space)
-            K.put(members, pat, _numpy_blocks(space, pat, c, LM, shape, nurbs, w))
+            K.put(members, pat, _term_blocks(space, pat, c, LM, shape, nurbs, w))
         loads, force = [None, None, None], np.zeros(3)
         if fb is not None:
             for a in range(3):
@@ -140,7 +140,7 @@ class ElasticVolume:
         return loads, force
 
 
-def _numpy_blocks(space, pat, c, LM, shape, nurbs=None, w=None) -> dict:
+def _term_blocks(space, pat, c, LM, shape, nurbs=None, w=None) -> dict:
     """The nine blocks' CSR data {(a, b): (P, nnz)} of patches on ``space`` (pattern ``pat``) from their terms
     (:func:`iga.assembly.forms.terms_data`: the form kernel for large groups, NumPy otherwise):
     each upper block from its parametric terms in one form (:func:`iga.elasticity.forms.block_terms`; the

@@ -117,9 +117,10 @@ class VolumeAssembler:
         shape or None, and int f dV of patches sharing a space and spline."""
         P, N = len(members), space.nq_total
         total = 0.0
-        if self._compiled(members) and self.weights[members[0]] is not None:
-            return self._compiled_nurbs(members, space, conductivity, source)
-        if self._compiled(members):  # compiled: each slab goes straight into the global CSR and loads
+        if self._compiled(members):
+            if self.weights[members[0]] is not None:
+                return self._compiled_nurbs(members, space, conductivity, source)
+            # each slab goes straight into the global CSR and loads
             acc = fast_assembly.FormAccumulator(space, P, into=(into, members))
             for planes, Cs, Ls in self._slabs(members, space, conductivity, source, compiled=True):
                 total += float(Ls.sum())
