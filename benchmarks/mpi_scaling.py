@@ -1,12 +1,15 @@
 """Strong scaling of the distributed assembly and solve on PETSc, on this machine's ranks.
 
-    python benchmarks/mpi_scaling.py [--ranks 1,2,4] [--repeat N] [--quick] [--estimate-only]
+    python benchmarks/mpi_scaling.py [--ranks 1,2,4] [--cases sink,lattice,elastic] [--repeat N] [--quick]
+                                     [--estimate-only]
 
 Needs the extra ``[mpi]`` (petsc4py, mpi4py and an ``mpiexec``).  Cases:
   * ``sink``: the circular heat sink of ``iga demo heat-sink`` at ``--refine 3`` (its pipeline, solver petsc;
     ``--quick``: ``--refine 1``);
   * ``lattice``: a 21 x 21 x 21 cross lattice in a twisted map at degree 2 (about 1M unknowns;
-    ``--quick``: 6 x 6 x 6).
+    ``--quick``: 6 x 6 x 6);
+  * ``elastic``: that lattice's map with 15 x 15 x 15 crosses, elastic (aluminium, clamped at u = 0, a
+    traction at u = 1; about 1.1M unknowns; ``--quick``: 4 x 4 x 4), GAMG with the rigid modes.
 For each rank count the case runs under ``mpiexec -n R`` with ``solver="petsc"`` (CG + GAMG, tolerance
 1e-8; R = 1 takes the same distributed path on one process): time per stage (model, spaces and regularity, assembly of the
 rank's patches, constraints and Dirichlet data, matrix build + GAMG set-up, CG), iterations, and peak
@@ -62,14 +65,24 @@ def run_case(case: str, size: str) -> None:
         info, dofs, unknowns, t_all = s["solver"], s["dofs"], s["unknowns"], time.perf_counter() - t0
         t_model = s["timings_s"].get("deformation map", 0.0) + s["timings_s"].get("tiling", 0.0)
     else:
-        n = {"full": 21, "quick": 6, "floor": 2}[size]
         D = pr.twisted(pr.box((1.0, 1.0, 1.0), degrees=(2, 2, 2)), 0.3, axis_point=(0.5, 0.5))
-        prob = (HeatProblem(tiling.regular(D, L.cross(), (n, n, n)), conductivity=20.0, degree_elevation=1)
-                .dirichlet("umin", 80.0).robin("umax", 50.0, 20.0))
+        if case == "elastic":  # the same lattice, aluminium, clamped at one end and pulled at the other
+            from iga import ElasticityProblem
+
+            n = {"full": 15, "quick": 4, "floor": 2}[size]
+            prob = (ElasticityProblem(tiling.regular(D, L.cross(), (n, n, n)), 70e9, 0.33, degree_elevation=1)
+                    .dirichlet("umin", 0.0).traction("umax", (1e6, 0.0, -2e5)))
+        else:
+            n = {"full": 21, "quick": 6, "floor": 2}[size]
+            prob = (HeatProblem(tiling.regular(D, L.cross(), (n, n, n)), conductivity=20.0, degree_elevation=1)
+                    .dirichlet("umin", 80.0).robin("umax", 50.0, 20.0))
         t_model = time.perf_counter() - t0
         s = prob.solve(solver="petsc", tol=1e-8)
         t_all = time.perf_counter() - t0
-        tm, info, dofs, unknowns = s.record.timings, s.info["solver"], prob.ndof, int(s.record.reduced_dofs)
+        tm, info, unknowns = s.record.timings, s.info["solver"], int(s.record.reduced_dofs)
+        dofs = prob.ndof * (3 if case == "elastic" else 1)
+        if "assembly_volume" not in tm:  # (elasticity times its assembly as one stage)
+            tm = {**tm, "assembly_volume": tm["assembly"], "assembly_faces": 0.0}
     row = {"case": case, "floor": size == "floor", "ranks": ranks, "dofs": dofs, "unknowns": unknowns,
            "iterations": info["iterations"], "model s": t_model,
            "assembly s": tm["assembly_volume"] + tm["assembly_faces"], "constraints s": tm["constraints"],
@@ -214,10 +227,14 @@ def main():
     if mpiexec is None:
         raise SystemExit("no mpiexec found (beside this Python or on PATH): install the [mpi] extra and an MPI "
                          "(e.g. apt install openmpi-bin, or mpich)")
+    cases = ("sink", "lattice", "elastic")
+    for i, a in enumerate(sys.argv):
+        if a == "--cases":
+            cases = tuple(sys.argv[i + 1].split(","))
     quick = ["--quick"] if "--quick" in sys.argv else []
     jobs = [([mpiexec, "-n", str(R), sys.executable, __file__, "--case", case] + extra,
              f"{case}{' (smallest model)' if extra == ['--floor'] else ''} on {R} ranks")
-            for case in ("sink", "lattice") for R in ranks for extra in (["--floor"], quick) for _ in range(repeat)]
+            for case in cases for R in ranks for extra in (["--floor"], quick) for _ in range(repeat)]
     rows = collect_rows(jobs, lambda r: f"{r['case']} R={r['ranks']}: {r['unknowns']:,} unknowns, total "
                         f"{r['total s']:.1f} s, CG {r['CG s']:.1f} s ({r['iterations']} it), peak "
                         f"{r['peak MiB per rank']} MiB", env=launch_env())

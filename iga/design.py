@@ -21,7 +21,7 @@ from geometry.numbers import is_real
 from iga.adjoint import design_map, map_basis, map_parameters
 from iga.errors import ProblemError
 from iga.optimiser import DesignResult, DesignStep, analysed, bounds_pair, check_design, redesigned, run_slsqp
-from iga.outputs import Output, gauss_pass
+from iga.outputs import Output, evaluated, gauss_pass
 from iga.parameter_design import optimize_parameters
 from iga.shape_design import optimize_shape
 
@@ -108,7 +108,7 @@ def optimize(problem, objective: Output, wrt: str = "channel:k", bounds=None, me
         values = lo + np.clip(z, 0, 1) * (hi - lo)
         new = D.with_channel(name, values.reshape(D.control_points.shape[:3]))
         sol = analysed(problem.on(redesigned(problem.model, D, new, placed)), solver)
-        return values, sol, objective.value(sol), sol.gradient(objective, wrt, solver).reshape(-1) * (
+        return values, sol, evaluated(objective, sol), sol.gradient(objective, wrt, solver).reshape(-1) * (
             hi - lo), float(vol @ values / total), None
 
     constraints = []

@@ -100,6 +100,16 @@ class Output:
         return self.name
 
 
+def evaluated(output: Output, solution) -> float:
+    """``output.value(solution)``, computed once per solution: kept in ``solution.output_values`` by the output's
+    name (which names its parameters), since a design step asks for the objective, then for its gradient, whose
+    adjoint load and explicit terms need the value again (each a pass over every Gauss point)."""
+    done = solution.output_values
+    if output.name not in done:
+        done[output.name] = output.value(solution)
+    return done[output.name]
+
+
 def _heat(solution, what: str):
     if getattr(type(solution), "physics", None) != "heat":  # (Solution and its states declare it)
         raise ProblemError(f"{what} is an output of a heat solution (iga.Solution), got {show(solution)}")
@@ -170,7 +180,7 @@ class TemperatureNorm(Output):
         from iga.heat.forms import boundary_load
 
         s = _heat(solution, self.name)
-        p, J = self.p, self.value(s)
+        p, J = self.p, evaluated(self, s)
         if not J > TINY:  # T = 0 everywhere: the norm has no direction to grow in
             return np.zeros(s.problem.ndof)
         if self.tag is None:

@@ -25,7 +25,7 @@ from geometry.numbers import is_real
 from iga.adjoint import shape_map
 from iga.errors import ProblemError
 from iga.optimiser import analysed, bounds_pair, check_design, free_mask, run_slsqp
-from iga.outputs import Output, Volume
+from iga.outputs import Output, Volume, evaluated
 from iga.parameter_sensitivity import parameter_sensitivity
 
 __all__ = ["optimize_parameters"]
@@ -90,7 +90,7 @@ def optimize_parameters(problem, objective: Output, bounds, hold=(), keep_volume
         sol = analysed(problem.on(ms), solver)
         g = np.asarray(parameter_sensitivity(sol, objective, "parameters", solver))[free] * (hi - lo)
         gV = np.asarray(parameter_sensitivity(sol, volume, "parameters", solver))[free] * (hi - lo)
-        return values, sol, objective.value(sol), g, volume.value(sol), gV
+        return values, sol, evaluated(objective, sol), g, evaluated(volume, sol), gV
 
     z0 = (v0[free] - lo) / (hi - lo)
     return run_slsqp(objective, analyse, z0, (0.0, 1.0), hi - lo, [], maxiter, tol, "volume", v0.shape,

@@ -21,7 +21,7 @@ from geometry.numbers import is_real
 
 from iga.errors import ProblemError
 from iga.optimiser import check_design, free_mask, redesigned, run_slsqp
-from iga.outputs import Output, Volume
+from iga.outputs import Output, Volume, evaluated
 from iga.adjoint import shape_map
 from iga.shape_sensitivity import shape_sensitivity
 
@@ -63,7 +63,7 @@ def optimize_shape(problem, objective: Output, move: float, hold=(), keep_volume
         sol = problem.on(redesigned(problem.model, D, moved_map(D, P), placed)).solve(solver=solver, keep=True)
         g = shape_sensitivity(sol, objective, solver)[free] * move
         gV = shape_sensitivity(sol, volume, solver)[free] * move
-        return P, sol, objective.value(sol), g, volume.value(sol), gV
+        return P, sol, evaluated(objective, sol), g, evaluated(volume, sol), gV
 
     return run_slsqp(objective, analyse, np.zeros(int(free.sum())), (-1.0, 1.0), move, [], maxiter, tol, "volume",
                      P0.shape, keep_measure=keep_volume)

@@ -40,7 +40,8 @@ from geometry.faces import FACE_AXIS, parse_slot_face
 from iga.elasticity.shape import elastic_densities
 from iga.errors import ProblemError
 from iga.heat.conditions import face_values
-from iga.outputs import Compliance, MeanTemperature, Output, TemperatureNorm, Volume, gauss_pass, tag_faces
+from iga.outputs import (Compliance, MeanTemperature, Output, TemperatureNorm, Volume, evaluated, gauss_pass,
+                         tag_faces)
 from iga.adjoint import adjoint, map_basis_values, map_parameters, shape_map
 
 __all__ = ["shape_sensitivity", "shape_densities", "face_parameters", "face_plane", "steady_heat"]
@@ -181,7 +182,7 @@ def _explicit_terms(output: Output, solution, what: str) -> _Explicit:
         return _Explicit()
     if isinstance(output, (MeanTemperature, TemperatureNorm)):
         p = output.p if isinstance(output, TemperatureNorm) else 1.0
-        J = output.value(solution)
+        J = evaluated(output, solution)
         if isinstance(output, TemperatureNorm):
             def density(T, measure):
                 return J ** (1 - p) * (np.abs(T) ** p - J ** p) / (p * measure)

@@ -133,12 +133,15 @@ def _gmg_cg(A, b, tol, maxiter, **options):
     return preconditioned_cg(A, b, M.operator(), tol, maxiter, "gmg-cg", time.perf_counter() - t0, M.info)
 
 
-@register("petsc", options=("pc", "petsc_options"))
+@register("petsc", options=("pc", "petsc_options", "near_nullspace"))
 def _petsc(A, b, tol, maxiter, **options):
+    from .amg import checked_near_nullspace
     from .petsc_ksp import serial
 
+    modes = options.get("near_nullspace")
     x, its, reason, setup, solve_s = serial(A, b, tol, maxiter, options.get("pc", "gamg"),
-                                            options.get("petsc_options"))
+                                            options.get("petsc_options"),
+                                            None if modes is None else checked_near_nullspace(modes, A.shape[0]))
     res = relative_residual(A, x, b)
     if reason < 0 or not np.all(np.isfinite(x)) or res > 10 * tol:
         raise SolverError(f"PETSc CG did not converge (reason {reason}): relative residual {res:.2e} after {its} "

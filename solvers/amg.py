@@ -57,7 +57,7 @@ from .indexing import complement
 from geometry.numbers import TINY, is_real
 
 
-def _near_nullspace(near_nullspace, n: int) -> np.ndarray:
+def checked_near_nullspace(near_nullspace, n: int) -> np.ndarray:
     """``near_nullspace`` as a finite (n, k) array, or the project's error naming it."""
     B = np.asarray(near_nullspace, float)
     if B.ndim != 2 or B.shape[0] != n or not np.all(np.isfinite(B)):
@@ -69,7 +69,7 @@ def _candidates(near_nullspace, s: np.ndarray) -> np.ndarray:
     """The near-nullspace of the scaled matrix S A S: S^-1 B (B the constants by default)."""
     if near_nullspace is None:
         return (1.0 / s)[:, None]
-    return _near_nullspace(near_nullspace, len(s)) / s[:, None]
+    return checked_near_nullspace(near_nullspace, len(s)) / s[:, None]
 
 
 class _Scaled(sp.csr_matrix):
@@ -222,7 +222,7 @@ class AMGPreconditioner:
         Ap = permuted_padded(sp.csr_matrix(A), slots, size)
         Bp = None
         if B is not None:
-            B = _near_nullspace(B, n)
+            B = checked_near_nullspace(B, n)
             Bp = np.zeros((size, B.shape[1]))
             Bp[slots] = B
         self.slots, self.size = slots, size

@@ -14,6 +14,8 @@ import time
 
 import numpy as np
 
+from geometry.numbers import TINY
+
 from .errors import SolverError
 
 INSTALL = ("the 'petsc' solver needs petsc4py: pip install -e \".[mpi]\" (builds PETSc from source, about 30 "
@@ -71,6 +73,31 @@ def ksp_solve(M, b_vec, x_vec, tol: float, maxiter: int, pc: str = "gamg", petsc
     return its, reason, t1 - t0, t2 - t1
 
 
+def near_nullspace(PETSc, comm, modes: np.ndarray, n: int):
+    """The ``MatNullSpace`` of the k columns of ``modes`` (this rank's rows, in order, of an n-row matrix on the
+    mpi4py communicator ``comm``; None: one process), for ``Mat.setNearNullSpace``: GAMG builds its coarse
+    spaces from it (elasticity: the six rigid modes).  PETSc asks for orthonormal vectors: they come from the
+    eigen-decomposition of the k x k Gram matrix summed over the ranks, dropping directions whose eigenvalue
+    is below 1e-10 of the largest (a mode that the others already span)."""
+    modes = np.asarray(modes, float)
+    gram = modes.T @ modes
+    if comm is not None:  # (None: one process)
+        from mpi4py import MPI
+
+        gram = comm.allreduce(gram, op=MPI.SUM)
+    else:
+        comm = PETSc.COMM_SELF
+    w, V = np.linalg.eigh(gram)
+    keep = w > 1e-10 * max(float(w.max()), TINY)
+    basis = modes @ (V[:, keep] / np.sqrt(w[keep]))  # orthonormal columns over the ranks
+    vectors = []
+    for j in range(basis.shape[1]):
+        v = PETSc.Vec().createMPI((basis.shape[0], n), comm=comm)
+        v.setArray(np.ascontiguousarray(basis[:, j]))
+        vectors.append(v)
+    return PETSc.NullSpace().create(vectors=vectors, comm=comm)
+
+
 def _gamg_defaults(PETSc, opts, pc: str) -> list:
     """Defaults of ours for GAMG that the user's options (``petsc_options``, ``PETSC_OPTIONS``) did not set;
     returns the keys added.
@@ -92,13 +119,16 @@ def _gamg_defaults(PETSc, opts, pc: str) -> list:
     return [key]
 
 
-def serial(A, b, tol, maxiter, pc="gamg", petsc_options=None):
-    """Solve with PETSc on one process: (x, iterations, reason, set-up s, solve s)."""
+def serial(A, b, tol, maxiter, pc="gamg", petsc_options=None, modes=None):
+    """Solve with PETSc on one process: (x, iterations, reason, set-up s, solve s); ``modes`` (n, k): the
+    near-nullspace GAMG coarsens with (elasticity: the rigid modes), or None."""
     PETSc = petsc()
     A = A.tocsr()
     M = PETSc.Mat().createAIJ(size=A.shape, csr=(A.indptr.astype(PETSc.IntType), A.indices.astype(PETSc.IntType),
                                                   A.data), comm=PETSc.COMM_SELF)
     M.assemble()
+    if modes is not None:
+        M.setNearNullSpace(near_nullspace(PETSc, None, modes, A.shape[0]))
     x = np.zeros_like(b)
     bv, xv = PETSc.Vec().createWithArray(np.array(b, float), comm=PETSc.COMM_SELF), \
         PETSc.Vec().createWithArray(x, comm=PETSc.COMM_SELF)

@@ -151,7 +151,7 @@ def _write_outputs(ocfg: Record, out: Path, sol, stages) -> tuple[dict, float | 
     name = ocfg.name
     vtu = out / f"{name}.vtu"
     mesh_volume, grid = None, None
-    world = distributed.solve_world(sol.problem)
+    world = distributed.solve_world(sol)
     if world and ocfg.get("pieces"):  # a distributed solve: every rank writes its patches, rank 0 the .pvtu index
         vtu = write_pieces(out / f"{name}.pvtu", sol, world[0], samples=ocfg.samples, tolerance=ocfg.tolerance)
         files["vtu"] = str(vtu)

@@ -204,6 +204,8 @@ class GlobalColumns:
     ghost: np.ndarray
     answer: np.ndarray
     answer_counts: np.ndarray
+    #: the column of the prolongation each local column is (set by :func:`local_prolongation`)
+    source: np.ndarray | None = None
 
     def gather(self, comm, x_owned: np.ndarray) -> np.ndarray:
         """The values of every local column (sorted by ``gid``) from this rank's owned values."""
@@ -271,4 +273,5 @@ def local_prolongation(comm, Pf: sp.spmatrix, keys: np.ndarray, owner: np.ndarra
     idx = loc[R.indices]
     Pl = sp.csr_matrix((R.data, idx.astype(np.int32) if len(used) < 2**31 else idx, R.indptr),
                        shape=(R.shape[0], len(used)))
+    cols.source = used[order]
     return Pl, cols

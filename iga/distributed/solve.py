@@ -31,7 +31,7 @@ from scipy.sparse.csgraph import reverse_cuthill_mckee
 from geometry.resources import usable_cores
 from solvers import SolveInfo
 from solvers.indexing import complement
-from solvers.petsc_ksp import ksp_solve, petsc
+from solvers.petsc_ksp import ksp_solve, near_nullspace, petsc
 
 from iga.errors import ProblemError
 from iga.app.memory import return_freed_memory
@@ -39,7 +39,7 @@ from iga.distributed.rank_constraints import alltoallv, local_prolongation, patc
 from iga.discretisation.system import SystemSolution, reduction
 
 __all__ = ["world", "launched", "load_petsc", "solve_world", "partition", "solve_system", "is_root", "mpiexec",
-           "launch_env"]
+           "launch_env", "owned_dofs"]
 
 # what an MPI launcher leaves in its children's environment: a process that inherits it (a test run, a script
 # that once initialised PETSc as a singleton) would start its own mpiexec as a rank of the old job
@@ -125,10 +125,11 @@ def launch_env(base=None) -> dict:
     return env
 
 
-def solve_world(problem):
-    """(communicator, rank, size) of the distributed solve that gave ``problem`` its last solution (one
-    partitioned by :func:`partition`), None after a serial solve."""
-    return world() if getattr(problem, "partition", None) is not None else None
+def solve_world(solution):
+    """(communicator, rank, size) of the distributed solve that gave ``solution`` (a heat or elastic solution
+    whose record holds the partition of :func:`partition`), None for a serial solve's."""
+    record = getattr(solution, "record", None)
+    return world() if getattr(record, "partition", None) is not None else None
 
 
 def is_root() -> bool:
@@ -195,29 +196,33 @@ def _route_rows(comm, A, b, gid, starts):
     return local, own_b
 
 
-def _matrix(PETSc, comm, local, nfree):
+def _matrix(PETSc, comm, local, nfree, modes=None):
     """The MPIAIJ matrix whose rows on this rank are ``local`` (CSR, summed): preallocated exactly from the
-    rows (``createAIJ(csr=...)``, in every petsc4py from 3.18 on)."""
+    rows (``createAIJ(csr=...)``, in every petsc4py from 3.18 on); ``modes`` (its rows x k): the
+    near-nullspace GAMG is given, or None."""
     m = local.shape[0]
     M = PETSc.Mat().createAIJ(size=((m, nfree), (m, nfree)), comm=comm,
                               csr=(local.indptr.astype(PETSc.IntType), local.indices.astype(PETSc.IntType),
                                    local.data))
     M.assemble()
+    if modes is not None:
+        M.setNearNullSpace(near_nullspace(PETSc, comm, modes, nfree))
     return M
 
 
-def _columns(comm, Pf, constraints, dirichlet, part, offsets, rc, own):
+def _columns(comm, Pf, constraints, dirichlet, part, offsets, rc, own, components=1):
     """(``Pl``, :class:`iga.distributed.rank_constraints.GlobalColumns`): the rows ``own`` of ``Pf`` (this rank's DOFs)
     over the reduced unknowns they read, numbered globally.  ``rc`` (:class:`iga.distributed.rank_constraints.
     RankConstraints`) given: ``constraints`` are this rank's, in its closure numbering, a class is known by
     its smallest global DOF and owned by the rank of that DOF's patch; None: the whole model's, a column is
-    known by its index and owned by the lowest rank whose patches touch it."""
+    known by its index and owned by the lowest rank whose patches touch it (``components``: the DOFs are that many
+    copies of the patches' DOFs, one per field component, :mod:`iga.elasticity`)."""
     if rc is not None:
         free = complement(constraints.P.shape[1], dirichlet.dofs)
         keys = rc.keys()[free]
         owner = part[np.searchsorted(offsets, keys, side="right") - 1]  # the rank of the key's patch
         return local_prolongation(comm, Pf, keys, owner, own)
-    dof_rank = np.repeat(part, np.diff(offsets))
+    dof_rank = np.tile(np.repeat(part, np.diff(offsets)), components)
     Pc = sp.csc_matrix(Pf)
     touched = np.diff(Pc.indptr) > 0
     owner = np.zeros(Pf.shape[1], np.int64)
@@ -241,41 +246,61 @@ def _own_block(K, own: np.ndarray) -> sp.csr_matrix:
     return sp.csr_matrix((K.data, K.indices, indptr), shape=(len(own), len(own)))
 
 
-def _allgather_patches(comm, u_own, part, offsets) -> np.ndarray:
+def owned_dofs(part, offsets, rank: int, components: int = 1) -> np.ndarray:
+    """The DOFs of ``rank``'s patches, in the numbering of ``components`` fields one after the other (heat 1,
+    elasticity 3: component-major), component by component."""
+    mine = np.flatnonzero(part == rank)
+    dofs = ranges(offsets[mine], offsets[mine + 1])
+    return np.concatenate([dofs + a * int(offsets[-1]) for a in range(components)])
+
+
+def _owned_modes(modes, constraints, dirichlet, n: int, cols, rank: int) -> np.ndarray:
+    """The rows of ``modes`` (one per reduced unknown of ``constraints``, or per DOF of n without them) at this
+    rank's rows of the matrix: the free unknowns it owns (global numbers ``lo .. hi - 1``, in order)."""
+    free = complement(n if constraints is None else constraints.P.shape[1], dirichlet.dofs)
+    lo, hi = cols.starts[rank], cols.starts[rank + 1]
+    return np.asarray(modes)[free][cols.source[(cols.gid >= lo) & (cols.gid < hi)]]
+
+
+def _allgather_patches(comm, u_own, part, offsets, components=1) -> np.ndarray:
     """The whole coefficient vector from every rank's values on its own patches, ``u_own`` (one
     ``Allgatherv``)."""
-    idx = [ranges(offsets[p], offsets[p + 1]) for p in (np.flatnonzero(part == q) for q in range(comm.Get_size()))]
+    idx = [owned_dofs(part, offsets, q, components) for q in range(comm.Get_size())]
     counts = [len(i) for i in idx]
     buf = np.empty(int(sum(counts)))
     comm.Allgatherv(np.ascontiguousarray(u_own, np.float64), [buf, counts])
-    out = np.empty(int(offsets[-1]))
+    out = np.empty(int(offsets[-1]) * components)
     out[np.concatenate(idx)] = buf
     return out
 
 
 def solve_system(system: list, constraints, dirichlet, tol, maxiter, part, comm, offsets, pc: str = "gamg",
-                 petsc_options=None, rc=None) -> SystemSolution:
+                 petsc_options=None, rc=None, components: int = 1, modes=None) -> SystemSolution:
     """The distributed twin of :func:`iga.discretisation.system.solve_system`: ``system`` = [K, f] holds this rank's patches
     only (``part``: the rank of every patch, ``offsets``: the patches' first DOFs); the list is emptied, and
     K and f are cut to this rank's DOFs at once (K in its own arrays) and released once the reduced matrix
     is built (only the rows that the reactions read are kept), so that GAMG's set-up does not stand on
     them.  ``rc``: this rank's constraints (:mod:`iga.distributed.rank_constraints`; ``constraints`` and ``dirichlet``
     then in its closure numbering), or None when ``constraints`` are the whole model's.  The reaction
-    returned is this rank's part (its rows of ``K u - f``): the sum over the ranks is the serial one."""
+    returned is this rank's part (its rows of ``K u - f``): the sum over the ranks is the serial one.
+    ``components``: DOFs numbered field component after component (elasticity: 3; then ``rc`` must be None);
+    ``modes`` (reduced unknowns x k): the near-nullspace GAMG coarsens with (elasticity: the rigid modes at
+    each reduced unknown, :func:`iga.elasticity.rigid.rigid_modes`), restricted here to the free ones."""
     PETSc = load_petsc()
 
     rank, size = comm.Get_rank(), comm.Get_size()
-    mine = np.flatnonzero(part == rank)
-    own_g = ranges(offsets[mine], offsets[mine + 1])  # this rank's DOFs, global numbers
+    own_g = owned_dofs(part, offsets, rank, components)  # this rank's DOFs, global numbers
     K, f = system
     system.clear()
     K, f = _own_block(K, own_g), np.asarray(f[own_g])
-    n = len(rc.rows) if rc is not None else int(offsets[-1])  # the numbering of the constraints' rows
+    n = len(rc.rows) if rc is not None else int(offsets[-1]) * components  # the numbering of the constraints' rows
     own = rc.own if rc is not None else own_g  # this rank's DOFs in it
     t0 = time.perf_counter()
     Pf, offset, reaction_dofs, induced = reduction(constraints, dirichlet, n)
     offset = offset[own]
-    Pl, cols = _columns(comm, Pf, constraints, dirichlet, part, offsets, rc, own)
+    Pl, cols = _columns(comm, Pf, constraints, dirichlet, part, offsets, rc, own, components)
+    if modes is not None:
+        modes = _owned_modes(modes, constraints, dirichlet, n, cols, rank)
     del Pf  # one copy of the prolongation is kept through the solve: this rank's rows, Pl
     t_reduction = time.perf_counter() - t0
     nfree = int(cols.starts[-1])
@@ -293,7 +318,7 @@ def solve_system(system: list, constraints, dirichlet, tol, maxiter, part, comm,
     del K, f, P
     local, rhs = _route_rows(comm, A, load, cols.gid, cols.starts)
     del A, load
-    M = _matrix(PETSc, comm, local, nfree)
+    M = _matrix(PETSc, comm, local, nfree, modes)
     del local
     b = PETSc.Vec().createMPI((int(counts[rank]), nfree), comm=comm)
     b.setArray(rhs)
@@ -314,7 +339,7 @@ def solve_system(system: list, constraints, dirichlet, tol, maxiter, part, comm,
                            f"{res:.2e} after {its} iterations")
     u = Pl @ cols.gather(comm, x_owned) + offset  # this rank's DOFs
     reaction = np.ascontiguousarray((Pd.T @ (Kd @ u - fd))[reaction_dofs])  # this rank's rows: Solution sums
-    u = _allgather_patches(comm, u, part, offsets)
+    u = _allgather_patches(comm, u, part, offsets, components)
     info = SolveInfo(f"petsc ({pc}, {size} ranks)", its, res, setup + t_build, solve_s,
                      {"ranks": size, "owned_unknowns": counts.tolist(), "reduction_s": t_reduction,
                       "matrix_s": t_build - t_reduction, "ksp_setup_s": setup,

@@ -34,8 +34,9 @@ from iga.errors import ProblemError
 from iga.discretisation.multilevel import direct_limit, elastic_kronecker_sums, owners_of
 from iga.heat.forms import boundary_load
 from iga.model import tag_faces
-from iga.elasticity.rigid import free_modes, greville_points, rigid_modes
+from iga.elasticity.rigid import free_modes, greville_points, refuse_net_load, rigid_modes, three_two_one
 from iga.discretisation.system import solve_system
+from iga.distributed.elastic import share_of, solve_elastic, summed
 from iga.tags import as_expression, condition_faces, mentions_rest
 from iga.elasticity.data import VectorField, component_field, merge_dirichlet, pin_dofs
 from iga.elasticity.supports import (Hold, PointLoad, Spring, components_of, hold_dirichlet, select_nodes,
@@ -238,44 +239,17 @@ class ElasticityProblem(Problem):
         self.rigid_hold = True
         return self
 
-    def _three_two_one(self, points: np.ndarray) -> list:
-        """Per component, the scalar DOFs the 3-2-1 rule prescribes (to zero)."""
-        corners = []
-        for pi, space in enumerate(self.spaces):
-            shape = space.shape
-            for i in (0, shape[0] - 1):
-                for j in (0, shape[1] - 1):
-                    for k in (0, shape[2] - 1):
-                        corners.append(int(self.offsets[pi] + (i * shape[1] + j) * shape[2] + k))
-        corners = np.unique(corners)
-        x = points[corners]
-        a = corners[np.argmin(x.sum(1))]
-        b = corners[np.argmax(np.linalg.norm(x - points[a], axis=1))]
-        ab = points[b] - points[a]
-        ab /= np.linalg.norm(ab)
-        off = np.linalg.norm(np.cross(x - points[a], ab), axis=1)
-        c = corners[np.argmax(off)]
-        normal = np.cross(ab, points[c] - points[a])
-        if not np.linalg.norm(normal) > 1e-9 * np.ptp(points, axis=0).max():
-            raise ProblemError("hold_rigid needs a body that is not flat along a line: no three patch corners span a "
-                               "plane")
-        across = np.argsort(np.abs(ab))[:2]  # the two axes least along AB
-        out = [[a], [a], [a]]
-        for comp in across:
-            out[comp].append(b)
-        out[int(np.argmax(np.abs(normal)))].append(c)
-        return [np.array(o, np.int64) for o in out]
-
     # ------------------------------------------------------------------ solve
-    def _loads(self, f: np.ndarray, supports: list) -> tuple[dict, dict]:
+    def _loads(self, f: np.ndarray, supports: list, patches=None, comm=None) -> tuple[dict, dict]:
         """Add the traction and pressure loads to f; returns ({tag: applied force (N, (3,))}, {tag: its moment
         about the origin (N m, (3,))}).  ``supports``: the
         :meth:`_support_faces`; a load on a component they prescribe on the same face is refused (it would only
-        change the reaction there)."""
+        change the reaction there).  ``patches`` (a set): only their faces are integrated (one MPI rank's
+        share; the forces and moments are then summed over ``comm``); point loads are added on every rank."""
         n, applied, moments = self.ndof, {}, {}  # moments about the origin (N m): hold_rigid's loads must balance
         for load in self.loads:
             keys = condition_faces(self.tag_faces(load.tag), load.tag)
-            fds = self.faces(keys)
+            fds = self.faces(keys if patches is None else [k for k in keys if k[0] in patches])
             force = np.zeros(3)
             for fd in fds:
                 if load.kind == "traction":
@@ -288,6 +262,8 @@ class ElasticityProblem(Problem):
                 force += (t * fd.dAw[:, None]).sum(0)
                 moments[load.tag] = moments.get(load.tag, 0.0) + (np.cross(fd.x, t) * fd.dAw[:, None]).sum(0)
             applied[load.tag] = applied.get(load.tag, 0.0) + force
+        if comm is not None:
+            applied, moments = summed(comm, applied), summed(comm, moments)
         for pl in self.point_loads:  # f_i += N_i(x) F: the consistent load of a force at a point
             where, params = self._locator()(pl.point[None], what=pl.name)
             row = evaluation_matrix(self, where, params).toarray().ravel()
@@ -321,6 +297,8 @@ class ElasticityProblem(Problem):
             nred = B.shape[0] // 3
             unknowns = np.arange(3 * nred)
             options = {"near_nullspace": B, "node_slots": 3 * (unknowns % nred) + unknowns // nred}
+        if solver == "petsc":  # GAMG's near-nullspace
+            options = {"near_nullspace": B}
         if solver in ("auto", "fd-cg"):
             ks = None if constraints is not None else \
                 elastic_kronecker_sums(self, complement(3 * self.ndof, dd.dofs))
@@ -334,16 +312,20 @@ class ElasticityProblem(Problem):
                 options.update(direct_limit(constraints, solver))
         return options
 
-    def assemble(self, supports: list | None = None):
+    def assemble(self, supports: list | None = None, patches=None, comm=None):
         """(K, f, book): the stiffness (3 ndof x 3 ndof CSR, component-major: unknown a ndof + i is component a
         of DOF i; N/m), the load vector (N: body force, thermal strain, tractions and pressures) and
         {"work": {"body": int f dV (N, (3,))}, "applied": {tag: resultant (N, (3,))}, "moments": {tag: moment about
         the origin (N m, (3,))}, "timings": {"assembly": s}}.  :meth:`solve` calls it with the
-        :meth:`_support_faces` it resolved."""
+        :meth:`_support_faces` it resolved.  ``patches``, ``comm``: one MPI rank's patches (the others' rows
+        stay empty) and the communicator the forces are summed over."""
         supports = self._support_faces() if supports is None else supports
         t0 = time.perf_counter()
-        K, f, work = ElasticVolume(self.disc).assemble(self.youngs, self.poisson, self.body, self.thermal_strain)
-        applied, moments = self._loads(f, supports)
+        K, f, work = ElasticVolume(self.disc).assemble(self.youngs, self.poisson, self.body, self.thermal_strain,
+                                                       patches)
+        if comm is not None:
+            work = {"body": comm.allreduce(work["body"])}
+        applied, moments = self._loads(f, supports, patches, comm)
         return K, f, {"work": work, "applied": applied, "moments": moments,
                       "timings": {"assembly": time.perf_counter() - t0}}
 
@@ -359,10 +341,11 @@ class ElasticityProblem(Problem):
             raise ProblemError(f"hold_rigid pins three corners against rigid motion only, but displacement conditions "
                                f"on {', '.join(tags)} already hold the body: the pins would add supports (and "
                                "reactions) of their own; use either the conditions or hold_rigid")
-        K, f, book = self.assemble(supports)
+        share = share_of(self, solver)  # this MPI rank's patches under mpiexec with solver="petsc", else None
+        K, f, book = self.assemble(supports, *((share.patches, share.comm) if share else ()))
         work, applied = book["work"], book["applied"]
         if self.rigid_hold:
-            _refuse_net_load(applied, work["body"], book["moments"])
+            refuse_net_load(applied, work["body"], book["moments"])
         t1 = time.perf_counter()
         scalar = prolongation(self.model, self.spaces, self.offsets, self.weights) \
             if needs_constraints(self.model, self.spaces) \
@@ -382,9 +365,10 @@ class ElasticityProblem(Problem):
             for a in np.flatnonzero(spring.stiffness > 0):
                 held[a] = np.union1d(held[a], spring.dofs)
         if self.springs:
-            K = K + spring_matrix(self.springs, self.ndof)
+            S = spring_matrix(self.springs, self.ndof)
+            K = K + (share.own_diagonal(S) if share else S)
         if self.rigid_hold:
-            pins = self._three_two_one(points)
+            pins = three_two_one(self.spaces, self.offsets, points)
             dd = pin_dofs(dd, pins, self.ndof, scalar)
             held = [np.union1d(h, p) for h, p in zip(held, pins)]
         pieces, labels = dof_labels(self, None if scalar is None else scalar.P)
@@ -395,36 +379,15 @@ class ElasticityProblem(Problem):
         t2 = time.perf_counter()
         options = self._solver_options(solver, constraints, dd, B)
         # K is consumed: the work balance reads the displacement field and the load vector, not K
-        res = solve_system(K, f, constraints, dd, solver, tol, maxiter, options)
+        if share:
+            record.partition = share.part
+            res, f = solve_elastic(share, K, f, constraints, dd, tol, maxiter, B)
+        else:
+            res = solve_system(K, f, constraints, dd, solver, tol, maxiter, options)
         del K
         record.timings.update({"constraints": t2 - t1, "solve": res.info.setup_s + res.info.solve_s})
         record.reduced_dofs = int(res.reduced)
         return ElasticSolution(self, res, f, dd, work, applied, record, hold_unknowns, self.springs)
-
-
-def _refuse_net_load(applied: dict, body: np.ndarray, moments: dict) -> None:
-    """Under :meth:`ElasticityProblem.hold_rigid` the loads must balance: its three pins hold rigid motion only,
-    so a net force or moment would be carried by them alone (point reactions, a stress singularity the solution
-    does not report).  Refused naming the net force and each load's share (or the net moment of the tractions),
-    beyond 1e-9 of the loads' size."""
-    forces = [np.asarray(v, float) for v in applied.values()] + [np.asarray(body, float)]
-    net = np.sum(forces, axis=0)
-    size = sum(float(np.linalg.norm(v)) for v in forces)
-    if size > 0 and np.linalg.norm(net) > 1e-9 * size:
-        shares = ", ".join(f"{show(tag)} {np.round(np.asarray(v, float), 6).tolist()} N" for tag, v in applied.items())
-        if np.any(body):
-            shares += f", body force {np.round(np.asarray(body, float), 6).tolist()} N"
-        raise ProblemError(f"hold_rigid holds the body against rigid motion only, but its loads add up to a net force "
-                           f"of {np.round(net, 6).tolist()} N ({shares}), which the three pins would carry alone; "
-                           "support the body with displacement conditions instead, or balance the loads")
-    if not np.any(body) and moments:
-        M = np.sum([np.asarray(v, float) for v in moments.values()], axis=0)
-        msize = sum(float(np.linalg.norm(v)) for v in moments.values())
-        if msize > 0 and np.linalg.norm(M) > 1e-9 * msize:
-            raise ProblemError(f"hold_rigid holds the body against rigid motion only, but its loads add up to a net "
-                               f"moment of {np.round(M, 6).tolist()} N m about the origin, which the three pins would "
-                               "carry alone; support the body with displacement conditions instead, or balance the "
-                               "loads")
 
 
 def _refuse_held_load(load, fd, t: np.ndarray, supports: list) -> None:

@@ -16,11 +16,12 @@ import numpy as np
 from geometry.numbers import TINY
 from geometry import knots as kn
 from geometry.patches.chain import patches_geometry_derivs
+from geometry.errors import show
 from geometry.grouping import ObjectIndex
 
-from iga.errors import SingularProblemError
+from iga.errors import ProblemError, SingularProblemError
 
-__all__ = ["greville_points", "rigid_modes", "free_modes"]
+__all__ = ["greville_points", "rigid_modes", "free_modes", "three_two_one", "refuse_net_load"]
 
 MODE_NAMES = ("translation along x", "translation along y", "translation along z",
               "rotation about x", "rotation about y", "rotation about z")
@@ -90,3 +91,59 @@ def free_modes(points: np.ndarray, labels: np.ndarray, prescribed: list, pieces:
             f"the displacement conditions leave {6 - rank} rigid-body motion{'s' if 6 - rank > 1 else ''} of "
             f"{where} free: {named}; hold more components (dirichlet(tag, value, components=...)) so that no "
             "translation or rotation is free")
+
+
+def three_two_one(spaces, offsets, points: np.ndarray) -> list:
+    """Per component, the scalar DOFs the 3-2-1 rule of :meth:`iga.ElasticityProblem.hold_rigid` prescribes (to
+    zero): all of A, two components of B across AB, one of C across the plane ABC, at patch corners far apart
+    (``spaces``, ``offsets``: the analysis spaces and their first DOFs; ``points`` (ndof, 3) the DOFs' points)."""
+    corners = []
+    for pi, space in enumerate(spaces):
+        shape = space.shape
+        for i in (0, shape[0] - 1):
+            for j in (0, shape[1] - 1):
+                for k in (0, shape[2] - 1):
+                    corners.append(int(offsets[pi] + (i * shape[1] + j) * shape[2] + k))
+    corners = np.unique(corners)
+    x = points[corners]
+    a = corners[np.argmin(x.sum(1))]
+    b = corners[np.argmax(np.linalg.norm(x - points[a], axis=1))]
+    ab = points[b] - points[a]
+    ab /= np.linalg.norm(ab)
+    off = np.linalg.norm(np.cross(x - points[a], ab), axis=1)
+    c = corners[np.argmax(off)]
+    normal = np.cross(ab, points[c] - points[a])
+    if not np.linalg.norm(normal) > 1e-9 * np.ptp(points, axis=0).max():
+        raise ProblemError("hold_rigid needs a body that is not flat along a line: no three patch corners span a "
+                           "plane")
+    across = np.argsort(np.abs(ab))[:2]  # the two axes least along AB
+    out = [[a], [a], [a]]
+    for comp in across:
+        out[comp].append(b)
+    out[int(np.argmax(np.abs(normal)))].append(c)
+    return [np.array(o, np.int64) for o in out]
+
+
+def refuse_net_load(applied: dict, body: np.ndarray, moments: dict) -> None:
+    """Under :meth:`ElasticityProblem.hold_rigid` the loads must balance: its three pins hold rigid motion only,
+    so a net force or moment would be carried by them alone (point reactions, a stress singularity the solution
+    does not report).  Refused naming the net force and each load's share (or the net moment of the tractions),
+    beyond 1e-9 of the loads' size."""
+    forces = [np.asarray(v, float) for v in applied.values()] + [np.asarray(body, float)]
+    net = np.sum(forces, axis=0)
+    size = sum(float(np.linalg.norm(v)) for v in forces)
+    if size > 0 and np.linalg.norm(net) > 1e-9 * size:
+        shares = ", ".join(f"{show(tag)} {np.round(np.asarray(v, float), 6).tolist()} N" for tag, v in applied.items())
+        if np.any(body):
+            shares += f", body force {np.round(np.asarray(body, float), 6).tolist()} N"
+        raise ProblemError(f"hold_rigid holds the body against rigid motion only, but its loads add up to a net force "
+                           f"of {np.round(net, 6).tolist()} N ({shares}), which the three pins would carry alone; "
+                           "support the body with displacement conditions instead, or balance the loads")
+    if not np.any(body) and moments:
+        M = np.sum([np.asarray(v, float) for v in moments.values()], axis=0)
+        msize = sum(float(np.linalg.norm(v)) for v in moments.values())
+        if msize > 0 and np.linalg.norm(M) > 1e-9 * msize:
+            raise ProblemError(f"hold_rigid holds the body against rigid motion only, but its loads add up to a net "
+                               f"moment of {np.round(M, 6).tolist()} N m about the origin, which the three pins would "
+                               "carry alone; support the body with displacement conditions instead, or balance the "
+                               "loads")

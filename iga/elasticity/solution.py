@@ -39,6 +39,7 @@ class ElasticSolution:
             if record is None else record  # what the solve found (iga.discretisation.problem)
         self.u = res.u
         self._splines: dict = {}
+        self.output_values: dict = {}  # outputs evaluated on this solution, by name (iga.outputs.evaluated)
         self._locator = Locator(problem.model)
         self._applied = applied
         total = np.asarray(dd.G[res.reaction_dofs].sum(axis=1)).ravel() if dd.G is not None else np.zeros(0)

@@ -46,16 +46,22 @@ class ElasticVolume:
     def __init__(self, disc):
         self.disc = disc
 
-    def assemble(self, youngs, poisson, body=None, thermal=None):
+    def assemble(self, youngs, poisson, body=None, thermal=None, patches=None):
         """(K, f, work): ``youngs``, ``poisson`` :class:`iga.heat.coefficients.ScalarField` (Pa, -); ``body`` a
         vector field of x (N/m^3) or None; ``thermal`` a callable ``(patch index, x, params, chans) -> (N,)``
-        of alpha (T - T_ref) or None.  ``work``: {"body": int f dV (N, (3,))}."""
+        of alpha (T - T_ref) or None; ``patches``: a set of patch indices (one MPI rank's share) whose volumes
+        alone are integrated, or None for all.  ``work``: {"body": int f dV (N, (3,)) over those patches}."""
         d = self.disc
         n = d.ndof
-        K = VectorCSR(d.offsets, [pattern_nnz(s) for s in d.spaces])
+        chosen = np.ones(len(d.spaces), bool)
+        if patches is not None:
+            chosen = np.isin(np.arange(len(d.spaces)), np.fromiter(patches, np.int64))
+        K = VectorCSR(d.offsets, np.array([pattern_nnz(s) for s in d.spaces]) * chosen)
+        K.skip(np.flatnonzero(~chosen))  # (another rank's patches: empty rows)
         f = np.zeros(3 * n)
         total = np.zeros(3)
-        work = [m for g in d.volume.groups.values() for m in chunks(g, 3 * d.spaces[g[0]].nq_total)]
+        groups = [[i for i in g if chosen[i]] for g in d.volume.groups.values()]
+        work = [m for g in groups if g for m in chunks(g, 3 * d.spaces[g[0]].nq_total)]
         for members in progress.bar(work, desc="elastic assembly", unit="batch"):
             loads, force = self._group(members, youngs, poisson, body, thermal, K)
             total += force

@@ -54,6 +54,7 @@ class Solution:
         self.record = SolveRecord(reduced_dofs=len(u), timings=dict(problem.timings)) if record is None else record
         self.u = u
         self._volume = None  # the model's volume, once asked for
+        self.output_values: dict = {}  # outputs evaluated on this solution, by name (iga.outputs.evaluated)
         self._book = book
         self._loads = loads  # the load vector f (ndof,): source, Neumann and Robin h T_inf; None when distributed
         self._prescribed = prescribed  # the prescribed unknowns' values (reaction . prescribed: the supports' part)
@@ -185,7 +186,7 @@ class Solution:
         """The MPI communicator of a distributed solve (:mod:`iga.distributed.solve`), None for a serial one."""
         from iga.distributed.solve import solve_world
 
-        w = solve_world(self.problem)
+        w = solve_world(self)
         return None if w is None else w[0]
 
     def flux(self, tag: str) -> float:
