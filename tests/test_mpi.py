@@ -130,6 +130,11 @@ ELASTIC = textwrap.dedent("""
              .point_load((1.5, 0.5, 0.25), (0.0, 3e3, 0.0)))
         heat = HeatProblem(ms, conductivity=200.0, degree_elevation=1).dirichlet("umin", 0.0).neumann("umax", 1e3)
         tag = "umin"
+    elif kind == "held-load":  # a load on a held component of the faces at u = 1: refused where they are assembled
+        ms = tiling.regular(pr.box((3.0, 1.0, 1.0)), L.cross(), (3, 1, 1))
+        p = ElasticityProblem(ms, 70e9, 0.3).dirichlet("umin", 0.0).dirichlet("umax", 0.0, "z").traction(
+            "umax", (0.0, 0.0, -1e4))
+        heat, tag = None, "umin"
     else:  # a two-level sink: refinement-matrix constraints across its branch faces, held on its branch-in face
         ms = tiling.hierarchical(pr.box((0.06, 0.06, 0.03)), L.heat_sink_t2(), (2, 2), levels=2)
         p = ElasticityProblem(ms, 70e9, 0.33).dirichlet("branch-in", 0.0).body_force((1e5, 0.0, -2e5))
@@ -168,6 +173,17 @@ def test_ranks_give_the_serial_displacements(tmp_path, kind, ranks):
     assert np.allclose(par["reaction"], ser["reaction"], rtol=1e-7, atol=1e-7 * np.abs(ser["reaction"]).max())
     assert np.allclose(par["springs"], ser["springs"], rtol=1e-7, atol=1e-3)
     assert 0 < par["iterations"] < 300 and par["heat_iterations"] > 0
+
+
+def test_a_bad_load_on_one_ranks_faces_is_refused_on_every_rank(tmp_path):
+    # the faces at u = 1 are assembled by the last rank alone; the others must not wait for it in a collective
+    script = tmp_path / "elastic.py"
+    script.write_text(ELASTIC)
+    out = subprocess.run([MPIEXEC, "-n", "2", sys.executable, str(script), "held-load", str(tmp_path / "x.json"),
+                          "petsc"], capture_output=True, text=True, cwd=ROOT, timeout=300, env=launch_env())
+    assert out.returncode != 0 and not (tmp_path / "x.json").exists()
+    assert out.stderr.count("a load on a prescribed component only changes the reaction") == 2
+    assert "on MPI rank" in out.stderr  # the rank without those faces names the one that refused
 
 
 def test_petsc_elasticity_is_given_the_rigid_modes():

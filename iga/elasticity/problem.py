@@ -37,6 +37,7 @@ from iga.model import tag_faces
 from iga.elasticity.rigid import free_modes, greville_points, refuse_net_load, rigid_modes, three_two_one
 from iga.discretisation.system import solve_system
 from iga.distributed.elastic import share_of, solve_elastic, summed
+from iga.distributed.rank_setup import together
 from iga.tags import as_expression, condition_faces, mentions_rest
 from iga.elasticity.data import VectorField, component_field, merge_dirichlet, pin_dofs
 from iga.elasticity.supports import (Hold, PointLoad, Spring, components_of, hold_dirichlet, select_nodes,
@@ -240,12 +241,12 @@ class ElasticityProblem(Problem):
         return self
 
     # ------------------------------------------------------------------ solve
-    def _loads(self, f: np.ndarray, supports: list, patches=None, comm=None) -> tuple[dict, dict]:
+    def _loads(self, f: np.ndarray, supports: list, patches=None) -> tuple[dict, dict]:
         """Add the traction and pressure loads to f; returns ({tag: applied force (N, (3,))}, {tag: its moment
         about the origin (N m, (3,))}).  ``supports``: the
         :meth:`_support_faces`; a load on a component they prescribe on the same face is refused (it would only
         change the reaction there).  ``patches`` (a set): only their faces are integrated (one MPI rank's
-        share; the forces and moments are then summed over ``comm``); point loads are added on every rank."""
+        share)."""
         n, applied, moments = self.ndof, {}, {}  # moments about the origin (N m): hold_rigid's loads must balance
         for load in self.loads:
             keys = condition_faces(self.tag_faces(load.tag), load.tag)
@@ -262,8 +263,11 @@ class ElasticityProblem(Problem):
                 force += (t * fd.dAw[:, None]).sum(0)
                 moments[load.tag] = moments.get(load.tag, 0.0) + (np.cross(fd.x, t) * fd.dAw[:, None]).sum(0)
             applied[load.tag] = applied.get(load.tag, 0.0) + force
-        if comm is not None:
-            applied, moments = summed(comm, applied), summed(comm, moments)
+        return applied, moments
+
+    def _point_loads(self, f: np.ndarray, applied: dict, moments: dict) -> None:
+        """Add the point loads to f and to ``applied`` and ``moments`` (as :meth:`_loads` gives them)."""
+        n = self.ndof
         for pl in self.point_loads:  # f_i += N_i(x) F: the consistent load of a force at a point
             where, params = self._locator()(pl.point[None], what=pl.name)
             row = evaluation_matrix(self, where, params).toarray().ravel()
@@ -271,7 +275,6 @@ class ElasticityProblem(Problem):
                 f[a * n:(a + 1) * n] += pl.force[a] * row
             applied[pl.name] = pl.force.copy()
             moments[pl.name] = np.cross(pl.point, pl.force)
-        return applied, moments
 
     def _support_faces(self) -> list:
         """Per component, {(patch, face): (field, where)}; a component prescribed twice on one face is refused."""
@@ -318,14 +321,20 @@ class ElasticityProblem(Problem):
         {"work": {"body": int f dV (N, (3,))}, "applied": {tag: resultant (N, (3,))}, "moments": {tag: moment about
         the origin (N m, (3,))}, "timings": {"assembly": s}}.  :meth:`solve` calls it with the
         :meth:`_support_faces` it resolved.  ``patches``, ``comm``: one MPI rank's patches (the others' rows
-        stay empty) and the communicator the forces are summed over."""
+        stay empty; point loads are added on every rank) and the communicator the forces are summed over (bad
+        data on one rank's patches is raised on every rank: :func:`iga.distributed.rank_setup.together`)."""
         supports = self._support_faces() if supports is None else supports
         t0 = time.perf_counter()
-        K, f, work = ElasticVolume(self.disc).assemble(self.youngs, self.poisson, self.body, self.thermal_strain,
-                                                       patches)
+
+        def share():
+            K, f, work = ElasticVolume(self.disc).assemble(self.youngs, self.poisson, self.body,
+                                                           self.thermal_strain, patches)
+            return (K, f, work) + self._loads(f, supports, patches)
+
+        K, f, work, applied, moments = share() if comm is None else together(comm, share)
         if comm is not None:
-            work = {"body": comm.allreduce(work["body"])}
-        applied, moments = self._loads(f, supports, patches, comm)
+            work, applied, moments = summed(comm, work), summed(comm, applied), summed(comm, moments)
+        self._point_loads(f, applied, moments)
         return K, f, {"work": work, "applied": applied, "moments": moments,
                       "timings": {"assembly": time.perf_counter() - t0}}
 
