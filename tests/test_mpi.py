@@ -300,6 +300,61 @@ def test_mpiexec_iga_run_writes_one_result(tmp_path):
         assert bad.returncode == 2 and "no such file: " in bad.stderr and "missing.pvtu" in bad.stderr
 
 
+def test_mpiexec_iga_run_writes_the_elastic_pieces(tmp_path):
+    cfg = tmp_path / "beam.toml"
+    cfg.write_text(textwrap.dedent("""
+        [map]
+        primitive = "box"
+        args = {size = [0.04, 0.01, 0.01]}
+        [tile]
+        library = "cross"
+        [paving]
+        scheme = "regular"
+        counts = [4, 1, 1]
+        [physics]
+        kind = "elasticity"
+        youngs = 69e9
+        poisson = 0.33
+        [[support]]
+        tag = "umin"
+        [[load]]
+        kind = "traction"
+        tag = "umax"
+        value = [0.0, 0.0, -1e4]
+        [solver]
+        method = "petsc"
+        tol = 1e-12
+        [output]
+        dir = "out"
+        name = "beam"
+        png = false
+    """))
+    iga = str(Path(sys.executable).parent / "iga")
+    out = subprocess.run([MPIEXEC, "-n", "2", iga, "run", str(cfg)], capture_output=True, text=True, timeout=600,
+                         env=launch_env())
+    assert out.returncode == 0, out.stderr[-3000:]
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    elastic = summary["elasticity"]
+    assert elastic["solver"]["ranks"] == 2 and elastic["work"]["relative_error"] < 1e-9
+    assert summary["files"]["stress_vtu"].endswith("beam_stress.pvtu")
+    import meshio
+    import pyvista as pv
+    pieces = [meshio.read(tmp_path / "out" / f"beam_stress_{r}.vtu") for r in range(2)]
+    assert all(len(m.points) > 0 and "displacement" in m.point_data for m in pieces)
+    par = pv.read(tmp_path / "out" / "beam_stress.pvtu")
+    cfg.write_text(cfg.read_text().replace('dir = "out"', 'dir = "serial"').replace('"petsc"', '"direct"'))
+    ser = subprocess.run([iga, "run", str(cfg)], capture_output=True, text=True, timeout=600, env=launch_env())
+    assert ser.returncode == 0, ser.stderr[-3000:]
+    serial = pv.read(tmp_path / "serial" / "beam_stress.vtu")
+    welded = par.clean(tolerance=1e-9 * serial.length)
+    assert welded.n_points == serial.n_points and welded.n_cells == serial.n_cells
+    from scipy.spatial import cKDTree
+    dist, match = cKDTree(serial.points).query(welded.points)
+    assert dist.max() < 1e-9 * serial.length
+    d, ds = welded.point_data["displacement"], serial.point_data["displacement"][match]
+    assert np.abs(d - ds).max() < 1e-8 * np.abs(ds).max()
+
+
 def test_more_ranks_than_patches_are_refused(tmp_path):
     out = _mpi(tmp_path, 2, "patch", tmp_path / "x.json")
     assert out.returncode != 0 and "2 MPI ranks for 1 patch" in out.stderr

@@ -422,19 +422,22 @@ def _elastic_stage(cfg, ms, heat_solution, out: Path, ocfg: Record, stages) -> d
     es = p.solve(solver=scfg.method, tol=scfg.tol, maxiter=scfg.maxiter)
     stages.done(f"({es.info['dofs']} DOFs, {es.info['free_dofs']} unknowns)")
     stages.start("stress output")
-    grid = sampled_grid(ms, es, ocfg.samples, ocfg.tolerance)
+    grid = sampled_grid(ms, es, ocfg.samples, ocfg.tolerance)  # (the summary's maxima and the picture)
     files = {}
-    if ocfg.vtu:
+    if (world := distributed.solve_world(es)) and ocfg.get("pieces"):  # every rank its piece, rank 0 the index
+        files["stress_vtu"] = str(write_pieces(out / f"{ocfg.name}_stress.pvtu", es, world[0], samples=ocfg.samples,
+                                               tolerance=ocfg.tolerance))
+    elif ocfg.vtu:
         vtu = out / f"{ocfg.name}_stress.vtu"
         save_vtu(vtu, grid, ocfg.compress)
         files["stress_vtu"] = str(vtu)
-        if ocfg.png:
-            umax = float(np.abs(grid.point_data["displacement"]).max())
-            size = float(np.ptp(grid.points, axis=0).max())
-            warp = 0.05 * size / umax if umax > 0 else None  # the deformation shown at 5% of the model's size
-            render_temperature(grid, out / f"{ocfg.name}_stress.png", "von Mises stress (Pa)", scalars="von_mises",
-                               warp=warp, cmap="viridis", fmt="%.3g")
-            files["stress_png"] = str(out / f"{ocfg.name}_stress.png")
+    if ocfg.vtu and ocfg.png:
+        umax = float(np.abs(grid.point_data["displacement"]).max())
+        size = float(np.ptp(grid.points, axis=0).max())
+        warp = 0.05 * size / umax if umax > 0 else None  # the deformation shown at 5% of the model's size
+        render_temperature(grid, out / f"{ocfg.name}_stress.png", "von Mises stress (Pa)", scalars="von_mises",
+                           warp=warp, cmap="viridis", fmt="%.3g")
+        files["stress_png"] = str(out / f"{ocfg.name}_stress.png")
     stages.done()
     return {"dofs": es.info["dofs"], "unknowns": es.info["free_dofs"], "solver": es.info["solver"],
             "max_displacement_m": float(np.linalg.norm(grid.point_data["displacement"], axis=1).max()),
