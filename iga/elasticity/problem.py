@@ -292,9 +292,9 @@ class ElasticityProblem(Problem):
         return out
 
     def _solver_options(self, solver: str, constraints, dd, B) -> dict:
-        """The rigid modes for AMG (its near-nullspace) and each unknown's place in its node (3 node +
-        component, for aggregation by node); for one unconstrained patch with a Dirichlet side per component,
-        one Kronecker sum per component (block fast diagonalization: ``fd-cg``, and ``auto``)."""
+        """The rigid modes for AMG and PETSc's GAMG (their near-nullspace) and, for AMG, each unknown's place in
+        its node (3 node + component, for aggregation by node); for one unconstrained patch with a Dirichlet side
+        per component, one Kronecker sum per component (block fast diagonalization: ``fd-cg``, and ``auto``)."""
         options = {}
         if solver in ("auto", "amg-cg"):  # rigid modes, and node-major 3 x 3 blocks aggregated by node
             nred = B.shape[0] // 3
