@@ -221,6 +221,20 @@ def test_a_floating_piece_is_refused_on_every_rank(tmp_path):
     assert out.stderr.count("falls apart into 2 connected pieces and 1 of them float") == 2
 
 
+def _welded_like(par, serial, field: str):
+    """The pieces ``par`` (a .pvtu read by VTK) welded: the serial file's points and cells, and its ``field``
+    to 1e-8 at each point's serial twin; returns the welded grid."""
+    from scipy.spatial import cKDTree
+
+    welded = par.clean(tolerance=1e-9 * serial.length)  # (an absolute tolerance for unstructured grids)
+    assert welded.n_points == serial.n_points and welded.n_cells == serial.n_cells
+    dist, match = cKDTree(serial.points).query(welded.points)  # each welded point's serial twin
+    assert dist.max() < 1e-9 * serial.length and len(np.unique(match)) == serial.n_points
+    v, vs = welded.point_data[field], serial.point_data[field][match]
+    assert np.abs(v - vs).max() < 1e-8 * np.abs(vs).max()
+    return welded
+
+
 def test_mpiexec_iga_run_writes_one_result(tmp_path):
     cfg = tmp_path / "sink.toml"
     cfg.write_text(textwrap.dedent("""
@@ -275,13 +289,7 @@ def test_mpiexec_iga_run_writes_one_result(tmp_path):
     ser = subprocess.run([iga, "run", str(cfg)], capture_output=True, text=True, timeout=600, env=launch_env())
     assert ser.returncode == 0, ser.stderr[-3000:]
     serial = pv.read(tmp_path / "serial" / f"{name}.vtu")
-    welded = par.clean(tolerance=1e-9 * serial.length)  # (an absolute tolerance for unstructured grids)
-    assert welded.n_points == serial.n_points and welded.n_cells == serial.n_cells
-    from scipy.spatial import cKDTree
-    dist, match = cKDTree(serial.points).query(welded.points)  # each welded point's serial twin
-    assert dist.max() < 1e-9 * serial.length and len(np.unique(match)) == serial.n_points
-    t, ts = welded.point_data["temperature"], serial.point_data["temperature"][match]
-    assert np.abs(t - ts).max() < 1e-8 * np.abs(ts).max()
+    welded = _welded_like(par, serial, "temperature")
     assert set(serial.point_data.keys()) <= set(welded.point_data.keys())
     # ParaView itself, where it is installed (Debian's paraview 5.11 and xvfb): its parallel reader opens the
     # .pvtu as one dataset, Clean to Grid welds it, and it has the serial file's points, cells and arrays
@@ -346,13 +354,7 @@ def test_mpiexec_iga_run_writes_the_elastic_pieces(tmp_path):
     ser = subprocess.run([iga, "run", str(cfg)], capture_output=True, text=True, timeout=600, env=launch_env())
     assert ser.returncode == 0, ser.stderr[-3000:]
     serial = pv.read(tmp_path / "serial" / "beam_stress.vtu")
-    welded = par.clean(tolerance=1e-9 * serial.length)
-    assert welded.n_points == serial.n_points and welded.n_cells == serial.n_cells
-    from scipy.spatial import cKDTree
-    dist, match = cKDTree(serial.points).query(welded.points)
-    assert dist.max() < 1e-9 * serial.length
-    d, ds = welded.point_data["displacement"], serial.point_data["displacement"][match]
-    assert np.abs(d - ds).max() < 1e-8 * np.abs(ds).max()
+    _welded_like(par, serial, "displacement")
 
 
 def test_more_ranks_than_patches_are_refused(tmp_path):
