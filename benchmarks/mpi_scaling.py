@@ -231,6 +231,8 @@ def main():
     for i, a in enumerate(sys.argv):
         if a == "--cases":
             cases = tuple(sys.argv[i + 1].split(","))
+    if set(cases) - {"sink", "lattice", "elastic"}:
+        raise SystemExit(f"--cases takes sink, lattice and elastic (comma-separated), got {','.join(cases)}")
     quick = ["--quick"] if "--quick" in sys.argv else []
     jobs = [([mpiexec, "-n", str(R), sys.executable, __file__, "--case", case] + extra,
              f"{case}{' (smallest model)' if extra == ['--floor'] else ''} on {R} ranks")
