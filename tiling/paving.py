@@ -131,10 +131,10 @@ def regular_placements(D: BSpline, tile: Tile, counts, variants: dict | None = N
                                       if at and f in allowed)
                     if sides:
                         if sides not in sealed:
-                            key = (seal, float(thickness), sides)
-                            if key not in built or built[key][0] is not tile:  # another tile's: built again
-                                built[key] = (tile, variant_for(tile, sides, thickness, seal))
-                            sealed[sides] = built[key][1]
+                            made = (seal, float(thickness), sides)
+                            if made not in built or built[made][0] is not tile:  # another tile's: built again
+                                built[made] = (tile, variant_for(tile, sides, thickness, seal))
+                            sealed[sides] = built[made][1]
                         t = sealed[sides]
                 lo = np.array([cells[0][i, 0], cells[1][j, 0], cells[2][k, 0]])
                 hi = np.array([cells[0][i, 1], cells[1][j, 1], cells[2][k, 1]])

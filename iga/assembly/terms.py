@@ -119,7 +119,8 @@ def _rational_diffusion() -> FormTerms:
     the zero-order term F_0 N_i N_j on field 9 (:func:`iga.discretisation.rational.rational_diffusion_fields`)."""
     terms = list(DIFFUSION.terms)
     for r in range(3):
-        terms += [(6 + r, tuple((int(k == r), 0) for k in range(3))), (6 + r, tuple((0, int(k == r)) for k in range(3)))]
+        on_r = [int(k == r) for k in range(3)]  # a first derivative along r on one side
+        terms += [(6 + r, tuple((d, 0) for d in on_r)), (6 + r, tuple((0, d) for d in on_r))]
     terms.append((9, ((0, 0),) * 3))
     return form_terms(terms, fields=10, symmetric=True)
 

@@ -33,7 +33,8 @@ from geometry.patches.chain import grid_values_derivs
 from iga.assembly.terms import SYMMETRIC_PAIRS
 
 __all__ = ["own_rational", "rational_quadrature_extra", "weight_coefficients", "weight_grid", "weight_fields",
-           "rational_form", "rational_diffusion_fields", "rational_load_terms", "stiffness_half_terms", "rational_load", "nurbs_scale"]
+           "rational_form", "rational_diffusion_fields", "rational_load_terms", "stiffness_half_terms",
+           "rational_load", "nurbs_scale"]
 
 
 def own_rational(patch) -> bool:

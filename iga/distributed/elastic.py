@@ -22,7 +22,7 @@ import scipy.sparse as sp
 from iga.discretisation.multilevel import owners_of
 from iga.distributed import solve as distributed
 
-__all__ = ["ElasticShare", "share_of", "summed", "solve_elastic"]
+__all__ = ["ElasticShare", "share_of", "solve_elastic"]
 
 
 class ElasticShare:
@@ -58,15 +58,6 @@ def share_of(problem, solver: str) -> ElasticShare | None:
     """This rank's :class:`ElasticShare` for ``solver="petsc"`` under an MPI launcher, else None (serial)."""
     world = distributed.world() if solver == "petsc" else None
     return ElasticShare(problem, world) if world else None
-
-
-def summed(comm, values: dict) -> dict:
-    """{key: the sum over the ranks of ``values[key]``} (keys a rank lacks count as zero)."""
-    out: dict = {}
-    for part in comm.allgather(values):
-        for key, v in part.items():
-            out[key] = out.get(key, 0.0) + np.asarray(v, float)
-    return out
 
 
 def solve_elastic(share: ElasticShare, K, f, constraints, dd, tol, maxiter, modes):

@@ -39,7 +39,7 @@ from iga.distributed.rank_constraints import alltoallv, local_prolongation, patc
 from iga.discretisation.system import SystemSolution, reduction
 
 __all__ = ["world", "launched", "load_petsc", "solve_world", "partition", "solve_system", "is_root", "mpiexec",
-           "launch_env", "owned_dofs"]
+           "launch_env", "owned_dofs", "summed"]
 
 # what an MPI launcher leaves in its children's environment: a process that inherits it (a test run, a script
 # that once initialised PETSc as a singleton) would start its own mpiexec as a rank of the old job
@@ -130,6 +130,15 @@ def solve_world(solution):
     whose record holds the partition of :func:`partition`), None for a serial solve's."""
     record = getattr(solution, "record", None)
     return world() if getattr(record, "partition", None) is not None else None
+
+
+def summed(comm, values: dict) -> dict:
+    """{key: the sum over the ranks of ``values[key]``} (numbers or arrays; keys a rank lacks count as zero)."""
+    out: dict = {}
+    for part in comm.allgather(values):
+        for key, v in part.items():
+            out[key] = out.get(key, 0.0) + v
+    return out
 
 
 def is_root() -> bool:

@@ -36,7 +36,8 @@ from iga.heat.forms import boundary_load
 from iga.model import tag_faces
 from iga.elasticity.rigid import free_modes, greville_points, refuse_net_load, rigid_modes, three_two_one
 from iga.discretisation.system import solve_system
-from iga.distributed.elastic import share_of, solve_elastic, summed
+from iga.distributed.elastic import share_of, solve_elastic
+from iga.distributed.solve import summed
 from iga.distributed.rank_setup import together
 from iga.tags import as_expression, condition_faces, mentions_rest
 from iga.elasticity.data import VectorField, component_field, merge_dirichlet, pin_dofs

@@ -30,7 +30,7 @@ from iga.elasticity.forms import block_terms, divergence_terms, lame, metric_row
 from iga.discretisation.faces import chunks
 from iga.discretisation.jacobians import checked_det
 from iga.discretisation.rational import nurbs_scale, rational_form, rational_load_terms, weight_fields
-from iga.assembly.vector_csr import VectorCSR, pattern_nnz
+from iga.assembly.vector_csr import VectorCSR
 
 __all__ = ["ElasticVolume", "vector_constraints"]
 
@@ -53,15 +53,12 @@ class ElasticVolume:
         alone are integrated, or None for all.  ``work``: {"body": int f dV (N, (3,)) over those patches}."""
         d = self.disc
         n = d.ndof
-        chosen = np.ones(len(d.spaces), bool)
-        if patches is not None:
-            chosen = np.isin(np.arange(len(d.spaces)), np.fromiter(patches, np.int64))
-        K = VectorCSR(d.offsets, np.array([pattern_nnz(s) for s in d.spaces]) * chosen)
+        chosen, groups = d.volume.share(patches)
+        K = VectorCSR(d.offsets, d.volume.nnz * chosen)
         K.skip(np.flatnonzero(~chosen))  # (another rank's patches: empty rows)
         f = np.zeros(3 * n)
         total = np.zeros(3)
-        groups = [[i for i in g if chosen[i]] for g in d.volume.groups.values()]
-        work = [m for g in groups if g for m in chunks(g, 3 * d.spaces[g[0]].nq_total)]
+        work = [m for g in groups for m in chunks(g, 3 * d.spaces[g[0]].nq_total)]
         for members in progress.bar(work, desc="elastic assembly", unit="batch"):
             loads, force = self._group(members, youngs, poisson, body, thermal, K)
             total += force

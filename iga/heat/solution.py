@@ -173,11 +173,9 @@ class Solution:
             # is its rows' part, and the flows are linear in it: the ranks' Dirichlet flows add up per face
             for part in comm.allgather(flows):
                 flows.update(part)
-            summed: dict = {}
-            for part in comm.allgather(dirichlet):
-                for key, v in part.items():
-                    summed[key] = summed.get(key, 0.0) + v
-            dirichlet = summed
+            from iga.distributed.solve import summed
+
+            dirichlet = summed(comm, dirichlet)
         for key, v in dirichlet.items():
             flows[key] = flows.get(key, 0.0) + v
         return flows

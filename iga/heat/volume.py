@@ -81,6 +81,13 @@ class VolumeAssembler:
         """Whether some group is large enough for the compiled kernels (then large faces use them too)."""
         return any(self._compiled(g) for g in self.groups.values())
 
+    def share(self, patches=None) -> tuple[np.ndarray, list]:
+        """(a mask over the patches, the groups cut to them, empty ones left out) for ``patches``: a set of patch
+        indices (one MPI rank's share; the others' rows stay empty) or None for all."""
+        n = len(self.spaces)
+        chosen = np.ones(n, bool) if patches is None else np.isin(np.arange(n), np.fromiter(patches, np.int64))
+        return chosen, [g for g in ([i for i in g if chosen[i]] for g in self.groups.values()) if g]
+
     def _compiled(self, members) -> bool:
         """Whether patches ``members`` (one group) assemble in the compiled kernels: large enough for the form
         (:data:`DIFFUSION`, or :data:`RATIONAL_DIFFUSION` in the NURBS basis)."""
@@ -95,13 +102,10 @@ class VolumeAssembler:
         """
         f = np.zeros(self.ndof)
         source_total = 0.0
-        n = len(self.spaces)
-        chosen = np.ones(n, bool) if patches is None else np.isin(np.arange(n), np.fromiter(patches, np.int64))
-        nnz = self.nnz * chosen
-        K = VectorCSR(self.offsets, nnz, components=1)  # each entry written once, where it belongs
+        chosen, groups = self.share(patches)
+        K = VectorCSR(self.offsets, self.nnz * chosen, components=1)  # each entry written once, where it belongs
         K.skip(np.flatnonzero(~chosen))
-        groups = [[i for i in g if chosen[i]] for g in self.groups.values()]
-        work = [members for group in groups if group
+        work = [members for group in groups
                 for members in chunks(group, _weight(self.spaces[group[0]], len(group), self._compiled(group)))]
         for members in progress.bar(work, desc="assembly", unit="batch"):
             pat, data, loads, total = self._group(members, self.spaces[members[0]], conductivity, source, K)
@@ -217,12 +221,10 @@ class VolumeAssembler:
         the Gauss grid, no derivative on either side; in the NURBS basis
         (:mod:`iga.discretisation.rational`) the field is divided by the weight function squared and the
         entries scaled by w_i w_j."""
-        n = len(self.spaces)
-        chosen = np.ones(n, bool) if patches is None else np.isin(np.arange(n), np.fromiter(patches, np.int64))
+        chosen, groups = self.share(patches)
         M = VectorCSR(self.offsets, self.nnz * chosen, components=1)
         M.skip(np.flatnonzero(~chosen))
-        groups = [[i for i in g if chosen[i]] for g in self.groups.values()]
-        for group in (g for g in groups if g):
+        for group in groups:
             for members in chunks(group, _weight(self.spaces[group[0]], len(group), False)):
                 space = self.spaces[members[0]]
                 F = self._weighted_field(members, space, coefficient)
@@ -244,11 +246,7 @@ class VolumeAssembler:
         in :meth:`assemble`; the same Gauss rule and NURBS basis as :meth:`assemble`'s load."""
         f = np.zeros(self.ndof)
         total = 0.0
-        n = len(self.spaces)
-        chosen = np.ones(n, bool) if patches is None else np.isin(np.arange(n), np.fromiter(patches, np.int64))
-        for group in ([i for i in g if chosen[i]] for g in self.groups.values()):
-            if not group:
-                continue
+        for group in self.share(patches)[1]:
             for members in chunks(group, _weight(self.spaces[group[0]], len(group), False)):
                 space = self.spaces[members[0]]
                 L = self._weighted_field(members, space, source)
