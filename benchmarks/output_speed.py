@@ -4,7 +4,9 @@ For each case (``iga demo heat-sink --variant V --refine R`` as a pipeline, pict
 tiling, assembly and solve), the VTU output (sampling the model on conforming grids, then writing), the
 render and the statistics, from the pipeline's own stage timings; then, on the written grid, the writer alone
 as the pipeline writes it (raw appended arrays) beside zlib at level 1 and at VTK's default level, with the
-file sizes.  Target: VTU output at most the analysis time on every row.
+file sizes.  Target: VTU output at most the analysis time on every row.  Every case runs twice in one process:
+the table is the second run (warm: numba's kernels loaded, VTK imported); the first run's analysis and VTU
+times are its last columns (what one ``iga demo`` process pays once).
 
     python benchmarks/output_speed.py [--refine 0,1,2]
 
@@ -70,19 +72,31 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--refine", default="0,1,2", help="refinements, comma-separated")
     args = ap.parse_args()
-    case("vertical", 0)  # warm-up: imports and compiled kernels are not the output stage
+    from iga.app.memory import retain_freed_memory
+
+    retain_freed_memory()  # the allocator setting of the ``iga`` command, whose run this measures
+    cases = [(variant, int(r)) for r in args.refine.split(",") for variant in ("circular", "vertical")]
+    # a first pass loads what each stage imports and compiles once per process (numba and its cached kernels,
+    # VTK): shown as the first run's times, then every case again, warm
+    first = {}
+    for variant, refine in cases:
+        row = case(variant, refine)
+        first[row["case"]] = (row["analysis s"], row["VTU output s"])
+        print(f"  first run, {row['case']}: analysis {row['analysis s']:.2f} s, VTU {row['VTU output s']:.2f} s",
+              flush=True)
     rows = []
-    for refine in (int(r) for r in args.refine.split(",")):
-        for variant in ("circular", "vertical"):
-            settle()
-            rows.append(case(variant, refine))
-            print(f"  {rows[-1]['case']}: analysis {rows[-1]['analysis s']:.2f} s, VTU {rows[-1]['VTU output s']:.2f} s",
-                  flush=True)
+    for variant, refine in cases:
+        settle()
+        rows.append(case(variant, refine))
+        rows[-1]["first run: analysis s"], rows[-1]["first run: VTU s"] = first[rows[-1]["case"]]
+        print(f"  {rows[-1]['case']}: analysis {rows[-1]['analysis s']:.2f} s, VTU {rows[-1]['VTU output s']:.2f} s",
+              flush=True)
     print("\nThe output stage against the analysis (target: VTU / analysis <= 1)")
     print_table(rows, [("case", "s"), ("unknowns", ",d"), ("points", ",d"), ("analysis s", ".2f"),
                        ("VTU output s", ".2f"), ("VTU / analysis", ".2f"), ("render s", ".2f"),
                        ("statistics s", ".2f"), ("write raw s", ".2f"), ("raw MiB", ".0f"), ("write zlib-1 s", ".2f"),
-                       ("zlib-1 MiB", ".0f"), ("write zlib s", ".2f"), ("zlib MiB", ".0f")])
+                       ("zlib-1 MiB", ".0f"), ("write zlib s", ".2f"), ("zlib MiB", ".0f"),
+                       ("first run: analysis s", ".2f"), ("first run: VTU s", ".2f")])
     save_json("output_speed.json", rows)
     return 0
 

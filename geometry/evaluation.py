@@ -116,21 +116,33 @@ class SplineEvaluation:
         its own iterates, :func:`geometry.maps.inversion.invert`): the 35 us of checks per call are skipped.
         ``compiled``: None takes the compiled kernel for many points; True for any number (a caller that runs
         compiled kernels anyway, so the import is paid); False never."""
+        S, dS = self.value_and_derivatives(params, values, checked, compiled)
+        return S, np.stack(dS, axis=-1)
+
+    def value_and_derivatives(self, params, values: bool = True, checked: bool = False,
+                              compiled: bool | None = None, columns: int | None = None
+                              ) -> tuple[np.ndarray | None, list[np.ndarray]]:
+        """Values (N, m) (None unless ``values``) and the first derivatives [d/dxi_k (N, m)] * d at ``params``
+        (N, d), each derivative its own contiguous array (a chain rule then combines them column by column,
+        without a (N, m, d) Jacobian); ``checked`` and ``compiled`` as for :meth:`value_and_jacobian`;
+        ``columns``: the derivatives of the first ``columns`` components only (N, columns) (a map's geometry
+        without its channels)."""
         x = params if checked else self._check_params(params)
         # compiled kernel for many points: values and first derivatives in one pass (3x SciPy's four passes)
         out = None if compiled is False else _fast.evaluate(self.knots, self.degrees, self._hom, x, derivs=True,
                                                             min_points=1 if compiled else _fast.MIN_POINTS)
         if out is not None:
-            H, dH = out[0], out[1:]
+            H, dH = out[0], list(out[1:])
             if not self.is_rational:
-                return H, np.moveaxis(dH, 0, -1)
+                return H, [d[:, :columns] for d in dH]
             w = H[:, -1:]  # S = A / w: dS = (dA - S dw) / w
             S = H[:, :-1] / w
-            return S, np.stack([(d[:, :-1] - S * d[:, -1:]) / w for d in dH], axis=-1)
+            c = S.shape[1] if columns is None else columns
+            return S, [(d[:, :c] - S[:, :c] * d[:, -1:]) / w for d in dH]
         zero = (0,) * self.dim
         eye = [tuple(int(i == k) for i in range(self.dim)) for k in range(self.dim)]
         D = self._derivs(x, ([zero] if values else []) + eye)
-        return D.get(zero), np.stack([D[a] for a in eye], axis=-1)
+        return D.get(zero), [D[a][:, :columns] for a in eye]
 
     def _derivs(self, x, alphas) -> dict:
         """Derivatives for the multi-indices ``alphas`` (rational: Leibniz/quotient rule)."""

@@ -102,3 +102,41 @@ def test_the_elastic_vtu_equals_the_elastic_solution_on_a_lidded_hierarchy(tmp_p
     assert np.abs(u[some] - es.displacement(x[some])).max() <= 1e-9 * np.abs(u).max()
     vm = np.asarray(grid.point_data["von_mises"])
     assert vm.max() <= 1e-6 * E * 2.3e-5 * 50.0  # stress free: round-off only
+
+
+def test_the_temperature_range_is_the_extreme_of_every_patch_evaluated_alone():
+    """Solution.temperature_range evaluates the patches sharing a space together: its extremes are those of each
+    patch's temperature spline evaluated on its own sample grid (direct evaluation, one patch at a time), on a
+    hierarchy (children of several spaces) whose map is rational, and on a rational patch analysed in its NURBS
+    basis (its own weights)."""
+    from geometry.patches.sampling import sample_axes
+
+    ms = tiling.hierarchical(pr.annulus(0.5, 1.0, 0.3, angle=np.pi / 2), L.heat_sink_t2(), (2, 1), levels=2)
+    s = (HeatProblem(ms, conductivity=200.0, source=1e5, degree_elevation=1).dirichlet("branch-in", 60.0)
+         .robin("exterior", 40.0, 20.0).solve())
+    ring = HeatProblem(pr.annulus(0.5, 1.0, 0.3, angle=1.5), source=3.0).dirichlet("umin", 1.0).robin("umax", 2.0, 0.0)
+    assert ring.weights[0] is not None
+    for s, samples in ((s, 1), (s, 3), (ring.solve(), 2)):
+        ms = s.problem.model
+        each = [s.temperature_spline(i).evaluate_grid(sample_axes(s.temperature_spline(i).knots, samples))
+                for i in range(len(ms.patches))]
+        lo, hi = s.temperature_range(samples)
+        assert lo == pytest.approx(min(float(v.min()) for v in each), abs=1e-12 * abs(hi))
+        assert hi == pytest.approx(max(float(v.max()) for v in each), abs=1e-12 * abs(hi))
+        assert lo < hi
+
+
+def test_the_mean_temperature_and_the_volume_from_one_pass_are_the_exact_ones():
+    """A linear temperature on a box (T = x / L between Dirichlet faces): its mean is 1/2 and the volume of the
+    same pass the box's, asked in either order; on a twisted box the mean is the volume average of x / L."""
+    prob = HeatProblem(pr.box((2.0, 1.0, 1.0), degrees=(2, 2, 2))).dirichlet("umin", 0.0).dirichlet("umax", 1.0)
+    first, second = prob.solve(), prob.solve()
+    assert first.mean_temperature() == pytest.approx(0.5, rel=1e-12)
+    assert first.volume() == pytest.approx(2.0, rel=1e-12)
+    assert second.volume() == pytest.approx(2.0, rel=1e-12)
+    assert second.mean_temperature() == pytest.approx(0.5, rel=1e-12)
+    D = pr.twisted(pr.box((2.0, 1.0, 1.0), degrees=(2, 2, 2)), 0.3, axis_point=(1.0, 0.5))
+    twisted = HeatProblem(D, degree_elevation=1).dirichlet("umin", 0.0).dirichlet("umax", 1.0).solve()
+    mean = twisted.mean_temperature()
+    assert mean == pytest.approx(twisted.integrate(lambda x, T, g: T) / twisted.volume(), rel=1e-12)
+    assert twisted.volume() == pytest.approx(twisted.integrate(lambda x, T, g: np.ones(len(T))), rel=1e-12)

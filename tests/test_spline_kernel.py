@@ -265,6 +265,14 @@ def test_compiled_scattered_evaluation_matches_scipy(seed):
     assert np.abs(vals - D[(0, 0, 0)]).max() <= 1e-13 * max(1.0, np.abs(D[(0, 0, 0)]).max())
     assert np.abs(J - np.stack([D[a] for a in eye], -1)).max() <= 1e-12 * scale
     assert np.abs(s.jacobian(x) - np.stack([D[a] for a in eye], -1)).max() <= 1e-12 * scale
+    # the derivatives one array per direction, all columns or the first three (a map's geometry), from the kernel
+    # for any number of points when asked (compiled=True), or from SciPy (compiled=False)
+    for compiled, rows in ((None, slice(None)), (True, slice(0, 50)), (False, slice(0, 50))):
+        v3, d3 = s.value_and_derivatives(x[rows], compiled=compiled, columns=3)
+        assert len(d3) == 3 and all(d.shape == (len(v3), 3) for d in d3)
+        assert np.abs(v3 - vals[rows]).max() <= 1e-13 * max(1.0, np.abs(vals).max())
+        assert max(np.abs(d - J[rows][:, :3, k]).max() for k, d in enumerate(d3)) <= 1e-12 * scale
+    assert [d.shape[1] for d in s.value_and_derivatives(x[:50], compiled=True)[1]] == [J.shape[1]] * 3
     # small sets stay with SciPy and agree
     v2, J2 = s.value_and_jacobian(x[:100])
     assert np.abs(v2 - vals[:100]).max() <= 1e-13 * max(1.0, np.abs(vals).max())

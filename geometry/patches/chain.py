@@ -188,27 +188,31 @@ def _outer_map(patches, xT, DT, compiled: bool = False):
         if D is None:
             raise SplineError("patches that share a tile must all have a deformation map or none")
         dom = D.domain
-        yy = np.clip(y[members].reshape(-1, 3), dom[:, 0], dom[:, 1])
-        vals, JD = D._value_jacobian(yy, values=True, compiled=True if compiled else None)
-        JD = JD[:, :3, :]
-        x[members] = vals[:, :3].reshape(len(members), N, 3)
+        rows = slice(None) if len(members) == P else members  # one map for all: views, not copies
+        yy = np.clip(y[rows].reshape(-1, 3), dom[:, 0], dom[:, 1])  # inside the domain: no second check
+        vals, dD = D.value_and_derivatives(yy, checked=True, compiled=True if compiled else None, columns=3)
+        x[rows] = vals[:, :3].reshape(len(members), N, 3)
         for k in range(len(Dy)):
-            # einsum: twice as fast as matmul's loop over 3 x 3 matrices
-            Dx[k][members] = np.einsum("nij,nj->ni", JD, Dy[k][members].reshape(-1, 3)).reshape(len(members), N, 3)
+            # dx/dxi_k = sum_j dD/dy_j (dy_j/dxi_k): three scaled columns, no (N, 3, 3) Jacobian formed
+            dy = Dy[k][rows].reshape(-1, 3)
+            Dx[k][rows] = (dD[0] * dy[:, 0:1] + dD[1] * dy[:, 1:2] + dD[2] * dy[:, 2:3]).reshape(len(members), N, 3)
         for i, c in enumerate(D.channels):
-            mapped.setdefault(c, np.empty((P, N)))[members] = vals[:, 3 + i].reshape(len(members), N)
+            mapped.setdefault(c, np.empty((P, N)))[rows] = vals[:, 3 + i].reshape(len(members), N)
     chans.update(mapped)
     return x, Dx, chans
 
 
-def patches_geometry_derivs(patches, axes, compiled: bool = False):
+def patches_geometry_derivs(patches, axes, compiled: bool = False, compiled_maps: bool = False):
     """Geometry of patches sharing one tile spline on one parameter grid.
 
     Returns x (P, N, 3), [dx/dxi_k (P, N, 3)] * 3 and channels {name: (P, N)}
     (tile channels broadcast, map channels per patch); the tile is evaluated
-    once.  ``compiled``: see :func:`grid_values_derivs`.
+    once.  ``compiled``: see :func:`grid_values_derivs` (it implies ``compiled_maps``); ``compiled_maps``: the
+    deformation maps are evaluated in the compiled kernel however few the points (a caller whose other, larger
+    evaluations load it anyway: a sampled model's groups).
     """
-    return _outer_map(patches, *grid_values_derivs(patches[0].spline, axes, compiled), compiled=compiled)
+    return _outer_map(patches, *grid_values_derivs(patches[0].spline, axes, compiled),
+                      compiled=compiled or compiled_maps)
 
 
 def patches_geometry_derivs_slabs(patches, axes, points_per_slab: int = 1 << 15, rows_multiple: int = 1,

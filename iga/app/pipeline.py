@@ -96,11 +96,11 @@ def heat_sink_config(variant: str = "circular", levels: int | None = None, refin
     return cfg
 
 
-def _read_volume(path: Path) -> float:
-    """The volume of a written sampled VTU (its hexahedra, as VTK and ParaView integrate them)."""
+def _mesh_volume(written) -> float | None:
+    """Volume of the sampled grid written (or of the ``.pvtu`` read back) as ParaView integrates it, or None."""
     import pyvista as pv
 
-    return float(pv.read(path).volume)
+    return None if written is None else float((pv.read(written) if isinstance(written, Path) else written).volume)
 
 
 def _volumes(exact: float, mesh: float | None) -> dict:
@@ -144,24 +144,24 @@ def run_pipeline(config: dict, base_dir: str | Path = ".", progress: bool | None
         raise
 
 
-def _write_outputs(ocfg: Record, out: Path, sol, stages) -> tuple[dict, float | None]:
-    """The VTU files and the picture asked for; returns ({kind: path}, volume of the sampled mesh or None)."""
+def _write_outputs(ocfg: Record, out: Path, sol, stages) -> tuple[dict, object]:
+    """The VTU files and the picture asked for; returns ({kind: path}, the grid written, a .pvtu path or None)."""
     files = {}
     stages.start("VTU output")
     name = ocfg.name
     vtu = out / f"{name}.vtu"
-    mesh_volume, grid = None, None
+    written, grid = None, None
     world = distributed.solve_world(sol)
     if world and ocfg.get("pieces"):  # a distributed solve: every rank writes its patches, rank 0 the .pvtu index
         vtu = write_pieces(out / f"{name}.pvtu", sol, world[0], samples=ocfg.samples, tolerance=ocfg.tolerance)
         files["vtu"] = str(vtu)
-        mesh_volume = _read_volume(vtu) if ocfg.vtu else None
+        written = vtu if ocfg.vtu else None
     elif ocfg.vtu:
         check_folder(vtu, ProblemError)
         grid = sampled_grid(sol.problem.model, sol, ocfg.samples, ocfg.tolerance)
         save_vtu(vtu, grid, ocfg.compress)
         files["vtu"] = str(vtu)
-        mesh_volume = float(grid.volume)  # what ParaView's Integrate Variables will show
+        written = grid
     if ocfg.bezier:  # exact Bezier hexahedra (VTK 79) beside the sampled file
         exact = out / f"{name}_bezier.vtu"
         write_vtu(exact, sol, cells="bezier")
@@ -175,7 +175,7 @@ def _write_outputs(ocfg: Record, out: Path, sol, stages) -> tuple[dict, float | 
                            f"{count(sol.info['free_dofs'], 'unknown')}, {b['inflow_W']:.4g} W in")
         files["png"] = str(out / f"{name}.png")
     stages.done()
-    return files, mesh_volume
+    return files, written
 
 
 def render_mesh(mesh, png_path: Path, scalars: str | None = None, title: str | None = None):
@@ -301,11 +301,11 @@ def _heat_stage(cfg, model, out: Path, ocfg: Record, stages):
     stages.done(f"({prob.ndof} DOFs, {sol.info['free_dofs']} unknowns)")
     # high-water mark of the analysis alone (map, tiling, assembly, solve), before VTK is loaded for output
     analysis_peak = resources.peak_memory_mib()
-    files, mesh_volume = _write_outputs(ocfg, out, sol, stages)
+    files, written = _write_outputs(ocfg, out, sol, stages)
     files.update(_exports(ocfg, out, model, prob))
     t0 = time.perf_counter()
     tmin, tmax = sol.temperature_range(ocfg.samples)
-    summary = _summary(cfg, prob, sol, (tmin, tmax), mesh_volume, probes, files, analysis_peak)
+    summary = _summary(cfg, prob, sol, (tmin, tmax), _mesh_volume(written), probes, files, analysis_peak)
     if designed is not None:
         summary["design"] = {"objective": objective.name, "initial": designed.initial, "final": designed.objective,
                              "improvement": designed.improvement, "success": designed.success,

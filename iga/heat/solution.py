@@ -12,7 +12,9 @@ from geometry import SplineFunction
 from iga.heat.coefficients import tensor_matrix, user_values
 from iga.heat.radiation import RadiationFaces
 from iga.errors import ProblemError
-from iga.discretisation.fields import field_spline, integrate_fields, physical_gradient
+from geometry import knots as kn
+from iga.discretisation.faces import chunks
+from iga.discretisation.fields import field_spline, grid_contract, integrate_fields, physical_gradient
 from geometry.patches.chain import patch_geometry_points
 from geometry.patches.sampling import sample_axes
 from iga.discretisation.locate import Locator
@@ -301,22 +303,41 @@ class Solution:
         return gradient(self, output, wrt, solver)
 
     def mean_temperature(self) -> float:
-        """Volume average of the temperature: int T dV / int dV."""
-        return self.integrate(lambda x, T, g: T) / self.volume()
+        """Volume average of the temperature: int T dV / int dV (both from one pass over the Gauss points)."""
+        if self._volume is not None:
+            return self.integrate(lambda x, T, g: T) / self._volume
+        prob = self.problem
+        both = integrate_fields(
+            prob, lambda i: self.u[prob.offsets[i]:prob.offsets[i + 1]].reshape((1,) + prob.spaces[i].shape), 1,
+            lambda x, v, g: np.stack([v[:, 0], np.ones(len(v))], axis=1))
+        self._volume = float(both[1])
+        return float(both[0]) / self._volume
 
     def temperature_range(self, samples: int = 3) -> tuple[float, float]:
         """Minimum and maximum of the temperature over a sampling of every patch.
 
         Every Bezier element of each temperature space is sampled at
         ``samples + 1`` points per direction (its ends included), the grid of
-        :func:`iga.write_vtu`.
+        :func:`iga.write_vtu`.  Patches sharing a space are evaluated together, one direction at a time (sum
+        factorisation); at a discontinuity knot the right-hand limit, as :meth:`SplineFunction.evaluate_grid`.
         """
+        prob, o = self.problem, self.problem.offsets
         lo, hi = np.inf, -np.inf
-        for pi in range(len(self.problem.model.patches)):  # not kept: one spline per patch of the model
-            T = self._splines[pi] if pi in self._splines else self._spline(pi)
-            axes = sample_axes(T.knots, samples)
-            v = T.evaluate_grid(axes)
-            lo, hi = min(lo, float(v.min())), max(hi, float(v.max()))
+        groups: dict = {}
+        for pi, space in enumerate(prob.spaces):  # NURBS-basis patches (own weights) one by one
+            groups.setdefault(space.key() if prob.weights[pi] is None else ("own", pi), []).append(pi)
+        for members in groups.values():
+            space = prob.spaces[members[0]]
+            if prob.weights[members[0]] is not None:
+                v = self._spline(members[0]).evaluate_grid(sample_axes([d.knots for d in space.dirs], samples))
+                lo, hi = min(lo, float(v.min())), max(hi, float(v.max()))
+                continue
+            axes = sample_axes([d.knots for d in space.dirs], samples)
+            tables = [kn.basis_matrix(d.knots, d.degree, np.clip(a, d.knots[0], d.knots[-1]), 0).toarray()
+                      for d, a in zip(space.dirs, axes)]
+            for chunk in chunks(members, int(np.prod([len(a) for a in axes]))):
+                v = grid_contract(np.stack([self.u[o[i]:o[i + 1]].reshape(space.shape) for i in chunk]), *tables)
+                lo, hi = min(lo, float(v.min())), max(hi, float(v.max()))
         return lo, hi
 
     def l2_error(self, exact) -> float:
