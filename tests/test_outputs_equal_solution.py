@@ -112,11 +112,11 @@ def test_the_temperature_range_is_the_extreme_of_every_patch_evaluated_alone():
     from geometry.patches.sampling import sample_axes
 
     ms = tiling.hierarchical(pr.annulus(0.5, 1.0, 0.3, angle=np.pi / 2), L.heat_sink_t2(), (2, 1), levels=2)
-    s = (HeatProblem(ms, conductivity=200.0, source=1e5, degree_elevation=1).dirichlet("branch-in", 60.0)
-         .robin("exterior", 40.0, 20.0).solve())
+    sink = (HeatProblem(ms, conductivity=200.0, source=1e5, degree_elevation=1).dirichlet("branch-in", 60.0)
+            .robin("exterior", 40.0, 20.0).solve())
     ring = HeatProblem(pr.annulus(0.5, 1.0, 0.3, angle=1.5), source=3.0).dirichlet("umin", 1.0).robin("umax", 2.0, 0.0)
     assert ring.weights[0] is not None
-    for s, samples in ((s, 1), (s, 3), (ring.solve(), 2)):
+    for s, samples in ((sink, 1), (sink, 3), (ring.solve(), 2)):
         ms = s.problem.model
         each = [s.temperature_spline(i).evaluate_grid(sample_axes(s.temperature_spline(i).knots, samples))
                 for i in range(len(ms.patches))]
