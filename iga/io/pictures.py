@@ -90,7 +90,11 @@ def render_temperature(source, png_path: Path, title: str = "temperature (C)", s
     import pyvista as pv
 
     grid = pv.read(source) if isinstance(source, (str, Path)) else source
-    mesh = grid.extract_surface(algorithm="dataset_surface")
+    lean = pv.UnstructuredGrid()  # the grid's points and cells (shared, not copied) with the arrays shown only:
+    lean.copy_structure(grid)  # the surface filter copies every point array (at 1.5 M points: 0.6 -> 0.4 s)
+    for name in [scalars] + (["displacement"] if warp is not None else []):
+        lean.point_data[name] = grid.point_data[name]
+    mesh = lean.extract_surface(algorithm="dataset_surface")
     log = above is not None
     if log:
         rise = np.asarray(mesh.point_data[scalars], float) - above
