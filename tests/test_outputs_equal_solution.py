@@ -128,9 +128,12 @@ def test_the_temperature_range_is_the_extreme_of_every_patch_evaluated_alone():
 
 def test_the_mean_temperature_and_the_volume_from_one_pass_are_the_exact_ones():
     """A linear temperature on a box (T = x / L between Dirichlet faces): its mean is 1/2 and the volume of the
-    same pass the box's, asked in either order; on a twisted box the mean is the volume average of x / L."""
+    same pass the box's, asked in either order or after the energy identity; on a twisted box the mean is the volume average of x / L."""
     prob = HeatProblem(pr.box((2.0, 1.0, 1.0), degrees=(2, 2, 2))).dirichlet("umin", 0.0).dirichlet("umax", 1.0)
-    first, second = prob.solve(), prob.solve()
+    first, second, third = prob.solve(), prob.solve(), prob.solve()
+    assert third.energy_balance().relative_error < 1e-12  # its pass gives the mean temperature and the volume
+    assert third.mean_temperature() == pytest.approx(0.5, rel=1e-12)
+    assert third.volume() == pytest.approx(2.0, rel=1e-12)
     assert first.mean_temperature() == pytest.approx(0.5, rel=1e-12)
     assert first.volume() == pytest.approx(2.0, rel=1e-12)
     assert second.volume() == pytest.approx(2.0, rel=1e-12)

@@ -246,14 +246,14 @@ def _counts(ms) -> dict:
 
 def _summary(cfg, prob, sol, trange, mesh_volume, probes, files, analysis_peak) -> dict:
     """The run's summary (``summary.json``) of the heat analysis, counts and timings left to the caller."""
-    bal = sol.info["balance"]
+    bal, identity = sol.info["balance"], sol.energy_balance()  # (its pass also gives the mean temperature)
     return {
         "dofs": prob.ndof, "unknowns": sol.info["free_dofs"],
         "temperature_C": {"min": trange[0], "max": trange[1], "mean": sol.mean_temperature()},
         "inflow_W": bal["inflow_W"], "outflow_W": bal["outflow_W"], "energy_balance_error": bal["relative_error"],
         # the field's energy against the loads' and supports' work (Solution.energy_balance): independent of the
         # heat-flow balance above, which sums consistent flows
-        "energy_identity": sol.energy_balance().as_dict(),
+        "energy_identity": identity.as_dict(),
         "connected_pieces": sol.info["components"]["count"],
         "flux_W": {as_expression(bc["tag"]): sol.flux(bc["tag"]) for bc in cfg.bc},
         "solver": sol.info["solver"],

@@ -56,6 +56,7 @@ class Solution:
         self.record = SolveRecord(reduced_dofs=len(u), timings=dict(problem.timings)) if record is None else record
         self.u = u
         self._volume = None  # the model's volume, once asked for
+        self._temperature_integral = None  # int T dV, where the energy identity's pass computed it
         self.output_values: dict = {}  # outputs evaluated on this solution, by name (iga.outputs.evaluated)
         self._book = book
         self._loads = loads  # the load vector f (ndof,): source, Neumann and Robin h T_inf; None when distributed
@@ -226,12 +227,14 @@ class Solution:
         if self._loads is None or self._prescribed is None:
             return EnergyBalance(None, None, None)
 
-        def density(x, T, g, at):
+        def density(x, T, g, at):  # the field's energy, and T and 1 for the mean temperature from the same pass
             K = prob.conductivity.values(x, at.chans, f"patches {at.patches[0]}..{at.patches[-1]}", T[:, 0])
-            return -np.sum(flux_vector(K, g[:, 0]) * g[:, 0], axis=1)
+            return np.stack([-np.sum(flux_vector(K, g[:, 0]) * g[:, 0], axis=1), T[:, 0], np.ones(len(T))], 1)
 
-        internal = integrate_fields(prob, lambda i: self.u[prob.offsets[i]:prob.offsets[i + 1]].reshape(
-            (1,) + prob.spaces[i].shape), 1, density, context=True)
+        internal, self._temperature_integral, volume = integrate_fields(
+            prob, lambda i: self.u[prob.offsets[i]:prob.offsets[i + 1]].reshape((1,) + prob.spaces[i].shape), 1,
+            density, context=True)
+        self._volume = float(volume) if self._volume is None else self._volume
         for key, (h, _) in self._book["robin"].items():
             fd = prob.face_data(*key)
             internal += float(np.sum(h * fd.trace(self.u) ** 2 * fd.dAw))
@@ -304,8 +307,9 @@ class Solution:
 
     def mean_temperature(self) -> float:
         """Volume average of the temperature: int T dV / int dV (both from one pass over the Gauss points)."""
-        if self._volume is not None:
-            return self.integrate(lambda x, T, g: T) / self._volume
+        if self._volume is not None:  # the integral of T too where the energy identity's pass made it
+            t_int = self._temperature_integral
+            return (float(t_int) if t_int is not None else self.integrate(lambda x, T, g: T)) / self._volume
         prob = self.problem
         both = integrate_fields(
             prob, lambda i: self.u[prob.offsets[i]:prob.offsets[i + 1]].reshape((1,) + prob.spaces[i].shape), 1,
