@@ -72,6 +72,28 @@ SCRIPT = textwrap.dedent("""
 """)
 
 
+_SERIAL: dict = {}  # the serial reference of each (script, case), solved once per test process
+
+
+def _serial(tmp_path, script: str, *args) -> dict:
+    """The serial direct solve of ``script``'s case ``args`` (its JSON), run in this process (no MPI launched:
+    the plain serial path) and kept for the other rank counts of the same case."""
+    import runpy
+
+    key = (script, *map(str, args))
+    if key not in _SERIAL:
+        path, out = tmp_path / "serial.py", tmp_path / "serial.json"
+        path.write_text(script)
+        argv = sys.argv
+        sys.argv = [str(path), str(args[0]), str(out), *map(str, args[1:])]
+        try:
+            runpy.run_path(str(path), run_name="__main__")
+        finally:
+            sys.argv = argv
+        _SERIAL[key] = json.loads(out.read_text())
+    return _SERIAL[key]
+
+
 def _mpi(tmp_path, ranks, *args):
     script = tmp_path / "run.py"
     script.write_text(SCRIPT)
@@ -102,9 +124,7 @@ def test_ranks_give_the_serial_temperatures(tmp_path, kind, ranks, route):
     par = json.loads((tmp_path / "mpi.json").read_text())
     assert f"{ranks} ranks" in par["method"]  # one rank under mpiexec takes the same distributed path
     assert par["route"] == route
-    serial = _mpi(tmp_path, 1, kind, tmp_path / "serial.json", "direct")
-    assert serial.returncode == 0, serial.stderr[-3000:]
-    ser = json.loads((tmp_path / "serial.json").read_text())
+    ser = _serial(tmp_path, SCRIPT, kind, "direct")
     u, v = np.array(par["u"]), np.array(ser["u"])
     assert np.abs(u - v).max() < 1e-8 * np.abs(v).max()
     assert par["balance"] < 1e-9 and par["flux"] == pytest.approx(ser["flux"], rel=1e-8, abs=1e-12)
@@ -165,7 +185,7 @@ def test_ranks_give_the_serial_displacements(tmp_path, kind, ranks):
         assert out.returncode == 0, out.stderr[-3000:]
         return json.loads((tmp_path / name).read_text())
 
-    par, ser = run(ranks, "petsc", "mpi.json"), run(1, "direct", "serial.json")
+    par, ser = run(ranks, "petsc", "mpi.json"), _serial(tmp_path, ELASTIC, kind, "direct")
     assert f"{ranks} ranks" in par["method"] and par["free"] == ser["free"]
     u, v = np.array(par["u"]), np.array(ser["u"])
     assert np.abs(u - v).max() < 1e-8 * np.abs(v).max()
