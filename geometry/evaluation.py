@@ -124,9 +124,10 @@ class SplineEvaluation:
                               ) -> tuple[np.ndarray | None, list[np.ndarray]]:
         """Values (N, m) (None unless ``values``) and the first derivatives [d/dxi_k (N, m)] * d at ``params``
         (N, d), each derivative its own contiguous array (a chain rule then combines them column by column,
-        without a (N, m, d) Jacobian); ``checked`` and ``compiled`` as for :meth:`value_and_jacobian`;
-        ``columns``: the derivatives of the first ``columns`` components only (N, columns) (a map's geometry
-        without its channels)."""
+        without a (N, m, d) Jacobian).  ``checked``: ``params`` is a float (N, d) array already inside the
+        domain (no checks); ``compiled``: None takes the compiled kernel for many points, True for any number,
+        False never; ``columns``: the derivatives of the first ``columns`` components only (N, columns) (a
+        map's geometry without its channels)."""
         x = params if checked else self._check_params(params)
         # compiled kernel for many points: values and first derivatives in one pass (3x SciPy's four passes)
         out = None if compiled is False else _fast.evaluate(self.knots, self.degrees, self._hom, x, derivs=True,
