@@ -91,10 +91,12 @@ def render_temperature(source, png_path: Path, title: str = "temperature (C)", s
 
     grid = pv.read(source) if isinstance(source, (str, Path)) else source
     lean = pv.UnstructuredGrid()  # the grid's points and cells (shared, not copied) with the arrays shown only:
-    lean.copy_structure(grid)  # the surface filter copies every point array (at 1.5 M points: 0.6 -> 0.4 s)
+    lean.copy_structure(grid)  # the surface filter copies every point array
     for name in [scalars] + (["displacement"] if warp is not None else []):
         lean.point_data[name] = grid.point_data[name]
-    mesh = lean.extract_surface(algorithm="dataset_surface")
+    # vtkGeometryFilter: the same boundary faces as vtkDataSetSurfaceFilter, whose hash of every cell face took
+    # 280 MiB at 1.3 M hexahedra (4 MiB here) and 0.86 s (0.62 s)
+    mesh = lean.extract_surface(algorithm="geometry")
     log = above is not None
     if log:
         rise = np.asarray(mesh.point_data[scalars], float) - above
