@@ -143,3 +143,26 @@ def test_the_mean_temperature_and_the_volume_from_one_pass_are_the_exact_ones():
     mean = twisted.mean_temperature()
     assert mean == pytest.approx(twisted.integrate(lambda x, T, g: T) / twisted.volume(), rel=1e-12)
     assert twisted.volume() == pytest.approx(twisted.integrate(lambda x, T, g: np.ones(len(T))), rel=1e-12)
+
+
+def test_a_weld_that_consumes_its_input_gives_the_same_mesh():
+    """weld(..., consume=True) (the sampled grid's: the model not held twice) relabels the cells in place and
+    empties the data it was given, and its mesh and averaged data are those of the copying weld; points closer
+    than the tolerance merge, others do not."""
+    from geometry.patches.sampling import weld
+
+    rng = np.random.default_rng(3)
+    base = rng.random((400, 3))
+    points = np.concatenate([base, base[:150] + 1e-13, base[:40] - 1e-13, base[:5] + 1e-6])  # 190 to merge
+    cells = rng.integers(0, len(points), (700_000, 8))  # more than one block of the in-place relabelling
+    data = {"t": rng.random(len(points)), "flux": rng.random((len(points), 3))}
+    copy = weld(points, cells, {k: v.copy() for k, v in data.items()})
+    given = {k: v.copy() for k, v in data.items()}
+    cells_given = cells.copy()
+    used = weld(points, cells_given, given, consume=True)
+    assert copy[3] == used[3] == 190 and given == {}
+    assert used[1] is cells_given and np.array_equal(used[1], copy[1]) and np.array_equal(used[0], copy[0])
+    assert all(np.array_equal(used[2][k], copy[2][k]) for k in data)
+    # point 0 kept, its twins 400 (+1e-13) and 550 (-1e-13) merged into it and averaged; 590 (+1e-6) kept apart
+    assert copy[2]["t"][0] == pytest.approx(data["t"][[0, 400, 550]].mean(), rel=1e-14)
+    assert np.abs(copy[0] - points[590]).max(axis=1).min() == 0.0

@@ -318,7 +318,7 @@ def sampled_mesh(model, samples: int = 3, **options):
     import pyvista as pv
 
     points, hexes, pdata, cdata, rim = sample_model(model, samples, **options)
-    points, hexes, pdata, _ = weld(points, hexes, pdata, rim)
+    points, hexes, pdata, _ = weld(points, hexes, pdata, rim, consume=True)
     grid = pv.UnstructuredGrid({pv.CellType.HEXAHEDRON: hexes}, points)
     for key, v in pdata.items():
         grid.point_data[key] = v
@@ -336,14 +336,16 @@ def _rim(shape) -> np.ndarray:
     return m.ravel()
 
 
-def weld(points, cells, point_data, candidates=None, tol: float = 1e-10):
+def weld(points, cells, point_data, candidates=None, tol: float = 1e-10, consume: bool = False):
     """Merge points closer than ``tol`` times the model size; their data are averaged.
 
     ``candidates``: mask of the points that may coincide with others (default
     all).  Returns ``(points, cells, point_data, merged)`` with ``merged`` the
     number of points removed.  Neighbours are found by a KD-tree and grouped by
     connected components (no bucket boundaries: points within the tolerance
-    always merge).
+    always merge).  ``consume``: the caller gives up ``cells`` and ``point_data``, which are then reused
+    (the cells relabelled in place, each array of ``point_data`` dropped from it once its welded one is
+    made), so that the model is not held twice at the peak.
     """
     n = len(points)
     idx = np.arange(n) if candidates is None else np.flatnonzero(candidates)
@@ -373,10 +375,17 @@ def weld(points, cells, point_data, candidates=None, tol: float = 1e-10):
     counts = np.bincount(lab, minlength=mc).astype(float)
     out_data = {}
     kept = np.flatnonzero(rep)
-    for key, v in point_data.items():
+    for key in list(point_data):
+        v = point_data.pop(key) if consume else point_data[key]
         out = np.take(v, kept, axis=0)  # (take: several times faster than a mask or fancy index here)
         vc = v[involved].reshape(k, -1)
         avg = np.stack([np.bincount(lab, weights=vc[:, c], minlength=mc) for c in range(vc.shape[1])], 1)
         out.reshape(len(out), -1)[new[involved[first]]] = avg / counts[:, None]
         out_data[key] = out
+        del v, vc  # (consumed: the array goes now, not when the loop ends)
+    if consume:  # relabelled in blocks, each read before it is overwritten
+        step = 1 << 18
+        for a in range(0, len(cells), step):
+            cells[a:a + step] = np.take(label, cells[a:a + step])
+        return np.take(points, kept, axis=0), cells, out_data, n - len(kept)
     return np.take(points, kept, axis=0), np.take(label, cells), out_data, n - len(kept)
