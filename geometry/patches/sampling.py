@@ -387,5 +387,6 @@ def weld(points, cells, point_data, candidates=None, tol: float = 1e-10, consume
         step = 1 << 18
         for a in range(0, len(cells), step):
             cells[a:a + step] = np.take(label, cells[a:a + step])
-        return np.take(points, kept, axis=0), cells, out_data, n - len(kept)
-    return np.take(points, kept, axis=0), np.take(label, cells), out_data, n - len(kept)
+    else:
+        cells = np.take(label, cells)
+    return np.take(points, kept, axis=0), cells, out_data, n - len(kept)

@@ -332,11 +332,11 @@ class Solution:
             groups.setdefault(space.key() if prob.weights[pi] is None else ("own", pi), []).append(pi)
         for members in groups.values():
             space = prob.spaces[members[0]]
+            axes = sample_axes([d.knots for d in space.dirs], samples)
             if prob.weights[members[0]] is not None:
-                v = self._spline(members[0]).evaluate_grid(sample_axes([d.knots for d in space.dirs], samples))
+                v = self._spline(members[0]).evaluate_grid(axes)
                 lo, hi = min(lo, float(v.min())), max(hi, float(v.max()))
                 continue
-            axes = sample_axes([d.knots for d in space.dirs], samples)
             tables = [kn.basis_matrix(d.knots, d.degree, np.clip(a, d.knots[0], d.knots[-1]), 0).toarray()
                       for d, a in zip(space.dirs, axes)]
             for chunk in chunks(members, int(np.prod([len(a) for a in axes]))):
