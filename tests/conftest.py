@@ -36,6 +36,9 @@ def _threads_for_marked_tests(request):
 
 
 def pytest_collection_modifyitems(config, items):
-    """Run the tests marked ``long`` first (the order is otherwise kept): with pytest-xdist the workers then
-    share out the short tests at the end instead of one of them finishing a long test alone."""
-    items.sort(key=lambda item: item.get_closest_marker("long") is None)
+    """Run the tests marked ``long`` first and those marked ``last`` last (the order is otherwise kept): with
+    pytest-xdist the workers then share out the short tests at the end instead of one of them finishing a long
+    test alone, and a test that reruns others in a child process finds numba's kernels cached (compiling them
+    cold in the child doubled its time)."""
+    items.sort(key=lambda item: (item.get_closest_marker("last") is not None,
+                                 item.get_closest_marker("long") is None))

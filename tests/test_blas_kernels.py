@@ -32,7 +32,7 @@ def _second_kernel() -> dict:
 
 
 @pytest.mark.slow
-@pytest.mark.long
+@pytest.mark.last
 def test_kernel_sensitive_tests_pass_under_a_second_blas_kernel():
     change = _second_kernel()
     env = dict(os.environ, **change)
@@ -42,7 +42,8 @@ def test_kernel_sensitive_tests_pass_under_a_second_blas_kernel():
     files = [str(p.relative_to(ROOT)) for p in sorted((ROOT / "tests").glob("test_*.py"))
              if p.name != Path(__file__).name and "mark.kernel_sensitive" in p.read_text()]
     assert files, "no module marks a test kernel_sensitive"
-    run = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-p", "no:xdist",
+    # on every core: run last, the child has them to itself once the other workers are done
+    run = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-n", str(min(os.cpu_count() or 1, 4)),
                           "-m", "kernel_sensitive", *files], cwd=ROOT, env=env, capture_output=True, text=True,
                          timeout=900)
     tail = "\n".join(run.stdout.splitlines()[-30:])
