@@ -83,6 +83,45 @@ def test_a_channel_field_of_a_rational_map():
     assert g.shape == shape
 
 
+def test_a_heat_sink_graded_by_its_pins_widths():
+    """The heat-sink family (library.face_graded_heat_sink): T2 at its default, every side's pins as wide as the
+    field on that wall, neighbours glued by identities only (field_graded refuses any other), its derivative
+    shared by all cells as the per-tile extrapolation gives it, and every output's gradient by the parameter
+    spline's control values equal to the central difference of fresh analyses."""
+    base = library.heat_sink_t2().patches[0]
+    assert np.abs(library.face_graded_heat_sink().patches[0].control_points - base.control_points).max() < 1e-15
+    D = _map()
+
+    def paved(c):
+        return tiling.field_graded(D, library.face_graded_heat_sink, (2, 2, 1), _spline(c))
+
+    c0 = 0.3 + 0.1 * np.random.default_rng(6).random((3, 3, 3, 1))
+    ms = paved(c0)
+    assert all(i.kind == "identity" for i in ms.interfaces) and len(ms.interfaces) == 4
+    for t, tile in enumerate(ms.tiles):
+        P, width = tile.patches[0].control_points, ms.grading.values(t)
+        # the top layer's slot edge next to the pins (column 2 of 6) on each side: 0.5 - half-gap = the width
+        for face, edge in (("umin", P[0, 2, 4, 1]), ("umax", P[5, 2, 4, 1]), ("vmin", P[2, 0, 4, 0]),
+                           ("vmax", P[2, 5, 4, 0])):
+            assert abs(edge - width[face]) < 1e-15, (t, face)
+
+    def plain(**values):
+        return library.face_graded_heat_sink(**values)
+
+    shared = tile_derivatives(ms.grading, ms.tiles[1], 1)
+    extrapolated = tile_derivatives(tiling.field_graded(D, plain, (2, 2, 1), _spline(c0)).grading, ms.tiles[1], 1)
+    for face in shared:
+        assert np.abs(shared[face][0] - extrapolated[face][0]).max() <= 1e-9
+    assert not np.any(shared["wmin"][0]) and not np.any(shared["wmax"][0])  # the bottom and top shape nothing
+
+    def analyse(c):
+        return _conditions(HeatProblem(paved(c), conductivity="k")).solve(tol=1e-13)
+
+    _fd_check(analyse, c0, [TemperatureNorm(8), MeanTemperature("wmin"), Volume()])
+    with pytest.raises(tiling.TilingError, match=r"umax must be in \(0, 0\.5\)"):
+        library.face_graded_heat_sink(umax=0.5)
+
+
 def _squared(**values):
     """A family whose control points are not affine in its values (the widths their squares' images)."""
     return library.face_graded_cross(**{f: 0.1 + v * v for f, v in values.items()})

@@ -2,6 +2,7 @@
 
 import json
 
+import numpy as np
 import pytest
 
 from iga.app.config import validate
@@ -141,6 +142,30 @@ def test_an_implicit_bifurcation_of_the_duck_runs_to_a_closed_surface(tmp_path):
         validate({**cfg, "physics": {"kind": "heat"}, "bc": [{"kind": "dirichlet", "tag": "wmin", "value": 1.0}]})
     with pytest.raises(ProblemError, match=r"needs 'epsilon'"):
         validate({**cfg, "paving": {"scheme": "implicit_bifurcation"}})
+
+
+def test_a_heat_sink_graded_by_its_pins_runs_from_a_pipeline(tmp_path):
+    """The vertical demo map paved by the heat-sink family with pins widening along x: the pipeline builds the
+    same model as the script (the interfaces are the identities of the cell grid), and the widths it paved are
+    the formula's on every side wall."""
+    cfg = {"map": {"primitive": "vertical_heat_sink"}, "tile": {"library": "face_graded_heat_sink"},
+           "paving": {"scheme": "field_graded", "counts": [4, 4, 1], "field": {"formula": "0.3 + 2 * x"}},
+           "material": {"conductivity": 205.0},
+           "bc": [{"kind": "neumann", "tag": "wmin", "value": 2e4}, {"kind": "robin", "tag": "rest", "h": 3000.0,
+                                                                       "ambient": 0.0}],
+           "output": {"dir": str(tmp_path), "png": False}}
+    s = run_pipeline(cfg, tmp_path)
+    import tiling
+    from iga.app.maps import vertical_heat_sink_map
+    from tiling import library
+
+    D = vertical_heat_sink_map()
+    lo, hi = D.control_points[..., 0].min(), D.control_points[..., 0].max()
+    ms = tiling.field_graded(D, library.face_graded_heat_sink, (4, 4, 1),
+                             lambda u: 0.3 + 2 * D.evaluate(u)[:, 0])  # x at the wall centres (D's domain: [0, 1]^3)
+    assert s["tiles"] == 16 and s["interfaces"] == len(ms.interfaces) == 24 and s["energy_balance_error"] < 1e-9
+    umin = ms.grading.faces[0][:, 0, 0]
+    assert np.all(np.diff(umin) > 0) and abs(umin[0] - (0.3 + 2 * lo)) < 1e-12 and abs(umin[-1] - (0.3 + 2 * hi)) < 1e-12
 
 
 def test_a_field_graded_lattice_runs_from_a_pipeline_with_a_formula_of_the_position(tmp_path):

@@ -13,6 +13,7 @@
 ``cross()``          seven trivariates: a centre block and six arms reaching
                      every face of the cell; opposite faces match (periodic)
 ``face_graded_cross()`` a cross with its own arm width on each of the six faces (grading in 3 directions)
+``face_graded_heat_sink()`` T2 with the pins' widths given on its four sides (heat sinks graded in u and v)
 ``hollow_cross()``   24 bilinear surfaces: the walls of the cross's arms, open
                      where the arms meet the cell faces (a surface tile to cap)
 ``helix()``          a cubic curve winding around the cell's axis (Elber 2017, Fig. 10)
@@ -88,6 +89,47 @@ def heat_sink_t2(scale: float = 0.5) -> Tile:
         cp[:, :, k, 2] = z
     T = BSpline((2, 2, 2), [_disc_knots(), _disc_knots(), _W_KNOTS], cp)
     return Tile([T], (0, "wmin"), discontinuity_branches(T), scale=scale, name="heat_sink_t2")
+
+
+def face_graded_heat_sink(umin: float = 0.45, umax: float = 0.45, vmin: float = 0.45, vmax: float = 0.45,
+                          wmin: float | None = None, wmax: float | None = None) -> Tile:
+    """T2 whose pins have their own width on each side of the cell: the width of the pins' tops (a fraction of the
+    cell, in (0, 0.5); T2's own is 0.45) along v where the tile meets its ``umin`` and ``umax`` sides, along u
+    where it meets ``vmin`` and ``vmax``, linear in between (the control columns' share of the way across), the
+    slots tapering to nothing at the base as in T2 (half-gaps 0.6 g and g on its two upper layers).  A side's
+    control points depend on that side's value alone, so paved with the values of a field taken on every shared
+    wall (:func:`tiling.field_graded`) neighbouring cells meet face to face; the pins become quadrilaterals whose
+    widths follow the field across the sink.  ``wmin`` and ``wmax`` are accepted (a field gives every wall a
+    value) and shape nothing: the bottom is the solid base, the top the pins' ends.  The tile has no branch faces
+    (the pins' tops are no longer rectangles a child could be placed on): a field-graded paving has one level."""
+    widths = {"umin": umin, "umax": umax, "vmin": vmin, "vmax": vmax}
+    for face, v in widths.items():
+        if not (is_real(v) and 0 < v < 0.5):
+            raise TilingError(f"face_graded_heat_sink: the pins' width on {face} must be in (0, 0.5) (a fraction "
+                              f"of the cell; T2's is 0.45), got {show(v)}")
+    for face, v in (("wmin", wmin), ("wmax", wmax)):
+        if v is not None and not is_real(v):
+            raise TilingError(f"face_graded_heat_sink: {face} must be a number (it shapes nothing), got {show(v)}")
+    share = np.array([0.0, 0.25, 0.5, 0.5, 0.75, 1.0])  # each control column's share of the way across the cell
+    taper = _SPLIT / _SPLIT[-1]  # the half-gap on each layer, relative to the top's
+
+    def across(lo: float, hi: float) -> np.ndarray:
+        """The split coordinates (6 columns, 5 layers, 6 control points) between the sides' widths lo and hi."""
+        gap = (0.5 - ((1 - share) * lo + share * hi))[:, None] * taper[None, :]  # (column, layer) half-gaps
+        return np.stack([np.zeros_like(gap), (0.5 - gap) / 2, 0.5 - gap, 0.5 + gap, (1.5 + gap) / 2,
+                         np.ones_like(gap)], -1)
+
+    cp = np.empty((6, 6, 5, 3))
+    cp[..., 0] = across(float(vmin), float(vmax)).transpose(2, 0, 1)  # x of (i, j, k): column j on its way along v
+    cp[..., 1] = across(float(umin), float(umax)).transpose(0, 2, 1)  # y of (i, j, k): column i on its way along u
+    cp[..., 2] = _Z_LAYERS[None, None, :]
+    T = BSpline((2, 2, 2), [_disc_knots(), _disc_knots(), _W_KNOTS], cp)
+    name = ", ".join(f"{float(v):g}" for v in widths.values())
+    return Tile([T], name=f"face_graded_heat_sink({name})")
+
+
+#: its control points are affine in the four widths (the parameter sensitivities take one derivative for all cells)
+face_graded_heat_sink.affine_in_values = True
 
 
 def skinned_branching(scale: float = 0.5) -> Tile:
@@ -388,6 +430,6 @@ def oblique_tubes(width: float = 0.16) -> Tile:
 
 #: the built-in tiles by name (what ``[tile] library = ...`` of a pipeline may name)
 TILES = {f.__name__: f for f in (heat_sink_t1, heat_sink_t2, skinned_branching, fractal, hollow_box, cube, cross, helix,
-                                 helical_tubes, bent_cross, hollow_cross, graded_cross, face_graded_cross, struts,
+                                 helical_tubes, bent_cross, hollow_cross, graded_cross, face_graded_cross, face_graded_heat_sink, struts,
                                  stitch, through_cylinders,
                                  oblique_tubes)}

@@ -112,11 +112,11 @@ _SECTIONS = (
                    "equal heights)")) + _SEAL),
     Section("paving.field_graded", "[paving] scheme = \"field_graded\"", "Cells whose tile takes its parameters "
             "from a field on the six faces (`tiling.field_graded`): grading in three directions; [tile] names a "
-            "family of the six faces, e.g. `face_graded_cross`.", (
+            "family of the six faces, `face_graded_cross` or `face_graded_heat_sink`.", (
                 _K("scheme", "`\"field_graded\"`", REQUIRED, "the paving scheme"),
                 _K("counts", "three integers >= 1", REQUIRED, "cells along u, v, w"),
                 _K("field", "a number, a channel name of the map or `{formula = \"...\"}` of x, y, z (m)", REQUIRED,
-                   "the tiles' face parameter (an arm width, a fraction of the cell), taken at the centre of every "
+                   "the tiles' face parameter (an arm or pin width, a fraction of the cell), taken at the centre of every "
                    "wall of the cell grid"))),
     Section("paving.bifurcation", "[paving] scheme = \"bifurcation\"", "Adaptive bifurcation: the cells split "
             "where the map is large (Massarwi et al. 2018, Section 5); no [tile].", (
