@@ -16,7 +16,7 @@ from geometry import knots as kn
 from geometry.errors import show
 
 from iga.discretisation.constraints import needs_constraints, prolongation
-from iga.discretisation.dirichlet import DirichletData, project_dirichlet
+from iga.discretisation.dirichlet import project_dirichlet
 from iga.discretisation.system import solve_system
 from iga.errors import ProblemError
 from iga.outputs import Output
@@ -47,9 +47,7 @@ def adjoint(solution, output: Output, solver: str = "auto", tol: float = 1e-12) 
         constraints = prolongation(prob.model, prob.spaces, prob.offsets, prob.weights) \
             if needs_constraints(prob.model, prob.spaces) else None
         dd = project_dirichlet(prob.faces, book["dirichlet"], prob.ndof, constraints)
-    zero = DirichletData(dd.dofs, np.zeros(len(dd.dofs)), dd.G, dd.keys, dd.slave_rows,
-                         np.zeros(len(dd.slave_rows)), dd.slave_faces, dd.master_faces)
-    return solve_system(K, g, constraints, zero, solver, tol).u
+    return solve_system(K, g, constraints, dd.homogeneous(), solver, tol).u
 
 
 def shape_map(problem):

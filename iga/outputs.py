@@ -11,7 +11,7 @@ those of the solution: temperatures in C (or K, as the conditions were given), l
   tends to max |T| as p grows.
 * :class:`HeatFlow` (W): the heat leaving through the faces of ``tag`` (value only).
 * :class:`Compliance`: u . f, the work of the loads (heat: W K; elasticity: J).
-* :class:`VonMisesNorm` (Pa): (int sigma_vm^p dV / V)^(1/p) of an elastic solution (value only).
+* :class:`VonMisesNorm` (Pa): (int sigma_vm^p dV / V)^(1/p) of an elastic solution.
 """
 
 from __future__ import annotations
@@ -28,13 +28,14 @@ from iga.discretisation.fields import grid_fields
 from iga.errors import ProblemError
 
 __all__ = ["Output", "Volume", "MeanTemperature", "TemperatureNorm", "HeatFlow", "Compliance", "VonMisesNorm",
-           "gauss_pass", "tag_faces"]
+           "gauss_pass", "tag_faces", "von_mises"]
 
 
-def gauss_pass(problem, fields: np.ndarray, fn) -> None:
+def gauss_pass(problem, fields: np.ndarray, fn, inverse: bool = False) -> None:
     """Call ``fn(chunk, space, vals (P nq, c), grads (P nq, c, 3), wv (P nq,), x (P nq, 3), chans)`` for every group
     of patches sharing a space and a tile spline, with the fields of coefficient vectors ``fields`` (c, ndof) at
-    the Gauss points; ``wv`` the weights times |det J| (polynomial bases only)."""
+    the Gauss points; ``wv`` the weights times |det J| (polynomial bases only).  ``inverse``: ``fn`` takes an
+    eighth argument, J^-1 (P nq, 3, 3), [q, r, j] = d xi_r / d x_j (a load that tests physical gradients)."""
     same = ObjectIndex()
     groups: dict = {}
     for i, s in enumerate(problem.spaces):
@@ -53,7 +54,8 @@ def gauss_pass(problem, fields: np.ndarray, fn) -> None:
                           for i in chunk])
             vals, grads, det = grid_fields(U, tables, D)
             wv = np.broadcast_to(w, (len(chunk), len(w))).reshape(-1) * np.abs(det)
-            fn(chunk, space, vals, grads, wv, x.reshape(-1, 3), chans)
+            extra = (np.linalg.inv(np.stack(D, -1).reshape(-1, 3, 3)),) if inverse else ()
+            fn(chunk, space, vals, grads, wv, x.reshape(-1, 3), chans, *extra)
 
 
 def _volume_load(solution, density) -> np.ndarray:
@@ -220,18 +222,39 @@ class Compliance(Output):
         return np.array(self._f(solution), float)
 
 
+def von_mises(S: np.ndarray) -> tuple:
+    """(the deviator s of the stresses S (N, 3, 3), the von Mises stress sqrt(3/2 s : s) (N,)), in S's units."""
+    dev = S - np.trace(S, axis1=1, axis2=2)[:, None, None] / 3 * np.eye(3)
+    return dev, np.sqrt(1.5 * np.sum(dev * dev, axis=(1, 2)))
+
+
+def _isotropic(lam: np.ndarray, mu: np.ndarray, eps: np.ndarray) -> np.ndarray:
+    """sigma = lam tr(eps) I + 2 mu eps (N, 3, 3)."""
+    tr = np.trace(eps, axis1=1, axis2=2)
+    return lam[:, None, None] * tr[:, None, None] * np.eye(3) + 2 * mu[:, None, None] * eps
+
+
 class VonMisesNorm(Output):
-    """(int sigma_vm^p dV / V)^(1/p) (Pa) of an elastic solution: a smooth maximum of the von Mises stress."""
+    """(int sigma_vm^p dV / V)^(1/p) (Pa) of an elastic solution: a smooth maximum of the von Mises stress.
+
+    Its gradient in the displacement (:meth:`gradient`) is the load int tau : grad v dV with
+    tau = J^(1-p) / V 3 mu sigma_vm^(p-2) s (s the stress deviator: d sigma_vm = 3 mu s : d eps / sigma_vm), what
+    the elastic adjoint solves with (:func:`iga.elasticity.adjoint.elastic_adjoint`)."""
 
     def __init__(self, p: float = 8.0):
         self.p = _exponent(p, "VonMisesNorm")
         self.name = f"VonMisesNorm({self.p:g})"
 
-    def value(self, solution) -> float:
-        from iga.elasticity.forms import lame
+    def _problem(self, solution):
         if getattr(type(solution), "physics", None) != "elasticity":
             raise ProblemError(f"{self.name} is an output of an elastic solution, got {show(solution)}")
-        prob, p = solution.problem, self.p
+        return solution.problem
+
+    def value(self, solution) -> float:
+        from iga.elasticity.forms import lame
+        from iga.discretisation.fields import integrate_fields
+
+        prob, p = self._problem(solution), self.p
         n, o = prob.ndof, prob.offsets
 
         def density(x, u, g, at):
@@ -240,14 +263,43 @@ class VonMisesNorm(Output):
             eps = 0.5 * (g + np.transpose(g, (0, 2, 1)))
             if prob.thermal_strain is not None:
                 eps = eps - at.per_patch(prob.thermal_strain)[:, None, None] * np.eye(3)
-            S = lam[:, None, None] * np.trace(eps, axis1=1, axis2=2)[:, None, None] * np.eye(3) + 2 * mu[:, None,
-                                                                                                         None] * eps
-            dev = S - np.trace(S, axis1=1, axis2=2)[:, None, None] / 3 * np.eye(3)
-            vm = np.sqrt(1.5 * np.sum(dev * dev, axis=(1, 2)))
+            vm = von_mises(_isotropic(lam, mu, eps))[1]
             return np.stack([vm**p, np.ones_like(vm)], 1)
-
-        from iga.discretisation.fields import integrate_fields
 
         total, vol = integrate_fields(prob, lambda i: np.stack([solution.u[a * n + o[i]:a * n + o[i + 1]].reshape(
             prob.spaces[i].shape) for a in range(3)]), 3, density, context=True)
         return float((total / vol) ** (1 / p))
+
+    def gradient(self, solution) -> np.ndarray:
+        """dJ/du (3 ndof,), component-major (class notes); a problem without thermal strain."""
+        from iga.assembly.tensor import derivative_load_form
+        from iga.elasticity.forms import lame
+
+        prob, p = self._problem(solution), self.p
+        if prob.thermal_strain is not None:
+            raise ProblemError(f"{self.name}: the gradient of a thermal stress is not built; differentiate a problem "
+                               "without .thermal(...)")
+        n, o = prob.ndof, prob.offsets
+        out = np.zeros(3 * n)
+        J = evaluated(self, solution)
+        if not J > TINY:  # no stress anywhere: the norm has no direction to grow in
+            return out
+
+        def add(chunk, space, vals, grads, wv, x, chans, Jinv):
+            where = f"patches {chunk[0]}..{chunk[-1]}"
+            flat = {c: np.reshape(v, -1) for c, v in chans.items()}
+            lam, mu = lame(prob.youngs.values(x, flat, where), prob.poisson.values(x, flat, where), where)
+            dev, vm = von_mises(_isotropic(lam, mu, 0.5 * (grads + np.transpose(grads, (0, 2, 1)))))
+            # vm^(p - 2) s -> 0 where vm = 0 (p > 1), so those points add nothing
+            scale = np.where(vm > 0, np.where(vm > 0, vm, 1.0) ** (p - 2), 0.0)
+            tau = (3 * mu * scale * wv)[:, None, None] * dev
+            shape = (len(chunk),) + space.qshape
+            for a in range(3):
+                G = np.einsum("qj,qrj->rq", tau[:, a], Jinv)  # tau_aj d xi_r / d x_j: the parametric derivatives' weights
+                terms = [(G[r].reshape(shape), tuple((int(k == r), None) for k in range(3))) for r in range(3)]
+                loads = derivative_load_form(space, terms)
+                for j, pi in enumerate(chunk):
+                    out[a * n + o[pi]:a * n + o[pi + 1]] += loads[j].reshape(-1)
+
+        gauss_pass(prob, solution.u.reshape(3, n), add, inverse=True)
+        return out * J ** (1 - p) / Volume().value(solution)

@@ -1,5 +1,6 @@
-"""Compliance sensitivities of elastic solutions by Young's modulus (self-adjoint: no extra solve): against central
-differences of fresh solves, the scaling identity, and the refusals."""
+"""Compliance sensitivities of elastic solutions by Young's modulus (self-adjoint: no extra solve) and those of the
+von Mises norm (one adjoint solve): against central differences of fresh solves, the scaling identity, and the
+refusals."""
 
 import numpy as np
 import pytest
@@ -35,11 +36,51 @@ def test_the_compliance_gradient_by_a_young_s_modulus_channel_is_its_finite_diff
     assert s.gradient(Compliance(), wrt="patches").sum() == pytest.approx(tiles.sum(), rel=1e-12)
 
 
+def test_the_von_mises_norm_s_gradient_is_its_finite_difference():
+    """dJ/du against differences of the output on moved displacements; dJ/dE per channel value and per tile
+    (one adjoint solve) against fresh solves, with the beam's end clamped and, second, also pushed along x (a
+    prescribed displacement that is not zero: the adjoint vanishes there, the gradient holds)."""
+    rng = np.random.default_rng(5)
+    E0 = 1e9 * (1 + rng.random((3, 3, 3)))
+    out = VonMisesNorm(6)
+    s = _beam(E0).solve(solver="direct", tol=1e-13)
+    g = out.gradient(s)
+    d, h, u = rng.standard_normal(g.shape), 1e-11, s.u.copy()  # (|u| <= 6e-5 m: a step of 1e-11 m is in the
+    # quadratic regime of the difference, whose error falls 100x per decade of h)
+    values = []
+    for sign in (1, -1):
+        s.u, s.output_values = u + sign * h * d, {}
+        values.append(out.value(s))
+    s.u, s.output_values = u, {}
+    assert float(g @ d) == pytest.approx((values[0] - values[1]) / (2 * h), rel=1e-6)
+    for pushed in (False, True):
+        def solved(E, pushed=pushed):
+            p = _beam(E)
+            return (p.dirichlet("umax", 1e-5, components="x") if pushed else p).solve(solver="direct", tol=1e-13)
+
+        s = solved(E0)
+        dE = rng.standard_normal(E0.shape) * 1e6
+
+        def central(h, dE=dE, solved=solved):
+            return (out.value(solved(E0 + h * dE)) - out.value(solved(E0 - h * dE))) / (2 * h)
+
+        # the clamped beam's stresses balance its load and hardly depend on E (E moved by 7e-4 of itself moves J
+        # by 1.5e-6 of itself), so a central difference's round-off and truncation are both near 1e-6 of the
+        # derivative; Richardson's extrapolation of two (error O(h^4)) is well below
+        fd = (4 * central(0.5) - central(1.0)) / 3
+        assert float(np.sum(s.gradient(out, wrt="channel:E") * dE)) == pytest.approx(fd, rel=1e-6)
+        # the tiles' derivatives (a factor on E in each) sum to that of E scaled everywhere: zero for the clamped
+        # beam (its stresses balance the load whatever E), not for the pushed one (its stresses scale with E)
+        total = float(s.gradient(out, wrt="tiles").sum())
+        assert total == pytest.approx((out.value(solved(E0 * 1.0001)) - out.value(solved(E0 * 0.9999))) / 2e-4,
+                                      rel=1e-6, abs=1e-9 * out.value(s))
+
+
 def test_elastic_sensitivities_refuse_what_they_do_not_cover():
     E0 = np.full((3, 3, 3), 1e9)
     s = _beam(E0).solve(solver="direct")
     with pytest.raises(ProblemError, match="Compliance"):
-        s.gradient(VonMisesNorm(4), wrt="channel:E")
+        s.gradient(VonMisesNorm(4), wrt="map")
     with pytest.raises(ProblemError, match="not the channel 'k'"):
         s.gradient(Compliance(), wrt="channel:k")
     with pytest.raises(ProblemError, match="wrt must be"):
@@ -50,6 +91,10 @@ def test_elastic_sensitivities_refuse_what_they_do_not_cover():
     warm = _beam(E0).thermal(10.0, 1e-5, 0.0).solve(solver="direct")
     with pytest.raises(ProblemError, match="thermal"):
         warm.gradient(Compliance(), wrt="tiles")
+    with pytest.raises(ProblemError, match="thermal"):
+        warm.gradient(VonMisesNorm(4), wrt="tiles")
+    with pytest.raises(ProblemError, match="thermal"):
+        VonMisesNorm(4).gradient(warm)
 
 
 @pytest.mark.slow

@@ -49,6 +49,11 @@ class DirichletData:
     slave_faces: list = field(default_factory=list)
     master_faces: dict = field(default_factory=dict)  # prescribed unknown -> conditions of faces it lies inside
 
+    def homogeneous(self) -> "DirichletData":
+        """The same prescribed unknowns held at zero: what an adjoint solve eliminates."""
+        return DirichletData(self.dofs, np.zeros(len(self.dofs)), self.G, self.keys, self.slave_rows,
+                             np.zeros(len(self.slave_rows)), self.slave_faces, self.master_faces)
+
 
 def _solve_mass(M: sp.csc_matrix, b: np.ndarray) -> np.ndarray:
     """Solve the SPD boundary mass system of the projection.

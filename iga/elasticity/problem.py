@@ -44,7 +44,7 @@ from iga.elasticity.data import VectorField, component_field, merge_dirichlet, p
 from iga.elasticity.supports import (Hold, PointLoad, Spring, components_of, hold_dirichlet, select_nodes,
                                      spring_matrix, stiffness_per_node)
 
-__all__ = ["ElasticityProblem"]
+__all__ = ["ElasticityProblem", "ElasticSystem"]
 
 _AXES = "xyz"
 
@@ -61,6 +61,27 @@ class _Load:
     tag: str
     kind: str  # "traction" or "pressure"
     value: object  # VectorField (traction) or ScalarField (pressure)
+
+
+@dataclass
+class ElasticSystem:
+    """What :meth:`ElasticityProblem.solve` eliminates and solves: the stiffness ``K`` (3 ndof x 3 ndof, N/m;
+    springs added) and load ``f`` (N), the ``work`` and ``applied`` loads of the assembly, the vector
+    ``constraints`` (None: one unconstrained patch), the Dirichlet data ``dd`` (supports, holds, pins), the rigid
+    ``modes`` at the reduced unknowns (the near-nullspace), the solver ``options``, this MPI rank's ``share``
+    (None: serial), the ``record`` so far and the holds' unknowns ``hold_unknowns``."""
+
+    K: object
+    f: np.ndarray
+    work: dict
+    applied: dict
+    constraints: object
+    dd: object
+    modes: np.ndarray
+    options: dict
+    share: object
+    record: SolveRecord
+    hold_unknowns: dict
 
 
 class ElasticityProblem(Problem):
@@ -339,12 +360,10 @@ class ElasticityProblem(Problem):
         return K, f, {"work": work, "applied": applied, "moments": moments,
                       "timings": {"assembly": time.perf_counter() - t0}}
 
-    def solve(self, solver: str = "auto", tol: float = 1e-10, maxiter: int | None = None) -> ElasticSolution:
-        """Assemble, apply the conditions, refuse free rigid motions, solve; returns an :class:`ElasticSolution`."""
-        if not (is_number(tol) and 0 < tol < 1):
-            raise ProblemError(f"tol must be a number in (0, 1), got {show(tol)}")
-        if maxiter is not None:
-            count("maxiter", maxiter, 1)
+    def system(self, solver: str = "auto") -> ElasticSystem:
+        """Assemble and resolve the conditions as :meth:`solve` does, before anything is eliminated: the
+        :class:`ElasticSystem` a solve (or an adjoint, :func:`iga.elasticity.adjoint.elastic_adjoint`) solves.
+        Refuses free rigid motions."""
         supports = self._support_faces()
         if self.rigid_hold and (any(supports) or self.holds or self.springs):
             tags = sorted({show(sup.tag) for sup in self.supports} | {show(x.name) for x in self.holds + self.springs})
@@ -386,18 +405,31 @@ class ElasticityProblem(Problem):
         B = rigid_modes(points)  # at the DOFs; a reduced unknown reads them at one DOF it owns
         if constraints is not None:
             B = B[owners_of(constraints.dof_master)]
-        t2 = time.perf_counter()
-        options = self._solver_options(solver, constraints, dd, B)
+        record.timings["constraints"] = time.perf_counter() - t1
+        return ElasticSystem(K, f, work, applied, constraints, dd, B, self._solver_options(solver, constraints, dd, B),
+                             share, record, hold_unknowns)
+
+    def solve(self, solver: str = "auto", tol: float = 1e-10, maxiter: int | None = None) -> ElasticSolution:
+        """Assemble, apply the conditions, refuse free rigid motions, solve; returns an :class:`ElasticSolution`."""
+        if not (is_number(tol) and 0 < tol < 1):
+            raise ProblemError(f"tol must be a number in (0, 1), got {show(tol)}")
+        if maxiter is not None:
+            count("maxiter", maxiter, 1)
+        system = self.system(solver)
+        record = system.record
         # K is consumed: the work balance reads the displacement field and the load vector, not K
-        if share:
-            record.partition = share.part
-            res, f = solve_elastic(share, K, f, constraints, dd, tol, maxiter, B)
+        if system.share:
+            record.partition = system.share.part
+            res, f = solve_elastic(system.share, system.K, system.f, system.constraints, system.dd, tol, maxiter,
+                                   system.modes)
         else:
-            res = solve_system(K, f, constraints, dd, solver, tol, maxiter, options)
-        del K
-        record.timings.update({"constraints": t2 - t1, "solve": res.info.setup_s + res.info.solve_s})
+            f = system.f
+            res = solve_system(system.K, f, system.constraints, system.dd, solver, tol, maxiter, system.options)
+        system.K = None
+        record.timings["solve"] = res.info.setup_s + res.info.solve_s
         record.reduced_dofs = int(res.reduced)
-        return ElasticSolution(self, res, f, dd, work, applied, record, hold_unknowns, self.springs)
+        return ElasticSolution(self, res, f, system.dd, system.work, system.applied, record, system.hold_unknowns,
+                               self.springs)
 
 
 def _refuse_held_load(load, fd, t: np.ndarray, supports: list) -> None:

@@ -208,13 +208,13 @@ class ElasticSolution:
             prob.spaces[i].shape) for a in range(3)]), 3, fn)
 
     def gradient(self, output, wrt: str = "tiles", solver: str = "auto") -> np.ndarray:
-        """The derivative of the compliance (``iga.outputs.Compliance()``), without an extra solve (the compliance
-        is self-adjoint): by Young's modulus, ``wrt="tiles"`` or ``"patches"`` (a factor on each one's E) or
-        ``"channel:NAME"`` (the control values of the map's channel E reads),
-        :func:`iga.elasticity.sensitivity.elastic_sensitivity`; by the shape, ``wrt="map"`` (the map's control
-        points, :func:`iga.shape_sensitivity.shape_sensitivity`) or ``"parameters"`` / ``"faces"`` (a
-        field-graded paving's field, :func:`iga.parameter_sensitivity.parameter_sensitivity`).  ``solver`` is
-        unused (no adjoint solve)."""
+        """The derivative of an output by Young's modulus, ``wrt="tiles"`` or ``"patches"`` (a factor on each
+        one's E) or ``"channel:NAME"`` (the control values of the map's channel E reads): of the compliance
+        (``iga.outputs.Compliance()``) without an extra solve (it is self-adjoint), of the von Mises norm
+        (``iga.outputs.VonMisesNorm(p)``) by one adjoint solve with ``solver``
+        (:func:`iga.elasticity.sensitivity.elastic_sensitivity`); of the compliance by the shape, ``wrt="map"``
+        (the map's control points, :func:`iga.shape_sensitivity.shape_sensitivity`) or ``"parameters"`` /
+        ``"faces"`` (a field-graded paving's field, :func:`iga.parameter_sensitivity.parameter_sensitivity`)."""
         if wrt == "map":
             from iga.shape_sensitivity import shape_sensitivity
 
@@ -225,7 +225,7 @@ class ElasticSolution:
             return parameter_sensitivity(self, output, wrt, solver)
         from iga.elasticity.sensitivity import elastic_sensitivity
 
-        return elastic_sensitivity(self, output, wrt)
+        return elastic_sensitivity(self, output, wrt, solver)
 
     def strain_energy(self) -> float:
         """Elastic strain energy (J): 1/2 int (eps - eps_th) : C : (eps - eps_th) dV, the thermal strain taken
