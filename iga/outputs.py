@@ -21,7 +21,6 @@ import numpy as np
 from geometry.errors import show
 from geometry.grouping import ObjectIndex
 from geometry.numbers import TINY, is_real
-from geometry.patches.chain import patches_geometry_derivs
 
 from iga.discretisation.faces import chunks
 from iga.discretisation.fields import grid_fields
@@ -49,7 +48,7 @@ def gauss_pass(problem, fields: np.ndarray, fn, inverse: bool = False) -> None:
         tables = [np.swapaxes(d.B[:, :, :-1], 1, 2) for d in space.dirs]
         w = np.einsum("i,j,k->ijk", *[d.qw for d in space.dirs]).ravel()
         for chunk in chunks(members, c * space.nq_total):
-            x, D, chans = patches_geometry_derivs([problem.model.patches[i] for i in chunk], space.qaxes)
+            x, D, chans = problem.gauss_geometry.of(problem.model, chunk, space)
             U = np.stack([fields[:, problem.offsets[i]:problem.offsets[i + 1]].reshape((c,) + space.shape)
                           for i in chunk])
             vals, grads, det = grid_fields(U, tables, D)

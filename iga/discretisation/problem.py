@@ -22,6 +22,7 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 
 from geometry.errors import show
+from iga.discretisation.fields import GaussGeometry
 from iga.discretisation.setting import Discretisation
 from iga.errors import ProblemError
 from iga.model import tag_faces
@@ -72,6 +73,7 @@ class Problem:
         self.estimate, self.spaces, self.offsets, self.ndof = d.estimate, d.spaces, d.offsets, d.ndof
         self.volume, self.faces, self.timings = d.volume, d.faces, d.timings
         self.weights = d.weights  # NURBS basis where a patch is its own rational geometry (iga.discretisation.rational)
+        self.gauss_geometry = GaussGeometry()  # the Gauss points' geometry, kept for the passes over them
 
     def faces_of(self, tag, what: str) -> list:
         """The faces of a condition's ``tag`` (an expression of the model's tags); ``what`` names the
