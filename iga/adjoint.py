@@ -33,6 +33,7 @@ def adjoint(solution, output: Output, solver: str = "auto", tol: float = 1e-12) 
     if not isinstance(output, Output):
         raise ProblemError(f"output must be one of iga.outputs (e.g. MeanTemperature()), got {show(output)}")
     prob = solution.problem
+    prob.gauss_geometry.keep(prob)  # the adjoint load and the sensitivity pass read the same geometry
     if prob.conductivity.of_temperature is not None or any(c.kind == "radiation" for c in prob.conditions):
         raise ProblemError("the adjoint here is of a linear problem; a temperature-dependent conductivity or "
                            "radiation makes it nonlinear (its adjoint needs the tangent at the solution)")

@@ -101,7 +101,8 @@ def bounds_pair(bounds, positive: bool = False) -> bool:
 
 def analysed(problem, solver: str):
     """One analysis of a design: a heat problem keeps its factorisation for the adjoint solves that follow; an
-    elastic one (its compliance is self-adjoint) needs none."""
+    elastic one (its compliance is self-adjoint) needs none; both keep their Gauss points' geometry."""
+    problem.gauss_geometry.keep(problem)  # the design step passes over the Gauss points three times and more
     return problem.solve(solver=solver) if hasattr(problem, "youngs") else problem.solve(solver=solver, keep=True)
 
 

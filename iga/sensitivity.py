@@ -50,7 +50,7 @@ def gradient(solution, output: Output, wrt: str = "tiles", solver: str = "auto")
     if wrt not in ("tiles", "patches"):
         raise ProblemError(f"wrt must be 'tiles', 'patches', 'channel:NAME', 'map', 'parameters' or 'faces', got "
                            f"{show(wrt)}")
-    return conductivity_sensitivity(solution, output, per=wrt[:-1], solver=solver)
+    return conductivity_sensitivity(solution, output, per={"tiles": "tile", "patches": "patch"}[wrt], solver=solver)
 
 
 def conductivity_sensitivity(solution, output: Output, per: str = "patch", solver: str = "auto") -> np.ndarray:

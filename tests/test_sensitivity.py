@@ -157,3 +157,32 @@ def test_channel_gradients_of_a_v_rep_union_equal_finite_differences():
     h = 1e-3
     fd = (TemperatureNorm(4).value(solve(moved(h))) - TemperatureNorm(4).value(solve(moved(-h)))) / (2 * h)
     assert sum(float(np.sum(gi * di)) for gi, di in zip(g, d)) == pytest.approx(fd, rel=1e-6)
+
+
+def test_the_gauss_geometry_kept_for_a_design_step_is_the_geometry():
+    """A plain analysis keeps nothing; a gradient keeps the Gauss points' geometry (read-only, equal to a fresh
+    evaluation) and its passes read it; a problem whose geometry exceeds the budget keeps nothing; the gradient
+    is the same either way."""
+    from geometry.patches.chain import patches_geometry_derivs
+
+    ms = _lattice()
+
+    def problem():
+        return HeatProblem(ms, conductivity=10.0).dirichlet("umin", 20.0).robin("umax", 50.0, 30.0)
+
+    s = problem().solve()
+    geometry = s.problem.gauss_geometry
+    assert not geometry.keeping and not geometry._kept  # the energy identity's one pass kept nothing
+    g = s.gradient(TemperatureNorm(8), wrt="patches")
+    assert g.shape == (len(ms.patches),) and geometry.keeping and geometry._kept
+    for (chunk, _), (x, D, chans) in geometry._kept.items():
+        space = s.problem.spaces[chunk[0]]
+        x0, D0, _ = patches_geometry_derivs([ms.patches[i] for i in chunk], space.qaxes)
+        assert np.array_equal(x, x0) and all(np.array_equal(a, b) for a, b in zip(D, D0))
+        assert not x.flags.writeable and not any(a.flags.writeable for a in D)
+    small = problem()
+    small.gauss_geometry.budget = 1000  # bytes: far below this model's geometry
+    t = small.solve()
+    g2 = t.gradient(TemperatureNorm(8), wrt="patches")
+    assert not small.gauss_geometry.keeping and not small.gauss_geometry._kept
+    assert np.allclose(g, g2, rtol=1e-12, atol=0)

@@ -22,17 +22,28 @@ GAUSS_GEOMETRY_BYTES = 64 << 20
 
 
 class GaussGeometry:
-    """The geometry at a problem's Gauss points, kept per group of patches that share a space: the points x
-    (P, n, 3), the derivatives [dx/dxi_k (P, n, 3)] * 3 and the channels {name: (P, n)} of
-    :func:`geometry.patches.chain.patches_geometry_derivs`, read-only, while they fit in ``budget`` bytes.
+    """The geometry at a problem's Gauss points, per group of patches that share a space: the points x (P, n, 3),
+    the derivatives [dx/dxi_k (P, n, 3)] * 3 and the channels {name: (P, n)} of
+    :func:`geometry.patches.chain.patches_geometry_derivs`; kept (read-only) once :meth:`keep` was called and
+    while the whole problem's fits in ``budget`` bytes, else evaluated at every pass.
 
     An output's value, its adjoint load and its sensitivity each pass over the Gauss points once per design
     step, and the deformation map's evaluation is the dearest part of a pass; a problem's geometry does not
-    change, so the passes after the first read it here (the circular demo sink's shape gradient: 1.45-1.66
-    forward analyses -> 1.13-1.15)."""
+    change, so the sensitivities (:mod:`iga.sensitivity`) and the optimiser's analyses ask to keep it and the
+    passes after the first read it here (the circular demo sink's shape gradient: 1.45-1.66 forward analyses ->
+    1.13-1.15).  An analysis that passes once (the energy identity of a solve) keeps nothing."""
 
     def __init__(self, budget: int = GAUSS_GEOMETRY_BYTES):
-        self.budget, self.used, self._kept = int(budget), 0, {}
+        self.budget, self.keeping, self._kept = int(budget), False, {}
+
+    def keep(self, problem) -> None:
+        """Keep the geometry from now on if all of ``problem``'s fits in the budget (x, three derivatives and
+        the map's channels at every Gauss point)."""
+        if self.keeping:
+            return
+        channels = {name for p in problem.model.patches for name in p.channels}
+        size = sum(s.nq_total for s in problem.spaces) * (12 + len(channels)) * 8
+        self.keeping = size <= self.budget
 
     def of(self, model, chunk, space) -> tuple:
         """(x, [dx/dxi_k] * 3, channels) at ``space``'s Gauss grid on the patches ``chunk`` of ``model``."""
@@ -41,13 +52,10 @@ class GaussGeometry:
         if kept is not None:
             return kept
         x, D, chans = patches_geometry_derivs([model.patches[i] for i in chunk], space.qaxes)
-        arrays = [x, *D, *chans.values()]
-        size = sum(a.nbytes for a in arrays)
-        if self.used + size <= self.budget:
-            for a in arrays:
+        if self.keeping:
+            for a in (x, *D, *chans.values()):
                 a.flags.writeable = False  # shared by every later pass
             self._kept[key] = (x, D, chans)
-            self.used += size
         return x, D, chans
 
 

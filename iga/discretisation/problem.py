@@ -73,7 +73,7 @@ class Problem:
         self.estimate, self.spaces, self.offsets, self.ndof = d.estimate, d.spaces, d.offsets, d.ndof
         self.volume, self.faces, self.timings = d.volume, d.faces, d.timings
         self.weights = d.weights  # NURBS basis where a patch is its own rational geometry (iga.discretisation.rational)
-        self.gauss_geometry = GaussGeometry()  # the Gauss points' geometry, kept for the passes over them
+        self.gauss_geometry = GaussGeometry()  # the Gauss points' geometry, kept once a design step asks
 
     def faces_of(self, tag, what: str) -> list:
         """The faces of a condition's ``tag`` (an expression of the model's tags); ``what`` names the

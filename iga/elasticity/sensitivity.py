@@ -40,6 +40,7 @@ def elastic_sensitivity(solution, output: Output, wrt: str = "tiles", solver: st
     (tiles,) or ``"patches"`` (patches,) for a factor on E, in the output's units per unit relative change;
     ``wrt="channel:NAME"`` per control value of the map's channel NAME that E reads, shaped like the map's control
     grid (a tuple of them for a model of several maps), per Pa.  ``solver``: the von Mises norm's adjoint solve."""
+    solution.problem.gauss_geometry.keep(solution.problem)  # the value, the adjoint load and this pass
     stress = isinstance(output, VonMisesNorm)
     if stress:
         if solution.problem.thermal_strain is not None:
@@ -84,4 +85,4 @@ def elastic_sensitivity(solution, output: Output, wrt: str = "tiles", solver: st
             scatter.add(chunk, space, dens / E)
 
     gauss_pass(prob, fields, add)
-    return scatter.result() if channel is not None else per_patch_or_tile(prob, out, wrt[:-1])
+    return scatter.result() if channel is not None else per_patch_or_tile(prob, out, {"tiles": "tile", "patches": "patch"}[wrt])

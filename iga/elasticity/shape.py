@@ -80,6 +80,7 @@ def elastic_densities(solution, output, volume, faces, what: str) -> None:
     patches (``dk``: the weighted derivative of the integrand by Young's modulus at the point) and to
     ``faces(face data, Qw)`` once, as :func:`iga.shape_sensitivity.shape_densities` does for heat."""
     prob = solution.problem
+    prob.gauss_geometry.keep(prob)
     n = prob.ndof
     if isinstance(output, Volume):  # geometry alone: dV' = div V dV
         gauss_pass(prob, np.zeros((1, n)), lambda chunk, space, vals, grads, wv, x, chans: volume(
