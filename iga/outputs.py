@@ -238,7 +238,8 @@ class VonMisesNorm(Output):
 
     Its gradient in the displacement (:meth:`gradient`) is the load int tau : grad v dV with
     tau = J^(1-p) / V 3 mu sigma_vm^(p-2) s (s the stress deviator: d sigma_vm = 3 mu s : d eps / sigma_vm), what
-    the elastic adjoint solves with (:func:`iga.elasticity.adjoint.elastic_adjoint`)."""
+    the elastic adjoint solves with (:func:`iga.elasticity.adjoint.elastic_adjoint`); its sensitivities by Young's
+    modulus and by the shape: :mod:`iga.elasticity.sensitivity`, :mod:`iga.elasticity.shape`."""
 
     def __init__(self, p: float = 8.0):
         self.p = _exponent(p, "VonMisesNorm")

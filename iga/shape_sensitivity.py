@@ -86,7 +86,7 @@ def shape_densities(solution, output: Output, volume, faces, solver: str = "auto
     solution's compliance: :func:`iga.elasticity.shape.elastic_densities` (``dk`` by Young's modulus)."""
     steady_heat(solution, what)
     if getattr(type(solution), "physics", None) == "elasticity":  # the compliance's densities
-        return elastic_densities(solution, output, volume, faces, what)
+        return elastic_densities(solution, output, volume, faces, what, solver)
     prob = solution.problem
     _check_material(prob, what)
     explicit = _explicit_terms(output, solution, what)

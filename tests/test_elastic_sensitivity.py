@@ -8,7 +8,7 @@ import pytest
 import tiling
 from geometry import primitives as pr
 from iga import ElasticityProblem, ProblemError
-from iga.outputs import Compliance, VonMisesNorm
+from iga.outputs import Compliance, HeatFlow, VonMisesNorm
 from tiling import library
 
 
@@ -81,7 +81,7 @@ def test_elastic_sensitivities_refuse_what_they_do_not_cover():
     E0 = np.full((3, 3, 3), 1e9)
     s = _beam(E0).solve(solver="direct")
     with pytest.raises(ProblemError, match="Compliance"):
-        s.gradient(VonMisesNorm(4), wrt="map")
+        s.gradient(HeatFlow("umax"), wrt="tiles")
     with pytest.raises(ProblemError, match="not the channel 'k'"):
         s.gradient(Compliance(), wrt="channel:k")
     with pytest.raises(ProblemError, match="wrt must be"):
@@ -129,8 +129,10 @@ def _loaded(model):
         "umax", [0, 2e3, -1e4]).body_force([0, 0, -2e4]).solve(solver="direct")
 
 
-def test_the_compliance_s_shape_gradient_is_its_finite_difference():
-    """wrt="map" on the twisted lattice beam with a graded modulus, a traction and a body force."""
+@pytest.mark.parametrize("output", [Compliance(), VonMisesNorm(6)], ids=str)
+def test_the_shape_gradient_is_its_finite_difference(output):
+    """wrt="map" on the twisted lattice beam with a graded modulus, a traction and a body force: the compliance
+    (self-adjoint) and the von Mises norm (one adjoint solve)."""
     rng = np.random.default_rng(1)
     D = pr.twisted(pr.box((0.04, 0.01, 0.01), degrees=(2, 2, 2)), 0.2, axis_point=(0.02, 0.005))
     D = D.with_channel("E", 1e9 * (1 + rng.random(D.control_points.shape[:3])))
@@ -138,16 +140,17 @@ def test_the_compliance_s_shape_gradient_is_its_finite_difference():
     def solve(D):
         return _loaded(tiling.regular(D, library.cross(0.4), (4, 1, 1)))
 
-    g = solve(D).gradient(Compliance(), wrt="map")
+    g = solve(D).gradient(output, wrt="map")
     assert g.shape == D.control_points.shape[:3] + (3,)
     P0 = np.array(D.control_points)
     d = np.zeros_like(P0)
     d[..., :3] = rng.standard_normal(g.shape) * 2e-7
-    fd = (Compliance().value(solve(_moved(D, P0 + d))) - Compliance().value(solve(_moved(D, P0 - d)))) / 2
+    fd = (output.value(solve(_moved(D, P0 + d))) - output.value(solve(_moved(D, P0 - d)))) / 2
     assert float(np.sum(g * d[..., :3])) == pytest.approx(fd, rel=1e-6)
 
 
-def test_the_compliance_s_parameter_gradient_is_its_finite_difference():
+@pytest.mark.parametrize("output", [Compliance(), VonMisesNorm(6)], ids=str)
+def test_the_parameter_gradient_is_its_finite_difference(output):
     """wrt="parameters" of a field-graded lattice beam: the arm widths from a parameter spline, the modulus a
     channel of the map (its values drag with the moving points)."""
     from geometry import SplineFunction
@@ -163,10 +166,10 @@ def test_the_compliance_s_parameter_gradient_is_its_finite_difference():
         return _loaded(tiling.field_graded(D, library.face_graded_cross, (4, 1, 1), field))
 
     c0 = 0.35 + 0.05 * rng.random((3, 3, 3, 1))
-    g = solve(c0).gradient(Compliance(), wrt="parameters")
+    g = solve(c0).gradient(output, wrt="parameters")
     assert g.shape == (3, 3, 3)
     dc = rng.standard_normal(c0.shape) * 1e-5
-    fd = (Compliance().value(solve(c0 + dc)) - Compliance().value(solve(c0 - dc))) / 2
+    fd = (output.value(solve(c0 + dc)) - output.value(solve(c0 - dc))) / 2
     assert float(np.sum(g * dc[..., 0])) == pytest.approx(fd, rel=1e-6)
 
 
@@ -181,8 +184,10 @@ def test_elastic_shape_gradients_refuse_what_they_do_not_cover():
     pointed = ElasticityProblem(ms, youngs="E", poisson=0.3).dirichlet("umin", 0.0).point_load(inside, [0, 0, -1.0])
     with pytest.raises(ProblemError, match="point load"):
         pointed.solve(solver="direct").gradient(Compliance(), wrt="map")
-    with pytest.raises(ProblemError, match="Compliance"):
-        _beam(E0).solve(solver="direct").gradient(VonMisesNorm(4), wrt="map")
+    with pytest.raises(ProblemError, match="thermal"):
+        _beam(E0).thermal(10.0, 1e-5, 0.0).solve(solver="direct").gradient(VonMisesNorm(4), wrt="map")
+    with pytest.raises(ProblemError, match="pressure"):
+        pressed.solve(solver="direct").gradient(VonMisesNorm(4), wrt="map")
 
 
 @pytest.mark.slow

@@ -177,8 +177,9 @@ def test_the_gauss_geometry_kept_for_a_design_step_is_the_geometry():
     assert g.shape == (len(ms.patches),) and geometry.keeping and geometry._kept
     for (chunk, _), (x, D, chans) in geometry._kept.items():
         space = s.problem.spaces[chunk[0]]
-        x0, D0, _ = patches_geometry_derivs([ms.patches[i] for i in chunk], space.qaxes)
+        x0, D0, chans0 = patches_geometry_derivs([ms.patches[i] for i in chunk], space.qaxes)
         assert np.array_equal(x, x0) and all(np.array_equal(a, b) for a, b in zip(D, D0))
+        assert chans.keys() == chans0.keys() and all(np.array_equal(chans[c], chans0[c]) for c in chans)
         assert not x.flags.writeable and not any(a.flags.writeable for a in D)
     small = problem()
     small.gauss_geometry.budget = 1000  # bytes: far below this model's geometry

@@ -1,6 +1,6 @@
-"""The shape derivative of an elastic solution's compliance, as densities against the velocity gradient: what
-``wrt="map"`` (:mod:`iga.shape_sensitivity`) and ``wrt="parameters"`` (:mod:`iga.parameter_sensitivity`) contract
-with their velocities.
+"""The shape derivative of an elastic solution's compliance or von Mises norm, as densities against the velocity
+gradient: what ``wrt="map"`` (:mod:`iga.shape_sensitivity`) and ``wrt="parameters"``
+(:mod:`iga.parameter_sensitivity`) contract with their velocities.
 
 The compliance J = l(u) of a(u, v) = l(v) is self-adjoint, so dJ = 2 l'(u) - a'(u, u) for a move V of the
 material points, and with grad u -> grad u - grad u grad V, dx -> div V dx, dA -> div_G V dA (material
@@ -10,10 +10,18 @@ coefficients: numbers or channels of the map, which move with the points):
     l'(u)   = int f . u div V dV + int t . u div_G V dA,
 
 i.e. dJ = sum_q Q_q : grad V_q with Q = 2 grad u^T sigma + (2 f . u - eps : C : eps) I in the volume and
-Q = 2 (t . u) (I - n n) on traction faces.  ``tests/test_elastic_sensitivity.py`` compares the contractions with
-central differences of fresh solves.  Refused: outputs other than the compliance, pressures (their direction
-moves with the face), point loads (they stay where they are while the material moves), callables of x,
-thermal strains and prescribed displacements other than zero.
+Q = 2 (t . u) (I - n n) on traction faces.  The von Mises norm J = (I / V)^(1/p), I = int sigma_vm^p dV, takes
+one adjoint solve, a(v, lambda) = J'(u) v (:func:`iga.elasticity.adjoint.elastic_adjoint`), and
+dJ = J'_explicit + l'(lambda) - a'(u, lambda), where d sigma_vm = 3 mu s : d eps / sigma_vm (s the deviator)
+at fixed u gives the explicit part: with c = J^(1-p) / V,
+
+    Q = grad lambda^T sigma(u) + grad u^T sigma(lambda) - 3 c mu sigma_vm^(p-2) grad u^T s
+        + (c / p (sigma_vm^p - J^p) - eps(u) : C : eps(lambda) + f . lambda) I,
+
+and (t . lambda) (I - n n) on traction faces (the compliance's formulas with 2 u for lambda, and no explicit
+part but the loads').  ``tests/test_elastic_sensitivity.py`` compares both with central differences of fresh
+solves.  Refused: other outputs, pressures (their direction moves with the face), point loads (they stay where
+they are while the material moves), callables of x, thermal strains and prescribed displacements other than zero.
 """
 
 from __future__ import annotations
@@ -24,18 +32,25 @@ from geometry.errors import show
 
 from iga.elasticity.forms import lame
 from iga.errors import ProblemError
-from iga.outputs import Compliance, Volume, gauss_pass
+from iga.elasticity.adjoint import elastic_adjoint
+from iga.outputs import Compliance, Volume, VonMisesNorm, evaluated, gauss_pass, von_mises
 
 __all__ = ["elastic_densities", "strain_and_stress", "self_adjoint"]
 
 
 def self_adjoint(solution, output, what: str, subject: str = "shape derivative") -> None:
-    """Refuse what makes the compliance's adjoint other than the solution itself: another output, a thermal strain
-    (its load depends on the material and the shape), prescribed displacements other than zero (their work is not
-    in u . f), a distributed solve (no prescribed values kept)."""
+    """Refuse what makes the compliance's adjoint other than the solution itself: another output, and what
+    :func:`held_at_zero` refuses."""
     if not isinstance(output, Compliance):
         raise ProblemError(f"{what}: the elastic {subject} is of Compliance() (self-adjoint: no extra solve), got "
                            f"{show(output)}")
+    held_at_zero(solution, what)
+
+
+def held_at_zero(solution, what: str) -> None:
+    """Refuse a thermal strain (its load depends on the material and the shape), prescribed displacements other
+    than zero (their work is not in u . f, and they would move with the boundary) and a distributed solve (no
+    prescribed values kept)."""
     if solution.problem.thermal_strain is not None:
         raise ProblemError(f"{what}: the thermal strain's terms are not built; differentiate a problem without "
                            ".thermal(...)")
@@ -44,8 +59,12 @@ def self_adjoint(solution, output, what: str, subject: str = "shape derivative")
 
 
 def _check(solution, output, what: str) -> None:
-    """:func:`self_adjoint`, and the loads and materials whose shape terms are built."""
-    self_adjoint(solution, output, what)
+    """:func:`self_adjoint` (the von Mises norm: :func:`held_at_zero`), and the loads and materials whose shape
+    terms are built."""
+    if isinstance(output, VonMisesNorm):
+        held_at_zero(solution, what)
+    else:
+        self_adjoint(solution, output, what)
     prob = solution.problem
     if prob.point_loads:
         raise ProblemError(f"{what}: a point load stays where it is while the material moves (its term is not "
@@ -62,23 +81,29 @@ def _check(solution, output, what: str) -> None:
                                "callable of x")
 
 
+def moduli(prob, chunk, x, chans) -> tuple:
+    """(E (N,), lam (N,), mu (N,)) in Pa at Gauss points x (N, 3) of the patches ``chunk``, the channels there."""
+    where = f"patches {chunk[0]}..{chunk[-1]}"
+    flat = {c: np.reshape(v, -1) for c, v in chans.items()}
+    E = prob.youngs.values(x, flat, where)
+    return (E,) + tuple(lame(E, prob.poisson.values(x, flat, where), where))
+
+
 def strain_and_stress(prob, chunk, grads, x, chans) -> tuple:
     """(E (N,), eps (N, 3, 3), sigma (N, 3, 3)) at Gauss points of the patches ``chunk`` from the displacement
     gradients ``grads`` (N, 3, 3), the points x and the channels there (isotropic: sigma = lam tr(eps) I + 2 mu
     eps; no thermal strain)."""
-    where = f"patches {chunk[0]}..{chunk[-1]}"
-    flat = {c: np.reshape(v, -1) for c, v in chans.items()}
-    E = prob.youngs.values(x, flat, where)
-    lam, mu = lame(E, prob.poisson.values(x, flat, where), where)
+    E, lam, mu = moduli(prob, chunk, x, chans)
     eps = 0.5 * (grads + np.transpose(grads, (0, 2, 1)))
     tr = np.trace(eps, axis1=1, axis2=2)
     return E, eps, lam[:, None, None] * tr[:, None, None] * np.eye(3) + 2 * mu[:, None, None] * eps
 
 
-def elastic_densities(solution, output, volume, faces, what: str) -> None:
-    """The compliance's shape densities (module notes; the volume's, div V, for :class:`Volume`) handed to ``volume(chunk, space, Qw, dk)`` per group of
-    patches (``dk``: the weighted derivative of the integrand by Young's modulus at the point) and to
-    ``faces(face data, Qw)`` once, as :func:`iga.shape_sensitivity.shape_densities` does for heat."""
+def elastic_densities(solution, output, volume, faces, what: str, solver: str = "auto") -> None:
+    """The shape densities of the compliance or the von Mises norm (module notes; the volume's, div V, for
+    :class:`Volume`) handed to ``volume(chunk, space, Qw, dk)`` per group of patches (``dk``: the weighted
+    derivative of the integrand by Young's modulus at the point) and to ``faces(face data, Qw)`` once, as
+    :func:`iga.shape_sensitivity.shape_densities` does for heat; ``solver``: the von Mises norm's adjoint."""
     prob = solution.problem
     prob.gauss_geometry.keep(prob)
     n = prob.ndof
@@ -88,23 +113,42 @@ def elastic_densities(solution, output, volume, faces, what: str) -> None:
         return
     _check(solution, output, what)
     body = None if prob.body is None else np.asarray(prob.body.spec, float)
+    stress = isinstance(output, VonMisesNorm)
+    # the field that tests the loads' shape terms: 2 u for the compliance (self-adjoint), the adjoint lambda
+    tested = elastic_adjoint(solution, output, solver) if stress else 2 * solution.u
+    if stress:
+        p, J = output.p, evaluated(output, solution)
+        c = J ** (1 - p) / Volume().value(solution)
 
     def add(chunk, space, vals, grads, wv, x, chans):
-        E, eps, sig = strain_and_stress(prob, chunk, grads, x, chans)
-        energy2 = np.sum(sig * eps, axis=(1, 2))  # eps : C : eps
-        Q = 2 * np.einsum("qik,qij->qkj", grads, sig)
-        scalar = -energy2 + (0.0 if body is None else 2 * vals @ body)
-        Q += scalar[:, None, None] * np.eye(3)
-        volume(chunk, space, Q * wv[:, None, None], -energy2 / E * wv)
+        gu, gl = grads[:, :3], grads[:, 3:]
+        if not stress:
+            E, eps, sig = strain_and_stress(prob, chunk, gu, x, chans)
+            energy2 = np.sum(sig * eps, axis=(1, 2))  # eps : C : eps
+            Q = 2 * np.einsum("qik,qij->qkj", gu, sig)
+            scalar = -energy2 + (0.0 if body is None else vals[:, 3:] @ body)
+            volume(chunk, space, (Q + scalar[:, None, None] * np.eye(3)) * wv[:, None, None], -energy2 / E * wv)
+            return
+        E, eps, sig = strain_and_stress(prob, chunk, gu, x, chans)
+        _, _, sig_l = strain_and_stress(prob, chunk, gl, x, chans)
+        mu = moduli(prob, chunk, x, chans)[2]
+        dev, vm = von_mises(sig)
+        cross = np.sum(sig_l * eps, axis=(1, 2))  # eps(u) : C : eps(lambda)
+        scale = np.where(vm > 0, np.where(vm > 0, vm, 1.0) ** (p - 2), 0.0)  # vm^(p-2) s -> 0 where vm = 0
+        Q = (np.einsum("qik,qij->qkj", gl, sig) + np.einsum("qik,qij->qkj", gu, sig_l)
+             - (3 * c * mu * scale)[:, None, None] * np.einsum("qik,qij->qkj", gu, dev))
+        scalar = c / p * (vm**p - J**p) - cross + (0.0 if body is None else vals[:, 3:] @ body)
+        volume(chunk, space, (Q + scalar[:, None, None] * np.eye(3)) * wv[:, None, None],
+               (c * vm**p - cross) / E * wv)
 
-    gauss_pass(prob, solution.u.reshape(3, n), add)
+    gauss_pass(prob, np.vstack([solution.u.reshape(3, n), tested.reshape(3, n)]), add)
     fds, dens = [], []
     for load in prob.loads:
         t = np.asarray(load.value.spec, float)
         for fd in prob.faces(sorted(set(prob.tag_faces(load.tag)))):
-            u = np.stack([fd.trace(solution.u[a * n:(a + 1) * n]) for a in range(3)], axis=1)
+            w = np.stack([fd.trace(tested[a * n:(a + 1) * n]) for a in range(3)], axis=1)
             fds.append(fd)
-            dens.append(2 * (u @ t) * fd.dAw)
+            dens.append((w @ t) * fd.dAw)
     if fds:
         normal = np.concatenate([fd.normal for fd in fds])
         d = np.concatenate(dens)
