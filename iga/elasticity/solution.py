@@ -212,9 +212,9 @@ class ElasticSolution:
         one's E) or ``"channel:NAME"`` (the control values of the map's channel E reads): of the compliance
         (``iga.outputs.Compliance()``) without an extra solve (it is self-adjoint), of the von Mises norm
         (``iga.outputs.VonMisesNorm(p)``) by one adjoint solve with ``solver``
-        (:func:`iga.elasticity.sensitivity.elastic_sensitivity`); of the compliance by the shape, ``wrt="map"``
-        (the map's control points, :func:`iga.shape_sensitivity.shape_sensitivity`) or ``"parameters"`` /
-        ``"faces"`` (a field-graded paving's field, :func:`iga.parameter_sensitivity.parameter_sensitivity`)."""
+        (:func:`iga.elasticity.sensitivity.elastic_sensitivity`); of either by the shape, ``wrt="map"`` (the
+        map's control points, :func:`iga.shape_sensitivity.shape_sensitivity`) or ``"parameters"`` / ``"faces"``
+        (a field-graded paving's field, :func:`iga.parameter_sensitivity.parameter_sensitivity`)."""
         if wrt == "map":
             from iga.shape_sensitivity import shape_sensitivity
 
