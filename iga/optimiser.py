@@ -21,7 +21,7 @@ from geometry.patches.multipatch import PlacedPatch
 from iga.errors import ProblemError
 from iga.heat.problem import HeatProblem
 from iga.model import same_kind
-from iga.outputs import Compliance, Output
+from iga.outputs import Compliance, Output, VonMisesNorm
 
 __all__ = ["DesignStep", "DesignResult", "redesigned", "run_slsqp", "check_design", "free_mask", "bounds_pair",
            "analysed"]
@@ -108,13 +108,13 @@ def analysed(problem, solver: str):
 
 def check_design(problem, objective, maxiter, elastic: bool = False) -> None:
     """What every design needs: a steady heat problem (or, where ``elastic``, an elasticity problem whose
-    objective is its compliance), an output to minimise, an iteration limit."""
+    objective is its compliance or its von Mises norm), an output to minimise, an iteration limit."""
     from iga.elasticity.problem import ElasticityProblem
 
     if elastic and type(problem) is ElasticityProblem:
-        if not isinstance(objective, Compliance):
-            raise ProblemError(f"an elastic design minimises Compliance() (its gradient needs no adjoint solve), "
-                               f"got {show(objective)}")
+        if not isinstance(objective, (Compliance, VonMisesNorm)):
+            raise ProblemError(f"an elastic design minimises Compliance() or VonMisesNorm(p) (the outputs with "
+                               f"elastic gradients), got {show(objective)}")
     elif type(problem) is not HeatProblem:
         raise ProblemError(f"optimize takes a steady iga.HeatProblem{' or an iga.ElasticityProblem' if elastic else ''}"
                            f", got {type(problem).__name__}")
