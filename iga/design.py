@@ -67,7 +67,7 @@ def optimize(problem, objective: Output, wrt: str = "channel:k", bounds=None, me
     ----------
     problem : a steady :class:`iga.HeatProblem` whose conductivity is the channel (``conductivity="k"``), or
         an :class:`iga.ElasticityProblem` whose Young's modulus is (``youngs="E"``; objective ``Compliance()``,
-        whose gradient needs no adjoint solve: :mod:`iga.elasticity.sensitivity`)
+        whose gradient needs no adjoint solve, or ``VonMisesNorm(p)``, one: :mod:`iga.elasticity.sensitivity`)
     objective : an output of :mod:`iga.outputs` with a gradient, e.g. ``TemperatureNorm(8)`` (C)
     wrt : ``"channel:NAME"``, ``"map"`` or ``"parameters"``
     bounds : (low, high) of every control value (W/(m K); default (54, 205), steel to aluminium; Pa for E); the initial
