@@ -145,9 +145,9 @@ def test_an_implicit_bifurcation_of_the_duck_runs_to_a_closed_surface(tmp_path):
 
 
 def test_a_heat_sink_graded_by_its_pins_runs_from_a_pipeline(tmp_path):
-    """The vertical demo map paved by the heat-sink family with pins widening along x: the pipeline builds the
-    same model as the script (the interfaces are the identities of the cell grid), and the widths it paved are
-    the formula's on every side wall."""
+    """The vertical demo map paved by the heat-sink family with pins widening along x: the pipeline paves 16
+    tiles glued by the cell grid's 24 identities, as the script does with the same field, whose widths on the u
+    walls grow with x from the formula's value at one end of the sink to its value at the other."""
     cfg = {"map": {"primitive": "vertical_heat_sink"}, "tile": {"library": "face_graded_heat_sink"},
            "paving": {"scheme": "field_graded", "counts": [4, 4, 1], "field": {"formula": "0.3 + 2 * x"}},
            "material": {"conductivity": 205.0},
