@@ -123,7 +123,8 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--maxiter", type=int, default=40)
     ap.add_argument("--figures", action="store_true", help="write the pictures to docs/ (make_figures.py)")
-    ap.add_argument("--part", choices=("all", "costs", "channel", "shape", "pins", "lattice", "cantilever"), default="all",
+    ap.add_argument("--part", default="all",
+                    choices=("all", "costs", "channel", "shape", "pins", "lattice", "cantilever"),
                     help="run one part only (its figures printed; design.json is written by 'all')")
     args = ap.parse_args(argv)
     if args.part != "all":
@@ -240,7 +241,8 @@ def _pinned_sink(widths, k=None, **kw):
     """The vertical sink of one level of pins whose widths come from the parameter spline of control values
     ``widths`` (4, 4, 2) (degree 2 along u and v, 1 along w; the side walls sit at mid-height, so both w values
     count alike), its map's k the control values ``k`` (6, 6, 6) on the map with its spans bisected twice (None:
-    129.5 everywhere on the map itself, which keeps the paving's parameter field for wrt="parameters"), cooled as :func:`conditions` says (the map's wmin is the base's bottom)."""
+    129.5 everywhere on the map itself, which keeps the paving's parameter field for wrt="parameters"), cooled as
+    :func:`conditions` says (the map's wmin is the base's bottom)."""
     import iga
     import tiling
     from geometry import SplineFunction
@@ -284,8 +286,8 @@ def pins_design(maxiter: int) -> dict:
                      "volume_cm3": Volume().value(s) * 1e6, "power_W": s.balance().inflow_W})
         if name != "pins":
             png = folder / f"pins_{name.split()[0].replace('pins', 'graded')}.png"
-            render_temperature(sampled_grid(s.problem.model, s, 3), png, title="rise (K)",
-                               caption=f"one-level vertical sink, {name}: largest rise {rows[-1]['largest_rise_K']:.3f} K")
+            caption = f"one-level vertical sink, {name}: largest rise {rows[-1]['largest_rise_K']:.3f} K"
+            render_temperature(sampled_grid(s.problem.model, s, 3), png, title="rise (K)", caption=caption)
     print_table(rows, [("design", ">14"), ("unknowns", ",d"), ("largest_rise_K", ".4f"), ("volume_cm3", ".5f"),
                        ("power_W", ".4f")])
     base = rows[0]["largest_rise_K"]

@@ -27,7 +27,7 @@ from iga.discretisation.fields import grid_fields
 from iga.errors import ProblemError
 
 __all__ = ["Output", "Volume", "MeanTemperature", "TemperatureNorm", "HeatFlow", "Compliance", "VonMisesNorm",
-           "gauss_pass", "tag_faces", "von_mises"]
+           "gauss_pass", "tag_faces", "von_mises", "isotropic_stress"]
 
 
 def gauss_pass(problem, fields: np.ndarray, fn, inverse: bool = False) -> None:
@@ -227,8 +227,8 @@ def von_mises(S: np.ndarray) -> tuple:
     return dev, np.sqrt(1.5 * np.sum(dev * dev, axis=(1, 2)))
 
 
-def _isotropic(lam: np.ndarray, mu: np.ndarray, eps: np.ndarray) -> np.ndarray:
-    """sigma = lam tr(eps) I + 2 mu eps (N, 3, 3)."""
+def isotropic_stress(lam: np.ndarray, mu: np.ndarray, eps: np.ndarray) -> np.ndarray:
+    """sigma = lam tr(eps) I + 2 mu eps (N, 3, 3), in the units of lam and mu, for strains eps (N, 3, 3)."""
     tr = np.trace(eps, axis1=1, axis2=2)
     return lam[:, None, None] * tr[:, None, None] * np.eye(3) + 2 * mu[:, None, None] * eps
 
@@ -263,7 +263,7 @@ class VonMisesNorm(Output):
             eps = 0.5 * (g + np.transpose(g, (0, 2, 1)))
             if prob.thermal_strain is not None:
                 eps = eps - at.per_patch(prob.thermal_strain)[:, None, None] * np.eye(3)
-            vm = von_mises(_isotropic(lam, mu, eps))[1]
+            vm = von_mises(isotropic_stress(lam, mu, eps))[1]
             return np.stack([vm**p, np.ones_like(vm)], 1)
 
         total, vol = integrate_fields(prob, lambda i: np.stack([solution.u[a * n + o[i]:a * n + o[i + 1]].reshape(
@@ -273,7 +273,7 @@ class VonMisesNorm(Output):
     def gradient(self, solution) -> np.ndarray:
         """dJ/du (3 ndof,), component-major (class notes); a problem without thermal strain."""
         from iga.assembly.tensor import derivative_load_form
-        from iga.elasticity.forms import lame
+        from iga.elasticity.forms import moduli
 
         prob, p = self._problem(solution), self.p
         if prob.thermal_strain is not None:
@@ -286,16 +286,14 @@ class VonMisesNorm(Output):
             return out
 
         def add(chunk, space, vals, grads, wv, x, chans, Jinv):
-            where = f"patches {chunk[0]}..{chunk[-1]}"
-            flat = {c: np.reshape(v, -1) for c, v in chans.items()}
-            lam, mu = lame(prob.youngs.values(x, flat, where), prob.poisson.values(x, flat, where), where)
-            dev, vm = von_mises(_isotropic(lam, mu, 0.5 * (grads + np.transpose(grads, (0, 2, 1)))))
+            _, lam, mu = moduli(prob, chunk, x, chans)
+            dev, vm = von_mises(isotropic_stress(lam, mu, 0.5 * (grads + np.transpose(grads, (0, 2, 1)))))
             # vm^(p - 2) s -> 0 where vm = 0 (p > 1), so those points add nothing
             scale = np.where(vm > 0, np.where(vm > 0, vm, 1.0) ** (p - 2), 0.0)
             tau = (3 * mu * scale * wv)[:, None, None] * dev
             shape = (len(chunk),) + space.qshape
             for a in range(3):
-                G = np.einsum("qj,qrj->rq", tau[:, a], Jinv)  # tau_aj d xi_r / d x_j: the parametric derivatives' weights
+                G = np.einsum("qj,qrj->rq", tau[:, a], Jinv)  # tau_aj d xi_r / d x_j: weights of d N / d xi_r
                 terms = [(G[r].reshape(shape), tuple((int(k == r), None) for k in range(3))) for r in range(3)]
                 loads = derivative_load_form(space, terms)
                 for j, pi in enumerate(chunk):

@@ -43,7 +43,8 @@ def test_kernel_sensitive_tests_pass_under_a_second_blas_kernel():
              if p.name != Path(__file__).name and "mark.kernel_sensitive" in p.read_text()]
     assert files, "no module marks a test kernel_sensitive"
     # on every core: run last, the child has them to itself once the other workers are done
-    run = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-n", str(min(os.cpu_count() or 1, 4)),
+    workers = str(min(os.cpu_count() or 1, 4))
+    run = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-n", workers,
                           "-m", "kernel_sensitive", *files], cwd=ROOT, env=env, capture_output=True, text=True,
                          timeout=900)
     tail = "\n".join(run.stdout.splitlines()[-30:])

@@ -116,8 +116,8 @@ _SECTIONS = (
                 _K("scheme", "`\"field_graded\"`", REQUIRED, "the paving scheme"),
                 _K("counts", "three integers >= 1", REQUIRED, "cells along u, v, w"),
                 _K("field", "a number, a channel name of the map or `{formula = \"...\"}` of x, y, z (m)", REQUIRED,
-                   "the tiles' face parameter (an arm or pin width, a fraction of the cell), taken at the centre of every "
-                   "wall of the cell grid"))),
+                   "the tiles' face parameter (an arm or pin width, a fraction of the cell), taken at the centre of "
+                   "every wall of the cell grid"))),
     Section("paving.bifurcation", "[paving] scheme = \"bifurcation\"", "Adaptive bifurcation: the cells split "
             "where the map is large (Massarwi et al. 2018, Section 5); no [tile].", (
                 _K("scheme", "`\"bifurcation\"`", REQUIRED, "the paving scheme"),

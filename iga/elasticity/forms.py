@@ -25,7 +25,7 @@ import numpy as np
 from iga.errors import ProblemError
 from iga.discretisation.faces import cross
 
-__all__ = ["lame", "metric_rows", "block_terms", "divergence_terms"]
+__all__ = ["lame", "moduli", "metric_rows", "block_terms", "divergence_terms"]
 
 
 def lame(E: np.ndarray, nu: np.ndarray, where: str) -> tuple[np.ndarray, np.ndarray]:
@@ -39,6 +39,14 @@ def lame(E: np.ndarray, nu: np.ndarray, where: str) -> tuple[np.ndarray, np.ndar
         raise ProblemError(f"Poisson's ratio must lie in (-1, 0.5) (0.5 is incompressible, which this "
                            f"displacement formulation cannot take), got {bad:g} on {where}")
     return E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))
+
+
+def moduli(prob, chunk, x, chans) -> tuple:
+    """(E (N,), lam (N,), mu (N,)) in Pa at Gauss points x (N, 3) of the patches ``chunk``, the channels there."""
+    where = f"patches {chunk[0]}..{chunk[-1]}"
+    flat = {c: np.reshape(v, -1) for c, v in chans.items()}
+    E = prob.youngs.values(x, flat, where)
+    return (E,) + tuple(lame(E, prob.poisson.values(x, flat, where), where))
 
 
 def metric_rows(D) -> tuple[list, np.ndarray]:

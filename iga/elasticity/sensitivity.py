@@ -85,4 +85,6 @@ def elastic_sensitivity(solution, output: Output, wrt: str = "tiles", solver: st
             scatter.add(chunk, space, dens / E)
 
     gauss_pass(prob, fields, add)
-    return scatter.result() if channel is not None else per_patch_or_tile(prob, out, {"tiles": "tile", "patches": "patch"}[wrt])
+    if channel is not None:
+        return scatter.result()
+    return per_patch_or_tile(prob, out, {"tiles": "tile", "patches": "patch"}[wrt])

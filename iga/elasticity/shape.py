@@ -30,10 +30,10 @@ import numpy as np
 
 from geometry.errors import show
 
-from iga.elasticity.forms import lame
+from iga.elasticity.forms import moduli
 from iga.errors import ProblemError
 from iga.elasticity.adjoint import elastic_adjoint
-from iga.outputs import Compliance, Volume, VonMisesNorm, evaluated, gauss_pass, von_mises
+from iga.outputs import Compliance, Volume, VonMisesNorm, evaluated, gauss_pass, isotropic_stress, von_mises
 
 __all__ = ["elastic_densities", "strain_and_stress", "self_adjoint"]
 
@@ -81,22 +81,13 @@ def _check(solution, output, what: str) -> None:
                                "callable of x")
 
 
-def moduli(prob, chunk, x, chans) -> tuple:
-    """(E (N,), lam (N,), mu (N,)) in Pa at Gauss points x (N, 3) of the patches ``chunk``, the channels there."""
-    where = f"patches {chunk[0]}..{chunk[-1]}"
-    flat = {c: np.reshape(v, -1) for c, v in chans.items()}
-    E = prob.youngs.values(x, flat, where)
-    return (E,) + tuple(lame(E, prob.poisson.values(x, flat, where), where))
-
-
 def strain_and_stress(prob, chunk, grads, x, chans) -> tuple:
     """(E (N,), eps (N, 3, 3), sigma (N, 3, 3)) at Gauss points of the patches ``chunk`` from the displacement
     gradients ``grads`` (N, 3, 3), the points x and the channels there (isotropic: sigma = lam tr(eps) I + 2 mu
     eps; no thermal strain)."""
     E, lam, mu = moduli(prob, chunk, x, chans)
     eps = 0.5 * (grads + np.transpose(grads, (0, 2, 1)))
-    tr = np.trace(eps, axis1=1, axis2=2)
-    return E, eps, lam[:, None, None] * tr[:, None, None] * np.eye(3) + 2 * mu[:, None, None] * eps
+    return E, eps, isotropic_stress(lam, mu, eps)
 
 
 def elastic_densities(solution, output, volume, faces, what: str, solver: str = "auto") -> None:
@@ -129,9 +120,9 @@ def elastic_densities(solution, output, volume, faces, what: str, solver: str = 
             scalar = -energy2 + (0.0 if body is None else vals[:, 3:] @ body)
             volume(chunk, space, (Q + scalar[:, None, None] * np.eye(3)) * wv[:, None, None], -energy2 / E * wv)
             return
-        E, eps, sig = strain_and_stress(prob, chunk, gu, x, chans)
-        _, _, sig_l = strain_and_stress(prob, chunk, gl, x, chans)
-        mu = moduli(prob, chunk, x, chans)[2]
+        E, lam, mu = moduli(prob, chunk, x, chans)
+        eps = 0.5 * (gu + np.transpose(gu, (0, 2, 1)))
+        sig, sig_l = isotropic_stress(lam, mu, eps), isotropic_stress(lam, mu, 0.5 * (gl + np.transpose(gl, (0, 2, 1))))
         dev, vm = von_mises(sig)
         cross = np.sum(sig_l * eps, axis=(1, 2))  # eps(u) : C : eps(lambda)
         scale = np.where(vm > 0, np.where(vm > 0, vm, 1.0) ** (p - 2), 0.0)  # vm^(p-2) s -> 0 where vm = 0
