@@ -26,7 +26,7 @@ from iga.adjoint import shape_map
 from iga.errors import ProblemError
 from iga.optimiser import analysed, bounds_pair, check_design, free_mask, run_slsqp
 from iga.outputs import Output, Volume, evaluated
-from iga.parameter_sensitivity import parameter_sensitivity
+from iga.parameter_sensitivity import STEP, parameter_sensitivity
 
 __all__ = ["optimize_parameters"]
 
@@ -55,6 +55,20 @@ def _with_values(grading, D, values: np.ndarray):
     return D, float(values)
 
 
+def _family_takes(family, lo: float, hi: float) -> None:
+    """Refuse bounds whose ends (less and more a derivative's step, :data:`iga.parameter_sensitivity.STEP`) the
+    family refuses as wall values, before any analysis: SLSQP would reach them mid-run."""
+    faces = ("umin", "umax", "vmin", "vmax", "wmin", "wmax")
+    name = family.__name__ if hasattr(family, "__name__") else show(family)  # (a function, or another callable)
+    for v in (lo - STEP * max(1.0, abs(lo)), hi + STEP * max(1.0, abs(hi))):
+        try:
+            family(**{f: v for f in faces})
+        except tiling.TilingError as exc:
+            raise ProblemError(f"wrt='parameters': bounds {show((lo, hi))} reach outside the range of the family "
+                               f"{name} (with a derivative's step of {STEP:g} beyond them): {exc}; narrow the "
+                               "bounds") from None
+
+
 def optimize_parameters(problem, objective: Output, bounds, hold=(), keep_volume: bool = True, maxiter: int = 30,
                         tol: float = 1e-6, solver: str = "auto"):
     """Minimise ``objective`` over the control values of the model's parameter field (module notes); returns an
@@ -74,6 +88,7 @@ def optimize_parameters(problem, objective: Output, bounds, hold=(), keep_volume
     if v0.min() < lo or v0.max() > hi:
         raise ProblemError(f"the parameter field starts at {v0.min():.4g} .. {v0.max():.4g}, outside bounds "
                            f"{show((lo, hi))}; widen the bounds or start from a field inside them")
+    _family_takes(grading.family, lo, hi)
     free = free_mask(v0.shape, hold) if v0.ndim == 3 else np.ones(v0.shape, bool)
     if hold and v0.ndim != 3:
         raise ProblemError("hold: the field is one number (every wall alike); give a parameter spline or a channel "

@@ -53,7 +53,7 @@ from iga.shape_sensitivity import face_plane, shape_densities, steady_heat
 __all__ = ["parameter_sensitivity", "tile_derivatives"]
 
 #: the relative step of the central differences of a family's control points in its values
-_STEP = 1e-3
+STEP = 1e-3
 
 
 def parameter_sensitivity(solution, output: Output, wrt: str = "parameters", solver: str = "auto"):
@@ -230,7 +230,7 @@ def tile_derivatives(grading, tile, t: int) -> dict:
     affine = bool(getattr(family, "affine_in_values", False))
     out = {}
     for face, v in values.items():
-        h = _STEP * max(1.0, abs(v))
+        h = STEP * max(1.0, abs(v))
         d1 = _central(family, values, face, h, tile, t)
         out[face] = d1 if affine else [(4 * b - a) / 3 for a, b in zip(d1, _central(family, values, face, h / 2,
                                                                                    tile, t))]

@@ -226,6 +226,12 @@ def test_a_graded_lattice_designed_by_its_field_is_cooler_at_the_same_volume():
     with pytest.raises(ProblemError, match="one number"):
         iga.optimize(constant.neumann("wmin", 2e4).robin("wmax", 3000.0, 0.0), objective, wrt="parameters",
                      bounds=(0.15, 0.6), hold=("wmin",))
+    # bounds the family refuses are refused before any analysis, naming the family and its range
+    pins = HeatProblem(tiling.field_graded(D, library.face_graded_heat_sink, (2, 2, 1), _spline(np.full((3, 3, 3, 1),
+                       0.4))), conductivity=205.0).neumann("wmin", 2e4).robin("wmax", 3000.0, 0.0)
+    for bounds in ((0.15, 0.6), (0.15, 0.4999), (0.0, 0.45)):
+        with pytest.raises(ProblemError, match=r"face_graded_heat_sink .* must be in \(0, 0\.5\).*narrow the bounds"):
+            iga.optimize(pins, objective, wrt="parameters", bounds=bounds, maxiter=2)
 
 
 def _slotted(umin=0.3, umax=0.3, vmin=0.3, vmax=0.3, wmin=0.3, wmax=0.3):
