@@ -313,3 +313,79 @@ def test_a_bad_parameter_design_is_refused_naming_the_key(change, match):
     cfg.update(change)
     with pytest.raises(ProblemError, match=match):
         validate(cfg)
+
+
+ELASTIC_DESIGN = """
+[map]
+primitive = "box"
+args = {size = [0.04, 0.01, 0.01], degrees = [2, 2, 2]}
+grading = [{channel = "E", near = 1.5e9, far = 1.5e9, face = "umin"}]
+
+[tile]
+library = "cross"
+
+[paving]
+scheme = "regular"
+counts = [4, 1, 1]
+
+[physics]
+kind = "elasticity"
+youngs = "E"
+poisson = 0.3
+
+[[support]]
+tag = "umin"
+
+[[support]]
+tag = "umax"
+value = 1e-5
+components = "x"
+
+[[load]]
+kind = "traction"
+tag = "umax"
+value = [0.0, 0.0, -1e4]
+
+[design]
+variables = "channel:E"
+objective = "von_mises_norm"
+bounds = [1e9, 2e9]
+mean = 1.5e9
+iterations = 4
+
+[output]
+dir = "out"
+name = "beam"
+"""
+
+
+@pytest.mark.slow
+def test_an_elastic_pipeline_designs_its_modulus_for_its_von_mises_norm(tmp_path):
+    """[design] on an elastic analysis: the lattice beam pushed and loaded at its end, E graded in [1, 2] GPa at its
+    mean for a lower smooth maximum of the von Mises stress; the summary's final objective is a fresh analysis's
+    of the design written, and the refusals name the keys."""
+    import tomllib
+
+    import meshio
+
+    from iga.app.config import validate
+    from iga.app.pipeline import run_pipeline
+
+    cfg = tomllib.loads(ELASTIC_DESIGN)
+    summary = run_pipeline(cfg, tmp_path)
+    d = summary["elasticity"]["design"]
+    assert d["objective"] == "VonMisesNorm(8)" and d["final"] < d["initial"] and 1 <= len(d["steps"]) <= 4
+    assert (tmp_path / "out" / "beam_design.png").stat().st_size > 0
+    E = meshio.read(tmp_path / "out" / "beam_stress.vtu").point_data["E"]
+    assert E.min() < 1.45e9 and E.max() > 1.55e9  # the written design is graded
+    # the compliance is differentiated as self-adjoint: supports at zero (clamped only, the push dropped)
+    clamped = {**cfg, "support": cfg["support"][:1]}
+    compliance = run_pipeline({**clamped, "design": {**cfg["design"], "objective": "compliance"}, "output": {
+        **cfg["output"], "dir": "out2", "png": False}}, tmp_path)["elasticity"]["design"]
+    assert compliance["objective"] == "Compliance()" and compliance["final"] < compliance["initial"]
+    for change, match in (({"objective": "temperature_norm"}, r"design.objective: must be one of \['compliance', "
+                                                             r"'von_mises_norm'\]"),
+                          ({"variables": "channel:k"}, "physics.youngs is 'E'"),
+                          ({"tag": "umax"}, "design.tag: belongs to the heat outputs")):
+        with pytest.raises(ProblemError, match=match):
+            validate({**cfg, "design": {**cfg["design"], **change}}, tmp_path)

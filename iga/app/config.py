@@ -245,7 +245,8 @@ def validate(config, base_dir=".") -> Config:
     cfg["solver"] = _solver(config.get("solver", {}))
     cfg["time"] = time_section(config, physics["kind"], cfg["solver"]["method"])
     cfg["adapt"] = adapt_section(config, physics["kind"])
-    cfg["design"] = design_section(config, physics["kind"], cfg["material"]["conductivity"])
+    cfg["design"] = design_section(config, physics["kind"], physics["youngs"] if physics["kind"] == "elasticity"
+                                   else cfg["material"]["conductivity"])
     if (cfg["adapt"] or cfg["design"]) is not None and cfg["solver"]["method"] == "petsc":
         raise ProblemError("config sections adapt and design solve serially; use another solver.method than 'petsc'")
     cfg["output"] = _output(config.get("output", {}), Path(base_dir))

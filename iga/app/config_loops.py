@@ -2,8 +2,9 @@
 
     [adapt]   tolerance = relative energy-norm error, max_unknowns = n, marking = fraction, refine = "h" | "p" | "hp" |
               "h-in-place", max_steps = n
-    [design]  variables = "channel:NAME" | "map" | "parameters", objective = "temperature_norm" | "mean_temperature", p, tag,
-              bounds = [low, high], mean (a channel), move, hold (the map), iterations
+    [design]  variables = "channel:NAME" | "map" | "parameters", objective = "temperature_norm" | "mean_temperature"
+              (heat) | "compliance" | "von_mises_norm" (elasticity), p, tag, bounds = [low, high], mean (a channel),
+              move, hold (the map), iterations
 
 [adapt] solves by :func:`iga.adaptivity.loop.adaptive_solve` (the summary holds every step and why the loop
 stopped, the VTU the refinement of every patch); [design] by :func:`iga.design.optimize` (the summary holds the
@@ -19,6 +20,7 @@ from iga.errors import ProblemError
 __all__ = ["adapt_section", "design_section"]
 
 OBJECTIVES = ("temperature_norm", "mean_temperature")
+ELASTIC_OBJECTIVES = ("compliance", "von_mises_norm")
 
 
 def adapt_section(config: dict, kind: str) -> dict | None:
@@ -51,21 +53,26 @@ def _marking(v) -> float:
     return m
 
 
-def design_section(config: dict, kind: str, conductivity) -> dict | None:
+def design_section(config: dict, kind: str, material) -> dict | None:
     """The checked [design] section (None when absent): a steady heat analysis whose conductivity is the channel
-    the variables name."""
+    the variables name, or an elastic one whose Young's modulus is (``material``: that coefficient's spec)."""
     if "design" not in config:
         return None
-    if kind != "heat":
-        raise ProblemError(f"config section design optimises a steady heat analysis (physics.kind = 'heat'), not "
-                           f"{kind!r}")
+    if kind not in ("heat", "elasticity"):
+        raise ProblemError(f"config section design optimises a steady heat analysis or an elastic one "
+                           f"(physics.kind = 'heat' or 'elasticity'), not {kind!r}")
     if "adapt" in config:
         raise ProblemError("config sections adapt and design cannot both drive the solve; drop one")
     d = filled("design", table(config["design"], "design", allowed("design"), required("design")))
     wrt = d["variables"]
-    common = {"variables": wrt, "objective": choice(d["objective"], "design.objective", OBJECTIVES),
+    heat = kind == "heat"
+    common = {"variables": wrt,
+              "objective": choice(d["objective"], "design.objective", OBJECTIVES if heat else ELASTIC_OBJECTIVES),
               "p": number(d["p"], "design.p", lo=1, open_lo=False), "tag": d["tag"],
               "iterations": integer(d["iterations"], "design.iterations", 1)}
+    if not heat and d["tag"] is not None:
+        fail("design.tag", "belongs to the heat outputs (a face's mean or norm of the temperature); the elastic ones "
+             "are over the whole model: drop it")
     if wrt == "map":
         return {**common, **_shape_design(d)}
     if wrt == "parameters":
@@ -73,13 +80,14 @@ def design_section(config: dict, kind: str, conductivity) -> dict | None:
     if not (isinstance(wrt, str) and wrt.startswith("channel:") and len(wrt) > len("channel:")):
         fail("design.variables", f"must be \"channel:NAME\" (the map's channel NAME the conductivity reads), "
              f"\"map\" (its control points) or \"parameters\" (the field of a field_graded paving), got {wrt!r}")
-    if wrt.split(":", 1)[1] != conductivity:
-        fail("design.variables", f"names the channel {wrt.split(':', 1)[1]!r}, but material.conductivity is "
-             f"{conductivity!r}; the design changes the channel the conductivity reads")
+    coefficient = "material.conductivity" if heat else "physics.youngs"
+    if wrt.split(":", 1)[1] != material:
+        fail("design.variables", f"names the channel {wrt.split(':', 1)[1]!r}, but {coefficient} is "
+             f"{material!r}; the design changes the channel {coefficient} reads")
     for key in ("move", "hold"):
         if d[key]:
             fail(f"design.{key}", "belongs to a shape design (variables = \"map\"); drop it")
-    low, high = _bounds(d["bounds"], "W/(m K)")
+    low, high = _bounds(d["bounds"], "W/(m K)" if heat else "Pa")
     mean = None if d["mean"] is None else number(d["mean"], "design.mean", lo=0)
     if mean is not None and not low <= mean <= high:
         fail("design.mean", f"{mean:g} cannot be met within bounds [{low:g}, {high:g}]")

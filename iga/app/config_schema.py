@@ -264,29 +264,32 @@ _SECTIONS = (
         _K("goal", "a list of tags of Robin faces", [], "goal-oriented: converge the heat flows through these "
            "tags (the tolerance then bounds their estimated error, each relative to its size) by marking with "
            "the dual-weighted indicators; one more solve per step"))),
-    Section("design", "[design]", "Design by gradient of a steady heat analysis (`physics.kind = \"heat\"`; "
-            "`iga optimize CONFIG.toml`, or `iga run`): the control values of the map's channel that the "
-            "conductivity reads, the map's control points (its shape), or the field of a `field_graded` paving "
-            "(its tiles' parameters), optimised for an output "
+    Section("design", "[design]", "Design by gradient of a steady heat analysis (`physics.kind = \"heat\"`) or "
+            "an elastic one (`\"elasticity\"`; `iga optimize CONFIG.toml`, or `iga run`): the control values of the "
+            "map's channel that the conductivity (or Young's modulus) reads, the map's control points (its shape), or "
+            "the field of a `field_graded` paving (its tiles' parameters), optimised for an output "
             "(`iga.optimize`).", (
         _K("variables", "`\"channel:NAME\"`, `\"map\"` or `\"parameters\"`", REQUIRED, "the channel NAME of "
-           "the map (the one `material.conductivity` names), e.g. made by `map.grading`; or `map`: the coordinates "
+           "the map (the one `material.conductivity` names, or `physics.youngs`), e.g. made by `map.grading`; or "
+           "`map`: the coordinates "
            "of the map's control points, at the solid volume of the start; or `parameters`: the control values of "
            "`paving.field` (a number or a channel of the map) of a `field_graded` paving, at the solid volume of "
            "the start"),
-        _K("bounds", "[low, high]", UNSET, "the bounds of every control value: of a channel (W/(m K)), e.g. "
-           "`[54, 205]` for steel to aluminium, or of the parameter field, inside the tile family's range, e.g. "
+        _K("bounds", "[low, high]", UNSET, "the bounds of every control value: of a channel (W/(m K); Pa for "
+           "Young's modulus), e.g. `[54, 205]` for steel to aluminium, or of the parameter field, inside the tile family's range, e.g. "
            "`[0.15, 0.6]` arm widths (required for `channel:NAME` and `parameters`)"),
         _K("move", "a number > 0 (m)", UNSET, "the largest move of a control point coordinate (required for "
            "`map`; below a quarter of the control points' spacing)"),
         _K("hold", "a list of the map's faces (`umin` .. `wmax`)", [], "`map` and `parameters`: the faces whose "
            "control points (or the field's control values there) stay, e.g. the heated one (its area, so the power "
            "of a flux per area, is kept)"),
-        _K("objective", "`\"temperature_norm\"` or `\"mean_temperature\"`", "temperature_norm",
-           "the output minimised: a smooth maximum (int T^p / V)^(1/p), or the mean"),
-        _K("p", "a number >= 1", 8.0, "the exponent of `temperature_norm`"),
-        _K("tag", "a tag (expression)", UNSET, "over the faces of this tag instead of the volume"),
-        _K("mean", "a number (W/(m K))", UNSET, "keep the volume mean of the channel (for a channel between two "
+        _K("objective", "heat: `\"temperature_norm\"` or `\"mean_temperature\"`; elasticity: `\"compliance\"` or "
+           "`\"von_mises_norm\"`", "temperature_norm",
+           "the output minimised: a smooth maximum (int T^p / V)^(1/p), or the mean; the loads' work u . f, or the "
+           "smooth maximum of the von Mises stress (int sigma_vm^p / V)^(1/p)"),
+        _K("p", "a number >= 1", 8.0, "the exponent of `temperature_norm` and `von_mises_norm`"),
+        _K("tag", "a tag (expression)", UNSET, "heat: over the faces of this tag instead of the volume"),
+        _K("mean", "a number (W/(m K); Pa)", UNSET, "keep the volume mean of the channel (for a channel between two "
            "materials: the volume, and the mass, of each)"),
         _K("iterations", "an integer >= 1", 30, "SLSQP's iteration limit"))),
     Section("solver", "[solver]", "The discretisation and the linear solver.", (

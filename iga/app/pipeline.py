@@ -26,7 +26,7 @@ from geometry.io.files import atomic_write, check_folder, offscreen_plotter, sav
 from iga.io.pictures import count, render_temperature
 from iga.adaptivity.loop import adaptive_solve
 from iga.design import optimize
-from iga.outputs import HeatFlow, MeanTemperature, TemperatureNorm
+from iga.outputs import Compliance, HeatFlow, MeanTemperature, TemperatureNorm, VonMisesNorm
 from iga.app.problems import heat_problem
 from iga.app.pipeline_transient import transient_stage
 from tiling.export import boundary_splines, mesh_watertightness, write_mesh, write_surfaces
@@ -38,62 +38,13 @@ from iga.app.pipeline_build import build, build_maps
 from iga.errors import ProblemError
 from iga.io.gismo import export_gismo
 from iga.discretisation.locate import Locator
-from iga.app.maps import MAPS, circular_heat_sink_map, vertical_heat_sink_map
+from iga.app.maps import MAPS, circular_heat_sink_map, heat_sink_config, vertical_heat_sink_map
 from iga.distributed import solve as distributed
 from iga.tags import as_expression
 from iga.io.vtu import sampled_grid, save_vtu, write_pieces, write_vtu
-from geometry.errors import show
 
 __all__ = ["run_pipeline", "heat_sink_config", "circular_heat_sink_map", "vertical_heat_sink_map", "MAPS",
            "render_temperature"]
-
-
-def heat_sink_config(variant: str = "circular", levels: int | None = None, refine: int = 0,
-                     out: str = "heat-sink-out", stress: bool = False, transient: bool = False) -> dict:
-    """The heat-sink analysis of Massarwi et al. 2018 (Section 8, Figs. 11 and 18) as a pipeline configuration.
-
-    Aluminium (205 W/(m K)) at the heated face graded to stainless steel
-    (54 W/(m K)) away from it; inlet flux 1515.8 W/m^2 on the inner ring
-    (circular) or the bottom face (vertical); convection h = 5 W/(m^2 K) to
-    air at 30 C on every other external face.  ``stress``: the thermal stress too (thermo-elastic), with
-    E, nu and alpha graded like the conductivity: aluminium (69 GPa, 0.33, 23e-6 1/K) at the heated face to
-    stainless steel (193 GPa, 0.29, 17.3e-6 1/K) away from it; free to expand, held only against rigid
-    motion (:meth:`iga.ElasticityProblem.hold_rigid`), stress free at 20 C.  ``transient``: the sink switched on
-    in air at 20 C, starting at 20 C (rho c 2.4e6 J/(m^3 K), aluminium), stepped by adaptive BDF2 (1e-3 K a
-    step) until its hottest point has risen by 95% of its steady rise; a ParaView series and the warm-up
-    curve.
-    """
-    if transient and stress:
-        raise ProblemError("the transient demo computes no stress; drop --stress or --transient")
-    if variant not in ("circular", "vertical"):
-        raise ProblemError(f"variant must be 'circular' or 'vertical', got {show(variant)}")
-    circ = variant == "circular"
-    grading = [{"channel": "k", "near": 205.0, "far": 54.0, "face": "wmin"}]
-    if stress:
-        grading += [{"channel": c, "near": a, "far": b, "face": "wmin"}
-                    for c, a, b in (("E", 69e9, 193e9), ("nu", 0.33, 0.29), ("alpha", 23e-6, 17.3e-6))]
-    cfg = {
-        "map": {"primitive": "circular_heat_sink" if circ else "vertical_heat_sink", "grading": grading},
-        "tile": {"library": "heat_sink_t1" if circ else "heat_sink_t2"},
-        "paving": {"scheme": "hierarchical", "counts": [4, 1] if circ else [4, 4],
-                   "levels": levels if levels is not None else (3 if circ else 2), "scale": 0.5},
-        "material": {"conductivity": "k"},
-        "bc": [{"kind": "neumann", "tag": "branch-in", "value": 1515.8},
-               {"kind": "robin", "tag": "exterior", "h": 5.0, "ambient": 30.0}],
-        "solver": {"method": "auto", "tol": 1e-10, "refine": refine},
-        "output": {"dir": out, "name": "heat_sink", "vtu": True, "png": True},
-    }
-    if transient:
-        cfg["bc"][1]["ambient"] = 20.0
-        cfg["material"]["capacity"] = 2.4e6
-        cfg["physics"] = {"kind": "transient-heat"}
-        # 1e-3 K a step: the 95% time within 0.3% of the converged one (58.7, 59.39, 59.55 min at 1e-2, 1e-3,
-        # 1e-4 K: 38, 67, 126 steps)
-        cfg["time"] = {"end": "steady", "tolerance": 1e-3, "initial": 20.0, "fraction": 0.95}
-    if stress:
-        cfg["physics"] = {"kind": "thermo-elastic", "youngs": "E", "poisson": "nu", "expansion": "alpha",
-                          "reference": 20.0, "hold_rigid": True}
-    return cfg
 
 
 def _mesh_volume(written) -> float | None:
@@ -274,19 +225,9 @@ def _heat_stage(cfg, model, out: Path, ocfg: Record, stages):
     if len(probes):  # before the solve: a probe outside the model is a configuration error
         Locator(prob.model)(probes, what="output.probes")
     adapted = designed = None
-    if cfg.design is not None:  # the map's channel optimised: exact analyses of the same micro-structure
-        d = cfg.design
-        objective = (TemperatureNorm(d.p, d.tag) if d.objective == "temperature_norm"
-                     else MeanTemperature(d.tag))
-        if d.variables == "map":  # the shape: the map's control points, the solid volume kept
-            designed = optimize(prob, objective, "map", d.move, maxiter=d.iterations, solver=scfg.method,
-                                hold=tuple(d.hold))
-        elif d.variables == "parameters":  # the field of a field-graded paving, the solid volume kept
-            designed = optimize(prob, objective, "parameters", d.bounds, maxiter=d.iterations, solver=scfg.method,
-                                hold=tuple(d.hold))
-        else:
-            designed = optimize(prob, objective, d.variables, d.bounds, d.mean, d.iterations, solver=scfg.method)
-        sol = designed.solution
+    if cfg.design is not None:  # exact analyses of the same micro-structure, redesigned
+        designed = _design(prob, cfg.design, scfg.method)
+        sol = designed[1].solution
         prob, model = sol.problem, sol.problem.model
     elif cfg.adapt is not None:  # solve, estimate, split where the estimate is largest, until the tolerance
         a = cfg.adapt
@@ -307,17 +248,45 @@ def _heat_stage(cfg, model, out: Path, ocfg: Record, stages):
     tmin, tmax = sol.temperature_range(ocfg.samples)
     summary = _summary(cfg, prob, sol, (tmin, tmax), _mesh_volume(written), probes, files, analysis_peak)
     if designed is not None:
-        summary["design"] = {"objective": objective.name, "initial": designed.initial, "final": designed.objective,
-                             "improvement": designed.improvement, "success": designed.success,
-                             "message": designed.message, "analyses": designed.evaluations,
-                             "steps": [asdict(h) for h in designed.history]}
-        if ocfg.png:
-            files["design_png"] = str(_plot_design(designed, out / f"{ocfg.name}_design.png"))
+        summary["design"] = _design_summary(designed, ocfg, out, files)
     if adapted is not None:
         summary["adapt"] = {"reached": adapted.reached, "reason": adapted.reason,
                             "estimate": float(adapted.estimate.relative), "patches": len(model.patches),
                             "steps": [asdict(h) for h in adapted.history]}
     return summary, sol, {"statistics": time.perf_counter() - t0, **{f"iga.{k}": v for k, v in prob.timings.items()}}
+
+
+#: the output of each [design] objective, from the section (heat: over the model or a tag's faces)
+_OBJECTIVES = {"temperature_norm": lambda d: TemperatureNorm(d.p, d.tag),
+               "mean_temperature": lambda d: MeanTemperature(d.tag),
+               "compliance": lambda d: Compliance(),
+               "von_mises_norm": lambda d: VonMisesNorm(d.p)}
+
+
+def _design(prob, d: Record, method: str) -> tuple:
+    """(the objective, the :class:`iga.optimiser.DesignResult`): the [design] section ``d`` run on ``prob`` (heat
+    or elastic) by :func:`iga.design.optimize`: the map's channel, its control points (the solid volume kept) or a
+    field-graded paving's field (the same)."""
+    objective = _OBJECTIVES[d.objective](d)
+    if d.variables == "map":
+        result = optimize(prob, objective, "map", d.move, maxiter=d.iterations, solver=method, hold=tuple(d.hold))
+    elif d.variables == "parameters":
+        result = optimize(prob, objective, "parameters", d.bounds, maxiter=d.iterations, solver=method,
+                          hold=tuple(d.hold))
+    else:
+        result = optimize(prob, objective, d.variables, d.bounds, d.mean, d.iterations, solver=method)
+    return objective, result
+
+
+def _design_summary(design: tuple, ocfg: Record, out: Path, files: dict) -> dict:
+    """The summary's ``design`` of :func:`_design`'s (objective, result): the objective before and after and every
+    iteration; its picture into ``files``."""
+    objective, designed = design
+    if ocfg.png:
+        files["design_png"] = str(_plot_design(designed, out / f"{ocfg.name}_design.png"))
+    return {"objective": objective.name, "initial": designed.initial, "final": designed.objective,
+            "improvement": designed.improvement, "success": designed.success, "message": designed.message, "analyses": designed.evaluations,
+            "steps": [asdict(h) for h in designed.history]}
 
 
 def _plot_design(result, path: Path) -> Path:
@@ -419,7 +388,9 @@ def _elastic_stage(cfg, ms, heat_solution, out: Path, ocfg: Record, stages) -> d
         p.hold_rigid()
     if ph.kind == "thermo-elastic":
         p.thermal(heat_solution, ph.expansion, ph.reference)
-    es = p.solve(solver=scfg.method, tol=scfg.tol, maxiter=scfg.maxiter)
+    design = _design(p, cfg.design, scfg.method) if cfg.design is not None else None
+    es = design[1].solution if design else p.solve(solver=scfg.method, tol=scfg.tol, maxiter=scfg.maxiter)
+    ms = es.problem.model  # (a design's: its map redesigned)
     stages.done(f"({es.info['dofs']} DOFs, {es.info['free_dofs']} unknowns)")
     stages.start("stress output")
     grid = sampled_grid(ms, es, ocfg.samples, ocfg.tolerance)  # (the summary's maxima and the picture)
@@ -447,4 +418,5 @@ def _elastic_stage(cfg, ms, heat_solution, out: Path, ocfg: Record, stages) -> d
             **({"max_von_mises_note": "a point load's stress is infinite at its point: the largest von Mises stress "
                 "sampled grows under refinement"} if any(ld["kind"] == "point" for ld in ph.load) else {}),
             "applied_N": es.info["applied_N"], "work": es.info["work"],
+            **({"design": _design_summary(design, ocfg, out, files)} if design else {}),
             "timings_s": {k: float(v) for k, v in es.info["timings"].items()}, "files": files}
