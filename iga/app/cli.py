@@ -129,8 +129,8 @@ def _cmd_run(args, cfg: dict | None = None) -> int:
         t = s["temperature_C"]
         print(f"{_plural(s['tiles'], 'tile')}, {s['dofs']} DOFs; temperature {t['min']:.3f} .. {t['max']:.3f}; "
               f"balance error {s['energy_balance_error']:.1e}{_newton_note(s)}; {where}")
-    if "design" in s:
-        d = s["design"]
+    d = s["design"] if "design" in s else s.get("elasticity", {}).get("design")  # (heat's, or elasticity's)
+    if d is not None:
         print(f"design: {d['objective']} {d['initial']:.4g} -> {d['final']:.4g} ({100 * d['improvement']:.1f}% "
               f"lower) in {len(d['steps'])} iterations, {d['analyses']} analyses; {d['message']}")
     if "adapt" in s:
