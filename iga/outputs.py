@@ -27,7 +27,7 @@ from iga.discretisation.fields import grid_fields
 from iga.errors import ProblemError
 
 __all__ = ["Output", "Volume", "MeanTemperature", "TemperatureNorm", "HeatFlow", "Compliance", "VonMisesNorm",
-           "gauss_pass", "tag_faces", "von_mises", "isotropic_stress"]
+           "gauss_pass", "tag_faces", "von_mises"]
 
 
 def gauss_pass(problem, fields: np.ndarray, fn, inverse: bool = False) -> None:
@@ -227,12 +227,6 @@ def von_mises(S: np.ndarray) -> tuple:
     return dev, np.sqrt(1.5 * np.sum(dev * dev, axis=(1, 2)))
 
 
-def isotropic_stress(lam: np.ndarray, mu: np.ndarray, eps: np.ndarray) -> np.ndarray:
-    """sigma = lam tr(eps) I + 2 mu eps (N, 3, 3), in the units of lam and mu, for strains eps (N, 3, 3)."""
-    tr = np.trace(eps, axis1=1, axis2=2)
-    return lam[:, None, None] * tr[:, None, None] * np.eye(3) + 2 * mu[:, None, None] * eps
-
-
 class VonMisesNorm(Output):
     """(int sigma_vm^p dV / V)^(1/p) (Pa) of an elastic solution: a smooth maximum of the von Mises stress.
 
@@ -251,7 +245,7 @@ class VonMisesNorm(Output):
         return solution.problem
 
     def value(self, solution) -> float:
-        from iga.elasticity.forms import lame
+        from iga.elasticity.forms import isotropic_stress, lame, strain
         from iga.discretisation.fields import integrate_fields
 
         prob, p = self._problem(solution), self.p
@@ -260,7 +254,7 @@ class VonMisesNorm(Output):
         def density(x, u, g, at):
             where = f"patches {at.patches[0]}..{at.patches[-1]}"
             lam, mu = lame(prob.youngs.values(x, at.chans, where), prob.poisson.values(x, at.chans, where), where)
-            eps = 0.5 * (g + np.transpose(g, (0, 2, 1)))
+            eps = strain(g)
             if prob.thermal_strain is not None:
                 eps = eps - at.per_patch(prob.thermal_strain)[:, None, None] * np.eye(3)
             vm = von_mises(isotropic_stress(lam, mu, eps))[1]
@@ -273,7 +267,7 @@ class VonMisesNorm(Output):
     def gradient(self, solution) -> np.ndarray:
         """dJ/du (3 ndof,), component-major (class notes); a problem without thermal strain."""
         from iga.assembly.tensor import derivative_load_form
-        from iga.elasticity.forms import moduli
+        from iga.elasticity.forms import isotropic_stress, moduli, strain
 
         prob, p = self._problem(solution), self.p
         if prob.thermal_strain is not None:
@@ -287,7 +281,7 @@ class VonMisesNorm(Output):
 
         def add(chunk, space, vals, grads, wv, x, chans, Jinv):
             _, lam, mu = moduli(prob, chunk, x, chans)
-            dev, vm = von_mises(isotropic_stress(lam, mu, 0.5 * (grads + np.transpose(grads, (0, 2, 1)))))
+            dev, vm = von_mises(isotropic_stress(lam, mu, strain(grads)))
             # vm^(p - 2) s -> 0 where vm = 0 (p > 1), so those points add nothing
             scale = np.where(vm > 0, np.where(vm > 0, vm, 1.0) ** (p - 2), 0.0)
             tau = (3 * mu * scale * wv)[:, None, None] * dev

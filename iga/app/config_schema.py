@@ -271,13 +271,12 @@ _SECTIONS = (
             "(`iga.optimize`).", (
         _K("variables", "`\"channel:NAME\"`, `\"map\"` or `\"parameters\"`", REQUIRED, "the channel NAME of "
            "the map (the one `material.conductivity` names, or `physics.youngs`), e.g. made by `map.grading`; or "
-           "`map`: the coordinates "
-           "of the map's control points, at the solid volume of the start; or `parameters`: the control values of "
+           "`map`: the coordinates of the map's control points, at the solid volume of the start; or `parameters`: the control values of "
            "`paving.field` (a number or a channel of the map) of a `field_graded` paving, at the solid volume of "
            "the start"),
         _K("bounds", "[low, high]", UNSET, "the bounds of every control value: of a channel (W/(m K); Pa for "
-           "Young's modulus), e.g. `[54, 205]` for steel to aluminium, or of the parameter field, inside the tile family's range, e.g. "
-           "`[0.15, 0.6]` arm widths (required for `channel:NAME` and `parameters`)"),
+           "Young's modulus), e.g. `[54, 205]` for steel to aluminium, or of the parameter field, inside the tile "
+           "family's range, e.g. `[0.15, 0.6]` arm widths (required for `channel:NAME` and `parameters`)"),
         _K("move", "a number > 0 (m)", UNSET, "the largest move of a control point coordinate (required for "
            "`map`; below a quarter of the control points' spacing)"),
         _K("hold", "a list of the map's faces (`umin` .. `wmax`)", [], "`map` and `parameters`: the faces whose "

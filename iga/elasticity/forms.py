@@ -25,7 +25,7 @@ import numpy as np
 from iga.errors import ProblemError
 from iga.discretisation.faces import cross
 
-__all__ = ["lame", "moduli", "metric_rows", "block_terms", "divergence_terms"]
+__all__ = ["lame", "moduli", "strain", "isotropic_stress", "metric_rows", "block_terms", "divergence_terms"]
 
 
 def lame(E: np.ndarray, nu: np.ndarray, where: str) -> tuple[np.ndarray, np.ndarray]:
@@ -39,6 +39,17 @@ def lame(E: np.ndarray, nu: np.ndarray, where: str) -> tuple[np.ndarray, np.ndar
         raise ProblemError(f"Poisson's ratio must lie in (-1, 0.5) (0.5 is incompressible, which this "
                            f"displacement formulation cannot take), got {bad:g} on {where}")
     return E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))
+
+
+def strain(grads: np.ndarray) -> np.ndarray:
+    """The small strain sym(grad u) (N, 3, 3) of displacement gradients (N, 3, 3), [q, i, j] = d u_i / d x_j."""
+    return 0.5 * (grads + np.transpose(grads, (0, 2, 1)))
+
+
+def isotropic_stress(lam: np.ndarray, mu: np.ndarray, eps: np.ndarray) -> np.ndarray:
+    """sigma = lam tr(eps) I + 2 mu eps (N, 3, 3), in the units of lam and mu, for strains eps (N, 3, 3)."""
+    tr = np.trace(eps, axis1=1, axis2=2)
+    return lam[:, None, None] * tr[:, None, None] * np.eye(3) + 2 * mu[:, None, None] * eps
 
 
 def moduli(prob, chunk, x, chans) -> tuple:

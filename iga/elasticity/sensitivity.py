@@ -28,6 +28,7 @@ from geometry.errors import show
 
 from iga.adjoint import ChannelScatter, per_patch_or_tile
 from iga.elasticity.adjoint import elastic_adjoint
+from iga.elasticity.forms import strain
 from iga.elasticity.shape import self_adjoint, strain_and_stress
 from iga.errors import ProblemError
 from iga.outputs import Output, VonMisesNorm, Volume, evaluated, gauss_pass, von_mises
@@ -75,8 +76,7 @@ def elastic_sensitivity(solution, output: Output, wrt: str = "tiles", solver: st
         E, eps, sig = strain_and_stress(prob, chunk, grads[:, :3], x, chans)
         if stress:  # J^(1-p) / V sigma_vm^p - eps(lambda) : C : eps(u)
             vm = von_mises(sig)[1]
-            dens = (factor * vm**p - np.sum(sig * 0.5 * (grads[:, 3:] + np.transpose(grads[:, 3:], (0, 2, 1))),
-                                            axis=(1, 2))) * wv
+            dens = (factor * vm**p - np.sum(sig * strain(grads[:, 3:]), axis=(1, 2))) * wv
         else:
             dens = -np.sum(sig * eps, axis=(1, 2)) * wv  # - eps : C : eps
         if channel is None:

@@ -30,10 +30,10 @@ import numpy as np
 
 from geometry.errors import show
 
-from iga.elasticity.forms import moduli
+from iga.elasticity.forms import isotropic_stress, moduli, strain
 from iga.errors import ProblemError
 from iga.elasticity.adjoint import elastic_adjoint
-from iga.outputs import Compliance, Volume, VonMisesNorm, evaluated, gauss_pass, isotropic_stress, von_mises
+from iga.outputs import Compliance, Volume, VonMisesNorm, evaluated, gauss_pass, von_mises
 
 __all__ = ["elastic_densities", "strain_and_stress", "self_adjoint"]
 
@@ -86,7 +86,7 @@ def strain_and_stress(prob, chunk, grads, x, chans) -> tuple:
     gradients ``grads`` (N, 3, 3), the points x and the channels there (isotropic: sigma = lam tr(eps) I + 2 mu
     eps; no thermal strain)."""
     E, lam, mu = moduli(prob, chunk, x, chans)
-    eps = 0.5 * (grads + np.transpose(grads, (0, 2, 1)))
+    eps = strain(grads)
     return E, eps, isotropic_stress(lam, mu, eps)
 
 
@@ -112,17 +112,17 @@ def elastic_densities(solution, output, volume, faces, what: str, solver: str = 
         c = J ** (1 - p) / Volume().value(solution)
 
     def add(chunk, space, vals, grads, wv, x, chans):
-        gu, gl = grads[:, :3], grads[:, 3:]
+        gu, gl = grads[:, :3], grads[:, 3:]  # (u's, and the adjoint's for the von Mises norm)
         if not stress:
             E, eps, sig = strain_and_stress(prob, chunk, gu, x, chans)
             energy2 = np.sum(sig * eps, axis=(1, 2))  # eps : C : eps
             Q = 2 * np.einsum("qik,qij->qkj", gu, sig)
-            scalar = -energy2 + (0.0 if body is None else vals[:, 3:] @ body)
+            scalar = -energy2 + (0.0 if body is None else 2 * vals[:, :3] @ body)
             volume(chunk, space, (Q + scalar[:, None, None] * np.eye(3)) * wv[:, None, None], -energy2 / E * wv)
             return
         E, lam, mu = moduli(prob, chunk, x, chans)
-        eps = 0.5 * (gu + np.transpose(gu, (0, 2, 1)))
-        sig, sig_l = isotropic_stress(lam, mu, eps), isotropic_stress(lam, mu, 0.5 * (gl + np.transpose(gl, (0, 2, 1))))
+        eps = strain(gu)
+        sig, sig_l = isotropic_stress(lam, mu, eps), isotropic_stress(lam, mu, strain(gl))
         dev, vm = von_mises(sig)
         cross = np.sum(sig_l * eps, axis=(1, 2))  # eps(u) : C : eps(lambda)
         scale = np.where(vm > 0, np.where(vm > 0, vm, 1.0) ** (p - 2), 0.0)  # vm^(p-2) s -> 0 where vm = 0
@@ -132,7 +132,9 @@ def elastic_densities(solution, output, volume, faces, what: str, solver: str = 
         volume(chunk, space, (Q + scalar[:, None, None] * np.eye(3)) * wv[:, None, None],
                (c * vm**p - cross) / E * wv)
 
-    gauss_pass(prob, np.vstack([solution.u.reshape(3, n), tested.reshape(3, n)]), add)
+    # the compliance's volume terms need u alone (2 u's gradients would be u's twice over)
+    fields = np.vstack([solution.u.reshape(3, n), tested.reshape(3, n)]) if stress else solution.u.reshape(3, n)
+    gauss_pass(prob, fields, add)
     fds, dens = [], []
     for load in prob.loads:
         t = np.asarray(load.value.spec, float)

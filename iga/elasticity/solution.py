@@ -8,7 +8,7 @@ from geometry.numbers import TINY
 from geometry import SplineFunction
 from geometry.patches.chain import patch_geometry_points
 
-from iga.elasticity.forms import lame
+from iga.elasticity.forms import lame, strain
 from iga.elasticity.supports import POINT_MARGIN
 from iga.errors import ProblemError
 from geometry.errors import show
@@ -134,7 +134,7 @@ class ElasticSolution:
 
     def _stress_at(self, pi, params):
         u, grad, x, chans = self.evaluate(pi, params)
-        eps = 0.5 * (grad + np.transpose(grad, (0, 2, 1)))
+        eps = strain(grad)
         prob = self.problem
         lam, mu = lame(prob.youngs.values(x, chans, f"patch {pi}"), prob.poisson.values(x, chans, f"patch {pi}"),
                        f"patch {pi}")
@@ -152,10 +152,7 @@ class ElasticSolution:
         """Total small strain sym(grad u) (N, 3, 3) at physical points; refused at a point load's point."""
         self._refuse_point_loads(points, "strain")
 
-        def eps(pi, p):
-            g = self.evaluate(pi, p)[1]
-            return 0.5 * (g + np.transpose(g, (0, 2, 1)))
-        return self._at_points(points, eps, (3, 3))
+        return self._at_points(points, lambda pi, p: strain(self.evaluate(pi, p)[1]), (3, 3))
 
     def stress(self, points) -> np.ndarray:
         """Cauchy stress (N, 3, 3) in Pa at physical points (thermal strain taken off the total); refused at the
@@ -255,7 +252,7 @@ class ElasticSolution:
         def densities(x, u, g, at):
             where = f"patches {at.patches[0]}..{at.patches[-1]}"
             lam, mu = lame(prob.youngs.values(x, at.chans, where), prob.poisson.values(x, at.chans, where), where)
-            eps = 0.5 * (g + np.transpose(g, (0, 2, 1)))
+            eps = strain(g)
             tr = np.trace(eps, axis1=1, axis2=2)
             th = at.per_patch(prob.thermal_strain) if prob.thermal_strain is not None else np.zeros(len(x))
             mech = eps - th[:, None, None] * np.eye(3)

@@ -8,7 +8,7 @@ import numpy as np
 from geometry.patches.sampling import piece_basis
 
 from iga.heat.coefficients import tensor_matrix
-from iga.elasticity.forms import lame
+from iga.elasticity.forms import lame, strain
 from iga.errors import ProblemError
 from iga.discretisation.fields import grid_fields
 from iga.discretisation.fields import field_spline, physical_gradient
@@ -87,7 +87,7 @@ def _displacement_fields(solution, members, pax, x, D, chans, out: dict) -> np.n
     where = f"patches {members[0]}..{members[-1]}"
     E, nu = prob.youngs.values(xs, flat, where), prob.poisson.values(xs, flat, where)
     lam, mu = lame(E, nu, where)
-    eps = 0.5 * (grad + np.transpose(grad, (0, 2, 1)))
+    eps = strain(grad)
     if prob.thermal_strain is not None:
         params = np.stack(np.meshgrid(*pax, indexing="ij"), -1).reshape(-1, 3)
         th = np.concatenate([prob.thermal_strain(i, x[j], params, {c: v[j] for c, v in chans.items()})
