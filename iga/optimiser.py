@@ -30,7 +30,8 @@ __all__ = ["DesignStep", "DesignResult", "redesigned", "run_slsqp", "check_desig
 @dataclass(frozen=True)
 class DesignStep:
     """One iteration: the ``objective`` (the output's units), the ``mean`` of the channel (its units; a shape
-    design: the solid volume, m^3), the ``step`` (largest change of a control value: the channel's units, or m)
+    design: the solid volume, m^3; a macro model kept at its solid fraction: that fraction), the ``step``
+    (largest change of a control value: the channel's units, or m)
     and the iteration's ``seconds``."""
 
     iteration: int
@@ -103,7 +104,7 @@ def analysed(problem, solver: str):
     """One analysis of a design: a heat problem keeps its factorisation for the adjoint solves that follow; an
     elastic one (its compliance is self-adjoint) needs none; both keep their Gauss points' geometry."""
     problem.gauss_geometry.keep(problem)  # the design step passes over the Gauss points three times and more
-    return problem.solve(solver=solver) if hasattr(problem, "youngs") else problem.solve(solver=solver, keep=True)
+    return problem.solve(solver=solver) if hasattr(problem, "material") else problem.solve(solver=solver, keep=True)
 
 
 def check_design(problem, objective, maxiter, elastic: bool = False) -> None:

@@ -231,7 +231,8 @@ class VonMisesNorm(Output):
     """(int sigma_vm^p dV / V)^(1/p) (Pa) of an elastic solution: a smooth maximum of the von Mises stress.
 
     Its gradient in the displacement (:meth:`gradient`) is the load int tau : grad v dV with
-    tau = J^(1-p) / V 3 mu sigma_vm^(p-2) s (s the stress deviator: d sigma_vm = 3 mu s : d eps / sigma_vm), what
+    tau = J^(1-p) / V 3/2 sigma_vm^(p-2) C : s (s the stress deviator: d sigma_vm = 3/2 (C : s) : d eps / sigma_vm,
+    and C : s = 2 mu s for an isotropic material), what
     the elastic adjoint solves with (:func:`iga.elasticity.adjoint.elastic_adjoint`); its sensitivities by Young's
     modulus and by the shape: :mod:`iga.elasticity.sensitivity`, :mod:`iga.elasticity.shape`."""
 
@@ -245,7 +246,7 @@ class VonMisesNorm(Output):
         return solution.problem
 
     def value(self, solution) -> float:
-        from iga.elasticity.forms import isotropic_stress, lame, strain
+        from iga.elasticity.forms import strain
         from iga.discretisation.fields import integrate_fields
 
         prob, p = self._problem(solution), self.p
@@ -253,11 +254,11 @@ class VonMisesNorm(Output):
 
         def density(x, u, g, at):
             where = f"patches {at.patches[0]}..{at.patches[-1]}"
-            lam, mu = lame(prob.youngs.values(x, at.chans, where), prob.poisson.values(x, at.chans, where), where)
+            mod = prob.material.moduli(x, at.chans, where)
             eps = strain(g)
             if prob.thermal_strain is not None:
                 eps = eps - at.per_patch(prob.thermal_strain)[:, None, None] * np.eye(3)
-            vm = von_mises(isotropic_stress(lam, mu, eps))[1]
+            vm = von_mises(mod.stress(eps))[1]
             return np.stack([vm**p, np.ones_like(vm)], 1)
 
         total, vol = integrate_fields(prob, lambda i: np.stack([solution.u[a * n + o[i]:a * n + o[i + 1]].reshape(
@@ -267,7 +268,7 @@ class VonMisesNorm(Output):
     def gradient(self, solution) -> np.ndarray:
         """dJ/du (3 ndof,), component-major (class notes); a problem without thermal strain."""
         from iga.assembly.tensor import derivative_load_form
-        from iga.elasticity.forms import isotropic_stress, moduli, strain
+        from iga.elasticity.forms import moduli, strain
 
         prob, p = self._problem(solution), self.p
         if prob.thermal_strain is not None:
@@ -280,11 +281,12 @@ class VonMisesNorm(Output):
             return out
 
         def add(chunk, space, vals, grads, wv, x, chans, Jinv):
-            _, lam, mu = moduli(prob, chunk, x, chans)
-            dev, vm = von_mises(isotropic_stress(lam, mu, strain(grads)))
+            mod = moduli(prob, chunk, x, chans)
+            dev, vm = von_mises(mod.stress(strain(grads)))
             # vm^(p - 2) s -> 0 where vm = 0 (p > 1), so those points add nothing
             scale = np.where(vm > 0, np.where(vm > 0, vm, 1.0) ** (p - 2), 0.0)
-            tau = (3 * mu * scale * wv)[:, None, None] * dev
+            # d vm / d eps = 3 / (2 vm) C : s (s the deviator; C : s = 2 mu s for an isotropic material)
+            tau = (1.5 * scale * wv)[:, None, None] * mod.stress(dev)
             shape = (len(chunk),) + space.qshape
             for a in range(3):
                 G = np.einsum("qj,qrj->rq", tau[:, a], Jinv)  # tau_aj d xi_r / d x_j: weights of d N / d xi_r

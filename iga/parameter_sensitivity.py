@@ -94,7 +94,10 @@ def _dragged_channel(prob, D, what: str):
     the points: the drag term of the module notes), or None; sources, face data (Poisson's ratio) must not read
     D's channels."""
     # (a channel the map holds is read from the map, before an equally named channel of the tile)
-    if hasattr(prob, "youngs"):
+    if hasattr(prob, "material"):
+        if prob.material.kind != "isotropic":
+            raise ProblemError(f"{what}: the shape terms of a {prob.material.kind} material are not built; give an "
+                               "isotropic one (youngs=, poisson=)")
         if prob.poisson.kind == "channel" and prob.poisson.spec in D.channels:
             raise ProblemError(f"{what}: Poisson's ratio reads the map's channel {show(prob.poisson.spec)}; its "
                                "term is not built (give a number)")

@@ -458,7 +458,7 @@ def test_the_block_assembly_equals_plain_quadrature_with_scipy_basis_functions(c
     geo = pr.twisted(pr.box(degrees=(2, 2, 2), elements=(4, 4, 4)), 0.5, axis_point=(0.5, 0.5))
     p = ElasticityProblem(geo, youngs=lambda x: 1.0 + x[:, 0], poisson=lambda x: 0.2 + 0.1 * x[:, 1])
     assert fast_assembly.applies(p.spaces[0], 1, terms=elastic_volume.ELASTIC_TERMS) == compiled
-    K = elastic_volume.ElasticVolume(p.disc).assemble(p.youngs, p.poisson)[0]
+    K = elastic_volume.ElasticVolume(p.disc).assemble(p.material)[0]
     ref = _dense_elastic_stiffness(p)
     assert abs(K.toarray() - ref).max() <= 1e-12 * abs(ref).max()
     assert abs(K - K.T).max() <= 1e-12 * abs(K).max()
@@ -477,11 +477,11 @@ def test_the_compiled_assembly_of_batched_patches_equals_the_numpy_one(monkeypat
     p = ElasticityProblem(ms, youngs=lambda x: 1.0 + x[:, 0], poisson=0.3, degree_elevation=1)
     vol = elastic_volume.ElasticVolume(p.disc)
     monkeypatch.setattr(fast_assembly, "MIN_POINTS", 10**12)
-    ref = vol.assemble(p.youngs, p.poisson)[0]
+    ref = vol.assemble(p.material)[0]
     monkeypatch.setattr(fast_assembly, "MIN_POINTS", 1)
     groups = p.disc.volume.groups.values()
     assert any(len(g) > 1 for g in groups) and all(fast_assembly.applies(p.spaces[g[0]], len(g)) for g in groups)
-    K = vol.assemble(p.youngs, p.poisson)[0]
+    K = vol.assemble(p.material)[0]
     assert np.array_equal(K.indptr, ref.indptr) and np.array_equal(K.indices, ref.indices)
     assert abs(K - ref).max() <= 1e-12 * abs(ref).max()
 
@@ -535,9 +535,9 @@ def test_the_compiled_elastic_blocks_equal_the_numpy_ones_on_batches_of_patches(
     p.body_force(lambda x: np.c_[x[:, 1], -x[:, 0], np.ones(len(x))]).thermal(lambda x: 1.0 + x[:, 2] ** 2, 1e-3)
     assert max(len(g) for g in p.disc.volume.groups.values()) == 8
     monkeypatch.setattr(fast_assembly, "MIN_POINTS", 10**12)
-    ref, f_ref, w_ref = elastic_volume.ElasticVolume(p.disc).assemble(p.youngs, p.poisson, p.body, p.thermal_strain)
+    ref, f_ref, w_ref = elastic_volume.ElasticVolume(p.disc).assemble(p.material, p.body, p.thermal_strain)
     monkeypatch.setattr(fast_assembly, "MIN_POINTS", 100)  # every batch compiled
-    K, f, w = elastic_volume.ElasticVolume(p.disc).assemble(p.youngs, p.poisson, p.body, p.thermal_strain)
+    K, f, w = elastic_volume.ElasticVolume(p.disc).assemble(p.material, p.body, p.thermal_strain)
     assert K.nnz == ref.nnz and abs(K - ref).max() <= 1e-12 * abs(ref).max()
     # the body and thermal loads from the compiled metric fields equal the NumPy ones
     assert np.abs(f - f_ref).max() <= 1e-12 * np.abs(f_ref).max() and np.abs(f_ref).max() > 0

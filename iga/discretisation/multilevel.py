@@ -30,7 +30,6 @@ from geometry.patches.chain import patch_geometry_grid
 from solvers.indexing import complement
 
 from iga.discretisation.constraints import needs_constraints, owners_of, prolongation
-from iga.elasticity.forms import lame
 from iga.errors import ProblemError
 from iga.discretisation.space import Space1D, TensorSpace, make_space
 from geometry.tolerances import ON_DOMAIN
@@ -67,20 +66,19 @@ def elastic_kronecker_sums(problem, free: np.ndarray) -> list | None:
     component, for the block fast diagonalization of its diagonal blocks K^aa, or None.
 
     ``free``: the free unknowns in the component-major numbering; each component's must form a tensor grid
-    with a Dirichlet side.  The coefficients are the averages of w |det J| (mu (J^-1 J^-T)_kk + (lambda + mu)
-    (J^-1)_ka^2), the parametric diagonal of block aa (:mod:`iga.elasticity.forms`).
+    with a Dirichlet side.  The coefficients are the averages of w |det J| (mu (J^-1 J^-T)_kk + (lambda + mu +
+    kappa) (J^-1)_ka^2), the parametric diagonal of block aa (:mod:`iga.elasticity.forms`; kappa = 0 unless cubic).
     """
     if not _single_patch(problem):
         return None
     n = problem.ndof
     x, Jinv, adet, chans = _metric_samples(problem)
-    lam, mu = lame(problem.youngs.values(x, chans, "the preconditioner's sample points"),
-                   problem.poisson.values(x, chans, "the preconditioner's sample points"),
-                   "the preconditioner's sample points")
+    mod = problem.material.moduli(x, chans, "the preconditioner's sample points")
+    mu, lmk = mod.mu, mod.lam + mod.mu + (0.0 if mod.kappa is None else mod.kappa)
     G = np.einsum("nki,nki->nk", Jinv, Jinv)
     out = []
     for a in range(3):
-        c = np.mean(adet[:, None] * (mu[:, None] * G + (lam + mu)[:, None] * Jinv[:, :, a] ** 2), axis=0)
+        c = np.mean(adet[:, None] * (mu[:, None] * G + lmk[:, None] * Jinv[:, :, a] ** 2), axis=0)
         ks = _kronecker(problem.spaces[0], free[(free >= a * n) & (free < (a + 1) * n)] - a * n,
                         np.maximum(c, ON_DOMAIN * c.max()))
         if ks is None:

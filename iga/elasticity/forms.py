@@ -1,4 +1,4 @@
-"""Coefficient fields of small-strain isotropic linear elasticity on the Gauss grid (Elber 2017, Section 3).
+"""Coefficient fields of small-strain linear elasticity on the Gauss grid (Elber 2017, Section 3).
 
 With the displacement ``u = sum_j N_j u_j`` (three components per basis
 function) the bilinear form int sigma(u) : eps(v) dV couples component a of
@@ -13,8 +13,9 @@ c_2 = x_w x x_u, c_3 = x_u x x_v (the rows of det J * J^-1, as in
     F^{ab}_rs = w / |det J| (lambda c_r[a] c_s[b] + mu c_r[b] c_s[a] + mu delta_ab c_r . c_s),
 
 nine parametric terms per block (symmetric in (r, s) on the diagonal blocks,
-F^{ba}_rs = F^{ab}_sr off it).  A thermal strain alpha (T - T_ref) I adds the
-load int beta div v dV with beta = (3 lambda + 2 mu) alpha (T - T_ref):
+F^{ba}_rs = F^{ab}_sr off it).  A cubic material (:mod:`iga.elasticity.material`) adds
+kappa d_a N_i d_a N_j to the diagonal blocks.  A thermal strain alpha (T - T_ref) I adds the
+load int beta div v dV with beta = (3 lambda + 2 mu + kappa) alpha (T - T_ref):
 component a of N_i receives sum_r int beta sign(det J) w c_r[a] d_r N_i.
 """
 
@@ -22,23 +23,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from iga.errors import ProblemError
 from iga.discretisation.faces import cross
+from iga.elasticity.material import Moduli, lame
 
-__all__ = ["lame", "moduli", "strain", "isotropic_stress", "metric_rows", "block_terms", "divergence_terms"]
-
-
-def lame(E: np.ndarray, nu: np.ndarray, where: str) -> tuple[np.ndarray, np.ndarray]:
-    """Lame parameters (lambda, mu) in Pa from Young's modulus E (Pa, > 0) and Poisson's ratio nu in (-1, 0.5)."""
-    E, nu = np.asarray(E, float), np.asarray(nu, float)
-    if not np.all(E > 0):  # NaN fails too
-        bad = E[~(E > 0)][0]
-        raise ProblemError(f"Young's modulus must be a positive number of Pa, got {bad:g} on {where}")
-    if not np.all((nu > -1.0) & (nu < 0.5)):
-        bad = nu[~((nu > -1.0) & (nu < 0.5))][0]
-        raise ProblemError(f"Poisson's ratio must lie in (-1, 0.5) (0.5 is incompressible, which this "
-                           f"displacement formulation cannot take), got {bad:g} on {where}")
-    return E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))
+__all__ = ["lame", "moduli", "strain", "metric_rows", "block_terms", "divergence_terms"]
 
 
 def strain(grads: np.ndarray) -> np.ndarray:
@@ -46,18 +34,11 @@ def strain(grads: np.ndarray) -> np.ndarray:
     return 0.5 * (grads + np.transpose(grads, (0, 2, 1)))
 
 
-def isotropic_stress(lam: np.ndarray, mu: np.ndarray, eps: np.ndarray) -> np.ndarray:
-    """sigma = lam tr(eps) I + 2 mu eps (N, 3, 3), in the units of lam and mu, for strains eps (N, 3, 3)."""
-    tr = np.trace(eps, axis1=1, axis2=2)
-    return lam[:, None, None] * tr[:, None, None] * np.eye(3) + 2 * mu[:, None, None] * eps
-
-
-def moduli(prob, chunk, x, chans) -> tuple:
-    """(E (N,), lam (N,), mu (N,)) in Pa at Gauss points x (N, 3) of the patches ``chunk``, the channels there."""
-    where = f"patches {chunk[0]}..{chunk[-1]}"
+def moduli(prob, chunk, x, chans) -> Moduli:
+    """The problem's :class:`iga.elasticity.material.Moduli` at Gauss points x (N, 3) of the patches ``chunk``,
+    the channels there."""
     flat = {c: np.reshape(v, -1) for c, v in chans.items()}
-    E = prob.youngs.values(x, flat, where)
-    return (E,) + tuple(lame(E, prob.poisson.values(x, flat, where), where))
+    return prob.material.moduli(x, flat, f"patches {chunk[0]}..{chunk[-1]}")
 
 
 def metric_rows(D) -> tuple[list, np.ndarray]:
@@ -71,12 +52,16 @@ def _variants(r: int, s: int | None) -> tuple:
     return tuple((int(k == r), int(k == s)) if s is not None else (int(k == r), None) for k in range(3))
 
 
-def block_terms(c, fac, lam, mu, a: int, b: int, shape) -> list:
+def block_terms(c, fac, lam, mu, a: int, b: int, shape, kappa=None) -> list:
     """The banded-form terms [(F (P,) + qshape, derivative orders)] of block (a, b); ``fac`` = w / |det J| (1
-    when lam and mu already carry it): what the NumPy assembly sums (:mod:`iga.elasticity.volume`).
+    when lam, mu and kappa already carry it): what the NumPy assembly sums (:mod:`iga.elasticity.volume`).
+    ``kappa``: a cubic material's anisotropy (:mod:`iga.elasticity.material`), which adds kappa c_r[a] c_s[a] to
+    the diagonal block (a, a): the same products as lambda's there.
 
     Off the diagonal all nine.  On a diagonal block F is symmetric, so only the half H = F_rr / 2 + F_rs
     (r < s) is returned, six terms, and the block is H + H^T (as :func:`iga.assembly.tensor.stiffness_data`)."""
+    if kappa is not None and a == b:
+        lam = lam + kappa
     lca = [lam * c[r][a] for r in range(3)]  # products shared by the terms
     mcb = [mu * c[r][b] for r in range(3)]
     out = []

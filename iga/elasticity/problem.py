@@ -23,6 +23,7 @@ from geometry.errors import show
 from solvers.indexing import complement
 
 from iga.heat.coefficients import ScalarField, is_number
+from iga.elasticity.material import resolved
 from iga.discretisation.components import dof_labels
 from iga.discretisation.constraints import needs_constraints, prolongation
 from iga.discretisation.problem import Problem, SolveRecord
@@ -93,6 +94,9 @@ class ElasticityProblem(Problem):
     model : BSpline, list of BSpline, or a model such as ``tiling.Microstructure``
     youngs : Young's modulus E in Pa: a number, a channel name or a callable ``E(x (N, 3)) -> (N,)``; > 0
     poisson : Poisson's ratio nu in (-1, 0.5): a number, a channel name or a callable
+    material : instead of youngs and poisson, an :class:`iga.CubicMaterial` (cubic symmetry about x, y, z: C11,
+        C12, C44 in Pa, numbers or tabulated over a channel, e.g. a lattice's homogenised stiffness for a macro
+        model: :meth:`iga.StiffnessTable.material`)
     degree_elevation, refine, quadrature_extra, degree, bases : the analysis spaces, as for
         :class:`iga.HeatProblem`
 
@@ -106,13 +110,12 @@ class ElasticityProblem(Problem):
     200.0
     """
 
-    def __init__(self, model, youngs, poisson, degree_elevation=0, refine: int = 0, quadrature_extra: int = 0,
-                 degree=None, bases=None):
+    def __init__(self, model, youngs=None, poisson=None, degree_elevation=0, refine: int = 0,
+                 quadrature_extra: int = 0, degree=None, bases=None, material=None):
         super().__init__(model, degree_elevation, refine, quadrature_extra, degree, bases, components=3)
-        self.youngs = ScalarField(youngs, "Young's modulus", positive=True, model=self.model)
-        self.poisson = ScalarField(poisson, "Poisson's ratio", model=self.model)
-        if self.poisson.constant is not None and not -1.0 < self.poisson.constant < 0.5:
-            raise ProblemError(f"Poisson's ratio must lie in (-1, 0.5), got {show(poisson)}")
+        self.material = resolved(youngs, poisson, material, self.model)
+        #: the isotropic material's Young's modulus and Poisson's ratio (ScalarField), None for a cubic one
+        self.youngs, self.poisson = self.material.fields() if self.material.kind == "isotropic" else (None, None)
         self.supports: list[_Support] = []
         self.loads: list[_Load] = []
         self.holds: list[Hold] = []  # control points held (edges, corners, selections: iga.elasticity.supports)
@@ -130,7 +133,7 @@ class ElasticityProblem(Problem):
         keep their control points: the patches and spaces are the same)."""
         quadrature_extra, degree_elevation, refine, degree = self.space_args
         new = type(self)(model, 1.0, 0.0, degree_elevation, refine, quadrature_extra, degree)
-        new.youngs, new.poisson = self.youngs, self.poisson
+        new.material, new.youngs, new.poisson = self.material, self.youngs, self.poisson
         new.supports, new.loads, new.holds = list(self.supports), list(self.loads), list(self.holds)
         new.springs, new.point_loads = list(self.springs), list(self.point_loads)
         new.body, new.thermal_strain, new.rigid_hold = self.body, self.thermal_strain, self.rigid_hold
@@ -349,8 +352,7 @@ class ElasticityProblem(Problem):
         t0 = time.perf_counter()
 
         def share():
-            K, f, work = ElasticVolume(self.disc).assemble(self.youngs, self.poisson, self.body,
-                                                           self.thermal_strain, patches)
+            K, f, work = ElasticVolume(self.disc).assemble(self.material, self.body, self.thermal_strain, patches)
             return (K, f, work) + self._loads(f, supports, patches)
 
         K, f, work, applied, moments = share() if comm is None else together(comm, share)

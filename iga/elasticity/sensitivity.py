@@ -1,23 +1,27 @@
-"""Exact sensitivities of an elastic solution's compliance or von Mises norm with respect to its Young's modulus:
-per patch or tile (a factor (1 + p_e) on E there) or per control value of the map's channel that E reads.
+"""Exact sensitivities of an elastic solution's compliance or von Mises norm with respect to its material: per
+patch or tile (a factor (1 + p_e) on the whole stiffness C there) or per control value of a map's channel that
+the material reads (Young's modulus, Poisson's ratio, or a cubic material tabulated over the channel:
+:mod:`iga.elasticity.material`).
 
 The compliance J = u . f of K(p) u = f with loads and supports that do not depend on p (homogeneous supports,
-no thermal strain) is self-adjoint: its adjoint is u itself, so dJ/dp = -u . dK/dp u needs no extra solve.
-With C = E C_1(nu) (both Lame constants are proportional to E), dK/dE is K / E pointwise:
+no thermal strain) is self-adjoint: its adjoint is u itself, so dJ/dp = -u . dK/dp u needs no extra solve:
 
-    dJ/dp_e = - int_e eps(u) : C : eps(u) dV,      dJ/dE_c = - int R_c(y) eps(u) : C : eps(u) / E dV,
+    dJ/dp_e = - int_e eps(u) : C : eps(u) dV,      dJ/dc = - int R_c(y) eps(u) : C' : eps(u) dV,
 
-with R_c the map's basis (NURBS where it has weights) at each Gauss point's parameter y: one pass over the
-Gauss points, the derivative of the discrete compliance (``tests/test_elastic_sensitivity.py`` compares it with
-central differences of fresh solves).  The von Mises norm J = (int sigma_vm^p dV / V)^(1/p)
-(:class:`iga.outputs.VonMisesNorm`) depends on E through the stress too (sigma_vm scales with E at a fixed
-strain) and needs one adjoint solve, K lambda = dJ/du (:func:`iga.elasticity.adjoint.elastic_adjoint`):
+with C' the derivative of the stiffness by the channel's value at the point (C / E for Young's modulus) and R_c
+the map's basis (NURBS where it has weights) at each Gauss point's parameter y: one pass over the Gauss points,
+the derivative of the discrete compliance (``tests/test_elastic_sensitivity.py`` compares it with central
+differences of fresh solves).  The von Mises norm J = (int sigma_vm^p dV / V)^(1/p)
+(:class:`iga.outputs.VonMisesNorm`) depends on the material through the stress too (d sigma_vm = 3/2 s : dC :
+eps / sigma_vm at a fixed strain, s the deviator) and needs one adjoint solve, K lambda = dJ/du
+(:func:`iga.elasticity.adjoint.elastic_adjoint`):
 
-    dJ/dp_e = int_e (J^(1-p) / V sigma_vm^p - eps(lambda) : C : eps(u)) dV,   and / E with R_c per channel value.
+    dJ/dc = int R_c (J^(1-p) / V 3/2 sigma_vm^(p-2) s : C' : eps(u) - eps(lambda) : C' : eps(u)) dV,
 
-Prescribed displacements may be non-zero there (lambda vanishes on them).  Refused with
-:class:`iga.errors.ProblemError`: other outputs, prescribed displacements other than zero for the compliance,
-thermal strains (their load depends on E), and a Young's modulus that is not the channel asked for.
+and per tile with C for C' (the first term is then J^(1-p) / V sigma_vm^p).  Prescribed displacements may be
+non-zero there (lambda vanishes on them).  Refused with :class:`iga.errors.ProblemError`: other outputs,
+prescribed displacements other than zero for the compliance, thermal strains (their load depends on the
+material), and a channel the material does not read.
 """
 
 from __future__ import annotations
@@ -38,9 +42,9 @@ __all__ = ["elastic_sensitivity"]
 
 def elastic_sensitivity(solution, output: Output, wrt: str = "tiles", solver: str = "auto") -> np.ndarray:
     """dJ/dp of the compliance or the von Mises norm of an elastic ``solution`` (module notes): ``wrt="tiles"``
-    (tiles,) or ``"patches"`` (patches,) for a factor on E, in the output's units per unit relative change;
-    ``wrt="channel:NAME"`` per control value of the map's channel NAME that E reads, shaped like the map's control
-    grid (a tuple of them for a model of several maps), per Pa.  ``solver``: the von Mises norm's adjoint solve."""
+    (tiles,) or ``"patches"`` (patches,) for a factor on the stiffness, in the output's units per unit relative
+    change; ``wrt="channel:NAME"`` per control value of the map's channel NAME that the material reads, shaped like
+    the map's control grid (a tuple of them for a model of several maps), per unit of the channel.  ``solver``: the von Mises norm's adjoint solve."""
     solution.problem.gauss_geometry.keep(solution.problem)  # the value, the adjoint load and this pass
     stress = isinstance(output, VonMisesNorm)
     if stress:
@@ -53,9 +57,9 @@ def elastic_sensitivity(solution, output: Output, wrt: str = "tiles", solver: st
     channel = None
     if isinstance(wrt, str) and wrt.startswith("channel:"):
         channel = wrt.split(":", 1)[1]
-        if prob.youngs.kind != "channel" or prob.youngs.spec != channel:
-            raise ProblemError(f"wrt={wrt!r}: Young's modulus is {show(prob.youngs.spec)}, not the channel "
-                               f"{show(channel)}; the derivative is by the channel E reads")
+        if not prob.material.reads(channel):
+            raise ProblemError(f"wrt={wrt!r}: the material reads no channel {show(channel)} ({_reads(prob)}); the "
+                               "derivative is by a channel the material reads")
         scatter = ChannelScatter(prob, channel)
     elif wrt in ("tiles", "patches"):
         if wrt == "tiles" and not hasattr(prob.model, "tiles"):
@@ -73,18 +77,33 @@ def elastic_sensitivity(solution, output: Output, wrt: str = "tiles", solver: st
         fields = np.vstack([fields, elastic_adjoint(solution, output, solver).reshape(3, n)])
 
     def add(chunk, space, vals, grads, wv, x, chans):
-        E, eps, sig = strain_and_stress(prob, chunk, grads[:, :3], x, chans)
-        if stress:  # J^(1-p) / V sigma_vm^p - eps(lambda) : C : eps(u)
-            vm = von_mises(sig)[1]
-            dens = (factor * vm**p - np.sum(sig * strain(grads[:, 3:]), axis=(1, 2))) * wv
+        _, eps, sig = strain_and_stress(prob, chunk, grads[:, :3], x, chans)
+        if channel is None:  # d(C : eps) by a factor (1 + p_e) on the whole stiffness
+            dsig = sig
         else:
-            dens = -np.sum(sig * eps, axis=(1, 2)) * wv  # - eps : C : eps
+            flat = {c: np.reshape(v, -1) for c, v in chans.items()}
+            dsig = prob.material.slopes(x, flat, f"patches {chunk[0]}..{chunk[-1]}", channel).stress(eps)
+        if stress:  # J^(1-p) / V 3/2 sigma_vm^(p-2) s : dC : eps - eps(lambda) : dC : eps(u)
+            dev, vm = von_mises(sig)
+            scale = np.where(vm > 0, np.where(vm > 0, vm, 1.0) ** (p - 2), 0.0)
+            dens = (1.5 * factor * scale * np.sum(dev * dsig, axis=(1, 2))
+                    - np.sum(dsig * strain(grads[:, 3:]), axis=(1, 2))) * wv
+        else:
+            dens = -np.sum(dsig * eps, axis=(1, 2)) * wv  # - eps : dC : eps
         if channel is None:
             out[np.asarray(chunk)] += dens.reshape(len(chunk), -1).sum(1)
         else:
-            scatter.add(chunk, space, dens / E)
+            scatter.add(chunk, space, dens)
 
     gauss_pass(prob, fields, add)
     if channel is not None:
         return scatter.result()
     return per_patch_or_tile(prob, out, {"tiles": "tile", "patches": "patch"}[wrt])
+
+
+def _reads(prob) -> str:
+    """What the material's constants are, for messages."""
+    m = prob.material
+    if m.kind == "isotropic":
+        return f"Young's modulus {show(m.youngs.spec)}, Poisson's ratio {show(m.poisson.spec)}"
+    return f"a cubic material of the channel {show(m.channel)}" if m.channel else "a cubic material of numbers"

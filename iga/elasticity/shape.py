@@ -30,7 +30,7 @@ import numpy as np
 
 from geometry.errors import show
 
-from iga.elasticity.forms import isotropic_stress, moduli, strain
+from iga.elasticity.forms import moduli, strain
 from iga.errors import ProblemError
 from iga.elasticity.adjoint import elastic_adjoint
 from iga.outputs import Compliance, Volume, VonMisesNorm, evaluated, gauss_pass, von_mises
@@ -75,6 +75,9 @@ def _check(solution, output, what: str) -> None:
                                "pressure's direction moves with the face; a callable of x would move)")
     if prob.body is not None and prob.body.kind != "vector":
         raise ProblemError(f"{what}: the body force must be three numbers, not a callable of x")
+    if prob.material.kind != "isotropic":
+        raise ProblemError(f"{what}: the shape terms of a {prob.material.kind} material are not built; give an "
+                           "isotropic one (youngs=, poisson=)")
     for field in (prob.youngs, prob.poisson):
         if field.kind == "callable":
             raise ProblemError(f"{what}: {field.what} must be a number or a channel of the map (material), not a "
@@ -82,12 +85,17 @@ def _check(solution, output, what: str) -> None:
 
 
 def strain_and_stress(prob, chunk, grads, x, chans) -> tuple:
-    """(E (N,), eps (N, 3, 3), sigma (N, 3, 3)) at Gauss points of the patches ``chunk`` from the displacement
-    gradients ``grads`` (N, 3, 3), the points x and the channels there (isotropic: sigma = lam tr(eps) I + 2 mu
-    eps; no thermal strain)."""
-    E, lam, mu = moduli(prob, chunk, x, chans)
+    """(the :class:`iga.elasticity.material.Moduli`, eps (N, 3, 3), sigma = C : eps (N, 3, 3)) at Gauss points of
+    the patches ``chunk`` from the displacement gradients ``grads`` (N, 3, 3), the points x and the channels
+    there (no thermal strain)."""
+    mod = moduli(prob, chunk, x, chans)
     eps = strain(grads)
-    return E, eps, isotropic_stress(lam, mu, eps)
+    return mod, eps, mod.stress(eps)
+
+
+def _youngs(prob, chunk, x, chans) -> np.ndarray:
+    """Young's modulus (N,) in Pa of the isotropic material at the Gauss points x of ``chunk``."""
+    return prob.youngs.values(x, {c: np.reshape(v, -1) for c, v in chans.items()}, f"patches {chunk[0]}..{chunk[-1]}")
 
 
 def elastic_densities(solution, output, volume, faces, what: str, solver: str = "auto") -> None:
@@ -114,15 +122,16 @@ def elastic_densities(solution, output, volume, faces, what: str, solver: str = 
     def add(chunk, space, vals, grads, wv, x, chans):
         gu, gl = grads[:, :3], grads[:, 3:]  # (u's, and the adjoint's for the von Mises norm)
         if not stress:
-            E, eps, sig = strain_and_stress(prob, chunk, gu, x, chans)
+            _, eps, sig = strain_and_stress(prob, chunk, gu, x, chans)
+            E = _youngs(prob, chunk, x, chans)
             energy2 = np.sum(sig * eps, axis=(1, 2))  # eps : C : eps
             Q = 2 * np.einsum("qik,qij->qkj", gu, sig)
             scalar = -energy2 + (0.0 if body is None else 2 * vals[:, :3] @ body)
             volume(chunk, space, (Q + scalar[:, None, None] * np.eye(3)) * wv[:, None, None], -energy2 / E * wv)
             return
-        E, lam, mu = moduli(prob, chunk, x, chans)
-        eps = strain(gu)
-        sig, sig_l = isotropic_stress(lam, mu, eps), isotropic_stress(lam, mu, strain(gl))
+        mod, eps, sig = strain_and_stress(prob, chunk, gu, x, chans)
+        E, mu = _youngs(prob, chunk, x, chans), mod.mu
+        sig_l = mod.stress(strain(gl))
         dev, vm = von_mises(sig)
         cross = np.sum(sig_l * eps, axis=(1, 2))  # eps(u) : C : eps(lambda)
         scale = np.where(vm > 0, np.where(vm > 0, vm, 1.0) ** (p - 2), 0.0)  # vm^(p-2) s -> 0 where vm = 0

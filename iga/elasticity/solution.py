@@ -8,7 +8,7 @@ from geometry.numbers import TINY
 from geometry import SplineFunction
 from geometry.patches.chain import patch_geometry_points
 
-from iga.elasticity.forms import lame, strain
+from iga.elasticity.forms import strain
 from iga.elasticity.supports import POINT_MARGIN
 from iga.errors import ProblemError
 from geometry.errors import show
@@ -136,13 +136,9 @@ class ElasticSolution:
         u, grad, x, chans = self.evaluate(pi, params)
         eps = strain(grad)
         prob = self.problem
-        lam, mu = lame(prob.youngs.values(x, chans, f"patch {pi}"), prob.poisson.values(x, chans, f"patch {pi}"),
-                       f"patch {pi}")
-        tr = np.trace(eps, axis1=1, axis2=2)
         if prob.thermal_strain is not None:
-            tr = tr - 3 * prob.thermal_strain(pi, x, params, chans)
             eps = eps - (prob.thermal_strain(pi, x, params, chans))[:, None, None] * np.eye(3)
-        return lam[:, None, None] * tr[:, None, None] * np.eye(3) + 2 * mu[:, None, None] * eps
+        return prob.material.moduli(x, chans, f"patch {pi}").stress(eps)
 
     def displacement(self, points) -> np.ndarray:
         """Displacement (N, 3) in m at physical points (N, 3)."""
@@ -251,16 +247,15 @@ class ElasticSolution:
 
         def densities(x, u, g, at):
             where = f"patches {at.patches[0]}..{at.patches[-1]}"
-            lam, mu = lame(prob.youngs.values(x, at.chans, where), prob.poisson.values(x, at.chans, where), where)
+            mod = prob.material.moduli(x, at.chans, where)
             eps = strain(g)
             tr = np.trace(eps, axis1=1, axis2=2)
             th = at.per_patch(prob.thermal_strain) if prob.thermal_strain is not None else np.zeros(len(x))
             mech = eps - th[:, None, None] * np.eye(3)
-            tr_mech = tr - 3 * th
-            sig_eps = lam * tr_mech * tr + 2 * mu * np.sum(mech * eps, axis=(1, 2))
-            energy = 0.5 * (lam * tr_mech**2 + 2 * mu * np.sum(mech * mech, axis=(1, 2)))
-            thermal_load = (3 * lam + 2 * mu) * th * tr  # C eps_th : eps(u), the thermal part of u . f
-            total = lam * tr**2 + 2 * mu * np.sum(eps * eps, axis=(1, 2))  # eps : C : eps, the scale
+            sig_eps = mod.product(mech, eps)
+            energy = 0.5 * mod.product(mech, mech)
+            thermal_load = mod.dilatation * th * tr  # C eps_th : eps(u), the thermal part of u . f
+            total = mod.product(eps, eps)  # eps : C : eps, the scale
             return np.stack([sig_eps, energy, thermal_load, total], 1)
 
         internal, energy, thermal_load, total = integrate_fields(

@@ -26,7 +26,7 @@ from iga.assembly import compiled as fast_assembly
 from iga.assembly.forms import terms_data
 from iga.assembly.tensor import derivative_load_form, load_form, pattern
 from iga.discretisation.constraints import Constraints
-from iga.elasticity.forms import block_terms, divergence_terms, lame, metric_rows
+from iga.elasticity.forms import block_terms, divergence_terms, metric_rows
 from iga.discretisation.faces import chunks
 from iga.discretisation.jacobians import checked_det
 from iga.discretisation.rational import nurbs_scale, rational_form, rational_load_terms, weight_fields
@@ -46,8 +46,8 @@ class ElasticVolume:
     def __init__(self, disc):
         self.disc = disc
 
-    def assemble(self, youngs, poisson, body=None, thermal=None, patches=None):
-        """(K, f, work): ``youngs``, ``poisson`` :class:`iga.heat.coefficients.ScalarField` (Pa, -); ``body`` a
+    def assemble(self, material, body=None, thermal=None, patches=None):
+        """(K, f, work): ``material`` an :mod:`iga.elasticity.material` material (isotropic or cubic); ``body`` a
         vector field of x (N/m^3) or None; ``thermal`` a callable ``(patch index, x, params, chans) -> (N,)``
         of alpha (T - T_ref) or None; ``patches``: a set of patch indices (one MPI rank's share) whose volumes
         alone are integrated, or None for all.  ``work``: {"body": int f dV (N, (3,)) over those patches}."""
@@ -60,7 +60,7 @@ class ElasticVolume:
         total = np.zeros(3)
         work = [m for g in groups for m in chunks(g, 3 * d.spaces[g[0]].nq_total)]
         for members in progress.bar(work, desc="elastic assembly", unit="batch"):
-            loads, force = self._group(members, youngs, poisson, body, thermal, K)
+            loads, force = self._group(members, material, body, thermal, K)
             total += force
             for a in range(3):
                 if loads[a] is not None:
@@ -68,10 +68,11 @@ class ElasticVolume:
                         f[a * n + d.offsets[i] : a * n + d.offsets[i + 1]] += loads[a][j].ravel()
         return K.matrix(), f, {"body": total}
 
-    def _fields(self, members, youngs, poisson, body, thermal, compiled=False):
+    def _fields(self, members, material, body, thermal, compiled=False):
         """The fields of the assembly on the Gauss grid of ``members``, each (..., P) + qshape: G (9, ...) the
         metric rows (``G[3 r + k] = c_r[k]``, :func:`iga.elasticity.forms.metric_rows`), LM (2, ...) lambda w /
-        |det J| and mu w / |det J| (Pa), the weighted body force (3, ...) (N) or None and the thermal
+        |det J| and mu w / |det J| (Pa; a cubic material's kappa w / |det J| a third row), the weighted body
+        force (3, ...) (N) or None and the thermal
         divergence weight (...) or None.  ``compiled``: geometry and metric in the numba kernels; the slabs
         write straight into the fields."""
         d = self.disc
@@ -81,7 +82,7 @@ class ElasticVolume:
         where = f"patch {members[0]}" if P == 1 else f"patches {members[0]}..{members[-1]}"
         w_rest = np.multiply.outer(space.dirs[1].qw, space.dirs[2].qw).ravel()
         rest = len(w_rest)
-        G, LM = np.empty((9, P, N)), np.empty((2, P, N))
+        G, LM = np.empty((9, P, N)), np.empty((2 if material.kind == "isotropic" else 3, P, N))
         fb = None if body is None else np.empty((3, P, N))
         th = None if thermal is None else np.empty((P, N))
         lo, hi = np.inf, -np.inf  # det range over all slabs: a sign change between slabs is a fold too
@@ -91,13 +92,15 @@ class ElasticVolume:
             xs = x.reshape(-1, 3)
             flat = {ch: np.reshape(v, -1) for ch, v in chans.items()}
             w = np.broadcast_to(np.multiply.outer(space.dirs[0].qw[planes], w_rest).ravel(), (P, m)).reshape(-1)
-            lam, mu = lame(youngs.values(xs, flat, where), poisson.values(xs, flat, where), where)
+            mod = material.moduli(xs, flat, where)
+            lam, mu = mod.lam, mod.mu
             if compiled:
                 det = fast_assembly.elastic_metric(D, lam, mu, w, at.start, G, LM)
             else:
                 c, det = metric_rows(D)
                 G[:, :, at] = np.reshape(c, (9, P, m))
-                LM[:, :, at] = (np.stack([lam, mu]) * (w / np.abs(det))).reshape(2, P, m)
+                rows = [lam, mu] if mod.kappa is None else [lam, mu, mod.kappa]
+                LM[:, :, at] = (np.stack(rows) * (w / np.abs(det))).reshape(len(rows), P, m)
             a, b = checked_det(det, where)
             lo, hi = min(lo, a), max(hi, b)
             if fb is not None:
@@ -106,19 +109,21 @@ class ElasticVolume:
                 params = _slab_params(space, planes)
                 strain = np.concatenate([thermal(i, x[j], params, {k: v[j] for k, v in chans.items()})
                                          for j, i in enumerate(members)])
-                th[:, at] = ((3 * lam + 2 * mu) * strain * np.sign(det) * w).reshape(P, m)
+                th[:, at] = (mod.dilatation * strain * np.sign(det) * w).reshape(P, m)
         checked_det(np.array([lo, hi]), where)
         shape = (P,) + space.qshape
-        return (G.reshape((9,) + shape), LM.reshape((2,) + shape), None if fb is None else fb.reshape((3,) + shape),
+        return (G.reshape((9,) + shape), LM.reshape((len(LM),) + shape), None if fb is None else fb.reshape((3,) + shape),
                 None if th is None else th.reshape(shape))
 
-    def _group(self, members, youngs, poisson, body, thermal, K: VectorCSR):
+    def _group(self, members, material, body, thermal, K: VectorCSR):
         """Write the stiffness of ``members`` into K; returns loads [(P,) + shape or None] * 3 and int f dV (3,)."""
         space = self.disc.spaces[members[0]]
         shape = (len(members),) + space.qshape
         w = self.disc.weights[members[0]]  # the NURBS basis (iga.discretisation.rational): forms scaled by w
-        compiled = w is None and fast_assembly.applies(space, len(members), terms=ELASTIC_TERMS)
-        G, LM, fb, th = self._fields(members, youngs, poisson, body, thermal, compiled)
+        # (the compiled kernel forms the isotropic coefficients; a cubic material's go through the terms)
+        compiled = w is None and material.kind == "isotropic" and fast_assembly.applies(space, len(members),
+                                                                                        terms=ELASTIC_TERMS)
+        G, LM, fb, th = self._fields(members, material, body, thermal, compiled)
         c = [[G[3 * r + a] for a in range(3)] for r in range(3)]
         nurbs = None
         if w is not None:
@@ -154,7 +159,7 @@ def _term_blocks(space, pat, c, LM, shape, nurbs=None, w=None) -> dict:
     scale = None if w is None else nurbs_scale(pat, w.reshape(-1))
     for a in range(3):
         for b in range(a, 3):
-            terms = block_terms(c, 1.0, LM[0], LM[1], a, b, shape)
+            terms = block_terms(c, 1.0, LM[0], LM[1], a, b, shape, LM[2] if len(LM) > 2 else None)
             if nurbs is not None:
                 terms = rational_form(terms, *nurbs)
             H = terms_data(space, terms, pat)  # compiled for large groups

@@ -240,7 +240,7 @@ def effective_stiffness(tile, youngs, poisson, degree_elevation: int = 1, refine
 
     model = periodic_cell(tile)
     prob = ElasticityProblem(model, youngs, poisson, degree_elevation=degree_elevation, refine=refine)
-    K = ElasticVolume(prob.disc).assemble(prob.youngs, prob.poisson)[0]
+    K = ElasticVolume(prob.disc).assemble(prob.material)[0]
     c = vector_constraints(prolongation(prob.model, prob.spaces, prob.offsets, prob.weights), prob.ndof)
     B, mean, volume = _stiffness_loads(prob)  # (3 ndof, 6), int E_m : C : E_n dV (6, 6), solid volume
     A = (c.P.T @ K @ c.P).tocsc()

@@ -29,9 +29,10 @@ from tiling.materials import interpolate_channel
 
 from iga.heat.coefficients import TENSOR_PAIRS
 from iga.errors import ProblemError
-from iga.homogenisation.cells import effective_conductivity
+from iga.elasticity.material import CubicMaterial
+from iga.homogenisation.cells import effective_conductivity, effective_stiffness
 
-__all__ = ["EffectiveTable", "effective_table", "macro_map"]
+__all__ = ["EffectiveTable", "effective_table", "macro_map", "StiffnessTable", "stiffness_table"]
 
 
 @dataclass
@@ -74,10 +75,7 @@ def effective_table(family, values, conductivity=1.0, degree_elevation: int = 1,
                     name: str | None = None) -> EffectiveTable:
     """:func:`iga.effective_conductivity` of ``family(p)`` (a tile) at every p of ``values`` (>= 2 increasing
     numbers), as an :class:`EffectiveTable`; ``conductivity``, ``degree_elevation``, ``refine`` as there."""
-    v = np.asarray(values, float).reshape(-1) if np.ndim(values) else np.array([])
-    if len(v) < 2 or not np.all(np.isfinite(v)) or np.any(np.diff(v) <= 0):
-        raise ProblemError(f"effective_table needs at least two increasing finite parameter values, got "
-                           f"{show(values)}")
+    v = _increasing(values, "effective_table")
     if not callable(family):
         raise ProblemError(f"effective_table: family must be a callable p -> tile (e.g. tiling.library.cross), got "
                            f"{show(family)}")
@@ -86,14 +84,118 @@ def effective_table(family, values, conductivity=1.0, degree_elevation: int = 1,
     return EffectiveTable(v, tensors, name or getattr(family, "__name__", "tile family"))
 
 
-def _member(family, p: float):
+#: relative departure from cubic symmetry above which stiffness_table refuses a family (its tensor is not C11,
+#: C12, C44 about x, y, z: another symmetry, which a CubicMaterial would misrepresent)
+CUBIC_MARGIN = 1e-6
+
+
+@dataclass
+class StiffnessTable:
+    """The effective stiffness of a tile family of cubic symmetry (a cross lattice) at the family's parameter
+    values ``values`` (n,), increasing: ``constants`` (n, 3) = (C11, C12, C44) in Pa and the solid volume
+    ``fractions`` (n,); ``cubic_error`` the largest relative departure of the tensors from cubic symmetry; ``name``
+    labels the family.  Between the values, every constant and the fraction are cubic splines in p
+    (:class:`scipy.interpolate.CubicSpline`, not-a-knot), with their exact derivatives: the constants of a
+    :class:`iga.CubicMaterial` of a channel (:meth:`material`), a graded lattice's macro model."""
+
+    values: np.ndarray
+    constants: np.ndarray
+    fractions: np.ndarray
+    cubic_error: float = 0.0
+    name: str = "tile family"
+
+    def __post_init__(self):
+        from scipy.interpolate import CubicSpline
+
+        bc = "not-a-knot" if len(self.values) > 3 else "natural"
+        self._spline = CubicSpline(self.values, np.column_stack([self.constants, self.fractions]), axis=0, bc_type=bc)
+        self._slope = self._spline.derivative()
+
+    def _at(self, spline, p) -> np.ndarray:
+        p = np.asarray(p, float).reshape(-1)
+        lo, hi = float(self.values[0]), float(self.values[-1])
+        bad = ~((p >= lo - 1e-12 * max(1.0, abs(lo))) & (p <= hi + 1e-12 * max(1.0, abs(hi))))
+        if bad.any():
+            raise ProblemError(f"parameter {p[bad][0]:g} lies outside the stiffness table of {self.name} ([{lo:g}, "
+                               f"{hi:g}]); tabulate the range the model uses (stiffness_table(family, values, ...)) "
+                               "or bound the design within it")
+        return spline(np.clip(p, lo, hi))
+
+    def constants_at(self, p) -> np.ndarray:
+        """(C11, C12, C44) (N, 3) in Pa at parameters p (N,); outside the table refused (no extrapolation)."""
+        return self._at(self._spline, p)[:, :3]
+
+    def slopes(self, p) -> np.ndarray:
+        """d(C11, C12, C44)/dp (N, 3) in Pa per unit of p."""
+        return self._at(self._slope, p)[:, :3]
+
+    def fraction(self, p) -> np.ndarray:
+        """The solid volume fraction (N,) of the family's member at p."""
+        return self._at(self._spline, p)[:, 3]
+
+    def fraction_slope(self, p) -> np.ndarray:
+        """d fraction / dp (N,)."""
+        return self._at(self._slope, p)[:, 3]
+
+    def material(self, channel: str) -> CubicMaterial:
+        """The :class:`iga.CubicMaterial` whose constants are this table at the map's channel ``channel``:
+        ``ElasticityProblem(D, material=table.material("t"))`` is the lattice's macro model on D."""
+        return CubicMaterial(_Constants(self), channel)
+
+
+class _Constants:
+    """A :class:`StiffnessTable` as the constants and slopes a :class:`iga.CubicMaterial` reads."""
+
+    def __init__(self, table: StiffnessTable):
+        self.table = table
+        self.constants, self.slopes = table.constants_at, table.slopes
+        self.fraction, self.fraction_slope = table.fraction, table.fraction_slope
+
+
+def stiffness_table(family, values, youngs, poisson, degree_elevation: int = 1, refine: int = 0,
+                    name: str | None = None) -> StiffnessTable:
+    """:func:`iga.effective_stiffness` of ``family(p)`` (a tile of cubic symmetry, e.g.
+    :func:`tiling.library.cross`) made of an isotropic material (``youngs`` in Pa, ``poisson``) at every p of
+    ``values`` (>= 2 increasing numbers), reduced to its cubic constants (C11 the mean of the three normal
+    stiffnesses, C12 of the three couplings, C44 of the three shear ones) as a :class:`StiffnessTable`; a family
+    whose tensors depart from cubic symmetry by more than :data:`CUBIC_MARGIN` (relative) is refused."""
+    v = _increasing(values, "stiffness_table")
+    if not callable(family):
+        raise ProblemError(f"stiffness_table: family must be a callable p -> tile (e.g. tiling.library.cross), got "
+                           f"{show(family)}")
+    fams = [effective_stiffness(_member(family, float(p), "stiffness_table"), youngs, poisson, degree_elevation,
+                                refine, diagnostics=True) for p in v]
+    C = np.stack([f.tensor for f in fams])
+    n, c, g = np.arange(3), np.array([[0, 1], [0, 2], [1, 2]]), np.arange(3, 6)
+    constants = np.column_stack([C[:, n, n].mean(1), C[:, c[:, 0], c[:, 1]].mean(1), C[:, g, g].mean(1)])
+    cubic = np.zeros_like(C)
+    cubic[:, n, n] = constants[:, :1]
+    cubic[:, c[:, 0], c[:, 1]] = cubic[:, c[:, 1], c[:, 0]] = constants[:, 1:2]
+    cubic[:, g, g] = constants[:, 2:]
+    error = float((np.abs(C - cubic).max((1, 2)) / np.abs(C).max((1, 2))).max())
+    label = name or getattr(family, "__name__", "tile family")
+    if error > CUBIC_MARGIN:
+        raise ProblemError(f"stiffness_table: the effective stiffness of {label} departs from cubic symmetry by "
+                           f"{error:.3g} (relative); a CubicMaterial needs a family symmetric about the cell's axes "
+                           "(e.g. tiling.library.cross)")
+    return StiffnessTable(v, constants, np.array([f.volume_fraction for f in fams]), error, label)
+
+
+def _increasing(values, what: str) -> np.ndarray:
+    v = np.asarray(values, float).reshape(-1) if np.ndim(values) else np.array([])
+    if len(v) < 2 or not np.all(np.isfinite(v)) or np.any(np.diff(v) <= 0):
+        raise ProblemError(f"{what} needs at least two increasing finite parameter values, got {show(values)}")
+    return v
+
+
+def _member(family, p: float, what: str = "effective_table"):
     """``family(p)``, a user's callable: what it raises is reported as the project's error naming it and p."""
     try:
         return family(p)
     except ToolkitError:
         raise
     except Exception as exc:  # the user's code: any exception, reported with its own words
-        raise ProblemError(f"effective_table: the family {show(getattr(family, '__name__', family))} failed at "
+        raise ProblemError(f"{what}: the family {show(getattr(family, '__name__', family))} failed at "
                            f"p = {p:g}: {type(exc).__name__}: {exc}") from None
 
 

@@ -8,7 +8,7 @@ import numpy as np
 from geometry.patches.sampling import piece_basis
 
 from iga.heat.coefficients import tensor_matrix
-from iga.elasticity.forms import lame, strain
+from iga.elasticity.forms import strain
 from iga.errors import ProblemError
 from iga.discretisation.fields import grid_fields
 from iga.discretisation.fields import field_spline, physical_gradient
@@ -65,7 +65,8 @@ def _temperature_fields(prob, U, suffixes, members, pax, x, D, chans, out: dict)
 
 def displacement_fields(solution):
     """The ``fields`` hook for an :class:`iga.ElasticSolution`: displacement (m), stress (Pa, six components
-    xx, yy, zz, xy, xz, yz), von Mises stress (Pa), Young's modulus and Poisson's ratio at the sample points."""
+    xx, yy, zz, xy, xz, yz), von Mises stress (Pa), Young's modulus and Poisson's ratio at the sample points (a
+    cubic material: ``cubic_constants`` C11, C12, C44 in Pa)."""
     def hook(members, pax, x, D, chans, out):
         return _displacement_fields(solution, members, pax, x, D, chans, out)
 
@@ -85,20 +86,24 @@ def _displacement_fields(solution, members, pax, x, D, chans, out: dict) -> np.n
     flat = {c: np.reshape(v, -1) for c, v in chans.items()}
     xs = x.reshape(-1, 3)
     where = f"patches {members[0]}..{members[-1]}"
-    E, nu = prob.youngs.values(xs, flat, where), prob.poisson.values(xs, flat, where)
-    lam, mu = lame(E, nu, where)
+    mod = prob.material.moduli(xs, flat, where)
     eps = strain(grad)
     if prob.thermal_strain is not None:
         params = np.stack(np.meshgrid(*pax, indexing="ij"), -1).reshape(-1, 3)
         th = np.concatenate([prob.thermal_strain(i, x[j], params, {c: v[j] for c, v in chans.items()})
                              for j, i in enumerate(members)])
         eps = eps - th[:, None, None] * np.eye(3)
-    S = lam[:, None, None] * np.trace(eps, axis1=1, axis2=2)[:, None, None] * np.eye(3) + 2 * mu[:, None, None] * eps
+    S = mod.stress(eps)
     voigt = np.stack([S[:, 0, 0], S[:, 1, 1], S[:, 2, 2], S[:, 0, 1], S[:, 0, 2], S[:, 1, 2]], 1)
     dev = S - np.trace(S, axis1=1, axis2=2)[:, None, None] / 3 * np.eye(3)
     out.update({"displacement": u.reshape(P, N, 3), "stress": voigt.reshape(P, N, 6),
-                "von_mises": np.sqrt(1.5 * np.sum(dev * dev, axis=(1, 2))).reshape(P, N),
-                "youngs_modulus": E.reshape(P, N), "poisson_ratio": nu.reshape(P, N)})
+                "von_mises": np.sqrt(1.5 * np.sum(dev * dev, axis=(1, 2))).reshape(P, N)})
+    if prob.youngs is not None:  # isotropic
+        out.update({"youngs_modulus": prob.youngs.values(xs, flat, where).reshape(P, N),
+                    "poisson_ratio": prob.poisson.values(xs, flat, where).reshape(P, N)})
+    else:  # cubic: C11, C12, C44
+        c11 = mod.lam + 2 * mod.mu + mod.kappa
+        out["cubic_constants"] = np.stack([c11, mod.lam, mod.mu], 1).reshape(P, N, 3)
     return det
 
 

@@ -6,7 +6,7 @@ hexahedra (VTK type 12) and welded into one mesh without internal faces
 ``heat_flux`` (W/m^2, vector), ``conductivity`` (a scalar, or the 3 x 3 tensor);
 ``displacement`` (m, vector: ParaView's Warp By Vector), ``stress`` (Pa, xx, yy, zz,
 xy, xz, yz), ``von_mises`` (Pa), ``youngs_modulus`` and ``poisson_ratio`` (with an
-elastic solution); and every channel of the tiles and the deformation map; cell data: ``patch``,
+elastic solution; ``cubic_constants`` C11, C12, C44 in Pa for a cubic material); and every channel of the tiles and the deformation map; cell data: ``patch``,
 ``tile`` and ``level`` (filter by level in ParaView with Threshold).
 
 ``cells="bezier"``: one exact rational Bezier hexahedron (VTK type 79) per
