@@ -39,6 +39,22 @@ def test_a_cubic_crystal_stretched_along_an_axis_is_in_uniaxial_stress_of_its_di
     assert balance.relative_error < 1e-10  # the strain energy includes the cubic term
 
 
+def test_a_cubic_crystal_heated_between_sliding_walls_has_its_thermal_stress():
+    """A uniform rise dT with every face held in its normal direction: no strain, so sigma = -(C11 + 2 C12) alpha
+    dT I (a cubic material expands isotropically); held against rigid motion alone it expands free of stress."""
+    held = ElasticityProblem(pr.box(), material=CubicMaterial((C11, C12, C44)), degree_elevation=1)
+    for face, comp in (("umin", "x"), ("umax", "x"), ("vmin", "y"), ("vmax", "y"), ("wmin", "z"), ("wmax", "z")):
+        held = held.dirichlet(face, 0.0, components=comp)
+    s = held.thermal(50.0, 1.2e-5).solve(solver="direct")
+    x = np.random.default_rng(2).random((10, 3))
+    assert np.allclose(s.stress(x), -(C11 + 2 * C12) * 1.2e-5 * 50.0 * np.eye(3), rtol=1e-10, atol=1e-3)
+    assert s.work_balance().relative_error < 1e-10
+    free = ElasticityProblem(pr.box(), material=CubicMaterial((C11, C12, C44)), degree_elevation=1).hold_rigid()
+    s = free.thermal(50.0, 1.2e-5).solve(solver="direct")
+    assert np.abs(s.stress(x)).max() < 1e-6 * (C11 + 2 * C12) * 1.2e-5 * 50.0
+    assert np.allclose(s.strain(x), 1.2e-5 * 50.0 * np.eye(3), rtol=1e-10, atol=1e-16)
+
+
 def test_an_affine_displacement_gives_the_cubic_stress_law_at_random_points():
     """Every face held at u = G x (G a random gradient): the exact solution is that field, its stress C : sym(G)
     in Voigt form with C11, C12 and C44, at random points of a curved patch."""

@@ -8,7 +8,7 @@ import tiling
 from geometry import primitives as pr
 from iga import HeatProblem
 from iga.errors import ProblemError
-from iga import effective_conductivity
+from iga import effective_conductivity, effective_stiffness
 from tiling import library as L
 from tiling.tile import Tile
 
@@ -63,7 +63,6 @@ def test_tiles_that_cannot_be_homogenised_are_refused_naming_why():
 
 
 def test_bare_trivariates_in_the_unit_cell_are_a_tile():
-    from iga import effective_stiffness
 
     solid = pr.box(degrees=(2, 2, 2), elements=(2, 1, 1))
     assert np.abs(effective_conductivity(solid, 3.0) - 3.0 * np.eye(3)).max() < 1e-12
@@ -123,6 +122,12 @@ def test_the_homogenize_command_prints_the_tensors_and_names_bad_arguments():
     assert out.returncode == 0, out.stderr
     k = effective_conductivity(L.cross(0.4))[0, 0]
     assert "volume fraction 0.352" in out.stdout and f"{k:.6f}" in out.stdout and "effective stiffness" in out.stdout
+    C = effective_stiffness(L.cross(0.4), 1e9, 0.3)  # the cross is cubic: its three constants and Zener's ratio
+    assert f"C11 = {C[0, 0]:.6g}" in out.stdout and f"C44 = {C[3, 3]:.6g}" in out.stdout
+    assert f"Zener ratio 2 C44 / (C11 - C12) = {2 * C[3, 3] / (C[0, 0] - C[0, 1]):.4g}" in out.stdout
+    skew = iga_command("homogenize", "--tile", "bent_cross", "--youngs", "1e9")  # bowed arms: not cubic
+    assert skew.returncode == 0, skew.stderr
+    assert "effective stiffness" in skew.stdout and "cubic symmetry" not in skew.stdout
     bad = iga_command("homogenize", "--tile", "cross", "--arg", "width=0.4")
     assert bad.returncode == 1 and "does not take ['width']" in bad.stderr and "Traceback" not in bad.stderr
 

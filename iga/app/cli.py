@@ -151,6 +151,7 @@ def _cmd_run(args, cfg: dict | None = None) -> int:
 
 def _cmd_homogenize(args) -> int:
     from iga.homogenisation.cells import effective_conductivity, effective_stiffness
+    from iga.homogenisation.macro import CUBIC_MARGIN, cubic_constants
 
     import inspect
 
@@ -196,6 +197,11 @@ def _cmd_homogenize(args) -> int:
         print(f"effective stiffness (E = {args.youngs:g}, nu = {nu:g}; Voigt xx yy zz yz xz xy, "
               f"engineering shears) in units of {scale:g} Pa, symmetry error {c.symmetry_error:.1e}:")
         print(np.round(c.tensor / scale, 6) + 0.0)
+        (c11, c12, c44), departure = (v[0] for v in cubic_constants(c.tensor))
+        if departure <= CUBIC_MARGIN:  # a lattice designer's figures: the constants and Zener's anisotropy ratio
+            print(f"cubic symmetry (to {departure:.1e}): C11 = {c11:.6g}, C12 = {c12:.6g}, C44 = {c44:.6g} Pa; "
+                  f"Zener ratio 2 C44 / (C11 - C12) = {2 * c44 / (c11 - c12):.4g} (1: isotropic); iga.stiffness_table "
+                  "tabulates them for a macro model")
     return 0
 
 

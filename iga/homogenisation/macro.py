@@ -23,7 +23,7 @@ import numpy as np
 
 from geometry import BSpline
 from geometry.errors import ToolkitError, show
-from geometry.numbers import is_integer
+from geometry.numbers import TINY, is_integer
 from geometry.resources import check_memory
 from tiling.materials import interpolate_channel
 
@@ -32,7 +32,7 @@ from iga.errors import ProblemError
 from iga.elasticity.material import CubicMaterial
 from iga.homogenisation.cells import effective_conductivity, effective_stiffness
 
-__all__ = ["EffectiveTable", "effective_table", "macro_map", "StiffnessTable", "stiffness_table"]
+__all__ = ["EffectiveTable", "effective_table", "macro_map", "StiffnessTable", "stiffness_table", "cubic_constants"]
 
 
 @dataclass
@@ -165,20 +165,28 @@ def stiffness_table(family, values, youngs, poisson, degree_elevation: int = 1, 
                            f"{show(family)}")
     fams = [effective_stiffness(_member(family, float(p), "stiffness_table"), youngs, poisson, degree_elevation,
                                 refine, diagnostics=True) for p in v]
-    C = np.stack([f.tensor for f in fams])
-    n, c, g = np.arange(3), np.array([[0, 1], [0, 2], [1, 2]]), np.arange(3, 6)
-    constants = np.column_stack([C[:, n, n].mean(1), C[:, c[:, 0], c[:, 1]].mean(1), C[:, g, g].mean(1)])
-    cubic = np.zeros_like(C)
-    cubic[:, n, n] = constants[:, :1]
-    cubic[:, c[:, 0], c[:, 1]] = cubic[:, c[:, 1], c[:, 0]] = constants[:, 1:2]
-    cubic[:, g, g] = constants[:, 2:]
-    error = float((np.abs(C - cubic).max((1, 2)) / np.abs(C).max((1, 2))).max())
+    constants, errors = cubic_constants(np.stack([f.tensor for f in fams]))
+    error = float(errors.max())
     label = name or getattr(family, "__name__", "tile family")
     if error > CUBIC_MARGIN:
         raise ProblemError(f"stiffness_table: the effective stiffness of {label} departs from cubic symmetry by "
                            f"{error:.3g} (relative); a CubicMaterial needs a family symmetric about the cell's axes "
                            "(e.g. tiling.library.cross)")
     return StiffnessTable(v, constants, np.array([f.volume_fraction for f in fams]), error, label)
+
+
+def cubic_constants(C: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The nearest cubic constants (N, 3) = (C11, C12, C44) of Voigt stiffness tensors C (N, 6, 6) (engineering
+    shears; the means of the three normal, coupling and shear entries) and each tensor's relative departure from
+    that cubic tensor (N,) (largest entry of the difference / largest entry of C)."""
+    C = np.asarray(C, float).reshape(-1, 6, 6)
+    n, c, g = np.arange(3), np.array([[0, 1], [0, 2], [1, 2]]), np.arange(3, 6)
+    constants = np.column_stack([C[:, n, n].mean(1), C[:, c[:, 0], c[:, 1]].mean(1), C[:, g, g].mean(1)])
+    cubic = np.zeros_like(C)
+    cubic[:, n, n] = constants[:, :1]
+    cubic[:, c[:, 0], c[:, 1]] = cubic[:, c[:, 1], c[:, 0]] = constants[:, 1:2]
+    cubic[:, g, g] = constants[:, 2:]
+    return constants, np.abs(C - cubic).max((1, 2)) / np.maximum(np.abs(C).max((1, 2)), TINY)
 
 
 def _increasing(values, what: str) -> np.ndarray:
