@@ -6,6 +6,7 @@ import json
 import re
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 OUT = Path(__file__).parent / "out"
@@ -128,3 +129,11 @@ def pyplot():
         print("(matplotlib not installed: pip install -e '.[bench]' for plots)")
         return None
     return plt
+
+
+def timed(fn):
+    """(fn(), its wall time in s), after :func:`settle`."""
+    settle()
+    t0 = time.perf_counter()
+    out = fn()
+    return out, time.perf_counter() - t0

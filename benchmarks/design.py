@@ -28,12 +28,15 @@ Then a cantilever lattice of 8 x 2 x 2 face-graded crosses (80 x 20 x 20 mm, alu
 loaded by a traction on the other (held: the same area, so the same force), its arm widths graded for least
 compliance at the uniform design's solid volume (`wrt="parameters"` of an elastic solution: the compliance is
 self-adjoint), verified at one refinement more.
-Then the sink's pins and metals together (``--part pins``): the vertical map paved by one level of T2 whose pins
-take their widths from a parameter spline on the cell walls (`library.face_graded_heat_sink`, `tiling.field_graded`;
-32 control values, widths in [0.1, 0.49]), the same cooling; first the pins at the uniform k and the solid volume
-of T2's pins (0.45), then the aluminium/steel grading (216 control values of k) at that geometry and the uniform
-mean of k; verified at one refinement more against the uniform design (T2's pins, k = 129.5), with each step's
-share of the gain.
+Then the sink's pins, base and metals (``--part pins``): the vertical map (its u and v spans bisected) paved by
+one level of T2 whose pins take their widths from a parameter spline on the cell walls
+(`library.face_graded_heat_sink`, `tiling.field_graded`; 32 control values, widths in [0.1, 0.49]), the same
+cooling; first the pins at the uniform k and the solid volume of T2's pins (0.45), then the base's thickness (the
+heights of the map's 16 middle control points between its held bottom and top, `wrt="map", axes="z"`, the solid
+volume kept), then the aluminium/steel grading (216 control values of k) at that geometry and the uniform mean of
+k; verified at one refinement more against the uniform design (T2's pins, k = 129.5), with each step's share of
+the gain.  The same for the demo's two-level sink (``--part sink``): its 16 leaves graded (`tiling.leaf_graded`),
+its base, its metals.
 Then the cantilever designed on its homogenised macro model (``--part macro``): a finer lattice, 16 x 4 x 4
 face-graded crosses (80 x 20 x 20 mm, aluminium, quadratic), whose arm widths come from a parameter field of 54
 control values (degree 2, 4 x 1 x 1 spans); the macro model is the beam alone with the cross's cubic effective
@@ -42,24 +45,22 @@ splines of the width), the same field as its channel; SLSQP on the macro model a
 fraction (`iga.optimize(..., keep_fraction=True)`, the gradient exact for the macro model), then both lattices
 analysed in full: the uniform one at the graded one's exact solid volume, the same 4 N on the loaded end; both
 compliances of both models printed, and the gaps.
-Not measured here: the base's thickness (the side walls of
-neighbouring cells share their control points, so a per-cell base height cannot conform; one height for the whole
-sink is a move of the map's control points, the shape design above), and hierarchical pavings with a parameter
-field.
+Not measured here: a parameter field on the inner levels of a hierarchical paving (their pins carry the next
+level's branch faces).
 
     python benchmarks/design.py                  # writes benchmarks/out/design.json and the pictures
     python benchmarks/design.py --part lattice   # only the graded lattice (also: costs, channel, shape,
-                                                 # pins, cantilever, macro)
+                                                 # pins, sink, cantilever, macro)
 """
 
 from __future__ import annotations
 
 import argparse
-import time
 
 import numpy as np
 
-from _common import figures_dir, print_table, save_json, settle
+from _common import figures_dir, print_table, save_json, timed
+from design_elastic import cantilever_design, macro_design
 
 
 def vertical(D=None, k=129.5):
@@ -74,13 +75,6 @@ def vertical(D=None, k=129.5):
 
 def conditions(problem):
     return problem.neumann("branch-in", 2e4).robin("exterior", 3000.0, 0.0)
-
-
-def timed(fn):
-    settle()
-    t0 = time.perf_counter()
-    out = fn()
-    return out, time.perf_counter() - t0
 
 
 def gradient_costs(repeats: int = 5):
@@ -131,12 +125,13 @@ def main(argv=None):
     ap.add_argument("--maxiter", type=int, default=40)
     ap.add_argument("--figures", action="store_true", help="write the pictures to docs/ (make_figures.py)")
     ap.add_argument("--part", default="all",
-                    choices=("all", "costs", "channel", "shape", "pins", "lattice", "cantilever", "macro"),
+                    choices=("all", "costs", "channel", "shape", "pins", "sink", "lattice", "cantilever", "macro"),
                     help="run one part only (its figures printed; design.json is written by 'all')")
     args = ap.parse_args(argv)
     if args.part != "all":
         {"costs": lambda: print_table(gradient_costs(), _COST_COLUMNS), "channel": lambda: channel_design(args),
          "shape": lambda: shape_design(args.maxiter), "pins": lambda: pins_design(args.maxiter),
+         "sink": lambda: sink_design(args.maxiter),
          "lattice": lambda: lattice_design(args.maxiter),
          "cantilever": lambda: cantilever_design(args.maxiter), "macro": lambda: macro_design(args.maxiter)
          }[args.part]()
@@ -149,10 +144,11 @@ def main(argv=None):
     channel = channel_design(args)
     shape = shape_design(args.maxiter)
     pins = pins_design(args.maxiter)
+    sink = sink_design(args.maxiter)
     lattice = lattice_design(args.maxiter)
     cantilever = cantilever_design(args.maxiter)
     macro = macro_design(args.maxiter)
-    save_json("design.json", {"gradient_costs": costs, **channel, "shape": shape, "pins": pins, "lattice": lattice,
+    save_json("design.json", {"gradient_costs": costs, **channel, "shape": shape, "pins": pins, "sink": sink, "lattice": lattice,
                               "cantilever": cantilever, "macro": macro})
 
 
@@ -246,12 +242,20 @@ def shape_design(maxiter: int) -> dict:
             "largest_rise_lower_percent": lower}
 
 
-def _pinned_sink(widths, k=None, **kw):
+def _sink_map():
+    """The vertical demo map (k = 129.5) with its u and v spans bisected: 4 x 4 control points in plan, whose middle
+    layer's heights set where the tiles' base ends (the base's thickness across the sink, moved by ``axes="z"``)."""
+    _, D = vertical()
+    return D.refine(1, [0, 1])[0]
+
+
+def _pinned_sink(widths, k=None, D=None, **kw):
     """The vertical sink of one level of pins whose widths come from the parameter spline of control values
     ``widths`` (4, 4, 2) (degree 2 along u and v, 1 along w; the side walls sit at mid-height, so both w values
-    count alike), its map's k the control values ``k`` (6, 6, 6) on the map with its spans bisected twice (None:
-    129.5 everywhere on the map itself, which keeps the paving's parameter field for wrt="parameters"), cooled as
-    :func:`conditions` says (the map's wmin is the base's bottom)."""
+    count alike), on the map ``D`` (default :func:`_sink_map`; a design of its heights moves the base's top), its
+    k the control values ``k`` (6, 6, 6) on that map with 4 spans in every direction (None: 129.5 everywhere on the
+    map itself, which keeps the paving's parameter field for wrt="parameters"), cooled as :func:`conditions`
+    says (the map's wmin is the base's bottom)."""
     import iga
     import tiling
     from geometry import SplineFunction
@@ -259,56 +263,160 @@ def _pinned_sink(widths, k=None, **kw):
     from iga.design import redesigned
     from tiling import library
 
-    _, D = vertical()
+    D = _sink_map() if D is None else D
     U = kn.uniform_knots(2, 2)
     field = SplineFunction((2, 2, 1), [U, U, kn.uniform_knots(1, 1)], np.asarray(widths, float).reshape(4, 4, 2, 1))
-    ms = tiling.field_graded(D, library.face_graded_heat_sink, (4, 4, 1), field)
+    ms = tiling.field_graded(D, library.face_graded_heat_sink, (2, 2, 1), field)  # 4 x 4 cells
     if k is not None:  # the same geometry, k on 216 control values (the paving stays; the grading is not carried)
-        ms = redesigned(ms, D, D.refine(2)[0].with_channel("k", k), True)
+        ms = redesigned(ms, D, D.refine(1, [0, 1])[0].refine(2, [2])[0].with_channel("k", k), True)
     return iga.HeatProblem(ms, conductivity="k", **kw).neumann("wmin", 2e4).robin("boundary - wmin", 3000.0, 0.0)
 
 
+def _base_thickness(D) -> np.ndarray:
+    """The base's thickness (mm) at the 4 x 4 cell centres: where the tiles' solid base ends (w = 0.4 of T2's
+    height) above the heated face, through the map."""
+    c = (np.arange(4) + 0.5) / 4
+    u, v = np.meshgrid(c, c, indexing="ij")
+    at = lambda w: D.evaluate(np.column_stack([u.ravel(), v.ravel(), np.full(16, w)]))[:, 2]  # noqa: E731
+    return ((at(0.4) - at(0.0)) * 1e3).reshape(4, 4)
+
+
 def pins_design(maxiter: int) -> dict:
-    """The sink's pins, then its metals (module notes); verified at one refinement more."""
+    """The sink's pins, then its base, then its metals (module notes); verified at one refinement more."""
     import iga
     from iga.io.pictures import render_temperature
     from iga.io.vtu import sampled_grid
     from iga.outputs import TemperatureNorm, Volume
+    from iga.shape_design import moved_map
 
     uniform = np.full((4, 4, 2), 0.45)
     pins, t_pins = timed(lambda: iga.optimize(_pinned_sink(uniform), TemperatureNorm(16), wrt="parameters",
                                               bounds=(0.1, 0.49), maxiter=maxiter))
+    base, t_base = timed(lambda: iga.optimize(_pinned_sink(pins.values), TemperatureNorm(16), wrt="map",
+                                              bounds=0.006, hold=("wmin", "wmax"), axes="z", maxiter=maxiter))
+    D = moved_map(_sink_map(), base.values)
     start = np.full((6, 6, 6), 129.5)
-    metals, t_metals = timed(lambda: iga.optimize(_pinned_sink(pins.values, start), TemperatureNorm(16), "channel:k",
-                                                  (54.0, 205.0), mean=129.5, maxiter=max(maxiter, 40)))
-    print(f"\npins and metals of a one-level vertical sink: the pins ({pins.values.size} control values of the "
+    metals, t_metals = timed(lambda: iga.optimize(_pinned_sink(pins.values, start, D), TemperatureNorm(16),
+                                                  "channel:k", (54.0, 205.0), mean=129.5, maxiter=max(maxiter, 40)))
+    thick = _base_thickness(D)
+    print(f"\npins, base and metals of a one-level vertical sink: the pins ({pins.values.size} control values of the "
           f"widths) {len(pins.history)} SLSQP iterations, {t_pins:.1f} s, TemperatureNorm(16) {pins.initial:.4f} -> "
-          f"{pins.objective:.4f} K; then k ({metals.values.size} control values) {len(metals.history)} iterations, "
-          f"{t_metals:.1f} s, -> {metals.objective:.4f} K at the volume mean of k {metals.history[-1].mean:.2f} "
-          f"W/(m K) (129.5: the same aluminium volume)")
+          f"{pins.objective:.4f} K; then the base (the heights of 16 control points of the map between its held "
+          f"bottom and top) {len(base.history)} iterations, {t_base:.1f} s, -> {base.objective:.4f} K, its thickness "
+          f"{thick.min():.2f} .. {thick.max():.2f} mm (12 uniform); then k ({metals.values.size} control values) "
+          f"{len(metals.history)} iterations, {t_metals:.1f} s, -> {metals.objective:.4f} K at the volume mean of k "
+          f"{metals.history[-1].mean:.2f} W/(m K) (129.5: the same aluminium volume)")
     rows = []
     folder = figures_dir()
-    for name, widths, k in (("uniform", uniform, None), ("pins", pins.values, None),
-                            ("pins + metals", pins.values, metals.values)):
-        s = _pinned_sink(widths, k, refine=1).solve()
+    for name, widths, k, Dm in (("uniform", uniform, None, None), ("pins", pins.values, None, None),
+                                ("pins + base", pins.values, None, D), ("pins + base + metals", pins.values,
+                                                                         metals.values, D)):
+        s = _pinned_sink(widths, k, Dm, refine=1).solve()
         rows.append({"design": name, "unknowns": int(s.info.free_dofs), "largest_rise_K": s.temperature_range(4)[1],
                      "volume_cm3": Volume().value(s) * 1e6, "power_W": s.balance().inflow_W})
-        if name != "pins":
-            png = folder / f"pins_{name.split()[0].replace('pins', 'graded')}.png"
+        if name in ("uniform", "pins + base + metals"):
+            png = folder / f"pins_{'uniform' if name == 'uniform' else 'graded'}.png"
             caption = f"one-level vertical sink, {name}: largest rise {rows[-1]['largest_rise_K']:.3f} K"
             render_temperature(sampled_grid(s.problem.model, s, 3), png, title="rise (K)", caption=caption)
-    print_table(rows, [("design", ">14"), ("unknowns", ",d"), ("largest_rise_K", ".4f"), ("volume_cm3", ".5f"),
+    print_table(rows, [("design", ">20"), ("unknowns", ",d"), ("largest_rise_K", ".4f"), ("volume_cm3", ".5f"),
                        ("power_W", ".4f")])
-    base = rows[0]["largest_rise_K"]
-    lower = [100 * (base - r["largest_rise_K"]) / base for r in rows[1:]]
+    first = rows[0]["largest_rise_K"]
+    lower = [100 * (first - r["largest_rise_K"]) / first for r in rows[1:]]
     print(f"verified at refine 1: the largest rise {lower[0]:.1f}% lower by the pins alone, {lower[1]:.1f}% with "
-          f"the metals too (target >= 10%), at the same solid volume and power; widths "
-          f"{pins.values.min():.3f} .. {pins.values.max():.3f}")
+          f"the base, {lower[2]:.1f}% with the metals too (target >= 10%), at the same solid volume and power; "
+          f"widths {pins.values.min():.3f} .. {pins.values.max():.3f}; base thickness (mm) at the cell centres:\n"
+          + np.array2string(thick.round(2)))
     return {"pins": {"objective": [pins.initial, pins.objective], "iterations": len(pins.history),
                      "seconds": t_pins, "values": pins.values.tolist()},
+            "base": {"objective": [base.initial, base.objective], "iterations": len(base.history),
+                     "seconds": t_base, "thickness_mm": thick.tolist()},
             "metals": {"objective": [metals.initial, metals.objective], "iterations": len(metals.history),
                        "seconds": t_metals},
             "verified": rows, "largest_rise_lower_percent": lower}
+
+
+def _two_level(widths, k=None, D=None, **kw):
+    """The demo's two-level vertical sink (T2, 2 x 2 base tiles) whose 16 leaves are face_graded_heat_sink members
+    with the widths of the parameter spline of control values ``widths`` (4, 4, 2) (:func:`tiling.leaf_graded`), on
+    the map ``D`` (default :func:`_sink_map`, one base tile per knot span), k as :func:`_pinned_sink` takes it."""
+    import iga
+    import tiling
+    from geometry import SplineFunction
+    from geometry import knots as kn
+    from iga.design import redesigned
+    from tiling import library
+
+    D = _sink_map() if D is None else D
+    U = kn.uniform_knots(2, 2)
+    field = SplineFunction((2, 2, 1), [U, U, kn.uniform_knots(1, 1)], np.asarray(widths, float).reshape(4, 4, 2, 1))
+    ms = tiling.leaf_graded(D, library.heat_sink_t2(), (1, 1), 2, library.face_graded_heat_sink, field, scale=0.5)
+    if k is not None:
+        ms = redesigned(ms, D, D.refine(1, [0, 1])[0].refine(2, [2])[0].with_channel("k", k), True)
+    return conditions(iga.HeatProblem(ms, conductivity="k", **kw))
+
+
+def _level0_base(problem, D) -> np.ndarray:
+    """The base thickness (mm) of the four base tiles at their centres: T2's solid base ends at 0.4 of its height."""
+    out = []
+    for p in problem.model.patches:
+        if p.level == 0:
+            y = np.array([[0.5, 0.5, 0.4], [0.5, 0.5, 0.0]]) @ p.placement[:, :3].T + p.placement[:, 3]
+            z = D.evaluate(y)[:, 2]
+            out.append((z[0] - z[1]) * 1e3)
+    return np.array(out)
+
+
+def sink_design(maxiter: int) -> dict:
+    """The two-level vertical sink of the demo: its leaves' pins, its base, its metals (module notes); verified
+    at one refinement more."""
+    import iga
+    from iga.io.pictures import render_temperature
+    from iga.io.vtu import sampled_grid
+    from iga.outputs import MeanTemperature, TemperatureNorm, Volume
+    from iga.shape_design import moved_map
+
+    uniform = np.full((4, 4, 2), 0.45)
+    first = _two_level(uniform).solve()
+    tmax, surface = first.temperature_range(4)[1], MeanTemperature("exterior").value(first)
+    print(f"\ntwo-level vertical sink, uniform (T2, k = 129.5): largest rise {tmax:.4f} K = conduction "
+          f"{tmax - surface:.4f} K ({100 * (tmax - surface) / tmax:.0f}%) + convection {surface:.4f} K")
+    pins, t_pins = timed(lambda: iga.optimize(_two_level(uniform), TemperatureNorm(16), wrt="parameters",
+                                              bounds=(0.1, 0.49), maxiter=maxiter))
+    base, t_base = timed(lambda: iga.optimize(_two_level(pins.values), TemperatureNorm(16), wrt="map",
+                                              bounds=0.006, hold=("wmin", "wmax"), axes="z", maxiter=maxiter))
+    D = moved_map(_sink_map(), base.values)
+    metals, t_metals = timed(lambda: iga.optimize(_two_level(pins.values, np.full((6, 6, 6), 129.5), D),
+                                                  TemperatureNorm(16), "channel:k", (54.0, 205.0), mean=129.5,
+                                                  maxiter=max(maxiter, 40)))
+    print(f"the leaves' pins ({pins.values.size} control values) {len(pins.history)} SLSQP iterations, "
+          f"{t_pins:.1f} s, TemperatureNorm(16) {pins.initial:.4f} -> {pins.objective:.4f} K; the base (16 heights "
+          f"of the map) {len(base.history)} iterations, {t_base:.1f} s, -> {base.objective:.4f} K; k (216 control "
+          f"values) {len(metals.history)} iterations, {t_metals:.1f} s, -> {metals.objective:.4f} K at the mean k "
+          f"{metals.history[-1].mean:.2f} W/(m K)")
+    rows = []
+    for name, widths, k, Dm in (("uniform", uniform, None, None), ("pins", pins.values, None, None),
+                                ("pins + base", pins.values, None, D),
+                                ("pins + base + metals", pins.values, metals.values, D)):
+        s = _two_level(widths, k, Dm, refine=1).solve()
+        rows.append({"design": name, "unknowns": int(s.info.free_dofs), "largest_rise_K": s.temperature_range(4)[1],
+                     "volume_cm3": Volume().value(s) * 1e6, "power_W": s.balance().inflow_W})
+        if name in ("uniform", "pins + base + metals"):
+            png = figures_dir() / f"sink_{'uniform' if name == 'uniform' else 'graded'}.png"
+            render_temperature(sampled_grid(s.problem.model, s, 3), png, title="rise (K)",
+                               caption=f"two-level vertical sink, {name}: largest rise "
+                                       f"{rows[-1]['largest_rise_K']:.3f} K")
+    print_table(rows, [("design", ">20"), ("unknowns", ",d"), ("largest_rise_K", ".4f"), ("volume_cm3", ".5f"),
+                       ("power_W", ".4f")])
+    top = rows[0]["largest_rise_K"]
+    lower = [100 * (top - r["largest_rise_K"]) / top for r in rows[1:]]
+    thick = _level0_base(first.problem, D)
+    print(f"verified at refine 1: the largest rise {lower[0]:.1f}% lower by the leaves' pins, {lower[1]:.1f}% with "
+          f"the base, {lower[2]:.1f}% with the metals too (target >= 10%), at the same solid volume and power; "
+          f"widths {pins.values.min():.3f} .. {pins.values.max():.3f}; base thickness at the base tiles' centres "
+          f"{thick.min():.2f} .. {thick.max():.2f} mm ({_level0_base(first.problem, _sink_map())[0]:.2f} uniform)")
+    return {"conduction_share": (tmax - surface) / tmax, "verified": rows, "largest_rise_lower_percent": lower,
+            "iterations": [len(pins.history), len(base.history), len(metals.history)],
+            "seconds": [t_pins, t_base, t_metals], "base_mm": thick.tolist()}
 
 
 def _lattice(widths):
@@ -368,177 +476,6 @@ def lattice_design(maxiter: int) -> dict:
             "objective": [result.initial, result.objective], "iterations": len(result.history),
             "analyses": result.evaluations, "seconds": seconds, "verified": rows, "largest_rise_lower_percent": lower,
             "values": result.values.tolist()}
-
-
-def _cantilever(widths, **kw):
-    """The cantilever lattice of the module notes with the parameter spline of control values ``widths``."""
-    import tiling
-    from geometry import SplineFunction
-    from geometry import knots as kn
-    from geometry import primitives as pr
-    from iga import ElasticityProblem
-    from tiling import library
-
-    U = kn.uniform_knots(2, 1)
-    D = pr.box((0.08, 0.02, 0.02), degrees=(1, 1, 1))
-    field = SplineFunction((2, 2, 2), [U, U, U], np.asarray(widths, float).reshape(3, 3, 3, 1))
-    ms = tiling.field_graded(D, library.face_graded_cross, (8, 2, 2), field)
-    return ElasticityProblem(ms, youngs=7e10, poisson=0.33, **kw).dirichlet("umin", 0.0).traction(
-        "umax", [0.0, 0.0, -1e5])
-
-
-def cantilever_design(maxiter: int) -> dict:
-    """The cantilever lattice (module notes): arm widths in [0.15, 0.6] from 0.35, the loaded end held, the
-    solid volume kept; Compliance(); verified at one refinement more."""
-    import iga
-    from iga.outputs import Compliance, Volume
-
-    uniform = np.full((3, 3, 3), 0.35)
-    result, seconds = timed(lambda: iga.optimize(_cantilever(uniform), Compliance(), wrt="parameters",
-                                                 bounds=(0.15, 0.6), hold=("umax",), maxiter=maxiter))
-    print(f"\ncantilever lattice: SLSQP {len(result.history)} iterations, {result.evaluations} analyses, "
-          f"{seconds:.1f} s; {result.message}")
-    print(f"compliance: {result.initial:.6g} -> {result.objective:.6g} J ({100 * result.improvement:.1f}% lower)")
-    rows = []
-    for name, widths in (("uniform", uniform), ("graded", result.values)):
-        s = _cantilever(widths, refine=1).solve()
-        rows.append({"design": name, "unknowns": int(s.info.free_dofs), "compliance_J": Compliance().value(s),
-                     "volume_cm3": Volume().value(s) * 1e6, "support_force_z_N": float(s.reaction("umin")[2])})
-    print_table(rows, [("design", ">8"), ("unknowns", ",d"), ("compliance_J", ".6g"), ("volume_cm3", ".5f"),
-                       ("support_force_z_N", ".4f")])
-    lower = 100 * (rows[0]["compliance_J"] - rows[1]["compliance_J"]) / rows[0]["compliance_J"]
-    print(f"verified at refine 1: the compliance {lower:.1f}% lower at the same volume and load")
-    return {"objective": [result.initial, result.objective], "iterations": len(result.history),
-            "analyses": result.evaluations, "seconds": seconds, "verified": rows, "compliance_lower_percent": lower,
-            "values": result.values.tolist()}
-
-
-#: the macro part's beam (m), cells, force on the loaded end (N), aluminium (Pa, -), field spans and width bounds
-_BEAM, _CELLS, _FORCE, _ALU, _SPANS, _WIDTHS = (0.08, 0.02, 0.02), (16, 4, 4), 4.0, (7e10, 0.33), (4, 1, 1), (0.15, 0.6)
-
-
-def _field(values):
-    """The arm-width field: a quadratic spline of control values (6, 3, 3) on the beam's normalised parameters."""
-    from geometry import SplineFunction
-    from geometry import knots as kn
-
-    U = [kn.uniform_knots(2, n) for n in _SPANS]
-    return SplineFunction((2, 2, 2), U, np.asarray(values, float).reshape(6, 3, 3, 1))
-
-
-def _macro_problem(values, table):
-    """The macro model: the beam (its map of the field's degree and spans) with the cross's cubic stiffness at its
-    channel t, clamped at x = 0, the force spread over the end x = L; cubic elements, 16 x 4 x 4 of them."""
-    from geometry import primitives as pr
-    from iga import ElasticityProblem
-
-    D = pr.box(_BEAM, degrees=(2, 2, 2)).refine(2, [0])[0]
-    area = _BEAM[1] * _BEAM[2]
-    return (ElasticityProblem(D.with_channel("t", np.asarray(values, float)), material=table.material("t"),
-                              degree_elevation=1, refine=2)
-            .dirichlet("umin", 0.0).traction("umax", [0.0, 0.0, -_FORCE / area]))
-
-
-def _lattice_problem(values):
-    """The full lattice graded by the field, quadratic (the cell problems' spaces), clamped at its arm ends at
-    x = 0 and loaded on its arm ends at x = L by the same force (the traction over their area)."""
-    import tiling
-    from geometry import primitives as pr
-    from iga import ElasticityProblem
-    from tiling import library
-
-    ms = tiling.field_graded(pr.box(_BEAM, degrees=(1, 1, 1)), library.face_graded_cross, _CELLS, _field(values))
-    ends = ms.info["faces"][0][-1]  # the arm widths on the cells' walls at x = L (cell fractions)
-    area = float(np.sum(ends**2)) * (_BEAM[1] / _CELLS[1]) * (_BEAM[2] / _CELLS[2])
-    return ElasticityProblem(ms, youngs=_ALU[0], poisson=_ALU[1], degree_elevation=1).dirichlet("umin", 0.0) \
-        .traction("umax", [0.0, 0.0, -_FORCE / area])
-
-
-def _uniform_at(volume: float) -> float:
-    """The uniform arm width whose lattice has the solid ``volume`` (m^3): a root of the lattice's exact volume."""
-    from scipy.optimize import brentq
-
-    return float(brentq(lambda w: _lattice_volume(np.full((6, 3, 3), w)) - volume, _WIDTHS[0], _WIDTHS[1],
-                        xtol=1e-10))
-
-
-def _lattice_volume(values) -> float:
-    """The lattice's solid volume (m^3): its patches' |det J| summed by the problem's Gauss rule (no solve)."""
-    from iga.outputs import gauss_pass
-
-    problem, total = _lattice_problem(values), [0.0]
-
-    def add(chunk, space, vals, grads, wv, x, chans):
-        total[0] += float(wv.sum())
-
-    gauss_pass(problem, np.zeros((1, problem.ndof)), add)
-    return total[0]
-
-
-def _render_pair(grids, captions, path):
-    """The uniform lattice above the graded one, seen from the side (y), coloured by the von Mises stress on one
-    scale; the clamped end on the left."""
-    from geometry.io.files import offscreen_plotter, save_screenshot
-
-    hi = max(float(np.percentile(g.point_data["von_mises"], 99.5)) for g in grids)
-    pl = offscreen_plotter((1400, 800))
-    for k, (grid, caption) in enumerate(zip(grids, captions)):
-        shifted = grid.translate((0.0, 0.0, -0.035 * k), inplace=False)
-        pl.add_mesh(shifted, scalars="von_mises", cmap="viridis", clim=(0.0, hi),
-                    scalar_bar_args={"title": "von Mises (Pa)", "vertical": True, "position_x": 0.86, "fmt": "%.2g"})
-        pl.add_text(caption, position=(20, 760 - 380 * k), font_size=11, color="black")
-    pl.add_text("clamped at the left, 4 N down on the right end; colour scale clipped at the 99.5th percentile",
-                position="lower_left", font_size=9, color="black")
-    return save_screenshot(pl, path, camera="xz", zoom=1.2)
-
-
-def macro_design(maxiter: int) -> dict:
-    """The cantilever designed on its macro model and verified on the full lattice (module notes)."""
-    import iga
-    from iga.outputs import Compliance, Volume
-    from tiling import library
-
-    def member(w):
-        return library.face_graded_cross(w, w, w, w, w, w)
-
-    table, t_table = timed(lambda: iga.stiffness_table(member, np.linspace(*_WIDTHS, 10), *_ALU, name="cross"))
-    w0 = 0.35
-    uniform = np.full((6, 3, 3), w0)
-    macro0 = _macro_problem(uniform, table)
-    result, seconds = timed(lambda: iga.optimize(macro0, Compliance(), wrt="channel:t", bounds=_WIDTHS,
-                                                 keep_fraction=True, maxiter=maxiter))
-    fraction = float(table.fraction([w0])[0])
-    print(f"\nmacro cantilever: the cross's cubic stiffness at 10 widths in {t_table:.1f} s (cubic to "
-          f"{table.cubic_error:.1e}); macro model {result.solution.info.free_dofs:,} unknowns, "
-          f"{result.values.size} variables")
-    print(f"SLSQP on the macro model: {len(result.history)} iterations, {result.evaluations} analyses, {seconds:.1f} "
-          f"s; {result.message}; solid fraction {fraction:.4f} -> {result.history[-1].mean:.4f}")
-    print(f"macro compliance: {result.initial:.6g} -> {result.objective:.6g} J "
-          f"({100 * result.improvement:.1f}% lower)")
-    graded = _lattice_problem(result.values).solve()
-    volume = Volume().value(graded)
-    w_match = _uniform_at(volume)
-    rows, grids = [], []
-    for name, values, lattice in (("uniform", np.full((6, 3, 3), w_match), None), ("graded", result.values, graded)):
-        lattice = _lattice_problem(values).solve() if lattice is None else lattice
-        macro = Compliance().value(_macro_problem(values, table).solve())
-        full = Compliance().value(lattice)
-        rows.append({"design": name, "lattice_unknowns": int(lattice.info.free_dofs), "macro_J": macro,
-                     "lattice_J": full, "gap_percent": 100 * (macro - full) / full,
-                     "volume_cm3": Volume().value(lattice) * 1e6, "force_z_N": float(lattice.reaction("umin")[2])})
-        grids.append(lattice.to_pyvista(3))
-    print_table(rows, [("design", ">8"), ("lattice_unknowns", ",d"), ("macro_J", ".5g"), ("lattice_J", ".5g"),
-                       ("gap_percent", "+.1f"), ("volume_cm3", ".4f"), ("force_z_N", ".4f")])
-    lower = 100 * (rows[0]["lattice_J"] - rows[1]["lattice_J"]) / rows[0]["lattice_J"]
-    picture = _render_pair(grids, [f"{r['design']}: lattice compliance {r['lattice_J'] * 1e6:.2f} uJ, macro model "
-                                   f"{r['macro_J'] * 1e6:.2f} uJ" for r in rows], figures_dir() / "macro_cantilever.png")
-    print(f"verified on the full lattice: the compliance {lower:.1f}% lower at the same solid volume and force "
-          f"(uniform width {w_match:.4f} matched to the graded lattice's volume); picture {picture}")
-    print("field control values (x along the rows; middle of y; z across):\n"
-          + np.array2string(result.values[:, 1, :].round(3)))
-    return {"table_s": t_table, "objective": [result.initial, result.objective], "iterations": len(result.history),
-            "analyses": result.evaluations, "seconds": seconds, "verified": rows, "compliance_lower_percent": lower,
-            "uniform_width": w_match, "values": result.values.tolist()}
 
 
 if __name__ == "__main__":

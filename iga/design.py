@@ -88,7 +88,7 @@ def _check(wrt, bounds, mean) -> None:
 
 def optimize(problem, objective: Output, wrt: str = "channel:k", bounds=None, mean: float | None = None,
              maxiter: int = 30, tol: float = 1e-6, solver: str = "auto", hold=(), keep_volume: bool = True,
-             keep_fraction: bool = False) -> DesignResult:
+             keep_fraction: bool = False, axes: str = "xyz") -> DesignResult:
     """Minimise ``objective`` over the control values of the map's channel named in ``wrt`` (see the module), or
     over the map's control points (``wrt="map"``: :func:`iga.shape_design.optimize_shape`), or over the control
     values of a field-graded micro-structure's parameter field (``wrt="parameters"``:
@@ -112,6 +112,7 @@ def optimize(problem, objective: Output, wrt: str = "channel:k", bounds=None, me
     hold : ``wrt="map"`` and ``"parameters"``: the map's faces (``"wmin"``, ...) whose control points (or the
         field's control values there) stay
     keep_volume : ``wrt="map"`` and ``"parameters"``: whether the solid volume is kept at its start
+    axes : ``wrt="map"``: the coordinates of the control points that move (``"z"``: heights only)
     keep_fraction : a macro model's tabulated material (``wrt="channel:NAME"``): whether the mean solid volume
         fraction of its tile family over the model, int phi(c(x)) dV / V, is kept at its start (a lattice's
         mass; ``mean`` must then be None)
@@ -119,7 +120,7 @@ def optimize(problem, objective: Output, wrt: str = "channel:k", bounds=None, me
     Progress: one line per iteration on stderr where progress is on.
     """
     if wrt == "map":
-        return optimize_shape(problem, objective, bounds, hold, keep_volume, maxiter, tol, solver)
+        return optimize_shape(problem, objective, bounds, hold, keep_volume, maxiter, tol, solver, axes)
     if wrt == "parameters":
         return optimize_parameters(problem, objective, bounds, hold, keep_volume, maxiter, tol, solver)
     bounds = (54.0, 205.0) if bounds is None else bounds

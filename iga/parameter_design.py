@@ -78,7 +78,7 @@ def optimize_parameters(problem, objective: Output, bounds, hold=(), keep_volume
     grading = getattr(problem.model, "grading", None)
     if grading is None:
         raise ProblemError("wrt='parameters' designs the parameter field of a field-graded micro-structure "
-                           "(tiling.field_graded); this model has none")
+                           "(tiling.field_graded, tiling.leaf_graded); this model has none")
     if not bounds_pair(bounds):
         raise ProblemError(f"wrt='parameters': bounds must be (low, high) of the field's control values, low < high "
                            f"(inside the family's range, e.g. (0.15, 0.6) arm widths), got {show(bounds)}")
@@ -101,7 +101,7 @@ def optimize_parameters(problem, objective: Output, bounds, hold=(), keep_volume
         values = v0.copy()
         values[free] = lo + np.clip(z, 0, 1) * (hi - lo)
         new, field = _with_values(grading, D, values)
-        ms = tiling.field_graded(new, grading.family, grading.counts, field, name=model.name)
+        ms = grading.rebuild(new, field, model.name)
         sol = analysed(problem.on(ms), solver)
         g = np.asarray(parameter_sensitivity(sol, objective, "parameters", solver))[free] * (hi - lo)
         gV = np.asarray(parameter_sensitivity(sol, volume, "parameters", solver))[free] * (hi - lo)

@@ -57,8 +57,10 @@ STEP = 1e-3
 
 
 def parameter_sensitivity(solution, output: Output, wrt: str = "parameters", solver: str = "auto"):
-    """dJ/d(field) of ``output`` on a field-graded micro-structure (module notes): ``wrt="faces"`` gives a tuple of
-    three arrays shaped like ``model.grading.faces`` (per wall value), ``wrt="parameters"`` an array shaped like
+    """dJ/d(field) of ``output`` on a field-graded micro-structure (module notes; a hierarchical sink whose leaves
+    are graded, :func:`tiling.leaf_graded`, alike): ``wrt="faces"`` gives a tuple of three arrays shaped like
+    ``model.grading.faces`` (per wall value; for graded leaves one array, per ``model.grading.site_centres``),
+    ``wrt="parameters"`` an array shaped like
     the field's control values (a channel of D: D's control grid (n1, n2, n3); a parameter spline: its
     coefficients' grid; a number: a 0-d array).  Units: those of J per unit of the field."""
     what = f"wrt={wrt!r}"
@@ -68,7 +70,7 @@ def parameter_sensitivity(solution, output: Output, wrt: str = "parameters", sol
     grading = getattr(ms, "grading", None)
     if grading is None:
         raise ProblemError(f"{what} differentiates by the parameter field of a field-graded micro-structure "
-                           "(tiling.field_graded); this model has none")
+                           "(tiling.field_graded, tiling.leaf_graded); this model has none")
     if wrt == "parameters" and not isinstance(grading.field, (str, SplineFunction)) and not is_real(grading.field):
         raise ProblemError("wrt='parameters': the field is a callable, which has no control values; give the field "
                            "as a parameter spline (geometry.SplineFunction) or a channel of the map, or ask "
@@ -78,7 +80,7 @@ def parameter_sensitivity(solution, output: Output, wrt: str = "parameters", sol
     drag = _dragged_channel(prob, D, what)
     per_patch = _patch_gradients(solution, output, D, drag, solver, what)
     walls = _wall_gradients(ms, grading, per_patch)
-    return walls if wrt == "faces" else _field_gradient(grading, walls, D)
+    return grading.unflatten(walls) if wrt == "faces" else _field_gradient(grading, walls, D)
 
 
 def _check_model(ms, D) -> None:
@@ -267,32 +269,32 @@ def _control_points(family, values: dict, tile, t: int, face: str) -> list:
     return [p.control_points[..., :3].reshape(-1, 3) for p in other.patches]
 
 
-def _wall_gradients(ms, grading, per_patch: dict) -> tuple:
-    """dJ/dtheta on every wall: tuple of three arrays shaped like ``grading.faces``."""
-    out = tuple(np.zeros(f.shape) for f in grading.faces)
+def _wall_gradients(ms, grading, per_patch: dict) -> np.ndarray:
+    """dJ/dtheta on every wall site of the grading (n,) (``grading.site_centres``)."""
+    out = np.zeros(len(grading.site_centres))
     by_tile: dict = {}
     for i, p in enumerate(ms.patches):
         by_tile.setdefault(p.tile, []).append(i)
     affine = bool(getattr(grading.family, "affine_in_values", False))
     shared = None
-    for t, members in by_tile.items():
+    for t in grading.graded_tiles():  # (a hierarchical paving's other levels are not graded)
+        members = by_tile[t]
         if affine and shared is not None:
             dT = shared  # affine: the same derivative in every cell
         else:
             dT = tile_derivatives(grading, ms.tiles[t], t)
             shared = dT
-        for face, (d, w) in grading.walls(t).items():
-            out[d][w] += sum(float(np.sum(per_patch[i] * dT[face][ms.patches[i].patch_in_tile])) for i in members)
+        for face, site in grading.sites(t).items():
+            out[site] += sum(float(np.sum(per_patch[i] * dT[face][ms.patches[i].patch_in_tile])) for i in members)
     return out
 
 
-def _field_gradient(grading, walls: tuple, D) -> np.ndarray:
-    """dJ/d(control values of the field) from the wall gradients (module notes)."""
-    g = np.concatenate([w.reshape(-1) for w in walls])
+def _field_gradient(grading, g: np.ndarray, D) -> np.ndarray:
+    """dJ/d(control values of the field) from the wall gradients (n,) (module notes)."""
     field = grading.field
     if is_real(field):
         return np.array(g.sum())
-    y = np.concatenate([c.reshape(-1, 3) for c in grading.centres])
+    y = grading.site_centres
     if isinstance(field, str):  # a channel of D: its values at the wall centres by D's basis (NURBS if weighted)
         return (map_basis(D, y).T @ g).reshape(D.control_points.shape[:3])
     dom = D.domain

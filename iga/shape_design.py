@@ -36,23 +36,28 @@ def moved_map(D, points: np.ndarray) -> BSpline:
     return BSpline(D.degrees, D.knots, cp, D.weights, channels=D.channels)
 
 
-def _check(move, hold) -> None:
+def _check(move, axes) -> None:
     """The arguments of a shape design (:func:`iga.optimiser.check_design` checks the rest)."""
     if not (is_real(move) and np.isfinite(move) and move > 0):
         raise ProblemError(f"wrt='map': bounds is the largest move of a control point coordinate, a number > 0 (m), "
                            f"got {show(move)}")
+    if not (isinstance(axes, str) and axes and set(axes) <= set("xyz") and len(set(axes)) == len(axes)):
+        raise ProblemError(f"wrt='map': axes names the coordinates that move, some of 'x', 'y', 'z' once each (e.g. "
+                           f"'z': heights only), got {show(axes)}")
 
 
 def optimize_shape(problem, objective: Output, move: float, hold=(), keep_volume: bool = True, maxiter: int = 30,
-                   tol: float = 1e-6, solver: str = "auto"):
-    """Minimise ``objective`` over the map's control points (module notes); returns an
+                   tol: float = 1e-6, solver: str = "auto", axes: str = "xyz"):
+    """Minimise ``objective`` over the map's control points (module notes); ``axes``: the coordinates that move
+    (``"z"``: the heights alone, e.g. where a tile's base ends across a sink); returns an
     :class:`iga.design.DesignResult` whose ``values`` are the final control points (n1, n2, n3, 3) and whose steps
     record the solid volume (m^3)."""
     check_design(problem, objective, maxiter)
-    _check(move, hold)
+    _check(move, axes)
     D, placed = shape_map(problem)
     P0 = np.array(D.control_points, float)[..., :3]
     free = np.repeat(free_mask(P0.shape[:3], hold)[..., None], 3, axis=-1)
+    free[..., ["xyz".index(a) for a in "xyz" if a not in axes]] = False
     if not free.any():
         raise ProblemError(f"hold = {show(list(hold))} holds every control point of the map: nothing can move")
     volume = Volume()

@@ -206,12 +206,29 @@ def test_a_shape_design_lowers_the_smooth_maximum_at_the_same_volume_and_keeps_t
     assert [s.iteration for s in result.history] == list(range(1, len(result.history) + 1))
 
 
+def test_a_shape_design_of_heights_alone_moves_only_the_free_heights():
+    """axes="z" between held bottom and top: only the middle layer's heights move (where the tiles' layers
+    land), and the output falls.  The crosses are symmetric in w, so moving where their layers land leaves the
+    volume unchanged to first order: keeping it is refused as an equality that cannot bind."""
+    problem, B = _lattice_problem()
+    with pytest.raises(ProblemError, match="does not change to first order"):
+        iga.optimize(problem, TemperatureNorm(16), wrt="map", bounds=0.001, hold=("wmin", "wmax"), axes="z")
+    result = iga.optimize(problem, TemperatureNorm(16), wrt="map", bounds=0.001, hold=("wmin", "wmax"), axes="z",
+                          keep_volume=False, maxiter=4)
+    P0, P = np.array(B.control_points)[..., :3], result.values
+    assert np.array_equal(P[..., :2], P0[..., :2]) and np.array_equal(P[:, :, [0, -1]], P0[:, :, [0, -1]])
+    assert np.abs(P[:, :, 1, 2] - P0[:, :, 1, 2]).max() > 1e-5  # the middle heights moved
+    assert result.objective < result.initial
+
+
 def test_bad_shape_designs_are_refused():
     problem, _ = _lattice_problem(degree=1)
     with pytest.raises(ProblemError, match="largest move"):
         iga.optimize(problem, TemperatureNorm(8), wrt="map", bounds=(54.0, 205.0))
     with pytest.raises(ProblemError, match="not a face of the map"):
         iga.optimize(problem, TemperatureNorm(8), wrt="map", bounds=0.001, hold=("bottom",))
+    with pytest.raises(ProblemError, match="axes names the coordinates"):
+        iga.optimize(problem, TemperatureNorm(8), wrt="map", bounds=0.001, axes="zz")
     with pytest.raises(ProblemError, match="holds every control point"):
         iga.optimize(problem, TemperatureNorm(8), wrt="map", bounds=0.001,
                      hold=("umin", "umax", "vmin", "vmax", "wmin", "wmax"))
@@ -297,7 +314,86 @@ def test_iga_optimize_grades_a_field_graded_lattice_from_a_pipeline(tmp_path):
     assert len(written.points) > 0 and np.all(np.isfinite(written.point_data["temperature"]))
 
 
+LEAVES = """
+[map]
+primitive = "box"
+args = {size = [0.06, 0.06, 0.03], degrees = [2, 2, 2], channels = {t = 0.4}}
+
+[tile]
+library = "heat_sink_t2"
+
+[paving]
+scheme = "hierarchical"
+counts = [2, 2]
+levels = 2
+scale = 0.5
+leaves = "face_graded_heat_sink"
+field = "t"
+
+[material]
+conductivity = 129.5
+
+[[bc]]
+kind = "neumann"
+tag = "branch-in"
+value = 2e4
+
+[[bc]]
+kind = "robin"
+tag = "exterior"
+h = 3000.0
+ambient = 0.0
+
+[design]
+variables = "parameters"
+bounds = [0.1, 0.49]
+iterations = 3
+
+[output]
+dir = "out"
+name = "sink"
+"""
+
+
+@pytest.mark.slow
+def test_iga_optimize_grades_the_leaves_of_a_hierarchical_sink_and_moves_its_heights_from_a_pipeline(tmp_path):
+    """paving.leaves: the two-level sink's finest pins from a channel of the map, designed by their field at the
+    start's solid volume; then variables = "map" with axes = "z" between the held bottom and top (the base's
+    thickness), whose x and y stay."""
+    import json
+    import tomllib
+
+    import meshio
+
+    (tmp_path / "leaves.toml").write_text(LEAVES)
+    done = iga_command("--quiet", "optimize", "leaves.toml", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr[-2000:]
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    d = summary["design"]
+    assert d["final"] < d["initial"] and summary["tiles_per_level"] == [4, 16]
+    assert max(s["mean"] for s in d["steps"]) - min(s["mean"] for s in d["steps"]) <= 1e-5 * d["steps"][0]["mean"]
+    from iga.app.pipeline import run_pipeline
+
+    cfg = tomllib.loads(LEAVES)
+    cfg["design"] = {"variables": "map", "move": 0.003, "hold": ["wmin", "wmax"], "axes": "z", "iterations": 2}
+    cfg["output"]["dir"] = str(tmp_path / "heights")
+    heights = run_pipeline(cfg, tmp_path)["design"]
+    assert heights["final"] <= heights["initial"] and heights["steps"]
+    moved = meshio.read(tmp_path / "heights" / "sink.vtu").points
+    start = meshio.read(tmp_path / "out" / "sink.vtu").points  # (another design of the same sink: its x, y range)
+    assert np.allclose(moved[:, :2].min(0), start[:, :2].min(0)) and np.allclose(moved[:, :2].max(0),
+                                                                                 start[:, :2].max(0))
+
+
 @pytest.mark.parametrize("change, match", [
+    ({"paving": {"scheme": "hierarchical", "counts": [2, 2], "leaves": "face_graded_heat_sink"},
+      "tile": {"library": "heat_sink_t2"}}, "paving.leaves: graded leaves need both"),
+    ({"paving": {"scheme": "hierarchical", "counts": [2, 2], "leaves": "cross", "field": 0.3},
+      "tile": {"library": "heat_sink_t2"}}, "paving.leaves: graded leaves need a tile of the six faces"),
+    ({"paving": {"scheme": "regular", "counts": [1, 1, 1], "field": 0.3}, "tile": {"library": "cross"}},
+     "applies to the hierarchical and field_graded schemes only"),
+    ({"design": {"variables": "map", "move": 0.001, "axes": "w"}}, "design.axes"),
+    ({"design": {"variables": "parameters", "bounds": [0.15, 0.6], "axes": "z"}}, "design.axes: belongs to a shape"),
     ({"paving": {"scheme": "regular", "counts": [1, 1, 1]}, "tile": {"library": "cross"}}, "field_graded"),
     ({"paving": {"scheme": "field_graded", "counts": [1, 1, 1], "field": {"formula": "0.3 + x"}}}, "a formula"),
     ({"design": {"variables": "parameters", "hold": ["wmin"]}}, "design.bounds: is required"),

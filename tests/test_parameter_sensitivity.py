@@ -5,6 +5,7 @@ analyses of re-paved models; the refusals name the input and the fix."""
 import numpy as np
 import pytest
 
+import iga
 import tiling
 from geometry import SplineFunction
 from geometry import knots as kn
@@ -122,6 +123,45 @@ def test_a_heat_sink_graded_by_its_pins_widths():
         library.face_graded_heat_sink(umax=0.5)
 
 
+def test_a_hierarchical_sink_s_graded_leaves():
+    """tiling.leaf_graded: the two-level sink whose 16 leaves are face_graded_heat_sink members, on a curved map
+    with a conductivity channel: the same interfaces and tags as the T2 sink, one value on every wall two leaves
+    share (and their faces glued as identities), the leaves' pins as wide as the field says, the parameter
+    gradient of the hottest point and of a face mean equal to central differences (branch faces in the model)."""
+    D = _map()
+    T2 = library.heat_sink_t2()
+
+    def paved(c):
+        return tiling.leaf_graded(D, T2, (2, 2), 2, library.face_graded_heat_sink, _spline(c))
+
+    c0 = 0.3 + 0.1 * np.random.default_rng(7).random((3, 3, 3, 1))
+    ms, ref = paved(c0), tiling.hierarchical(D, T2, (2, 2), 2)
+    glued = [{(i.kind, frozenset([i.a, i.b])) for i in m.interfaces} for m in (ms, ref)]
+    assert glued[0] == glued[1] and len(glued[0]) == len(ref.interfaces)
+    assert {k: sorted(v) for k, v in ms.tags.items()} == {k: sorted(v) for k, v in ref.tags.items()}
+    g = ms.grading
+    leaves = g.graded_tiles()
+    assert leaves == [t for t in range(len(ms.tiles)) if ms.tiles[t] is not T2] and len(leaves) == 16
+    assert len(g.site_centres) == 6 * 16 - sum(i.kind == "identity" and ms.patches[i.a[0]].level == 1
+                                              for i in ms.interfaces)  # a shared wall: one site
+    for t in leaves:
+        P, width = ms.tiles[t].patches[0].control_points, g.values(t)
+        assert abs(P[0, 2, 4, 1] - width["umin"]) < 1e-15 and abs(P[2, 5, 4, 0] - width["vmax"]) < 1e-15
+
+    def analyse(c):
+        return (HeatProblem(paved(c), conductivity="k").neumann("branch-in", 2e4).robin("exterior", 3000.0, 0.0)
+                .solve(tol=1e-13))
+
+    _fd_check(analyse, c0, [TemperatureNorm(8), MeanTemperature("wmax")])
+    # the design re-paves the hierarchy with the moved field at every step, at the same solid volume
+    problem = HeatProblem(paved(c0), conductivity="k").neumann("branch-in", 2e4).robin("exterior", 3000.0, 0.0)
+    result = iga.optimize(problem, TemperatureNorm(8), wrt="parameters", bounds=(0.2, 0.49), maxiter=3, tol=1e-12)
+    assert result.objective < result.initial and result.solution.problem.model.tiles_per_level() == [4, 16]
+    assert Volume().value(result.solution) == pytest.approx(result.history[0].mean, rel=1e-6)
+    with pytest.raises(tiling.TilingError, match="branch-in face"):
+        tiling.leaf_graded(D, T2, (2, 2), 2, library.face_graded_cross, 0.3)  # seven patches, no branch-in
+
+
 def _squared(**values):
     """A family whose control points are not affine in its values (the widths their squares' images)."""
     return library.face_graded_cross(**{f: 0.1 + v * v for f, v in values.items()})
@@ -203,7 +243,6 @@ def test_refusals_name_the_input_and_the_fix():
 def test_a_graded_lattice_designed_by_its_field_is_cooler_at_the_same_volume():
     """iga.optimize(wrt="parameters"): the arm widths of a 2 x 2 x 1 lattice of face-graded crosses, heated through
     its held bottom face and cooled on its top, at the start's solid volume; the result re-analysed afresh."""
-    import iga
 
     D = pr.box((0.04, 0.04, 0.01), degrees=(1, 1, 1))
     field = _spline(np.full((3, 3, 3, 1), 0.35))

@@ -5,6 +5,8 @@ Public names: :class:`Tile`, :class:`BranchFace`, :func:`regular`,
 implicit structures, :class:`ImplicitStructure`), :func:`topo_subdiv` (adaptive
 subdivision, :class:`CellComplex`), :func:`bifurcation` (layered bifurcation
 tilings), :func:`implicit_bifurcation`, :func:`compose_levels` (two-level structures), :func:`graded` (layers of a tile family),
+:func:`field_graded` (a tile family's face values from a field, in three directions), :func:`leaf_graded` (the last
+level of a hierarchical paving graded by a field),
 :func:`round_struts` (curve tiles swept with circular sections),
 :class:`TilingError` and the
 ``library`` module of built-in tiles.
@@ -20,7 +22,7 @@ from tiling.branching.paving import bifurcation, bifurcation_tiles
 from tiling.branching.implicit import BifurcationStructure, implicit_bifurcation
 from tiling.members.polygons import PolygonTile, pave_polygons
 from .levels import compose_levels
-from .graded_layers import field_graded, graded
+from .graded_layers import field_graded, graded, leaf_graded
 from tiling.members.struts import round_struts
 from . import library
 
@@ -28,4 +30,5 @@ __all__ = ["TilingError", "Tile", "BranchFace", "discontinuity_branches", "Micro
            "Interface", "regular", "hierarchical", "library",
            "random_implicit", "ImplicitStructure", "canonical_tubes", "topo_subdiv", "CellComplex", "bifurcation",
            "bifurcation_tiles", "implicit_bifurcation", "BifurcationStructure",
-           "PolygonTile", "pave_polygons", "compose_levels", "graded", "field_graded", "round_struts"]
+           "PolygonTile", "pave_polygons", "compose_levels", "graded", "field_graded", "leaf_graded",
+           "round_struts"]

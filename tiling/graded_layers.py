@@ -29,7 +29,7 @@ from .checks import check_budget, check_counts, check_map, check_spans, paramete
 from .paving import grid_identity
 from .tile import Tile, refuse_trimmed
 
-__all__ = ["graded", "field_graded", "FaceGrading"]
+__all__ = ["graded", "field_graded", "leaf_graded", "FaceGrading", "LeafGrading"]
 
 
 def _values(D: BSpline, values, w: np.ndarray) -> np.ndarray:
@@ -178,6 +178,138 @@ class FaceGrading:
     def values(self, t: int) -> dict:
         """{face name: value}: the family's arguments of tile t."""
         return {f: float(self.faces[d][w]) for f, (d, w) in self.walls(t).items()}
+
+    # the protocol the parameter sensitivities and designs read (shared with LeafGrading): walls as flat sites
+    def graded_tiles(self) -> range:
+        """The tiles the field grades: every cell's."""
+        return range(int(np.prod(self.shape)))
+
+    def sites(self, t: int) -> dict:
+        """{face name: site}: tile t's walls as indices into :attr:`site_centres`."""
+        offsets = np.cumsum([0] + [f.size for f in self.faces])
+        return {f: int(offsets[d] + np.ravel_multi_index(w, self.faces[d].shape)) for f, (d, w) in
+                self.walls(t).items()}
+
+    @property
+    def site_centres(self) -> np.ndarray:
+        """The wall centres (n, 3) in D's parameters, the three directions' walls one after the other."""
+        return np.concatenate([c.reshape(-1, 3) for c in self.centres])
+
+    def unflatten(self, g: np.ndarray) -> tuple:
+        """Per-site numbers (n,) as three arrays shaped like :attr:`faces`."""
+        cuts = np.cumsum([f.size for f in self.faces])[:-1]
+        return tuple(part.reshape(f.shape) for part, f in zip(np.split(np.asarray(g), cuts), self.faces))
+
+    def rebuild(self, D: BSpline, field, name: str) -> Microstructure:
+        """The same paving of ``D`` with another ``field``."""
+        return field_graded(D, self.family, self.counts, field, name=name)
+
+
+#: walls of two leaves closer than this (relative to D's parameter domain) are one site: a shared wall
+SITE_MARGIN = 1e-9
+#: the centres of the unit cell's six faces, in tile coordinates
+_FACE_CENTRES = {"umin": (0.0, 0.5, 0.5), "umax": (1.0, 0.5, 0.5), "vmin": (0.5, 0.0, 0.5), "vmax": (0.5, 1.0, 0.5),
+                 "wmin": (0.5, 0.5, 0.0), "wmax": (0.5, 0.5, 1.0)}
+
+
+@dataclass(frozen=True)
+class LeafGrading:
+    """What :func:`leaf_graded` chose, for the derivatives: the ``family`` and the ``field``, the field's values
+    ``site_values`` (n,) at the leaves' wall centres ``site_centres`` (n, 3) (D's parameters; a wall two leaves
+    share is one site), each leaf tile's walls ``tile_sites`` {tile: {face: site}}, and the hierarchical paving's
+    arguments ``paving`` (tile, counts, levels, scale)."""
+
+    family: object
+    field: object
+    site_values: np.ndarray
+    site_centres: np.ndarray
+    tile_sites: dict
+    paving: tuple
+
+    def graded_tiles(self) -> list:
+        return sorted(self.tile_sites)
+
+    def sites(self, t: int) -> dict:
+        return self.tile_sites[t]
+
+    def values(self, t: int) -> dict:
+        return {f: float(self.site_values[s]) for f, s in self.tile_sites[t].items()}
+
+    def unflatten(self, g: np.ndarray) -> np.ndarray:
+        return np.asarray(g)
+
+    def rebuild(self, D: BSpline, field, name: str) -> Microstructure:
+        tile, counts, levels, scale = self.paving
+        return leaf_graded(D, tile, counts, levels, self.family, field, scale=scale, name=name)
+
+
+def leaf_graded(D: BSpline, tile: Tile, counts, levels: int, family, field, scale: float | None = None,
+                name: str = "leaf-graded") -> Microstructure:
+    """The hierarchical paving of :func:`tiling.hierarchical` whose last level's tiles are
+    ``family(umin=, umax=, vmin=, vmax=, wmin=, wmax=)`` with the ``field`` (as :func:`field_graded` takes it) at the
+    centres of their six walls: a heat sink whose finest pins are graded across it.  The leaves carry no children,
+    so their shapes move no branch face; a wall two leaves share (closer than :data:`SITE_MARGIN` of the domain)
+    reads one value, so they meet face to face (the interfaces are found in space and a mismatch is refused).  The
+    family's members must have the tile's patches (count, degrees, knots) and its branch-in face (the bottom the
+    parent's pin carries).  ``ms.grading`` is the :class:`LeafGrading` the parameter sensitivities read.
+
+    >>> from geometry import primitives
+    >>> from tiling import library
+    >>> sink = leaf_graded(primitives.box((0.06, 0.06, 0.03), degrees=(2, 2, 2)), library.heat_sink_t2(), (2, 2), 2,
+    ...                    library.face_graded_heat_sink, lambda s: 0.3 + 0.15 * s[:, 0])
+    >>> sink.tiles_per_level(), sum(i.kind == "branch" for i in sink.interfaces)
+    ([4, 16], 16)
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    from .paving import hierarchical
+
+    if not callable(family):
+        raise TilingError(f"leaf_graded: family must be a callable of the six wall values (umin=..., wmax=...) "
+                          f"returning a Tile, e.g. tiling.library.face_graded_heat_sink, got {show(family)}")
+    first = hierarchical(D, tile, counts, levels, scale=scale, name=name)
+    last = max(p.level for p in first.patches)
+    leaves = sorted({p.tile for p in first.patches if p.level == last})
+    at = {p.tile: p.placement for p in first.patches if p.level == last}  # (3, 4): tile coordinates -> D's
+    local = np.array(list(_FACE_CENTRES.values()))
+    centres = np.concatenate([local @ at[t][:, :3].T + at[t][:, 3] for t in leaves])  # (6 L, 3)
+    extent = float(np.max(D.domain[:, 1] - D.domain[:, 0]))
+    pairs = cKDTree(centres).query_pairs(SITE_MARGIN * extent, output_type="ndarray")
+    n = len(centres)
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    _, site = connected_components(graph, directed=False)  # coincident walls: one site
+    site_centres = np.zeros((site.max() + 1, 3))
+    site_centres[site] = centres
+    values = _field_values(D, field, site_centres)
+    faces = list(_FACE_CENTRES)
+    tile_sites = {t: {f: int(site[6 * j + m]) for m, f in enumerate(faces)} for j, t in enumerate(leaves)}
+    tiles = list(first.tiles)
+    for t in leaves:
+        member = _member(family, (), {f: float(values[s]) for f, s in tile_sites[t].items()}, "leaf_graded",
+                         f"leaf tile {t}")
+        _same_structure(member, tile, t)
+        tiles[t] = member
+    placed = [PlacedPatch(tiles[p.tile].patches[p.patch_in_tile], p.placement, p.outer, p.tile, p.level,
+                          p.patch_in_tile) if p.level == last else p for p in first.patches]
+    links = [(i.a[0], i.a[1], i.box, i.b[0], i.b[1]) for i in first.interfaces if i.kind == "branch"]
+    ms = Microstructure.build(D, placed, tiles, links, name=name, root_faces=first.tags["branch-in"],
+                              leaf_faces=first.tags["branch-out"])
+    ms.grading = LeafGrading(family, field, values, site_centres, tile_sites, (tile, counts, levels, scale))
+    return ms
+
+
+def _same_structure(member: Tile, tile: Tile, t: int) -> None:
+    """Refuse a leaf whose patches or branch-in face differ from the tile's (the parent's pin carries it)."""
+    same = len(member.patches) == len(tile.patches) and all(
+        a.degrees == b.degrees and all(np.array_equal(u, w) for u, w in zip(a.knots, b.knots))
+        for a, b in zip(member.patches, tile.patches))
+    bi, ti = member.branch_in, tile.branch_in
+    if not same or bi is None or (bi.patch, bi.face) != (ti.patch, ti.face):
+        raise TilingError(f"leaf_graded: leaf tile {t}'s family member {show(member.name)} does not have the tile's "
+                          f"patches (count, degrees, knots) and its branch-in face (patch {ti.patch} {ti.face}); the "
+                          "family must vary the tile's shape alone")
 
 
 def field_graded(D: BSpline, family, counts, field, name: str = "field-graded") -> Microstructure:

@@ -100,8 +100,10 @@ def face_graded_heat_sink(umin: float = 0.45, umax: float = 0.45, vmin: float = 
     control points depend on that side's value alone, so paved with the values of a field taken on every shared
     wall (:func:`tiling.field_graded`) neighbouring cells meet face to face; the pins become quadrilaterals whose
     widths follow the field across the sink.  ``wmin`` and ``wmax`` are accepted (a field gives every wall a
-    value) and shape nothing: the bottom is the solid base, the top the pins' ends.  The tile has no branch faces
-    (the pins' tops are no longer rectangles a child could be placed on): a field-graded paving has one level."""
+    value) and shape nothing: the bottom is the solid base, the top the pins' ends.  Its bottom is T2's branch-in
+    face (unchanged by the widths), so it can be the last level of a hierarchical sink, carried by a parent's pin
+    (:func:`tiling.leaf_graded`); it has no branch-out faces (the pins' tops are no longer rectangles a child
+    could be placed on)."""
     widths = {"umin": umin, "umax": umax, "vmin": vmin, "vmax": vmax}
     for face, v in widths.items():
         if not (is_real(v) and 0 < v < 0.5):
@@ -125,7 +127,7 @@ def face_graded_heat_sink(umin: float = 0.45, umax: float = 0.45, vmin: float = 
     cp[..., 2] = _Z_LAYERS[None, None, :]
     T = BSpline((2, 2, 2), [_disc_knots(), _disc_knots(), _W_KNOTS], cp)
     name = ", ".join(f"{float(v):g}" for v in widths.values())
-    return Tile([T], name=f"face_graded_heat_sink({name})")
+    return Tile([T], (0, "wmin"), name=f"face_graded_heat_sink({name})")
 
 
 #: its control points are affine in the four widths (the parameter sensitivities take one derivative for all cells)

@@ -166,7 +166,12 @@ def _model(config, base_dir) -> dict:
             raise ProblemError("missing required config section 'tile'")
         cfg["tile"] = polygon_tile(config["tile"]) if scheme == "polygons" else tile_section(config["tile"])
         if scheme == "field_graded":
-            _face_family(cfg["tile"])
+            _face_family(cfg["tile"]["library"], "tile.library", "the field_graded scheme")
+            if cfg["tile"]["args"]:
+                _fail("tile.args", "the field_graded scheme gives the tile its six face values from paving.field; "
+                      "drop args")
+        if "leaves" in cfg["paving"]:
+            _face_family(cfg["paving"]["leaves"], "paving.leaves", "graded leaves")
     for sec, check in (("second_level", second_level), ("reduce", reduce_section)):
         if sec in config:
             if scheme in ("polygons",) + SURFACE_SCHEMES:
@@ -176,17 +181,13 @@ def _model(config, base_dir) -> dict:
     return cfg
 
 
-def _face_family(tile: dict) -> None:
-    """The [tile] of the field_graded scheme: a library tile whose arguments are the six faces' values (the field
-    gives them, so no ``args``)."""
+def _face_family(name: str, key: str, what: str) -> None:
+    """A library tile whose arguments are the six faces' values (a field gives them): refused naming ``key``."""
     faces = {"umin", "umax", "vmin", "vmax", "wmin", "wmax"}
-    takes = set(inspect.signature(TILES[tile["library"]]).parameters)
-    if not faces <= takes:
+    if name not in TILES or not faces <= set(inspect.signature(TILES[name]).parameters):
         family = sorted(n for n, f in TILES.items() if faces <= set(inspect.signature(f).parameters))
-        _fail("tile.library", f"the field_graded scheme needs a tile of the six faces' values (umin .. wmax); "
-              f"{tile['library']!r} is not one: use one of {family}")
-    if tile["args"]:
-        _fail("tile.args", "the field_graded scheme gives the tile its six face values from paving.field; drop args")
+        _fail(key, f"{what} need{'s' if what.startswith('the') else ''} a tile of the six faces' values (umin .. "
+              f"wmax); {name!r} is not one: use one of {family}")
 
 
 def _exports_fit(cfg: dict, surface: str | None) -> None:

@@ -73,6 +73,8 @@ def design_section(config: dict, kind: str, material) -> dict | None:
     if not heat and d["tag"] is not None:
         fail("design.tag", "belongs to the heat outputs (a face's mean or norm of the temperature); the elastic ones "
              "are over the whole model: drop it")
+    if wrt != "map" and d["axes"] != "xyz":
+        fail("design.axes", "belongs to a shape design (variables = \"map\"); drop it")
     if wrt == "map":
         return {**common, **_shape_design(d)}
     if wrt == "parameters":
@@ -117,9 +119,10 @@ def _parameter_design(d, config: dict) -> dict:
     ``hold``; the paving must be field_graded with a number or a channel as its field (a formula has no control
     values)."""
     paving = config.get("paving", {}) if isinstance(config.get("paving"), dict) else {}
-    if paving.get("scheme") != "field_graded":
-        fail("design.variables", "\"parameters\" designs the field of a field_graded paving; set paving.scheme = "
-             f"\"field_graded\" (got scheme {paving.get('scheme')!r})")
+    if paving.get("scheme") != "field_graded" and not (paving.get("scheme") == "hierarchical" and "leaves" in paving):
+        fail("design.variables", "\"parameters\" designs the field of a field_graded paving or of a hierarchical "
+             "one's graded leaves; set paving.scheme = \"field_graded\" or paving.leaves and paving.field (got "
+             f"scheme {paving.get('scheme')!r})")
     if isinstance(paving.get("field"), dict):
         fail("design.variables", "\"parameters\" needs paving.field as a number or a channel of the map (its "
              "control values are the variables); a formula has none")
@@ -141,4 +144,8 @@ def _shape_design(d) -> dict:
     if d["move"] is None:
         fail("design.move", "is required for variables = \"map\": the largest move of a control point "
              "coordinate (m)")
-    return {"move": number(d["move"], "design.move", lo=0), "hold": _hold(d["hold"])}
+    axes = d["axes"]
+    if not (isinstance(axes, str) and axes and set(axes) <= set("xyz") and len(set(axes)) == len(axes)):
+        fail("design.axes", f"must name the coordinates that move, some of x, y, z once each (e.g. \"z\"), got "
+             f"{axes!r}")
+    return {"move": number(d["move"], "design.move", lo=0), "hold": _hold(d["hold"]), "axes": axes}

@@ -154,10 +154,19 @@ def paving_section(p) -> dict:
     if scheme == "hierarchical":
         pav["levels"] = _int(p.get("levels", default("paving.hierarchical", "levels")), "paving.levels", 1)
         pav["scale"] = None if "scale" not in p else _number(p["scale"], "paving.scale", lo=0)
+        if ("leaves" in p) != ("field" in p):
+            _fail(f"paving.{'leaves' if 'leaves' in p else 'field'}", "graded leaves need both paving.leaves (a "
+                  "family of the six faces' values, e.g. \"face_graded_heat_sink\") and paving.field")
+        if "leaves" in p:
+            if "seal" in p:
+                _fail("paving.leaves", "graded leaves are not sealed: drop paving.seal")
+            pav["leaves"], pav["field"] = _str(p["leaves"], "paving.leaves"), _wall_field(p["field"])
     else:
         for key in sorted(_SCHEME_KEYS["hierarchical"] - _SCHEME_KEYS["regular"]):
             if key in p:
-                _fail(f"paving.{key}", "applies to the hierarchical scheme only")
+                takers = [n for n, keys in _SCHEME_KEYS.items() if key in keys and n != "regular"]
+                _fail(f"paving.{key}", f"applies to the {' and '.join(takers)} scheme{'s' if len(takers) > 1 else ''}"
+                      " only")
     if "seal" in p:
         pav["seal"] = _choice(p["seal"], "paving.seal", ("cap", "shell"))
         pav["thickness"] = _number(p.get("thickness", default(f"paving.{scheme}", "thickness")), "paving.thickness", lo=0,
@@ -210,14 +219,16 @@ def field_graded(p) -> dict:
     for key in ("counts", "field"):
         if key not in p:
             raise ProblemError(f"config section paving (scheme 'field_graded') needs {key!r}")
-    v = p["field"]
+    return {"scheme": "field_graded", "counts": _ints(p["counts"], "paving.counts", 3), "field": _wall_field(p["field"])}
+
+
+def _wall_field(v):
+    """paving.field: a formula of the position, a channel of the map or a number in (0, 1)."""
     if isinstance(v, dict):
-        field = formula_table(v, "paving.field")
-    elif isinstance(v, str):
-        field = _str(v, "paving.field")  # a channel of the map
-    else:
-        field = _number(v, "paving.field", lo=0, hi=1)
-    return {"scheme": "field_graded", "counts": _ints(p["counts"], "paving.counts", 3), "field": field}
+        return formula_table(v, "paving.field")
+    if isinstance(v, str):
+        return _str(v, "paving.field")  # a channel of the map
+    return _number(v, "paving.field", lo=0, hi=1)
 
 
 def polygons(p) -> dict:

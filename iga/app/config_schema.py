@@ -109,7 +109,12 @@ _SECTIONS = (
                 _K("counts", "two integers >= 1", REQUIRED, "cells along u and v of every level"),
                 _K("levels", "an integer >= 1", 2, "the depth of the hierarchy"),
                 _K("scale", "a number > 0", UNSET, "each level's height relative to the one below (unset: "
-                   "equal heights)")) + _SEAL),
+                   "equal heights)"),
+                _K("leaves", "a library tile of the six faces' values", UNSET, "the last level's tiles from this "
+                   "family (e.g. `face_graded_heat_sink`: the finest pins graded), their values from `field` "
+                   "(`tiling.leaf_graded`; not with `seal`)"),
+                _K("field", "a number, a channel name of the map or `{formula = \"...\"}` of x, y, z (m)", UNSET,
+                   "with `leaves`: their face parameter, taken at the centre of every leaf's walls")) + _SEAL),
     Section("paving.field_graded", "[paving] scheme = \"field_graded\"", "Cells whose tile takes its parameters "
             "from a field on the six faces (`tiling.field_graded`): grading in three directions; [tile] names a "
             "family of the six faces, `face_graded_cross` or `face_graded_heat_sink`.", (
@@ -272,13 +277,15 @@ _SECTIONS = (
         _K("variables", "`\"channel:NAME\"`, `\"map\"` or `\"parameters\"`", REQUIRED, "the channel NAME of "
            "the map (the one `material.conductivity` names, or `physics.youngs`), e.g. made by `map.grading`; or "
            "`map`: the coordinates of the map's control points, at the solid volume of the start; or `parameters`: the control values of "
-           "`paving.field` (a number or a channel of the map) of a `field_graded` paving, at the solid volume of "
-           "the start"),
+           "`paving.field` (a number or a channel of the map) of a `field_graded` paving or of a hierarchical one "
+           "with `leaves`, at the solid volume of the start"),
         _K("bounds", "[low, high]", UNSET, "the bounds of every control value: of a channel (W/(m K); Pa for "
            "Young's modulus), e.g. `[54, 205]` for steel to aluminium, or of the parameter field, inside the tile "
            "family's range, e.g. `[0.15, 0.6]` arm widths (required for `channel:NAME` and `parameters`)"),
         _K("move", "a number > 0 (m)", UNSET, "the largest move of a control point coordinate (required for "
            "`map`; below a quarter of the control points' spacing)"),
+        _K("axes", "some of `x`, `y`, `z` once each", "xyz", "`map`: the coordinates that move (`\"z\"`: "
+           "heights only, e.g. where a sink's base ends across it between a held bottom and top)"),
         _K("hold", "a list of the map's faces (`umin` .. `wmax`)", [], "`map` and `parameters`: the faces whose "
            "control points (or the field's control values there) stay, e.g. the heated one (its area, so the power "
            "of a flux per area, is kept)"),

@@ -269,7 +269,8 @@ def _design(prob, d: Record, method: str) -> tuple:
     field-graded paving's field (the same)."""
     objective = _OBJECTIVES[d.objective](d)
     if d.variables == "map":
-        result = optimize(prob, objective, "map", d.move, maxiter=d.iterations, solver=method, hold=tuple(d.hold))
+        result = optimize(prob, objective, "map", d.move, maxiter=d.iterations, solver=method, hold=tuple(d.hold),
+                          axes=d.axes)
     elif d.variables == "parameters":
         result = optimize(prob, objective, "parameters", d.bounds, maxiter=d.iterations, solver=method,
                           hold=tuple(d.hold))

@@ -115,7 +115,9 @@ def _scheme(cfg, D):
         return Built(ms, ms)
     tile = _tile(cfg.tile)
     seal = {k: p[k] for k in ("seal", "thickness", "seal_sides") if k in p}
-    if p.scheme == "hierarchical":
+    if p.scheme == "hierarchical" and "leaves" in p:
+        ms = tiling.leaf_graded(D, tile, p.counts, p.levels, TILES[p.leaves], _wall_field(D, p.field), scale=p.scale)
+    elif p.scheme == "hierarchical":
         ms = tiling.hierarchical(D, tile, p.counts, p.levels, p.scale, **seal)
     else:
         ms = tiling.regular(D, tile, p.counts, **seal)
@@ -123,7 +125,7 @@ def _scheme(cfg, D):
 
 
 def _wall_field(D, field):
-    """paving.field for :func:`tiling.field_graded`: a number or a channel name as they are, a formula of the
+    """paving.field for :func:`tiling.field_graded` (and graded leaves, :func:`tiling.leaf_graded`): a number or a channel name as they are, a formula of the
     position as a callable of the normalised parameters (evaluated where D maps them)."""
     if not callable(field):
         return field
