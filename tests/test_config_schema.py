@@ -23,7 +23,7 @@ VREP = {"paving": {"scheme": "vrep", "expression": "A"},
 
 
 #: defaults that apply to one variant of a section, not to the base configuration of the test
-_ELSEWHERE = {("bc", "scale"), ("physics", "reference"), ("design", "hold")}  # hold: a shape design's
+_ELSEWHERE = {("bc", "scale"), ("physics", "reference"), ("design", "hold"), ("design", "axes")}  # hold, axes: a shape design's
 
 
 def _config(section: str) -> tuple[dict, callable, callable]:
