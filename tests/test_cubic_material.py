@@ -210,3 +210,97 @@ def test_cubic_materials_refuse_bad_input(crosses):
         p = ElasticityProblem(D.with_channel("E", np.full((3, 3, 3), 1e9)), youngs="E", poisson=0.3)
         optimize(p.dirichlet("umin", 0.0).traction("umax", [0, 0, -1.0]), Compliance(), wrt="channel:E",
                  bounds=(1e8, 2e9), keep_fraction=True)
+
+
+MACRO = """
+[map]
+primitive = "box"
+args = {size = [0.08, 0.02, 0.02], degrees = [2, 2, 2], elements = [4, 1, 1], channels = {t = 0.35}}
+
+[tile]
+library = "cube"
+
+[paving]
+scheme = "regular"
+counts = [1, 1, 1]
+
+[physics]
+kind = "elasticity"
+youngs = 7e10
+poisson = 0.33
+macro = {family = "cross", values = [0.15, 0.3, 0.45, 0.6], channel = "t"}
+
+[[support]]
+tag = "umin"
+
+[[load]]
+kind = "traction"
+tag = "umax"
+value = [0.0, 0.0, -1e4]
+
+[design]
+variables = "channel:t"
+objective = "compliance"
+bounds = [0.15, 0.6]
+keep_fraction = true
+iterations = 8
+
+[solver]
+degree_elevation = 1
+
+[output]
+dir = "out"
+name = "macro"
+"""
+
+
+@pytest.mark.slow
+def test_a_pipeline_designs_a_macro_model_at_its_solid_fraction(tmp_path):
+    """physics.macro: the map alone with the cross's cubic stiffness at the channel t, designed by design
+    keep_fraction; the stress VTU carries the constants of the final design, read back by meshio."""
+    import json
+    import tomllib
+
+    from iga.app.pipeline import run_pipeline
+
+    cfg = tomllib.loads(MACRO)
+    cfg["output"]["dir"] = str(tmp_path / "out")
+    summary = run_pipeline(cfg, tmp_path)
+    d = summary["elasticity"]["design"]
+    assert d["final"] < 0.85 * d["initial"]
+    table = stiffness_table(library.cross, [0.15, 0.3, 0.45, 0.6], 7e10, 0.33)
+    assert d["steps"][-1]["mean"] == pytest.approx(float(table.fraction([0.35])[0]), rel=3e-3)
+    m = meshio.read(tmp_path / "out" / "macro_stress.vtu")
+    c = m.point_data["cubic_constants"]
+    assert np.all(c[:, 2] > 0) and np.ptp(c[:, 0]) > 0.1 * c[:, 0].max()  # graded: C11 varies along the beam
+    assert json.loads((tmp_path / "out" / "summary.json").read_text())["elasticity"]["design"]["final"] == d["final"]
+
+
+@pytest.mark.parametrize("change, match", [
+    ({"physics": {"kind": "thermo-elastic", "expansion": 2.3e-5,
+                  "macro": {"family": "cross", "values": [0.2, 0.4], "channel": "t"}}},
+     "physics.macro: applies to physics.kind = 'elasticity'"),
+    ({"tile": {"library": "cross"}}, "physics.macro: analyses the map as a continuum"),
+    ({"physics": {"macro": {"family": "hollow", "values": [0.2, 0.4], "channel": "t"}}}, "physics.macro.family"),
+    ({"physics": {"macro": {"family": "cross", "values": [0.4, 0.2], "channel": "t"}}}, "physics.macro.values"),
+    ({"physics": {"macro": {"family": "cross", "values": [0.2, 0.4]}}}, r"physics\.macro\.'channel'"),
+    ({"design": {"mean": 0.35}}, "design.mean: and design.keep_fraction"),
+    ({"design": {"variables": "map", "move": 0.001, "keep_fraction": True}}, "design.keep_fraction"),
+])
+def test_a_bad_macro_pipeline_is_refused_naming_the_key(change, match):
+    import copy
+    import tomllib
+
+    from iga.app.config import validate
+
+    cfg = tomllib.loads(MACRO)
+    for section, values in change.items():
+        merged = copy.deepcopy(cfg.get(section, {}))
+        merged.update(values)
+        if section == "physics" and "macro" in values and "kind" not in values:
+            merged["macro"] = values["macro"]
+        if section == "design" and values.get("variables") == "map":
+            merged = {k: v for k, v in merged.items() if k not in ("bounds",)}
+        cfg[section] = merged
+    with pytest.raises(ProblemError, match=match):
+        validate(cfg)

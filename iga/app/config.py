@@ -181,6 +181,19 @@ def _model(config, base_dir) -> dict:
     return cfg
 
 
+def _macro_model(macro: dict, cfg: dict) -> None:
+    """physics.macro: the map alone (one cell of the solid cube) and a family of one arm width."""
+    tile, paving = cfg.get("tile") or {}, cfg["paving"]
+    if tile.get("library") != "cube" or paving["scheme"] != "regular" or list(paving["counts"]) != [1, 1, 1]:
+        _fail("physics.macro", "analyses the map as a continuum: pave it with one solid cell ([tile] library = "
+              "\"cube\", [paving] scheme = \"regular\", counts = [1, 1, 1])")
+    family = macro["family"]
+    takes = set(inspect.signature(TILES[family]).parameters) if family in TILES else set()
+    if len(takes) != 1 and not {"umin", "umax", "vmin", "vmax", "wmin", "wmax"} <= takes:
+        _fail("physics.macro.family", f"must be a library tile of one width (e.g. \"cross\") or of six face values "
+              f"(e.g. \"face_graded_cross\"), got {family!r}")
+
+
 def _face_family(name: str, key: str, what: str) -> None:
     """A library tile whose arguments are the six faces' values (a field gives them): refused naming ``key``."""
     faces = {"umin", "umax", "vmin", "vmax", "wmin", "wmax"}
@@ -246,7 +259,10 @@ def validate(config, base_dir=".") -> Config:
     cfg["solver"] = _solver(config.get("solver", {}))
     cfg["time"] = time_section(config, physics["kind"], cfg["solver"]["method"])
     cfg["adapt"] = adapt_section(config, physics["kind"])
-    cfg["design"] = design_section(config, physics["kind"], physics["youngs"] if physics["kind"] == "elasticity"
+    if "macro" in physics:
+        _macro_model(physics["macro"], cfg)
+    cfg["design"] = design_section(config, physics["kind"], (physics["macro"]["channel"] if "macro" in physics else
+                                   physics["youngs"]) if physics["kind"] == "elasticity"
                                    else cfg["material"]["conductivity"])
     if (cfg["adapt"] or cfg["design"]) is not None and cfg["solver"]["method"] == "petsc":
         raise ProblemError("config sections adapt and design solve serially; use another solver.method than 'petsc'")

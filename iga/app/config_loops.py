@@ -73,6 +73,8 @@ def design_section(config: dict, kind: str, material) -> dict | None:
     if not heat and d["tag"] is not None:
         fail("design.tag", "belongs to the heat outputs (a face's mean or norm of the temperature); the elastic ones "
              "are over the whole model: drop it")
+    if d["keep_fraction"] is not False and not (isinstance(wrt, str) and wrt.startswith("channel:")):
+        fail("design.keep_fraction", "belongs to a channel design of a macro model; drop it")
     if wrt != "map" and d["axes"] != "xyz":
         fail("design.axes", "belongs to a shape design (variables = \"map\"); drop it")
     if wrt == "map":
@@ -89,11 +91,17 @@ def design_section(config: dict, kind: str, material) -> dict | None:
     for key in ("move", "hold"):
         if d[key]:
             fail(f"design.{key}", "belongs to a shape design (variables = \"map\"); drop it")
-    low, high = _bounds(d["bounds"], "W/(m K)" if heat else "Pa")
+    keep = d["keep_fraction"]
+    if not isinstance(keep, bool) or (keep and heat):
+        fail("design.keep_fraction", f"must be true or false, and true only for an elastic macro model "
+             f"(physics.macro), got {keep!r}")
+    low, high = _bounds(d["bounds"], "W/(m K)" if heat else "Pa, or the macro channel's units")
     mean = None if d["mean"] is None else number(d["mean"], "design.mean", lo=0)
+    if mean is not None and keep:
+        fail("design.mean", "and design.keep_fraction both constrain the design: keep one")
     if mean is not None and not low <= mean <= high:
         fail("design.mean", f"{mean:g} cannot be met within bounds [{low:g}, {high:g}]")
-    return {**common, "bounds": (low, high), "mean": mean}
+    return {**common, "bounds": (low, high), "mean": mean, "keep_fraction": keep}
 
 
 def _bounds(b, unit: str) -> tuple:

@@ -57,6 +57,8 @@ def physics(config, surface: str | None = None) -> dict:
         out["reference"] = _number(t.get("reference", default("physics", "reference")), "physics.reference")
     elif "expansion" in t or "reference" in t:
         _fail("physics.expansion", "applies to physics.kind = 'thermo-elastic'")
+    if "macro" in t:
+        out["macro"] = _macro(t["macro"], kind, out)
     hold = t.get("hold_rigid", default("physics", "hold_rigid"))
     if not isinstance(hold, bool):
         _fail("physics.hold_rigid", f"must be true or false, got {show(hold)}")
@@ -74,6 +76,25 @@ def physics(config, surface: str | None = None) -> dict:
         raise ProblemError("an elastic analysis needs [[support]] tables (tag, value, components) or "
                            "physics.hold_rigid = true; without them the body is free to move")
     return out
+
+
+def _macro(m, kind: str, out: dict) -> dict:
+    """physics.macro: {family (a library tile of one width), values (>= 2 increasing widths in (0, 1)), channel}."""
+    import numpy as np
+
+    if kind != "elasticity":
+        _fail("physics.macro", f"applies to physics.kind = 'elasticity' (a cubic macro model), not {kind!r}")
+    m = _table(m, "physics.macro", {"family", "values", "channel"}, ("family", "values", "channel"))
+    if not all(isinstance(out[k], (int, float)) for k in ("youngs", "poisson")):
+        _fail("physics.macro", "tabulates the cells of one solid: physics.youngs and physics.poisson must be numbers")
+    values = m["values"]
+    if not (isinstance(values, list) and len(values) >= 2):
+        _fail("physics.macro.values", f"must be a list of at least two increasing arm widths, got {show(values)}")
+    values = [_number(v, "physics.macro.values", lo=0, hi=1) for v in values]
+    if np.any(np.diff(values) <= 0):
+        _fail("physics.macro.values", f"must increase, got {values}")
+    return {"family": _str(m["family"], "physics.macro.family"), "values": values,
+            "channel": _str(m["channel"], "physics.macro.channel")}
 
 
 def _vector(v, where, broadcast: bool):

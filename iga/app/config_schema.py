@@ -214,7 +214,12 @@ _SECTIONS = (
            "the thermal expansion coefficient; required by `thermo-elastic`"),
         _K("reference", "a number (C)", 20.0, "`thermo-elastic`: the temperature without thermal strain"),
         _K("hold_rigid", "true or false", False, "hold the body against rigid motion only (3-2-1 at three "
-           "corners) instead of [[support]] tables"))),
+           "corners) instead of [[support]] tables"),
+        _K("macro", "`{family = \"cross\", values = [...], channel = \"t\"}`", UNSET, "`elasticity` on a lattice's "
+           "homogenised macro model: the map alone (`[tile] library = \"cube\"`, one cell) whose material is the "
+           "cubic effective stiffness of `family` (`cross`, or a family of six face values with all six alike, "
+           "e.g. `face_graded_cross`) made of `youngs` and `poisson`, tabulated at the arm widths `values` (>= 2, "
+           "increasing) and read at the map's channel `channel` (`iga.stiffness_table`)"))),
     Section("support", "[[support]]", "A displacement held (the elastic kinds): on faces (`tag`), or on the control "
             "points of a patch edge, a patch corner, a point or a box (exactly one of `tag`, `edge`, `corner`, "
             "`point`, `box`); with `stiffness`, springs instead of a rigid hold.", (
@@ -275,7 +280,8 @@ _SECTIONS = (
             "the field of a `field_graded` paving (its tiles' parameters), optimised for an output "
             "(`iga.optimize`).", (
         _K("variables", "`\"channel:NAME\"`, `\"map\"` or `\"parameters\"`", REQUIRED, "the channel NAME of "
-           "the map (the one `material.conductivity` names, or `physics.youngs`), e.g. made by `map.grading`; or "
+           "the map (the one `material.conductivity` names, `physics.youngs`, or `physics.macro`'s channel), e.g. made "
+           "by `map.grading`; or "
            "`map`: the coordinates of the map's control points, at the solid volume of the start; or `parameters`: the control values of "
            "`paving.field` (a number or a channel of the map) of a `field_graded` paving or of a hierarchical one "
            "with `leaves`, at the solid volume of the start"),
@@ -297,6 +303,8 @@ _SECTIONS = (
         _K("tag", "a tag (expression)", UNSET, "heat: over the faces of this tag instead of the volume"),
         _K("mean", "a number (W/(m K); Pa)", UNSET, "keep the volume mean of the channel (for a channel between two "
            "materials: the volume, and the mass, of each)"),
+        _K("keep_fraction", "true or false", False, "`channel:NAME` of a `physics.macro` model: keep its mean solid "
+           "fraction (the lattice's mass) instead of a `mean`"),
         _K("iterations", "an integer >= 1", 30, "SLSQP's iteration limit"))),
     Section("solver", "[solver]", "The discretisation and the linear solver.", (
         _K("method", _one_of(m for m in solvers.backends() if m != "petsc") + " (`petsc` with the [mpi] extra)",

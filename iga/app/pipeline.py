@@ -34,7 +34,7 @@ from tiling.export import boundary_splines, mesh_watertightness, write_mesh, wri
 from iga.app.config import validate
 from iga.app.config_records import Config, Record
 from iga.app.config_model import surface_reason
-from iga.app.pipeline_build import build, build_maps
+from iga.app.pipeline_build import build, build_maps, macro_material
 from iga.errors import ProblemError
 from iga.io.gismo import export_gismo
 from iga.discretisation.locate import Locator
@@ -275,7 +275,8 @@ def _design(prob, d: Record, method: str) -> tuple:
         result = optimize(prob, objective, "parameters", d.bounds, maxiter=d.iterations, solver=method,
                           hold=tuple(d.hold))
     else:
-        result = optimize(prob, objective, d.variables, d.bounds, d.mean, d.iterations, solver=method)
+        result = optimize(prob, objective, d.variables, d.bounds, d.mean, d.iterations, solver=method,
+                          keep_fraction=bool(d.get("keep_fraction")))
     return objective, result
 
 
@@ -367,8 +368,10 @@ def _elastic_stage(cfg, ms, heat_solution, out: Path, ocfg: Record, stages) -> d
 
     ph, scfg = cfg.physics, cfg.solver
     stages.start("elastic analysis")
-    p = ElasticityProblem(ms, ph.youngs, ph.poisson, degree_elevation=scfg.degree_elevation,
-                          refine=scfg.refine, degree=scfg.degree, quadrature_extra=scfg.quadrature_extra)
+    material = macro_material(ph.macro, ph.youngs, ph.poisson) if ph.get("macro") else None
+    p = ElasticityProblem(ms, *((None, None) if material else (ph.youngs, ph.poisson)), material=material,
+                          degree_elevation=scfg.degree_elevation, refine=scfg.refine, degree=scfg.degree,
+                          quadrature_extra=scfg.quadrature_extra)
     names = _support_names(ph.support)
     for s, name in zip(ph.support, names):
         if s["tag"] is not None:

@@ -13,6 +13,8 @@ errors.
 
 from __future__ import annotations
 
+import inspect
+
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -57,6 +59,21 @@ def build_map(cfg) -> BSpline:
 
 def _tile(t):
     return TILES[t.library](**t.args)
+
+
+def macro_material(macro, youngs: float, poisson: float):
+    """physics.macro's :class:`iga.CubicMaterial`: the cubic stiffness of the family (one width, or six face values
+    alike) made of ``youngs`` (Pa) and ``poisson``, tabulated at its ``values`` and read at its ``channel``."""
+    from iga.homogenisation.macro import stiffness_table
+
+    fn = TILES[macro["family"]]
+    faces = ("umin", "umax", "vmin", "vmax", "wmin", "wmax")
+    takes_faces = set(faces) <= set(inspect.signature(fn).parameters)
+
+    def member(w):
+        return fn(**{f: w for f in faces}) if takes_faces else fn(w)
+
+    return stiffness_table(member, macro["values"], youngs, poisson, name=macro["family"]).material(macro["channel"])
 
 
 def build_maps(cfg):
