@@ -148,7 +148,7 @@ def run_slsqp(objective, analyse, z0, box, unit: float, constraints, maxiter: in
     if keep_measure and not np.abs(dM0).max() > 1e-12 * abs(M0):  # SLSQP: "Singular matrix C", nothing done
         raise ProblemError(f"the {measured} does not change to first order with these design variables (its gradient "
                            f"vanishes at the start), so it cannot be kept as an equality; design without keeping it "
-                           f"(keep_volume=False) or free other variables")
+                           f"(keep_volume=False, keep_fraction=False) or free other variables")
     if keep_measure:
         constraints = list(constraints) + [{"type": "eq", "fun": lambda z: np.array([(at(z)[4] - M0) / abs(M0)]),
                                             "jac": lambda z: at(z)[5][None, :] / abs(M0)}]
