@@ -97,14 +97,13 @@ def _dragged_channel(prob, D, what: str):
     D's channels."""
     # (a channel the map holds is read from the map, before an equally named channel of the tile)
     if hasattr(prob, "material"):
-        if prob.material.kind != "isotropic":
-            raise ProblemError(f"{what}: the shape terms of a {prob.material.kind} material are not built; give an "
-                               "isotropic one (youngs=, poisson=)")
-        if prob.poisson.kind == "channel" and prob.poisson.spec in D.channels:
+        from iga.elasticity.shape import drag_channel
+
+        if prob.material.kind == "isotropic" and prob.poisson.kind == "channel" and prob.poisson.spec in D.channels:
             raise ProblemError(f"{what}: Poisson's ratio reads the map's channel {show(prob.poisson.spec)}; its "
                                "term is not built (give a number)")
-        E = prob.youngs
-        return list(D.channels).index(E.spec) if E.kind == "channel" and E.spec in D.channels else None
+        name = drag_channel(prob)  # Young's modulus, or a cubic material's table parameter
+        return list(D.channels).index(name) if name is not None and name in D.channels else None
     k = prob.conductivity
     if k.channels is not None and any(c in D.channels for c in k.channels):
         raise ProblemError(f"{what}: an anisotropic conductivity read from channels of the map is not supported "

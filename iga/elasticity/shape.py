@@ -12,15 +12,17 @@ coefficients: numbers or channels of the map, which move with the points):
 i.e. dJ = sum_q Q_q : grad V_q with Q = 2 grad u^T sigma + (2 f . u - eps : C : eps) I in the volume and
 Q = 2 (t . u) (I - n n) on traction faces.  The von Mises norm J = (I / V)^(1/p), I = int sigma_vm^p dV, takes
 one adjoint solve, a(v, lambda) = J'(u) v (:func:`iga.elasticity.adjoint.elastic_adjoint`), and
-dJ = J'_explicit + l'(lambda) - a'(u, lambda), where d sigma_vm = 3 mu s : d eps / sigma_vm (s the deviator)
-at fixed u gives the explicit part: with c = J^(1-p) / V,
+dJ = J'_explicit + l'(lambda) - a'(u, lambda), where d sigma_vm = 3/2 (C : s) : d eps / sigma_vm (s the
+deviator; C : s = 2 mu s for an isotropic material) at fixed u gives the explicit part: with c = J^(1-p) / V,
 
-    Q = grad lambda^T sigma(u) + grad u^T sigma(lambda) - 3 c mu sigma_vm^(p-2) grad u^T s
+    Q = grad lambda^T sigma(u) + grad u^T sigma(lambda) - 3/2 c sigma_vm^(p-2) grad u^T (C : s)
         + (c / p (sigma_vm^p - J^p) - eps(u) : C : eps(lambda) + f . lambda) I,
 
 and (t . lambda) (I - n n) on traction faces (the compliance's formulas with 2 u for lambda, and no explicit
-part but the loads').  ``tests/test_elastic_sensitivity.py`` compares both with central differences of fresh
-solves.  Refused: other outputs, pressures (their direction moves with the face), point loads (they stay where
+part but the loads').  The material is isotropic or cubic (:mod:`iga.elasticity.material`); where a moved point
+reads a channel of the map elsewhere (``wrt="parameters"``), the integrand's derivative by that channel (C') is
+handed on as ``dk``.  ``tests/test_elastic_sensitivity.py`` and ``tests/test_cubic_material.py`` compare both with
+central differences of fresh solves.  Refused: other outputs, pressures (their direction moves with the face), point loads (they stay where
 they are while the material moves), callables of x, thermal strains and prescribed displacements other than zero.
 """
 
@@ -35,7 +37,7 @@ from iga.errors import ProblemError
 from iga.elasticity.adjoint import elastic_adjoint
 from iga.outputs import Compliance, Volume, VonMisesNorm, evaluated, gauss_pass, von_mises
 
-__all__ = ["elastic_densities", "strain_and_stress", "self_adjoint"]
+__all__ = ["elastic_densities", "strain_and_stress", "self_adjoint", "drag_channel"]
 
 
 def self_adjoint(solution, output, what: str, subject: str = "shape derivative") -> None:
@@ -75,10 +77,7 @@ def _check(solution, output, what: str) -> None:
                                "pressure's direction moves with the face; a callable of x would move)")
     if prob.body is not None and prob.body.kind != "vector":
         raise ProblemError(f"{what}: the body force must be three numbers, not a callable of x")
-    if prob.material.kind != "isotropic":
-        raise ProblemError(f"{what}: the shape terms of a {prob.material.kind} material are not built; give an "
-                           "isotropic one (youngs=, poisson=)")
-    for field in (prob.youngs, prob.poisson):
+    for field in (prob.youngs, prob.poisson) if prob.material.kind == "isotropic" else ():
         if field.kind == "callable":
             raise ProblemError(f"{what}: {field.what} must be a number or a channel of the map (material), not a "
                                "callable of x")
@@ -93,15 +92,29 @@ def strain_and_stress(prob, chunk, grads, x, chans) -> tuple:
     return mod, eps, mod.stress(eps)
 
 
-def _youngs(prob, chunk, x, chans) -> np.ndarray:
-    """Young's modulus (N,) in Pa of the isotropic material at the Gauss points x of ``chunk``."""
-    return prob.youngs.values(x, {c: np.reshape(v, -1) for c, v in chans.items()}, f"patches {chunk[0]}..{chunk[-1]}")
+def drag_channel(prob) -> str | None:
+    """The channel whose value at a point sets the stiffness's scale or shape there (an isotropic material's
+    Young's modulus, a cubic material's table parameter), or None: what a point moved within the map drags."""
+    m = prob.material
+    if m.kind == "isotropic":
+        return m.youngs.spec if m.youngs.kind == "channel" else None
+    return m.channel
+
+
+def _slopes(prob, chunk, x, chans):
+    """dC/dc (:class:`iga.elasticity.material.Moduli`) by the value c of :func:`drag_channel` at the Gauss points
+    x of ``chunk``, or None when the material reads no channel."""
+    channel = drag_channel(prob)
+    if channel is None:
+        return None
+    flat = {c: np.reshape(v, -1) for c, v in chans.items()}
+    return prob.material.slopes(x, flat, f"patches {chunk[0]}..{chunk[-1]}", channel)
 
 
 def elastic_densities(solution, output, volume, faces, what: str, solver: str = "auto") -> None:
     """The shape densities of the compliance or the von Mises norm (module notes; the volume's, div V, for
     :class:`Volume`) handed to ``volume(chunk, space, Qw, dk)`` per group of patches (``dk``: the weighted
-    derivative of the integrand by Young's modulus at the point) and to ``faces(face data, Qw)`` once, as
+    derivative of the integrand by the value of :func:`drag_channel` at the point) and to ``faces(face data, Qw)`` once, as
     :func:`iga.shape_sensitivity.shape_densities` does for heat; ``solver``: the von Mises norm's adjoint."""
     prob = solution.problem
     prob.gauss_geometry.keep(prob)
@@ -123,23 +136,29 @@ def elastic_densities(solution, output, volume, faces, what: str, solver: str = 
         gu, gl = grads[:, :3], grads[:, 3:]  # (u's, and the adjoint's for the von Mises norm)
         if not stress:
             _, eps, sig = strain_and_stress(prob, chunk, gu, x, chans)
-            E = _youngs(prob, chunk, x, chans)
+            slopes = _slopes(prob, chunk, x, chans)
             energy2 = np.sum(sig * eps, axis=(1, 2))  # eps : C : eps
             Q = 2 * np.einsum("qik,qij->qkj", gu, sig)
             scalar = -energy2 + (0.0 if body is None else 2 * vals[:, :3] @ body)
-            volume(chunk, space, (Q + scalar[:, None, None] * np.eye(3)) * wv[:, None, None], -energy2 / E * wv)
+            dk = np.zeros_like(wv) if slopes is None else -slopes.product(eps, eps) * wv  # - eps : C' : eps
+            volume(chunk, space, (Q + scalar[:, None, None] * np.eye(3)) * wv[:, None, None], dk)
             return
         mod, eps, sig = strain_and_stress(prob, chunk, gu, x, chans)
-        E, mu = _youngs(prob, chunk, x, chans), mod.mu
-        sig_l = mod.stress(strain(gl))
+        slopes, eps_l = _slopes(prob, chunk, x, chans), strain(gl)
+        sig_l = mod.stress(eps_l)
         dev, vm = von_mises(sig)
         cross = np.sum(sig_l * eps, axis=(1, 2))  # eps(u) : C : eps(lambda)
         scale = np.where(vm > 0, np.where(vm > 0, vm, 1.0) ** (p - 2), 0.0)  # vm^(p-2) s -> 0 where vm = 0
+        # d sigma_vm = 3/2 (C : s) : d eps / sigma_vm (C : s = 2 mu s for an isotropic material)
         Q = (np.einsum("qik,qij->qkj", gl, sig) + np.einsum("qik,qij->qkj", gu, sig_l)
-             - (3 * c * mu * scale)[:, None, None] * np.einsum("qik,qij->qkj", gu, dev))
+             - (1.5 * c * scale)[:, None, None] * np.einsum("qik,qij->qkj", gu, mod.stress(dev)))
         scalar = c / p * (vm**p - J**p) - cross + (0.0 if body is None else vals[:, 3:] @ body)
-        volume(chunk, space, (Q + scalar[:, None, None] * np.eye(3)) * wv[:, None, None],
-               (c * vm**p - cross) / E * wv)
+        if slopes is None:
+            dk = np.zeros_like(wv)
+        else:  # the integrand's derivative by the dragged channel: 3/2 c sigma_vm^(p-2) s : C' : eps - eps_l : C' : eps
+            dsig = slopes.stress(eps)
+            dk = (1.5 * c * scale * np.sum(dev * dsig, axis=(1, 2)) - np.sum(eps_l * dsig, axis=(1, 2))) * wv
+        volume(chunk, space, (Q + scalar[:, None, None] * np.eye(3)) * wv[:, None, None], dk)
 
     # the compliance's volume terms need u alone (2 u's gradients would be u's twice over)
     fields = np.vstack([solution.u.reshape(3, n), tested.reshape(3, n)]) if stress else solution.u.reshape(3, n)
