@@ -148,8 +148,8 @@ def main(argv=None):
     lattice = lattice_design(args.maxiter)
     cantilever = cantilever_design(args.maxiter)
     macro = macro_design(args.maxiter)
-    save_json("design.json", {"gradient_costs": costs, **channel, "shape": shape, "pins": pins, "sink": sink, "lattice": lattice,
-                              "cantilever": cantilever, "macro": macro})
+    save_json("design.json", {"gradient_costs": costs, **channel, "shape": shape, "pins": pins, "sink": sink,
+                              "lattice": lattice, "cantilever": cantilever, "macro": macro})
 
 
 _COST_COLUMNS = [("model", ">14"), ("unknowns", ",d"), ("variables", "d"), ("forward_s", ".3f"), ("gradient_s", ".3f"),

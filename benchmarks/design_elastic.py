@@ -169,8 +169,9 @@ def macro_design(maxiter: int) -> dict:
     print_table(rows, [("design", ">8"), ("lattice_unknowns", ",d"), ("macro_J", ".5g"), ("lattice_J", ".5g"),
                        ("gap_percent", "+.1f"), ("volume_cm3", ".4f"), ("force_z_N", ".4f")])
     lower = 100 * (rows[0]["lattice_J"] - rows[1]["lattice_J"]) / rows[0]["lattice_J"]
-    picture = _render_pair(grids, [f"{r['design']}: lattice compliance {r['lattice_J'] * 1e6:.2f} uJ, macro model "
-                                   f"{r['macro_J'] * 1e6:.2f} uJ" for r in rows], figures_dir() / "macro_cantilever.png")
+    captions = [f"{r['design']}: lattice compliance {r['lattice_J'] * 1e6:.2f} uJ, macro model "
+                f"{r['macro_J'] * 1e6:.2f} uJ" for r in rows]
+    picture = _render_pair(grids, captions, figures_dir() / "macro_cantilever.png")
     print(f"verified on the full lattice: the compliance {lower:.1f}% lower at the same solid volume and force "
           f"(uniform width {w_match:.4f} matched to the graded lattice's volume); picture {picture}")
     print("field control values (x along the rows; middle of y; z across):\n"

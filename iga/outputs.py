@@ -233,8 +233,8 @@ class VonMisesNorm(Output):
     Its gradient in the displacement (:meth:`gradient`) is the load int tau : grad v dV with
     tau = J^(1-p) / V 3/2 sigma_vm^(p-2) C : s (s the stress deviator: d sigma_vm = 3/2 (C : s) : d eps / sigma_vm,
     and C : s = 2 mu s for an isotropic material), what
-    the elastic adjoint solves with (:func:`iga.elasticity.adjoint.elastic_adjoint`); its sensitivities by Young's
-    modulus and by the shape: :mod:`iga.elasticity.sensitivity`, :mod:`iga.elasticity.shape`."""
+    the elastic adjoint solves with (:func:`iga.elasticity.adjoint.elastic_adjoint`); its sensitivities by the
+    material and by the shape: :mod:`iga.elasticity.sensitivity`, :mod:`iga.elasticity.shape`."""
 
     def __init__(self, p: float = 8.0):
         self.p = _exponent(p, "VonMisesNorm")

@@ -25,7 +25,7 @@ from iga.outputs import Output, Volume, evaluated
 from iga.adjoint import shape_map
 from iga.shape_sensitivity import shape_sensitivity
 
-__all__ = ["optimize_shape", "moved_map"]
+__all__ = ["optimize_shape", "moved_map", "valid_axes"]
 
 
 def moved_map(D, points: np.ndarray) -> BSpline:
@@ -36,12 +36,17 @@ def moved_map(D, points: np.ndarray) -> BSpline:
     return BSpline(D.degrees, D.knots, cp, D.weights, channels=D.channels)
 
 
+def valid_axes(axes) -> bool:
+    """Whether ``axes`` names coordinates a shape design may move: some of "x", "y", "z", each once."""
+    return isinstance(axes, str) and bool(axes) and set(axes) <= set("xyz") and len(set(axes)) == len(axes)
+
+
 def _check(move, axes) -> None:
     """The arguments of a shape design (:func:`iga.optimiser.check_design` checks the rest)."""
     if not (is_real(move) and np.isfinite(move) and move > 0):
         raise ProblemError(f"wrt='map': bounds is the largest move of a control point coordinate, a number > 0 (m), "
                            f"got {show(move)}")
-    if not (isinstance(axes, str) and axes and set(axes) <= set("xyz") and len(set(axes)) == len(axes)):
+    if not valid_axes(axes):
         raise ProblemError(f"wrt='map': axes names the coordinates that move, some of 'x', 'y', 'z' once each (e.g. "
                            f"'z': heights only), got {show(axes)}")
 

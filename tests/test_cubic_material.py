@@ -336,8 +336,6 @@ def test_a_bad_macro_pipeline_is_refused_naming_the_key(change, match):
     for section, values in change.items():
         merged = copy.deepcopy(cfg.get(section, {}))
         merged.update(values)
-        if section == "physics" and "macro" in values and "kind" not in values:
-            merged["macro"] = values["macro"]
         if section == "design" and values.get("variables") == "map":
             merged = {k: v for k, v in merged.items() if k not in ("bounds",)}
         cfg[section] = merged

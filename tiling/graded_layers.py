@@ -21,6 +21,7 @@ import numpy as np
 
 from geometry import BSpline, SplineFunction
 from geometry.errors import show
+from geometry.faces import FACE_AXIS, FACE_NAMES
 from geometry.numbers import is_real
 
 from .errors import TilingError
@@ -207,9 +208,13 @@ class FaceGrading:
 
 #: walls of two leaves closer than this (relative to D's parameter domain) are one site: a shared wall
 SITE_MARGIN = 1e-9
-#: the centres of the unit cell's six faces, in tile coordinates
-_FACE_CENTRES = {"umin": (0.0, 0.5, 0.5), "umax": (1.0, 0.5, 0.5), "vmin": (0.5, 0.0, 0.5), "vmax": (0.5, 1.0, 0.5),
-                 "wmin": (0.5, 0.5, 0.0), "wmax": (0.5, 0.5, 1.0)}
+def _face_centres() -> np.ndarray:
+    """The centres (6, 3) of the unit cell's faces, in :data:`geometry.faces.FACE_NAMES` order (tile coordinates)."""
+    out = np.full((len(FACE_NAMES), 3), 0.5)
+    for i, face in enumerate(FACE_NAMES):
+        k, side = FACE_AXIS[face]
+        out[i, k] = side
+    return out
 
 
 @dataclass(frozen=True)
@@ -273,7 +278,7 @@ def leaf_graded(D: BSpline, tile: Tile, counts, levels: int, family, field, scal
     last = max(p.level for p in first.patches)
     leaves = sorted({p.tile for p in first.patches if p.level == last})
     at = {p.tile: p.placement for p in first.patches if p.level == last}  # (3, 4): tile coordinates -> D's
-    local = np.array(list(_FACE_CENTRES.values()))
+    local = _face_centres()
     centres = np.concatenate([local @ at[t][:, :3].T + at[t][:, 3] for t in leaves])  # (6 L, 3)
     extent = float(np.max(D.domain[:, 1] - D.domain[:, 0]))
     pairs = cKDTree(centres).query_pairs(SITE_MARGIN * extent, output_type="ndarray")
@@ -283,7 +288,7 @@ def leaf_graded(D: BSpline, tile: Tile, counts, levels: int, family, field, scal
     site_centres = np.zeros((site.max() + 1, 3))
     site_centres[site] = centres
     values = _field_values(D, field, site_centres)
-    faces = list(_FACE_CENTRES)
+    faces = FACE_NAMES
     tile_sites = {t: {f: int(site[6 * j + m]) for m, f in enumerate(faces)} for j, t in enumerate(leaves)}
     tiles = list(first.tiles)
     for t in leaves:

@@ -13,7 +13,6 @@ documentation's pipeline reference); the checks of values and of how sections co
 
 from __future__ import annotations
 
-import inspect
 from pathlib import Path
 
 import solvers
@@ -21,7 +20,7 @@ from tiling.library import TILES
 from iga.app.config_checks import (boolean as _bool, choice as _choice, fail as _fail, formula as _formula,
                             formula_table as _formula_table, integer as _int, number as _number, string as _str,
                             table as _table, tag as _tag)
-from iga.app.config_model import (NO_MAP, NO_TILE, map_section, paving_section, polygon_tile, primitives, reduce_section,
+from iga.app.config_model import (NO_MAP, NO_TILE, takes_faces, width_family, map_section, paving_section, polygon_tile, primitives, reduce_section,
                            second_level, surface_reason, tile_section)
 from iga.app.config_physics import physics as _physics
 from iga.app.config_records import Config, config_record
@@ -188,17 +187,15 @@ def _macro_model(macro: dict, cfg: dict) -> None:
         _fail("physics.macro", "analyses the map as a continuum: pave it with one solid cell ([tile] library = "
               "\"cube\", [paving] scheme = \"regular\", counts = [1, 1, 1])")
     family = macro["family"]
-    takes = set(inspect.signature(TILES[family]).parameters) if family in TILES else set()
-    if len(takes) != 1 and not {"umin", "umax", "vmin", "vmax", "wmin", "wmax"} <= takes:
+    if width_family(family) is None:
         _fail("physics.macro.family", f"must be a library tile of one width (e.g. \"cross\") or of six face values "
               f"(e.g. \"face_graded_cross\"), got {family!r}")
 
 
 def _face_family(name: str, key: str, what: str) -> None:
     """A library tile whose arguments are the six faces' values (a field gives them): refused naming ``key``."""
-    faces = {"umin", "umax", "vmin", "vmax", "wmin", "wmax"}
-    if name not in TILES or not faces <= set(inspect.signature(TILES[name]).parameters):
-        family = sorted(n for n, f in TILES.items() if faces <= set(inspect.signature(f).parameters))
+    if not takes_faces(name):
+        family = sorted(n for n in TILES if takes_faces(n))
         _fail(key, f"{what} need{'s' if what.startswith('the') else ''} a tile of the six faces' values (umin .. "
               f"wmax); {name!r} is not one: use one of {family}")
 
@@ -261,9 +258,11 @@ def validate(config, base_dir=".") -> Config:
     cfg["adapt"] = adapt_section(config, physics["kind"])
     if "macro" in physics:
         _macro_model(physics["macro"], cfg)
-    cfg["design"] = design_section(config, physics["kind"], (physics["macro"]["channel"] if "macro" in physics else
-                                   physics["youngs"]) if physics["kind"] == "elasticity"
-                                   else cfg["material"]["conductivity"])
+    if physics["kind"] == "elasticity":  # the coefficient a channel design changes
+        designed = physics["macro"]["channel"] if "macro" in physics else physics["youngs"]
+    else:
+        designed = cfg["material"]["conductivity"]
+    cfg["design"] = design_section(config, physics["kind"], designed)
     if (cfg["adapt"] or cfg["design"]) is not None and cfg["solver"]["method"] == "petsc":
         raise ProblemError("config sections adapt and design solve serially; use another solver.method than 'petsc'")
     cfg["output"] = _output(config.get("output", {}), Path(base_dir))

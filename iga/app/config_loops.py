@@ -16,6 +16,7 @@ from __future__ import annotations
 from iga.app.config_checks import choice, fail, integer, number, table
 from iga.app.config_schema import allowed, filled, required
 from iga.errors import ProblemError
+from iga.shape_design import valid_axes
 
 __all__ = ["adapt_section", "design_section"]
 
@@ -153,7 +154,7 @@ def _shape_design(d) -> dict:
         fail("design.move", "is required for variables = \"map\": the largest move of a control point "
              "coordinate (m)")
     axes = d["axes"]
-    if not (isinstance(axes, str) and axes and set(axes) <= set("xyz") and len(set(axes)) == len(axes)):
+    if not valid_axes(axes):
         fail("design.axes", f"must name the coordinates that move, some of x, y, z once each (e.g. \"z\"), got "
              f"{axes!r}")
     return {"move": number(d["move"], "design.move", lo=0), "hold": _hold(d["hold"]), "axes": axes}

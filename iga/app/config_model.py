@@ -12,6 +12,7 @@ degree 2 or 3 (Section 6.3) with its topology and tags kept.
 
 from __future__ import annotations
 
+import inspect
 import re
 from pathlib import Path
 
@@ -29,7 +30,8 @@ from iga.app.maps import MAPS
 from iga.tags import parse_expression
 
 __all__ = ["map_section", "tile_section", "paving_section", "primitives", "second_level", "reduce_section",
-           "surface_reason", "polygon_tile", "SCHEMES", "NO_TILE", "NO_MAP", "POLYGON_TILES"]
+           "surface_reason", "polygon_tile", "SCHEMES", "NO_TILE", "NO_MAP", "POLYGON_TILES", "takes_faces",
+           "width_family"]
 
 SCHEMES = ("hierarchical", "regular", "field_graded", "bifurcation", "vrep", "polygons", "random_implicit",
            "implicit_bifurcation")
@@ -38,6 +40,22 @@ NO_TILE = ("bifurcation", "vrep", "random_implicit", "implicit_bifurcation")
 #: schemes without a [map] section (V-rep primitives carry their maps)
 NO_MAP = ("vrep",)
 POLYGON_TILES = {"beam_lattice": beam_lattice}
+
+
+def takes_faces(name: str) -> bool:
+    """Whether the library tile ``name`` is a family of the six faces' values (``umin=`` .. ``wmax=``)."""
+    return name in TILES and set(FACE_NAMES) <= set(inspect.signature(TILES[name]).parameters)
+
+
+def width_family(name: str):
+    """The library tile ``name`` as a family of one width, ``w -> Tile`` (a tile of one argument, e.g. ``cross``, or
+    a family of the six faces' values with all six ``w``), or None when it is neither."""
+    if takes_faces(name):
+        return lambda w: TILES[name](**{f: w for f in FACE_NAMES})
+    if name in TILES and len(inspect.signature(TILES[name]).parameters) == 1:
+        return TILES[name]
+    return None
+
 #: the keys of each scheme's [paving] (iga.app.config_schema), and every key some scheme takes
 _SCHEME_KEYS = {scheme: allowed(f"paving.{scheme}") for scheme in SCHEMES}
 _PAVING_KEYS = set().union(*_SCHEME_KEYS.values())

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from geometry.errors import show
 
 from iga.app.config_checks import choice as _choice, fail as _fail, formula as _formula, formula_table as _formula_table
@@ -80,8 +82,6 @@ def physics(config, surface: str | None = None) -> dict:
 
 def _macro(m, kind: str, out: dict) -> dict:
     """physics.macro: {family (a library tile of one width), values (>= 2 increasing widths in (0, 1)), channel}."""
-    import numpy as np
-
     if kind != "elasticity":
         _fail("physics.macro", f"applies to physics.kind = 'elasticity' (a cubic macro model), not {kind!r}")
     m = _table(m, "physics.macro", {"family", "values", "channel"}, ("family", "values", "channel"))

@@ -13,8 +13,6 @@ errors.
 
 from __future__ import annotations
 
-import inspect
-
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -26,7 +24,7 @@ from tiling.materials import graded_channel
 from tiling.members.polygons import PolygonTile
 from tiling.vrep import Primitive, vrep_microstructure
 
-from iga.app.config_model import POLYGON_TILES
+from iga.app.config_model import POLYGON_TILES, width_family
 from iga.app.maps import MAPS
 from iga.tags import parse_expression
 
@@ -66,14 +64,8 @@ def macro_material(macro, youngs: float, poisson: float):
     alike) made of ``youngs`` (Pa) and ``poisson``, tabulated at its ``values`` and read at its ``channel``."""
     from iga.homogenisation.macro import stiffness_table
 
-    fn = TILES[macro["family"]]
-    faces = ("umin", "umax", "vmin", "vmax", "wmin", "wmax")
-    takes_faces = set(faces) <= set(inspect.signature(fn).parameters)
-
-    def member(w):
-        return fn(**{f: w for f in faces}) if takes_faces else fn(w)
-
-    return stiffness_table(member, macro["values"], youngs, poisson, name=macro["family"]).material(macro["channel"])
+    return stiffness_table(width_family(macro["family"]), macro["values"], youngs, poisson,
+                           name=macro["family"]).material(macro["channel"])
 
 
 def build_maps(cfg):

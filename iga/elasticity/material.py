@@ -12,7 +12,7 @@ positive definite where mu > 0, C11 - C12 > 0 and C11 + 2 C12 > 0.  In the weak 
 d_a N_i with d_a N_j in the diagonal block (a, a) alone (:func:`iga.elasticity.forms.block_terms`).
 
 The constants of a :class:`CubicMaterial` are numbers, or functions of one channel of the map: an object with
-``constants(p (N,)) -> (N, 3)`` (C11, C12, C44 in Pa) and ``slopes(p) -> (N, 3)`` (their derivatives by p),
+``constants_at(p (N,)) -> (N, 3)`` (C11, C12, C44 in Pa) and ``slopes(p) -> (N, 3)`` (their derivatives by p),
 such as :class:`iga.StiffnessTable` (the effective stiffness of a tile family tabulated over its
 parameter): a graded lattice's macro model, differentiable by the channel's control values.
 """
@@ -118,7 +118,7 @@ class IsotropicMaterial:
 
 class CubicMaterial:
     """A material of cubic symmetry about x, y, z (module notes): ``constants`` = (C11, C12, C44) in Pa (numbers),
-    or an object with ``constants(p)`` and ``slopes(p)`` (N, 3) of the value p of the map's channel ``channel``
+    or an object with ``constants_at(p)`` and ``slopes(p)`` (N, 3) of the value p of the map's channel ``channel``
     (e.g. :meth:`iga.StiffnessTable.material`)."""
 
     kind = "cubic"
@@ -135,7 +135,7 @@ class CubicMaterial:
                                    f"{show(channel)} or give a table of the channel's value")
             self.table, self.constant, self.channel = None, c, None
             return
-        if not (callable(getattr(constants, "constants", None)) and callable(getattr(constants, "slopes", None))):
+        if not (callable(getattr(constants, "constants_at", None)) and callable(getattr(constants, "slopes", None))):
             raise ProblemError(f"CubicMaterial: constants must be three numbers (C11, C12, C44) in Pa or a table of "
                                f"them over a channel (iga.stiffness_table(...)), got {show(constants)}")
         if not isinstance(channel, str):
@@ -151,7 +151,7 @@ class CubicMaterial:
     def _constants(self, x, chans, where) -> np.ndarray:
         if self.table is None:
             return np.broadcast_to(self.constant, (len(x), 3))
-        c = np.asarray(self.table.constants(np.asarray(chans[self.channel], float)), float)
+        c = np.asarray(self.table.constants_at(np.asarray(chans[self.channel], float)), float)
         _check_definite(c, x, where)
         return c
 

@@ -11,6 +11,7 @@ from geometry.patches.chain import patch_geometry_points
 from iga.elasticity.forms import strain
 from iga.elasticity.supports import POINT_MARGIN
 from iga.errors import ProblemError
+from iga.outputs import von_mises
 from geometry.errors import show
 from iga.discretisation.problem import SolveRecord
 from iga.discretisation.fields import integrate_fields
@@ -171,7 +172,7 @@ class ElasticSolution:
 
     def von_mises(self, points) -> np.ndarray:
         """Von Mises equivalent stress (N,) in Pa at physical points."""
-        return _von_mises(self.stress(points))
+        return von_mises(self.stress(points))[1]
 
     # ------------------------------------------------------------ reactions
     def reaction(self, tag: str) -> np.ndarray:
@@ -279,8 +280,3 @@ class ElasticSolution:
         check_reference(exact_grad, "exact_grad")
         return float(np.sqrt(self.integrate(
             lambda x, u, g: np.sum((g - reference_values(exact_grad, x, (3, 3), "exact_grad")) ** 2, axis=(1, 2)))))
-
-
-def _von_mises(S: np.ndarray) -> np.ndarray:
-    dev = S - np.trace(S, axis1=1, axis2=2)[:, None, None] / 3 * np.eye(3)
-    return np.sqrt(1.5 * np.sum(dev * dev, axis=(1, 2)))

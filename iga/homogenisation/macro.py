@@ -54,13 +54,8 @@ class EffectiveTable:
     def components(self, p) -> np.ndarray:
         """The interpolated tensor components (N, 6) in the order (xx, yy, zz, xy, xz, yz) at parameters p (N,);
         a parameter outside the table is refused (no extrapolation)."""
-        p = np.asarray(p, float).reshape(-1)
-        lo, hi = float(self.values[0]), float(self.values[-1])
-        bad = ~((p >= lo - 1e-12 * max(1.0, abs(lo))) & (p <= hi + 1e-12 * max(1.0, abs(hi))))
-        if bad.any():
-            raise ProblemError(f"parameter {p[bad][0]:g} lies outside the table of {self.name} ([{lo:g}, {hi:g}]); "
-                               "tabulate the range the model uses (effective_table(family, values))")
-        return self._spline(np.clip(p, lo, hi))
+        return self._spline(_within(self.values, p, f"the table of {self.name}",
+                                   "tabulate the range the model uses (effective_table(family, values))"))
 
     def tensor(self, p) -> np.ndarray:
         """The interpolated tensors (N, 3, 3) at parameters p (N,)."""
@@ -112,14 +107,8 @@ class StiffnessTable:
         self._slope = self._spline.derivative()
 
     def _at(self, spline, p) -> np.ndarray:
-        p = np.asarray(p, float).reshape(-1)
-        lo, hi = float(self.values[0]), float(self.values[-1])
-        bad = ~((p >= lo - 1e-12 * max(1.0, abs(lo))) & (p <= hi + 1e-12 * max(1.0, abs(hi))))
-        if bad.any():
-            raise ProblemError(f"parameter {p[bad][0]:g} lies outside the stiffness table of {self.name} ([{lo:g}, "
-                               f"{hi:g}]); tabulate the range the model uses (stiffness_table(family, values, ...)) "
-                               "or bound the design within it")
-        return spline(np.clip(p, lo, hi))
+        return spline(_within(self.values, p, f"the stiffness table of {self.name}", "tabulate the range the model "
+                             "uses (stiffness_table(family, values, ...)) or bound the design within it"))
 
     def constants_at(self, p) -> np.ndarray:
         """(C11, C12, C44) (N, 3) in Pa at parameters p (N,); outside the table refused (no extrapolation)."""
@@ -140,16 +129,7 @@ class StiffnessTable:
     def material(self, channel: str) -> CubicMaterial:
         """The :class:`iga.CubicMaterial` whose constants are this table at the map's channel ``channel``:
         ``ElasticityProblem(D, material=table.material("t"))`` is the lattice's macro model on D."""
-        return CubicMaterial(_Constants(self), channel)
-
-
-class _Constants:
-    """A :class:`StiffnessTable` as the constants and slopes a :class:`iga.CubicMaterial` reads."""
-
-    def __init__(self, table: StiffnessTable):
-        self.table = table
-        self.constants, self.slopes = table.constants_at, table.slopes
-        self.fraction, self.fraction_slope = table.fraction, table.fraction_slope
+        return CubicMaterial(self, channel)
 
 
 def stiffness_table(family, values, youngs, poisson, degree_elevation: int = 1, refine: int = 0,
@@ -187,6 +167,18 @@ def cubic_constants(C: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     cubic[:, c[:, 0], c[:, 1]] = cubic[:, c[:, 1], c[:, 0]] = constants[:, 1:2]
     cubic[:, g, g] = constants[:, 2:]
     return constants, np.abs(C - cubic).max((1, 2)) / np.maximum(np.abs(C).max((1, 2)), TINY)
+
+
+def _within(values: np.ndarray, p, what: str, fix: str) -> np.ndarray:
+    """Parameters p (N,) inside the tabulated ``values`` (increasing), clipped onto them (a margin of 1e-12
+    relative to their ends takes the round-off of a design's values); one outside is refused naming ``what`` and
+    the ``fix`` (no extrapolation)."""
+    p = np.asarray(p, float).reshape(-1)
+    lo, hi = float(values[0]), float(values[-1])
+    bad = ~((p >= lo - 1e-12 * max(1.0, abs(lo))) & (p <= hi + 1e-12 * max(1.0, abs(hi))))
+    if bad.any():
+        raise ProblemError(f"parameter {p[bad][0]:g} lies outside {what} ([{lo:g}, {hi:g}]); {fix}")
+    return np.clip(p, lo, hi)
 
 
 def _increasing(values, what: str) -> np.ndarray:

@@ -10,6 +10,7 @@ from geometry.patches.sampling import piece_basis
 from iga.heat.coefficients import tensor_matrix
 from iga.elasticity.forms import strain
 from iga.errors import ProblemError
+from iga.outputs import von_mises
 from iga.discretisation.fields import grid_fields
 from iga.discretisation.fields import field_spline, physical_gradient
 from geometry.patches.chain import patch_geometry_points
@@ -95,9 +96,8 @@ def _displacement_fields(solution, members, pax, x, D, chans, out: dict) -> np.n
         eps = eps - th[:, None, None] * np.eye(3)
     S = mod.stress(eps)
     voigt = np.stack([S[:, 0, 0], S[:, 1, 1], S[:, 2, 2], S[:, 0, 1], S[:, 0, 2], S[:, 1, 2]], 1)
-    dev = S - np.trace(S, axis1=1, axis2=2)[:, None, None] / 3 * np.eye(3)
     out.update({"displacement": u.reshape(P, N, 3), "stress": voigt.reshape(P, N, 6),
-                "von_mises": np.sqrt(1.5 * np.sum(dev * dev, axis=(1, 2))).reshape(P, N)})
+                "von_mises": von_mises(S)[1].reshape(P, N)})
     if prob.youngs is not None:  # isotropic
         out.update({"youngs_modulus": prob.youngs.values(xs, flat, where).reshape(P, N),
                     "poisson_ratio": prob.poisson.values(xs, flat, where).reshape(P, N)})
